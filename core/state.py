@@ -1,1 +1,84 @@
-"""probe"""
+"""World state: one array per field, agents along the first axis.
+
+World frame (the one frame of the engine): right-handed, x east, y north, z up, metres,
+seconds, radians. The thesis works in North-East-Down; its plugins convert at their boundary
+(x_world = y_NED, y_world = x_NED, z_world = -z_NED). The CEM paper's plane is the world x-y
+plane; the VRB paper is already z-up.
+
+A failed vehicle is masked (``healthy[i] = False``), never deleted, so agent indices are stable
+for the whole run and equal the agent ids used in config (0 .. N-1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+
+class Role(IntEnum):
+    """Role of an agent in ``WorldState.role``."""
+
+    FOLLOWER = 0
+    LEADER = 1
+
+
+@dataclass
+class WorldState:
+    """State of every agent at the current time.
+
+    Attributes:
+        t: simulated time, s.
+        pos: positions, shape (N, 3), m, world frame.
+        vel: velocities, shape (N, 3), m/s, world frame.
+        healthy: (N,) bool; False once a failure event hit the agent (it then holds still).
+        comm_ok: (N,) bool; False once the agent lost its radio (``comm_loss`` event): it drops
+            out of the communication graph but keeps flying.
+        role: (N,) int8, values of :class:`Role`.
+        quat: orientation quaternions (w, x, y, z), body to world, shape (N, 4); ``None`` unless
+            the dynamics model has attitude.
+        omega: body angular rates, shape (N, 3), rad/s, body frame; ``None`` unless the dynamics
+            model has attitude.
+        rotor_speed: (N, 4) rad/s, for rotor-level models, else ``None``.
+    """
+
+    t: float
+    pos: np.ndarray
+    vel: np.ndarray
+    healthy: np.ndarray
+    comm_ok: np.ndarray
+    role: np.ndarray
+    quat: np.ndarray | None = None
+    omega: np.ndarray | None = None
+    rotor_speed: np.ndarray | None = None
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+    """Per-agent arrays a dynamics model adds (documented by that model), e.g. integrator states."""
+
+    @classmethod
+    def at_rest(cls, pos: np.ndarray, leader: int | None = None) -> "WorldState":
+        """A swarm at rest at ``pos`` (N, 3), all healthy, agent ``leader`` (if any) leading."""
+        pos = np.array(pos, dtype=float, copy=True)
+        n = pos.shape[0]
+        role = np.full(n, Role.FOLLOWER, dtype=np.int8)
+        if leader is not None:
+            role[leader] = Role.LEADER
+        return cls(
+            t=0.0,
+            pos=pos,
+            vel=np.zeros_like(pos),
+            healthy=np.ones(n, dtype=bool),
+            comm_ok=np.ones(n, dtype=bool),
+            role=role,
+        )
+
+    @property
+    def n(self) -> int:
+        """Number of agents, healthy or not."""
+        return self.pos.shape[0]
+
+    @property
+    def leader(self) -> int | None:
+        """Index of the leader, or ``None`` when the swarm has none."""
+        idx = np.flatnonzero(self.role == Role.LEADER)
+        return int(idx[0]) if idx.size else None

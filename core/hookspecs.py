@@ -1,0 +1,124 @@
+"""Every hook of swarmscene, in one module (the pluggy project name is ``swarmscene``).
+
+Two kinds of hook only:
+
+* registration hooks, called once when a plugin manager is built, each receiving a typed
+  ``register`` callback that takes a plugin class (keyed by the ``name`` it declares);
+* lifecycle hooks, called by the simulation on every registered observer (monitors, metrics,
+  recorders, and the chosen formation/avoidance/dynamics instances when they implement them).
+
+The kernel calls the chosen formation, avoidance and dynamics objects directly; hooks are never on
+the per-agent hot path. None of the hooks is ``firstresult``: every implementation runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import pluggy
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .events import Event
+    from .plugin import Avoidance, Dynamics, Formation
+    from .simulation import Simulation
+
+PROJECT = "swarmscene"
+hookspec = pluggy.HookspecMarker(PROJECT)
+hookimpl = pluggy.HookimplMarker(PROJECT)
+
+FormationRegister = Callable[[type["Formation"]], None]
+AvoidanceRegister = Callable[[type["Avoidance"]], None]
+DynamicsRegister = Callable[[type["Dynamics"]], None]
+ObserverRegister = Callable[[type[Any]], None]
+
+
+@hookspec
+def swarmscene_register_formations(register: FormationRegister) -> None:
+    """Register formation classes: call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built (before any run).
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.plugin.Formation` declaring
+            ``name`` and ``Params``; a name registered twice is an error naming both sources.
+    """
+
+
+@hookspec
+def swarmscene_register_avoidances(register: AvoidanceRegister) -> None:
+    """Register avoidance classes: call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built.
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.plugin.Avoidance`.
+    """
+
+
+@hookspec
+def swarmscene_register_dynamics(register: DynamicsRegister) -> None:
+    """Register dynamics classes: call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built.
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.plugin.Dynamics`.
+    """
+
+
+@hookspec
+def swarmscene_register_observers(register: ObserverRegister) -> None:
+    """Register observer classes (monitors, metrics, recorders) built once per run.
+
+    When: once, while the plugin manager is built. Each class is instantiated as
+    ``cls(sim)`` when a :class:`~swarmscene.core.simulation.Simulation` is built and the instance
+    is registered with that simulation's plugin manager, so its lifecycle hooks fire for that run
+    only (state never leaks between runs).
+    Args:
+        register: takes a class whose instances implement lifecycle hooks.
+    """
+
+
+@hookspec
+def swarmscene_run_start(sim: "Simulation") -> None:
+    """The run is about to take its first step.
+
+    When: once per run, after every component is built and before the first tick; ``sim.world``
+    holds the initial state.
+    Args:
+        sim: the simulation (world state, clock, environment, sensing, chosen plugins).
+    """
+
+
+@hookspec
+def swarmscene_event(sim: "Simulation", event: "Event") -> None:
+    """A scheduled event (failure, communication loss) has just been applied to the world.
+
+    When: during the events phase of the guidance tick at which ``event.at`` is reached, after the
+    kernel changed ``sim.world`` (e.g. ``healthy`` mask) and before sensing and formation run.
+    Args:
+        sim: the simulation.
+        event: the event applied (time, agents, kind).
+    """
+
+
+@hookspec
+def swarmscene_step_end(sim: "Simulation") -> None:
+    """A guidance tick has finished: dynamics have moved the agents and sensing is rebuilt.
+
+    When: once per guidance tick, after the physics sub-steps; ``sim.world.t`` is the new time and
+    ``sim.sensing`` reflects the new positions (the k-d tree is shared, do not rebuild it).
+    Args:
+        sim: the simulation.
+    """
+
+
+@hookspec
+def swarmscene_run_end(sim: "Simulation", metrics: dict[str, Any]) -> None:
+    """The run is over: add entries to ``metrics``.
+
+    When: once per run, after the last tick (or an early termination). Implementations add flat,
+    dotted keys in SI units, prefixed with their plugin's name (``cem.max_speed``); the engine's own
+    keys (``min_separation``...) are unprefixed. Values must be JSON-serialisable.
+    Args:
+        sim: the simulation.
+        metrics: the run's metrics, to be written to ``metrics.json``.
+    """

@@ -1,0 +1,128 @@
+"""Base classes of the three interchangeable algorithm kinds: formation, avoidance, dynamics.
+
+A plugin class declares its registered ``name`` and a pydantic ``Params`` model (the single source
+of truth for its YAML options, ``extra="forbid"``). The kernel builds one instance per run with the
+validated params and a :class:`BuildContext`, then calls it directly every guidance tick:
+
+    sp = formation.setpoints(world, sensing)      # where each agent should be or go
+    sp = avoidance.adjust(world, sensing, sp)     # made safe
+    dynamics.control(world, sp)                   # once per guidance tick (controller)
+    dynamics.step(world, dt)                      # once per physics step (plant)
+
+An instance may also implement any lifecycle hook of :mod:`swarmscene.core.hookspecs`
+(``swarmscene_run_start``, ``swarmscene_event``, ``swarmscene_step_end``, ``swarmscene_run_end``):
+the simulation registers the chosen instances with its plugin manager, so e.g. an avoidance method
+learns of failures and contributes metrics through the same hooks as the monitors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from .setpoint import Setpoints
+from .state import WorldState
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .environment import Environment
+    from .sensing import Sensing
+
+
+class PluginParams(BaseModel):
+    """Base of every plugin's ``Params``: unknown keys are errors, values are validated on assignment."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass(frozen=True)
+class BuildContext:
+    """What a plugin may know about the scenario when it is built.
+
+    Attributes:
+        n: number of agents.
+        guidance_period: T_s, s; formation, avoidance and controllers run at this period.
+        physics_step: s; the plant integrates at this step (divides ``guidance_period``).
+        duration: simulated duration, s.
+        min_separation: safety distance between agents, m (``safety.min_separation``).
+        min_clearance: safety distance to obstacles, m (``safety.min_clearance``).
+        comm_range: communication range, m.
+        environment: the obstacle map and its geometric queries.
+        rng: the run's one random generator (draws from it are part of the seeded run).
+        initial: the world state at t = 0 (read it, do not keep mutating it).
+    """
+
+    n: int
+    guidance_period: float
+    physics_step: float
+    duration: float
+    min_separation: float
+    min_clearance: float
+    comm_range: float
+    environment: "Environment"
+    rng: np.random.Generator
+    initial: WorldState
+
+
+class Plugin:
+    """Common part of every plugin class."""
+
+    name: ClassVar[str]
+    """Registered name, the value users write in ``formation=``, ``avoidance=``, ``dynamics=``."""
+    Params: ClassVar[type[PluginParams]] = PluginParams
+    """Pydantic model of the YAML options (one docstring-described field per option)."""
+
+    def __init__(self, params: PluginParams, ctx: BuildContext) -> None:
+        self.params = params
+        self.ctx = ctx
+
+
+class Formation(Plugin):
+    """Produces each agent's setpoint for this tick (where it should be or go, and how)."""
+
+    def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
+        """Return the setpoints of all N agents for this guidance tick."""
+        raise NotImplementedError  # abstract: every formation defines it
+
+    def complete(self, world: WorldState) -> bool:
+        """True once the formation's mission is complete (used by ``termination.on_complete``)."""
+        return False
+
+
+class Avoidance(Plugin):
+    """Takes the formation's setpoints and returns safe ones."""
+
+    def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
+        """Return setpoints that keep agents apart and clear of obstacles (may return ``sp``)."""
+        raise NotImplementedError  # abstract: every avoidance method defines it
+
+
+class Dynamics(Plugin):
+    """A controller plus a plant: turns setpoints into motion, respecting saturation."""
+
+    has_attitude: ClassVar[bool] = False
+    """True when the model fills ``WorldState.quat`` and ``WorldState.omega``."""
+
+    def initialize(self, world: WorldState) -> None:
+        """Add the model's own state (attitude, integrators) to ``world`` at t = 0."""
+
+    def control(self, world: WorldState, sp: Setpoints) -> None:
+        """Compute the control input from ``sp``; called once per guidance tick (zero-order hold)."""
+        raise NotImplementedError  # abstract: every dynamics model defines it
+
+    def step(self, world: WorldState, dt: float) -> None:
+        """Advance ``world.pos``/``world.vel`` (and attitude) in place by one physics step ``dt``.
+
+        Failed agents may be moved here; the kernel restores them afterwards (they hover in place).
+        """
+        raise NotImplementedError  # abstract: every dynamics model defines it
+
+
+PLUGIN_KINDS: dict[str, type[Plugin]] = {
+    "formation": Formation,
+    "avoidance": Avoidance,
+    "dynamics": Dynamics,
+}
+"""The config group of each kind and the base class its plugins derive from."""
