@@ -1,0 +1,57 @@
+"""Single integrator: the kinematic point of the thesis' indoor swarm (eq. 5.1).
+
+    r(k+1) = r(k) + T u(k),   |u(k)| <= u_max
+
+The control u is a velocity, held for the guidance period (zero-order hold). Setpoint modes:
+VELOCITY flies ``sp.vel``; POSITION and TRACK fly ``sp.vel + gain * (sp.pos - r)`` (feed-forward
+plus proportional correction); HOLD flies ``gain * (sp.pos - r)``. Every command is clipped to
+``u_max`` in magnitude.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Dynamics, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+
+def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    """Scale rows of ``v`` (N, 3) down so that none is longer than ``limit``."""
+    norm = np.linalg.norm(v, axis=1, keepdims=True)
+    scale = np.minimum(1.0, limit / np.maximum(norm, 1e-12))
+    return v * scale
+
+
+class SingleIntegrator(Dynamics):
+    """Kinematic point: the velocity command is the velocity (thesis eq. 5.1)."""
+
+    name = "single_integrator"
+
+    class Params(PluginParams):
+        u_max: float = Field(1.0, gt=0, description="speed limit |u| <= u_max, m/s")
+        gain: float = Field(
+            1.0, gt=0, description="proportional gain on position error in POSITION/TRACK/HOLD, 1/s"
+        )
+
+    def initialize(self, world: WorldState) -> None:
+        self.u = np.zeros_like(world.pos)
+
+    def control(self, world: WorldState, sp: Setpoints) -> None:
+        p = self.params
+        correction = p.gain * (sp.pos - world.pos)
+        u = np.where((sp.mode == Mode.VELOCITY)[:, None], sp.vel, sp.vel + correction)
+        u = np.where((sp.mode == Mode.HOLD)[:, None], correction, u)
+        self.u = clip_norm(u, p.u_max)
+
+    def step(self, world: WorldState, dt: float) -> None:
+        world.pos += self.u * dt
+        world.vel[:] = self.u
+
+
+@hookimpl
+def swarmscene_register_dynamics(register) -> None:
+    register(SingleIntegrator)
