@@ -86,9 +86,13 @@ class Formation(Plugin):
         """Return the setpoints of all N agents for this guidance tick."""
         raise NotImplementedError  # abstract: every formation defines it
 
-    def complete(self, world: WorldState) -> bool:
-        """True once the formation's mission is complete (used by ``termination.on_complete``)."""
-        return False
+    def complete(self, world: WorldState) -> bool | None:
+        """Whether the formation's mission is complete; ``None`` when it defines no mission.
+
+        A run with ``termination.on_complete`` ends at the first tick this returns True, and a
+        run's default ``success`` requires it not to be False.
+        """
+        return None
 
 
 class Avoidance(Plugin):

@@ -1,0 +1,102 @@
+"""The obstacle map: 2-D footprints (shapely 2) extruded over all altitudes, with vectorised queries.
+
+Obstacles are footprints in the world x-y plane (walls, pillars, buildings that are taller than any
+flight level); every query takes agent positions ``(N, 2)`` or ``(N, 3)`` (z is ignored) and answers
+for all agents in one vectorised shapely call, using an STRtree to pick the candidate obstacles.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import shapely
+from shapely import STRtree
+from shapely.geometry.base import BaseGeometry
+
+
+def _xy(points: np.ndarray) -> np.ndarray:
+    points = np.asarray(points, dtype=float)
+    return points[..., :2]
+
+
+class Environment:
+    """Obstacles and the geometric queries every plugin and monitor shares.
+
+    Args:
+        obstacles: shapely polygons (already buffered: circles and thick walls are polygons here).
+        name: a label for reports.
+    """
+
+    def __init__(self, obstacles: Sequence[BaseGeometry] = (), name: str = "open") -> None:
+        self.name = name
+        self.obstacles: list[BaseGeometry] = list(obstacles)
+        self._geoms = np.array(self.obstacles, dtype=object)
+        self.tree = STRtree(self._geoms) if self.obstacles else None
+        # One prepared union answers "inside any obstacle?" in a single vectorised call.
+        self.union = shapely.union_all(self._geoms) if self.obstacles else None
+        if self.union is not None:
+            shapely.prepare(self.union)
+
+    @property
+    def empty(self) -> bool:
+        return not self.obstacles
+
+    def _nearest(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Index of each point's nearest obstacle, the point geometries and their distances."""
+        pts = shapely.points(xy)
+        pairs, dist = self.tree.query_nearest(pts, return_distance=True, all_matches=False)
+        # query_nearest returns one pair per point when all_matches=False, in point order.
+        nearest = np.empty(len(xy), dtype=int)
+        distance = np.empty(len(xy))
+        nearest[pairs[0]] = pairs[1]
+        distance[pairs[0]] = dist
+        return nearest, pts, distance
+
+    def clearance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance from each point to the nearest obstacle, m: positive outside,
+        negative inside (minus the depth to the boundary). ``inf`` when there are no obstacles."""
+        xy = _xy(points).reshape(-1, 2)
+        if self.empty:
+            return np.full(len(xy), np.inf)
+        _, pts, distance = self._nearest(xy)
+        inside = shapely.contains_xy(self.union, xy[:, 0], xy[:, 1])
+        if inside.any():
+            boundary = shapely.boundary(self.union)
+            distance[inside] = -shapely.distance(boundary, pts[inside])
+        return distance
+
+    def nearest_point(self, points: np.ndarray) -> np.ndarray:
+        """Nearest obstacle point to each point, shape (N, 2); NaN when there are no obstacles."""
+        xy = _xy(points).reshape(-1, 2)
+        if self.empty:
+            return np.full_like(xy, np.nan)
+        nearest, pts, _ = self._nearest(xy)
+        lines = shapely.shortest_line(self._geoms[nearest], pts)
+        return shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 0, :]
+
+    def line_of_sight(self, a: np.ndarray, b: np.ndarray, clearance: float = 0.0) -> np.ndarray:
+        """True where the segment a[k]-b[k] stays at least ``clearance`` m from every obstacle.
+
+        Args:
+            a, b: segment end points, shape (M, 2) or (M, 3).
+            clearance: required distance between the segment and obstacles (d_l in the thesis).
+        """
+        a, b = _xy(a).reshape(-1, 2), _xy(b).reshape(-1, 2)
+        if self.empty or len(a) == 0:
+            return np.ones(len(a), dtype=bool)
+        segments = shapely.linestrings(np.stack([a, b], axis=1))
+        if clearance > 0:
+            hit_seg, _ = self.tree.query(segments, predicate="dwithin", distance=clearance)
+        else:
+            hit_seg, _ = self.tree.query(segments, predicate="intersects")
+        visible = np.ones(len(a), dtype=bool)
+        visible[hit_seg] = False
+        return visible
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """True where a point lies inside (or on) an obstacle."""
+        xy = _xy(points).reshape(-1, 2)
+        if self.empty:
+            return np.zeros(len(xy), dtype=bool)
+        return shapely.intersects_xy(self.union, xy[:, 0], xy[:, 1])

@@ -1,0 +1,114 @@
+"""Errors a user can fix, and their one-line wording.
+
+Every problem with a scenario becomes one line ``dotted.key: what is allowed (got value)``; the
+command line prints the lines and exits with status 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+
+class ConfigError(ValueError):
+    """One or more problems with a scenario's configuration, one line each."""
+
+    def __init__(self, lines: list[str]) -> None:
+        self.lines = list(lines)
+        super().__init__("\n".join(self.lines))
+
+
+class PluginError(RuntimeError):
+    """A plugin could not be loaded or registered (duplicate name, bad class)."""
+
+
+_BOUNDS = {
+    "greater_than": ">",
+    "greater_than_equal": ">=",
+    "less_than": "<",
+    "less_than_equal": "<=",
+}
+_TYPES = {
+    "int_type": "an integer",
+    "int_parsing": "an integer",
+    "int_from_float": "an integer",
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "bool_type": "true or false",
+    "bool_parsing": "true or false",
+    "string_type": "a string",
+    "list_type": "a list",
+    "tuple_type": "a list",
+    "dict_type": "a mapping",
+    "model_type": "a mapping",
+    "model_attributes_type": "a mapping",
+    "finite_number": "a finite number",
+}
+
+
+def _dotted(loc: tuple[Any, ...], prefix: str) -> str:
+    parts = [prefix] if prefix else []
+    # Tagged unions add the tag to the location (obstacles.0.circle.radius): drop it.
+    parts += [str(p) for p in loc if not (isinstance(p, str) and p in ("polygon", "circle", "wall"))]
+    return ".".join(parts) or "<root>"
+
+
+def _fields_at(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
+    """Field names of the (sub)model at ``loc`` (for 'unknown key' messages)."""
+    current: Any = model
+    for part in loc:
+        if isinstance(part, int) or not (isinstance(current, type) and issubclass(current, BaseModel)):
+            continue
+        field = current.model_fields.get(part)
+        if field is None:
+            break
+        annotation = field.annotation
+        inner = [a for a in getattr(annotation, "__args__", ()) if isinstance(a, type)]
+        current = annotation if isinstance(annotation, type) else (inner[0] if inner else None)
+    if isinstance(current, type) and issubclass(current, BaseModel):
+        return list(current.model_fields)
+    return []
+
+
+def _describe(err: dict[str, Any], model: type[BaseModel]) -> str:
+    kind, ctx = err["type"], err.get("ctx") or {}
+    if kind in _BOUNDS:
+        bound = next(iter(ctx.values()))
+        return f"must be {_BOUNDS[kind]} {bound}"
+    if kind in _TYPES:
+        return f"must be {_TYPES[kind]}"
+    if kind == "missing":
+        return "is required"
+    if kind == "extra_forbidden":
+        valid = _fields_at(model, tuple(err["loc"][:-1]))
+        return "unknown key" + (f" (valid keys: {', '.join(valid)})" if valid else "")
+    if kind == "literal_error":
+        return f"must be one of {ctx.get('expected', '')}"
+    if kind in ("too_short", "too_long"):
+        word = "at least" if kind == "too_short" else "at most"
+        count = ctx.get("min_length", ctx.get("max_length"))
+        return f"must have {word} {count} item(s)"
+    if kind == "union_tag_invalid":
+        return f"unknown type (valid: {ctx.get('expected_tags', '')})"
+    if kind == "union_tag_not_found":
+        return f"needs a '{ctx.get('discriminator', 'type').strip(chr(39))}' key"
+    if kind == "value_error":
+        return str(ctx.get("error", err["msg"])).removeprefix("Value error, ")
+    return err["msg"][0].lower() + err["msg"][1:]
+
+
+def format_validation_error(
+    exc: ValidationError, model: type[BaseModel], data: Any, prefix: str = ""
+) -> list[str]:
+    """One line per pydantic error: ``dotted.key: what is allowed (got value)``."""
+    lines = []
+    for err in exc.errors(include_url=False):
+        message = _describe(err, model)
+        key = _dotted(tuple(err["loc"]), prefix)
+        if err["type"] == "value_error" and ":" in message and not err["loc"]:
+            lines.append(message)  # a model-level check already names its key
+            continue
+        got = "" if err["type"] == "missing" else f" (got {err['input']!r})"
+        lines.append(f"{key}: {message}{got}")
+    return lines

@@ -1,0 +1,107 @@
+"""Safety monitor: separation, clearance and connectivity, measured on every tick.
+
+A verdict is computed from the recorded states, never from an algorithm's own belief. The monitor
+uses the tick's shared :class:`~swarmscene.core.sensing.Sensing` (its one k-d tree), so it costs
+O(N log N) per tick and never builds an N x N matrix.
+
+Metrics (``metrics.json``):
+    min_separation: smallest distance between any two agents over the run, m.
+    min_clearance: smallest signed distance from an agent to an obstacle, m (null: no obstacles).
+    collisions: distinct pairs that came closer than ``safety.min_separation``.
+    clearance_violations: distinct agents that came closer than ``safety.min_clearance`` to an
+        obstacle.
+    connected: the communication graph was connected at every tick.
+    violations.<condition>.first_time / .agents: for each violated condition (``separation``,
+        ``clearance``, ``connectivity``), when it first happened (s) and the agents involved.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .hookspecs import hookimpl
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .simulation import Simulation
+
+
+class SafetyMonitor:
+    """Records min separation, min clearance and connectivity at t = 0 and after every tick."""
+
+    def __init__(self, sim: "Simulation") -> None:
+        self.d_sep = sim.config.safety.min_separation
+        self.d_clear = sim.config.safety.min_clearance
+        self.stop_on_collision = sim.config.termination.on_collision
+        size = sim.total_steps + 1
+        self.t = np.zeros(size)
+        self.min_separation = np.full(size, np.inf)
+        self.min_clearance = np.full(size, np.inf)
+        self.connected = np.ones(size, dtype=bool)
+        self.count = 0
+        self.collision_pairs: set[tuple[int, int]] = set()
+        self.clearance_agents: set[int] = set()
+        self.first: dict[str, tuple[float, list[int]]] = {}
+
+    def _observe(self, sim: "Simulation") -> None:
+        sensing, t, k = sim.sensing, sim.world.t, self.count
+        nearest, _ = sensing.nearest
+        self.t[k] = t
+        self.min_separation[k] = nearest.min() if nearest.size else np.inf
+        if self.min_separation[k] < self.d_sep:
+            pairs = sensing.pairs(self.d_sep)
+            self.collision_pairs.update(map(tuple, pairs.tolist()))
+            self._first("separation", t, np.unique(pairs).tolist())
+            if self.stop_on_collision:
+                sim.request_stop("collision")
+        clearance = sensing.clearance
+        self.min_clearance[k] = clearance.min()
+        if self.min_clearance[k] < self.d_clear:
+            agents = np.flatnonzero(clearance < self.d_clear)
+            self.clearance_agents.update(agents.tolist())
+            self._first("clearance", t, agents.tolist())
+        self.connected[k] = sensing.comm_connected
+        if not self.connected[k]:
+            self._first("connectivity", t, np.flatnonzero(sensing.comm_members).tolist())
+        self.count += 1
+
+    def _first(self, condition: str, t: float, agents: list[int]) -> None:
+        self.first.setdefault(condition, (float(t), agents))
+
+    @hookimpl
+    def swarmscene_run_start(self, sim: "Simulation") -> None:
+        self._observe(sim)
+
+    @hookimpl
+    def swarmscene_step_end(self, sim: "Simulation") -> None:
+        self._observe(sim)
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:
+        k = self.count
+        min_sep = float(self.min_separation[:k].min()) if k else float("inf")
+        min_clear = float(self.min_clearance[:k].min()) if k else float("inf")
+        metrics["min_separation"] = min_sep if np.isfinite(min_sep) else None
+        metrics["min_clearance"] = min_clear if np.isfinite(min_clear) else None
+        metrics["collisions"] = len(self.collision_pairs)
+        metrics["clearance_violations"] = len(self.clearance_agents)
+        metrics["connected"] = bool(self.connected[:k].all())
+        for condition, (t, agents) in sorted(self.first.items()):
+            metrics[f"violations.{condition}.first_time"] = t
+            metrics[f"violations.{condition}.agents"] = agents
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The recorded series, trimmed to the ticks that ran."""
+        k = self.count
+        return {
+            "t": self.t[:k],
+            "min_separation": self.min_separation[:k],
+            "min_clearance": self.min_clearance[:k],
+            "connected": self.connected[:k],
+        }
+
+
+@hookimpl
+def swarmscene_register_observers(register: Any) -> None:
+    register(SafetyMonitor)

@@ -1,0 +1,190 @@
+"""The kernel: clock, the one random generator, and the phases of a guidance tick.
+
+Each guidance tick (period T_s = ``clock.guidance_period``)::
+
+    events -> sense/communicate -> formation -> avoidance -> dynamics (physics sub-steps) -> observers
+
+The physics step divides T_s; the dynamics model's controller runs once per tick (zero-order hold)
+and its plant ``T_s / physics_step`` times. Observers (monitors, metrics, recorders, and any chosen
+plugin implementing lifecycle hooks) run through the plugin manager this simulation owns.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pluggy
+
+from .config import Scenario
+from .environment import Environment
+from .events import Event, EventKind, EventQueue
+from .geometry import build_obstacles, initial_positions
+from .plugin import Avoidance, BuildContext, Dynamics, Formation
+from .result import RunResult
+from .sensing import Sensing
+from .state import WorldState
+
+
+class Simulation:
+    """One run of a validated scenario.
+
+    Args:
+        scenario: the validated scenario (:func:`swarmscene.core.config.validate`).
+        plugin_manager: the manager built by :func:`~swarmscene.core.registry.make_plugin_manager`
+            with the same registry that validated ``scenario``; this simulation owns it and
+            registers its observers and chosen plugins on it.
+        observers: observer classes to instantiate for this run (``registry.observers``).
+    """
+
+    def __init__(
+        self, scenario: Scenario, plugin_manager: pluggy.PluginManager, observers: list[type[Any]]
+    ) -> None:
+        cfg = scenario.config
+        self.scenario = scenario
+        self.config = cfg
+        self.pm = plugin_manager
+        self.hook = plugin_manager.hook
+        self.rng = np.random.default_rng(cfg.seed)
+        self.guidance_period = cfg.clock.guidance_period
+        self.physics_step = cfg.physics_step
+        self.substeps = cfg.substeps
+        self.total_steps = int(round(cfg.clock.duration / self.guidance_period))
+        self.step_count = 0
+        self.stop_reason: str | None = None
+
+        obstacles, _ = build_obstacles(cfg.environment)
+        self.environment = Environment(obstacles, name=cfg.environment.name)
+        self.world = WorldState.at_rest(initial_positions(cfg, self.rng), leader=cfg.swarm.leader)
+        self._hover_pos = self.world.pos.copy()
+        self.events = EventQueue(
+            [Event(e.at, tuple(e.agents), EventKind(e.kind)) for e in cfg.events]
+        )
+        ctx = BuildContext(
+            n=cfg.swarm.n,
+            guidance_period=self.guidance_period,
+            physics_step=self.physics_step,
+            duration=cfg.clock.duration,
+            min_separation=cfg.safety.min_separation,
+            min_clearance=cfg.safety.min_clearance,
+            comm_range=cfg.comm.range,
+            environment=self.environment,
+            rng=self.rng,
+            initial=WorldState.at_rest(self.world.pos, leader=cfg.swarm.leader),
+        )
+        self.formation: Formation = self._build("formation", ctx)
+        self.avoidance: Avoidance = self._build("avoidance", ctx)
+        self.dynamics: Dynamics = self._build("dynamics", ctx)
+        self.dynamics.initialize(self.world)
+        self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
+        self.step_seconds = np.zeros(self.total_steps)
+        self.observers = [cls(self) for cls in observers]
+        for obj in self.observers:
+            self.pm.register(obj)
+
+    def _build(self, kind: str, ctx: BuildContext) -> Any:
+        obj = self.scenario.plugin_classes[kind](self.scenario.plugin_params[kind], ctx)
+        # A chosen plugin that implements lifecycle hooks takes part in them for this run.
+        if any(callable(getattr(obj, name, None)) for name in _LIFECYCLE_HOOKS):
+            self.pm.register(obj, name=f"{kind}:{obj.name}")
+        return obj
+
+    # -- the tick ---------------------------------------------------------------------------
+    def step(self) -> None:
+        """One guidance tick, phases in order."""
+        self._apply_due_events()
+        sensing = self.sensing
+        setpoints = self.formation.setpoints(self.world, sensing)
+        setpoints = self.avoidance.adjust(self.world, sensing, setpoints)
+        self.dynamics.control(self.world, setpoints)
+        for _ in range(self.substeps):
+            self.dynamics.step(self.world, self.physics_step)
+        self._hold_failed()
+        self.step_count += 1
+        self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
+        self.sensing = Sensing(self.world, self.environment, self.config.comm.range)
+        self.hook.swarmscene_step_end(sim=self)
+
+    def _apply_due_events(self) -> None:
+        for event in self.events.due(self.world.t):
+            event.apply(self.world)
+            if event.kind is EventKind.HOVER:
+                idx = list(event.agents)
+                self._hover_pos[idx] = self.world.pos[idx]
+            self.sensing = Sensing(self.world, self.environment, self.config.comm.range)
+            self.hook.swarmscene_event(sim=self, event=event)
+
+    def _hold_failed(self) -> None:
+        """Failed vehicles hover where they failed, whatever the dynamics model did."""
+        failed = ~self.world.healthy
+        if failed.any():
+            self.world.pos[failed] = self._hover_pos[failed]
+            self.world.vel[failed] = 0.0
+
+    # -- the run ----------------------------------------------------------------------------
+    def request_stop(self, reason: str) -> None:
+        """End the run after the current tick (observers call this, e.g. on a collision)."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+
+    def run(self, progress: Callable[["Simulation"], None] | None = None) -> RunResult:
+        """Run to the configured duration or an earlier termination; return the result.
+
+        Args:
+            progress: called after every tick (e.g. a progress line); must be cheap.
+        A Ctrl-C ends the run cleanly: the result is marked incomplete (``stop_reason``
+        ``"interrupted"``) and holds everything recorded so far.
+        """
+        self.hook.swarmscene_run_start(sim=self)
+        wall_start = time.perf_counter()
+        try:
+            while self.step_count < self.total_steps and self.stop_reason is None:
+                tick_start = time.perf_counter()
+                self.step()
+                self.step_seconds[self.step_count - 1] = time.perf_counter() - tick_start
+                if self.config.termination.on_complete and self.formation.complete(self.world):
+                    self.request_stop("complete")
+                if progress is not None:
+                    progress(self)
+        except KeyboardInterrupt:
+            self.stop_reason = "interrupted"
+        wall = time.perf_counter() - wall_start
+        metrics = self._engine_metrics(wall)
+        self.hook.swarmscene_run_end(sim=self, metrics=metrics)
+        metrics.setdefault("success", self._default_success(metrics))
+        return RunResult(
+            metrics=metrics,
+            stop_reason=self.stop_reason or "duration",
+            complete=self.stop_reason != "interrupted",
+            observers=self.observers,
+        )
+
+    def _engine_metrics(self, wall: float) -> dict[str, Any]:
+        steps = self.step_count
+        times = self.step_seconds[:steps]
+        return {
+            "duration": float(self.world.t),
+            "steps": steps,
+            "agents": self.world.n,
+            "wall_time": wall,
+            "realtime_factor": float(self.world.t / wall) if wall > 0 else None,
+            "step_ms_median": float(np.median(times) * 1e3) if steps else None,
+            "stop_reason": self.stop_reason or "duration",
+            "healthy_at_end": int(self.world.healthy.sum()),
+        }
+
+    def _default_success(self, metrics: dict[str, Any]) -> bool:
+        """Safe throughout, and the mission complete where the formation defines one."""
+        safe = metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
+        done = self.formation.complete(self.world)
+        return bool(safe and done is not False and self.stop_reason != "interrupted")
+
+
+_LIFECYCLE_HOOKS = (
+    "swarmscene_run_start",
+    "swarmscene_event",
+    "swarmscene_step_end",
+    "swarmscene_run_end",
+)

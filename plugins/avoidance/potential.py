@@ -1,0 +1,94 @@
+"""Potential-field avoidance: pairwise and obstacle repulsion that keeps the safety distances.
+
+Each agent i gets a repulsive velocity from every agent j closer than the influence range
+``d_0 = influence * d_s`` (d_s = ``safety.min_separation``) and from the nearest obstacle point
+closer than ``d_0^obs = obstacle_influence + c_s`` (c_s = ``safety.min_clearance``):
+
+    v_rep = v_max * ((d_0 - d) / (d_0 - d_s))^2 * (r_i - r_j) / d,   clipped to 1 at d <= d_s
+
+a bounded, smooth barrier: zero at the edge of the range, ``v_max`` at the safety distance. The sum
+is clipped to ``v_max``. The setpoint is reshaped, not overridden: ``vel += v_rep`` and
+``pos += lookahead * v_rep`` so both position- and velocity-mode controllers turn away.
+Neighbours come from the tick's shared k-d tree; obstacles from the environment's vectorised
+nearest-point query, so a step costs O(N log N).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+
+
+def barrier(d: np.ndarray, d_safe: float, d_range: float) -> np.ndarray:
+    """Magnitude profile in [0, 1]: 0 at ``d >= d_range``, 1 at ``d <= d_safe``, quadratic between."""
+    x = np.clip((d_range - d) / max(d_range - d_safe, 1e-9), 0.0, 1.0)
+    return x * x
+
+
+class Potential(Avoidance):
+    """Pairwise and obstacle repulsion added to the formation's setpoints."""
+
+    name = "potential"
+
+    class Params(PluginParams):
+        v_max: float = Field(1.5, gt=0, description="largest repulsive speed, m/s")
+        influence: float = Field(
+            2.5, gt=1, description="agent range as a multiple of safety.min_separation"
+        )
+        obstacle_influence: float = Field(
+            1.5, gt=0, description="obstacle range beyond safety.min_clearance, m"
+        )
+        lookahead: float = Field(
+            1.0, ge=0, description="shift of the position reference along v_rep, s"
+        )
+
+    def repulsion(self, world, sensing) -> np.ndarray:
+        """Repulsive velocity (N, 3) from neighbours and obstacles (failed agents included)."""
+        p, d_s = self.params, self.ctx.min_separation
+        v = np.zeros_like(world.pos)
+        d_range = p.influence * max(d_s, 1e-3)
+        pairs = sensing.pairs(d_range)
+        if len(pairs):
+            i, j = pairs[:, 0], pairs[:, 1]
+            delta = world.pos[i] - world.pos[j]
+            d = np.linalg.norm(delta, axis=1)
+            push = (p.v_max * barrier(d, d_s, d_range) / np.maximum(d, 1e-9))[:, None] * delta
+            np.add.at(v, i, push)
+            np.add.at(v, j, -push)
+        if not sensing.environment.empty:
+            v += self._obstacle_repulsion(world, sensing)
+        norm = np.linalg.norm(v, axis=1, keepdims=True)
+        return v * np.minimum(1.0, p.v_max / np.maximum(norm, 1e-12))
+
+    def _obstacle_repulsion(self, world, sensing) -> np.ndarray:
+        p, c_s = self.params, self.ctx.min_clearance
+        v = np.zeros_like(world.pos)
+        near = np.flatnonzero(sensing.clearance < c_s + p.obstacle_influence)
+        if near.size == 0:
+            return v
+        point = sensing.environment.nearest_point(world.pos[near])
+        away = world.pos[near, :2] - point
+        d = np.maximum(sensing.clearance[near], 1e-9)
+        direction = away / np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)
+        # Inside an obstacle the nearest point lies behind: push outwards all the same.
+        direction[sensing.clearance[near] < 0] *= -1
+        v[near, :2] = (p.v_max * barrier(d, c_s, c_s + p.obstacle_influence))[:, None] * direction
+        return v
+
+    def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        v_rep = self.repulsion(world, sensing)
+        v_rep[~world.healthy] = 0.0
+        out = sp.copy()
+        out.vel += v_rep
+        moving = out.mode != Mode.VELOCITY
+        out.pos[moving] += self.params.lookahead * v_rep[moving]
+        return out
+
+
+@hookimpl
+def swarmscene_register_avoidances(register) -> None:
+    register(Potential)

@@ -1,0 +1,165 @@
+"""Static shape: a fixed formation (line, grid, circle, V, triangle) carried along waypoints.
+
+A virtual reference point moves along the waypoint polyline at ``speed``; each slot is the
+reference plus the shape's offset, rotated with the path heading when ``rotate_with_heading``.
+Agents are assigned to slots by minimum total distance (scipy's ``linear_sum_assignment``) at the
+start and, when ``reassign_on_failure``, again among the healthy agents after a failure. Agents get
+TRACK setpoints: slot position, the reference's velocity as feed-forward.
+
+The mission is complete when the reference has reached the last waypoint and every healthy agent is
+within ``arrival_tolerance`` of its slot.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+from scipy.optimize import linear_sum_assignment
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+
+def shape_offsets(shape: str, n: int, spacing: float) -> np.ndarray:
+    """Slot offsets (n, 3) in the formation frame (x forward, y left), centred on their centroid."""
+    k = np.arange(n)
+    xy = np.zeros((n, 2))
+    if shape == "line":  # abreast, perpendicular to the direction of travel
+        xy[:, 1] = (k - (n - 1) / 2) * spacing
+    elif shape == "grid":
+        cols = int(np.ceil(np.sqrt(n)))
+        xy[:, 0] = -(k // cols) * spacing
+        xy[:, 1] = (k % cols) * spacing
+    elif shape == "circle":  # neighbours on the circle are `spacing` apart (chord length)
+        radius = spacing / (2 * np.sin(np.pi / n)) if n > 1 else 0.0
+        angle = 2 * np.pi * k / max(n, 1)
+        xy[:, 0], xy[:, 1] = radius * np.cos(angle), radius * np.sin(angle)
+    elif shape == "v":  # apex forward, arms trailing at 45 degrees
+        rank = (k + 1) // 2
+        side = np.where(k % 2 == 1, 1.0, -1.0)
+        xy[:, 0] = -rank * spacing / np.sqrt(2)
+        xy[:, 1] = side * rank * spacing / np.sqrt(2)
+    elif shape == "triangle":  # filled rows of 1, 2, 3, ... agents, apex forward
+        row = np.floor((np.sqrt(8 * k + 1) - 1) / 2).astype(int)
+        col = k - row * (row + 1) // 2
+        xy[:, 0] = -row * spacing * np.sqrt(3) / 2
+        xy[:, 1] = (col - row / 2) * spacing
+    else:  # pragma: no cover - Params restricts the choices
+        raise ValueError(shape)
+    xy -= xy.mean(axis=0)
+    return np.column_stack([xy, np.zeros(n)])
+
+
+class WaypointPath:
+    """A polyline flown at constant speed: position and velocity of the reference at time t."""
+
+    def __init__(self, waypoints: np.ndarray, speed: float) -> None:
+        self.points = np.asarray(waypoints, dtype=float)
+        legs = np.diff(self.points, axis=0)
+        self.lengths = np.linalg.norm(legs, axis=1)
+        self.cumulative = np.concatenate([[0.0], np.cumsum(self.lengths)])
+        self.directions = legs / np.maximum(self.lengths, 1e-12)[:, None]
+        self.speed = speed
+
+    @property
+    def length(self) -> float:
+        return float(self.cumulative[-1])
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, int, bool]:
+        """Reference position (3,), velocity (3,), current leg and whether the end is reached."""
+        s = min(self.speed * t, self.length)
+        if len(self.lengths) == 0 or s >= self.length:
+            return self.points[-1].copy(), np.zeros(3), max(len(self.lengths) - 1, 0), True
+        leg = int(np.searchsorted(self.cumulative, s, side="right") - 1)
+        pos = self.points[leg] + self.directions[leg] * (s - self.cumulative[leg])
+        return pos, self.directions[leg] * self.speed, leg, False
+
+
+class StaticShape(Formation):
+    """A fixed shape following waypoints, slots assigned by minimum total distance."""
+
+    name = "static_shape"
+
+    class Params(PluginParams):
+        shape: Literal["line", "grid", "circle", "v", "triangle"] = Field(
+            "v", description="formation shape"
+        )
+        spacing: float = Field(2.0, gt=0, description="distance between neighbouring slots, m")
+        waypoints: list[tuple[float, float, float]] = Field(
+            min_length=1, description="path of the formation's centre, [x, y, z] m"
+        )
+        speed: float = Field(1.0, gt=0, description="speed of the reference along the path, m/s")
+        rotate_with_heading: bool = Field(
+            True, description="turn the shape so its x axis follows the path heading"
+        )
+        reassign_on_failure: bool = Field(
+            True, description="re-assign slots among healthy agents after a failure"
+        )
+        arrival_tolerance: float = Field(
+            0.5, gt=0, description="distance to its slot at which an agent has arrived, m"
+        )
+
+    def __init__(self, params: Params, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        start = ctx.initial.pos.mean(axis=0)
+        self.path = WaypointPath(np.vstack([start, params.waypoints]), params.speed)
+        self.offsets = shape_offsets(params.shape, ctx.n, params.spacing)
+        self.heading = self._heading(0)
+        self.slot_of = self.assign(ctx.initial.pos, np.ones(ctx.n, dtype=bool), start)
+        self._healthy_count = ctx.n
+        self._end_reached = False
+
+    def _heading(self, leg: int) -> float:
+        if not self.params.rotate_with_heading or len(self.path.directions) == 0:
+            return 0.0
+        d = self.path.directions[min(leg, len(self.path.directions) - 1)]
+        return float(np.arctan2(d[1], d[0]))
+
+    def slots(self, center: np.ndarray, heading: float) -> np.ndarray:
+        """World positions (N, 3) of the slots around ``center`` for ``heading``."""
+        c, s = np.cos(heading), np.sin(heading)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return center + self.offsets @ rot.T
+
+    def assign(self, pos: np.ndarray, healthy: np.ndarray, center: np.ndarray) -> np.ndarray:
+        """Slot index per agent minimising total distance (healthy agents; others keep -1)."""
+        slots = self.slots(center, self.heading)
+        agents = np.flatnonzero(healthy)
+        cost = np.linalg.norm(pos[agents, None, :] - slots[None, :, :], axis=2)
+        rows, cols = linear_sum_assignment(cost)
+        slot_of = np.full(len(pos), -1)
+        slot_of[agents[rows]] = cols
+        return slot_of
+
+    def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        center, velocity, leg, self._end_reached = self.path.at(world.t)
+        self.heading = self._heading(leg)
+        healthy_count = int(world.healthy.sum())
+        if self.params.reassign_on_failure and healthy_count != self._healthy_count:
+            self.slot_of = self.assign(world.pos, world.healthy, center)
+            self._healthy_count = healthy_count
+        slots = self.slots(center, self.heading)
+        sp = Setpoints.hold(world.pos)
+        active = self.slot_of >= 0
+        sp.mode[active] = Mode.TRACK
+        sp.pos[active] = slots[self.slot_of[active]]
+        sp.vel[active] = velocity
+        sp.yaw[:] = self.heading
+        self._last_slots = sp.pos
+        return sp
+
+    def complete(self, world: WorldState) -> bool:
+        if not self._end_reached:
+            return False
+        active = world.healthy & (self.slot_of >= 0)
+        error = np.linalg.norm(world.pos[active] - self._last_slots[active], axis=1)
+        return bool(np.all(error <= self.params.arrival_tolerance))
+
+
+@hookimpl
+def swarmscene_register_formations(register) -> None:
+    register(StaticShape)

@@ -1,0 +1,41 @@
+"""Hydra's composition errors, reworded as the engine's one-line messages."""
+
+from __future__ import annotations
+
+import re
+
+_NOT_IN_STRUCT = re.compile(r"Could not override '([^']+)'")
+_APPEND_HINT = re.compile(r"use \+([^=\s]+)=(\S*)")
+_MISSING_GROUP_OPTION = re.compile(r"Could not find '([^'/]+(?:/[^'/]+)*)/([^'/]+)'")
+_PARSE = re.compile(r"Error parsing override '([^']*)'")
+
+
+def hydra_error_line(exc: BaseException) -> str | None:
+    """One line ``key: problem (got value)`` for a Hydra composition error, else ``None``."""
+    from hydra.errors import (
+        ConfigCompositionException,
+        MissingConfigException,
+        OverrideParseException,
+    )
+
+    message = str(exc)
+    if isinstance(exc, MissingConfigException):
+        match = _MISSING_GROUP_OPTION.search(message)
+        if match:
+            group, option = match.groups()
+            valid = ", ".join(sorted(exc.options or ()))
+            return f"{group.replace('/', '.')}: unknown option {option!r} (valid: {valid})"
+        return message.splitlines()[0]
+    if isinstance(exc, OverrideParseException):
+        match = _PARSE.search(message)
+        text = match.group(1) if match else message.splitlines()[0]
+        return f"{text.split('=')[0] or '<override>'}: cannot parse override (got {text!r})"
+    if isinstance(exc, ConfigCompositionException):
+        match = _NOT_IN_STRUCT.search(message)
+        if match:
+            key = match.group(1)
+            hint = _APPEND_HINT.search(message)
+            value = hint.group(2) if hint else "?"
+            return f"{key}: unknown key (got {value!r})"
+        return " ".join(message.split())
+    return None
