@@ -1,0 +1,438 @@
+"""Containment Exclusion Mode (CEM): the ideal-fluid-flow navigation function, vectorised.
+
+Romano, Uppaluru, Rastgoftar, Atkins, "Quadrotor Formation Flying Resilient to Abrupt Vehicle
+Failures via a Fluid Flow Navigation Function" (papers/cem-fluid-flow-navigation.md). Healthy
+agents slide along streamlines (constant stream function psi) of a uniform flow around one doublet
+per failed vehicle; every guidance tick their potential phi advances by the sliding step.
+
+Frames. The paper's plane is the engine's world x-y plane (z up, altitude untouched). The paper
+flies along +x only; its future work (rotate the flow to any flight direction) is done here: the
+*flow frame* is the world x-y plane translated to ``origin`` and rotated by the flight direction
+``theta`` (rad, counter-clockwise from +x), as complex numbers ``zeta = (z - origin) e^{-j theta}``.
+Every function below that takes ``zeta`` works in the flow frame; :class:`CEMNavigator` converts.
+
+Choices where the paper is ambiguous (each repeated where it is made):
+
+* Eq. 1 sums ``z - z_f`` once per failure, which for N_f > 1 makes the uniform flow N_f times
+  stronger and shrinks each doublet's dividing ring to a_p / sqrt(N_f) (commanded points would then
+  enter the planned exclusion disks). We keep one uniform term, taken relative to the failures'
+  centroid: ``f(z) = (z - zbar_F) + sum_f a_p^2 / (z - z_f)``. For one failure this is eq. 1 exactly.
+* CalcXY (Alg. 2, line 9) differences against its own input, which after the first of the K passes
+  is that pass's result, not the previous tick's command; we warm-start Newton from the latest
+  estimate (line 17 literally) but take the velocity against the previous tick's command.
+* Newton iterations stop early once an update is below 1e-10 m and no noise was drawn in it: the
+  remaining iterations would move the point by less than rounding, so the result is unchanged.
+* The last Newton iteration draws no saddle noise (eq. 6), so the commanded point lies on its
+  streamline to machine precision. A final branch guard reflects a point that converged inside a
+  planned disk through that circle (``u -> a_p^2 / u``, the doublet's own symmetry, which keeps
+  phi and psi exactly for a single failure): past the front saddle the inside and outside roots
+  are equally close, and the paper's claim that commands never enter a_p needs the outside one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+NEWTON_TOL = 1e-10
+"""m; a Newton update below this means the estimate has converged (see module docstring)."""
+
+
+def planned_exclusion_radius(a_f: float, delta: float, eps: float) -> float:
+    """Planned exclusion radius a_p = a_f + delta + eps (eq. 1), m."""
+    return a_f + delta + eps
+
+
+def to_flow_frame(xy: np.ndarray, origin: complex, theta: float) -> np.ndarray:
+    """World x-y points (..., 2) m -> flow-frame complex ``zeta`` (...), rotated by -theta."""
+    xy = np.asarray(xy, dtype=float)
+    return (xy[..., 0] + 1j * xy[..., 1] - origin) * np.exp(-1j * theta)
+
+
+def to_world_frame(zeta: np.ndarray, origin: complex, theta: float) -> np.ndarray:
+    """Flow-frame complex points (...) -> world x-y (..., 2) m."""
+    z = np.asarray(zeta) * np.exp(1j * theta) + origin
+    return np.stack([z.real, z.imag], axis=-1)
+
+
+def complex_potential(zeta: np.ndarray, centres: np.ndarray, a_p: float) -> np.ndarray:
+    """f(z) = phi + j psi, eq. 1-2 (one uniform term, see module docstring).
+
+    Args:
+        zeta: (N,) complex flow-frame points. centres: (F,) complex doublet centres z_f.
+        a_p: planned exclusion radius, m.
+    """
+    zeta = np.asarray(zeta, dtype=complex)
+    centres = np.atleast_1d(np.asarray(centres, dtype=complex))
+    return zeta - centres.mean() + (a_p**2 / (zeta[..., None] - centres)).sum(axis=-1)
+
+
+def potential_stream(x: np.ndarray, y: np.ndarray, centres_xy: np.ndarray, a_p: float):
+    """Potential phi (eq. 3a) and stream function psi (eq. 3b) in real arithmetic.
+
+    Written term by term as in the paper (uniform part once, see module docstring), as an
+    independent check of :func:`complex_potential`. ``centres_xy`` is (F, 2); returns (phi, psi).
+    """
+    x = np.asarray(x, dtype=float)[..., None]
+    y = np.asarray(y, dtype=float)[..., None]
+    xf, yf = np.asarray(centres_xy, dtype=float).reshape(-1, 2).T
+    dx, dy = x - xf, y - yf
+    r2 = dx**2 + dy**2
+    extra = len(xf) - 1  # the per-failure sum holds N_f uniform terms; keep one, about the centroid
+    phi = (dx * (r2 + a_p**2) / r2).sum(-1) - extra * (x[..., 0] - xf.mean())
+    psi = (dy * (r2 - a_p**2) / r2).sum(-1) - extra * (y[..., 0] - yf.mean())
+    return phi, psi
+
+
+def complex_velocity(zeta: np.ndarray, centres: np.ndarray, a_p: float) -> np.ndarray:
+    """f'(z) = 1 - sum_f a_p^2 / (z - z_f)^2 = phi_x - j phi_y (Cauchy-Riemann)."""
+    zeta = np.asarray(zeta, dtype=complex)
+    centres = np.atleast_1d(np.asarray(centres, dtype=complex))
+    return 1.0 - (a_p**2 / (zeta[..., None] - centres) ** 2).sum(axis=-1)
+
+
+def jacobian(zeta: np.ndarray, centres: np.ndarray, a_p: float) -> np.ndarray:
+    """J = [[phi_x, phi_y], [psi_x, psi_y]] (eq. 5), shape (N, 2, 2).
+
+    From f' = phi_x - j phi_y and Cauchy-Riemann (psi_x = -phi_y, psi_y = phi_x): J is a scaled
+    rotation, so J^{-1} e is the complex division e / f' that CalcXY uses.
+    """
+    fp = complex_velocity(zeta, centres, a_p)
+    u, v = fp.real, -fp.imag  # phi_x, phi_y
+    return np.stack([np.stack([u, v], -1), np.stack([-v, u], -1)], -2)
+
+
+def lambda_max(centres: np.ndarray, a_p: float, samples: int = 1440) -> float:
+    """lambda_max = max (phi_x^2 + phi_y^2) = max |f'|^2 over the motion space (Theorem 1).
+
+    Over the whole plane it is infinite (f' is singular at each z_f), so the maximum is taken over
+    the motion space, outside every planned exclusion disk. f' is analytic there and tends to 1 at
+    infinity, so by the maximum modulus principle the maximum lies on the disks' boundary circles
+    (or is 1): we sample each circle, keep the samples outside the other disks, and refine the best
+    one with a bounded scalar search. One failure gives exactly 4 (|f'| = 2|sin theta| on the ring).
+    """
+    from scipy.optimize import minimize_scalar
+
+    centres = np.atleast_1d(np.asarray(centres, dtype=complex))
+
+    def ring(k: int, ang: np.ndarray) -> np.ndarray:
+        return centres[k] + a_p * np.exp(1j * np.asarray(ang))
+
+    def speed2(k: int, ang: np.ndarray) -> np.ndarray:
+        pts = ring(k, ang)
+        s = np.abs(complex_velocity(pts, centres, a_p)) ** 2
+        others = np.delete(centres, k)
+        if others.size:  # points on ring k inside another disk are not motion space
+            inside = (np.abs(pts[..., None] - others) < a_p).any(-1)
+            s = np.where(inside, 0.0, s)
+        return s
+
+    ang = np.linspace(0.0, 2 * np.pi, samples, endpoint=False)
+    best = 1.0
+    step = 2 * np.pi / samples
+    for k in range(centres.size):  # loop over failures, not agents (cold path, once per activation)
+        s = speed2(k, ang)
+        i = int(np.argmax(s))
+        res = minimize_scalar(lambda t, k=k: -float(speed2(k, t)), bounds=(ang[i] - step, ang[i] + step),
+                              method="bounded", options={"xatol": 1e-10})
+        best = max(best, float(s[i]), -float(res.fun))
+    return best
+
+
+@dataclass(frozen=True)
+class Theorem1Check:
+    """Theorem 1 precondition (eq. 7-8): p_min0^2 / lambda_max >= 4 (delta + eps)^2."""
+
+    p_min0: float  # eq. 7, minimum phi-psi distance between healthy agents at t0
+    lambda_max: float  # max |f'|^2 over the motion space
+    lhs: float  # p_min0^2 / lambda_max, m^2
+    rhs: float  # 4 (delta + eps)^2, m^2
+    holds: bool
+
+
+@dataclass(frozen=True)
+class Theorem2Check:
+    """Theorem 2 precondition (eq. 16): d_min0 >= 2 (delta + eps) + a_p, single failure only."""
+
+    d_min0: float  # minimum x-y distance between healthy agents at t0, m
+    bound: float  # 2 (delta + eps) + a_p, m
+    applicable: bool  # Theorem 2 covers exactly one failed vehicle
+    holds: bool  # applicable and d_min0 >= bound
+
+
+def _min_pairwise(points: np.ndarray) -> float:
+    """Minimum distance between distinct complex points (inf for fewer than two)."""
+    if points.size < 2:
+        return float("inf")
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(np.stack([points.real, points.imag], -1)).query(np.stack([points.real, points.imag], -1), k=2)
+    return float(d[:, 1].min())
+
+
+REL_TOL = 1e-9
+"""Relative slack in the theorem inequalities: the paper's own formation sits exactly on eq. 16."""
+
+
+def theorem1(w0: np.ndarray, centres: np.ndarray, a_p: float, delta: float, eps: float) -> Theorem1Check:
+    """Evaluate Theorem 1's precondition from the healthy agents' (phi, psi) at t0, w0 = phi + j psi."""
+    p = _min_pairwise(np.asarray(w0, dtype=complex))
+    lam = lambda_max(centres, a_p)
+    lhs, rhs = p**2 / lam, 4.0 * (delta + eps) ** 2
+    return Theorem1Check(p, lam, lhs, rhs, bool(lhs >= rhs * (1 - REL_TOL)))
+
+
+def theorem2(zeta0: np.ndarray, n_failures: int, a_p: float, delta: float, eps: float) -> Theorem2Check:
+    """Evaluate Theorem 2's precondition (eq. 16) from the healthy agents' positions at t0.
+
+    d_min0 is taken over healthy pairs (the collisions the theorem rules out); the failed vehicle is
+    kept off by a_p. With more than one failure the theorem does not apply and ``holds`` is False.
+    """
+    d = _min_pairwise(np.asarray(zeta0, dtype=complex))
+    bound = 2.0 * (delta + eps) + a_p
+    applicable = n_failures == 1
+    return Theorem2Check(d, bound, applicable, bool(applicable and d >= bound * (1 - REL_TOL)))
+
+
+class NewtonInverter:
+    """CalcXY (Algorithm 2): the point z whose (phi, psi) is a target, by Newton's method.
+
+    Each iteration solves ``J dz = [phi_1 - phi, psi_1 - psi]`` (eq. 5), i.e. the complex division
+    ``dz = (f(z) - w) / f'(z)``, and adds the saddle noise of eq. 6 when the estimate lies within
+    a_p of a failed vehicle. Vectorised over agents (N) and doublets (F); every work array is
+    allocated once here, so a guidance tick allocates (almost) nothing.
+
+    Args:
+        centres: (F,) complex doublet centres in the flow frame.
+        a_p: planned exclusion radius, m.
+        n_agents: N. n: Newton iterations per call (paper: 20). sigma: noise deviation, m (1 mm).
+        rng: random generator for the noise (the run's generator, so runs are reproducible).
+    """
+
+    def __init__(self, centres: np.ndarray, a_p: float, n_agents: int, n: int, sigma: float,
+                 rng: np.random.Generator) -> None:
+        self.c = np.atleast_1d(np.asarray(centres, dtype=complex)).reshape(1, -1)
+        self.a, self.a2 = float(a_p), float(a_p) ** 2
+        self.offset = complex(self.c.mean())
+        self.n, self.sigma, self.rng = int(n), float(sigma), rng
+        self.iterations = 0  # Newton iterations run by the last call (diagnostic)
+        m, f = n_agents, self.c.shape[1]
+        self.z = np.zeros(m, complex)  # the estimate, updated in place
+        self._zcol = self.z[:, None]
+        self._U, self._G = np.empty((m, f), complex), np.empty((m, f), complex)
+        self._R = np.empty((m, f))
+        self._e, self._fp, self._r = np.empty(m, complex), np.empty(m, complex), np.empty(m)
+        self._wt = np.empty(m, complex)
+        self._single = f == 1  # one doublet: views instead of sums over the doublet axis
+        self._gs = self._G[:, 0] if self._single else np.empty(m, complex)
+        self._hs = np.empty(m, complex)
+
+    def residual(self, w: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
+        """f(z) - w for the current estimate (or ``z``), a fresh (N,) complex array."""
+        z = self.z if z is None else z
+        return z - self.offset + (self.a2 / (z[:, None] - self.c)).sum(1) - w
+
+    def solve(self, w: np.ndarray) -> np.ndarray:
+        """Run Algorithm 2 from the current estimate ``self.z`` towards targets w = phi + j psi (N,).
+
+        Returns ``self.z`` (updated in place). Call inside ``np.errstate(all="ignore")``: at a
+        stagnation point f' = 0 and the division is guarded afterwards, not before.
+        """
+        U, G, R, e, fp, r, zc = self._U, self._G, self._R, self._e, self._fp, self._r, self._zcol
+        z, c, a, a2, gs, hs = self.z, self.c, self.a, self.a2, self._gs, self._hs
+        single = self._single
+        np.add(w, self.offset, out=self._wt)
+        z_start = z.copy()
+        it = 0
+        for it in range(self.n):
+            np.subtract(zc, c, out=U)  # u = z - z_f
+            np.divide(a2, U, out=G)  # a_p^2 / u
+            if not single:
+                np.sum(G, axis=1, out=gs)
+            np.add(z, gs, out=e)
+            np.subtract(e, self._wt, out=e)  # f(z) - w
+            np.multiply(G, G, out=G)  # a_p^4 / u^2
+            if single:
+                np.multiply(gs, -1.0 / a2, out=fp)
+            else:
+                np.sum(G, axis=1, out=hs)
+                np.multiply(hs, -1.0 / a2, out=fp)
+            np.add(fp, 1.0, out=fp)  # f'(z)
+            np.divide(e, fp, out=e)  # J^{-1} [phi_1 - phi, psi_1 - psi]
+            np.subtract(z, e, out=z)
+            noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, R)
+            if not noisy:
+                np.abs(e, out=r)
+                if r.max() < NEWTON_TOL:
+                    break
+        self.iterations = it + 1
+        self._guard(z_start)
+        return z
+
+    def _add_noise(self, U: np.ndarray, R: np.ndarray, rows: np.ndarray | None = None) -> bool:
+        """Eq. 6: |N(0, sigma)| r_a + N(0, sigma) r_b for estimates inside the planned disk.
+
+        r_a = (r - r_f) / ||r - r_f|| points away from the failed vehicle, r_b = [[0, 1], [-1, 0]] r_a,
+        which in complex form is -j r_a. "Inside" is ||r - r_f|| < a_p (1 - 1e-9) rather than the
+        paper's <= a_p: an estimate that has converged onto the ring itself (psi = 0 wraps the disk)
+        is not at a saddle, and kicking it would leave its command off the streamline.
+        ``rows`` forces noise on those agents (nearest disk). Returns whether any noise was drawn.
+        """
+        np.abs(U, out=R)
+        if rows is None:
+            if not R.min() < self.a * (1.0 - 1e-9):
+                return False
+            rows, cols = np.nonzero(R < self.a * (1.0 - 1e-9))
+        else:
+            cols = R[rows].argmin(axis=1)
+        ra = U[rows, cols] / R[rows, cols]
+        g = self.rng.standard_normal((2, rows.size)) * self.sigma
+        np.add.at(self.z, rows, ra * (np.abs(g[0]) - 1j * g[1]))
+        return True
+
+    def _guard(self, z_start: np.ndarray) -> None:
+        """Keep commands finite and outside every planned disk (see module docstring).
+
+        A non-finite estimate (Newton met f' = 0 exactly, at a stagnation point) restarts from its
+        start point plus the eq. 6 noise, which moves it off the saddle for the next call. An estimate
+        inside a disk, deeper than rounding, is moved out through that circle by whichever of two
+        inversions lands nearer its start point: the mirror u -> a_p^2 / u (for one failure it keeps
+        phi and psi exactly, so it turns the inside root past the front saddle into the outside
+        one) or the radial u -> a_p^2 / conj(u) (keeps the side for a point that merely ran out of
+        iterations inside, where the mirror would jump across the disk).
+        """
+        U, R, z = self._U, self._R, self.z
+        np.subtract(self._zcol, self.c, out=U)
+        np.abs(U, out=R)
+        inner = self.a * (1.0 - 1e-6)  # a point on the ring itself is outside
+        if R.min() >= inner:  # False for NaN too
+            return
+        bad = np.flatnonzero(~np.isfinite(z))
+        if bad.size:
+            z[bad] = z_start[bad]
+            np.subtract(self._zcol, self.c, out=U)
+            self._add_noise(U, R, rows=bad)
+            np.subtract(self._zcol, self.c, out=U)
+            np.abs(U, out=R)
+        k = R.argmin(axis=1)
+        rows = np.flatnonzero(R[np.arange(z.size), k] < inner)
+        u, cf = U[rows, k[rows]], self.c[0, k[rows]]
+        mirror, radial = cf + self.a2 / u, cf + self.a2 / np.conj(u)
+        near = np.abs(mirror - z_start[rows]) <= np.abs(radial - z_start[rows])
+        z[rows] = np.where(near, mirror, radial)
+
+
+def calc_xy(w: np.ndarray, zeta: np.ndarray, centres: np.ndarray, a_p: float, n: int = 20,
+            sigma: float = 1e-3, rng: np.random.Generator | None = None, dT: float | None = None):
+    """Algorithm 2 as a function: positions for targets w from start points zeta (flow frame).
+
+    Returns the (N,) complex positions, and with ``dT`` also the first-difference velocity
+    (r - r_{-1}) / dT (line 9). Prefer :class:`NewtonInverter` in a loop (it reuses its buffers).
+    """
+    zeta = np.asarray(zeta, dtype=complex)
+    inv = NewtonInverter(centres, a_p, zeta.size, n, sigma, rng or np.random.default_rng(0))
+    inv.z[:] = zeta
+    with np.errstate(all="ignore"):
+        z = inv.solve(np.asarray(w, dtype=complex)).copy()
+    return z if dT is None else (z, (z - zeta) / dT)
+
+
+class CEMNavigator:
+    """Algorithm 1 (CEM navigation) for one activation: N healthy agents around F failed ones.
+
+    On construction (lines 5-10) each agent's (phi_i0, psi_i0) is fixed from its position and the
+    sliding step is set for the undistorted flow, dphi = v_des dT (line 6). Each :meth:`step` is one
+    pass of the t loop (lines 13-22): K times, phi = phi_last + dphi, CalcXY, and
+    dphi <- dphi v_des / v_max (line 20), so the fastest agent flies at about v_des.
+
+    Args:
+        positions: (N, 2) world x-y of the healthy agents at activation, m (r in Alg. 1).
+        failures: (F, 2) world x-y of the failed vehicles' centres z_f, m.
+        a_p: planned exclusion radius, m. theta: flight direction, rad from world +x (the flow
+            runs along it). origin: flow-frame origin (default: the failures' centroid).
+        v_des: desired speed of the fastest agent, m/s. dT: guidance period, s.
+        K: sliding-step passes per tick. n: Newton iterations. sigma: saddle noise, m.
+        rng: random generator for the saddle noise.
+    """
+
+    def __init__(self, positions: np.ndarray, failures: np.ndarray, *, a_p: float, theta: float = 0.0,
+                 v_des: float = 1.0, dT: float = 0.01, K: int = 2, n: int = 20, sigma: float = 1e-3,
+                 rng: np.random.Generator | None = None, origin: complex | None = None) -> None:
+        failures = np.asarray(failures, dtype=float).reshape(-1, 2)
+        self.origin = complex(*failures.mean(0)) if origin is None else complex(origin)
+        self.theta, self.a_p = float(theta), float(a_p)
+        self.v_des, self.dT, self.K = float(v_des), float(dT), int(K)
+        self.rot = complex(np.exp(1j * self.theta))
+        self.centres = to_flow_frame(failures, self.origin, self.theta)
+        zeta0 = to_flow_frame(np.asarray(positions, dtype=float).reshape(-1, 2), self.origin, self.theta)
+        self.zeta0 = zeta0
+        self.w0 = complex_potential(zeta0, self.centres, a_p)  # phi_i0 + j psi_i0, lines 7-10
+        self.w = self.w0.copy()  # phi_last + j psi_i0
+        self.dphi = self.v_des * self.dT  # line 6
+        self.dphi_used = 0.0  # the step phi actually advanced by at the last tick (Fig. 8)
+        self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng())
+        self.inverter.z[:] = zeta0  # r_d <- r, line 5
+        m = zeta0.size
+        self._z_prev, self._dz, self._speed = np.empty(m, complex), np.empty(m, complex), np.empty(m)
+        self._wt = np.empty(m, complex)
+        self._pos_c, self._vel_c = np.empty(m, complex), np.empty(m, complex)
+        self.positions = self._pos_c.view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
+        self.velocities = self._vel_c.view(float).reshape(m, 2)  # world x-y, m/s
+
+    @property
+    def n_agents(self) -> int:
+        return self.w0.size
+
+    @property
+    def zeta(self) -> np.ndarray:
+        """(N,) complex commanded positions in the flow frame (along-track = real part)."""
+        return self.inverter.z
+
+    @property
+    def phi(self) -> np.ndarray:
+        return self.w.real
+
+    @property
+    def psi0(self) -> np.ndarray:
+        return self.w0.imag
+
+    def step(self) -> tuple[np.ndarray, np.ndarray]:
+        """One guidance tick: returns world (N, 2) commanded positions and velocities (views).
+
+        The returned arrays are owned by the navigator and overwritten at the next call.
+        """
+        z, dz, speed = self.inverter.z, self._dz, self._speed
+        np.copyto(self._z_prev, z)  # r_{-1}: the previous tick's command
+        with np.errstate(all="ignore"):
+            for _ in range(self.K):
+                used = self.dphi
+                np.add(self.w, used, out=self._wt)  # line 16: phi_last + dphi (psi unchanged)
+                self.inverter.solve(self._wt)  # line 17, from the latest estimate
+                np.subtract(z, self._z_prev, out=dz)
+                np.abs(dz, out=speed)
+                v_max = speed.max() / self.dT  # line 19
+                if v_max > 0.0:
+                    self.dphi = used * self.v_des / v_max  # line 20
+        self.dphi_used = used
+        np.add(self.w, used, out=self.w)
+        np.multiply(z, self.rot, out=self._pos_c)
+        np.add(self._pos_c, self.origin, out=self._pos_c)
+        np.multiply(dz, self.rot / self.dT, out=self._vel_c)
+        return self.positions, self.velocities
+
+    def stream_drift(self) -> np.ndarray:
+        """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""
+        return np.abs(complex_potential(self.zeta, self.centres, self.a_p).imag - self.w0.imag)
+
+    def exclusion_margin(self) -> np.ndarray:
+        """(N,) min over failures of ||r_d,i - z_f|| - a_p for the commands (>= 0 means outside)."""
+        return np.abs(self.zeta[:, None] - self.centres).min(axis=1) - self.a_p
+
+    def theorem1(self, delta: float, eps: float) -> Theorem1Check:
+        """Theorem 1's precondition (eq. 7-8) for this activation."""
+        return theorem1(self.w0, self.centres, self.a_p, delta, eps)
+
+    def theorem2(self, delta: float, eps: float) -> Theorem2Check:
+        """Theorem 2's precondition (eq. 16) for this activation."""
+        return theorem2(self.zeta0, self.centres.size, self.a_p, delta, eps)
