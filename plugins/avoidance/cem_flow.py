@@ -16,10 +16,14 @@ Choices where the paper is ambiguous (each repeated where it is made):
 * Eq. 1 sums ``z - z_f`` once per failure, which for N_f > 1 makes the uniform flow N_f times
   stronger and shrinks each doublet's dividing ring to a_p / sqrt(N_f) (commanded points would then
   enter the planned exclusion disks). We keep one uniform term, taken relative to the failures'
-  centroid: ``f(z) = (z - zbar_F) + sum_f a_p^2 / (z - z_f)``. For one failure this is eq. 1 exactly.
+  centroid, and one doublet per failure whose strength mu_f keeps its a_p circle a streamline in
+  the others' flow (:func:`doublet_strengths`): ``f(z) = (z - zbar_F) + sum_f mu_f / (z - z_f)``.
+  For one failure mu = a_p^2 and this is eq. 1 exactly.
 * CalcXY (Alg. 2, line 9) differences against its own input, which after the first of the K passes
-  is that pass's result, not the previous tick's command; we warm-start Newton from the latest
-  estimate (line 17 literally) but take the velocity against the previous tick's command.
+  would be that pass's result, not the previous tick's command. Every pass starts Newton from the
+  previous tick's command ("n iterations from the previous position") and differences against it:
+  a warm start from a pass that overshot a saddle point would drag the next pass onto the far side
+  of the disk (measured: a 3.4 m/s spike with K = 5).
 * Newton iterations stop early once an update is below 1e-10 m and no noise was drawn in it: the
   remaining iterations would move the point by less than rounding, so the result is unchanged.
 * The last Newton iteration draws no saddle noise (eq. 6), so the commanded point lies on its
@@ -56,23 +60,56 @@ def to_world_frame(zeta: np.ndarray, origin: complex, theta: float) -> np.ndarra
     return np.stack([z.real, z.imag], axis=-1)
 
 
-def complex_potential(zeta: np.ndarray, centres: np.ndarray, a_p: float) -> np.ndarray:
-    """f(z) = phi + j psi, eq. 1-2 (one uniform term, see module docstring).
+def doublet_strengths(centres: np.ndarray, a_p: float, iterations: int = 100) -> np.ndarray:
+    """Doublet strengths mu_f (F,) complex, m^2: a_p^2 for one failure, as in eq. 1.
+
+    With several failures each doublet also sits in the others' flow, which shrinks and tilts its
+    dividing ring (eq. 1 as written puts commanded points up to several cm inside a_p for failures
+    ~10 m apart). A doublet mu / (z - c) in a local uniform flow U (f ~ U (z - c) + mu / (z - c))
+    keeps the circle |z - c| = a_p a streamline when mu = a_p^2 conj(U), so we solve the fixed point
+    mu_k = a_p^2 conj(U_k), U_k = 1 - sum_{j != k} mu_j / (z_k - z_j)^2 (still one doublet per
+    failed vehicle; exact for one failure, first order in (a_p / distance)^2 for several).
+    """
+    c = np.atleast_1d(np.asarray(centres, dtype=complex))
+    a2 = float(a_p) ** 2
+    mu = np.full(c.size, a2, dtype=complex)
+    if c.size < 2:
+        return mu
+    d = c[:, None] - c[None, :] + np.eye(c.size)
+    w = 1.0 / d**2
+    np.fill_diagonal(w, 0.0)
+    for _ in range(iterations):
+        nxt = a2 * np.conj(1.0 - w @ mu)
+        if np.max(np.abs(nxt - mu)) < 1e-15 * a2:
+            return nxt
+        mu = nxt
+    return mu
+
+
+def _strengths(centres: np.ndarray, a_p: float, strengths: np.ndarray | None) -> np.ndarray:
+    return doublet_strengths(centres, a_p) if strengths is None else np.asarray(strengths, dtype=complex)
+
+
+def complex_potential(zeta: np.ndarray, centres: np.ndarray, a_p: float,
+                      strengths: np.ndarray | None = None) -> np.ndarray:
+    """f(z) = phi + j psi = (z - zbar_F) + sum_f mu_f / (z - z_f), eq. 1-2 (see module docstring).
 
     Args:
         zeta: (N,) complex flow-frame points. centres: (F,) complex doublet centres z_f.
-        a_p: planned exclusion radius, m.
+        a_p: planned exclusion radius, m. strengths: (F,) mu_f (default :func:`doublet_strengths`).
     """
     zeta = np.asarray(zeta, dtype=complex)
     centres = np.atleast_1d(np.asarray(centres, dtype=complex))
-    return zeta - centres.mean() + (a_p**2 / (zeta[..., None] - centres)).sum(axis=-1)
+    mu = _strengths(centres, a_p, strengths)
+    return zeta - centres.mean() + (mu / (zeta[..., None] - centres)).sum(axis=-1)
 
 
 def potential_stream(x: np.ndarray, y: np.ndarray, centres_xy: np.ndarray, a_p: float):
-    """Potential phi (eq. 3a) and stream function psi (eq. 3b) in real arithmetic.
+    """Potential phi (eq. 3a) and stream function psi (eq. 3b) in real arithmetic, as printed.
 
-    Written term by term as in the paper (uniform part once, see module docstring), as an
-    independent check of :func:`complex_potential`. ``centres_xy`` is (F, 2); returns (phi, psi).
+    Term by term as in the paper with strength a_p^2 per failure (uniform part once, see module
+    docstring): an independent check of :func:`complex_potential` with ``strengths = a_p^2``
+    (which is the default for one failure). ``centres_xy`` is (F, 2); returns (phi, psi).
     """
     x = np.asarray(x, dtype=float)[..., None]
     y = np.asarray(y, dtype=float)[..., None]
@@ -85,11 +122,13 @@ def potential_stream(x: np.ndarray, y: np.ndarray, centres_xy: np.ndarray, a_p: 
     return phi, psi
 
 
-def complex_velocity(zeta: np.ndarray, centres: np.ndarray, a_p: float) -> np.ndarray:
-    """f'(z) = 1 - sum_f a_p^2 / (z - z_f)^2 = phi_x - j phi_y (Cauchy-Riemann)."""
+def complex_velocity(zeta: np.ndarray, centres: np.ndarray, a_p: float,
+                     strengths: np.ndarray | None = None) -> np.ndarray:
+    """f'(z) = 1 - sum_f mu_f / (z - z_f)^2 = phi_x - j phi_y (Cauchy-Riemann)."""
     zeta = np.asarray(zeta, dtype=complex)
     centres = np.atleast_1d(np.asarray(centres, dtype=complex))
-    return 1.0 - (a_p**2 / (zeta[..., None] - centres) ** 2).sum(axis=-1)
+    mu = _strengths(centres, a_p, strengths)
+    return 1.0 - (mu / (zeta[..., None] - centres) ** 2).sum(axis=-1)
 
 
 def jacobian(zeta: np.ndarray, centres: np.ndarray, a_p: float) -> np.ndarray:
@@ -208,11 +247,14 @@ class NewtonInverter:
         a_p: planned exclusion radius, m.
         n_agents: N. n: Newton iterations per call (paper: 20). sigma: noise deviation, m (1 mm).
         rng: random generator for the noise (the run's generator, so runs are reproducible).
+        strengths: (F,) doublet strengths mu_f (default :func:`doublet_strengths`).
     """
 
     def __init__(self, centres: np.ndarray, a_p: float, n_agents: int, n: int, sigma: float,
-                 rng: np.random.Generator) -> None:
-        self.c = np.atleast_1d(np.asarray(centres, dtype=complex)).reshape(1, -1)
+                 rng: np.random.Generator, strengths: np.ndarray | None = None) -> None:
+        centres = np.atleast_1d(np.asarray(centres, dtype=complex))
+        self.c = centres.reshape(1, -1)
+        self.mu = _strengths(centres, a_p, strengths).reshape(1, -1)
         self.a, self.a2 = float(a_p), float(a_p) ** 2
         self.offset = complex(self.c.mean())
         self.n, self.sigma, self.rng = int(n), float(sigma), rng
@@ -220,18 +262,17 @@ class NewtonInverter:
         m, f = n_agents, self.c.shape[1]
         self.z = np.zeros(m, complex)  # the estimate, updated in place
         self._zcol = self.z[:, None]
-        self._U, self._G = np.empty((m, f), complex), np.empty((m, f), complex)
+        self._U, self._V, self._G = (np.empty((m, f), complex) for _ in range(3))
         self._R = np.empty((m, f))
         self._e, self._fp, self._r = np.empty(m, complex), np.empty(m, complex), np.empty(m)
         self._wt = np.empty(m, complex)
         self._single = f == 1  # one doublet: views instead of sums over the doublet axis
         self._gs = self._G[:, 0] if self._single else np.empty(m, complex)
-        self._hs = np.empty(m, complex)
 
     def residual(self, w: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
         """f(z) - w for the current estimate (or ``z``), a fresh (N,) complex array."""
         z = self.z if z is None else z
-        return z - self.offset + (self.a2 / (z[:, None] - self.c)).sum(1) - w
+        return z - self.offset + (self.mu / (z[:, None] - self.c)).sum(1) - w
 
     def solve(self, w: np.ndarray) -> np.ndarray:
         """Run Algorithm 2 from the current estimate ``self.z`` towards targets w = phi + j psi (N,).
@@ -239,51 +280,53 @@ class NewtonInverter:
         Returns ``self.z`` (updated in place). Call inside ``np.errstate(all="ignore")``: at a
         stagnation point f' = 0 and the division is guarded afterwards, not before.
         """
-        U, G, R, e, fp, r, zc = self._U, self._G, self._R, self._e, self._fp, self._r, self._zcol
-        z, c, a, a2, gs, hs = self.z, self.c, self.a, self.a2, self._gs, self._hs
-        single = self._single
+        U, V, G, e, fp, r, zc = self._U, self._V, self._G, self._e, self._fp, self._r, self._zcol
+        z, c, mu, gs, single = self.z, self.c, self.mu, self._gs, self._single
         np.add(w, self.offset, out=self._wt)
         z_start = z.copy()
         it = 0
         for it in range(self.n):
             np.subtract(zc, c, out=U)  # u = z - z_f
-            np.divide(a2, U, out=G)  # a_p^2 / u
+            np.reciprocal(U, out=V)
+            np.multiply(V, mu, out=G)  # mu_f / u
             if not single:
                 np.sum(G, axis=1, out=gs)
             np.add(z, gs, out=e)
             np.subtract(e, self._wt, out=e)  # f(z) - w
-            np.multiply(G, G, out=G)  # a_p^4 / u^2
-            if single:
-                np.multiply(gs, -1.0 / a2, out=fp)
-            else:
-                np.sum(G, axis=1, out=hs)
-                np.multiply(hs, -1.0 / a2, out=fp)
-            np.add(fp, 1.0, out=fp)  # f'(z)
+            np.multiply(G, V, out=G)  # mu_f / u^2
+            if not single:
+                np.sum(G, axis=1, out=gs)
+            np.subtract(1.0, gs, out=fp)  # f'(z)
             np.divide(e, fp, out=e)  # J^{-1} [phi_1 - phi, psi_1 - psi]
             np.subtract(z, e, out=z)
-            noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, R)
-            if not noisy:
-                np.abs(e, out=r)
-                if r.max() < NEWTON_TOL:
-                    break
+            np.abs(e, out=r)
+            noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, r)
+            if not noisy and r.max() < NEWTON_TOL:
+                break
         self.iterations = it + 1
         self._guard(z_start)
         return z
 
-    def _add_noise(self, U: np.ndarray, R: np.ndarray, rows: np.ndarray | None = None) -> bool:
+    def _add_noise(self, U: np.ndarray, step: np.ndarray | None = None, rows: np.ndarray | None = None) -> bool:
         """Eq. 6: |N(0, sigma)| r_a + N(0, sigma) r_b for estimates inside the planned disk.
 
         r_a = (r - r_f) / ||r - r_f|| points away from the failed vehicle, r_b = [[0, 1], [-1, 0]] r_a,
-        which in complex form is -j r_a. "Inside" is ||r - r_f|| < a_p (1 - 1e-9) rather than the
-        paper's <= a_p: an estimate that has converged onto the ring itself (psi = 0 wraps the disk)
-        is not at a saddle, and kicking it would leave its command off the streamline.
-        ``rows`` forces noise on those agents (nearest disk). Returns whether any noise was drawn.
+        which in complex form is -j r_a. The noise is there to escape saddle points, so it is drawn
+        for an estimate within a_p whose Newton update ``step`` is still at least sigma: an estimate
+        that has converged (onto the ring, where psi = 0 wraps the disk, or onto a root that several
+        failures' flows moved a few mm inside a_p) is not at a saddle, and kicking it every iteration
+        would keep it from converging; the guard then places it. ``rows`` forces noise on those
+        agents (nearest disk). Returns whether any noise was drawn.
         """
+        R = self._R
         np.abs(U, out=R)
         if rows is None:
             if not R.min() < self.a * (1.0 - 1e-9):
                 return False
-            rows, cols = np.nonzero(R < self.a * (1.0 - 1e-9))
+            mask = (R < self.a * (1.0 - 1e-9)) & (step >= self.sigma)[:, None]
+            rows, cols = np.nonzero(mask)
+            if rows.size == 0:
+                return False
         else:
             cols = R[rows].argmin(axis=1)
         ra = U[rows, cols] / R[rows, cols]
@@ -297,10 +340,10 @@ class NewtonInverter:
         A non-finite estimate (Newton met f' = 0 exactly, at a stagnation point) restarts from its
         start point plus the eq. 6 noise, which moves it off the saddle for the next call. An estimate
         inside a disk, deeper than rounding, is moved out through that circle by whichever of two
-        inversions lands nearer its start point: the mirror u -> a_p^2 / u (for one failure it keeps
-        phi and psi exactly, so it turns the inside root past the front saddle into the outside
-        one) or the radial u -> a_p^2 / conj(u) (keeps the side for a point that merely ran out of
-        iterations inside, where the mirror would jump across the disk).
+        inversions lands nearer its start point: the mirror u -> mu / (U u) (U the doublet's local
+        flow; for one failure u -> a_p^2 / u, which keeps phi and psi exactly, so it turns the inside
+        root past the front saddle into the outside one) or the radial u -> a_p^2 / conj(u) (keeps the
+        side for a root a few mm inside, where the mirror would jump across the disk).
         """
         U, R, z = self._U, self._R, self.z
         np.subtract(self._zcol, self.c, out=U)
@@ -312,13 +355,14 @@ class NewtonInverter:
         if bad.size:
             z[bad] = z_start[bad]
             np.subtract(self._zcol, self.c, out=U)
-            self._add_noise(U, R, rows=bad)
+            self._add_noise(U, rows=bad)
             np.subtract(self._zcol, self.c, out=U)
             np.abs(U, out=R)
         k = R.argmin(axis=1)
         rows = np.flatnonzero(R[np.arange(z.size), k] < inner)
-        u, cf = U[rows, k[rows]], self.c[0, k[rows]]
-        mirror, radial = cf + self.a2 / u, cf + self.a2 / np.conj(u)
+        u, cf, mu = U[rows, k[rows]], self.c[0, k[rows]], self.mu[0, k[rows]]
+        mirror = cf + mu * self.a2 / (np.conj(mu) * u)  # local flow U = conj(mu) / a_p^2
+        radial = cf + self.a2 / np.conj(u)
         near = np.abs(mirror - z_start[rows]) <= np.abs(radial - z_start[rows])
         z[rows] = np.where(near, mirror, radial)
 
@@ -367,11 +411,13 @@ class CEMNavigator:
         self.centres = to_flow_frame(failures, self.origin, self.theta)
         zeta0 = to_flow_frame(np.asarray(positions, dtype=float).reshape(-1, 2), self.origin, self.theta)
         self.zeta0 = zeta0
-        self.w0 = complex_potential(zeta0, self.centres, a_p)  # phi_i0 + j psi_i0, lines 7-10
+        self.strengths = doublet_strengths(self.centres, a_p)
+        self.w0 = complex_potential(zeta0, self.centres, a_p, self.strengths)  # lines 7-10: phi_i0 + j psi_i0
         self.w = self.w0.copy()  # phi_last + j psi_i0
         self.dphi = self.v_des * self.dT  # line 6
         self.dphi_used = 0.0  # the step phi actually advanced by at the last tick (Fig. 8)
-        self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng())
+        self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng(),
+                                       self.strengths)
         self.inverter.z[:] = zeta0  # r_d <- r, line 5
         m = zeta0.size
         self._z_prev, self._dz, self._speed = np.empty(m, complex), np.empty(m, complex), np.empty(m)
@@ -408,7 +454,8 @@ class CEMNavigator:
             for _ in range(self.K):
                 used = self.dphi
                 np.add(self.w, used, out=self._wt)  # line 16: phi_last + dphi (psi unchanged)
-                self.inverter.solve(self._wt)  # line 17, from the latest estimate
+                np.copyto(z, self._z_prev)  # every pass starts from the previous tick's command
+                self.inverter.solve(self._wt)  # line 17
                 np.subtract(z, self._z_prev, out=dz)
                 np.abs(dz, out=speed)
                 v_max = speed.max() / self.dT  # line 19
@@ -423,7 +470,7 @@ class CEMNavigator:
 
     def stream_drift(self) -> np.ndarray:
         """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""
-        return np.abs(complex_potential(self.zeta, self.centres, self.a_p).imag - self.w0.imag)
+        return np.abs(complex_potential(self.zeta, self.centres, self.a_p, self.strengths).imag - self.w0.imag)
 
     def exclusion_margin(self) -> np.ndarray:
         """(N,) min over failures of ||r_d,i - z_f|| - a_p for the commands (>= 0 means outside)."""
