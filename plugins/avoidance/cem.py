@@ -1,0 +1,279 @@
+"""``cem``: Containment Exclusion Mode, fluid-flow navigation around failed vehicles.
+
+Romano, Uppaluru, Rastgoftar, Atkins (papers/cem-fluid-flow-navigation.md). While no vehicle has
+failed, the formation's setpoints pass through unchanged. A ``hover`` failure event activates CEM:
+every failed vehicle becomes a doublet of planned exclusion radius a_p = a_f + delta + eps in a
+uniform flow along the flight direction, each healthy agent's (phi, psi) is fixed from its position,
+and every guidance tick the healthy agents slide along their streamlines (Algorithm 1, CalcXY of
+Algorithm 2) as TRACK setpoints (position and first-difference velocity; altitude from the
+formation). The math lives in :mod:`swarmscene.plugins.avoidance.cem_flow`.
+
+Choices (the paper leaves these open):
+
+* Flight direction: ``direction`` in degrees from world +x (counter-clockwise), or ``"auto"``: at
+  activation, the heading of the healthy agents' mean velocity when it is at least 0.05 m/s, else
+  the bearing from the healthy agents' centroid to the failed vehicles' centroid (a swarm at rest
+  is taken to be heading for the failure in front of it).
+* Failures at different times: each new ``hover`` event re-runs Algorithm 1's initialisation with
+  every failed vehicle so far as a doublet; agents already under CEM restart from their current
+  commands (no jump), the direction and flow origin of the running activation are kept, and the
+  theorems are evaluated again for the new configuration. ``comm_loss`` events do not change the
+  flow (a vehicle that lost its radio keeps flying, it is not an obstacle of its own).
+* Failed vehicles' centres z_f are where they were when they failed (they hover, Assumption 3).
+* Hand-back: once every healthy agent's along-track coordinate (flow frame) exceeds that of the most
+  downstream failed vehicle by ``handback_distance`` (default 2 a_p, where the doublet's
+  distortion |f' - 1| = a_p^2 / r^2 has fallen to 1/4), CEM deactivates and the formation's
+  setpoints pass through again; ``hand_back: false`` keeps CEM on for the rest of the run.
+* Safety is measured from the recorded states every tick (``swarmscene_step_end``): streamline
+  drift, exclusion margin of the commands, clearance of the actual positions, pairwise distances
+  (2-D, the x-y plane of the theorems), speeds and tracking error.
+
+Metrics added at run end (SI units; distances in m, speeds in m/s):
+    cem.activations: number of (re)activations. cem.handback_time: s, or None if never handed back.
+    cem.theorem1_holds / cem.theorem2_holds: the preconditions held at every activation
+        (Theorem 2 is False when more than one vehicle has failed: it does not apply).
+    cem.theorem2_applicable: one failure at every activation.
+    cem.theorem1_p_min0, cem.theorem1_lambda_max, cem.theorem1_lhs, cem.theorem1_rhs,
+        cem.theorem2_d_min0, cem.theorem2_bound: the numbers of the last activation.
+    cem.psi_drift_max: max over agents and ticks of |psi_i(t) - psi_i0| of the commands.
+    cem.psi_drift_per_agent: list (N,), the same per agent (0 for agents never under CEM).
+    cem.min_exclusion_margin: min over commands of ||r_d - z_f|| - a_p (>= 0: outside a_p).
+    cem.min_actual_clearance: min over healthy agents of ||r - z_f|| - (a_f + eps) (>= 0: the
+        vehicle's body stays clear of the failed vehicle's no-fly cylinder a_f).
+    cem.min_pair_distance / cem.min_pair_distance_commanded: min healthy pairwise x-y distance of
+        actual / commanded positions while CEM is active; cem.pair_bound = 2 (delta + eps);
+        cem.separation_holds: min_pair_distance >= pair_bound (the theorems' conclusion).
+    cem.max_speed / cem.max_speed_actual: peak 2-D commanded / actual speed of a healthy agent.
+    cem.tracking_error_max: max x-y distance between a healthy agent and its command of that tick.
+    cem.dphi_min: smallest sliding step of the run (Fig. 8). cem.step_ms_median: median wall time
+        of one active ``adjust`` call, ms. cem.newton_iterations_mean: mean Newton iterations.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.events import Event, EventKind
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+from .cem_flow import CEMNavigator, planned_exclusion_radius
+
+if TYPE_CHECKING:  # pragma: no cover
+    from swarmscene.core.sensing import Sensing
+
+
+def _min_pair(xy: np.ndarray) -> float:
+    """Minimum distance between rows of ``xy`` (M, 2); inf for fewer than two."""
+    if xy.shape[0] < 2:
+        return math.inf
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(xy).query(xy, k=2)
+    return float(d[:, 1].min())
+
+
+class CEM(Avoidance):
+    """Containment Exclusion Mode: healthy agents slide along streamlines around failed ones."""
+
+    name = "cem"
+
+    class Params(PluginParams):
+        """Options of ``avoidance=cem`` (defaults: the paper's section IV-V values)."""
+
+        K: int = Field(2, ge=1, description="sliding-step passes per tick (Alg. 1 line 14)")
+        n: int = Field(20, ge=1, description="Newton iterations of CalcXY (Alg. 2)")
+        sigma: float = Field(1e-3, ge=0.0, description="saddle noise deviation, m (eq. 6)")
+        v_des: float = Field(1.0, gt=0.0, description="desired speed of the fastest agent, m/s")
+        eps: float = Field(0.28, ge=0.0, description="vehicle enclosing radius epsilon, m")
+        delta: float = Field(0.40, ge=0.0, description="bound on tracking error delta, m")
+        a_f: float | None = Field(None, gt=0.0, description="failed vehicle's no-fly radius, m (None: eps + delta)")
+        direction: float | Literal["auto"] = Field(
+            "auto", description="flight direction, degrees from world +x counter-clockwise, or 'auto'"
+        )
+        hand_back: bool = Field(True, description="return control to the formation once all have passed")
+        handback_distance: float | None = Field(
+            None, gt=0.0, description="along-track distance past the last failure to hand back, m (None: 2 a_p)"
+        )
+
+    def __init__(self, params: Params, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        p = self.params
+        self.a_f = p.a_f if p.a_f is not None else p.eps + p.delta
+        self.a_p = planned_exclusion_radius(self.a_f, p.delta, p.eps)
+        self.handback_distance = p.handback_distance if p.handback_distance is not None else 2 * self.a_p
+        self.nav: CEMNavigator | None = None
+        self.active = False
+        self.healthy_idx = np.zeros(0, dtype=int)  # agents under CEM, in navigator order
+        self.failed: dict[int, np.ndarray] = {}  # failed agent -> its x-y centre z_f
+        self.theorem1: list[Any] = []
+        self.theorem2: list[Any] = []
+        self.handback_time: float | None = None
+        n = ctx.n
+        self._psi_drift = np.zeros(n)
+        self._margin = math.inf
+        self._clearance = math.inf
+        self._pair = math.inf
+        self._pair_cmd = math.inf
+        self._speed = 0.0
+        self._speed_actual = 0.0
+        self._track_err = 0.0
+        self._dphi_min = math.inf
+        self._step_s: list[float] = []
+        self._iters: list[int] = []
+        self._commanded = False  # CEM produced this tick's commands (measure at step end)
+
+    # ---- activation -------------------------------------------------------------------------
+
+    def flight_direction(self, world: WorldState, healthy: np.ndarray, failed_xy: np.ndarray) -> float:
+        """Flight direction theta, rad (see module docstring for ``"auto"``)."""
+        if self.params.direction != "auto":
+            return math.radians(float(self.params.direction))
+        v = world.vel[healthy, :2].mean(axis=0) if healthy.size else np.zeros(2)
+        if np.hypot(*v) >= 0.05:
+            return math.atan2(v[1], v[0])
+        b = failed_xy.mean(axis=0) - world.pos[healthy, :2].mean(axis=0)
+        return math.atan2(b[1], b[0]) if np.hypot(*b) > 0 else 0.0
+
+    def activate(self, world: WorldState) -> None:
+        """Algorithm 1 lines 5-10 for the healthy agents around every failed vehicle so far."""
+        healthy = np.flatnonzero(world.healthy)
+        if not self.failed or healthy.size == 0:
+            self.active = False
+            return
+        failed_xy = np.array(list(self.failed.values()))
+        start = world.pos[healthy, :2].copy()
+        theta, origin = None, None
+        if self.active and self.nav is not None:  # a later failure: continue from the commands
+            theta, origin = self.nav.theta, self.nav.origin
+            old = {int(a): k for k, a in enumerate(self.healthy_idx)}
+            for j, a in enumerate(healthy):
+                if int(a) in old:
+                    start[j] = self.nav.positions[old[int(a)]]
+        if theta is None:
+            theta = self.flight_direction(world, healthy, failed_xy)
+        p = self.params
+        self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
+                                dT=self.ctx.guidance_period, K=p.K, n=p.n, sigma=p.sigma,
+                                rng=self.ctx.rng, origin=origin)
+        self.healthy_idx = healthy
+        self.active = True
+        self.theorem1.append(self.nav.theorem1(p.delta, p.eps))
+        self.theorem2.append(self.nav.theorem2(p.delta, p.eps))
+
+    @hookimpl
+    def swarmscene_event(self, sim: Any, event: Event) -> None:
+        """A ``hover`` failure adds its vehicles as doublets and (re)activates CEM."""
+        if event.kind is not EventKind.HOVER:
+            return
+        for a in event.agents:
+            self.failed.setdefault(int(a), sim.world.pos[a, :2].copy())
+        self.activate(sim.world)
+
+    # ---- guidance ---------------------------------------------------------------------------
+
+    def passed(self) -> bool:
+        """Hand-back rule: every agent is handback_distance past the most downstream failure."""
+        nav = self.nav
+        return bool(nav.zeta.real.min() >= nav.centres.real.max() + self.handback_distance)
+
+    def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
+        """Pass ``sp`` through while inactive; else TRACK setpoints along the streamlines."""
+        self._commanded = False
+        if not self.active:
+            return sp
+        if self.params.hand_back and self.passed():
+            self.active = False
+            self.handback_time = world.t
+            return sp
+        t0 = time.perf_counter()
+        pos, vel = self.nav.step()
+        out = sp.copy()
+        idx = self.healthy_idx
+        out.mode[idx] = Mode.TRACK
+        out.pos[idx, :2] = pos  # altitude (z) stays the formation's (Assumption 2)
+        out.vel[idx, :2] = vel
+        out.acc[idx, :2] = 0.0  # first differences only: no acceleration feed-forward
+        self._step_s.append(time.perf_counter() - t0)
+        self._iters.append(self.nav.inverter.iterations)
+        self._commanded = True
+        return out
+
+    # ---- measurement ------------------------------------------------------------------------
+
+    @hookimpl
+    def swarmscene_step_end(self, sim: Any) -> None:
+        """Record the safety quantities of this tick from the world and the commands."""
+        if not self._commanded:
+            return
+        nav, idx, world = self.nav, self.healthy_idx, sim.world
+        live = world.healthy[idx]  # an agent may have failed during this tick's events
+        np.maximum.at(self._psi_drift, idx, nav.stream_drift())
+        self._margin = min(self._margin, float(nav.exclusion_margin().min()))
+        actual = world.pos[idx[live], :2]
+        if self.failed:
+            zf = np.array(list(self.failed.values()))
+            d = np.linalg.norm(actual[:, None, :] - zf[None], axis=2).min() if actual.size else math.inf
+            self._clearance = min(self._clearance, float(d) - self.a_f - self.params.eps)
+        self._pair = min(self._pair, _min_pair(actual))
+        self._pair_cmd = min(self._pair_cmd, _min_pair(nav.positions[live]))
+        self._speed = max(self._speed, float(np.linalg.norm(nav.velocities, axis=1).max()))
+        if actual.size:
+            self._speed_actual = max(self._speed_actual, float(np.linalg.norm(world.vel[idx[live], :2], axis=1).max()))
+            err = np.linalg.norm(actual - nav.positions[live], axis=1).max()
+            self._track_err = max(self._track_err, float(err))
+        self._dphi_min = min(self._dphi_min, nav.dphi_used)
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """Add the ``cem.*`` metrics (see module docstring)."""
+        metrics.update(self.summary())
+
+    def summary(self) -> dict[str, Any]:
+        """The ``cem.*`` metrics of the run so far (JSON-serialisable, None for undefined)."""
+
+        def num(x: float) -> float | None:
+            return None if not math.isfinite(x) else float(x)
+
+        t1, t2 = self.theorem1, self.theorem2
+        bound = 2.0 * (self.params.delta + self.params.eps)
+        last1, last2 = (t1[-1] if t1 else None), (t2[-1] if t2 else None)
+        return {
+            "cem.activations": len(t1),
+            "cem.handback_time": self.handback_time,
+            "cem.theorem1_holds": bool(t1) and all(c.holds for c in t1),
+            "cem.theorem2_holds": bool(t2) and all(c.holds for c in t2),
+            "cem.theorem2_applicable": bool(t2) and all(c.applicable for c in t2),
+            "cem.theorem1_p_min0": num(last1.p_min0) if last1 else None,
+            "cem.theorem1_lambda_max": num(last1.lambda_max) if last1 else None,
+            "cem.theorem1_lhs": num(last1.lhs) if last1 else None,
+            "cem.theorem1_rhs": num(last1.rhs) if last1 else None,
+            "cem.theorem2_d_min0": num(last2.d_min0) if last2 else None,
+            "cem.theorem2_bound": num(last2.bound) if last2 else None,
+            "cem.psi_drift_max": float(self._psi_drift.max()) if self._psi_drift.size else 0.0,
+            "cem.psi_drift_per_agent": [float(x) for x in self._psi_drift],
+            "cem.min_exclusion_margin": num(self._margin),
+            "cem.min_actual_clearance": num(self._clearance),
+            "cem.min_pair_distance": num(self._pair),
+            "cem.min_pair_distance_commanded": num(self._pair_cmd),
+            "cem.pair_bound": bound,
+            "cem.separation_holds": bool(self._pair >= bound) if math.isfinite(self._pair) else True,
+            "cem.max_speed": float(self._speed),
+            "cem.max_speed_actual": float(self._speed_actual),
+            "cem.tracking_error_max": float(self._track_err),
+            "cem.dphi_min": num(self._dphi_min),
+            "cem.step_ms_median": float(np.median(self._step_s) * 1e3) if self._step_s else None,
+            "cem.newton_iterations_mean": float(np.mean(self._iters)) if self._iters else None,
+        }
+
+
+@hookimpl
+def swarmscene_register_avoidances(register) -> None:
+    register(CEM)

@@ -1,0 +1,248 @@
+"""The ``cem`` avoidance plugin driven directly, with a perfect-tracking kinematic loop.
+
+Scenario numbers from papers/cem-fluid-flow-navigation.md section IV-V: eps = 0.28 m, delta = 0.40 m,
+a_f = eps + delta, a_p = 1.36 m, d_min = 2.72 m, v_des = 1.0 m/s, dT = 10 ms, K = 2, n = 20, sigma = 1 mm.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from swarmscene.core.events import Event, EventKind
+from swarmscene.core.plugin import BuildContext
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+from swarmscene.plugins.avoidance import cem as cem_module
+from swarmscene.plugins.avoidance.cem import CEM
+
+DT = 0.01
+ALT = 2.0
+
+
+def six_vehicle_positions(d: float = 2.72) -> np.ndarray:
+    """Q1 (index 0) leads a triangle; Q2 (index 1) is right behind it (see test_cem_flow)."""
+    s3 = np.sqrt(3.0)
+    xy = np.array([[0, 0], [-s3 * d, 0], [-s3 / 2 * d, d / 2], [-s3 / 2 * d, -d / 2], [-s3 * d, d], [-s3 * d, -d]])
+    return np.column_stack([xy, np.full(len(xy), ALT)])
+
+
+def build(pos: np.ndarray, seed: int = 0, **params) -> tuple[CEM, WorldState, SimpleNamespace]:
+    world = WorldState.at_rest(pos)
+    ctx = BuildContext(n=world.n, guidance_period=DT, physics_step=DT, duration=60.0, min_separation=1.36,
+                       min_clearance=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(seed),
+                       initial=world)
+    return CEM(CEM.Params(**params), ctx), world, SimpleNamespace(world=world)
+
+
+def formation(world: WorldState, v=(1.0, 0.0)) -> Setpoints:
+    """A formation flying rigidly at v (TRACK), failed vehicles holding."""
+    sp = Setpoints.hold(world.pos)
+    live = world.healthy
+    sp.mode[live] = Mode.TRACK
+    sp.vel[live, :2] = v
+    sp.pos[live, :2] += np.asarray(v) * DT
+    sp.pos[:, 2] = ALT
+    return sp
+
+
+def fly(plugin: CEM, world: WorldState, sim, ticks: int, events: dict[int, list[Event]], v=(1.0, 0.0),
+        tracking_error=None, record=None) -> dict:
+    """Kinematic loop: events, formation, avoidance, perfect (or perturbed) tracking, step end."""
+    rng = np.random.default_rng(99)
+    for k in range(ticks):
+        for ev in events.get(k, []):
+            ev.apply(world)
+            plugin.swarmscene_event(sim=sim, event=ev)
+        sp = formation(world, v)
+        out = plugin.adjust(world, None, sp)
+        if record is not None:
+            record.append((sp, out, plugin.active))
+        live = world.healthy
+        world.pos[live] = out.pos[live]
+        world.vel[live] = out.vel[live]
+        if tracking_error is not None:  # bounded tracking error, |e| <= tracking_error
+            ang = rng.uniform(0, 2 * np.pi, live.sum())
+            rad = tracking_error * np.sqrt(rng.uniform(0, 1, live.sum()))
+            world.pos[live, 0] += rad * np.cos(ang)
+            world.pos[live, 1] += rad * np.sin(ang)
+        world.t += DT
+        plugin.swarmscene_step_end(sim=sim)
+    metrics: dict = {}
+    plugin.swarmscene_run_end(sim=sim, metrics=metrics)
+    return metrics
+
+
+def hover(at_tick: int, *agents: int) -> Event:
+    return Event(at=at_tick * DT, agents=tuple(agents), kind=EventKind.HOVER)
+
+
+# ---- params and registration ---------------------------------------------------------------------
+
+
+def test_params_defaults_are_the_papers_and_validate():
+    p = CEM.Params()
+    assert (p.K, p.n, p.sigma, p.v_des, p.eps, p.delta, p.direction) == (2, 20, 1e-3, 1.0, 0.28, 0.40, "auto")
+    plugin, _, _ = build(six_vehicle_positions())
+    assert plugin.a_f == pytest.approx(0.68) and plugin.a_p == pytest.approx(1.36)
+    assert plugin.handback_distance == pytest.approx(2.72)
+    for bad in ({"K": 0}, {"n": 0}, {"sigma": -1.0}, {"v_des": 0.0}, {"direction": "north"}, {"speed": 1.0}):
+        with pytest.raises(ValidationError):
+            CEM.Params(**bad)
+    assert CEM.Params(direction=90).direction == 90
+
+
+def test_module_registers_the_class():
+    got = []
+    cem_module.swarmscene_register_avoidances(register=got.append)
+    assert got == [CEM] and CEM.name == "cem"
+
+
+def test_inactive_passes_setpoints_through_and_comm_loss_does_not_activate():
+    plugin, world, sim = build(six_vehicle_positions())
+    sp = formation(world)
+    assert plugin.adjust(world, None, sp) is sp
+    ev = Event(at=0.0, agents=(0,), kind=EventKind.COMM_LOSS)
+    ev.apply(world)
+    plugin.swarmscene_event(sim=sim, event=ev)
+    assert not plugin.active and plugin.adjust(world, None, sp) is sp
+
+
+# ---- section V-A through the plugin --------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def six_run():
+    plugin, world, sim = build(six_vehicle_positions(), seed=1)
+    record: list = []
+    metrics = fly(plugin, world, sim, 1700, {100: [hover(100, 0)]}, record=record)
+    return plugin, world, metrics, record
+
+
+def test_six_vehicle_metrics_reproduce_section_v_a(six_run):
+    plugin, world, m, _ = six_run
+    assert m["cem.activations"] == 1
+    assert m["cem.theorem2_holds"] and m["cem.theorem2_applicable"]
+    assert not m["cem.theorem1_holds"]  # conservative: p_min0^2 / lambda_max = 1.04 < 1.85
+    assert m["cem.theorem1_lhs"] == pytest.approx(2.04**2 / 4) and m["cem.theorem1_rhs"] == pytest.approx(1.8496)
+    assert m["cem.min_pair_distance"] >= m["cem.pair_bound"] == pytest.approx(1.36)  # Fig. 9
+    assert m["cem.separation_holds"]
+    assert m["cem.min_exclusion_margin"] >= -1e-12  # no command inside a_p
+    assert m["cem.min_actual_clearance"] >= DELTA_BOUND - 1e-12
+    assert m["cem.psi_drift_max"] < 1e-9  # eq. 4
+    assert 1.0 < m["cem.max_speed"] < 1.4  # K = 2 (Fig. 10)
+    assert m["cem.dphi_min"] < 0.05 * 1.0 * DT  # Fig. 8
+    assert m["cem.handback_time"] is not None
+    json.dumps(m)  # metrics.json-ready
+
+
+DELTA_BOUND = 0.40  # perfect tracking: the vehicle keeps a_p - a_f - eps = delta in hand
+
+
+def test_commands_while_active_are_track_setpoints_with_the_formations_altitude(six_run):
+    plugin, world, m, record = six_run
+    active = [(sp, out) for sp, out, on in record if on]
+    sp, out = active[10]
+    assert (out.mode[1:] == Mode.TRACK).all() and out.mode[0] == Mode.HOLD
+    assert (out.pos[:, 2] == ALT).all() and (out.vel[1:, 2] == 0).all()
+    prev = active[9][1]
+    np.testing.assert_allclose(out.vel[1:, :2], (out.pos[1:, :2] - prev.pos[1:, :2]) / DT, atol=1e-9)
+    np.testing.assert_array_equal(out.pos[0], sp.pos[0])  # the failed lead is left alone
+
+
+def test_hand_back_returns_the_formations_setpoints_once_all_have_passed(six_run):
+    plugin, world, m, record = six_run
+    flags = [on for _, _, on in record]
+    first_off = next(i for i in range(101, len(flags)) if not flags[i])
+    assert all(flags[101:first_off]) and not any(flags[first_off:])
+    sp, out, _ = record[first_off]
+    assert out is sp
+    assert m["cem.handback_time"] == pytest.approx(first_off * DT)
+    healthy_x = record[first_off - 1][1].pos[1:, 0]
+    assert healthy_x.min() >= 0.0 + plugin.handback_distance - 0.02  # all past the failed lead
+
+
+def test_psi_drift_is_reported_per_agent(six_run):
+    _, _, m, _ = six_run
+    per = m["cem.psi_drift_per_agent"]
+    assert len(per) == 6 and per[0] == 0.0 and max(per) == m["cem.psi_drift_max"]
+
+
+# ---- direction -----------------------------------------------------------------------------------
+
+
+def test_auto_direction_from_velocity_and_from_bearing():
+    pos = six_vehicle_positions()
+    rot = pos.copy()
+    rot[:, 0], rot[:, 1] = -pos[:, 1], pos[:, 0]  # the formation turned to fly north
+    plugin, world, sim = build(rot)
+    ev = hover(0, 0)
+    ev.apply(world)
+    plugin.swarmscene_event(sim=sim, event=ev)
+    assert plugin.nav.theta == pytest.approx(math.pi / 2)  # at rest: towards the failure
+    plugin, world, sim = build(rot)
+    world.vel[:, :2] = [0.3, -0.3]
+    ev.apply(world)
+    plugin.swarmscene_event(sim=sim, event=ev)
+    assert plugin.nav.theta == pytest.approx(-math.pi / 4)  # moving: the mean velocity's heading
+    plugin, world, sim = build(rot, direction=90.0)
+    world.vel[:, :2] = [0.3, -0.3]
+    ev.apply(world)
+    plugin.swarmscene_event(sim=sim, event=ev)
+    assert plugin.nav.theta == pytest.approx(math.pi / 2)  # fixed by config
+
+
+def test_northbound_formation_avoids_its_failed_lead():
+    pos = six_vehicle_positions()
+    rot = pos.copy()
+    rot[:, 0], rot[:, 1] = -pos[:, 1], pos[:, 0]
+    plugin, world, sim = build(rot, seed=3)
+    m = fly(plugin, world, sim, 1500, {50: [hover(50, 0)]}, v=(0.0, 1.0))
+    assert m["cem.separation_holds"] and m["cem.min_exclusion_margin"] >= -1e-12
+    assert m["cem.psi_drift_max"] < 1e-9 and m["cem.handback_time"] is not None
+
+
+# ---- tracking error bounded by delta (section V-B in miniature) -----------------------------------
+
+
+def test_two_vehicles_with_tracking_error_stay_clear_of_a_f():
+    pos = six_vehicle_positions()[:2]
+    plugin, world, sim = build(pos, seed=2)
+    m = fly(plugin, world, sim, 1300, {50: [hover(50, 0)]}, tracking_error=DELTA_BOUND)
+    assert 0 < m["cem.tracking_error_max"] <= DELTA_BOUND
+    assert m["cem.min_actual_clearance"] >= 0.0  # the body never touches the a_f cylinder
+    assert m["cem.min_exclusion_margin"] >= -1e-12
+    assert m["cem.theorem1_holds"] and m["cem.theorem2_holds"]  # one healthy agent: nothing to collide
+
+
+# ---- several failures at different times (Theorem 1) ---------------------------------------------
+
+
+def grid(spacing: float = 6.0) -> np.ndarray:
+    xy = np.array([[x, y] for x in (0.0, -spacing, -2 * spacing) for y in (-1.5, -0.5, 0.5, 1.5)]) * [1, spacing]
+    return np.column_stack([xy, np.full(len(xy), ALT)])
+
+
+@pytest.fixture(scope="module")
+def multi_run():
+    plugin, world, sim = build(grid(), seed=4)
+    events = {50: [hover(50, 0, 3)], 350: [hover(350, 6)]}  # two front corners, then a middle agent
+    m = fly(plugin, world, sim, 4000, events)
+    return plugin, m
+
+
+def test_three_failures_one_later_keep_theorem_1(multi_run):
+    plugin, m = multi_run
+    assert m["cem.activations"] == 2 and plugin.nav.centres.size == 3
+    assert m["cem.theorem1_holds"]  # precondition at both activations
+    assert not m["cem.theorem2_applicable"] and not m["cem.theorem2_holds"]
+    assert m["cem.min_pair_distance"] >= m["cem.pair_bound"]  # and its conclusion
+    assert m["cem.min_exclusion_margin"] >= -1e-9
+    assert m["cem.psi_drift_max"] < 0.02  # several doublets: circles are streamlines to first order
+    assert m["cem.max_speed"] < 1.5
+    assert m["cem.handback_time"] is not None
