@@ -46,7 +46,7 @@ class FlatState:
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
+    return (a * b).sum(axis=1)
 
 
 def normalize_with_derivatives(n, n_dot, n_ddot):

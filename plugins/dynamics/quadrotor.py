@@ -35,7 +35,7 @@ from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
 from .flatness import flat_state
-from .quadrotor_model import AIRFRAMES, quat_to_rotmat, rk4_step, wrench, yaw_to_quat, allocate
+from .quadrotor_model import AIRFRAMES, allocate, pack, quat_to_rotmat, rk4, wrench, yaw_to_quat
 from .se3_controller import se3_control, se3_gains
 
 
@@ -110,7 +110,7 @@ class Quadrotor(Dynamics):
         self._tau = 0.0
         if sp.jerk is None and sp.snap is None:
             # constant acceleration and heading: the flat body rates are zero
-            self._omega_d, self._alpha_d = zeros, zeros.copy()
+            self._omega_d = self._alpha_d = None
         else:
             ff = flat_state(self._a, np.where(hold, 0.0, jerk), np.where(hold, 0.0, snap), self._yaw)
             self._omega_d, self._alpha_d = ff.omega, ff.alpha
@@ -120,20 +120,21 @@ class Quadrotor(Dynamics):
         substeps = max(1, math.ceil(dt / self.params.max_step - 1e-9))
         h = dt / substeps
         af = self.airframe
-        p, v, q, w = world.pos, world.vel, world.quat, world.omega
+        x = pack(world.pos, world.vel, world.quat, world.omega)
         for _ in range(substeps):
             p_d, v_d, a_d = self._reference(self._tau)
-            thrust, torque, _ = se3_control(p, v, quat_to_rotmat(q), w, p_d, v_d, a_d, self._yaw,
-                                            self._omega_d, self._alpha_d, self.gains, af,
-                                            self._position_mask, self.max_tilt)
+            thrust, torque, _ = se3_control(
+                x[:, 0:3], x[:, 3:6], quat_to_rotmat(x[:, 6:10]), x[:, 10:13], p_d, v_d, a_d,
+                self._yaw, self._omega_d, self._alpha_d, self.gains, af, self._position_mask,
+                self.max_tilt)
             rotor_speed = allocate(thrust, torque, af)
             thrust, torque = wrench(rotor_speed, af)   # what the limited rotors really give
-            p, v, q, w = rk4_step(p, v, q, w, thrust, torque, af, h)
+            x = rk4(x, thrust, torque, af, h)
             self._tau += h
-        world.pos[...] = p
-        world.vel[...] = v
-        world.quat[...] = q
-        world.omega[...] = w
+        world.pos[...] = x[:, 0:3]
+        world.vel[...] = x[:, 3:6]
+        world.quat[...] = x[:, 6:10]
+        world.omega[...] = x[:, 10:13]
         world.rotor_speed[...] = rotor_speed
 
     def _reference(self, tau: float):

@@ -68,6 +68,12 @@ class Airframe:
         return np.array(self.inertia, dtype=float)
 
     @cached_property
+    def gyro(self) -> np.ndarray:
+        """(J_k - J_j) / J_i for (i, j, k) cyclic: the gyroscopic coefficients of eq. 3.7."""
+        J = self.J
+        return (J[[2, 0, 1]] - J[[1, 2, 0]]) / J
+
+    @cached_property
     def mixer(self) -> np.ndarray:
         return mixer_matrix(self.arm, self.k_T, self.k_D)
 
@@ -180,9 +186,8 @@ def allocate(thrust: np.ndarray, torque: np.ndarray, airframe: Airframe) -> np.n
     thrust = np.clip(thrust, 4.0 * airframe.k_T * lo, 4.0 * airframe.k_T * hi)
     base = thrust[:, None] * inv[:, 0]                  # (N, 4), each within [lo, hi]
     delta = torque @ inv[:, 1:].T                       # (N, 4)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        room = np.where(delta > 0.0, (hi - base) / delta, np.where(delta < 0.0, (lo - base) / delta, np.inf))
-    lam = np.clip(room.min(axis=1), 0.0, 1.0)
+    room = np.where(delta > 0.0, hi - base, base - lo) / np.maximum(np.abs(delta), 1e-300)
+    lam = np.minimum(room.min(axis=1), 1.0)
     w2 = np.clip(base + lam[:, None] * delta, lo, hi)
     return np.sqrt(w2)
 
@@ -190,20 +195,43 @@ def allocate(thrust: np.ndarray, torque: np.ndarray, airframe: Airframe) -> np.n
 # --------------------------------------------------------------------------- rotations
 
 
+def _quadratic_basis() -> np.ndarray:
+    """B (16, 9) with R.flat = (q q^T).flat @ B: R_b^o as a quadratic form of q = (w, x, y, z).
+
+    One outer product and one matrix product instead of a dozen element-wise expressions (which
+    matters more than flops for numpy on a few hundred agents). Homogeneous in q, so it is exact
+    for unit quaternions and scales by |q|^2 otherwise.
+    """
+    w, x, y, z = range(4)
+    entries = {
+        0: [(1, w, w), (1, x, x), (-1, y, y), (-1, z, z)],
+        1: [(2, x, y), (-2, w, z)], 2: [(2, x, z), (2, w, y)],
+        3: [(2, x, y), (2, w, z)], 4: [(1, w, w), (-1, x, x), (1, y, y), (-1, z, z)],
+        5: [(2, y, z), (-2, w, x)], 6: [(2, x, z), (-2, w, y)], 7: [(2, y, z), (2, w, x)],
+        8: [(1, w, w), (-1, x, x), (-1, y, y), (1, z, z)],
+    }
+    B = np.zeros((16, 9))
+    for col, terms in entries.items():
+        for coef, j, k in terms:
+            B[4 * j + k, col] += coef
+    return B
+
+
+_R_BASIS = _quadratic_basis()
+_Z_BASIS = np.ascontiguousarray(_R_BASIS[:, [2, 5, 8]])  # third column of R: body z in the world
+_G_IDX = np.array([[1, 2, 3], [0, 3, 2], [3, 0, 1], [2, 1, 0]])
+_G_SIGN = 0.5 * np.array([[-1.0, -1, -1], [1, -1, 1], [1, 1, -1], [-1, 1, 1]])
+"""q̇ = (q[:, _G_IDX] * _G_SIGN) @ ω: the matrix form of q̇ = ½ q ⊗ (0, ω)."""
+_P1, _P2 = [1, 2, 0], [2, 0, 1]
+
+
+def _outer(q: np.ndarray) -> np.ndarray:
+    return (q[:, :, None] * q[:, None, :]).reshape(-1, 16)
+
+
 def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
     """R_b^o (N, 3, 3) of unit quaternions (N, 4) (w, x, y, z), body to world."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    R = np.empty((q.shape[0], 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - w * z)
-    R[:, 0, 2] = 2 * (x * z + w * y)
-    R[:, 1, 0] = 2 * (x * y + w * z)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - w * x)
-    R[:, 2, 0] = 2 * (x * z - w * y)
-    R[:, 2, 1] = 2 * (y * z + w * x)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
+    return (_outer(q) @ _R_BASIS).reshape(-1, 3, 3)
 
 
 def rotmat_to_quat(R: np.ndarray) -> np.ndarray:
@@ -234,50 +262,53 @@ def euler_zyx(R: np.ndarray) -> np.ndarray:
 
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise a x b for (N, 3) arrays (fewer numpy calls than np.cross on small N)."""
-    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+    return a[:, _P1] * b[:, _P2] - a[:, _P2] * b[:, _P1]
 
 
 # --------------------------------------------------------------------------- rigid body (eq. 3.4-3.8)
 
 
-def derivatives(v, q, omega, thrust, torque, airframe: Airframe):
-    """Right-hand side of eq. 3.4-3.7 in the world (z up) / FLU frames.
+def state_derivative(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray,
+                     airframe: Airframe) -> np.ndarray:
+    """Right-hand side of eq. 3.4-3.7 (world z up, FLU body) for packed states x = [p v q ω] (N, 13).
 
     ṗ = v; v̇ = (T / m) R e_3 - g e_3; q̇ = ½ q ⊗ (0, ω) (the quaternion form of Ṙ = R [ω×],
-    eq. 3.6, 3.8); J ω̇ = -ω × J ω + M.
-
-    Returns:
-        (ṗ, v̇, q̇, ω̇) with the shapes of (v, v, q, omega).
+    eq. 3.6, 3.8); J ω̇ = -ω × J ω + M, with (ω × J ω)_i = ω_j ω_k (J_k - J_j) for diagonal J.
     """
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    c = thrust / airframe.mass
-    acc = np.stack([c * 2 * (x * z + w * y), c * 2 * (y * z - w * x),
-                    c * (1 - 2 * (x * x + y * y)) - GRAVITY], axis=1)
-    ox, oy, oz = omega[:, 0], omega[:, 1], omega[:, 2]
-    qdot = 0.5 * np.stack([-x * ox - y * oy - z * oz, w * ox + y * oz - z * oy,
-                           w * oy + z * ox - x * oz, w * oz + x * oy - y * ox], axis=1)
-    J = airframe.J
-    wdot = (torque - cross_rows(omega, omega * J)) / J
-    return v, acc, qdot, wdot
+    q = x[:, 6:10]
+    w = x[:, 10:13]
+    out = np.empty_like(x)
+    out[:, 0:3] = x[:, 3:6]
+    out[:, 3:6] = (_outer(q) @ _Z_BASIS) * (thrust / airframe.mass)[:, None]
+    out[:, 5] -= GRAVITY
+    out[:, 6:10] = ((q[:, _G_IDX] * _G_SIGN) @ w[:, :, None])[:, :, 0]
+    out[:, 10:13] = torque / airframe.J - w[:, _P1] * w[:, _P2] * airframe.gyro
+    return out
+
+
+def pack(p, v, q, omega) -> np.ndarray:
+    """State arrays -> packed (N, 13) [p v q ω]."""
+    return np.concatenate([p, v, q, omega], axis=1)
+
+
+def rk4(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray, airframe: Airframe,
+        dt: float) -> np.ndarray:
+    """One classical RK4 step of the packed state with thrust (N,) and torque (N, 3) held;
+    the quaternion is renormalised."""
+    h = 0.5 * dt
+    k1 = state_derivative(x, thrust, torque, airframe)
+    k2 = state_derivative(x + h * k1, thrust, torque, airframe)
+    k3 = state_derivative(x + h * k2, thrust, torque, airframe)
+    k4 = state_derivative(x + dt * k3, thrust, torque, airframe)
+    x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+    x[:, 6:10] /= np.sqrt((x[:, 6:10] ** 2).sum(axis=1, keepdims=True))
+    return x
 
 
 def rk4_step(p, v, q, omega, thrust, torque, airframe: Airframe, dt: float):
-    """One RK4 step of eq. 3.4-3.7 with thrust (N,) and torque (N, 3) held; returns new
-    (p, v, q, omega), q renormalised."""
-    k1 = derivatives(v, q, omega, thrust, torque, airframe)
-    h = 0.5 * dt
-    k2 = derivatives(v + h * k1[1], q + h * k1[2], omega + h * k1[3], thrust, torque, airframe)
-    k3 = derivatives(v + h * k2[1], q + h * k2[2], omega + h * k2[3], thrust, torque, airframe)
-    k4 = derivatives(v + dt * k3[1], q + dt * k3[2], omega + dt * k3[3], thrust, torque, airframe)
-    s = dt / 6.0
-    p = p + s * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-    v = v + s * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    q = q + s * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
-    omega = omega + s * (k1[3] + 2 * k2[3] + 2 * k3[3] + k4[3])
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return p, v, q, omega
+    """:func:`rk4` on unpacked arrays: returns new (p, v, q, omega)."""
+    x = rk4(pack(p, v, q, omega), thrust, torque, airframe, dt)
+    return x[:, 0:3], x[:, 3:6], x[:, 6:10], x[:, 10:13]
 
 
 def step_rotors(p, v, q, omega, rotor_speed, airframe: Airframe, dt: float):

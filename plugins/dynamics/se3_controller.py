@@ -84,20 +84,24 @@ def attitude_torque(R, omega, R_d, omega_d, alpha_d, gains: SE3Gains, inertia: n
 
     Args:
         R, R_d: (N, 3, 3) attitude and desired attitude. omega: (N, 3) body rates.
-        omega_d, alpha_d: (N, 3) desired body rates and their derivative, in the desired frame.
+        omega_d, alpha_d: (N, 3) desired body rates and their derivative, in the desired frame,
+            or ``None`` for zero (hover-like references: skips two batched products).
         inertia: (3,) diagonal of J.
     """
-    A = np.einsum("nji,njk->nik", R_d, R)            # R_d^T R
-    e_R = 0.5 * np.stack([A[:, 2, 1] - A[:, 1, 2], A[:, 0, 2] - A[:, 2, 0],
-                          A[:, 1, 0] - A[:, 0, 1]], axis=1)
-    At = A.transpose(0, 2, 1)                         # R^T R_d
-    w_d = np.einsum("nij,nj->ni", At, omega_d)
-    a_d = np.einsum("nij,nj->ni", At, alpha_d)
-    e_W = omega - w_d
+    A = R_d.transpose(0, 2, 1) @ R                     # R_d^T R
+    e_R = 0.5 * (A - A.transpose(0, 2, 1))[:, _VEE_ROW, _VEE_COL]
     J = inertia
-    M = (-gains.k_R * e_R - gains.k_Omega * e_W + cross_rows(omega, omega * J)
-         - J * (cross_rows(omega, w_d) - a_d))
-    return M, e_R
+    M = -gains.k_R * e_R + cross_rows(omega, omega * J)
+    if omega_d is None:
+        return M - gains.k_Omega * omega, e_R
+    At = A.transpose(0, 2, 1)                          # R^T R_d
+    w_d = (At @ omega_d[:, :, None])[:, :, 0]
+    a_d = (At @ alpha_d[:, :, None])[:, :, 0]
+    return M - gains.k_Omega * (omega - w_d) - J * (cross_rows(omega, w_d) - a_d), e_R
+
+
+_VEE_ROW, _VEE_COL = [2, 0, 1], [1, 2, 0]
+"""(S[2, 1], S[0, 2], S[1, 0]) is the vector of a skew matrix S (the ∨ map, inverse of eq. 3.8)."""
 
 
 def se3_control(p, v, R, omega, p_d, v_d, a_d, yaw_d, omega_d, alpha_d, gains: SE3Gains,
@@ -107,11 +111,11 @@ def se3_control(p, v, R, omega, p_d, v_d, a_d, yaw_d, omega_d, alpha_d, gains: S
     Args:
         p, v: (N, 3) position and velocity. R: (N, 3, 3) attitude. omega: (N, 3) body rates.
         p_d, v_d, a_d: (N, 3) reference and its feed-forward acceleration. yaw_d: (N,) ψ_d.
-        omega_d, alpha_d: (N, 3) flatness feed-forward body rates and acceleration (zeros for none).
+        omega_d, alpha_d: (N, 3) flatness feed-forward body rates and acceleration (None: zero).
         position_mask: (N,) bool, False where only velocity is tracked.
     """
     F = desired_force(p, v, p_d, v_d, a_d, gains, airframe.mass, position_mask, max_tilt)
-    thrust = np.einsum("ni,ni->n", F, R[:, :, 2])
+    thrust = (F * R[:, :, 2]).sum(axis=1)
     b3 = F / np.linalg.norm(F, axis=1, keepdims=True)
     b1, b2 = heading_axes(b3, yaw_d)
     R_d = np.stack([b1, b2, b3], axis=2)
