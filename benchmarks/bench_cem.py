@@ -11,6 +11,8 @@ Two measurements, in-process, single thread:
     OMP_NUM_THREADS=1 python benchmarks/bench_cem.py [--ticks 300]
 
 Goals (issue 4): median step <= 0.1 ms for six agents; <= 10 ms for 1,000 agents and 10 failures.
+On a shared machine the maximum and p95 mostly measure other processes (time slicing); the median
+and minimum measure the algorithm.
 """
 
 from __future__ import annotations
@@ -100,7 +102,8 @@ def main() -> None:
     for K in (1, 2, 5):
         nav = CEMNavigator(healthy, failed, a_p=A_P, K=K, n=20, sigma=1e-3, dT=DT, rng=np.random.default_rng(1))
         t = time_navigator(nav, 1300)
-        print(f"  K={K}: median {np.median(t) * 1e3:.4f} ms, p95 {np.percentile(t, 95) * 1e3:.4f} ms, "
+        print(f"  K={K}: median {np.median(t) * 1e3:.4f} ms, min {t.min() * 1e3:.4f} ms, "
+              f"p95 {np.percentile(t, 95) * 1e3:.4f} ms, "
               f"max {t.max() * 1e3:.3f} ms  (paper C++: {dict([(1, 0.2), (2, 0.4), (5, 1.0)])[K]} ms)")
     t = time_plugin(1300)
     print(f"  plugin adjust(), K=2: median {np.median(t) * 1e3:.4f} ms   (goal <= 0.1 ms)")
@@ -109,7 +112,7 @@ def main() -> None:
     nav = CEMNavigator(healthy, failed, a_p=A_P, K=2, n=20, sigma=1e-3, dT=DT, rng=np.random.default_rng(2))
     t = time_navigator(nav, args.ticks)
     print(f"{len(healthy)} healthy around {len(failed)} failures, K=2, n=20, {args.ticks} ticks:")
-    print(f"  median {np.median(t) * 1e3:.3f} ms, p95 {np.percentile(t, 95) * 1e3:.3f} ms, "
+    print(f"  median {np.median(t) * 1e3:.3f} ms, min {t.min() * 1e3:.3f} ms, p95 {np.percentile(t, 95) * 1e3:.3f} ms, "
           f"max {t.max() * 1e3:.3f} ms   (goal <= 10 ms)")
 
 

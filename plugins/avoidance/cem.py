@@ -30,6 +30,8 @@ Choices (the paper leaves these open):
 
 Metrics added at run end (SI units; distances in m, speeds in m/s):
     cem.activations: number of (re)activations. cem.handback_time: s, or None if never handed back.
+    cem.start_inside_exclusion: healthy agents already within a_p of a failure at an activation
+        (outside every assumption: their first command is pushed out of the disk).
     cem.theorem1_holds / cem.theorem2_holds: the preconditions held at every activation
         (Theorem 2 is False when more than one vehicle has failed: it does not apply).
     cem.theorem2_applicable: one failure at every activation.
@@ -116,6 +118,7 @@ class CEM(Avoidance):
         self.theorem1: list[Any] = []
         self.theorem2: list[Any] = []
         self.handback_time: float | None = None
+        self.start_inside = 0  # healthy agents found inside a_p at an activation
         n = ctx.n
         self._psi_drift = np.zeros(n)
         self._margin = math.inf
@@ -153,10 +156,10 @@ class CEM(Avoidance):
         theta, origin = None, None
         if self.active and self.nav is not None:  # a later failure: continue from the commands
             theta, origin = self.nav.theta, self.nav.origin
-            old = {int(a): k for k, a in enumerate(self.healthy_idx)}
-            for j, a in enumerate(healthy):
-                if int(a) in old:
-                    start[j] = self.nav.positions[old[int(a)]]
+            slot = np.full(world.n, -1)
+            slot[self.healthy_idx] = np.arange(self.healthy_idx.size)
+            k = slot[healthy]
+            start[k >= 0] = self.nav.positions[k[k >= 0]]
         if theta is None:
             theta = self.flight_direction(world, healthy, failed_xy)
         p = self.params
@@ -165,6 +168,7 @@ class CEM(Avoidance):
                                 rng=self.ctx.rng, origin=origin)
         self.healthy_idx = healthy
         self.active = True
+        self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
         self.theorem1.append(self.nav.theorem1(p.delta, p.eps))
         self.theorem2.append(self.nav.theorem2(p.delta, p.eps))
 
@@ -248,6 +252,7 @@ class CEM(Avoidance):
         return {
             "cem.activations": len(t1),
             "cem.handback_time": self.handback_time,
+            "cem.start_inside_exclusion": self.start_inside,
             "cem.theorem1_holds": bool(t1) and all(c.holds for c in t1),
             "cem.theorem2_holds": bool(t2) and all(c.holds for c in t2),
             "cem.theorem2_applicable": bool(t2) and all(c.applicable for c in t2),

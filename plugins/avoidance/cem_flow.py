@@ -26,8 +26,10 @@ Choices where the paper is ambiguous (each repeated where it is made):
   of the disk (measured: a 3.4 m/s spike with K = 5).
 * Newton iterations stop early once an update is below 1e-10 m and no noise was drawn in it: the
   remaining iterations would move the point by less than rounding, so the result is unchanged.
-* The last Newton iteration draws no saddle noise (eq. 6), so the commanded point lies on its
-  streamline to machine precision. A final branch guard reflects a point that converged inside a
+* Saddle noise (eq. 6) is drawn only for an estimate strictly inside a_p whose Newton update is
+  still at least sigma, and never in the last iteration: a converged point (on the ring psi = 0
+  itself, or on a root a few mm inside a_p that other failures' flows create) is not at a saddle,
+  and the commanded point then lies on its streamline to machine precision. A final branch guard reflects a point that converged inside a
   planned disk through that circle (``u -> a_p^2 / u``, the doublet's own symmetry, which keeps
   phi and psi exactly for a single failure): past the front saddle the inside and outside roots
   are equally close, and the paper's claim that commands never enter a_p needs the outside one.
@@ -265,14 +267,9 @@ class NewtonInverter:
         self._U, self._V, self._G = (np.empty((m, f), complex) for _ in range(3))
         self._R = np.empty((m, f))
         self._e, self._fp, self._r = np.empty(m, complex), np.empty(m, complex), np.empty(m)
-        self._wt = np.empty(m, complex)
+        self._wt, self._z_start = np.empty(m, complex), np.empty(m, complex)
         self._single = f == 1  # one doublet: views instead of sums over the doublet axis
         self._gs = self._G[:, 0] if self._single else np.empty(m, complex)
-
-    def residual(self, w: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
-        """f(z) - w for the current estimate (or ``z``), a fresh (N,) complex array."""
-        z = self.z if z is None else z
-        return z - self.offset + (self.mu / (z[:, None] - self.c)).sum(1) - w
 
     def solve(self, w: np.ndarray) -> np.ndarray:
         """Run Algorithm 2 from the current estimate ``self.z`` towards targets w = phi + j psi (N,).
@@ -283,7 +280,8 @@ class NewtonInverter:
         U, V, G, e, fp, r, zc = self._U, self._V, self._G, self._e, self._fp, self._r, self._zcol
         z, c, mu, gs, single = self.z, self.c, self.mu, self._gs, self._single
         np.add(w, self.offset, out=self._wt)
-        z_start = z.copy()
+        z_start = self._z_start
+        np.copyto(z_start, z)
         it = 0
         for it in range(self.n):
             np.subtract(zc, c, out=U)  # u = z - z_f

@@ -246,3 +246,16 @@ def test_three_failures_one_later_keep_theorem_1(multi_run):
     assert m["cem.psi_drift_max"] < 0.02  # several doublets: circles are streamlines to first order
     assert m["cem.max_speed"] < 1.5
     assert m["cem.handback_time"] is not None
+
+
+def test_agent_starting_inside_a_p_is_counted_and_commanded_out():
+    pos = np.array([[0.0, 0.0, ALT], [-1.0, 0.3, ALT], [-5.0, 3.0, ALT]])  # agent 1 is 1.04 m from agent 0
+    plugin, world, sim = build(pos, seed=5)
+    m = fly(plugin, world, sim, 200, {0: [hover(0, 0)]})
+    assert m["cem.start_inside_exclusion"] == 1
+    assert m["cem.min_exclusion_margin"] >= -1e-12  # every command is outside a_p nonetheless
+
+
+def test_multi_failure_activations_start_outside(multi_run):
+    _, m = multi_run
+    assert m["cem.start_inside_exclusion"] == 0
