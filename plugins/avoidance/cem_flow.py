@@ -29,10 +29,10 @@ Choices where the paper is ambiguous (each repeated where it is made):
 * Saddle noise (eq. 6) is drawn only for an estimate strictly inside a_p whose Newton update is
   still at least sigma, and never in the last iteration: a converged point (on the ring psi = 0
   itself, or on a root a few mm inside a_p that other failures' flows create) is not at a saddle,
-  and the commanded point then lies on its streamline to machine precision. A final branch guard reflects a point that converged inside a
-  planned disk through that circle (``u -> a_p^2 / u``, the doublet's own symmetry, which keeps
-  phi and psi exactly for a single failure): past the front saddle the inside and outside roots
-  are equally close, and the paper's claim that commands never enter a_p needs the outside one.
+  and the commanded point then lies on its streamline to machine precision.
+* A final branch guard moves a point that converged inside a planned disk out through that circle
+  (:meth:`NewtonInverter._guard`): past the front saddle the inside and outside roots are equally
+  close, and the paper's claim that commands never enter a_p needs the outside one.
 """
 
 from __future__ import annotations
@@ -208,7 +208,8 @@ def _min_pairwise(points: np.ndarray) -> float:
         return float("inf")
     from scipy.spatial import cKDTree
 
-    d, _ = cKDTree(np.stack([points.real, points.imag], -1)).query(np.stack([points.real, points.imag], -1), k=2)
+    xy = np.stack([points.real, points.imag], -1)
+    d, _ = cKDTree(xy).query(xy, k=2)
     return float(d[:, 1].min())
 
 
