@@ -36,7 +36,9 @@ from functools import lru_cache
 from math import comb, factorial
 
 import numpy as np
+from scipy import sparse
 from scipy.interpolate import PPoly
+from scipy.sparse import linalg as sparse_linalg
 
 DEGREE = 7
 """Polynomial degree of each minimum-snap piece (8 coefficients)."""
@@ -150,14 +152,14 @@ def minimum_snap(t: np.ndarray, values: np.ndarray, fixed: np.ndarray) -> np.nda
     A = np.array(rows)
     b = np.array(rhs)
     # Cost: sum_j T_j^-7 c_j^T H c_j (int (d^4/dt^4)^2 dt in normalised time); scaled per piece.
-    Q = np.kron(np.diag(seg ** (1 - 2 * ORDER)), _snap_hessian())
-    Q /= np.max(np.abs(Q))
-    nv, nr = m * nc, A.shape[0]
-    kkt = np.zeros((nv + nr, nv + nr))
-    kkt[:nv, :nv] = Q
-    kkt[:nv, nv:] = A.T
-    kkt[nv:, :nv] = A
-    sol = np.linalg.solve(kkt, np.concatenate([np.zeros(nv), b]))
+    w = seg ** (1 - 2 * ORDER)
+    Q = sparse.kron(sparse.diags(w / w.max()), sparse.csr_matrix(_snap_hessian()))
+    As = sparse.csr_matrix(A)
+    nv = m * nc
+    # The KKT matrix is banded (pieces couple only at shared keyframes): a sparse LU is fast and
+    # avoids dense BLAS, which is slow to share on a loaded machine.
+    kkt = sparse.bmat([[Q, As.T], [As, None]], format="csc")
+    sol = sparse_linalg.spsolve(kkt, np.concatenate([np.zeros(nv), b]))
     return sol[:nv].reshape(m, nc)
 
 
@@ -245,15 +247,14 @@ def _elementary_derivs(axis: str, a: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=1)
-def _leibniz3() -> tuple[tuple[int, int, int, int, float], ...]:
-    """(n, a, b, c, multinomial n!/(a! b! c!)) for a + b + c = n <= ORDER."""
-    out = []
-    for n in range(ORDER + 1):
-        for a in range(n + 1):
-            for b in range(n - a + 1):
-                c = n - a - b
-                out.append((n, a, b, c, factorial(n) / (factorial(a) * factorial(b) * factorial(c))))
-    return tuple(out)
+def _leibniz3() -> np.ndarray:
+    """W (5, 5, 5, 5): W[n, a, b, c] = n!/(a! b! c!) if a + b + c = n, else 0 (product rule)."""
+    w = np.zeros((ORDER + 1,) * 4)
+    for a in range(ORDER + 1):
+        for b in range(ORDER + 1 - a):
+            for c in range(ORDER + 1 - a - b):
+                w[a + b + c, a, b, c] = factorial(a + b + c) / (factorial(a) * factorial(b) * factorial(c))
+    return w
 
 
 def rotation_derivatives(euler: np.ndarray) -> np.ndarray:
@@ -267,10 +268,9 @@ def rotation_derivatives(euler: np.ndarray) -> np.ndarray:
     rz = _elementary_derivs("z", euler[:, :, 2])
     ry = _elementary_derivs("y", euler[:, :, 1])
     rx = _elementary_derivs("x", euler[:, :, 0])
-    out = np.zeros(rz.shape)
-    for n, a, b, c, w in _leibniz3():
-        out[n] += w * np.einsum("tij,tjk,tkl->til", rz[a], ry[b], rx[c], optimize=True)
-    return out
+    # every product R_z^(a) R_y^(b) R_x^(c) at once, then the Leibniz sum over a + b + c = n
+    prod = (rz[:, None] @ ry[None, :])[:, :, None] @ rx[None, None, :]  # (5, 5, 5, T, 3, 3)
+    return np.tensordot(_leibniz3(), prod, axes=3)
 
 
 class VRBTrajectory:

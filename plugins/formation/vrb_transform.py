@@ -54,6 +54,7 @@ from functools import lru_cache
 from math import comb
 
 import numpy as np
+from scipy import sparse
 from scipy.interpolate import BSpline
 from scipy.optimize import linear_sum_assignment
 
@@ -108,37 +109,52 @@ def repelling_velocity(
         (N, 3) m/s.
     """
     pairs = _PairField(clearance, threshold, gain)
-    return pairs.velocity(pairs.incidence.T @ r)
+    return pairs.velocity(pairs.incidence_t @ r)
 
 
 _ONES3 = np.ones(3)
 
 
 class _PairField:
-    """Eq. 8 over the P = N(N-1)/2 unordered pairs, constants precomputed.
+    """Eq. 8 over a set of unordered pairs (i_p, j_p), constants precomputed.
 
-    With the signed incidence matrix A (N, P) (+1 at i, -1 at j of pair p = (i, j)), the pair
-    differences are A^T r and the summed field is A @ (per-pair vectors) when B_i = B_j; unequal
-    gains use separate weights for the two ends of each pair.
+    With the signed incidence matrix A (N, P) (+1 at i_p, -1 at j_p), the pair differences are
+    A^T r and the summed field is ``push @ (per-pair vectors)``, where ``push`` is A weighted by the
+    gain of the other robot of each pair and 1 / (D - s_ij)^2.
     """
 
-    def __init__(self, clearance: np.ndarray, threshold: float, gain: np.ndarray) -> None:
+    DENSE_PAIRS = 256
+    """Up to this many pairs the (N, P) matrices are dense (fastest for small teams), else CSR."""
+
+    def __init__(
+        self,
+        clearance: np.ndarray,
+        threshold: float,
+        gain: np.ndarray,
+        pairs: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         n = len(clearance)
-        i, j = np.triu_indices(n, 1)
+        i, j = np.triu_indices(n, 1) if pairs is None else pairs
         self.i, self.j, self.threshold = i, j, threshold
-        inc = np.zeros((n, i.size))
-        inc[i, np.arange(i.size)] = 1.0
-        inc[j, np.arange(i.size)] = -1.0
-        self.incidence = inc
+        p = np.arange(i.size)
         gap2 = (threshold - clearance[i] - clearance[j]) ** 2
         # robot i is pushed with B_j, robot j with B_i (B belongs to the repelling robot, eq. 8)
-        self.push = np.zeros((n, i.size))
-        self.push[i, np.arange(i.size)] = gain[j] / gap2
-        self.push[j, np.arange(i.size)] = -gain[i] / gap2
+        wi, wj = gain[j] / gap2, -gain[i] / gap2
+        if i.size <= self.DENSE_PAIRS:
+            self.push = np.zeros((n, i.size))
+            self.push[i, p], self.push[j, p] = wi, wj
+            self.incidence_t = np.zeros((i.size, n))
+            self.incidence_t[p, i], self.incidence_t[p, j] = 1.0, -1.0
+        else:
+            rows, cols = np.r_[i, j], np.r_[p, p]
+            self.push = sparse.csr_matrix((np.r_[wi, wj], (rows, cols)), (n, i.size))
+            ones = np.r_[np.ones(i.size), -np.ones(i.size)]
+            self.incidence_t = sparse.csr_matrix((ones, (cols, rows)), (i.size, n))
 
     def velocity(self, diff: np.ndarray, push: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) summed eq. 8 from the (P, 3) pair differences r_i - r_j (``push`` may be scaled)."""
         d = np.sqrt((diff * diff) @ _ONES3)
+        np.maximum(d, 1e-12, out=d)  # coincident robots: no defined direction, no push
         x = self.threshold - d
         np.maximum(x, 0.0, out=x)
         x *= x
@@ -214,39 +230,65 @@ def integrate_deviation(
     """e_i on the uniform grid of ``law.steps(duration)`` intervals, shape (S, N, 3).
 
     de/dt = v_R(rbar + e) - k_r e, exponential Euler (the linear pull is integrated exactly).
-    Steps where every nominal pair is farther than D + 2 max|e_i| feel no repulsion, so they reduce
-    to the exact decay e <- e exp(-k_r h) with no field evaluation.
+    Only pairs whose nominal distance comes within D + margin are integrated (for large teams most
+    pairs never meet); the result is exact as long as 2 max|e_i| <= margin, which is checked
+    afterwards, and the margin is widened and the integration redone if it was not.
     """
     n = r_from.shape[0]
     clearance, gain = law.per_robot(n)
     steps = law.steps(duration)
-    e = np.zeros((steps + 1, n, 3))
     if n < 2 or not np.any(gain > 0.0):
-        return e
-    h = duration / steps
+        return np.zeros((steps + 1, n, 3))
     phi = _grid_phi(steps)
-    pairs = _PairField(clearance, law.threshold, gain)
-    inc_t = pairs.incidence.T
-    # pair differences of the nominal straight-line motion, (S, P, 3)
-    dbar = (r_from[pairs.i] - r_from[pairs.j]) + phi[:, None, None] * (
-        (r_to - r_from)[pairs.i] - (r_to - r_from)[pairs.j]
-    )
-    nominal_gap = np.sqrt(np.einsum("spk,spk->sp", dbar, dbar)).min(axis=1).tolist()
+    i, j = np.triu_indices(n, 1)
+    delta = r_to - r_from
+    # pair differences of the nominal sine-profile motion, (S, P, 3)
+    dbar = (r_from[i] - r_from[j]) + phi[:, None, None] * (delta[i] - delta[j])
+    gap = np.sqrt(np.einsum("spk,spk->sp", dbar, dbar))
+    margin = 0.5 * law.threshold
+    while True:
+        near = np.flatnonzero(gap.min(axis=0) <= law.threshold + margin)
+        if near.size == 0:
+            return np.zeros((steps + 1, n, 3))
+        pairs = _PairField(clearance, law.threshold, gain, (i[near], j[near]))
+        e, reach = _integrate_pairs(pairs, dbar[:, near], gap[:, near].min(axis=1), duration, law)
+        if 2.0 * reach <= margin:
+            return e
+        margin = 4.0 * reach
+
+
+def _integrate_pairs(
+    pairs: _PairField, dbar: np.ndarray, nominal_gap: np.ndarray, duration: float,
+    law: TransformationLaw,
+) -> tuple[np.ndarray, float]:
+    """Exponential Euler of de/dt = v_R(rbar + e) - k_r e over the given pairs; (e, max |e_i|).
+
+    Steps where every pair is farther than D + 2 max|e_i| feel no repulsion, so they reduce to the
+    exact decay e <- e exp(-k_r h) with no field evaluation.
+    """
+    steps = dbar.shape[0] - 1
+    n = pairs.push.shape[0]
+    e = np.zeros((steps + 1, n, 3))
+    h = duration / steps
     decay = float(np.exp(-law.k_return * h))
     drive = h if law.k_return == 0.0 else (1.0 - decay) / law.k_return
     push = drive * pairs.push  # exponential-Euler drive folded into the pair weights
+    inc_t = pairs.incidence_t
     D = law.threshold
+    gaps = nominal_gap.tolist()
     ek = e[0]
     reach = 0.0  # upper bound of max_i |e_i|, keeps the skip test conservative
+    reach_max = 0.0
     for k in range(steps):  # sequential in time, vectorised over robots and pairs
-        if nominal_gap[k] > D + 2.0 * reach:
+        if gaps[k] > D + 2.0 * reach:
             ek = ek * decay
             reach *= decay
         else:
             ek = decay * ek + pairs.velocity(dbar[k] + inc_t @ ek, push)
-            reach = 1.7320508075688772 * float(np.abs(ek).max())  # |v| <= sqrt(3) max component
+            reach = 1.7320508075688772 * float(np.abs(ek).max())  # |e_i| <= sqrt(3) max component
+            reach_max = max(reach_max, reach)
         e[k + 1] = ek
-    return e
+    return e, reach_max
 
 
 @dataclass(frozen=True)
@@ -409,6 +451,16 @@ def plan_flight(sequence: FormationSequence, law: TransformationLaw) -> Formatio
     return FormationFlight(sequence, formations, assignment, transformations)
 
 
+@lru_cache(maxsize=1)
+def _binomial_weights() -> np.ndarray:
+    """W (5, 5, 5): W[n, k, j] = C(n, k) if k + j = n (Leibniz rule of eq. 3)."""
+    w = np.zeros((ORDER + 1,) * 3)
+    for n in range(ORDER + 1):
+        for k in range(n + 1):
+            w[n, k, n - k] = comb(n, k)
+    return w
+
+
 @dataclass(frozen=True)
 class FlatOutputs:
     """Flat outputs sigma_i = [p_i, psi_i] of every robot and their derivatives up to snap.
@@ -430,10 +482,9 @@ def flat_outputs(body: VRBState, local: np.ndarray) -> FlatOutputs:
         body: the VRB at T times (p_v, R_v and derivatives).
         local: (5, T, N, 3), r_i and derivatives at the same times.
     """
-    p = np.repeat(body.p[:, :, None, :], local.shape[2], axis=2)
-    for n in range(ORDER + 1):
-        for k in range(n + 1):
-            p[n] += comb(n, k) * np.einsum("tab,tib->tia", body.R[k], local[n - k])
+    # R_v^(k) r_i^(j) for every k, j at once: (5, 5, T, N, 3), then the binomial sum over k + j = n
+    rr = local[None, :] @ np.swapaxes(body.R, -1, -2)[:, None]
+    p = body.p[:, :, None, :] + np.tensordot(_binomial_weights(), rr, axes=2)
     yaw = np.repeat(body.euler[:, :, 2][:, :, None], local.shape[2], axis=2)
     return FlatOutputs(p=p, yaw=yaw)
 
