@@ -1,0 +1,278 @@
+"""Indoor swarming, thesis sections 5.3.3-5.3.4: follower potentials and leader control.
+
+Karydes (2020), chapter 5. Inputs are displacements per sampling period T_s (m), as in eq. 5.1;
+positions are planar (N, 2) arrays in the world x-y plane. Follower input (eq. 5.30-5.31):
+
+    w_i = w_obs + w_col + w_con + w_com + w_led,   u_i = sat(w_i, u_sat).
+
+The obstacle and collision terms (:func:`w_obs`, :func:`w_col`) are the avoidance part, the other
+three (:func:`w_con`, :func:`w_com`, :func:`w_led`) the formation part; each is callable alone.
+
+Sign convention: every pair term is psi(||r_j - r_i||) (r_j - r_i)/||r_j - r_i||, so psi > 0
+attracts agent i toward j (or toward the obstacle point) and psi < 0 repels. Following the notes
+that come with the source text: psi_obs and psi_col (eq. 5.34, 5.36) are held at their boundary
+value -K below d_o and d_c (the printed "0 otherwise" would switch repulsion off exactly when a
+vehicle is too close); psi_con (eq. 5.38) is +K_con at d_n and 0 at l_n, i.e. it attracts (the
+text's "psi_con(d_n) = -K_con" contradicts its own formula and purpose).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .indoor_graphs import (
+    EdgeList,
+    initial_rank_estimate,
+    neighbour_graph,
+    rank_estimate_step,
+    sigma_graph,
+    virtual_leader,
+)
+from .indoor_sensing import Obstacles, nearest_obstacle, obstacle_tree, saturate
+
+
+@dataclass(frozen=True)
+class IndoorGains:
+    """Parameters of the indoor swarm; defaults are the thesis' Table 5.1 (lengths in m)."""
+
+    T_s: float = 0.01  # sampling period, s
+    u_max: float = 0.025  # maximum input (hardware), m per T_s
+    d_c: float = 0.3  # collision-free distance
+    d_o: float = 0.1  # obstacle-free distance
+    d_s: float = 2.0  # sensing range
+    d_l: float = 0.05  # LOS clearance distance
+    d_n: float = 1.0  # neighbour maximum distance
+    phi_d: float = 0.2  # edge deactivation threshold
+    u_sat: float = 0.02  # input saturation level, m per T_s
+    K_obs: float = 200.0
+    eps_obs: float = 1e-4
+    l_o: float = 0.7
+    K_col: float = 200.0
+    eps_col: float = 1e-4
+    l_c: float = 0.7
+    K_con: float = 200.0
+    eps_con: float = 1e-4
+    l_n: float = 0.7
+    K_com: float = 0.1
+    alpha_com: float = 0.8
+    K_led: float = 0.06
+    alpha_lsat: float = 0.7
+    alpha_lcon: float = 0.95
+
+
+TABLE_5_1 = IndoorGains()
+"""The thesis' simulation parameters (Table 5.1)."""
+
+
+def _hyperbolic(x: np.ndarray, gain: float, eps: float) -> np.ndarray:
+    """K ((1 + eps) / (x + eps) - 1) eps: K at x = 0, 0 at x = 1 (shape of eq. 5.34, 5.36, 5.38)."""
+    return gain * ((1.0 + eps) / (x + eps) - 1.0) * eps
+
+
+def psi_obs(z: np.ndarray, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Obstacle repulsion psi_obs(z) (thesis eq. 5.34): -K_obs at d_o (held below), 0 beyond l_o."""
+    x = np.clip((np.asarray(z, dtype=float) - g.d_o) / (g.l_o - g.d_o), 0.0, None)
+    return np.where(x <= 1.0, -_hyperbolic(np.minimum(x, 1.0), g.K_obs, g.eps_obs), 0.0)
+
+
+def psi_col(z: np.ndarray, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Collision repulsion psi_col(z) (thesis eq. 5.36): -K_col at d_c (held below), 0 beyond l_c."""
+    x = np.clip((np.asarray(z, dtype=float) - g.d_c) / (g.l_c - g.d_c), 0.0, None)
+    return np.where(x <= 1.0, -_hyperbolic(np.minimum(x, 1.0), g.K_col, g.eps_col), 0.0)
+
+
+def psi_con(z: np.ndarray, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Connectivity attraction psi_con(z) (thesis eq. 5.38): 0 below l_n, +K_con at d_n, 0 beyond."""
+    x = (np.asarray(z, dtype=float) - g.d_n) / (g.l_n - g.d_n)
+    inside = (x >= 0.0) & (x <= 1.0)
+    return np.where(inside, _hyperbolic(np.clip(x, 0.0, 1.0), g.K_con, g.eps_con), 0.0)
+
+
+def psi_com(z: np.ndarray, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Compactness psi_com(z) (thesis eq. 5.40): linear on [d_c, d_n], zero at d_c + alpha (d_n - d_c)."""
+    z = np.asarray(z, dtype=float)
+    value = g.K_com * ((z - g.d_c) / (g.alpha_com * (g.d_n - g.d_c)) - 1.0)
+    return np.where((z >= g.d_c) & (z <= g.d_n), value, 0.0)
+
+
+def psi_led(z: np.ndarray, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Leader traction psi_led(z) = K_led z (thesis eq. 5.42)."""
+    return g.K_led * np.asarray(z, dtype=float)
+
+
+@dataclass(frozen=True)
+class PairGeometry:
+    """Directed G_sigma edges (src i, dst j) with unit vectors e_ij and lengths, shared by 5.35-5.39."""
+
+    n: int
+    src: np.ndarray
+    unit: np.ndarray
+    length: np.ndarray
+
+    @classmethod
+    def of(cls, r: np.ndarray, g_sigma: EdgeList) -> "PairGeometry":
+        src, dst = g_sigma.directed()
+        d = r[dst] - r[src]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return cls(len(r), src, d / np.maximum(length, 1e-12)[:, None], length)
+
+    def sum(self, psi: np.ndarray) -> np.ndarray:
+        """(N, 2) sum over neighbours j of psi_ij e_ij."""
+        out = np.empty((self.n, 2))
+        out[:, 0] = np.bincount(self.src, weights=psi * self.unit[:, 0], minlength=self.n)
+        out[:, 1] = np.bincount(self.src, weights=psi * self.unit[:, 1], minlength=self.n)
+        return out
+
+
+def w_obs(r: np.ndarray, o: np.ndarray, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Obstacle avoidance term (thesis eq. 5.32-5.33) from the nearest detected points o (N, 2).
+
+    Rows of ``o`` that are NaN (nothing detected, O_i empty) give 0.
+    """
+    d = o - r
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    seen = np.isfinite(dist) & (dist > 0.0)
+    out = np.zeros_like(r, dtype=float)
+    out[seen] = (psi_obs(dist[seen], g) / dist[seen])[:, None] * d[seen]
+    return out
+
+
+def w_col(r: np.ndarray, g_sigma: EdgeList | PairGeometry, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Collision avoidance term, sum of psi_col over N_i(G_sigma) (thesis eq. 5.35-5.36)."""
+    pg = g_sigma if isinstance(g_sigma, PairGeometry) else PairGeometry.of(r, g_sigma)
+    return pg.sum(psi_col(pg.length, g))
+
+
+def w_con(r: np.ndarray, g_sigma: EdgeList | PairGeometry, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Connectivity maintenance term, sum of psi_con over N_i(G_sigma) (thesis eq. 5.37-5.38)."""
+    pg = g_sigma if isinstance(g_sigma, PairGeometry) else PairGeometry.of(r, g_sigma)
+    return pg.sum(psi_con(pg.length, g))
+
+
+def w_com(r: np.ndarray, g_sigma: EdgeList | PairGeometry, g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """Compactness term, sum of psi_com over N_i(G_sigma) (thesis eq. 5.39-5.40)."""
+    pg = g_sigma if isinstance(g_sigma, PairGeometry) else PairGeometry.of(r, g_sigma)
+    return pg.sum(psi_com(pg.length, g))
+
+
+def w_led(
+    r: np.ndarray, l: np.ndarray, has_neighbour: np.ndarray, g: IndoorGains = TABLE_5_1
+) -> np.ndarray:
+    """Leader traction toward the virtual leader l_i (thesis eq. 5.41-5.42).
+
+    psi_led(z) z_hat = K_led (l_i - r_i); zero where N_i(G_sigma) is empty.
+    """
+    return np.where(has_neighbour[:, None], g.K_led * (l - r), 0.0)
+
+
+def follower_input(
+    r: np.ndarray,
+    g_sigma: EdgeList,
+    o: np.ndarray,
+    l: np.ndarray,
+    has_neighbour: np.ndarray,
+    g: IndoorGains = TABLE_5_1,
+) -> np.ndarray:
+    """u_i = sat(w_obs + w_col + w_con + w_com + w_led, u_sat) (thesis eq. 5.30-5.31), all agents.
+
+    The caller overwrites the leader's row with :func:`leader_input`.
+    """
+    pg = PairGeometry.of(r, g_sigma)
+    psi = psi_col(pg.length, g) + psi_con(pg.length, g) + psi_com(pg.length, g)
+    w = w_obs(r, o, g) + pg.sum(psi) + w_led(r, l, has_neighbour, g)
+    return saturate(w, g.u_sat)
+
+
+def leader_direction(r_leader: np.ndarray, waypoints: np.ndarray, m: int) -> tuple[np.ndarray, int]:
+    """Algorithm 1 of the thesis: unit direction w_N to the target way-point and its index m.
+
+    Advances m while the leader has passed p_m along the next segment,
+    (p_{m+1} - p_m)^T (r_N - p_m) >= 0 (0-based indices here). Returns a zero direction once the
+    leader sits on the final way-point.
+    """
+    last = len(waypoints) - 1
+    while m < last and np.dot(waypoints[m + 1] - waypoints[m], r_leader - waypoints[m]) >= 0.0:
+        m += 1
+    d = waypoints[m] - r_leader
+    norm = float(np.hypot(d[0], d[1]))
+    return (d / norm if norm > 1e-12 else np.zeros(2)), m
+
+
+def leader_input(
+    r: np.ndarray,
+    leader: int,
+    g_sigma: EdgeList,
+    waypoints: np.ndarray,
+    m: int,
+    g: IndoorGains = TABLE_5_1,
+) -> tuple[np.ndarray, int]:
+    """u_N = w_N min(u_lsat, u_lcon) (thesis eq. 5.43-5.44, Algorithm 1).
+
+    u_lsat = alpha_lsat u_sat; u_lcon = max(0, alpha_lcon d_n - min_j ||r_j - r_N||) over the
+    leader's G_sigma neighbours (0 when it has none: it waits for the swarm). Choice: at the final
+    way-point the step is also capped by the remaining distance, so the leader stops on it instead
+    of chattering around it.
+
+    Returns:
+        u_N: (2,) leader input, m per T_s; m: the new way-point index.
+    """
+    direction, m = leader_direction(r[leader], waypoints, m)
+    nb = np.concatenate([g_sigma.j[g_sigma.i == leader], g_sigma.i[g_sigma.j == leader]])
+    nearest = np.linalg.norm(r[nb] - r[leader], axis=1).min() if nb.size else np.inf
+    u_lcon = max(0.0, g.alpha_lcon * g.d_n - nearest)
+    magnitude = min(g.alpha_lsat * g.u_sat, u_lcon)
+    if m == len(waypoints) - 1:
+        magnitude = min(magnitude, float(np.linalg.norm(waypoints[m] - r[leader])))
+    return direction * magnitude, m
+
+
+class IndoorSwarm:
+    """One guidance step of the whole indoor swarm: sensing, graphs, ranks, follower and leader laws.
+
+    Holds the two pieces of state the method carries between steps: the rank estimates rho_bar
+    (eq. 5.26) and the leader's way-point index m (Algorithm 1).
+
+    Args:
+        n: number of agents N.
+        leader: index of the leader (the thesis' agent N).
+        waypoints: (n_wp, 2) leader path P, m.
+        obstacles: geometries or their STRtree.
+        gains: parameters (Table 5.1 by default).
+    """
+
+    def __init__(
+        self,
+        n: int,
+        leader: int,
+        waypoints: np.ndarray,
+        obstacles: Obstacles,
+        gains: IndoorGains = TABLE_5_1,
+    ) -> None:
+        self.n, self.leader, self.gains = n, leader, gains
+        self.waypoints = np.asarray(waypoints, dtype=float)
+        self.obstacles = obstacle_tree(obstacles)
+        self.rho_bar = initial_rank_estimate(n, leader)
+        self.m = 0
+        self.g_n: EdgeList | None = None
+        self.g_sigma: EdgeList | None = None
+
+    def input(self, r: np.ndarray, tree: cKDTree | None = None) -> np.ndarray:
+        """The inputs u(k) (N, 2), m per T_s, for positions r(k) (N, 2); advances rho_bar and m.
+
+        ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree).
+        """
+        g = self.gains
+        # Obstacles beyond l_o exert no force, so sensing them up to l_o only is exact for w_obs;
+        # the clearance lower bound then certifies most lines of sight without shapely.
+        o, dist = nearest_obstacle(r, self.obstacles, max_distance=g.l_o)
+        clearance = np.minimum(dist, g.l_o)
+        self.g_n = neighbour_graph(r, self.obstacles, g.d_n, g.d_l, tree, clearance)
+        self.g_sigma = sigma_graph(r, self.g_n, g.phi_d)
+        l, has = virtual_leader(r, self.g_sigma, self.rho_bar)
+        u = follower_input(r, self.g_sigma, o, l, has, g)
+        u[self.leader], self.m = leader_input(r, self.leader, self.g_sigma, self.waypoints, self.m, g)
+        self.rho_bar = rank_estimate_step(self.rho_bar, self.g_sigma, self.leader)
+        return u

@@ -1,0 +1,288 @@
+"""Indoor swarming, thesis sections 5.2.5-5.3.2: graphs G_s, G_n, G_sigma, edge deactivation, ranks.
+
+Karydes (2020), chapter 5. Graphs are simple and undirected over agents 0..N-1; the hot path keeps
+them as an :class:`EdgeList` (arrays of pairs i < j) and uses numpy / scipy.sparse.csgraph;
+:meth:`EdgeList.to_networkx` is for analysis and metrics.
+
+Choices where the text is ambiguous (each also stated at the function):
+- Deactivation candidates m (eq. 5.15-5.16) are the *common* neighbours of i and j in G_n. The text
+  takes m in N_i(G_n) only, but then agent j, which cannot see an m hidden from it by a wall, could
+  reach a different verdict, breaking the symmetry the text claims; with common neighbours both
+  agents evaluate the same set (i learns N_j by one-hop communication), and an edge is dropped only
+  when a path i-m-j of strictly shorter G_n edges exists, so G_sigma has exactly the connected
+  components of G_n (induction on edge length).
+- Surrogate leaders (eq. 5.25) are the neighbours of *minimum* estimated rank. The printed "max"
+  would send followers away from the leader, contradicting the text ("driven to the leader by the
+  means of its surrogate leader") and property 5.29.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, shortest_path
+
+from .indoor_sensing import Obstacles, sensing_pairs
+
+if TYPE_CHECKING:  # pragma: no cover
+    import networkx as nx
+    from scipy.spatial import cKDTree
+
+
+@dataclass(frozen=True)
+class EdgeList:
+    """A simple undirected graph on ``n`` agents: edge k joins ``i[k] < j[k]``."""
+
+    n: int
+    i: np.ndarray
+    j: np.ndarray
+
+    @classmethod
+    def from_pairs(cls, n: int, pairs: np.ndarray) -> "EdgeList":
+        """From an (P, 2) array of pairs (either order; duplicates are not allowed)."""
+        pairs = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
+        lo, hi = pairs.min(axis=1), pairs.max(axis=1)
+        order = np.lexsort((hi, lo))
+        return cls(n, lo[order], hi[order])
+
+    def __len__(self) -> int:
+        return len(self.i)
+
+    def lengths(self, r: np.ndarray) -> np.ndarray:
+        """(P,) edge lengths ||r_j - r_i||, m."""
+        d = r[self.j] - r[self.i]
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+    def subgraph(self, keep: np.ndarray) -> "EdgeList":
+        """The subgraph with the edges where ``keep`` (P,) is True (same nodes)."""
+        return EdgeList(self.n, self.i[keep], self.j[keep])
+
+    def directed(self) -> tuple[np.ndarray, np.ndarray]:
+        """Both orientations of every edge: (src, dst), each (2P,), sorted by src."""
+        src = np.concatenate([self.i, self.j])
+        dst = np.concatenate([self.j, self.i])
+        order = np.argsort(src, kind="stable")
+        return src[order], dst[order]
+
+    def degree(self) -> np.ndarray:
+        """(N,) number of neighbours |N_i|."""
+        return np.bincount(self.i, minlength=self.n) + np.bincount(self.j, minlength=self.n)
+
+    def csgraph(self) -> csr_matrix:
+        """Symmetric (N, N) sparse adjacency for scipy.sparse.csgraph."""
+        data = np.ones(2 * len(self), dtype=np.int8)
+        src, dst = np.concatenate([self.i, self.j]), np.concatenate([self.j, self.i])
+        return csr_matrix((data, (src, dst)), shape=(self.n, self.n))
+
+    def to_networkx(self) -> "nx.Graph":
+        """The same graph as networkx, for analysis and metrics (not for the per-step path)."""
+        import networkx as nx
+
+        graph = nx.Graph()
+        graph.add_nodes_from(range(self.n))
+        graph.add_edges_from(zip(self.i.tolist(), self.j.tolist()))
+        return graph
+
+    def edge_set(self) -> set[tuple[int, int]]:
+        """Edges as a Python set of (i, j), i < j (tests, analysis)."""
+        return set(zip(self.i.tolist(), self.j.tolist()))
+
+
+def sensing_graph(
+    r: np.ndarray, obstacles: Obstacles, d_s: float, d_l: float, tree: "cKDTree | None" = None
+) -> EdgeList:
+    """G_s: agents within d_s of each other with a clear line of sight (thesis eq. 5.7-5.8)."""
+    return EdgeList.from_pairs(len(r), sensing_pairs(r, d_s, obstacles, d_l, tree))
+
+
+def neighbour_graph(
+    r: np.ndarray,
+    obstacles: Obstacles,
+    d_n: float,
+    d_l: float,
+    tree: "cKDTree | None" = None,
+    clearance: np.ndarray | None = None,
+) -> EdgeList:
+    """G_n: the edges of G_s no longer than d_n (thesis eq. 5.11-5.12), sensed directly at d_n.
+
+    ``clearance`` (N,) lower bounds of obstacle distances let certified pairs skip the shapely
+    LOS test (see :func:`~.indoor_sensing.sensing_pairs`).
+    """
+    return EdgeList.from_pairs(len(r), sensing_pairs(r, d_n, obstacles, d_l, tree, clearance))
+
+
+def restrict(graph: EdgeList, r: np.ndarray, d_max: float) -> EdgeList:
+    """The subgraph of edges no longer than ``d_max`` (eq. 5.12 applied to G_s)."""
+    return graph.subgraph(graph.lengths(r) <= d_max)
+
+
+def is_connected(graph: EdgeList) -> bool:
+    """True when the graph is connected (scipy.sparse.csgraph)."""
+    if graph.n <= 1:
+        return True
+    count, _ = connected_components(graph.csgraph(), directed=False)
+    return count == 1
+
+
+def _common_neighbours(graph: EdgeList) -> tuple[np.ndarray, np.ndarray]:
+    """All (edge k, agent m) with m a neighbour of both i[k] and j[k]: the triangles on each edge.
+
+    Expands N_i for every edge through the CSR layout, then keeps the m with (j, m) an edge, found
+    by a sorted-key search; no loop over edges.
+    """
+    n, p = graph.n, len(graph)
+    src, dst = graph.directed()
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=n))])
+    deg_i = indptr[graph.i + 1] - indptr[graph.i]
+    edge = np.repeat(np.arange(p), deg_i)
+    start = np.repeat(indptr[graph.i] - np.concatenate([[0], np.cumsum(deg_i)[:-1]]), deg_i)
+    m = dst[start + np.arange(edge.size)]
+    keys = np.sort(src * n + dst)
+    want = graph.j[edge] * n + m
+    pos = np.minimum(np.searchsorted(keys, want), max(len(keys) - 1, 0))
+    found = keys[pos] == want if len(keys) else np.zeros(edge.size, dtype=bool)
+    return edge[found], m[found]
+
+
+def flatness(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """phi(p, q) = p^T H q / q^T q with H the +90 degree rotation (thesis eq. 5.17), row-wise.
+
+    |phi(r_mi, r_ji)| is the distance of m from the line of edge (i, j) over the edge length; its
+    sign tells the side of the edge on which m lies.
+    """
+    cross = p[:, 1] * q[:, 0] - p[:, 0] * q[:, 1]
+    return cross / np.einsum("ij,ij->i", q, q)
+
+
+def deactivation_rules(
+    r: np.ndarray, g_n: EdgeList, phi_d: float, perspective: str = "i"
+) -> tuple[np.ndarray, np.ndarray]:
+    """The two edge-deactivation rules of the thesis (eq. 5.15-5.21), evaluated per edge of G_n.
+
+    Rule 1 (eq. 5.18, Fig. 5.3): a common neighbour m closer to both i and j than they are to each
+    other (m in A_ij and B_ij, eq. 5.15-5.16) lies almost on the edge, |phi(r_mi, r_ji)| < phi_d.
+    Rule 2 (eq. 5.19-5.21, Fig. 5.4): such agents m on one side (C_ij, phi < 0) and n on the other
+    (D_ij, phi > 0) are closer to each other than i to j: (i, j) is the longer crossing diagonal.
+    Candidates m are common neighbours in G_n (see the module docstring).
+
+    Args:
+        r: (N, 2) positions, m.
+        g_n: the graph G_n.
+        phi_d: flatness threshold phi_d, 0 < phi_d < 1/sqrt(2).
+        perspective: ``"i"`` evaluates each edge as agent i does, ``"j"`` as agent j does (with
+            r_ij, r_mj); the two agree (the symmetry claimed after eq. 5.21), which tests check.
+
+    Returns:
+        rule1, rule2: (P,) bool, True where the rule deactivates the edge.
+    """
+    a, b = (g_n.i, g_n.j) if perspective == "i" else (g_n.j, g_n.i)
+    p = len(g_n)
+    edge, m = _common_neighbours(g_n)
+    r_ba = r[b[edge]] - r[a[edge]]  # r_ji from agent i's point of view
+    r_ma = r[m] - r[a[edge]]
+    r_mb = r[m] - r[b[edge]]
+    d_ab = np.einsum("ij,ij->i", r_ba, r_ba)
+    closer = (np.einsum("ij,ij->i", r_ma, r_ma) < d_ab) & (np.einsum("ij,ij->i", r_mb, r_mb) < d_ab)
+    phi = flatness(r_ma, r_ba)
+    rule1 = np.zeros(p, dtype=bool)
+    rule1[edge[closer & (np.abs(phi) < phi_d)]] = True
+    rule2 = _crossing_rule(r, edge[closer], m[closer], phi[closer], d_ab[closer], p)
+    return rule1, rule2
+
+
+def _crossing_rule(
+    r: np.ndarray, edge: np.ndarray, m: np.ndarray, phi: np.ndarray, d_sq: np.ndarray, p: int
+) -> np.ndarray:
+    """Eq. 5.21 on the candidates of A_ij & B_ij: exists (m, n) in C_ij x D_ij, ||r_nm|| < ||r_ji||."""
+    c, d = phi < 0, phi > 0
+    c_edge, c_m, c_len = edge[c], m[c], d_sq[c]
+    order = np.argsort(edge[d], kind="stable")
+    d_edge, d_m = edge[d][order], m[d][order]
+    d_start = np.searchsorted(d_edge, np.arange(p))
+    d_count = np.searchsorted(d_edge, np.arange(p), side="right") - d_start
+    reps = d_count[c_edge]
+    total = int(reps.sum())
+    rule2 = np.zeros(p, dtype=bool)
+    if total == 0:
+        return rule2
+    ci = np.repeat(np.arange(len(c_edge)), reps)
+    offset = np.arange(total) - np.repeat(np.cumsum(reps) - reps, reps)
+    dj = d_start[c_edge[ci]] + offset
+    r_nm = r[d_m[dj]] - r[c_m[ci]]
+    shorter = np.einsum("ij,ij->i", r_nm, r_nm) < c_len[ci]
+    rule2[c_edge[ci[shorter]]] = True
+    return rule2
+
+
+def edge_activation(r: np.ndarray, g_n: EdgeList, phi_d: float) -> np.ndarray:
+    """sigma_ij per edge of G_n: 0 if rule (5.18) or (5.21) holds, else 1 (thesis eq. 5.22)."""
+    rule1, rule2 = deactivation_rules(r, g_n, phi_d)
+    return ~(rule1 | rule2)
+
+
+def sigma_graph(r: np.ndarray, g_n: EdgeList, phi_d: float) -> EdgeList:
+    """G_sigma: the edges of G_n with sigma_ij = 1 (thesis eq. 5.13-5.14, 5.22)."""
+    return g_n.subgraph(edge_activation(r, g_n, phi_d))
+
+
+def ranks(graph: EdgeList, leader: int) -> np.ndarray:
+    """rho_i = dist(i, N), hops to the leader (thesis eq. 5.23); agents cut off get rank n.
+
+    Rank n (never reached by a connected agent, whose rank is at most n - 1) marks the loss of
+    connectivity, so "max rank < N" is the thesis' success condition.
+    """
+    hops = shortest_path(graph.csgraph(), directed=False, unweighted=True, indices=leader)
+    return np.where(np.isfinite(hops), hops, graph.n).astype(np.int64)
+
+
+def initial_rank_estimate(n: int, leader: int) -> np.ndarray:
+    """rho_bar(0): N - 1 for followers, 0 for the leader (thesis eq. 5.26)."""
+    rho_bar = np.full(n, n - 1, dtype=np.int64)
+    rho_bar[leader] = 0
+    return rho_bar
+
+
+def rank_estimate_step(rho_bar: np.ndarray, g_sigma: EdgeList, leader: int) -> np.ndarray:
+    """rho_bar_i(k+1) = min over N_i(G_sigma) of rho_bar_j(k) + 1 (thesis eq. 5.26).
+
+    The leader keeps 0. The estimate is capped at N: an agent with no neighbour, or in a component
+    without the leader (whose minimum would otherwise grow by one every step), reads N = "lost".
+    """
+    n = len(rho_bar)
+    src, dst = g_sigma.directed()
+    best = np.full(n, n, dtype=np.int64)
+    np.minimum.at(best, src, rho_bar[dst])
+    new = np.minimum(best + 1, n)
+    new[leader] = 0
+    return new
+
+
+def virtual_leader(
+    r: np.ndarray, g_sigma: EdgeList, rho_bar: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """l_i, the mean position of agent i's surrogate leaders (thesis eq. 5.24-5.25).
+
+    Surrogate leaders S_i are the G_sigma neighbours of minimum estimated rank (the printed max is
+    a typo, see the module docstring).
+
+    Returns:
+        l: (N, 2) virtual leader positions, m; r_i itself where i has no neighbour.
+        has_neighbour: (N,) bool, N_i(G_sigma) non-empty (eq. 5.41 sets w_led = 0 otherwise).
+    """
+    n = len(r)
+    src, dst = g_sigma.directed()
+    best = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(best, src, rho_bar[dst])
+    surrogate = rho_bar[dst] == best[src]
+    s, d = src[surrogate], dst[surrogate]
+    count = np.bincount(s, minlength=n)
+    has = count > 0
+    l = r.astype(float, copy=True)
+    sx = np.bincount(s, weights=r[d, 0], minlength=n)
+    sy = np.bincount(s, weights=r[d, 1], minlength=n)
+    l[has, 0] = sx[has] / count[has]
+    l[has, 1] = sy[has] / count[has]
+    return l, has

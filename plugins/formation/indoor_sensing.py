@@ -1,0 +1,210 @@
+"""Indoor swarming, thesis section 5.2: single-integrator agents, collision model, LOS sensing.
+
+Karydes (2020), chapter 5. The swarm is planar: ``r`` is an (N, 2) array of positions in the
+world x-y plane (x east, y north, metres); a caller holding (N, 3) world positions passes
+``pos[:, :2]``. Obstacles are shapely 2 geometries (wall segments, polygons), given either as a
+sequence or as a prebuilt :class:`shapely.STRtree`; ``None`` or an empty sequence is open space.
+
+Every per-step function is vectorised: candidate pairs come from one :class:`scipy.spatial.cKDTree`
+(a prebuilt tree may be passed, e.g. the engine's per-step shared tree over (N, 3) positions of a
+swarm flying at one altitude, whose distances then equal the planar ones), and the geometric tests
+are single shapely calls over arrays of geometries.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+from shapely import STRtree
+from shapely.geometry.base import BaseGeometry
+
+Obstacles = Sequence[BaseGeometry] | STRtree | None
+
+
+def obstacle_tree(obstacles: Obstacles) -> STRtree | None:
+    """The STRtree over ``obstacles`` (built if a sequence is given), or ``None`` for open space."""
+    if obstacles is None:
+        return None
+    if isinstance(obstacles, STRtree):
+        return obstacles if len(obstacles.geometries) else None
+    geoms = np.asarray(list(obstacles), dtype=object)
+    return STRtree(geoms) if geoms.size else None
+
+
+def saturate(w: np.ndarray, limit: float) -> np.ndarray:
+    """Scale each row of ``w`` (N, 2) down to norm ``limit`` when it exceeds it (thesis eq. 5.30)."""
+    norm = np.sqrt(np.einsum("ij,ij->i", w, w))
+    scale = np.minimum(1.0, limit / np.maximum(norm, 1e-300))
+    return w * scale[:, None]
+
+
+def single_integrator_step(r: np.ndarray, u: np.ndarray, u_max: float) -> np.ndarray:
+    """r(k+1) = r(k) + u(k) with ||u(k)|| <= u_max (thesis eq. 5.1).
+
+    ``u`` is a displacement per sampling period T_s (m), so a velocity is ``u / T_s``. The bound
+    u_max is the hardware limit; an input above it is clipped, not rejected.
+    """
+    return r + saturate(u, u_max)
+
+
+def pairwise_min_distance(r: np.ndarray, tree: cKDTree | None = None) -> float:
+    """Smallest inter-agent distance ||r_i - r_j||, m (``inf`` for fewer than two agents)."""
+    if len(r) < 2:
+        return float("inf")
+    tree = cKDTree(r) if tree is None else tree
+    dist, _ = tree.query(tree.data, k=2)
+    return float(dist[:, 1].min())
+
+
+def collision_free(r: np.ndarray, d_c: float, tree: cKDTree | None = None) -> bool:
+    """Collision condition ||r_i - r_j|| >= d_c for every pair (thesis eq. 5.2)."""
+    return pairwise_min_distance(r, tree) >= d_c
+
+
+def nearest_obstacle(
+    r: np.ndarray, obstacles: Obstacles, max_distance: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Closest detected obstacle point o_i and its distance (thesis eq. 5.9-5.10, 5.32).
+
+    The closest point of all obstacles is always visible (a geometry hiding it would be closer),
+    so the argmin of eq. 5.32 over the visible set O_i is the plain nearest point, restricted to
+    the sensing range (eq. 5.9). One ``STRtree.query_nearest`` and one ``shapely.shortest_line``.
+
+    Args:
+        r: (N, 2) positions, m.
+        obstacles: geometries or their STRtree.
+        max_distance: detection range, m (d_s; a smaller range such as l_o is exact for callers
+            that ignore obstacles beyond it, and faster).
+
+    Returns:
+        o: (N, 2) nearest obstacle point, NaN where nothing lies within ``max_distance``.
+        dist: (N,) its distance, m; ``inf`` where nothing was detected.
+    """
+    n = len(r)
+    o = np.full((n, 2), np.nan)
+    dist = np.full(n, np.inf)
+    tree = obstacle_tree(obstacles)
+    if tree is None or n == 0:
+        return o, dist
+    pts = shapely.points(r)
+    (agent, geom), d = tree.query_nearest(
+        pts, max_distance=max_distance, return_distance=True, all_matches=False
+    )
+    if agent.size:
+        lines = shapely.shortest_line(pts[agent], tree.geometries[geom])
+        o[agent] = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 1]
+        dist[agent] = d
+    return o, dist
+
+
+def obstacle_free(r: np.ndarray, obstacles: Obstacles, d_o: float) -> bool:
+    """Obstacle condition ||r_i - r_o|| >= d_o for every obstacle point r_o (thesis eq. 5.3)."""
+    _, dist = nearest_obstacle(r, obstacles, max_distance=d_o)
+    return bool(np.all(dist >= d_o))
+
+
+def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: float) -> np.ndarray:
+    """LOS clearance of the segments L_ab: every point at least d_l from obstacles (eq. 5.4, 5.8).
+
+    Args:
+        a, b: (P, 2) segment end points, m.
+        obstacles: geometries or their STRtree.
+        d_l: clearance distance d_l, m.
+
+    Returns:
+        (P,) bool, True where the segment keeps clearance d_l. A segment exactly at d_l counts as
+        blocked (shapely's ``dwithin`` is inclusive), a measure-zero difference from eq. 5.8.
+    """
+    clear = np.ones(len(a), dtype=bool)
+    tree = obstacle_tree(obstacles)
+    if tree is None or len(a) == 0:
+        return clear
+    lines = shapely.linestrings(np.stack([a, b], axis=1))
+    hit, _ = tree.query(lines, predicate="dwithin", distance=d_l)
+    clear[hit] = False
+    return clear
+
+
+def candidate_pairs(r: np.ndarray, radius: float, tree: cKDTree | None = None) -> np.ndarray:
+    """Index pairs (i < j) with ||r_i - r_j|| <= radius, shape (P, 2), from one cKDTree (eq. 5.7)."""
+    tree = cKDTree(r) if tree is None else tree
+    pairs = tree.query_pairs(radius, output_type="ndarray")
+    return pairs.reshape(-1, 2).astype(np.intp, copy=False)
+
+
+def sensing_pairs(
+    r: np.ndarray,
+    d_range: float,
+    obstacles: Obstacles,
+    d_l: float,
+    tree: cKDTree | None = None,
+    clearance: np.ndarray | None = None,
+) -> np.ndarray:
+    """Pairs of agents that sense each other: range and line of sight (thesis eq. 5.7-5.8).
+
+    With ``d_range = d_s`` this is the edge set E_s; with ``d_range = d_n`` it is directly E_n
+    (eq. 5.12), since E_n = E_s restricted to lengths <= d_n and d_n < d_s: the hot path never
+    builds G_s. A third agent does not block sensing (section 5.2.4).
+
+    Pairs whose LOS is certified by the agents' own clearances skip the shapely test: a point of
+    L_ij at distance t from r_i is at least max(c_i - t, c_j - (d_ij - t)) from obstacles, whose
+    minimum over t is (c_i + c_j - d_ij) / 2, so c_i + c_j >= d_ij + 2 d_l proves eq. 5.8.
+
+    Args:
+        r: (N, 2) positions, m.
+        d_range: sensing range, m.
+        obstacles: geometries or their STRtree.
+        d_l: LOS clearance d_l, m.
+        tree: prebuilt cKDTree over the positions (planar, or 3D at one altitude).
+        clearance: (N,) lower bounds of each agent's obstacle distance (e.g. from
+            :func:`nearest_obstacle`, where ``inf`` beyond its range must first be replaced by
+            that range); ``None`` tests every pair with shapely.
+
+    Returns:
+        (P, 2) int array of pairs (i < j).
+    """
+    pairs = candidate_pairs(r, d_range, tree)
+    tree_o = obstacle_tree(obstacles)
+    if tree_o is None or len(pairs) == 0:
+        return pairs
+    ri, rj = r[pairs[:, 0]], r[pairs[:, 1]]
+    if clearance is None:
+        return pairs[segments_clear(ri, rj, tree_o, d_l)]
+    length = np.linalg.norm(rj - ri, axis=1)
+    unsure = np.flatnonzero(clearance[pairs[:, 0]] + clearance[pairs[:, 1]] < length + 2.0 * d_l)
+    keep = np.ones(len(pairs), dtype=bool)
+    keep[unsure] = segments_clear(ri[unsure], rj[unsure], tree_o, d_l)
+    return pairs[keep]
+
+
+def obstacle_point_visible(
+    r: np.ndarray, r_o: np.ndarray, obstacles: Obstacles, d_s: float
+) -> np.ndarray:
+    """Whether agent i detects obstacle point r_o[i] (thesis eq. 5.9-5.10), vectorised over rows.
+
+    Eq. 5.10 asks r_o to be the first obstacle point on the ray from r_i through r_o, i.e. the
+    half-open segment [r_i, r_o) meets no obstacle. The segment is shortened by 1e-9 of its length
+    so that the obstacle carrying r_o itself does not count as hiding it.
+
+    Args:
+        r: (P, 2) agent positions, m.
+        r_o: (P, 2) points on obstacles, m.
+        obstacles: geometries or their STRtree.
+        d_s: sensing range, m.
+
+    Returns:
+        (P,) bool.
+    """
+    in_range = np.linalg.norm(r_o - r, axis=1) <= d_s
+    tree = obstacle_tree(obstacles)
+    if tree is None:
+        return in_range
+    tip = r + (1.0 - 1e-9) * (r_o - r)
+    lines = shapely.linestrings(np.stack([r, tip], axis=1))
+    hit, _ = tree.query(lines, predicate="intersects")
+    unhidden = np.ones(len(r), dtype=bool)
+    unhidden[hit] = False
+    return in_range & unhidden
