@@ -181,6 +181,7 @@ def random_connected_swarm(
     min_separation: float = 0.4,
     max_link: float = 0.9,
     anchor: np.ndarray | None = None,
+    batch: int = 16,
 ) -> np.ndarray:
     """A random swarm of ``n`` agents in ``region`` whose disc graph of radius ``max_link`` is connected.
 
@@ -188,7 +189,7 @@ def random_connected_swarm(
     [min_separation, max_link] from a random earlier agent, and kept if it lies in ``region`` and
     at least ``min_separation`` from every agent (so eq. 5.2 holds with d_c <= min_separation).
     With max_link < d_n and a convex region (or one whose links cannot cross a wall) G_n is
-    connected. This runs once per scenario, so its loop over agents is not on a per-step path.
+    connected. This runs once per scenario (a loop over agents, not on a per-step path).
 
     Args:
         region: where agents may be placed.
@@ -197,6 +198,7 @@ def random_connected_swarm(
         min_separation: minimum inter-agent distance, m.
         max_link: maximum distance to the agent it is attached to, m.
         anchor: (2,) first agent's position; a random point of ``region`` by default.
+        batch: candidates drawn at once (the first admissible one is kept).
 
     Returns:
         (n, 2) positions, m.
@@ -209,21 +211,23 @@ def random_connected_swarm(
                 break
     r = np.empty((n, 2))
     r[0] = anchor
-    count, attempts = 1, 0
-    while count < n:
-        attempts += 1
-        if attempts > 2000 * n:
-            raise ValueError(f"cannot place {n} agents in the region (placed {count})")
-        parent = r[rng.integers(count)]
-        rho = rng.uniform(min_separation, max_link)
-        theta = rng.uniform(0.0, 2.0 * np.pi)
-        cand = parent + rho * np.array([np.cos(theta), np.sin(theta)])
-        if not region.contains(shapely.points(cand)):
-            continue
-        if np.min(np.linalg.norm(r[:count] - cand, axis=1)) < min_separation:
-            continue
-        r[count] = cand
-        count += 1
+    count = 1
+    for _ in range(200 * n):  # batches; one agent is accepted per batch, growing outward
+        if count == n:
+            return r
+        parent = r[rng.integers(count, size=batch)]
+        rho = rng.uniform(min_separation, max_link, size=batch)
+        theta = rng.uniform(0.0, 2.0 * np.pi, size=batch)
+        cand = parent + rho[:, None] * np.column_stack([np.cos(theta), np.sin(theta)])
+        cand = cand[shapely.contains_xy(region, cand[:, 0], cand[:, 1])]
+        if len(cand):
+            gap = np.linalg.norm(cand[:, None, :] - r[None, :count, :], axis=2).min(axis=1)
+            ok = np.flatnonzero(gap >= min_separation)
+            if ok.size:
+                r[count] = cand[ok[0]]
+                count += 1
+    if count < n:
+        raise ValueError(f"cannot place {n} agents in the region (placed {count})")
     return r
 
 

@@ -1,0 +1,191 @@
+"""Thesis sections 5.2.5-5.3.2: graphs G_n / G_sigma, edge deactivation (eq. 5.15-5.22), ranks."""
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from swarmscene.plugins.formation.indoor_graphs import (
+    EdgeList,
+    deactivation_rules,
+    edge_activation,
+    flatness,
+    initial_rank_estimate,
+    is_connected,
+    neighbour_graph,
+    rank_estimate_step,
+    ranks,
+    restrict,
+    sensing_graph,
+    sigma_graph,
+    virtual_leader,
+)
+from swarmscene.plugins.formation.indoor_maps import building
+
+D_N, D_L, PHI_D = 1.0, 0.05, 0.2  # Table 5.1
+
+
+def _complete(r):
+    n = len(r)
+    return EdgeList.from_pairs(n, [(a, b) for a in range(n) for b in range(a + 1, n)])
+
+
+def _random_swarm(seed, n=40, walls=()):
+    rng = np.random.default_rng(seed)
+    r = rng.uniform(0.0, np.sqrt(n) * 0.6, size=(n, 2))
+    return r, neighbour_graph(r, list(walls), D_N, D_L)
+
+
+def test_flatness_eq_5_17():
+    # m at height 0.08 above the middle of a 0.9 m edge along +x: phi = 0.08 / 0.9, positive on
+    # the left of i -> j.
+    assert flatness(np.array([[0.45, 0.08]]), np.array([[0.9, 0.0]]))[0] == pytest.approx(0.08 / 0.9)
+    assert flatness(np.array([[0.45, -0.08]]), np.array([[0.9, 0.0]]))[0] == pytest.approx(-0.08 / 0.9)
+
+
+def test_fig_5_3_three_agents_flattened_triangle():
+    # Equilateral at rest: nothing is deactivated.
+    s = 0.8
+    eq = np.array([[0.0, 0.0], [s, 0.0], [s / 2, s * np.sqrt(3) / 2]])
+    assert edge_activation(eq, _complete(eq), PHI_D).all()
+    # Flattened through a gap: the long edge (0, 1) goes when |phi| = h / 0.9 < phi_d.
+    for h, dropped in [(0.08, True), (0.17, True), (0.19, False)]:
+        r = np.array([[0.0, 0.0], [0.9, 0.0], [0.45, h]])
+        rule1, rule2 = deactivation_rules(r, _complete(r), PHI_D)
+        assert rule1.tolist() == [dropped, False, False]  # edges (0,1), (0,2), (1,2)
+        assert not rule2.any()
+
+
+def test_fig_5_3_needs_m_closer_to_both_ends():
+    # Agent 2 beyond agent 1 on the line: it is not in A_01 (farther from 0 than 1 is), so (0, 1)
+    # stays; instead (0, 2) is the long edge with agent 1 almost on it.
+    r = np.array([[0.0, 0.0], [0.5, 0.0], [0.95, 0.02]])
+    g = _complete(r)
+    sigma = edge_activation(r, g, PHI_D)
+    assert dict(zip(sorted(g.edge_set()), sigma.tolist())) == {
+        (0, 1): True, (0, 2): False, (1, 2): True}
+
+
+def test_fig_5_4_four_agents_longest_crossing_edge():
+    # Rhombus: diagonals 0-1 (0.9 m) and 2-3 (0.6 m) cross; only the longer one goes (rule 2).
+    r = np.array([[0.0, 0.0], [0.9, 0.0], [0.45, -0.3], [0.45, 0.3]])
+    g = _complete(r)
+    rule1, rule2 = deactivation_rules(r, g, PHI_D)
+    assert not rule1.any()
+    assert dict(zip(sorted(g.edge_set()), rule2.tolist())) == {
+        (0, 1): True, (0, 2): False, (0, 3): False, (1, 2): False, (1, 3): False, (2, 3): False}
+    assert len(sigma_graph(r, g, PHI_D)) == 5
+
+
+def test_fig_5_4_equal_diagonals_are_both_kept():
+    # Square: the diagonals are equally long and eq. 5.21 is strict, so neither is dropped.
+    r = np.array([[0.0, 0.0], [0.6, 0.6], [0.6, 0.0], [0.0, 0.6]])
+    assert edge_activation(r, _complete(r), PHI_D).all()
+
+
+def _rules_by_the_letter(r, g, phi_d):
+    """Eq. 5.15-5.21 written out per edge and per agent, with candidates common G_n neighbours."""
+    nb = {a: set() for a in range(g.n)}
+    for a, b in g.edge_set():
+        nb[a].add(b)
+        nb[b].add(a)
+    out = []
+    for a, b in zip(g.i.tolist(), g.j.tolist()):
+        r_ji = r[b] - r[a]
+        d = np.linalg.norm(r_ji)
+        cand = (nb[a] & nb[b]) - {b}
+        A = {m for m in cand if np.linalg.norm(r[m] - r[a]) < d}
+        B = {m for m in cand if np.linalg.norm(r[m] - r[b]) < d}
+        phi = {m: flatness((r[m] - r[a])[None], r_ji[None])[0] for m in A & B}
+        rule1 = any(abs(phi[m]) < phi_d for m in A & B)
+        C = [m for m in A & B if phi[m] < 0]
+        D = [m for m in A & B if phi[m] > 0]
+        rule2 = any(np.linalg.norm(r[n] - r[m]) < d for m in C for n in D)
+        out.append((rule1, rule2))
+    return np.array(out, dtype=bool).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_vectorised_rules_match_the_equations(seed):
+    r, g = _random_swarm(seed, n=35)
+    rule1, rule2 = deactivation_rules(r, g, PHI_D)
+    expect = _rules_by_the_letter(r, g, PHI_D)
+    np.testing.assert_array_equal(rule1, expect[:, 0])
+    np.testing.assert_array_equal(rule2, expect[:, 1])
+    assert rule1.any() and rule2.any()  # the random swarms exercise both rules
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_deactivation_rules_are_symmetric(seed):
+    walls = building().walls if seed % 2 else ()
+    rng = np.random.default_rng(seed)
+    r = rng.uniform((0, 12), (10, 22), size=(120, 2)) if walls else _random_swarm(seed, 60)[0]
+    g = neighbour_graph(r, list(walls), D_N, D_L)
+    from_i = deactivation_rules(r, g, PHI_D, perspective="i")
+    from_j = deactivation_rules(r, g, PHI_D, perspective="j")
+    np.testing.assert_array_equal(from_i[0], from_j[0])
+    np.testing.assert_array_equal(from_i[1], from_j[1])
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_sigma_graph_keeps_the_components_of_g_n(seed):
+    walls = list(building().walls) if seed % 2 else []
+    rng = np.random.default_rng(100 + seed)
+    r = rng.uniform((0, 0), (12, 22), size=(150, 2))
+    g_n = neighbour_graph(r, walls, D_N, D_L)
+    g_sigma = sigma_graph(r, g_n, PHI_D)
+    assert len(g_sigma) < len(g_n)
+    comps = lambda g: {frozenset(c) for c in nx.connected_components(g.to_networkx())}
+    assert comps(g_sigma) == comps(g_n)
+
+
+def test_g_n_is_g_s_restricted_to_d_n_eq_5_12():
+    rng = np.random.default_rng(5)
+    walls = list(building().walls)
+    r = rng.uniform((0, 12), (10, 22), size=(100, 2))
+    g_s = sensing_graph(r, walls, 2.0, D_L)
+    assert restrict(g_s, r, D_N).edge_set() == neighbour_graph(r, walls, D_N, D_L).edge_set()
+    assert neighbour_graph(r, walls, D_N, D_L).edge_set() < g_s.edge_set()
+
+
+def test_ranks_eq_5_23_match_networkx_and_mark_lost_agents():
+    r, g = _random_swarm(2, n=60)
+    rho = ranks(g, leader=59)
+    hops = nx.single_source_shortest_path_length(g.to_networkx(), 59)
+    for i in range(60):
+        assert rho[i] == hops.get(i, 60)
+    assert is_connected(g) == nx.is_connected(g.to_networkx())
+    chain = EdgeList.from_pairs(5, [(0, 1), (1, 2), (3, 4)])
+    assert ranks(chain, leader=0).tolist() == [0, 1, 2, 5, 5]
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_rank_estimate_properties_5_27_to_5_29(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(20, 80))
+    r = rng.uniform(0.0, np.sqrt(n) * 0.55, size=(n, 2))
+    g = sigma_graph(r, neighbour_graph(r, [], D_N, D_L), PHI_D)
+    leader = int(rng.integers(n))
+    rho = ranks(g, leader)
+    connected = rho < n
+    rho_bar = initial_rank_estimate(n, leader)
+    for k in range(n + 2):
+        # 5.27 / 5.28 on the leader's component: too high until step rho_i, exact from then on.
+        reached = connected & (rho <= k)
+        np.testing.assert_array_equal(rho_bar[reached], rho[reached])
+        assert np.all(rho_bar[connected & ~reached] > rho[connected & ~reached])
+        # 5.29: rho_bar_i < rho_bar_j implies rho_i < rho_j, for every pair.
+        lower = rho_bar[:, None] < rho_bar[None, :]
+        assert np.all((rho[:, None] < rho[None, :])[lower])
+        rho_bar = rank_estimate_step(rho_bar, g, leader)
+    assert np.all(rho_bar[~connected] == n)  # cut-off agents read "lost"
+
+
+def test_virtual_leader_eq_5_24_5_25_averages_lowest_rank_neighbours():
+    r = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [5.0, 5.0]])
+    g = EdgeList.from_pairs(5, [(0, 1), (0, 2), (0, 3)])
+    rho_bar = np.array([3, 1, 1, 2, 4])
+    l, has = virtual_leader(r, g, rho_bar)
+    np.testing.assert_allclose(l[0], [0.5, 0.5])  # mean of agents 1 and 2 (rank 1)
+    np.testing.assert_allclose(l[3], r[0])  # its only neighbour
+    assert has.tolist() == [True, True, True, True, False]
+    np.testing.assert_allclose(l[4], r[4])
