@@ -1,0 +1,74 @@
+"""Time one full indoor-swarm guidance step (sensing + graphs + control), thesis chapter 5.
+
+Goals (issue 6): N = 100 in the building map at most 1 ms per step (10x real time at T_s = 10 ms),
+N = 1,000 in an open map at most 10 ms per step (1x real time), one core.
+
+The building case times every step of the first ``--building-steps`` steps of the run (hall,
+doorway, corridor with walls on both sides); the open case flies ``--warmup`` steps first so the
+timed steps see a moving, spread swarm. Wall time (``perf_counter``) and this thread's CPU time
+(``thread_time``, robust when other processes share the cores) are both reported.
+
+    python benchmarks/bench_indoor.py [--building-steps 3000] [--steps 300] [--warmup 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from swarmscene.plugins.formation.indoor_control import TABLE_5_1, IndoorSwarm
+from swarmscene.plugins.formation.indoor_maps import building, open_map, random_connected_swarm
+from swarmscene.plugins.formation.indoor_sensing import single_integrator_step
+
+
+def bench(name: str, mp, n: int, steps: int, warmup: int, seed: int = 0) -> dict:
+    """Median and mean wall time of ``IndoorSwarm.input`` (plus the shared cKDTree build)."""
+    r = random_connected_swarm(mp.start_region, n, np.random.default_rng(seed), anchor=None)
+    swarm = IndoorSwarm(n, n - 1, mp.waypoints, mp.walls)
+    for _ in range(warmup):
+        r = single_integrator_step(r, swarm.input(r), TABLE_5_1.u_max)
+    wall, cpu = np.empty(steps), np.empty(steps)
+    for k in range(steps):
+        t0, c0 = time.perf_counter(), time.thread_time()
+        tree = cKDTree(r)  # the engine builds this once per step and shares it
+        u = swarm.input(r, tree)
+        wall[k], cpu[k] = time.perf_counter() - t0, time.thread_time() - c0
+        r = single_integrator_step(r, u, TABLE_5_1.u_max)
+    per_step = float(np.median(wall))
+    return {
+        "case": name,
+        "N": n,
+        "edges_G_n": len(swarm.g_n),
+        "median_ms": 1e3 * per_step,
+        "p95_ms": 1e3 * float(np.percentile(wall, 95)),
+        "cpu_mean_ms": 1e3 * float(cpu.mean()),
+        "real_time_factor": TABLE_5_1.T_s / per_step,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--building-steps", type=int, default=3000)
+    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--warmup", type=int, default=300)
+    args = parser.parse_args()
+    cases = [
+        ("building", building(), 100, args.building_steps, 0, 1.0),
+        ("open", open_map(60.0), 1000, args.steps, args.warmup, 10.0),
+    ]
+    print(f"{'case':<10}{'N':>6}{'|E_n|':>7}{'median ms':>11}{'p95 ms':>8}{'cpu ms':>8}{'RTF':>7}  goal")
+    for name, mp, n, steps, warmup, goal in cases:
+        res = bench(name, mp, n, steps, warmup)
+        verdict = "ok" if res["median_ms"] <= goal else "MISSED"
+        print(
+            f"{res['case']:<10}{res['N']:>6}{res['edges_G_n']:>7}{res['median_ms']:>11.3f}"
+            f"{res['p95_ms']:>8.3f}{res['cpu_mean_ms']:>8.3f}{res['real_time_factor']:>7.1f}"
+            f"  <= {goal} ms {verdict}"
+        )
+
+
+if __name__ == "__main__":
+    main()
