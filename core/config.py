@@ -22,8 +22,11 @@ from .plugin import PLUGIN_KINDS, PluginParams
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
+
+MAX_SUBSTEPS = 10_000
+"""Most physics steps per guidance tick (a smaller physics step is almost surely a typo)."""
 
 Point2 = tuple[float, float]
 Point3 = tuple[float, float, float]
@@ -248,6 +251,11 @@ def _scenario_checks(config: ScenarioConfig) -> list[str]:
     if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
         errors.append(
             f"clock.physics_step: must divide clock.guidance_period = {clock.guidance_period} "
+            f"(got {config.physics_step})"
+        )
+    elif ratio > MAX_SUBSTEPS:
+        errors.append(
+            f"clock.physics_step: must be >= clock.guidance_period / {MAX_SUBSTEPS} "
             f"(got {config.physics_step})"
         )
     n = config.swarm.n

@@ -34,7 +34,7 @@ if TYPE_CHECKING:  # pragma: no cover
 class PluginParams(BaseModel):
     """Base of every plugin's ``Params``: unknown keys are errors, values are validated on assignment."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 @dataclass(frozen=True)

@@ -28,13 +28,24 @@ class Sensing:
             the state changes).
         environment: the obstacle map.
         comm_range: communication range, m.
+        previous: the previous tick's snapshot; results that depend only on the graph (not on
+            exact positions) are reused when the graph has not changed.
     """
 
-    def __init__(self, world: WorldState, environment: Environment, comm_range: float) -> None:
+    def __init__(
+        self,
+        world: WorldState,
+        environment: Environment,
+        comm_range: float,
+        previous: "Sensing | None" = None,
+    ) -> None:
         self.world = world
         self.environment = environment
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
+        self._previous = previous
+        if previous is not None:
+            previous._previous = None  # keep one snapshot back, never a chain
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -77,13 +88,39 @@ class Sensing:
         return coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
 
     @cached_property
+    def _comm_edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """Members and the (i < j) pairs among them: the communication graph, exactly."""
+        pairs = self.pairs(self.comm_range)
+        keep = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
+        return self.comm_members, pairs[keep]
+
+    def _same_graph_as_previous(self) -> bool:
+        prev = self._previous
+        if prev is None or "comm_connected" not in prev.__dict__:
+            return False
+        members, edges = self._comm_edges
+        prev_members, prev_edges = prev._comm_edges
+        return np.array_equal(members, prev_members) and np.array_equal(edges, prev_edges)
+
+    @cached_property
     def comm_connected(self) -> bool:
         """True when the communication graph over its members is connected (one member counts)."""
+        if self._same_graph_as_previous():
+            return self._previous.comm_connected  # a formation in flight rarely changes its graph
         members = np.flatnonzero(self.comm_members)
-        if members.size <= 1:
+        m = members.size
+        if m <= 1:
             return True
-        sub = self.comm_adjacency[members][:, members]
-        count, _ = connected_components(sub, directed=False)
+        _, edges = self._comm_edges
+        if len(edges) < m - 1:
+            return False  # a spanning tree needs m - 1 edges
+        # Renumber members 0..m-1 and build one upper-triangular matrix: cheaper than slicing
+        # the full adjacency.
+        index = np.full(self.world.n, -1)
+        index[members] = np.arange(m)
+        i, j = index[edges[:, 0]], index[edges[:, 1]]
+        graph = coo_matrix((np.ones(i.size, dtype=np.int8), (i, j)), shape=(m, m))
+        count, _ = connected_components(graph, directed=False)
         return count == 1
 
     def hop_distances(self, source: int) -> np.ndarray:

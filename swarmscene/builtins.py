@@ -10,4 +10,5 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.formation.static_shape",
     "swarmscene.plugins.avoidance.none",
     "swarmscene.plugins.avoidance.potential",
+    "swarmscene.plugins.avoidance.cem",
 )
