@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from math import comb, factorial
+from math import factorial
 
 import numpy as np
 from scipy import sparse
@@ -327,7 +327,3 @@ class VRBTrajectory:
             jumps.append(right_start[1:] - left_end[:-1])
         return np.stack(jumps)
 
-
-def binomial_rows(n: int) -> list[int]:
-    """Binomial coefficients C(n, k), k = 0..n (Leibniz rule of eq. 3)."""
-    return [comb(n, k) for k in range(n + 1)]

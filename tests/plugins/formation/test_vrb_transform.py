@@ -20,6 +20,7 @@ from swarmscene.plugins.formation.vrb_transform import (
     TransformationLaw,
     assign_targets,
     flat_outputs,
+    integrate_deviation,
     plan_flight,
     plan_transformation,
     repelling_velocity,
@@ -213,3 +214,56 @@ def test_airshow_keeps_robots_above_ground_and_feedforward_moderate(show):
     assert np.linalg.norm(p[1], axis=-1).max() < 2.0  # m/s
     assert np.linalg.norm(p[2], axis=-1).max() < 3.0  # m/s^2, flyable by a quadrotor
     assert np.linalg.norm(p[3], axis=-1).max() < 15.0  # m/s^3
+
+
+def test_repelling_field_sparse_path_matches_the_pairwise_sum():
+    """30 robots (435 pairs) use the CSR path; compare with eq. 8-9 summed pair by pair."""
+    rng = np.random.default_rng(11)
+    r = rng.uniform(0.0, 2.5, size=(30, 3))
+    s_i, D, B = rng.uniform(0.1, 0.2, 30), 0.7, rng.uniform(0.5, 1.0, 30)
+    expected = np.zeros((30, 3))
+    for i in range(30):
+        for j in range(30):
+            d = np.linalg.norm(r[i] - r[j])
+            if i != j and d <= D:
+                expected[i] += B[j] * ((D - d) / (D - s_i[i] - s_i[j])) ** 2 * (r[i] - r[j]) / d
+    assert np.abs(expected).max() > 0.1  # some pairs do interact
+    np.testing.assert_allclose(repelling_velocity(r, s_i, D, B), expected, atol=1e-12)
+
+
+def test_integration_over_near_pairs_equals_all_pairs():
+    """The pair-subset and skip shortcuts of integrate_deviation change nothing: four copies of the
+    air show's Phi^1_2, 3 m apart (so most of the 66 pairs never meet), against a plain
+    exponential-Euler loop over every pair at every step."""
+    show_from = airshow_formations()[0]
+    slots = airshow_formations()[1]
+    show_to = slots[assign_targets(show_from, slots)]
+    offsets = np.repeat(np.array([[0.0, 3.0 * k, 0.0] for k in range(4)]), 3, axis=0)
+    r_from, r_to = np.tile(show_from, (4, 1)) + offsets, np.tile(show_to, (4, 1)) + offsets
+    law, T = AIRSHOW_LAW, 3.0
+    e = integrate_deviation(r_from, r_to, T, law)
+    steps = law.steps(T)
+    h = T / steps
+    phi = sine_profile(np.linspace(0.0, 1.0, steps + 1), order=0)[0]
+    s_i, B = law.per_robot(12)
+    ref = np.zeros_like(e)
+    decay = np.exp(-law.k_return * h)
+    for k in range(steps):
+        r = r_from + phi[k] * (r_to - r_from) + ref[k]
+        v = repelling_velocity(r, s_i, law.threshold, B)
+        ref[k + 1] = decay * ref[k] + (1.0 - decay) / law.k_return * v
+    assert np.abs(ref).max() > 0.02  # the field did act
+    np.testing.assert_allclose(e, ref, atol=1e-12)
+
+
+def test_near_head_on_crossing_stays_bounded_and_apart():
+    """Paths crossing 5 cm apart: the field is stiff there; split steps keep the integration stable
+    and the robots are pushed around each other."""
+    r_from = np.array([[0.0, -1.0, 0.0], [-1.0, 0.05, 0.0]])
+    r_to = np.array([[0.0, 1.0, 0.0], [1.0, 0.05, 0.0]])
+    tf = plan_transformation(r_from, r_to, 0.0, 4.0, AIRSHOW_LAW)
+    e = integrate_deviation(r_from, r_to, 4.0, AIRSHOW_LAW)
+    assert np.all(np.isfinite(e)) and np.abs(e).max() < 0.7
+    off = plan_transformation(r_from, r_to, 0.0, 4.0, replace(AIRSHOW_LAW, gain=0.0))
+    assert off.min_distance() < 0.06
+    assert tf.min_distance() > 0.4
