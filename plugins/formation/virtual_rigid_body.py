@@ -77,8 +77,9 @@ class KeyframeSpec(_Spec):
 class FormationSpec(_Spec):
     """One formation Pi_m: constant local positions in F_v (x forward, y left, z up)."""
 
-    shape: Literal["explicit", "line", "grid", "circle", "v", "triangle"] = Field(
-        "explicit", description="explicit: ``positions``; else static_shape's shapes, centred")
+    shape: Literal["start", "explicit", "line", "grid", "circle", "v", "triangle"] = Field(
+        "explicit", description="start (first formation only): where the agents are at t_1, in "
+        "F_v; explicit: ``positions``; else static_shape's shapes, centred")
     positions: list[Point3] = Field(default_factory=list, description="explicit slots, m")
     spacing: float = Field(0.7, gt=0, description="neighbour distance of a named shape, m")
     plane: Literal["xy", "xz", "yz"] = Field(
@@ -86,7 +87,9 @@ class FormationSpec(_Spec):
     duration: float = Field(gt=0, description="T_m, s")
 
     def slots(self, n: int) -> np.ndarray:
-        """(n, 3) local positions."""
+        """(n, 3) local positions (NaN for ``start``: filled in from the agents' positions)."""
+        if self.shape == "start":
+            return np.full((n, 3), np.nan)
         if self.shape == "explicit":
             if len(self.positions) != n:
                 raise ValueError(f"formation has {len(self.positions)} positions for {n} agents")
@@ -124,6 +127,8 @@ class VirtualRigidBody(Formation):
                 raise ValueError("keyframes/formations are only read with preset: custom")
             if self.preset == "custom" and (len(self.keyframes) < 2 or not self.formations):
                 raise ValueError("preset: custom needs >= 2 keyframes and >= 1 formation")
+            if any(f.shape == "start" for f in self.formations[1:]):
+                raise ValueError("formations: shape 'start' is only valid for the first formation")
             if self.threshold <= 2 * self.clearance:
                 raise ValueError("threshold D must exceed s_i + s_j = 2 clearance (eq. 8)")
             return self
@@ -170,8 +175,13 @@ class VirtualRigidBody(Formation):
         return keyframes, seq
 
     def _match_agents(self, seq: FormationSequence, start: np.ndarray) -> FormationSequence:
-        """Reorder Pi_1's slots so that agent i takes the slot nearest its start (Hungarian)."""
+        """Reorder Pi_1's slots so that agent i takes the slot nearest its start (Hungarian);
+        a ``start`` formation is the agents' own positions expressed in F_v at t_1."""
         body = self.trajectory.evaluate(seq.t1)
+        if np.isnan(seq.slots[0]).any():
+            slots = np.array(seq.slots, copy=True)
+            slots[0] = (start - body.p[0, 0]) @ body.R[0, 0]  # R_v^T (p_i - p_v), eq. 1 inverted
+            return FormationSequence(slots, seq.durations, seq.transitions, seq.t1)
         world_slots = body.p[0, 0] + seq.slots[0] @ body.R[0, 0].T
         cost = np.sum((start[:, None, :] - world_slots[None, :, :]) ** 2, axis=-1)
         _, cols = linear_sum_assignment(cost)

@@ -53,6 +53,7 @@ E_i the smoothed deviation e_i that the repelling field builds up (below).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 from math import comb
@@ -286,6 +287,8 @@ def _integrate_pairs(
     inc_t = pairs.incidence_t
     D = law.threshold
     gaps = nominal_gap.tolist()
+    # depth inside D beyond which (stiffness x step) exceeds STIFF_STEP
+    stiff_depth = STIFF_STEP / (h * pairs.stiffness) if pairs.stiffness > 0 else math.inf
     ek = e[0]
     reach = 0.0  # upper bound of max_i |e_i|, keeps the skip test conservative
     reach_max = 0.0
@@ -295,10 +298,10 @@ def _integrate_pairs(
             reach *= decay
         else:
             v = pairs.velocity(dbar[k] + inc_t @ ek, push)
-            split = int(np.ceil(h * pairs.stiffness * pairs.depth / STIFF_STEP))
-            if split <= 1:
+            if pairs.depth <= stiff_depth:
                 ek = decay * ek + v
             else:  # rare: a pair nearly on top of each other; nominal motion interpolated
+                split = math.ceil(pairs.depth / stiff_depth)
                 ek = _substeps(pairs, dbar[k], dbar[k + 1], ek, h, split, law.k_return)
             reach = 1.7320508075688772 * float(np.abs(ek).max())  # |e_i| <= sqrt(3) max component
             reach_max = max(reach_max, reach)

@@ -105,3 +105,23 @@ def test_full_airshow_with_quadrotors():
     assert m["vrb.max_switch_discontinuity"] < 1e-6
     assert m["vrb.tracking_rms"] < 0.05
     assert m["collisions"] == 0 and m["success"] and result.stop_reason == "complete"
+
+
+def test_params_start_shape_only_first():
+    from swarmscene.plugins.formation.virtual_rigid_body import VirtualRigidBody
+
+    kf = [{"t": 0.0, "pos": [0, 0, 2]}, {"t": 10.0, "pos": [5, 0, 2]}]
+    ok = {"preset": "custom", "keyframes": kf,
+          "formations": [{"shape": "start", "duration": 2.0}, {"shape": "line", "duration": 5.0}]}
+    VirtualRigidBody.Params.model_validate(ok)
+    bad = dict(ok, formations=ok["formations"][::-1])
+    with pytest.raises(ValueError, match="start"):
+        VirtualRigidBody.Params.model_validate(bad)
+
+
+def test_generic_show_starts_from_where_the_agents_are():
+    sim = build(["formation=virtual_rigid_body", "environment=open", "avoidance=none",
+                 "clock.duration=0.1"])
+    sp = sim.formation.setpoints(sim.world, sim.sensing)
+    np.testing.assert_allclose(sp.pos, sim.world.pos, atol=1e-12)  # Pi_1 = shape 'start'
+    np.testing.assert_allclose(sp.vel, 0.0, atol=1e-12)
