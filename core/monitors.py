@@ -78,6 +78,13 @@ class SafetyMonitor:
         self._observe(sim)
 
     @hookimpl
+    def swarmscene_event(self, sim: "Simulation", event: Any) -> None:
+        # A link lost by an event is lost at the event's tick, not at the end of it.
+        if not sim.sensing.comm_connected:
+            self.connected[self.count - 1] = False
+            self._first("connectivity", sim.world.t, np.flatnonzero(sim.sensing.comm_members).tolist())
+
+    @hookimpl
     def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:
         k = self.count
         min_sep = float(self.min_separation[:k].min()) if k else float("inf")

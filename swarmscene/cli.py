@@ -30,6 +30,8 @@ def main() -> None:
 
     register_search_path()
     debug = bool(os.environ.get(DEBUG_ENV)) or bool(os.environ.get("HYDRA_FULL_ERROR"))
+    if debug:
+        os.environ[DEBUG_ENV] = "1"  # the task reads it too
     # With HYDRA_FULL_ERROR Hydra raises composition errors instead of printing them with its own
     # multi-line wording, so they reach the one-line formatting below.
     os.environ["HYDRA_FULL_ERROR"] = "1"
@@ -79,7 +81,7 @@ def _task(cfg: Any) -> Any:
     try:
         sim = api.build(data)
     except ConfigError as exc:
-        if sweep:
+        if sweep or os.environ.get(DEBUG_ENV):
             raise  # an ordinary exception: the launcher records it and runs the other jobs
         _remove_unfinished(run_dir)
         # Exit here: an exception would pass through Hydra's job runner, which adds its own line.

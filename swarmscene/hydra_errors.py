@@ -7,7 +7,6 @@ import re
 _NOT_IN_STRUCT = re.compile(r"Could not override '([^']+)'")
 _APPEND_HINT = re.compile(r"use \+([^=\s]+)=(\S*)")
 _MISSING_GROUP_OPTION = re.compile(r"Could not find '([^'/]+(?:/[^'/]+)*)/([^'/]+)'")
-_PARSE = re.compile(r"Error parsing override '([^']*)'")
 
 
 def hydra_error_line(exc: BaseException) -> str | None:
@@ -27,9 +26,10 @@ def hydra_error_line(exc: BaseException) -> str | None:
             return f"{group.replace('/', '.')}: unknown option {option!r} (valid: {valid})"
         return message.splitlines()[0]
     if isinstance(exc, OverrideParseException):
-        match = _PARSE.search(message)
-        text = match.group(1) if match else message.splitlines()[0]
-        return f"{text.split('=')[0] or '<override>'}: cannot parse override (got {text!r})"
+        text = getattr(exc, "override", "") or ""
+        key = text.split("=")[0] or "<override>"
+        reason = message.splitlines()[0]
+        return f"{key}: cannot parse override: {reason} (got {text!r})"
     if isinstance(exc, ConfigCompositionException):
         match = _NOT_IN_STRUCT.search(message)
         if match:

@@ -1,10 +1,13 @@
 """Third-party config folders on Hydra's search path.
 
 A plugin package contributes YAML options (``avoidance/myalgo.yaml``...) through an entry point in
-the group ``swarmscene.conf`` whose value is a Hydra search-path entry, e.g. in its pyproject::
+the group ``swarmscene.conf`` whose value names the package holding its config folders (each
+folder with an ``__init__.py``), e.g. in its pyproject::
 
     [project.entry-points."swarmscene.conf"]
-    myalgo = "pkg://myalgo_conf"
+    myalgo = "myalgo.conf"
+
+The package joins Hydra's search path as ``pkg://myalgo.conf``.
 
 Hydra's own discovery of ``hydra_plugins.*`` does not see setuptools editable installs, so the
 engine registers this search-path plugin in code before composing.

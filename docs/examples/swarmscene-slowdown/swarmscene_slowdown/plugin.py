@@ -1,0 +1,45 @@
+"""Slowdown: an avoidance method that scales down the velocity of agents near a neighbour.
+
+A deliberately small example of a third-party swarmscene plugin: a class with a ``name`` and a
+pydantic ``Params`` model, registered through a hook, with a lifecycle hook contributing a metric.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, PluginParams
+from swarmscene.core.setpoint import Setpoints
+
+
+class Slowdown(Avoidance):
+    """Agents with a neighbour closer than ``radius`` keep ``factor`` of their velocity."""
+
+    name = "slowdown"
+
+    class Params(PluginParams):
+        radius: float = Field(3.0, gt=0, description="neighbour distance that triggers it, m")
+        factor: float = Field(0.5, gt=0, le=1, description="fraction of velocity kept")
+
+    def __init__(self, params, ctx):
+        super().__init__(params, ctx)
+        self.slowed = 0
+
+    def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        distance, _ = sensing.nearest  # the tick's shared k-d tree
+        near = distance < self.params.radius
+        self.slowed += int(near.sum())
+        out = sp.copy()
+        out.vel[near] *= self.params.factor
+        return out
+
+    @hookimpl
+    def swarmscene_run_end(self, sim, metrics):
+        metrics["slowdown.agent_ticks_slowed"] = self.slowed
+
+
+@hookimpl
+def swarmscene_register_avoidances(register):
+    register(Slowdown)

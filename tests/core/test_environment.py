@@ -1,0 +1,75 @@
+"""Environment queries against independent geometry, and the shared k-d tree against brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from shapely.geometry import Point, box
+
+from swarmscene.core.environment import Environment
+from swarmscene.core.sensing import Sensing
+from swarmscene.core.state import WorldState
+
+
+@pytest.fixture
+def env():
+    # A unit-radius pillar at the origin and a 2 m x 1 m block at x in [4, 6], y in [-0.5, 0.5].
+    return Environment([Point(0, 0).buffer(1.0, quad_segs=256), box(4, -0.5, 6, 0.5)])
+
+
+def test_clearance_is_signed_distance(env):
+    pts = np.array([[3.0, 0.0, 5.0], [0.0, 2.0, 0.0], [0.5, 0.0, 0.0], [5.0, 0.0, 0.0], [5.0, 2.5, 0.0]])
+    expected = [1.0, 1.0, -0.5, -0.5, 2.0]
+    assert env.clearance(pts) == pytest.approx(expected, abs=1e-4)
+
+
+def test_nearest_point(env):
+    pts = np.array([[3.0, 0.0], [0.0, -3.0], [5.0, 3.0]])
+    expected = [[4.0, 0.0], [0.0, -1.0], [5.0, 0.5]]
+    assert env.nearest_point(pts) == pytest.approx(np.array(expected), abs=1e-4)
+
+
+def test_line_of_sight_and_clearance(env):
+    a = np.array([[-3.0, 0.0], [-3.0, 1.5], [2.0, 1.0], [2.0, -2.0]])
+    b = np.array([[3.0, 0.0], [3.0, 1.5], [8.0, 1.0], [2.0, 2.0]])
+    assert env.line_of_sight(a, b).tolist() == [False, True, True, True]
+    # With 0.6 m clearance the segment 0.5 m from the block and the pillar is blocked.
+    assert env.line_of_sight(a, b, clearance=0.6).tolist() == [False, False, False, True]
+
+
+def test_empty_environment():
+    env = Environment()
+    assert np.isinf(env.clearance(np.zeros((3, 3)))).all()
+    assert env.line_of_sight(np.zeros((2, 2)), np.ones((2, 2))).all()
+    assert not env.contains(np.zeros((2, 2))).any()
+
+
+def test_sensing_pairs_nearest_and_connectivity_match_brute_force():
+    rng = np.random.default_rng(3)
+    pos = rng.uniform(0, 20, size=(300, 3))
+    world = WorldState.at_rest(pos)
+    sensing = Sensing(world, Environment(), comm_range=3.0)
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
+    i, j = np.nonzero(np.triu(d < 2.0, k=1))
+    assert sorted(map(tuple, sensing.pairs(2.0).tolist())) == sorted(zip(i.tolist(), j.tolist()))
+    np.fill_diagonal(d, np.inf)
+    assert sensing.nearest[0] == pytest.approx(d.min(axis=1))
+    import networkx as nx
+
+    graph = nx.Graph()
+    graph.add_nodes_from(range(300))
+    graph.add_edges_from(zip(*np.nonzero(d < 3.0)))
+    assert sensing.comm_connected == nx.is_connected(graph)
+    assert nx.utils.graphs_equal(sensing.comm_graph, graph)
+    hops = sensing.hop_distances(0)
+    expected = nx.single_source_shortest_path_length(graph, 0)
+    assert all(hops[k] == v for k, v in expected.items())
+
+
+def test_connectivity_reuses_previous_only_for_identical_graph():
+    world = WorldState.at_rest(np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]]))
+    first = Sensing(world, Environment(), comm_range=1.5)
+    assert first.comm_connected
+    world.pos[2, 0] = 5.0  # the third agent flies out of range
+    second = Sensing(world, Environment(), comm_range=1.5, previous=first)
+    assert not second.comm_connected

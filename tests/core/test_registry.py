@@ -1,0 +1,132 @@
+"""The plugin manager factory and registry: built-ins, entry points, broken plugins, names."""
+
+from __future__ import annotations
+
+import types
+import warnings
+
+import pluggy
+import pytest
+
+from swarmscene.builtins import BUILTIN_PLUGINS
+from swarmscene.core import registry as registry_module
+from swarmscene.core.errors import PluginError
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, PluginParams
+from swarmscene.core.registry import Registry, make_plugin_manager
+
+
+def test_builtins_register_every_kind():
+    pm, reg = make_plugin_manager(BUILTIN_PLUGINS, load_entry_points=False)
+    assert {"static_shape"} <= set(reg.names("formation"))
+    assert {"none", "potential", "cem"} <= set(reg.names("avoidance"))
+    assert {"single_integrator", "double_integrator"} <= set(reg.names("dynamics"))
+    assert {c.__name__ for c in reg.observers} >= {"SafetyMonitor", "TrajectoryRecorder"}
+
+
+def test_each_call_builds_its_own_manager():
+    pm1, _ = make_plugin_manager(BUILTIN_PLUGINS, load_entry_points=False)
+    pm2, _ = make_plugin_manager(BUILTIN_PLUGINS, load_entry_points=False)
+    pm1.register(types.SimpleNamespace(), name="only-in-pm1")
+    assert pm1.has_plugin("only-in-pm1") and not pm2.has_plugin("only-in-pm1")
+
+
+class Dup(Avoidance):
+    name = "potential"
+
+
+def test_duplicate_name_names_both_sources():
+    reg = Registry()
+    from swarmscene.plugins.avoidance.potential import Potential
+
+    reg.register("avoidance", Potential)
+    with pytest.raises(PluginError, match="registered twice: by .*Potential and by .*Dup"):
+        reg.register("avoidance", Dup)
+
+
+def test_unknown_name_lists_valid():
+    _, reg = make_plugin_manager(BUILTIN_PLUGINS, load_entry_points=False)
+    with pytest.raises(PluginError, match=r"unknown avoidance 'nope' \(valid: cem, none, potential"):
+        reg.get("avoidance", "nope")
+
+
+def test_class_without_params_model_is_refused():
+    class Bad(Avoidance):
+        name = "bad"
+        Params = dict  # type: ignore[assignment]
+
+    with pytest.raises(PluginError, match="Params must subclass PluginParams"):
+        Registry().register("avoidance", Bad)
+
+
+class FakeEntryPoint:
+    def __init__(self, name, target, dist="fakedist"):
+        self.name, self._target, self.value = name, target, f"{dist}.module"
+        self.dist = types.SimpleNamespace(name=dist)
+
+    def load(self):
+        if isinstance(self._target, Exception):
+            raise self._target
+        return self._target
+
+
+def test_broken_third_party_plugin_is_skipped_with_a_warning(monkeypatch):
+    good = types.SimpleNamespace()
+
+    class Extra(Avoidance):
+        name = "extra"
+
+        class Params(PluginParams):
+            pass
+
+    @hookimpl
+    def swarmscene_register_avoidances(register):
+        register(Extra)
+
+    good.swarmscene_register_avoidances = swarmscene_register_avoidances
+
+    class Crashes(Avoidance):
+        name = "potential"  # shadows a built-in: refused at registration
+
+    bad_registration = types.SimpleNamespace()
+
+    @hookimpl
+    def swarmscene_register_avoidances_bad(register):
+        register(Crashes)
+
+    bad_registration.swarmscene_register_avoidances = swarmscene_register_avoidances_bad
+    eps = [
+        FakeEntryPoint("broken", ImportError("no module named 'missing_dep'"), dist="brokendist"),
+        FakeEntryPoint("good", good, dist="gooddist"),
+        FakeEntryPoint("shadow", bad_registration, dist="shadowdist"),
+    ]
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: eps)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pm, reg = make_plugin_manager(BUILTIN_PLUGINS)
+    messages = [str(w.message) for w in caught]
+    assert any("'brokendist:broken'" in m and "missing_dep" in m for m in messages)
+    assert any("'shadowdist:shadow'" in m and "registered twice" in m for m in messages)
+    assert "extra" in reg.names("avoidance")
+    assert reg.get("avoidance", "potential").__module__.endswith("avoidance.potential")
+
+
+def test_disabled_plugin_is_not_loaded(monkeypatch):
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: [FakeEntryPoint("x", ImportError("boom"))])
+    monkeypatch.setenv("SWARMSCENE_DISABLE_PLUGINS", "fakedist:x")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_plugin_manager(BUILTIN_PLUGINS)
+
+
+def test_misspelt_hook_fails_loudly(monkeypatch):
+    typo = types.SimpleNamespace()
+
+    @hookimpl
+    def swarmscene_register_formation(register):  # missing the final "s"
+        pass
+
+    typo.swarmscene_register_formation = swarmscene_register_formation
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: [FakeEntryPoint("typo", typo)])
+    with pytest.raises(pluggy.PluginValidationError, match="swarmscene_register_formation"):
+        make_plugin_manager(BUILTIN_PLUGINS)

@@ -1,0 +1,95 @@
+"""The command line: default run, composition flags, one-line errors with exit status 2."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
+
+
+def swarmscene(*args: str, cwd: Path, env: dict | None = None) -> subprocess.CompletedProcess:
+    full_env = {**os.environ, **(env or {})}
+    full_env.pop("HYDRA_FULL_ERROR", None)
+    return subprocess.run([*EXE, *args], cwd=cwd, capture_output=True, text=True, env=full_env, timeout=120)
+
+
+def test_default_scenario_writes_run_directory(tmp_path):
+    proc = swarmscene(f"hydra.run.dir={tmp_path}/run", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    for needle in ("simulated", "agents", "min separation", "min clearance", "real-time factor", "OK   separation", "outputs:"):
+        assert needle in out
+    run = tmp_path / "run"
+    assert {p.name for p in run.iterdir()} >= {"config.yaml", "metrics.json", "trajectory.npz", "manifest.json"}
+    metrics = json.loads((run / "metrics.json").read_text())
+    for key in ("min_separation", "min_clearance", "collisions", "connected", "success", "duration", "realtime_factor", "step_ms_median"):
+        assert key in metrics
+    assert metrics["success"] is True and metrics["collisions"] == 0
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["complete"] is True and manifest["seed"] == 0 and len(manifest["config_hash"]) == 64
+    assert manifest["versions"]["numpy"]
+    import numpy as np
+
+    traj = np.load(run / "trajectory.npz")
+    assert traj["pos"].shape[1:] == (5, 3) and traj["t"][0] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("args", "line"),
+    [
+        (["formation=nope"], "swarmscene: formation: unknown option 'nope' (valid: "),
+        (["bogus=1"], "swarmscene: bogus: unknown key (got '1')"),
+        (["avoidance.K=0"], "swarmscene: avoidance.K: unknown key (got '0')"),
+        (["scenario=cem_six_vehicle", "avoidance.K=0"], "swarmscene: avoidance.K: must be >= 1 (got 0)"),
+        (["swarm.n=0"], "swarmscene: swarm.n: must be >= 1 (got 0)"),
+        (["clock.guidance_period=-1"], "swarmscene: clock.guidance_period: must be > 0.0 (got -1)"),
+        (["clock.physics_step=0.03"], "swarmscene: clock.physics_step: must divide clock.guidance_period = 0.1 (got 0.03)"),
+        (["events=lead_fails", "events.0.agents=[9]"], "swarmscene: events.0.agents: agents are 0..4 (got [9])"),
+        (["formation.waypoints=[]"], "swarmscene: formation.waypoints: must have at least 1 item(s) (got [])"),
+        (["swarm.n=abc"], "swarmscene: swarm.n: must be an integer (got 'abc')"),
+        (["swarm.n=[1"], "swarmscene: swarm.n: cannot parse override"),
+    ],
+)
+def test_bad_input_one_line_exit_2_nothing_left_behind(tmp_path, args, line):
+    proc = swarmscene(*args, f"hydra.run.dir={tmp_path}/run", cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith(line), lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_debug_env_shows_traceback(tmp_path):
+    proc = swarmscene("swarm.n=0", f"hydra.run.dir={tmp_path}/run", cwd=tmp_path, env={"SWARMSCENE_DEBUG": "1"})
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_help_lists_every_group_and_option(tmp_path):
+    proc = swarmscene("--help", cwd=tmp_path)
+    assert proc.returncode == 0
+    for group in ("swarm", "environment", "formation", "avoidance", "dynamics", "events", "scenario"):
+        assert f"{group}:" in proc.stdout
+    for option in ("static_shape", "potential", "cem", "double_integrator", "single_integrator", "cem_six_vehicle"):
+        assert option in proc.stdout
+
+
+def test_cfg_job_and_info(tmp_path):
+    proc = swarmscene("--cfg", "job", "avoidance=none", cwd=tmp_path)
+    assert proc.returncode == 0 and "avoidance:\n  name: none" in proc.stdout
+    proc = swarmscene("--info", "searchpath", cwd=tmp_path)
+    assert proc.returncode == 0 and "pkg://swarmscene.scenarios" in proc.stdout
+
+
+def test_shell_completion(tmp_path):
+    proc = swarmscene("-sc", "query=bash", cwd=tmp_path, env={"COMP_LINE": "swarmscene avoidance="})
+    assert proc.returncode == 0
+    assert {"avoidance=none", "avoidance=potential", "avoidance=cem"} <= set(proc.stdout.split())
+    proc = swarmscene("-sc", "install=bash", cwd=tmp_path)
+    assert proc.returncode == 0 and "complete -o nospace -o default -F hydra_bash_completion" in proc.stdout
