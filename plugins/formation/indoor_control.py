@@ -229,6 +229,42 @@ def leader_input(
     return direction * magnitude, m
 
 
+@dataclass(frozen=True)
+class IndoorSnapshot:
+    """What the swarm senses at one instant (section 5.2): nearest obstacle points and the graphs.
+
+    Attributes:
+        r: (N, 2) positions, m.
+        o: (N, 2) nearest detected obstacle point within l_o, NaN where none (eq. 5.32).
+        obstacle_distance: (N,) its distance, m (``inf`` where none).
+        g_n: the graph G_n (eq. 5.11-5.12).
+        g_sigma: the graph G_sigma (eq. 5.13-5.22).
+    """
+
+    r: np.ndarray
+    o: np.ndarray
+    obstacle_distance: np.ndarray
+    g_n: EdgeList
+    g_sigma: EdgeList
+
+
+def sense(
+    r: np.ndarray, obstacles: Obstacles, g: IndoorGains = TABLE_5_1, tree: cKDTree | None = None
+) -> IndoorSnapshot:
+    """Sensing and graphs of one step: o_i, G_n with LOS, G_sigma (eq. 5.4-5.22).
+
+    Obstacles are sensed up to l_o only (l_o < d_s): psi_obs vanishes beyond l_o, so this is exact
+    for the control law and cheaper; call :func:`~.indoor_sensing.nearest_obstacle` with d_s for
+    the full detection set. The obstacle distances double as LOS certificates (see
+    :func:`~.indoor_sensing.sensing_pairs`), so most pairs skip the shapely segment test.
+    ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree).
+    """
+    reach = min(g.l_o, g.d_s)
+    o, dist = nearest_obstacle(r, obstacles, max_distance=reach)
+    g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach))
+    return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d))
+
+
 class IndoorSwarm:
     """One guidance step of the whole indoor swarm: sensing, graphs, ranks, follower and leader laws.
 
@@ -264,15 +300,14 @@ class IndoorSwarm:
 
         ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree).
         """
-        g = self.gains
-        # Obstacles beyond l_o exert no force, so sensing them up to l_o only is exact for w_obs;
-        # the clearance lower bound then certifies most lines of sight without shapely.
-        o, dist = nearest_obstacle(r, self.obstacles, max_distance=g.l_o)
-        clearance = np.minimum(dist, g.l_o)
-        self.g_n = neighbour_graph(r, self.obstacles, g.d_n, g.d_l, tree, clearance)
-        self.g_sigma = sigma_graph(r, self.g_n, g.phi_d)
-        l, has = virtual_leader(r, self.g_sigma, self.rho_bar)
-        u = follower_input(r, self.g_sigma, o, l, has, g)
-        u[self.leader], self.m = leader_input(r, self.leader, self.g_sigma, self.waypoints, self.m, g)
-        self.rho_bar = rank_estimate_step(self.rho_bar, self.g_sigma, self.leader)
+        return self.input_from(sense(r, self.obstacles, self.gains, tree))
+
+    def input_from(self, snap: IndoorSnapshot) -> np.ndarray:
+        """As :meth:`input`, from an already computed :class:`IndoorSnapshot`."""
+        g, r = self.gains, snap.r
+        self.g_n, self.g_sigma = snap.g_n, snap.g_sigma
+        l, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
+        u = follower_input(r, snap.g_sigma, snap.o, l, has, g)
+        u[self.leader], self.m = leader_input(r, self.leader, snap.g_sigma, self.waypoints, self.m, g)
+        self.rho_bar = rank_estimate_step(self.rho_bar, snap.g_sigma, self.leader)
         return u

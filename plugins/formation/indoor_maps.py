@@ -32,9 +32,10 @@ class IndoorMap:
         name: short identifier.
         free_space: the region agents may occupy (walls are its boundary).
         walls: wall segments, each a 2-point LineString (the obstacles O of eq. 5.3).
-        waypoints: (n_wp, 2) leader path P, m.
+        waypoints: (n_wp, 2) leader path P, m: ``corners`` resampled every 0.25 m.
         start_region: where random initial swarms are drawn.
         end_region: success region: every agent must end inside it.
+        corners: (k, 2) the path's vertices (what a scenario file lists).
     """
 
     name: str
@@ -43,10 +44,27 @@ class IndoorMap:
     waypoints: np.ndarray
     start_region: Polygon
     end_region: Polygon
+    corners: np.ndarray
 
     def wall_array(self) -> np.ndarray:
         """(W, 2, 2) wall end points, for configs and plots."""
         return shapely.get_coordinates(np.asarray(self.walls, dtype=object)).reshape(-1, 2, 2)
+
+    def wall_polygons(self, thickness: float = 0.1) -> list[Polygon]:
+        """Each wall as a ``thickness`` m rectangle on the outer side of the free space.
+
+        For the engine's environment, whose obstacles are polygons: the walls' inner faces are the
+        free-space boundary, so the corridor keeps its width w and every clearance is unchanged.
+        """
+        seg = self.wall_array()
+        a, b = seg[:, 0], seg[:, 1]
+        t = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
+        normal = np.column_stack([-t[:, 1], t[:, 0]])
+        probe = (a + b) / 2 + 1e-6 * normal
+        inward = shapely.contains_xy(self.free_space, probe[:, 0], probe[:, 1])
+        out = np.where(inward[:, None], -normal, normal) * thickness
+        quads = np.stack([a, b, b + out, a + out, a], axis=1)
+        return list(shapely.polygons(quads))
 
 
 def wall_segments(free_space: Polygon) -> list[LineString]:
@@ -115,6 +133,7 @@ def corridor_map(
         waypoints=waypoints,
         start_region=entrance.buffer(-margin, join_style="mitre"),
         end_region=exit_room,
+        corners=axis,
     )
 
 
@@ -158,19 +177,22 @@ def building() -> IndoorMap:
         waypoints=waypoints,
         start_region=start_hall.buffer(-0.4, join_style="mitre"),
         end_region=end_hall,
+        corners=corners,
     )
 
 
 def open_map(size: float) -> IndoorMap:
     """An open square of side ``size`` with no walls (scale benchmarks); the path crosses it."""
     free = box(-size / 2, -size / 2, size / 2, size / 2)
+    path = np.array([[0.0, 0.0], [size / 2, 0.0]])
     return IndoorMap(
         name="open",
         free_space=free,
         walls=[],
-        waypoints=np.array([[0.0, 0.0], [size / 2, 0.0]]),
+        waypoints=path,
         start_region=free,
         end_region=box(size / 4, -size / 2, size / 2, size / 2),
+        corners=path,
     )
 
 

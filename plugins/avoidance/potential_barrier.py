@@ -1,0 +1,83 @@
+"""Potential barrier avoidance: the thesis' obstacle and collision terms and the input saturation.
+
+Karydes (2020), section 5.3.3. For each follower i (the leader keeps its path input when
+``exempt_leader``):
+
+    w_obs = psi_obs(||o_i - r_i||) (o_i - r_i)/||o_i - r_i||         (eq. 5.32-5.34)
+    w_col = sum over N_i(G_sigma) of psi_col(||r_ji||) r_ji/||r_ji||   (eq. 5.35-5.36)
+
+are added to the formation's command and the sum is saturated at u_sat (eq. 5.30); o_i is the
+nearest obstacle point in line of sight, G_sigma the sensed graph after edge deactivation. psi_obs
+and psi_col are held at -K below d_o and d_c (see the notes that come with the source text).
+
+Units: the thesis' terms are displacements per sampling period T_s; they enter the setpoint as
+velocities w / T_s (T_s = ``clock.guidance_period``). VELOCITY setpoints get the sum, saturated;
+other modes get the term as feed-forward and their reference position shifted by one step of it.
+When the formation is ``indoor_swarm`` the graphs are computed once per tick for both plugins.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, BuildContext
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import Role, WorldState
+from swarmscene.plugins.formation.indoor_control import TABLE_5_1, IndoorGains, w_col, w_obs
+from swarmscene.plugins.formation.indoor_sensing import saturate
+from swarmscene.plugins.formation.indoor_swarm import GraphParams, shared_snapshot
+
+
+class PotentialBarrier(Avoidance):
+    """Obstacle and collision repulsion of thesis eq. 5.32-5.36, then saturation at u_sat."""
+
+    name = "potential_barrier"
+
+    class Params(GraphParams):
+        d_o: float = Field(TABLE_5_1.d_o, gt=0, description="obstacle-free distance d_o, m")
+        K_obs: float = Field(TABLE_5_1.K_obs, gt=0, description="obstacle avoidance gain, m per step")
+        eps_obs: float = Field(TABLE_5_1.eps_obs, gt=0, description="obstacle avoidance slope")
+        d_c: float = Field(TABLE_5_1.d_c, gt=0, description="collision-free distance d_c, m")
+        l_c: float = Field(TABLE_5_1.l_c, gt=0, description="collision avoidance range l_c, m")
+        K_col: float = Field(TABLE_5_1.K_col, gt=0, description="collision avoidance gain, m per step")
+        eps_col: float = Field(TABLE_5_1.eps_col, gt=0, description="collision avoidance slope")
+        u_sat: float = Field(TABLE_5_1.u_sat, gt=0, description="input saturation u_sat, m per step")
+        exempt_leader: bool = Field(
+            True, description="leave the leader's command alone (the thesis' leader has no avoidance)"
+        )
+
+    def __init__(self, params: Params, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        fields = IndoorGains.__dataclass_fields__
+        self.gains = replace(
+            TABLE_5_1, T_s=ctx.guidance_period, **{k: v for k, v in params if k in fields}
+        )
+
+    def terms(self, sensing: Any) -> np.ndarray:
+        """w_obs + w_col (N, 2), m per step, from this tick's shared snapshot."""
+        snap = shared_snapshot(sensing, self.gains)
+        return w_obs(snap.r, snap.o, self.gains) + w_col(snap.r, snap.g_sigma, self.gains)
+
+    def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
+        T = self.gains.T_s
+        w = self.terms(sensing)
+        acting = world.healthy.copy()
+        if self.params.exempt_leader:
+            acting &= world.role != Role.LEADER
+        out = sp.copy()
+        velocity = acting & (out.mode == Mode.VELOCITY)
+        other = acting & (out.mode != Mode.VELOCITY)
+        out.vel[velocity, :2] = saturate(out.vel[velocity, :2] * T + w[velocity], self.gains.u_sat) / T
+        out.vel[other, :2] += w[other] / T
+        out.pos[other, :2] += w[other]
+        return out
+
+
+@hookimpl
+def swarmscene_register_avoidances(register) -> None:
+    register(PotentialBarrier)

@@ -1,0 +1,192 @@
+"""Indoor swarm formation: a leader drags the swarm along a path through corridors (thesis ch. 5).
+
+Karydes (2020), sections 5.2-5.4. Every tick the swarm senses its neighbours with range and line of
+sight (G_n), drops edges by the two deactivation rules (G_sigma), each follower moves by the
+connectivity, compactness and leader-traction terms
+
+    w_i = w_con + w_com + w_led          (eq. 5.37-5.42; rank estimate eq. 5.26, virtual leader 5.24)
+
+and the leader (``swarm.leader``) follows the way-points by Algorithm 1 with the bounds u_lsat,
+u_lcon (eq. 5.43-5.44). The obstacle and collision terms w_obs + w_col and the saturation at u_sat
+(eq. 5.30) belong to the avoidance plugin ``potential_barrier``: the kernel composes the two, so
+either can be swapped. With another avoidance method set ``saturate: true`` here.
+
+Units: the thesis' inputs are displacements per sampling period T_s (Table 5.1 gains in m per step);
+a setpoint velocity is w / T_s with T_s = ``clock.guidance_period``. The swarm is planar (world x-y);
+altitudes are held. Failed agents hold still and stay in the graphs.
+
+Metrics (``metrics.json``, keys ``indoor.*``):
+    indoor.arrived: every agent in the end region at the end of the run.
+    indoor.connected: G_n connected at every tick (max rank < N, the thesis' criterion).
+    indoor.initial_connected: G_n connected at t = 0 (a "random eligible" initial state).
+    indoor.max_rank: largest rank rho_i (eq. 5.23) over the run (N means an agent was cut off).
+    indoor.mean_neighbours: mean |N_i(G_n)| over agents and ticks; ``indoor.mean_neighbours_sigma``
+        the same on G_sigma (Fig. 5.17).
+    indoor.success: arrived and connected throughout, no collision (eq. 5.2 with
+        ``safety.min_separation`` = d_c) and no clearance violation (eq. 5.3 with
+        ``safety.min_clearance`` = d_o); also written as ``success``.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import shapely
+from pydantic import Field
+from shapely.geometry import Polygon
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+from .indoor_control import (
+    TABLE_5_1,
+    IndoorGains,
+    IndoorSnapshot,
+    PairGeometry,
+    leader_input,
+    psi_com,
+    psi_con,
+    sense,
+    w_led,
+)
+from .indoor_graphs import initial_rank_estimate, rank_estimate_step, ranks, virtual_leader
+from .indoor_maps import resample_path
+from .indoor_sensing import saturate
+
+Point2 = tuple[float, float]
+
+_SNAPSHOTS: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+
+
+def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
+    """The tick's :class:`IndoorSnapshot`, computed once per Sensing object and sensing parameters.
+
+    The formation and the avoidance plugin both need G_sigma; the kernel hands them the same
+    per-tick ``sensing`` (with its shared k-d tree), so the second caller reuses the first one's
+    graphs. Weakly keyed: a snapshot dies with its tick.
+    """
+    key = (gains.d_n, gains.d_l, gains.phi_d, min(gains.l_o, gains.d_s))
+    per_tick = _SNAPSHOTS.setdefault(sensing, {})
+    if key not in per_tick:
+        r = sensing.world.pos[:, :2]
+        per_tick[key] = sense(r, sensing.environment.tree, gains, tree=sensing.tree)
+    return per_tick[key]
+
+
+class GraphParams(PluginParams):
+    """Sensing and graph parameters shared by ``indoor_swarm`` and ``potential_barrier``."""
+
+    d_s: float = Field(TABLE_5_1.d_s, gt=0, description="sensing range d_s, m")
+    d_l: float = Field(TABLE_5_1.d_l, ge=0, description="LOS clearance d_l, m")
+    d_n: float = Field(TABLE_5_1.d_n, gt=0, description="neighbour maximum distance d_n, m")
+    phi_d: float = Field(
+        TABLE_5_1.phi_d, gt=0, lt=0.7072, description="edge deactivation threshold phi_d (< 1/sqrt 2)"
+    )
+    l_o: float = Field(TABLE_5_1.l_o, gt=0, description="obstacle avoidance range l_o, m")
+
+
+class IndoorSwarm(Formation):
+    """Leader-follower swarm with LOS sensing, edge deactivation and ranks (thesis ch. 5)."""
+
+    name = "indoor_swarm"
+
+    class Params(GraphParams):
+        waypoints: list[Point2] = Field(min_length=2, description="leader path vertices [x, y], m")
+        waypoint_spacing: float = Field(
+            0.25, gt=0, description="the path is resampled every this many m (Algorithm 1 cuts corners)"
+        )
+        end_region: list[Point2] = Field(min_length=3, description="polygon every agent must reach")
+        d_c: float = Field(TABLE_5_1.d_c, gt=0, description="collision-free distance d_c, m")
+        l_n: float = Field(TABLE_5_1.l_n, gt=0, description="connectivity range l_n, m")
+        K_con: float = Field(TABLE_5_1.K_con, gt=0, description="connectivity gain, m per step")
+        eps_con: float = Field(TABLE_5_1.eps_con, gt=0, description="connectivity slope")
+        K_com: float = Field(TABLE_5_1.K_com, gt=0, description="compactness gain, m per step")
+        alpha_com: float = Field(TABLE_5_1.alpha_com, gt=0, lt=1, description="compactness level")
+        K_led: float = Field(TABLE_5_1.K_led, gt=0, description="leader traction gain, per step")
+        u_sat: float = Field(TABLE_5_1.u_sat, gt=0, description="input saturation, m per step")
+        alpha_lsat: float = Field(TABLE_5_1.alpha_lsat, gt=0, lt=1, description="leader saturation level")
+        alpha_lcon: float = Field(TABLE_5_1.alpha_lcon, gt=0, lt=1, description="leader connectivity level")
+        saturate: bool = Field(
+            False, description="saturate followers at u_sat here (when the avoidance does not)"
+        )
+
+    def __init__(self, params: Params, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        leader = ctx.initial.leader
+        if leader is None:
+            raise ValueError("formation indoor_swarm needs a leader (swarm.leader)")
+        self.leader = leader
+        fields = IndoorGains.__dataclass_fields__
+        self.gains = replace(
+            TABLE_5_1, T_s=ctx.guidance_period, **{k: v for k, v in params if k in fields}
+        )
+        self.waypoints = resample_path(np.asarray(params.waypoints, dtype=float), params.waypoint_spacing)
+        self.end_region = Polygon(params.end_region)
+        shapely.prepare(self.end_region)
+        self.rho_bar = initial_rank_estimate(ctx.n, leader)
+        self.m = 0
+        self.snapshot: IndoorSnapshot | None = None
+        self._max_rank = 0
+        self._connected = True
+        self._initial_connected: bool | None = None
+        self._degree_sum = np.zeros(2)
+        self._ticks = 0
+
+    def setpoints(self, world: WorldState, sensing: Any) -> Setpoints:
+        g, T = self.gains, self.gains.T_s
+        snap = self.snapshot = shared_snapshot(sensing, g)
+        r = snap.r
+        l, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
+        pg = PairGeometry.of(r, snap.g_sigma)
+        w = pg.sum(psi_con(pg.length, g) + psi_com(pg.length, g)) + w_led(r, l, has, g)
+        if self.params.saturate:
+            w = saturate(w, g.u_sat)
+        w[self.leader], self.m = leader_input(r, self.leader, snap.g_sigma, self.waypoints, self.m, g)
+        self.rho_bar = rank_estimate_step(self.rho_bar, snap.g_sigma, self.leader)
+        self._observe(snap)
+        sp = Setpoints.hold(world.pos)
+        moving = world.healthy
+        sp.mode[moving] = Mode.VELOCITY
+        sp.vel[moving, :2] = w[moving] / T
+        return sp
+
+    def _observe(self, snap: IndoorSnapshot) -> None:
+        """Ranks and neighbour counts of this tick's graphs (measured, for the metrics)."""
+        max_rank = int(ranks(snap.g_n, self.leader).max())
+        if self._initial_connected is None:
+            self._initial_connected = max_rank < self.ctx.n
+        self._max_rank = max(self._max_rank, max_rank)
+        self._connected &= max_rank < self.ctx.n
+        self._degree_sum += [2 * len(snap.g_n) / self.ctx.n, 2 * len(snap.g_sigma) / self.ctx.n]
+        self._ticks += 1
+
+    def arrived(self, world: WorldState) -> np.ndarray:
+        """(N,) bool: agents inside the end region."""
+        return shapely.contains_xy(self.end_region, world.pos[:, 0], world.pos[:, 1])
+
+    def complete(self, world: WorldState) -> bool:
+        return bool(self.arrived(world)[world.healthy].all())
+
+    @hookimpl(trylast=True)
+    def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        arrived = bool(self.arrived(sim.world).all())
+        ticks = max(self._ticks, 1)
+        metrics["indoor.arrived"] = arrived
+        metrics["indoor.connected"] = self._connected
+        metrics["indoor.initial_connected"] = bool(self._initial_connected)
+        metrics["indoor.max_rank"] = self._max_rank
+        metrics["indoor.mean_neighbours"] = float(self._degree_sum[0] / ticks)
+        metrics["indoor.mean_neighbours_sigma"] = float(self._degree_sum[1] / ticks)
+        safe = metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
+        metrics["indoor.success"] = bool(arrived and self._connected and safe)
+        metrics["success"] = metrics["indoor.success"]
+
+
+@hookimpl
+def swarmscene_register_formations(register) -> None:
+    register(IndoorSwarm)
