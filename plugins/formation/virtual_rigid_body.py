@@ -197,14 +197,17 @@ class VirtualRigidBody(Formation):
             self._err_sq_sum += float(np.sum(err * err))
             self._err_count += err.size
             self._err_max = max(self._err_max, float(err.max()))
-        sp = Setpoints.hold(world.pos)
-        sp.jerk, sp.snap = np.zeros_like(p[3]), np.zeros_like(p[4])
         live = world.healthy
-        sp.mode[live] = Mode.TRACK
-        sp.pos[live], sp.vel[live], sp.acc[live] = p[0][live], p[1][live], p[2][live]
-        sp.jerk[live], sp.snap[live] = p[3][live], p[4][live]
-        sp.yaw[:] = fo.yaw[0, 0]
-        return sp
+        track = live[:, None]
+        return Setpoints(  # failed agents HOLD where they are, with no feed-forward
+            mode=np.where(live, Mode.TRACK, Mode.HOLD).astype(np.int8),
+            pos=np.where(track, p[0], world.pos),
+            vel=np.where(track, p[1], 0.0),
+            acc=np.where(track, p[2], 0.0),
+            yaw=fo.yaw[0, 0].copy(),
+            jerk=np.where(track, p[3], 0.0),
+            snap=np.where(track, p[4], 0.0),
+        )
 
     def complete(self, world: WorldState) -> bool:
         return world.t >= self.end_time

@@ -229,20 +229,22 @@ def _cos_sin_derivs(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return d.real, d.imag
 
 
-# Elementary rotations as R = E0 + cos(a) Ec + sin(a) Es (constant part only at order 0).
-_ELEMENTARY = {
-    "x": (np.diag([1.0, 0, 0]), np.diag([0, 1.0, 1.0]), np.array([[0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])),
-    "y": (np.diag([0, 1.0, 0]), np.diag([1.0, 0, 1.0]), np.array([[0, 0, 1.0], [0, 0, 0], [-1.0, 0, 0]])),
-    "z": (np.diag([0, 0, 1.0]), np.diag([1.0, 1.0, 0]), np.array([[0, -1.0, 0], [1.0, 0, 0], [0, 0, 0]])),
-}
+# Elementary rotations about x, y, z (the axes of roll, pitch, yaw) as R = E0 + cos(a) Ec + sin(a) Es
+# (constant part only at order 0), stacked along a leading axis so all three are built at once.
+_E0 = np.stack([np.diag([1.0, 0, 0]), np.diag([0, 1.0, 0]), np.diag([0, 0, 1.0])])
+_EC = np.stack([np.diag([0, 1.0, 1.0]), np.diag([1.0, 0, 1.0]), np.diag([1.0, 1.0, 0])])
+_ES = np.array([
+    [[0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]],
+    [[0, 0, 1.0], [0, 0, 0], [-1.0, 0, 0]],
+    [[0, -1.0, 0], [1.0, 0, 0], [0, 0, 0]],
+])
 
 
-def _elementary_derivs(axis: str, a: np.ndarray) -> np.ndarray:
-    """(5, T, 3, 3): R_axis(a(t)) and its derivatives 1..4."""
-    e0, ec, es = _ELEMENTARY[axis]
-    c, s = _cos_sin_derivs(a)
-    out = c[..., None, None] * ec + s[..., None, None] * es
-    out[0] += e0
+def _elementary_derivs(euler: np.ndarray) -> np.ndarray:
+    """(5, T, 3, 3, 3): R_x(roll), R_y(pitch), R_z(yaw) (third axis) and derivatives 1..4."""
+    c, s = _cos_sin_derivs(euler)  # (5, T, 3) each
+    out = c[..., None, None] * _EC + s[..., None, None] * _ES
+    out[0] += _E0
     return out
 
 
@@ -265,9 +267,8 @@ def rotation_derivatives(euler: np.ndarray) -> np.ndarray:
     Returns:
         (5, T, 3, 3).
     """
-    rz = _elementary_derivs("z", euler[:, :, 2])
-    ry = _elementary_derivs("y", euler[:, :, 1])
-    rx = _elementary_derivs("x", euler[:, :, 0])
+    elem = _elementary_derivs(euler)
+    rx, ry, rz = elem[:, :, 0], elem[:, :, 1], elem[:, :, 2]
     # every product R_z^(a) R_y^(b) R_x^(c) at once, then the Leibniz sum over a + b + c = n
     prod = (rz[:, None] @ ry[None, :])[:, :, None] @ rx[None, None, :]  # (5, 5, 5, T, 3, 3)
     return np.tensordot(_leibniz3(), prod, axes=3)
@@ -286,7 +287,13 @@ class VRBTrajectory:
         fixed = keyframes.constraints()
         coeffs = np.stack([minimum_snap(t, vals[:, c], fixed[:, :, c]) for c in range(N_CHANNELS)])
         self.ppoly = _to_ppoly(t, coeffs)
-        self._derivs = [self.ppoly] + [self.ppoly.derivative(n) for n in range(1, ORDER + 1)]
+        # ascending coefficients of tau^k of every derivative n of every piece: (5, 8, m, 6)
+        asc = self.ppoly.c[::-1]
+        k = np.arange(DEGREE + 1)
+        self._dcoef = np.zeros((ORDER + 1,) + asc.shape)
+        for n in range(ORDER + 1):
+            fall = np.array([np.prod(np.arange(j + 1, j + n + 1)) for j in k[: DEGREE + 1 - n]], float)
+            self._dcoef[n, : DEGREE + 1 - n] = asc[n:] * fall[:, None, None]
 
     @property
     def t_start(self) -> float:
@@ -299,9 +306,12 @@ class VRBTrajectory:
     def channels(self, t: np.ndarray | float) -> np.ndarray:
         """(5, T, 6): x, y, z, roll, pitch, yaw and derivatives 1..4 at times ``t``."""
         t = np.atleast_1d(np.asarray(t, float))
-        tc = np.clip(t, self.t_start, self.t_end)
-        out = np.stack([d(tc) for d in self._derivs])
-        outside = (t < self.t_start) | (t > self.t_end)
+        x = self.ppoly.x
+        tc = np.clip(t, x[0], x[-1])
+        piece = np.clip(np.searchsorted(x, tc, side="right") - 1, 0, x.size - 2)
+        powers = (tc - x[piece])[:, None] ** np.arange(DEGREE + 1.0)  # (T, 8)
+        out = np.einsum("nktc,tk->ntc", self._dcoef[:, :, piece], powers)
+        outside = (t < x[0]) | (t > x[-1])
         out[1:, outside] = 0.0  # holding the end pose
         return out
 

@@ -62,6 +62,7 @@ import numpy as np
 from scipy import sparse
 from scipy.interpolate import BSpline
 from scipy.optimize import linear_sum_assignment
+from scipy.spatial.distance import pdist
 
 from .vrb_trajectory import ORDER, VRBState, VRBTrajectory
 
@@ -364,10 +365,14 @@ class Transformation:
     def min_distance(self, samples: int = 401) -> float:
         """min over t in [t_start, t_end] and i != j of ||r_i(t) - r_j(t)|| (Problem 4), m."""
         r = self.local(np.linspace(self.t_start, self.t_end, samples))[0]
-        d = np.linalg.norm(r[:, :, None] - r[:, None, :], axis=-1)
-        n = r.shape[1]
-        d[:, np.arange(n), np.arange(n)] = np.inf
-        return float(d.min())
+        return min_pair_distance(r)
+
+
+def min_pair_distance(r: np.ndarray) -> float:
+    """Closest pair over samples: r (T, N, 3) -> m (pdist per sample: no (T, N, N) array)."""
+    if r.shape[1] < 2:
+        return float("inf")
+    return float(min(pdist(sample).min() for sample in r))
 
 
 def plan_transformation(
