@@ -1,55 +1,114 @@
-"""Double integrator: the thesis' translational model (eq. 3.21-3.22) under a PD tracker.
+"""Double integrator: the thesis' translational model (eq. 3.17-3.22) under its digital controllers.
 
-    r(k+1) = r(k) + T v(k) + T^2/2 u(k),   v(k+1) = v(k) + T u(k),   |u| <= u_sat
+    r(k+1) = r(k) + T_s v(k) + T_s^2/2 u(k),   v(k+1) = v(k) + T_s u(k),   u = sat(u_lim)
 
-The acceleration u is computed once per guidance tick and held (zero-order hold) over the physics
-sub-steps, which integrate it exactly. Setpoint modes:
-    POSITION, TRACK, HOLD: u = acc_ff + k_p (pos_ref - r) + k_d (vel_ref - v)
-    VELOCITY:              u = acc_ff + k_v (vel_ref - v)
-The gains default to a critically damped response with natural frequency ``omega`` (k_p = omega^2,
-k_d = 2 omega). The thesis' discrete PID/PI/tracker controllers replace this in the dynamics issue.
+The attitude loop is taken as perfect (thesis 3.2.2), so ``u`` is the net acceleration. It is
+computed once per guidance tick by the controllers of thesis section 3.2 (thesis_controllers.py)
+and held over the physics sub-steps, which integrate it exactly (so any physics step gives eq.
+3.21-3.22 at the tick). The law is chosen per agent from the setpoint mode:
+
+    POSITION, HOLD  position PID with feed-forward and anti-windup (eq. 3.29-3.30) on ``sp.pos``
+    VELOCITY        velocity PI with feed-forward and anti-windup (eq. 3.23-3.25) on ``sp.vel``,
+                    the reference clipped to ±v_max per axis
+    TRACK           tracker control (eq. 3.41-3.42) on the target ``sp.pos``, ``sp.vel``, ``sp.acc``
+
+The velocity limiter (eq. 3.45) with limit ``v_max`` acts on the position and tracker laws.
+Gains are synthesised at T_s = ``ctx.guidance_period`` from continuous-time tuning values, so the
+behaviour does not change with the guidance period: (omega, xi) pairs as in eq. 3.40, and for the
+velocity loop the rates of its two real poles, p_v = exp(-k T_s) (eq. 3.28). The defaults are the
+thesis' tuning at T_s = 0.1 s (K_Pv = 9.0, K_Iv = 1.4, K_Fv = 7.0; K_Pr = 0.10, K_Ir = 0.00084,
+K_Dr = 0.48, K_Fr = 0.052; K_Pt = 4.1, K_It = 0.20, K_Dt = 2.9). Axes are independent and
+identical as in the thesis (eq. 3.20 decoupling), so u_sat and v_max bound each world axis.
+
+Frames: the laws commute with the thesis' NED -> world change of axes (see thesis_controllers.py),
+so they run on world arrays directly. Failed agents are switched to HOLD where they are.
+Added to the world: ``extras["u"]`` (N, 3) m/s^2, the input applied this tick (the ū another
+agent's tracker can use as feed-forward).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from pydantic import Field
 
 from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Dynamics, PluginParams
+from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .single_integrator import clip_norm
+from .thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
 
 
 class DoubleIntegrator(Dynamics):
-    """Point mass with saturated acceleration (thesis eq. 3.21-3.22) and a PD tracker."""
+    """Point mass with saturated acceleration (thesis eq. 3.17-3.22) under the thesis controllers."""
 
     name = "double_integrator"
 
     class Params(PluginParams):
-        omega: float = Field(1.0, gt=0, description="natural frequency of the PD tracker, rad/s")
-        k_v: float = Field(2.0, gt=0, description="velocity-error gain in VELOCITY mode, 1/s")
-        u_sat: float = Field(3.0, gt=0, description="acceleration limit |u| <= u_sat, m/s^2")
-        v_max: float = Field(5.0, gt=0, description="speed limit, m/s")
+        omega: float = Field(
+            1.5, gt=0, description="tracker natural frequency ω_t, rad/s (eq. 3.40; thesis 1.5)")
+        xi: float = Field(0.71, gt=0, lt=1, description="tracker damping ξ_t (thesis 0.71)")
+        position_omega: float = Field(
+            0.23, gt=0, description="position PID natural frequency ω_r, rad/s (thesis 0.23)")
+        position_xi: float = Field(
+            0.71, gt=0, lt=1, description="position PID damping ξ_r (thesis 0.71)")
+        k_v: float = Field(
+            12.04, gt=0, description="velocity loop rate, 1/s: its fast pole is p_v1 = "
+            "exp(-k_v T_s), which sets the first-order velocity response (thesis p_v1 = 0.30 at "
+            "T_s = 0.1 s, k_v = 12.04)")
+        k_v_slow: float = Field(
+            2.231, gt=0, description="rate of the velocity loop's slow pole p_v2 = exp(-k_v_slow "
+            "T_s), cancelled by the feed-forward zero; it moderates the gains (thesis p_v2 = 0.80)")
+        K_Wv: float = Field(0.5, ge=0, description="velocity anti-windup gain K_Wv, s (thesis 0.5)")
+        K_Wr: float = Field(50.0, ge=0, description="position anti-windup gain K_Wr, s^2 (thesis 50)")
+        K_Wt: float = Field(5.0, ge=0, description="tracker anti-windup gain K_Wt, s^2 (thesis 5)")
+        u_sat: float = Field(
+            3.4, gt=0, description="acceleration saturation u_sat per axis, m/s^2 (eq. 3.26; "
+            "thesis 3.4 for velocity and tracker, 2.6 for position)")
+        v_max: float | None = Field(
+            5.0, gt=0, description="velocity limit v̄_lim per axis, m/s (eq. 3.45), on the "
+            "position and tracker laws; VELOCITY references are clipped to it; null: no limit")
+        K_lim: float = Field(
+            2.5, gt=0, description="velocity limiter gain K_lim, 1/s (thesis 2.5); capped at 1/T_s "
+            "so the limiter stays stable (thesis: K_lim < 2/T_s) at long guidance periods")
+        eps_lim: float = Field(
+            0.0, ge=0, description="anti-chattering threshold ε_lim, m/s (thesis: 3 σ of the "
+            "velocity noise): a limit at or below it brakes with -K_lim v")
+
+    def __init__(self, params: "DoubleIntegrator.Params", ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        T_s = ctx.guidance_period
+        # the slower real pole is the one cancelled by the zero (eq. 3.28)
+        # (kept inside (0, 1): a very long T_s would round a pole to 0, a very short one to 1)
+        p_1, p_2 = sorted(min(max(math.exp(-k * T_s), 1e-12), 1.0 - 1e-12)
+                          for k in (params.k_v, params.k_v_slow))
+        self.T_s = T_s
+        self.velocity = velocity_gains(p_1, p_2, T_s, params.K_Wv)
+        self.position = position_gains(params.position_omega, params.position_xi, T_s, params.K_Wr)
+        self.tracker = tracker_gains(params.omega, params.xi, T_s, params.K_Wt)
+        self.K_lim = min(params.K_lim, 1.0 / T_s)
 
     def initialize(self, world: WorldState) -> None:
+        p = self.params
+        self.controller = ThesisController(world.n, self.velocity, self.position, self.tracker,
+                                           p.u_sat, self.K_lim, p.eps_lim)
         self.u = np.zeros_like(world.pos)
+        world.extras["u"] = self.u
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
-        p = self.params
-        k_p, k_d = p.omega**2, 2.0 * p.omega
-        u_pos = k_p * (sp.pos - world.pos) + k_d * (sp.vel - world.vel)
-        u_vel = p.k_v * (sp.vel - world.vel)
-        u = sp.acc + np.where((sp.mode == Mode.VELOCITY)[:, None], u_vel, u_pos)
-        self.u = clip_norm(u, p.u_sat)
+        healthy = world.healthy
+        mode = np.where(healthy, sp.mode, Mode.HOLD)
+        r_ref = np.where(healthy[:, None], sp.pos, world.pos)
+        v_ref = sp.vel if self.params.v_max is None else np.clip(sp.vel, -self.params.v_max,
+                                                                   self.params.v_max)
+        self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc,
+                                           self.params.v_max)
 
     def step(self, world: WorldState, dt: float) -> None:
         world.pos += world.vel * dt + 0.5 * self.u * dt * dt
         world.vel += self.u * dt
-        speed = np.linalg.norm(world.vel, axis=1, keepdims=True)
-        world.vel *= np.minimum(1.0, self.params.v_max / np.maximum(speed, 1e-12))
 
 
 @hookimpl

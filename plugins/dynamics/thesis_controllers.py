@@ -78,10 +78,13 @@ def velocity_gains(p_1: float, p_2: float, T_s: float, K_Wv: float = 0.5) -> Vel
 def conjugate_poles(omega: float, xi: float, T_s: float) -> tuple[complex, complex, float]:
     """Discrete poles p_1, p_2 = conj(p_1), p_3 = |p_1| from (omega, xi) (thesis eq. 3.40).
 
-    s = -omega (xi + j sqrt(1 - xi^2)), p_1 = exp(T_s s); needs 0 < omega < 2 pi / T_s, 0 < xi < 1.
+    s = -omega (xi + j sqrt(1 - xi^2)), p_1 = exp(T_s s), with omega > 0 and 0 < xi < 1. The thesis
+    also asks omega < 2 pi / T_s: beyond it the sampled poles alias (the period is too long for the
+    bandwidth asked). That is not an error here, so a coarse guidance period still gives a defined,
+    stable (if sluggish) design instead of a crash.
     """
-    if not (0.0 < omega < 2.0 * np.pi / T_s and 0.0 < xi < 1.0):
-        raise ValueError(f"need 0 < omega < 2 pi / T_s and 0 < xi < 1 (got {omega}, {xi})")
+    if not (omega > 0.0 and 0.0 < xi < 1.0):
+        raise ValueError(f"need omega > 0 and 0 < xi < 1 (got {omega}, {xi})")
     s = -omega * (xi + 1j * np.sqrt(1.0 - xi * xi))
     p_1 = complex(np.exp(T_s * s))
     return p_1, p_1.conjugate(), abs(p_1)
