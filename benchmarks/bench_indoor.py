@@ -19,15 +19,15 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from swarmscene.plugins.formation.indoor_control import TABLE_5_1, IndoorSwarm
+from swarmscene.plugins.formation.indoor_control import TABLE_5_1, IndoorController
 from swarmscene.plugins.formation.indoor_maps import building, open_map, random_connected_swarm
 from swarmscene.plugins.formation.indoor_sensing import single_integrator_step
 
 
 def bench(name: str, mp, n: int, steps: int, warmup: int, seed: int = 0) -> dict:
-    """Median and mean wall time of ``IndoorSwarm.input`` (plus the shared cKDTree build)."""
+    """Median and mean wall time of ``IndoorController.input`` (plus the shared cKDTree build)."""
     r = random_connected_swarm(mp.start_region, n, np.random.default_rng(seed), anchor=None)
-    swarm = IndoorSwarm(n, n - 1, mp.waypoints, mp.walls)
+    swarm = IndoorController(n, n - 1, mp.waypoints, mp.walls)
     for _ in range(warmup):
         r = single_integrator_step(r, swarm.input(r), TABLE_5_1.u_max)
     wall, cpu = np.empty(steps), np.empty(steps)

@@ -265,7 +265,7 @@ def sense(
     return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d))
 
 
-class IndoorSwarm:
+class IndoorController:
     """One guidance step of the whole indoor swarm: sensing, graphs, ranks, follower and leader laws.
 
     Holds the two pieces of state the method carries between steps: the rank estimates rho_bar

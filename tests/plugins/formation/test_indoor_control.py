@@ -6,7 +6,7 @@ import pytest
 
 from swarmscene.plugins.formation.indoor_control import (
     TABLE_5_1,
-    IndoorSwarm,
+    IndoorController,
     follower_input,
     leader_direction,
     leader_input,
@@ -167,7 +167,7 @@ def _corridor_run(width, seed, n=30, length=10.0, max_steps=4000):
     """Single-integrator loop of eq. 5.1 with the full step; returns what the thesis measures."""
     mp = straight_corridor(width, length)
     r = random_connected_swarm(mp.start_region, n, np.random.default_rng(seed))
-    swarm = IndoorSwarm(n, n - 1, mp.waypoints, mp.walls)
+    swarm = IndoorController(n, n - 1, mp.waypoints, mp.walls)
     connected, min_sep, min_obs = True, np.inf, np.inf
     for _ in range(max_steps):
         u = swarm.input(r)

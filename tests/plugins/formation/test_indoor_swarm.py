@@ -15,7 +15,7 @@ from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.config import EnvironmentConfig
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.simulation import Simulation
-from swarmscene.plugins.formation.indoor_control import IndoorSwarm as IndoorSwarmLaw
+from swarmscene.plugins.formation.indoor_control import IndoorController
 from swarmscene.plugins.formation.indoor_maps import building, l_corridor, straight_corridor
 
 MODULES = (
@@ -74,7 +74,7 @@ def test_composed_plugins_reproduce_the_thesis_input():
     """formation (w_con + w_com + w_led, leader) + potential_barrier (w_obs + w_col, sat) = eq. 5.30."""
     sim = build(["scenario=indoor_l_corridor", "seed=4", "clock.duration=0.5"])
     mp = l_corridor(0.8)
-    law = IndoorSwarmLaw(30, 0, mp.waypoints, mp.walls)
+    law = IndoorController(30, 0, mp.waypoints, mp.walls)
     for _ in range(20):  # ranks and way-point index evolve identically
         r = sim.world.pos[:, :2].copy()
         sp = sim.avoidance.adjust(sim.world, sim.sensing, sim.formation.setpoints(sim.world, sim.sensing))
