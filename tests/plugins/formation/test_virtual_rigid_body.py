@@ -35,7 +35,7 @@ def build(overrides: list[str]) -> Simulation:
 
 
 def test_airshow_take_off_and_first_transformation_with_quadrotors(tmp_path):
-    sim = build(["scenario=vrb_airshow", "clock.duration=6.0"])  # Phi^1_2 is 2-5 s
+    sim = build(["scenario=vrb_airshow", "clock.duration=5.2"])  # Phi^1_2 is 2-5 s
     result = sim.run()
     m = result.metrics
     assert m["vrb.min_transformation_distance"] >= S_IJ and m["vrb.safety_holds"]
