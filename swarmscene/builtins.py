@@ -1,14 +1,21 @@
 """The built-in plugin modules, registered exactly like third-party ones (by module name).
 
-Add a module here when you add a built-in algorithm; ``tests/core/test_contract.py`` checks that
-every module in ``plugins/`` is listed, so one cannot be forgotten.
+Add a module here when you add a built-in algorithm; ``tests/test_contract.py`` checks that every
+module in ``plugins/`` that registers a class is listed, so one cannot be forgotten.
 """
 
 BUILTIN_PLUGINS: tuple[str, ...] = (
+    # dynamics: how agents move
     "swarmscene.plugins.dynamics.single_integrator",
     "swarmscene.plugins.dynamics.double_integrator",
+    "swarmscene.plugins.dynamics.quadrotor",
+    # formation: where agents should be
     "swarmscene.plugins.formation.static_shape",
+    "swarmscene.plugins.formation.indoor_swarm",
+    "swarmscene.plugins.formation.virtual_rigid_body",
+    # avoidance: how they stay safe
     "swarmscene.plugins.avoidance.none",
     "swarmscene.plugins.avoidance.potential",
     "swarmscene.plugins.avoidance.cem",
+    "swarmscene.plugins.avoidance.potential_barrier",
 )
