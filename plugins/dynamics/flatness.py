@@ -63,9 +63,15 @@ def normalize_with_derivatives(n, n_dot, n_ddot):
     return u, u_dot, u_ddot
 
 
-def heading_axes(z_b: np.ndarray, yaw: np.ndarray):
-    """Body axes (x_b, y_b) of thrust direction z_b (N, 3) and yaw ψ (N,) (module docstring)."""
-    y_c = np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)], axis=1)
+def heading_vector(yaw: np.ndarray) -> np.ndarray:
+    """y_c = (-sin ψ, cos ψ, 0) (N, 3): the horizontal direction the body x axis is kept normal to."""
+    return np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)], axis=1)
+
+
+def heading_axes(z_b: np.ndarray, yaw: np.ndarray | None = None, y_c: np.ndarray | None = None):
+    """Body axes (x_b, y_b) of thrust direction z_b (N, 3) and yaw ψ (N,) (module docstring);
+    pass ``y_c`` = :func:`heading_vector` (ψ) instead of ψ to reuse it while ψ is held."""
+    y_c = heading_vector(yaw) if y_c is None else y_c
     x_b = cross_rows(y_c, z_b)
     x_b /= np.linalg.norm(x_b, axis=1, keepdims=True)
     return x_b, cross_rows(z_b, x_b)

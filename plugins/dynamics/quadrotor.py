@@ -34,7 +34,7 @@ from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .flatness import flat_state
+from .flatness import flat_state, heading_vector
 from .quadrotor_model import AIRFRAMES, allocate, pack, quat_to_rotmat, rk4, wrench, yaw_to_quat
 from .se3_controller import se3_control, se3_gains
 
@@ -100,6 +100,7 @@ class Quadrotor(Dynamics):
         self._v = np.where(hold, 0.0, sp.vel)
         self._a = np.where(hold, 0.0, sp.acc)
         self._yaw = np.asarray(sp.yaw, dtype=float).copy()
+        self._heading = heading_vector(self._yaw)
         self._position_mask = mode != Mode.VELOCITY
         track = (mode == Mode.TRACK)[:, None] & self.params.propagate_reference
         # derivatives used to move the reference during the tick (zero rows: not propagated)
@@ -126,7 +127,7 @@ class Quadrotor(Dynamics):
             thrust, torque, _ = se3_control(
                 x[:, 0:3], x[:, 3:6], quat_to_rotmat(x[:, 6:10]), x[:, 10:13], p_d, v_d, a_d,
                 self._yaw, self._omega_d, self._alpha_d, self.gains, af, self._position_mask,
-                self.max_tilt)
+                self.max_tilt, self._heading)
             rotor_speed = allocate(thrust, torque, af)
             thrust, torque = wrench(rotor_speed, af)   # what the limited rotors really give
             x = rk4(x, thrust, torque, af, h)

@@ -275,14 +275,20 @@ def state_derivative(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray,
     ṗ = v; v̇ = (T / m) R e_3 - g e_3; q̇ = ½ q ⊗ (0, ω) (the quaternion form of Ṙ = R [ω×],
     eq. 3.6, 3.8); J ω̇ = -ω × J ω + M, with (ω × J ω)_i = ω_j ω_k (J_k - J_j) for diagonal J.
     """
+    return _rhs(x, (thrust / airframe.mass)[:, None], torque / airframe.J, airframe.gyro)
+
+
+def _rhs(x: np.ndarray, thrust_per_mass: np.ndarray, torque_per_inertia: np.ndarray,
+         gyro: np.ndarray) -> np.ndarray:
+    """:func:`state_derivative` with the held inputs already divided by m and J (RK4 reuses them)."""
     q = x[:, 6:10]
     w = x[:, 10:13]
     out = np.empty_like(x)
     out[:, 0:3] = x[:, 3:6]
-    out[:, 3:6] = (_outer(q) @ _Z_BASIS) * (thrust / airframe.mass)[:, None]
+    out[:, 3:6] = (_outer(q) @ _Z_BASIS) * thrust_per_mass
     out[:, 5] -= GRAVITY
     out[:, 6:10] = ((q[:, _G_IDX] * _G_SIGN) @ w[:, :, None])[:, :, 0]
-    out[:, 10:13] = torque / airframe.J - w[:, _P1] * w[:, _P2] * airframe.gyro
+    out[:, 10:13] = torque_per_inertia - w[:, _P1] * w[:, _P2] * gyro
     return out
 
 
@@ -296,10 +302,13 @@ def rk4(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray, airframe: Airfram
     """One classical RK4 step of the packed state with thrust (N,) and torque (N, 3) held;
     the quaternion is renormalised."""
     h = 0.5 * dt
-    k1 = state_derivative(x, thrust, torque, airframe)
-    k2 = state_derivative(x + h * k1, thrust, torque, airframe)
-    k3 = state_derivative(x + h * k2, thrust, torque, airframe)
-    k4 = state_derivative(x + dt * k3, thrust, torque, airframe)
+    c = (thrust / airframe.mass)[:, None]
+    a = torque / airframe.J
+    gyro = airframe.gyro
+    k1 = _rhs(x, c, a, gyro)
+    k2 = _rhs(x + h * k1, c, a, gyro)
+    k3 = _rhs(x + h * k2, c, a, gyro)
+    k4 = _rhs(x + dt * k3, c, a, gyro)
     x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
     x[:, 6:10] /= np.sqrt((x[:, 6:10] ** 2).sum(axis=1, keepdims=True))
     return x

@@ -105,7 +105,8 @@ _VEE_ROW, _VEE_COL = [2, 0, 1], [1, 2, 0]
 
 
 def se3_control(p, v, R, omega, p_d, v_d, a_d, yaw_d, omega_d, alpha_d, gains: SE3Gains,
-                airframe: Airframe, position_mask=None, max_tilt: float = np.radians(45.0)):
+                airframe: Airframe, position_mask=None, max_tilt: float = np.radians(45.0),
+                heading: np.ndarray | None = None):
     """Full tracking law: returns thrust f (N,) N, torque M (N, 3) N m and R_d (N, 3, 3).
 
     Args:
@@ -113,11 +114,12 @@ def se3_control(p, v, R, omega, p_d, v_d, a_d, yaw_d, omega_d, alpha_d, gains: S
         p_d, v_d, a_d: (N, 3) reference and its feed-forward acceleration. yaw_d: (N,) ψ_d.
         omega_d, alpha_d: (N, 3) flatness feed-forward body rates and acceleration (None: zero).
         position_mask: (N,) bool, False where only velocity is tracked.
+        heading: optional (N, 3) ``flatness.heading_vector(yaw_d)``, reused while ψ_d is held.
     """
     F = desired_force(p, v, p_d, v_d, a_d, gains, airframe.mass, position_mask, max_tilt)
     thrust = (F * R[:, :, 2]).sum(axis=1)
     b3 = F / np.linalg.norm(F, axis=1, keepdims=True)
-    b1, b2 = heading_axes(b3, yaw_d)
+    b1, b2 = heading_axes(b3, yaw_d, heading)
     R_d = np.stack([b1, b2, b3], axis=2)
     M, _ = attitude_torque(R, omega, R_d, omega_d, alpha_d, gains, airframe.J)
     return np.maximum(thrust, 0.0), M, R_d
