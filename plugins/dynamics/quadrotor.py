@@ -27,7 +27,7 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
@@ -69,16 +69,21 @@ class Quadrotor(Dynamics):
             True, description="in TRACK mode, move the reference along its Taylor polynomial "
             "(p, v, a, jerk, snap) between guidance ticks")
 
+        @model_validator(mode="after")
+        def _inner_loop_resolved(self) -> "Quadrotor.Params":
+            # the attitude loop is discrete at max_step: keep omega dt well below its stability edge
+            if self.attitude_omega * self.max_step > 0.5:
+                raise ValueError(
+                    f"attitude_omega * max_step must be <= 0.5 for a stable discrete attitude loop "
+                    f"(got {self.attitude_omega} * {self.max_step})")
+            return self
+
     def __init__(self, params: "Quadrotor.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.airframe = AIRFRAMES[params.airframe]
         self.gains = se3_gains(self.airframe, params.position_omega, params.position_xi,
                                params.attitude_omega, params.attitude_xi, params.yaw_omega)
         self.max_tilt = math.radians(params.max_tilt)
-        if params.attitude_omega * params.max_step > 0.5:
-            raise ValueError(
-                f"quadrotor.attitude_omega * max_step must be <= 0.5 for a stable discrete inner loop "
-                f"(got {params.attitude_omega} * {params.max_step})")
 
     # -- lifecycle ---------------------------------------------------------------------------
     def initialize(self, world: WorldState) -> None:

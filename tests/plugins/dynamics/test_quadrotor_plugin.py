@@ -49,8 +49,8 @@ def test_plugin_contract_and_registration():
         Quadrotor.Params(airframe="f450")
     with pytest.raises(pydantic.ValidationError):
         Quadrotor.Params(gain=1.0)
-    with pytest.raises(ValueError):
-        build(np.zeros((1, 3)), attitude_omega=300.0)
+    with pytest.raises(pydantic.ValidationError, match="attitude_omega"):
+        Quadrotor.Params(attitude_omega=300.0)
 
 
 @pytest.mark.parametrize("airframe", sorted(AIRFRAMES))
