@@ -25,6 +25,8 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+MAX_AGENTS = 1_000_000
+"""Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
 MAX_SUBSTEPS = 10_000
 """Most physics steps per guidance tick (a smaller physics step is almost surely a typo)."""
 
@@ -74,7 +76,9 @@ class StartConfig(_Strict):
     ``extent`` around ``center``, redrawn until agents are ``spacing`` apart; seeded).
     """
 
-    kind: Literal["line", "grid", "circle", "explicit", "random"] = "grid"
+    kind: Literal["line", "grid", "circle", "explicit", "random"] = Field(
+        "grid", description="layout: line | grid | circle | explicit | random (see above)"
+    )
     spacing: float = Field(2.0, gt=0, description="distance between neighbours, m")
     center: Point3 = Field((0.0, 0.0, 1.0), description="[x, y, z] of the swarm's centre, m")
     extent: float = Field(10.0, gt=0, description="side of the square for kind=random, m")
@@ -84,9 +88,9 @@ class StartConfig(_Strict):
 class SwarmConfig(_Strict):
     """The agents."""
 
-    n: int = Field(ge=1, description="number of agents N")
+    n: int = Field(ge=1, le=MAX_AGENTS, description="number of agents N")
     leader: int | None = Field(0, ge=0, description="index of the leader, or null for none")
-    start: StartConfig = Field(default_factory=StartConfig)
+    start: StartConfig = Field(default_factory=StartConfig, description="initial positions")
 
 
 class ClockConfig(_Strict):
@@ -155,7 +159,7 @@ class ScenarioConfig(_Strict):
     """A whole scenario as composed by Hydra (the ``hydra`` node left out)."""
 
     name: str = Field("default", description="scenario label, used in output paths")
-    description: str = ""
+    description: str = Field("", description="one line on what the scenario shows")
     seed: int = Field(0, ge=0, description="seed of the run's one random generator")
     swarm: SwarmConfig
     clock: ClockConfig = Field(default_factory=ClockConfig)
@@ -252,6 +256,11 @@ def _scenario_checks(config: ScenarioConfig) -> list[str]:
         errors.append(
             f"clock.physics_step: must divide clock.guidance_period = {clock.guidance_period} "
             f"(got {config.physics_step})"
+        )
+    elif clock.duration < clock.guidance_period:
+        errors.append(
+            f"clock.duration: must be >= clock.guidance_period = {clock.guidance_period} "
+            f"(got {clock.duration})"
         )
     elif ratio > MAX_SUBSTEPS:
         errors.append(

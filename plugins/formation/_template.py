@@ -1,0 +1,42 @@
+"""Template of a formation plugin: copy this file, rename the class and ``name``, fill in.
+
+Cite the paper's section, symbols and equation numbers here, and say what you chose where the
+paper is ambiguous.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+
+class MyFormation(Formation):
+    """One line on what it does."""
+
+    name = "my_formation"
+
+    class Params(PluginParams):
+        spacing: float = Field(2.0, gt=0, description="distance between agents, m")
+
+    def __init__(self, params: Params, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        self.home = ctx.initial.pos.copy()
+
+    def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        sp = Setpoints.hold(world.pos)
+        sp.mode[:] = Mode.POSITION
+        sp.pos[:] = self.home  # vectorised over agents: no Python loop per agent
+        return sp
+
+    def complete(self, world: WorldState) -> bool | None:
+        return bool(np.all(np.linalg.norm(world.pos - self.home, axis=1) < 0.1))
+
+
+# Register it (uncomment in your module and list the module in swarmscene/builtins.py):
+# @hookimpl
+# def swarmscene_register_formations(register):
+#     register(MyFormation)
