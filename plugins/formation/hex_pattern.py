@@ -29,9 +29,10 @@ from functools import cached_property
 
 import networkx as nx
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.spatial import Voronoi
 from scipy.spatial.distance import cdist
+
+from swarmscene.plugins.formation.multiscale_assignment import solve_square
 
 # ---------------------------------------------------------------------------------------------
 # Hexagonal axial frame {h} (eq. 4.3-4.7)
@@ -290,6 +291,9 @@ def solve_assignment(cost: np.ndarray, column_penalty: np.ndarray | None = None)
     p_j from a whole column changes every assignment's cost by the same -sum(p) and the optimum
     is unchanged, while the real rows become plain distances that the shortest-augmenting-path
     solver matches far faster (and the dummy rows take up the penalised columns first).
+    The square problem is solved exactly by scipy's ``linear_sum_assignment`` (Jonker-Volgenant
+    shortest augmenting paths), warm-started for large swarms by
+    :func:`~swarmscene.plugins.formation.multiscale_assignment.solve_square`.
     """
     k, m = cost.shape
     if k > m:
@@ -299,8 +303,7 @@ def solve_assignment(cost: np.ndarray, column_penalty: np.ndarray | None = None)
     square = np.empty((m, m), dtype=cost.dtype)
     square[:k] = cost - column_penalty
     square[k:] = -column_penalty
-    rows, cols = linear_sum_assignment(square)
-    return cols[rows < k]
+    return solve_square(square)[:k]
 
 
 def assign_offsets(

@@ -253,3 +253,17 @@ def test_slot_positions_share_the_leader_altitude():
     targets = slot_positions(p, np.array([0, 3]), np.array([1.0, 2.0, 4.0]))
     np.testing.assert_allclose(targets[:, 2], 4.0)
     np.testing.assert_allclose(targets[:, :2], p.offsets_xy[[0, 3]] + [1.0, 2.0])
+
+
+def test_large_swarm_assignment_is_the_rectangular_optimum():
+    # N = 300 goes through the multiscale warm start; the result must equal scipy's optimum of C~.
+    rng = np.random.default_rng(13)
+    n = 300
+    p = hex_pattern(n, D_R)
+    xy = rng.uniform(0.0, 25.0, size=(n - 1, 2))
+    leader = xy.mean(axis=0)
+    slots = assign_offsets(p, np.arange(n - 1), xy, leader)
+    cost = assignment_cost(p, xy, leader)
+    rows, cols = linear_sum_assignment(cost)
+    assert len(set(slots.tolist())) == n - 1
+    assert cost[np.arange(n - 1), slots].sum() == cost[rows, cols].sum()

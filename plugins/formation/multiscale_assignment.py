@@ -1,0 +1,81 @@
+"""Exact linear assignment for large swarms: scipy's solver warm-started by coarse-to-fine duals.
+
+``scipy.optimize.linear_sum_assignment`` (shortest augmenting paths) starts from zero dual
+potentials. On geometric costs where the whole swarm has to spread out (agents packed on a home
+grid, slots on a wide hexagon) the augmenting paths then run through most of the matrix and an
+N = 1,000 assignment takes about half a second. The optimal assignment of a square cost C is
+unchanged when any u_i is subtracted from row i and any v_j from column j, so near-optimal
+potentials can be handed to the solver as a reduced cost matrix: it then mostly confirms the
+zeros and the paths are short.
+
+The potentials come from the same problem at a coarser scale: every ``coarsen``-th row and
+column (a spatially spread sample when rows and columns are in a sensible order), solved
+recursively, its exact duals recovered (:func:`assignment_duals`), extended to the full matrix
+by the c-transforms v_j = min_k (c_kj - u_k), u_i = min_j (c_ij - v_j), v_j = min_i (c_ij - u_i)
+(which also make them feasible: every reduced cost is >= 0). The result is exactly optimal:
+only the solver's starting point changes, never the problem. Integer costs stay integer, so ties
+are exact and the answer is a deterministic function of the matrix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+
+def assignment_duals(
+    cost: np.ndarray, cols: np.ndarray, v_start: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Dual potentials (u, v) of an optimal assignment ``row i -> cols[i]`` of a square ``cost``.
+
+    They satisfy u_i + v_j <= c_ij everywhere with equality on the assignment (complementary
+    slackness), which certifies optimality. v solves the difference constraints
+    v_j <= v_cols(i) + c_ij - c_i,cols(i) by Bellman-Ford iterations (vectorised over the matrix),
+    from ``v_start`` (default 0) downwards: the largest solution below the start.
+
+    Raises:
+        ValueError: when the iterations do not settle, i.e. the assignment is not optimal.
+    """
+    n = cost.shape[0]
+    rows = np.arange(n)
+    on_assignment = cost[rows, cols]
+    slack = cost - on_assignment[:, None]  # slack[i, j]: edge from column cols[i] to column j
+    v = np.zeros(n, dtype=cost.dtype) if v_start is None else v_start.astype(cost.dtype, copy=True)
+    for _ in range(n + 1):
+        relaxed = np.minimum(v, (v[cols][:, None] + slack).min(axis=0))
+        if np.array_equal(relaxed, v):
+            return on_assignment - v[cols], v
+        v = relaxed
+    raise ValueError("the assignment is not optimal (negative cycle in its residual graph)")
+
+
+def solve_square(cost: np.ndarray, coarsen: int = 3, direct_size: int = 100) -> np.ndarray:
+    """Column of each row in a minimal-cost assignment of a square ``cost`` (exact).
+
+    Args:
+        cost: (n, n) costs (integers keep ties exact).
+        coarsen: sampling step between scales (every ``coarsen``-th row and column).
+        direct_size: below this size the problem is handed to scipy as it is.
+
+    Returns:
+        (n,) int, the column assigned to each row.
+    """
+    cols, _ = _solve_with_duals_hint(cost, coarsen, direct_size)
+    return cols
+
+
+def _solve_with_duals_hint(cost, coarsen, direct_size):
+    """Solve ``cost``; also return the column potentials used, as a start for its own duals."""
+    n = cost.shape[0]
+    if n <= direct_size:
+        return linear_sum_assignment(cost)[1], np.zeros(n, dtype=cost.dtype)
+    sample = np.arange(0, n, coarsen)
+    coarse = cost[np.ix_(sample, sample)]
+    coarse_cols, coarse_hint = _solve_with_duals_hint(coarse, coarsen, direct_size)
+    u_coarse, _ = assignment_duals(coarse, coarse_cols, coarse_hint)
+    # Extend to every column and row by c-transforms; the last two make (u, v) feasible.
+    v = (cost[sample] - u_coarse[:, None]).min(axis=0)
+    u = (cost - v).min(axis=1)
+    v = (cost - u[:, None]).min(axis=0)
+    reduced = cost - u[:, None] - v
+    return linear_sum_assignment(reduced)[1], v

@@ -1,0 +1,52 @@
+"""Exact assignment warm-started by coarse-to-fine duals (used for eq. 4.12-4.13 at large N)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial.distance import cdist
+
+from swarmscene.plugins.formation.multiscale_assignment import assignment_duals, solve_square
+
+
+def _optimum(cost):
+    rows, cols = linear_sum_assignment(cost)
+    return cost[rows, cols].sum()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_duals_certify_an_optimal_assignment(seed):
+    rng = np.random.default_rng(seed)
+    cost = rng.integers(0, 50, size=(40, 40))
+    cols = linear_sum_assignment(cost)[1]
+    u, v = assignment_duals(cost, cols)
+    reduced = cost - u[:, None] - v
+    assert reduced.min() == 0
+    np.testing.assert_array_equal(reduced[np.arange(40), cols], 0)
+
+
+def test_duals_refuse_a_suboptimal_assignment():
+    cost = np.array([[0, 10], [10, 0]])
+    with pytest.raises(ValueError):
+        assignment_duals(cost, np.array([1, 0]))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_multiscale_solution_is_optimal_on_geometric_and_random_costs(seed):
+    rng = np.random.default_rng(seed)
+    n = 260
+    packed = rng.uniform(0, 20, size=(n, 2))  # agents packed, slots spread: long augmenting paths
+    slots = rng.uniform(-60, 60, size=(n, 2))
+    for cost in (np.rint(cdist(packed, slots) * 10), rng.integers(0, 1000, size=(n, n)).astype(float)):
+        cols = solve_square(cost, coarsen=3, direct_size=20)  # three scales
+        assert np.array_equal(np.sort(cols), np.arange(n))
+        assert cost[np.arange(n), cols].sum() == _optimum(cost)
+
+
+def test_multiscale_solution_is_deterministic():
+    rng = np.random.default_rng(9)
+    cost = np.rint(cdist(rng.uniform(0, 5, (150, 2)), rng.uniform(0, 40, (150, 2))))  # many ties
+    first = solve_square(cost, direct_size=10)
+    assert all(np.array_equal(first, solve_square(cost.copy(), direct_size=10)) for _ in range(3))
+    assert cost[np.arange(150), first].sum() == _optimum(cost)
