@@ -26,7 +26,9 @@ def configurations(n: int, pattern, rng: np.random.Generator) -> dict[str, tuple
     side = int(np.ceil(np.sqrt(n)))
     grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), axis=-1).reshape(-1, 2)[:n] * D_I
     centre = int(np.argmin(np.linalg.norm(grid - grid.mean(axis=0), axis=1)))
-    slots = pattern.offsets_xy[rng.permutation(pattern.m)[: n - 1]]
+    # In steady state the penalty leaves outer-ring slots free: followers sit on the first N - 1
+    # slots (pattern order is ring by ring), each shuffled to a random id.
+    slots = pattern.offsets_xy[: n - 1][rng.permutation(n - 1)]
     return {
         "home grid, leader at a corner (cold FORM)": (grid[1:], grid[0]),
         "home grid, leader at the centre (cold FORM)": (np.delete(grid, centre, axis=0), grid[centre]),
