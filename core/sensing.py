@@ -20,6 +20,38 @@ from .environment import Environment
 from .state import WorldState
 
 
+DENSE_LIMIT = 64
+"""Up to this many members, connectivity is a dense reachability sweep (no sparse overhead)."""
+NEAR_K = 4
+"""Nearest neighbours per member in the sparse connectivity test of large swarms."""
+
+
+def _dense_connected(pos: np.ndarray, radius: float) -> bool:
+    """Connectivity of the disk graph of a few points by breadth-first sweeps of a boolean matrix."""
+    diff = pos[:, None, :] - pos[None, :, :]
+    adjacent = np.einsum("ijk,ijk->ij", diff, diff) <= radius * radius
+    reached = adjacent[0].copy()
+    count = 0
+    while (new := int(reached.sum())) != count:
+        count = new
+        reached = adjacent[reached].any(axis=0)
+    return count == len(pos)
+
+
+def _renumber(n: int, members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edges between members, with members renumbered 0..m-1."""
+    index = np.full(n, -1)
+    index[members] = np.arange(members.size)
+    return index[edges[:, 0]], index[edges[:, 1]]
+
+
+def _components(m: int, i: np.ndarray, j: np.ndarray) -> int:
+    if i.size < m - 1:
+        return 2  # a spanning tree needs m - 1 edges
+    graph = coo_matrix((np.ones(i.size, dtype=np.int8), (i, j)), shape=(m, m))
+    return connected_components(graph, directed=False)[0]
+
+
 class Sensing:
     """What can be known about the swarm at one instant.
 
@@ -28,24 +60,13 @@ class Sensing:
             the state changes).
         environment: the obstacle map.
         comm_range: communication range, m.
-        previous: the previous tick's snapshot; results that depend only on the graph (not on
-            exact positions) are reused when the graph has not changed.
     """
 
-    def __init__(
-        self,
-        world: WorldState,
-        environment: Environment,
-        comm_range: float,
-        previous: "Sensing | None" = None,
-    ) -> None:
+    def __init__(self, world: WorldState, environment: Environment, comm_range: float) -> None:
         self.world = world
         self.environment = environment
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
-        self._previous = previous
-        if previous is not None:
-            previous._previous = None  # keep one snapshot back, never a chain
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -59,13 +80,26 @@ class Sensing:
         return self._pairs[radius]
 
     @cached_property
+    def knn(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distances and indices of each agent's ``NEAR_K`` nearest others, shape (N, <= NEAR_K).
+
+        One query shared by the separation monitor (column 0 is the nearest other agent) and the
+        connectivity test; ``inf`` / N mark missing neighbours in tiny swarms.
+        """
+        n = self.world.n
+        k = min(n, NEAR_K + 1)
+        dist, idx = self.tree.query(self.world.pos, k=k)
+        dist, idx = dist.reshape(n, k)[:, 1:], idx.reshape(n, k)[:, 1:]  # drop each agent itself
+        return dist, idx
+
+    @cached_property
     def nearest(self) -> tuple[np.ndarray, np.ndarray]:
         """For each agent: distance to its nearest other agent (m, ``inf`` if alone) and its index."""
         n = self.world.n
         if n < 2:
             return np.full(n, np.inf), np.full(n, -1)
-        dist, idx = self.tree.query(self.world.pos, k=2)
-        return dist[:, 1], idx[:, 1]
+        dist, idx = self.knn
+        return dist[:, 0], idx[:, 0]
 
     @cached_property
     def clearance(self) -> np.ndarray:
@@ -88,40 +122,34 @@ class Sensing:
         return coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
 
     @cached_property
-    def _comm_edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """Members and the (i < j) pairs among them: the communication graph, exactly."""
-        pairs = self.pairs(self.comm_range)
-        keep = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
-        return self.comm_members, pairs[keep]
-
-    def _same_graph_as_previous(self) -> bool:
-        prev = self._previous
-        if prev is None or "comm_connected" not in prev.__dict__:
-            return False
-        members, edges = self._comm_edges
-        prev_members, prev_edges = prev._comm_edges
-        return np.array_equal(members, prev_members) and np.array_equal(edges, prev_edges)
-
-    @cached_property
     def comm_connected(self) -> bool:
-        """True when the communication graph over its members is connected (one member counts)."""
-        if self._same_graph_as_previous():
-            return self._previous.comm_connected  # a formation in flight rarely changes its graph
+        """True when the communication graph over its members is connected (one member counts).
+
+        Exact, and cheap in the common case: a small swarm uses a dense reachability sweep; a
+        large one first tests the sparse subgraph of each member's nearest neighbours within
+        range (connected subgraph => connected graph) and only builds every pair when that test
+        fails.
+        """
         members = np.flatnonzero(self.comm_members)
         m = members.size
         if m <= 1:
             return True
-        _, edges = self._comm_edges
-        if len(edges) < m - 1:
-            return False  # a spanning tree needs m - 1 edges
-        # Renumber members 0..m-1 and build one upper-triangular matrix: cheaper than slicing
-        # the full adjacency.
-        index = np.full(self.world.n, -1)
-        index[members] = np.arange(m)
-        i, j = index[edges[:, 0]], index[edges[:, 1]]
-        graph = coo_matrix((np.ones(i.size, dtype=np.int8), (i, j)), shape=(m, m))
-        count, _ = connected_components(graph, directed=False)
-        return count == 1
+        if m <= DENSE_LIMIT:
+            return _dense_connected(self.world.pos[members], self.comm_range)
+        if _components(m, *self._near_member_edges(members)) == 1:
+            return True
+        pairs = self.pairs(self.comm_range)
+        keep = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
+        return _components(m, *_renumber(self.world.n, members, pairs[keep])) == 1
+
+    def _near_member_edges(self, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dist, idx = self.knn
+        rows = np.repeat(members, dist.shape[1])
+        cols = idx[members].ravel()
+        ok = dist[members].ravel() <= self.comm_range
+        rows, cols = rows[ok], cols[ok]
+        ok = self.comm_members[cols]
+        return _renumber(self.world.n, members, np.column_stack([rows[ok], cols[ok]]))
 
     def hop_distances(self, source: int) -> np.ndarray:
         """Hops from ``source`` to every agent over the communication graph (``inf`` if unreachable)."""

@@ -104,7 +104,7 @@ class Simulation:
         self._hold_failed()
         self.step_count += 1
         self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
-        self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
+        self.sensing = Sensing(self.world, self.environment, self.config.comm.range)
         self.hook.swarmscene_step_end(sim=self)
 
     def _apply_due_events(self) -> None:

@@ -66,10 +66,18 @@ def test_sensing_pairs_nearest_and_connectivity_match_brute_force():
     assert all(hops[k] == v for k, v in expected.items())
 
 
-def test_connectivity_reuses_previous_only_for_identical_graph():
-    world = WorldState.at_rest(np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]]))
-    first = Sensing(world, Environment(), comm_range=1.5)
-    assert first.comm_connected
-    world.pos[2, 0] = 5.0  # the third agent flies out of range
-    second = Sensing(world, Environment(), comm_range=1.5, previous=first)
-    assert not second.comm_connected
+@pytest.mark.parametrize("n", [5, 60, 400])
+def test_connectivity_matches_networkx_small_and_large(n):
+    import networkx as nx
+
+    rng = np.random.default_rng(n)
+    for radius in (1.5, 3.0, 6.0):
+        pos = rng.uniform(0, np.sqrt(n) * 2.0, size=(n, 3)) * [1, 1, 0]
+        world = WorldState.at_rest(pos)
+        world.comm_ok[0] = False  # non-members are ignored
+        members = np.arange(1, n)
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
+        graph = nx.Graph()
+        graph.add_nodes_from(members)
+        graph.add_edges_from((a, b) for a, b in zip(*np.nonzero(d <= radius)) if a in members and b in members and a != b and a > 0 and b > 0)
+        assert Sensing(world, Environment(), comm_range=radius).comm_connected == nx.is_connected(graph)
