@@ -1,0 +1,170 @@
+"""Hexagonal lattice formation around a leader flying waypoints (thesis chapter 4, section 4.3).
+
+The leader (``world.leader``) sits on node 0 of the hexagonal pattern of
+:mod:`~swarmscene.plugins.formation.hex_pattern` (eq. 4.3-4.11, spacing d_r, yaw alpha); the
+followers are assigned to its offsets by the id-ordered, decimetre-rounded rectangular assignment
+with the periphery penalty (eq. 4.12-4.13). Every follower gets a TRACK setpoint on its slot
+r_N + h_j with the leader's velocity and applied input (``world.extras["u"]`` when the dynamics
+provides it) as feed-forward: the thesis' tracker control in FLOW (section 3.2.5).
+
+The leader holds its home until every healthy follower is within ``arrival_tolerance`` (eps_r)
+of its slot, or ``formation_timeout`` (T_for) has passed; it then tracks a reference moving at
+``leader_speed`` along ``waypoints``. Getting followers to their slots without collisions (the
+thesis' FORM sequence) is the avoidance plugin's job: pair it with ``apf_navigation``.
+
+Frames: ``waypoints`` are offsets from the leader's initial position in the world frame (x east,
+y north, z up): the thesis gives its path (Table 4.2) in the initial leader's NED frame, so
+(north, east, down) -> (east, north, -down). ``alpha_deg`` keeps the thesis convention (from
+North towards East); the pattern module converts it.
+
+Simplifications (the full INIT/FORM/FLOW/LEAD/STOP workflow with the swarm map is separate):
+the plugin reads the true state, not a delayed swarm map; followers are not sent home at the end;
+the catch-up test (eq. 4.1-4.2) is replaced by the slot-distance test above.
+
+The mission is complete once the leader's reference has reached the last waypoint and every
+healthy follower is within ``arrival_tolerance`` of its slot.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+from swarmscene.plugins.formation.hex_pattern import assign_offsets, hex_pattern
+from swarmscene.plugins.formation.static_shape import WaypointPath
+
+
+class HexLattice(Formation):
+    """Followers on a pruned hexagonal lattice around a waypoint-following leader."""
+
+    name = "hex_lattice"
+
+    class Params(PluginParams):
+        d_r: float = Field(5.0, gt=0, description="formation spacing d_r, m (Table 4.3: 5 m)")
+        alpha_deg: float = Field(
+            0.0, description="formation yaw alpha, deg, from North towards East (Table 4.3: 0)"
+        )
+        waypoints: list[tuple[float, float, float]] = Field(
+            default_factory=lambda: [(0.0, 0.0, 0.0)],
+            min_length=1,
+            description="leader path as offsets from its initial position, [x east, y north, z up] m",
+        )
+        leader_speed: float = Field(0.5, gt=0, description="speed of the leader's reference, m/s")
+        arrival_tolerance: float = Field(
+            0.5, gt=0, description="eps_r: a follower this close to its slot is in place, m"
+        )
+        formation_timeout: float = Field(
+            40.0, ge=0, description="T_for: the leader sets off after this long even if not formed, s"
+        )
+        reassign: Literal["while_forming", "every_tick", "on_failure"] = Field(
+            "while_forming",
+            description="when slots are re-assigned: each tick until formed (thesis FORM), each "
+            "tick, or only after a failure (always also after a failure)",
+        )
+        input_feedforward: bool = Field(
+            True, description="add the leader's applied input (world.extras['u']) as TRACK feed-forward"
+        )
+
+    def __init__(self, params: Params, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        leader = ctx.initial.leader
+        if leader is None:
+            raise ValueError("hex_lattice needs a leader (swarm.leader)")
+        if ctx.n < 2:
+            raise ValueError("hex_lattice needs at least one follower")
+        self.leader = leader
+        self.home = ctx.initial.pos[leader].copy()
+        self.path = WaypointPath(np.vstack([self.home, self.home + np.asarray(params.waypoints)]),
+                                 params.leader_speed)
+        self.pattern = hex_pattern(ctx.n, params.d_r, np.deg2rad(params.alpha_deg))
+        self.followers = np.flatnonzero(np.arange(ctx.n) != leader)
+        self.slot_of = np.full(ctx.n, -1)
+        self._healthy = ctx.initial.healthy.copy()
+        self._assign(ctx.initial)
+        self.t_start: float | None = None  # when the leader set off
+        self.formed_at: float | None = None
+        self._end_reached = False
+        self._targets = ctx.initial.pos.copy()
+
+    # -- assignment ----------------------------------------------------------------------------
+
+    def _assign(self, world: WorldState) -> None:
+        """Eq. 4.12-4.13 over the healthy followers (ids = agent indices)."""
+        ids = self.followers[world.healthy[self.followers]]
+        self.slot_of[:] = -1
+        if ids.size:
+            self.slot_of[ids] = assign_offsets(self.pattern, ids, world.pos[ids], world.pos[self.leader])
+
+    def _in_place(self, world: WorldState, targets: np.ndarray) -> np.ndarray:
+        active = world.healthy & (self.slot_of >= 0)
+        error = np.linalg.norm(world.pos - targets, axis=1)
+        return ~active | (error <= self.params.arrival_tolerance)
+
+    # -- formation -----------------------------------------------------------------------------
+
+    def slot_targets(self, world: WorldState) -> np.ndarray:
+        """World position of every follower's slot (N, 3): r_N + h_j at the leader's altitude."""
+        targets = world.pos.copy()
+        f = self.slot_of >= 0
+        targets[f, :2] = world.pos[self.leader, :2] + self.pattern.offsets_xy[self.slot_of[f]]
+        targets[f, 2] = world.pos[self.leader, 2]
+        return targets
+
+    def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        p = self.params
+        failure = not np.array_equal(world.healthy, self._healthy)
+        forming = self.formed_at is None
+        if failure or p.reassign == "every_tick" or (forming and p.reassign == "while_forming"):
+            self._assign(world)
+            self._healthy = world.healthy.copy()
+
+        targets = self.slot_targets(world)
+        if forming and np.all(self._in_place(world, targets)):
+            self.formed_at = world.t
+        if self.t_start is None and (self.formed_at is not None or world.t >= p.formation_timeout):
+            self.t_start = world.t
+
+        sp = Setpoints.hold(world.pos)
+        # Leader: holds home, then tracks the path reference.
+        if self.t_start is None:
+            ref_pos, ref_vel, self._end_reached = self.home, np.zeros(3), False
+        else:
+            ref_pos, ref_vel, _, self._end_reached = self.path.at(world.t - self.t_start)
+        sp.mode[self.leader] = Mode.TRACK
+        sp.pos[self.leader], sp.vel[self.leader] = ref_pos, ref_vel
+
+        # Followers: tracker on the slot, leader's state (and input) as feed-forward.
+        f = np.flatnonzero(self.slot_of >= 0)
+        sp.mode[f] = Mode.TRACK
+        sp.pos[f] = targets[f]
+        sp.vel[f] = world.vel[self.leader]
+        u = world.extras.get("u")
+        if p.input_feedforward and u is not None:
+            sp.acc[f] = u[self.leader]
+        self._targets = targets
+        return sp
+
+    def complete(self, world: WorldState) -> bool:
+        if not self._end_reached:
+            return False
+        return bool(np.all(self._in_place(world, self.slot_targets(world))))
+
+    @hookimpl
+    def swarmscene_run_end(self, sim, metrics: dict) -> None:
+        """``hex.*`` metrics: pattern size, when the formation was reached and the leader left."""
+        metrics["hex.m"] = self.pattern.m
+        metrics["hex.m_max"] = self.pattern.m_max
+        metrics["hex.formed_at"] = self.formed_at
+        metrics["hex.leader_start"] = self.t_start
+        metrics["hex.path_done"] = bool(self._end_reached)
+
+
+@hookimpl
+def swarmscene_register_formations(register) -> None:
+    register(HexLattice)
