@@ -50,3 +50,22 @@ def test_multiscale_solution_is_deterministic():
     first = solve_square(cost, direct_size=10)
     assert all(np.array_equal(first, solve_square(cost.copy(), direct_size=10)) for _ in range(3))
     assert cost[np.arange(150), first].sum() == _optimum(cost)
+
+
+def test_steady_state_is_certified_by_the_reduction_zeros():
+    # Agents each near their own slot (the re-assignment of a formed swarm): row and column
+    # reduction already leave a perfect matching of zeros, which is returned as it is.
+    from swarmscene.plugins.formation.multiscale_assignment import _matching_on_reduction_zeros
+
+    rng = np.random.default_rng(4)
+    slots = np.stack(np.meshgrid(np.arange(15.0), np.arange(15.0)), axis=-1).reshape(-1, 2) * 5
+    agents = slots[rng.permutation(len(slots))] + rng.normal(0, 0.3, size=slots.shape)
+    cost = np.rint(cdist(agents, slots) * 10)
+    cols = _matching_on_reduction_zeros(cost)
+    assert cols is not None
+    assert cost[np.arange(len(cost)), cols].sum() == _optimum(cost)
+    np.testing.assert_array_equal(solve_square(cost), cols)
+    # A packed start has no such matching: the multiscale path takes over, still optimal.
+    packed = np.rint(cdist(rng.uniform(0, 10, size=slots.shape), slots) * 10)
+    assert _matching_on_reduction_zeros(packed) is None
+    assert packed[np.arange(len(packed)), solve_square(packed)].sum() == _optimum(packed)
