@@ -1,0 +1,311 @@
+"""Reynolds flocking: boids steering by separation, alignment and cohesion (Reynolds 1987).
+
+Each boid i keeps a heading d_i and flies at ``speed`` along it (VELOCITY setpoints,
+``vel = speed * d_i``). Every guidance tick it looks at its neighbours N_i, the other boids within
+``vision`` (distance <= vision), and steers, exactly as Mesa's BoidFlockers example does::
+
+    delta_ij = p_j - p_i                                     (minimum image in a toroidal space)
+    c_i = cohere   * sum_{j in N_i} delta_ij                 cohesion: toward the neighbours
+    s_i = -separate * sum_{j in N_i, |delta_ij| < separation} delta_ij   separation: away from close ones
+    m_i = match    * sum_{j in N_i} d_j                      alignment: the neighbours' headings
+    d_i <- d_i + (c_i + s_i + m_i) / |N_i|,   d_i <- d_i / |d_i|          (only when N_i is not empty)
+
+A boid without neighbours keeps its heading. Optional goal seeking adds ``goal_weight`` times the
+unit vector toward ``goal`` to the steer (before normalising), for every boid. In a ``bounded``
+space a boid closer than ``vision`` to a face of the box is steered back in proportion to how deep
+it is in that band (``boundary_weight`` at the face).
+
+Choices, and why:
+- The headings d_j read from the world: d_j = vel_j / speed when the boid moves (so alignment sees
+  what the neighbours really do, whatever avoidance and dynamics made of the command), and the
+  boid's own last heading when it is still (t = 0, failed vehicles). With a single integrator whose
+  ``u_max >= sqrt(2) speed`` this is exactly Mesa's stored ``direction``.
+- All boids update at once from the same snapshot (synchronous, vectorised). Mesa activates its
+  agents one at a time in random order (``shuffle_do``), each seeing the ones already moved in this
+  step; the two differ by that update order only, not by the rule.
+- Initial headings are drawn as Mesa draws them: each component uniform in [-1, 1], not normalised
+  (from the run's one generator, so a run is seeded).
+- Failed boids (``healthy`` False) hold position; they still repel the others (separation) but are
+  not followed (no cohesion, alignment, nor count in |N_i|).
+- ``planar`` (Mesa's 2-D space): headings stay in the x-y plane and altitude is held; neighbour
+  distances are the 3-D ones (equal to the planar ones while the flock shares one altitude).
+
+Space (``space``): ``open`` (no walls), ``bounded`` (steered back into the box ``box_min``..
+``box_max``), ``toroidal`` (periodic box, as Mesa's ``ContinuousSpace(torus=True)``). In a toroidal
+space neighbours come from this plugin's own k-d tree with ``boxsize`` (the minimum-image metric;
+the tick's shared tree is Euclidean) and the plugin wraps the agents' positions back into the box at
+the end of every tick, before any observer reads them (a ``tryfirst`` step-end hook), so monitors,
+recorders and the next tick see positions in the box, as in Mesa. Note the engine's safety monitor
+measures Euclidean distance in the box: pairs close across a seam are not seen by it. In the
+other spaces neighbours are the shared tree's ``sensing.pairs(vision)``.
+
+Memory per boid (plugin scratch): the heading (3 float64) plus, per tick, O(neighbours) pair arrays.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+from scipy.spatial import cKDTree
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+if TYPE_CHECKING:  # pragma: no cover
+    from swarmscene.core.sensing import Sensing
+    from swarmscene.core.simulation import Simulation
+
+Point3 = tuple[float, float, float]
+
+
+class FlockingParams(PluginParams):
+    """Options of ``reynolds_flocking``; Mesa's BoidFlockers names in brackets."""
+
+    vision: float = Field(10.0, gt=0, description="radius within which a boid sees neighbours, m [vision]")
+    separation: float = Field(
+        2.0, ge=0, description="neighbours closer than this push the boid away, m [separation]"
+    )
+    cohere: float = Field(0.03, ge=0, description="cohesion weight, 1/m [cohere]")
+    separate: float = Field(0.015, ge=0, description="separation weight, 1/m [separate]")
+    match: float = Field(0.05, ge=0, description="alignment weight (headings are unit-free) [match]")
+    speed: float = Field(
+        1.0, gt=0, description="cruise speed, m/s [speed per step / clock.guidance_period]"
+    )
+    space: Literal["open", "bounded", "toroidal"] = Field(
+        "open", description="open | bounded (steered back into the box) | toroidal (periodic box)"
+    )
+    box_min: Point3 = Field((0.0, 0.0, 0.0), description="lower corner of the box, m [0, 0]")
+    box_max: Point3 = Field((100.0, 100.0, 100.0), description="upper corner, m [width, height]")
+    boundary_weight: float = Field(
+        1.0, ge=0, description="bounded space: steer back at a face of the box (per unit heading)"
+    )
+    planar: bool = Field(True, description="headings in the x-y plane, altitude held (Mesa is 2-D)")
+    goal: Point3 | None = Field(None, description="optional point the flock seeks, m")
+    goal_weight: float = Field(0.0, ge=0, description="weight of the unit vector toward goal")
+    goal_tolerance: float = Field(
+        5.0, gt=0, description="mission complete when the flock's centroid is this close to goal, m"
+    )
+
+    @model_validator(mode="after")
+    def _box_not_empty(self) -> "FlockingParams":
+        axes = 2 if self.planar else 3
+        if any(hi <= lo for lo, hi in zip(self.box_min[:axes], self.box_max[:axes])):
+            raise ValueError(f"box_max: must exceed box_min on every axis (got {self.box_max})")
+        return self
+
+
+def params_from_mesa(
+    width: float = 100.0,
+    height: float = 100.0,
+    speed: float = 1.0,
+    vision: float = 10.0,
+    separation: float = 2.0,
+    cohere: float = 0.03,
+    separate: float = 0.015,
+    match: float = 0.05,
+    guidance_period: float = 1.0,
+) -> FlockingParams:
+    """The Params equal to Mesa's ``BoidFlockers(width, height, speed, vision, ...)`` (its defaults).
+
+    Mesa moves a boid ``speed`` units per step in a torus ``[0, width] x [0, height]``; one Mesa step
+    is one guidance tick, so the cruise speed is ``speed / guidance_period`` m/s.
+    """
+    return FlockingParams(
+        vision=vision, separation=separation, cohere=cohere, separate=separate, match=match,
+        speed=speed / guidance_period, space="toroidal", box_min=(0.0, 0.0, 0.0),
+        box_max=(width, height, max(width, height)), planar=True,
+    )
+
+
+def initial_headings(rng: np.random.Generator, n: int, planar: bool) -> np.ndarray:
+    """Headings (n, 3) as Mesa draws them: components uniform in [-1, 1], not normalised."""
+    d = np.zeros((n, 3))
+    axes = 2 if planar else 3
+    d[:, :axes] = rng.uniform(-1.0, 1.0, size=(n, axes))
+    return d
+
+
+def minimum_image(delta: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Shortest periodic representative of difference vectors ``delta`` (M, D) in a box ``size`` (D,)."""
+    return delta - size * np.round(delta / size)
+
+
+def wrap(pos: np.ndarray, lo: np.ndarray | float, size: np.ndarray) -> np.ndarray:
+    """Positions folded into [lo, lo + size) (per column of ``lo``/``size``)."""
+    q = np.mod(pos - lo, size)
+    q[q >= size] = 0.0  # np.mod of a tiny negative can round up to exactly `size`
+    return q + lo if np.any(lo) else q
+
+
+def flocking_steer(
+    pairs: np.ndarray,
+    delta: np.ndarray,
+    heading: np.ndarray,
+    follow: np.ndarray,
+    p: FlockingParams,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sum of cohesion, separation and alignment for every boid, and its neighbour count |N_i|.
+
+    Args:
+        pairs: (M, 2) neighbour pairs (i, j), each unordered pair once.
+        delta: (M, 3) p_j - p_i for each pair (minimum image where periodic), m.
+        heading: (N, 3) d_j of every boid.
+        follow: (N,) bool, boids that count as neighbours for cohesion and alignment.
+        p: the weights and the separation distance.
+    Returns:
+        steer (N, 3) = c_i + s_i + m_i (not yet divided by |N_i|), and |N_i| (N,).
+    """
+    n = heading.shape[0]
+    src = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    other = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    toward = np.concatenate([delta, -delta])  # from src to other
+    dist2 = np.einsum("ij,ij->i", delta, delta)
+    close = np.concatenate([dist2, dist2]) < p.separation * p.separation
+    seen = follow[other]
+    # One weighted sum per axis: every term is linear in the pair's vectors.
+    w_toward = p.cohere * seen - p.separate * close
+    contrib = w_toward[:, None] * toward + (p.match * seen)[:, None] * heading[other]
+    steer = np.column_stack([np.bincount(src, weights=contrib[:, k], minlength=n) for k in range(3)])
+    count = np.bincount(src, weights=seen, minlength=n)
+    return steer, count
+
+
+class ReynoldsFlocking(Formation):
+    """Boids: separation, alignment, cohesion within ``vision``; optional goal; open, bounded or torus."""
+
+    name = "reynolds_flocking"
+    Params = FlockingParams
+
+    def __init__(self, params: FlockingParams, ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        self.heading = initial_headings(ctx.rng, ctx.n, params.planar)
+        self.axes = 2 if params.planar else 3
+        self.lo = np.asarray(params.box_min, dtype=float)
+        self.hi = np.asarray(params.box_max, dtype=float)
+        self.size = self.hi - self.lo
+        self.neighbour_count = np.zeros(ctx.n)
+        self._centroid_error = np.inf
+
+    # -- neighbours --------------------------------------------------------------------------
+    def neighbours(self, world: WorldState, sensing: "Sensing") -> tuple[np.ndarray, np.ndarray]:
+        """Pairs within ``vision`` (M, 2) and their difference vectors p_j - p_i (M, 3)."""
+        if self.params.space == "toroidal":
+            a = self.axes
+            box = self.size[:a]
+            tree = cKDTree(wrap(world.pos[:, :a] - self.lo[:a], 0.0, box), boxsize=box)
+            pairs = tree.query_pairs(self.params.vision, output_type="ndarray")
+            delta = world.pos[pairs[:, 1]] - world.pos[pairs[:, 0]]
+            delta[:, :a] = minimum_image(delta[:, :a], box)
+            return pairs, delta
+        pairs = sensing.pairs(self.params.vision)
+        return pairs, world.pos[pairs[:, 1]] - world.pos[pairs[:, 0]]
+
+    # -- steering terms beside the flock's own ------------------------------------------------
+    def goal_steer(self, pos: np.ndarray) -> np.ndarray:
+        """``goal_weight`` times the unit vector from each boid to the goal (N, 3)."""
+        to_goal = np.asarray(self.params.goal, dtype=float) - pos
+        if self.params.space == "toroidal":
+            to_goal[:, : self.axes] = minimum_image(to_goal[:, : self.axes], self.size[: self.axes])
+        norm = np.linalg.norm(to_goal, axis=1, keepdims=True)
+        return self.params.goal_weight * to_goal / np.maximum(norm, 1e-12)
+
+    def boundary_steer(self, pos: np.ndarray) -> np.ndarray:
+        """Bounded space: back into the box, growing linearly to ``boundary_weight`` at a face."""
+        band = self.params.vision
+        inward = np.clip(self.lo + band - pos, 0.0, None) - np.clip(pos - (self.hi - band), 0.0, None)
+        return self.params.boundary_weight * inward / band
+
+    # -- the tick ----------------------------------------------------------------------------
+    def current_headings(self, world: WorldState) -> np.ndarray:
+        """d_j: measured velocity over cruise speed when moving, else the last heading."""
+        speed2 = np.einsum("ij,ij->i", world.vel, world.vel)
+        moving = speed2 > 0.0
+        heading = self.heading.copy()
+        heading[moving] = world.vel[moving] / self.params.speed
+        if self.params.planar:
+            heading[:, 2] = 0.0
+        return heading
+
+    def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
+        p = self.params
+        heading = self.current_headings(world)
+        healthy = world.healthy
+        pairs, delta = self.neighbours(world, sensing)
+        steer, count = flocking_steer(pairs, delta, heading, healthy, p)
+        has_neighbours = count > 0
+        steer[has_neighbours] /= count[has_neighbours, None]
+        turning = has_neighbours.copy()
+        if p.goal is not None and p.goal_weight > 0:
+            steer += self.goal_steer(world.pos)
+            turning[:] = True
+        if p.space == "bounded":
+            push = self.boundary_steer(world.pos)
+            steer += push
+            turning |= np.any(push != 0.0, axis=1)
+        if p.planar:
+            steer[:, 2] = 0.0
+        new = heading[turning] + steer[turning]
+        norm = np.linalg.norm(new, axis=1, keepdims=True)
+        heading[turning] = np.where(norm > 0, new / np.maximum(norm, 1e-300), heading[turning])
+        heading[~healthy] = self.heading[~healthy]
+        self.heading = heading
+        self.neighbour_count = count
+        self._track_goal(world)
+        return self._velocity_setpoints(world, heading)
+
+    def _velocity_setpoints(self, world: WorldState, heading: np.ndarray) -> Setpoints:
+        n = world.n
+        mode = np.where(world.healthy, Mode.VELOCITY, Mode.HOLD).astype(np.int8)
+        vel = self.params.speed * heading
+        vel[~world.healthy] = 0.0
+        return Setpoints(
+            mode=mode,
+            pos=world.pos.copy(),
+            vel=vel,
+            acc=np.zeros((n, 3)),
+            yaw=np.arctan2(heading[:, 1], heading[:, 0]),
+        )
+
+    def _track_goal(self, world: WorldState) -> None:
+        if self.params.goal is not None:
+            centroid = world.pos[world.healthy].mean(axis=0) if world.healthy.any() else world.pos.mean(0)
+            self._centroid_error = float(np.linalg.norm(centroid - np.asarray(self.params.goal)))
+
+    def complete(self, world: WorldState) -> bool | None:
+        """With a goal: the flock's centroid is within ``goal_tolerance`` of it; else no mission."""
+        if self.params.goal is None:
+            return None
+        return self._centroid_error <= self.params.goal_tolerance
+
+    # -- periodic space ----------------------------------------------------------------------
+    def wrap_world(self, world: WorldState) -> None:
+        """Fold positions back into the periodic box (toroidal space only)."""
+        if self.params.space == "toroidal":
+            a = self.axes
+            world.pos[:, :a] = wrap(world.pos[:, :a], self.lo[:a], self.size[:a])
+
+    @hookimpl(tryfirst=True)
+    def swarmscene_run_start(self, sim: "Simulation") -> None:
+        self.wrap_world(sim.world)
+
+    @hookimpl(tryfirst=True)
+    def swarmscene_step_end(self, sim: "Simulation") -> None:
+        # Before the monitors and the recorder (tryfirst), and before anything has queried the
+        # tick's fresh Sensing snapshot (its tree is built lazily), so all of them see the box.
+        self.wrap_world(sim.world)
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:
+        heading = self.heading[sim.world.healthy]
+        unit = heading / np.maximum(np.linalg.norm(heading, axis=1, keepdims=True), 1e-12)
+        metrics["flocking.polarization"] = float(np.linalg.norm(unit.mean(axis=0))) if len(unit) else None
+        metrics["flocking.mean_neighbours"] = float(self.neighbour_count.mean())
+
+
+@hookimpl
+def swarmscene_register_formations(register) -> None:
+    register(ReynoldsFlocking)
