@@ -138,6 +138,19 @@ class OutputConfig(_Strict):
     progress: Literal["auto", "on", "off"] = Field(
         "auto", description="progress line on long runs (auto: only on a terminal)"
     )
+    plots: bool = Field(
+        False, description="write trajectories.png, safety.png and speed.png (needs the plots extra)"
+    )
+    animation: bool = Field(
+        False, description="write animation.gif (animation.mp4 when ffmpeg is available); plots extra"
+    )
+    animation_frames: int = Field(150, ge=2, description="most frames in the animation (evenly subsampled)")
+    comm_edges: bool = Field(False, description="draw communication edges (within comm.range) in the animation")
+    rerun: bool = Field(False, description="write replay.rrd for the Rerun viewer (needs the rerun extra)")
+    objective: list[str] = Field(
+        default_factory=list,
+        description="metrics the run returns to a Hydra sweeper (one: a float, several: a tuple), e.g. Optuna",
+    )
 
 
 class EventConfig(_Strict):

@@ -7,7 +7,10 @@
 
 Bad input prints one line per problem (``dotted.key: what is allowed (got value)``) and exits
 with status 2, without a traceback (set ``SWARMSCENE_DEBUG=1`` for one) and without leaving a run
-directory behind. In a multirun, a failing job raises an ordinary exception, so the others run.
+directory behind. In a multirun, a failing job is recorded with its error (the others run), a
+job already complete for the same config is skipped, and the sweep directory gets summary.csv and
+summary.md at the end (docs/sweeps.md). Ctrl-C writes what the run has, marked incomplete, and
+exits with status 130.
 """
 
 from __future__ import annotations
@@ -19,7 +22,10 @@ from pathlib import Path
 from typing import Any
 
 EXIT_CONFIG = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
 DEBUG_ENV = "SWARMSCENE_DEBUG"
+# Every multirun ends by writing the sweep's tables (summary.csv, summary.md); see swarmscene.sweep.
+SWEEP_CALLBACK = "++hydra.callbacks.swarmscene_summary._target_=swarmscene.sweep.SweepSummary"
 
 
 def main() -> None:
@@ -38,8 +44,13 @@ def main() -> None:
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
     )
+    if not {"-sc", "--shell-completion"} & set(sys.argv[1:]):
+        sys.argv.append(SWEEP_CALLBACK)  # last: options before it keep their arguments
     try:
         app()
+    except KeyboardInterrupt:
+        print("swarmscene: interrupted", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
     except Exception as exc:  # every user-fixable problem becomes one line
         if debug:
             raise
@@ -65,36 +76,113 @@ def _error_lines(exc: BaseException) -> list[str]:
 
 
 def _task(cfg: Any) -> Any:
-    """Hydra task: validate, run, write the run directory, print the summary."""
+    """Hydra task: validate, run, write the run directory, print the summary.
+
+    In a multirun every exception of the job is caught and recorded in its run directory
+    (``error.json``, and a manifest with status ``failed``), so the other jobs still run and the
+    sweep table shows the error; a job whose directory already holds a complete manifest with the
+    same config hash is skipped (resume). A Ctrl-C writes what the run has, marked incomplete, and
+    ends the process with status 130.
+    """
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
     from omegaconf import OmegaConf
 
-    from . import api
-    from .core.errors import ConfigError
-    from .summary import Progress, summary_text
-
     hydra_cfg = HydraConfig.get()
     run_dir = Path(hydra_cfg.runtime.output_dir)
-    sweep = hydra_cfg.mode == RunMode.MULTIRUN
     data = OmegaConf.to_container(cfg, resolve=True)
+    if hydra_cfg.mode != RunMode.MULTIRUN:
+        return _single(data, run_dir)
+    from .sweep import record_failure
+
+    try:
+        return _job(data, run_dir)
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # the job failed: record it, let the launcher run the others
+        record_failure(run_dir, exc, data)
+        print(f"swarmscene: job {run_dir.name} failed: {_error_lines(exc)[0]}", file=sys.stderr)
+        names = (data.get("output") or {}).get("objective") or []
+        if names:  # a sweeper gets NaN (Optuna: a failed trial)
+            return _objective_from(names, {})
+        return {"status": "failed", "error": str(exc)}
+
+
+def _single(data: dict[str, Any], run_dir: Path) -> Any:
+    from . import api
+    from .core.errors import ConfigError
+
     try:
         sim = api.build(data)
     except ConfigError as exc:
-        if sweep or os.environ.get(DEBUG_ENV):
-            raise  # an ordinary exception: the launcher records it and runs the other jobs
+        if os.environ.get(DEBUG_ENV):
+            raise
         _remove_unfinished(run_dir)
         # Exit here: an exception would pass through Hydra's job runner, which adds its own line.
         _report(exc.lines)
+    result = _run_and_write(sim, run_dir, sweep=False)
+    if not result.complete:
+        print(f"swarmscene: interrupted at t = {result.metrics['duration']:.2f} s; "
+              f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
+    return _objective(sim, result)
+
+
+def _job(data: dict[str, Any], run_dir: Path) -> Any:
+    """One job of a sweep: skip when already complete for this config, else run and write."""
+    from . import api
+    from .sweep import completed_metrics
+
+    scenario = api.load(data)
+    done = completed_metrics(run_dir, scenario.data)
+    if done is not None:
+        print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
+        return _objective_from(scenario.config.output.objective, done)
+    sim = api.build(scenario)
+    result = _run_and_write(sim, run_dir, sweep=True)
+    if not result.complete:
+        raise KeyboardInterrupt  # outputs are written and marked incomplete; stop the sweep
+    return _objective(sim, result)
+
+
+def _run_and_write(sim: Any, run_dir: Path, sweep: bool) -> Any:
+    from . import api
+    from .summary import Progress, summary_text
+
     output = sim.config.output
     progress = Progress.maybe(output.progress, enabled=not sweep)
-    result = sim.run(progress=progress)
-    if progress is not None:
-        progress.close()
+    try:
+        result = sim.run(progress=progress)
+    finally:
+        if progress is not None:
+            progress.close()
     api.write_outputs(sim, result, run_dir)
-    if output.summary:
+    if output.plots or output.animation:
+        from .plots import write_run_plots
+
+        write_run_plots(run_dir, sim=sim, result=result)
+    if output.rerun:
+        from .replay import export_rerun
+
+        export_rerun(run_dir, sim=sim, result=result)
+    if output.summary and not sweep:
         print(summary_text(sim, result, run_dir))
-    return result.metrics
+    return result
+
+
+def _objective(sim: Any, result: Any) -> Any:
+    return _objective_from(sim.config.output.objective, result.metrics)
+
+
+def _objective_from(names: list[str], metrics: dict[str, Any]) -> Any:
+    """The metrics a sweeper optimises (``output.objective``), or all metrics when none is named."""
+    if not names:
+        return metrics
+    values = []
+    for name in names:
+        value = metrics.get(name)
+        values.append(float("nan") if value is None else float(value))
+    return values[0] if len(values) == 1 else tuple(values)
 
 
 def _remove_unfinished(run_dir: Path) -> None:
