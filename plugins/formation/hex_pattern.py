@@ -268,6 +268,19 @@ DECIMETRE = 0.1
 """Resolution of the assignment costs, m (thesis: distances rounded to the decimetre)."""
 
 
+def _distance_dm(pattern: HexPattern, follower_xy: np.ndarray, leader_xy: np.ndarray) -> np.ndarray:
+    """||h_j + r_N - r_i|| in whole decimetres, float64 (exact integers), shape (K, M)."""
+    slots = pattern.offsets_xy + np.asarray(leader_xy, dtype=float)[:2]
+    dist = cdist(np.asarray(follower_xy, dtype=float)[:, :2], slots)
+    dist *= 1.0 / DECIMETRE
+    return np.rint(dist, out=dist)
+
+
+def _penalty_dm(pattern: HexPattern) -> np.ndarray:
+    """gamma_j rho_j d_r of eq. 4.12 in whole decimetres, float64, shape (M,)."""
+    return np.rint(pattern.periphery_penalty / DECIMETRE)
+
+
 def assignment_cost(
     pattern: HexPattern, follower_xy: np.ndarray, leader_xy: np.ndarray
 ) -> np.ndarray:
@@ -276,10 +289,8 @@ def assignment_cost(
     c~_ij = ||h_j - h_0 + r_N - r_i|| + gamma_j rho_j d_r, h_0 = 0, using horizontal world
     positions (the altitude is ignored by the assignment, as in the thesis).
     """
-    slots = pattern.offsets_xy + np.asarray(leader_xy, dtype=float)[:2]
-    dist = cdist(np.asarray(follower_xy, dtype=float)[:, :2], slots)
-    penalty = np.rint(pattern.periphery_penalty / DECIMETRE)
-    return np.rint(dist / DECIMETRE).astype(np.int64) + penalty.astype(np.int64)
+    cost = _distance_dm(pattern, follower_xy, leader_xy) + _penalty_dm(pattern)
+    return cost.astype(np.int64)
 
 
 def solve_assignment(cost: np.ndarray, column_penalty: np.ndarray | None = None) -> np.ndarray:
@@ -295,15 +306,20 @@ def solve_assignment(cost: np.ndarray, column_penalty: np.ndarray | None = None)
     shortest augmenting paths), warm-started for large swarms by
     :func:`~swarmscene.plugins.formation.multiscale_assignment.solve_square`.
     """
-    k, m = cost.shape
+    if column_penalty is None:
+        column_penalty = np.zeros(cost.shape[1])
+    return solve_square(_square_problem(cost - column_penalty, column_penalty))[: cost.shape[0]]
+
+
+def _square_problem(distance: np.ndarray, column_penalty: np.ndarray) -> np.ndarray:
+    """Eq. 4.13 with the column penalty on the dummy rows: real rows, then M - K rows of -p_j."""
+    k, m = distance.shape
     if k > m:
         raise ValueError(f"{k} followers but only {m} offsets")
-    if column_penalty is None:
-        column_penalty = np.zeros(m, dtype=cost.dtype)
-    square = np.empty((m, m), dtype=cost.dtype)
-    square[:k] = cost - column_penalty
+    square = np.empty((m, m), dtype=np.result_type(distance, column_penalty))
+    square[:k] = distance
     square[k:] = -column_penalty
-    return solve_square(square)[:k]
+    return square
 
 
 def assign_offsets(
@@ -329,10 +345,9 @@ def assign_offsets(
     """
     follower_ids = np.asarray(follower_ids)
     order = np.argsort(follower_ids, kind="stable")
-    cost = assignment_cost(pattern, np.asarray(follower_xy)[order], leader_xy)
-    penalty = np.rint(pattern.periphery_penalty / DECIMETRE).astype(np.int64)
+    distance = _distance_dm(pattern, np.asarray(follower_xy)[order], leader_xy)
     slots = np.empty(order.size, dtype=np.int64)
-    slots[order] = solve_assignment(cost, penalty)
+    slots[order] = solve_square(_square_problem(distance, _penalty_dm(pattern)))[: order.size]
     return slots
 
 
