@@ -66,7 +66,8 @@ def main() -> None:
         cost = assignment_cost(pattern, xy, leader)
         square = np.vstack([cost - penalty, np.tile(-penalty, (pattern.m - cost.shape[0], 1))])
         t_plain, (rows, cols) = best_of(min(args.repeat, 2), lambda: linear_sum_assignment(square))
-        same = cost[np.arange(cost.shape[0]), slots].sum() == cost[rows[rows < cost.shape[0]], cols[rows < cost.shape[0]]].sum()
+        real = rows < cost.shape[0]
+        same = cost[np.arange(cost.shape[0]), slots].sum() == cost[rows[real], cols[real]].sum()
         print(f"{name:58s} {t_ours * 1e3:11.1f} ms {t_plain * 1e3:9.1f} ms  {same}")
 
 
