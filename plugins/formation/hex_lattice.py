@@ -19,7 +19,11 @@ North towards East); the pattern module converts it.
 
 Simplifications (the full INIT/FORM/FLOW/LEAD/STOP workflow with the swarm map is separate):
 the plugin reads the true state, not a delayed swarm map; followers are not sent home at the end;
-the catch-up test (eq. 4.1-4.2) is replaced by the slot-distance test above.
+the catch-up test (eq. 4.1-4.2) is replaced by the slot-distance test above. Slots are
+re-assigned each tick only while the leader waits (the thesis' FORM; once it moves, FLOW
+followers keep their slot), with a hysteresis ``switch_margin`` (see ``assign_offsets``). A
+follower still navigating when the leader sets off (``formation_timeout``) chases a slot that
+moves at the leader's speed with APF speed v_sat: it only catches up when the leader slows.
 
 The mission is complete once the leader's reference has reached the last waypoint and every
 healthy follower is within ``arrival_tolerance`` of its slot.
@@ -64,8 +68,12 @@ class HexLattice(Formation):
         )
         reassign: Literal["while_forming", "every_tick", "on_failure"] = Field(
             "while_forming",
-            description="when slots are re-assigned: each tick until formed (thesis FORM), each "
-            "tick, or only after a failure (always also after a failure)",
+            description="when slots are re-assigned: each tick while the leader waits (thesis FORM), "
+            "each tick, or only after a failure (always also after a failure)",
+        )
+        switch_margin: float = Field(
+            0.5, ge=0, description="hysteresis of the re-assignment: a follower's current slot is "
+            "discounted by this distance, m (0: the thesis' plain re-assignment)"
         )
         input_feedforward: bool = Field(
             True, description="add the leader's applied input (world.extras['u']) as TRACK feed-forward"
@@ -97,9 +105,11 @@ class HexLattice(Formation):
     def _assign(self, world: WorldState) -> None:
         """Eq. 4.12-4.13 over the healthy followers (ids = agent indices)."""
         ids = self.followers[world.healthy[self.followers]]
+        current = self.slot_of[ids].copy()
         self.slot_of[:] = -1
         if ids.size:
-            self.slot_of[ids] = assign_offsets(self.pattern, ids, world.pos[ids], world.pos[self.leader])
+            self.slot_of[ids] = assign_offsets(self.pattern, ids, world.pos[ids], world.pos[self.leader],
+                                               current, self.params.switch_margin)
 
     def _in_place(self, world: WorldState, targets: np.ndarray) -> np.ndarray:
         active = world.healthy & (self.slot_of >= 0)
@@ -119,15 +129,15 @@ class HexLattice(Formation):
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
         p = self.params
         failure = not np.array_equal(world.healthy, self._healthy)
-        forming = self.formed_at is None
-        if failure or p.reassign == "every_tick" or (forming and p.reassign == "while_forming"):
+        leader_waiting = self.t_start is None
+        if failure or p.reassign == "every_tick" or (leader_waiting and p.reassign == "while_forming"):
             self._assign(world)
             self._healthy = world.healthy.copy()
 
         targets = self.slot_targets(world)
-        if forming and np.all(self._in_place(world, targets)):
+        if self.formed_at is None and np.all(self._in_place(world, targets)):
             self.formed_at = world.t
-        if self.t_start is None and (self.formed_at is not None or world.t >= p.formation_timeout):
+        if leader_waiting and (self.formed_at is not None or world.t >= p.formation_timeout):
             self.t_start = world.t
 
         sp = Setpoints.hold(world.pos)

@@ -118,3 +118,17 @@ def test_thesis_line_start_forms_then_flies_the_square_in_formation():
     slots = flow[:, [form.leader]].repeat(len(followers), axis=1)
     slots[:, :, :2] += form.pattern.offsets_xy[form.slot_of[followers]]
     assert np.linalg.norm(flow[:, followers] - slots, axis=2).mean() < 0.8
+
+
+def test_slots_are_kept_once_the_leader_has_set_off():
+    ctx, world = _context(np.tile([0.0, 0.0, 4.0], (8, 1)) + np.c_[np.arange(8) * 1.5, np.zeros((8, 2))])
+    form = HexLattice(HexLattice.Params(formation_timeout=1.0, switch_margin=0.0), ctx)
+    form.setpoints(world, None)
+    world.t = 1.0
+    form.setpoints(world, None)  # timeout: the leader sets off without the formation
+    assert form.t_start == 1.0 and form.formed_at is None
+    held = form.slot_of.copy()
+    world.pos[[0, 2]] = world.pos[[2, 0]]  # two followers swap places
+    world.t = 1.1
+    form.setpoints(world, None)
+    np.testing.assert_array_equal(form.slot_of, held)

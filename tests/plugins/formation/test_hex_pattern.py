@@ -267,3 +267,17 @@ def test_large_swarm_assignment_is_the_rectangular_optimum():
     rows, cols = linear_sum_assignment(cost)
     assert len(set(slots.tolist())) == n - 1
     assert cost[np.arange(n - 1), slots].sum() == cost[rows, cols].sum()
+
+
+def test_switch_margin_keeps_the_current_slot_unless_the_gain_exceeds_it():
+    p = hex_pattern(3, D_R)
+    s0, s1 = p.offsets_xy[0], p.offsets_xy[1]
+    # One follower closer to slot 1 (2.35 m) than to slot 0 (2.65 m), holding slot 0; rounded
+    # to decimetres (banker's rounding: 24 vs 26) the gain is 0.2 m.
+    along = (s1 - s0) / np.linalg.norm(s1 - s0)
+    xy = ((s0 + s1) / 2 + 0.15 * along)[None]
+    ids, leader = np.array([5]), np.zeros(2)
+    assert assign_offsets(p, ids, xy, leader)[0] == 1  # plain optimum
+    assert assign_offsets(p, ids, xy, leader, np.array([0]), switch_margin=0.5)[0] == 0
+    assert assign_offsets(p, ids, xy, leader, np.array([0]), switch_margin=0.1)[0] == 1
+    assert assign_offsets(p, ids, xy, leader, np.array([-1]), switch_margin=0.5)[0] == 1
