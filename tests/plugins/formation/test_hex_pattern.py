@@ -273,7 +273,7 @@ def test_switch_margin_keeps_the_current_slot_unless_the_gain_exceeds_it():
     p = hex_pattern(3, D_R)
     s0, s1 = p.offsets_xy[0], p.offsets_xy[1]
     # One follower closer to slot 1 (2.35 m) than to slot 0 (2.65 m), holding slot 0; rounded
-    # to decimetres (banker's rounding: 24 vs 26) the gain is 0.2 m.
+    # to whole decimetres (26 and 23) the gain is 0.3 m.
     along = (s1 - s0) / np.linalg.norm(s1 - s0)
     xy = ((s0 + s1) / 2 + 0.15 * along)[None]
     ids, leader = np.array([5]), np.zeros(2)
