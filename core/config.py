@@ -134,6 +134,17 @@ class OutputConfig(_Strict):
     trajectory: bool = Field(True, description="write trajectory.npz")
     trajectory_every: int = Field(1, ge=1, description="record every k-th guidance tick")
     float32: bool = Field(False, description="store trajectory arrays as float32")
+    trajectory_stream: Literal["auto", "on", "off"] = Field(
+        "auto",
+        description="stream frames to disk in chunks (auto: when the whole record exceeds "
+        "trajectory_buffer_mb)",
+    )
+    trajectory_buffer_mb: float = Field(
+        256.0, gt=0, description="MiB of frames held in memory; a streamed run flushes each full chunk"
+    )
+    trajectory_spill_dir: str | None = Field(
+        None, description="directory for streamed chunks until the run dir is written (null: system temp)"
+    )
     summary: bool = Field(True, description="print the run summary")
     progress: Literal["auto", "on", "off"] = Field(
         "auto", description="progress line on long runs (auto: only on a terminal)"

@@ -11,7 +11,6 @@ Layout of a run directory:
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import math
 import os
@@ -35,6 +34,24 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write an uncompressed ``.npz`` atomically, streamed from ``arrays`` (memory maps welcome).
+
+    numpy writes each member 16 MiB at a time, so a streamed trajectory is archived without being
+    loaded (:mod:`swarmscene.core.recorder`).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)  # uncompressed: fast to write, each member readable alone
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -92,9 +109,7 @@ def write_run_dir(
     run_dir = Path(run_dir)
     atomic_write_bytes(run_dir / "config.yaml", yaml.safe_dump(_jsonable(data), sort_keys=False).encode())
     if trajectory:
-        buffer = io.BytesIO()
-        np.savez(buffer, **trajectory)  # uncompressed: fast to write, memory-mappable to read
-        atomic_write_bytes(run_dir / "trajectory.npz", buffer.getvalue())
+        write_npz(run_dir / "trajectory.npz", trajectory)
     atomic_write_json(run_dir / "metrics.json", metrics)
     manifest = {
         "config_hash": config_hash(data),
