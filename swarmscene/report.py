@@ -1,0 +1,149 @@
+"""``swarmscene-report``: rebuild a sweep's (or a run's) tables, plot a metric against a parameter.
+
+    swarmscene-report multirun/cem_k                                   # summary.csv/.parquet/.md
+    swarmscene-report multirun/indoor_corridor --plot indoor.success --against environment
+    swarmscene-report outputs/default/2026-...  --run-plots --rerun    # a run's pictures, replay
+
+``--plot METRIC --against PARAM`` writes ``METRIC_vs_PARAM.png`` into the directory: the mean of
+the metric over each value of the parameter (complete runs only) with its 95 % confidence interval
+as error bars (Student t for numbers, Wilson for booleans, which are shown as rates), one line per
+combination of the other swept parameters. The seed is never a line: runs of all seeds are pooled.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import sweep
+
+
+def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[str, Any]:
+    """The data of a metric-versus-parameter plot.
+
+    Returns ``{"x": [values], "lines": {label: (mean, lower, upper)}, "rate": bool}``: x sorted, one
+    line per combination of the other swept parameters, NaN where a value has no complete run.
+    """
+    if not rows:
+        raise ValueError("no jobs found")
+    if param not in {k for row in rows for k in row}:
+        raise ValueError(f"{param!r} is not a column (parameters: {', '.join(sweep.param_columns(rows)) or 'none'})")
+    done = [r for r in rows if r["status"] == "complete"]
+    values = [r.get(metric) for r in done if r.get(metric) is not None]
+    if not values:
+        raise ValueError(f"{metric!r}: no complete run has this metric")
+    rate = all(isinstance(v, bool) for v in values)
+    x = sorted({r.get(param) for r in rows}, key=lambda v: (isinstance(v, str), v))
+    others = [k for k in sweep.swept_parameters(rows) if k not in (param, "seed")]
+    lines: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    for key, members in sweep.groups(done, others):
+        label = ", ".join(f"{k}={v}" for k, v in zip(others, key)) or metric
+        stats = np.full((3, len(x)), np.nan)
+        for j, xv in enumerate(x):
+            sample = [r.get(metric) for r in members if r.get(param) == xv and r.get(metric) is not None]
+            if not sample:
+                continue
+            if rate:
+                lo, hi = sweep.wilson(sum(sample), len(sample))
+                stats[:, j] = (sum(sample) / len(sample), lo, hi)
+            else:
+                mean, half, _ = sweep.mean_ci(float(v) for v in sample)
+                half = 0.0 if not np.isfinite(half) else half
+                stats[:, j] = (mean, mean - half, mean + half)
+        lines[label] = (stats[0], stats[1], stats[2])
+    return {"x": x, "lines": lines, "rate": rate}
+
+
+def plot_metric(rows: list[dict[str, Any]], metric: str, param: str, title: str = "") -> Any:
+    """A matplotlib Figure of :func:`metric_against` (error bars: 95 % CI)."""
+    from matplotlib.figure import Figure
+
+    data = metric_against(rows, metric, param)
+    x = data["x"]
+    numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in x)
+    pos = np.asarray(x, dtype=float) if numeric else np.arange(len(x), dtype=float)
+    fig = Figure(figsize=(7, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    for label, (mean, lo, hi) in data["lines"].items():
+        ax.errorbar(pos, mean, yerr=[mean - lo, hi - mean], marker="o", capsize=3, label=label)
+    if not numeric:
+        ax.set_xticks(pos, [str(v) for v in x], rotation=20, ha="right")
+    ax.set_xlabel(param)
+    ax.set_ylabel(f"{metric} (rate)" if data["rate"] else metric)
+    if data["rate"]:
+        ax.set_ylim(-0.05, 1.05)
+    ax.set_title(title or f"{metric} against {param} (mean, 95 % CI)")
+    if len(data["lines"]) > 1:
+        ax.legend(fontsize=8)
+    return fig
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "._-" else "_" for c in name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="swarmscene-report",
+        description="Rebuild summary.csv, summary.parquet and summary.md of a sweep or run directory; "
+        "plot a metric against a swept parameter.",
+    )
+    parser.add_argument("directory", type=Path, help="a sweep directory (multirun/...) or a run directory")
+    parser.add_argument("--plot", metavar="METRIC", help="metric to plot, e.g. success or indoor.success")
+    parser.add_argument("--against", metavar="PARAM", help="swept parameter for the x axis, e.g. environment")
+    parser.add_argument("--out", type=Path, help="where to write the plot (default: DIR/METRIC_vs_PARAM.png)")
+    parser.add_argument("--run-plots", action="store_true", help="redraw each run's pictures (plots extra)")
+    parser.add_argument("--animation", action="store_true", help="with --run-plots: also the animation")
+    parser.add_argument("--rerun", action="store_true", help="write each run's replay.rrd (rerun extra)")
+    args = parser.parse_args(argv)
+    if bool(args.plot) != bool(args.against):
+        parser.error("--plot and --against go together")
+    directory: Path = args.directory
+    if not directory.is_dir():
+        parser.error(f"{directory}: not a directory")
+    rows = sweep.write_summary(directory)
+    if not rows:
+        print(f"swarmscene-report: {directory}: no run directories found", file=sys.stderr)
+        return 1
+    print(f"swarmscene-report: {len(rows)} jobs -> {directory / 'summary.csv'}, {directory / 'summary.md'}")
+    if args.plot:
+        try:
+            fig = plot_metric(rows, args.plot, args.against, title=f"{directory.name}: {args.plot} against {args.against}")
+        except ValueError as exc:
+            print(f"swarmscene-report: {exc}", file=sys.stderr)
+            return 2
+        out = args.out or directory / f"{_safe(args.plot)}_vs_{_safe(args.against)}.png"
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=110)
+        from .core.outputs import atomic_write_bytes
+
+        atomic_write_bytes(out, buffer.getvalue())
+        print(f"swarmscene-report: plot -> {out}")
+    if args.run_plots or args.rerun:
+        for run_dir in sweep.job_dirs(directory):
+            if not (run_dir / "trajectory.npz").is_file():
+                continue
+            if args.run_plots:
+                from .plots import write_run_plots
+
+                write_run_plots(run_dir, plots=True, animation=args.animation)
+            if args.rerun:
+                from .replay import export_rerun
+
+                export_rerun(run_dir)
+        print("swarmscene-report: run pictures written")
+    return 0
+
+
+def entry() -> None:
+    """Console script ``swarmscene-report``."""
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    entry()
