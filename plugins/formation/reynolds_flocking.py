@@ -160,6 +160,8 @@ def flocking_steer(
         steer (N, 3) = c_i + s_i + m_i (not yet divided by |N_i|), and |N_i| (N,).
     """
     n = heading.shape[0]
+    if len(pairs) == 0:
+        return np.zeros((n, 3)), np.zeros(n)
     src = np.concatenate([pairs[:, 0], pairs[:, 1]])
     other = np.concatenate([pairs[:, 1], pairs[:, 0]])
     toward = np.concatenate([delta, -delta])  # from src to other
