@@ -13,10 +13,12 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.formation.static_shape",
     "swarmscene.plugins.formation.indoor_swarm",
     "swarmscene.plugins.formation.virtual_rigid_body",
+    "swarmscene.plugins.formation.hex_lattice",
     "swarmscene.plugins.formation.reynolds_flocking",
     # avoidance: how they stay safe
     "swarmscene.plugins.avoidance.none",
     "swarmscene.plugins.avoidance.potential",
     "swarmscene.plugins.avoidance.cem",
     "swarmscene.plugins.avoidance.potential_barrier",
+    "swarmscene.plugins.avoidance.apf_navigation",
 )
