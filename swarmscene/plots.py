@@ -66,11 +66,22 @@ class RunData:
         return float(self.config.get("comm", {}).get("range", np.inf))
 
     def failures(self) -> list[tuple[int, float, np.ndarray]]:
-        """(agent, time, position) of every agent that failed during the recorded run."""
+        """(agent, time, position) of every agent that failed during the recorded run.
+
+        The time is the scheduled event's (``events``) when one names the agent; the frames only
+        bound it (an event at the start of a tick shows in the frame recorded at its end).
+        """
+        scheduled: dict[int, list[float]] = {}
+        for event in self.config.get("events") or []:
+            if event.get("kind") == "hover":
+                for agent in event.get("agents", []):
+                    scheduled.setdefault(int(agent), []).append(float(event["at"]))
         out = []
         for agent in np.flatnonzero(~self.healthy.all(axis=0)):
             k = int(np.argmax(~self.healthy[:, agent]))
-            out.append((int(agent), float(self.t[k]), self.pos[k, agent]))
+            times = [at for at in scheduled.get(int(agent), []) if at <= self.t[k] + 1e-9]
+            when = max(times) if times else float(self.t[max(k - 1, 0)])
+            out.append((int(agent), when, self.pos[k, agent]))
         return out
 
 
