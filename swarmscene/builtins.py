@@ -14,6 +14,7 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.formation.indoor_swarm",
     "swarmscene.plugins.formation.virtual_rigid_body",
     "swarmscene.plugins.formation.hex_lattice",
+    "swarmscene.plugins.formation.outdoor_mission",
     "swarmscene.plugins.formation.reynolds_flocking",
     # avoidance: how they stay safe
     "swarmscene.plugins.avoidance.none",

@@ -1,0 +1,165 @@
+"""The thesis' swarm map (section 4.3.1, "Communication"), for every agent at once, as arrays.
+
+Every agent broadcasts a message (agentId, swarmId, timeStamp, taskState, position, velocity,
+input) each T_s; each agent keeps an unordered map of the last message received from every
+other agent and removes entries not updated for more than T_msg. HEAVEN relays messages over
+several hops, with a delay proportional to the hop distance (section 4.2):
+
+    tau_ij = dist(i, j) tau_com                                                  (section 4.2)
+
+Representation (vectorised, no per-agent dictionaries): a ring buffer holds the last ``depth``
+broadcasts of every agent (tick-indexed history), and the maps are (N observers x N entries)
+arrays: ``stamp[i, j]`` is the tick at which j sent the message i holds about j (-1: none), and
+``state``, ``pos``, ``vel``, ``u`` hold that message's fields. At tick k observer i holds j's
+message of tick k - ceil(tau_ij / T_s), when j was broadcasting then and the two are connected
+now; the ring only needs ``T_msg / T_s + 1`` ticks since an older message would expire on
+arrival.
+
+Choices where the text is loose:
+- An agent's own message enters its map through its network node like any other, one hop
+  late (``self_hops``, default 1): a map is then one consistent snapshot of the swarm, the
+  same for every agent at the same hop distances, so the distributed assignment (eq. 4.12)
+  computed on it agrees between agents; control still uses the agent's own true state.
+- The hop distance is taken on the communication graph of the current tick (range d_com,
+  members: healthy agents with a working radio, exactly the engine's ``Sensing.comm_members``):
+  a message in flight to an agent that has just been cut off is lost.
+- Expiry: an entry is present while its age k - stamp is at most T_msg / T_s ticks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import shortest_path
+from scipy.spatial.distance import pdist, squareform
+
+NO_ENTRY = -1
+"""``stamp`` of an entry never received."""
+
+DENSE_HOPS_LIMIT = 400
+"""Up to this many agents the communication graph is built from a dense distance matrix."""
+
+
+def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) -> np.ndarray:
+    """dist(i, j): hops between every pair over the communication graph, (N, N) float.
+
+    Args:
+        pos: (N, 3) positions. members: (N,) bool, agents taking part in communication.
+        d_com: communication range, m (two members closer than this are one hop apart).
+        tree: optional cKDTree over ``pos`` (used instead of a dense matrix for large N).
+
+    Returns:
+        hops, 0 on the diagonal, ``inf`` between agents not connected (and for non-members).
+    """
+    n = pos.shape[0]
+    idx = np.flatnonzero(members)
+    hops = np.full((n, n), np.inf)
+    np.fill_diagonal(hops, 0.0)
+    m = idx.size
+    if m < 2:
+        return hops
+    if n <= DENSE_HOPS_LIMIT or tree is None:
+        adjacent = squareform(pdist(pos[idx]) <= d_com)
+    else:
+        pairs = tree.query_pairs(d_com, output_type="ndarray")
+        keep = members[pairs[:, 0]] & members[pairs[:, 1]]
+        rank = np.full(n, -1)
+        rank[idx] = np.arange(m)
+        a, b = rank[pairs[keep, 0]], rank[pairs[keep, 1]]
+        adjacent = np.zeros((m, m), dtype=bool)
+        adjacent[a, b] = adjacent[b, a] = True
+    if adjacent.sum() == m * (m - 1):  # everyone in range of everyone: one hop (the usual case)
+        sub = np.ones((m, m))
+        np.fill_diagonal(sub, 0.0)
+    else:
+        sub = shortest_path(csr_matrix(adjacent), unweighted=True, directed=False)
+    hops[np.ix_(idx, idx)] = sub
+    return hops
+
+
+class SwarmMap:
+    """Every agent's local swarm map, updated once per guidance tick.
+
+    Args:
+        n: number of agents.
+        T_s: broadcast (guidance) period, s.
+        tau_com: single-hop delay tau_com, s (thesis: <= 3 T_s, measured ~0.2 s).
+        T_msg: data storage time, s: entries older than this are removed.
+        swarm_id: (N,) swarm identifier of each agent (messages of other swarms are dropped);
+            None: all in swarm 0.
+        self_hops: hops through which an agent's own message reaches its own map (see module).
+    """
+
+    def __init__(self, n: int, T_s: float, tau_com: float, T_msg: float,
+                 swarm_id: np.ndarray | None = None, self_hops: int = 1) -> None:
+        self.n, self.T_s, self.tau_com, self.T_msg = n, T_s, tau_com, T_msg
+        self.msg_ticks = int(math.floor(T_msg / T_s + 1e-9))
+        self.depth = self.msg_ticks + 1
+        self.swarm_id = np.zeros(n, dtype=int) if swarm_id is None else np.asarray(swarm_id)
+        self.same_swarm = self.swarm_id[:, None] == self.swarm_id[None, :]
+        self.self_hops = self_hops
+        # ring of broadcasts, indexed by tick % depth
+        self.sent_tick = np.full(self.depth, -1, dtype=np.int64)
+        self.h_sent = np.zeros((self.depth, n), dtype=bool)
+        self.h_state = np.zeros((self.depth, n), dtype=np.int8)
+        self.h_pos = np.zeros((self.depth, n, 3))
+        self.h_vel = np.zeros((self.depth, n, 3))
+        self.h_u = np.zeros((self.depth, n, 3))
+        # the maps: observer i (row), entry j (column)
+        self.stamp = np.full((n, n), NO_ENTRY, dtype=np.int64)
+        self.state = np.zeros((n, n), dtype=np.int8)
+        self.pos = np.zeros((n, n, 3))
+        self.vel = np.zeros((n, n, 3))
+        self.u = np.zeros((n, n, 3))
+        self.present = np.zeros((n, n), dtype=bool)
+        self.k = -1
+
+    def delay_ticks(self, hops: np.ndarray) -> np.ndarray:
+        """ceil(hops tau_com / T_s) as int, with -1 where unreachable (inf hops)."""
+        hops = np.array(hops, dtype=float, copy=True)
+        np.fill_diagonal(hops, np.where(np.isfinite(np.diag(hops)), self.self_hops, np.inf))
+        ticks = np.ceil(hops * self.tau_com / self.T_s - 1e-9)
+        return np.where(np.isfinite(ticks), ticks, -1).astype(np.int64)
+
+    def broadcast(self, k: int, sending: np.ndarray, state: np.ndarray, pos: np.ndarray,
+                  vel: np.ndarray, u: np.ndarray) -> None:
+        """Tick k: agents with ``sending`` True broadcast their (state, position, velocity, input)."""
+        slot = k % self.depth
+        self.k = k
+        self.sent_tick[slot] = k
+        self.h_sent[slot] = sending
+        self.h_state[slot] = state
+        self.h_pos[slot] = pos
+        self.h_vel[slot] = vel
+        self.h_u[slot] = u
+
+    def deliver(self, hops: np.ndarray) -> np.ndarray:
+        """Update every map with the messages arriving at the current tick; returns ``present``.
+
+        Args:
+            hops: (N, N) hop distances of this tick (:func:`hop_matrix`), inf: not connected.
+        """
+        k = self.k
+        delay = self.delay_ticks(hops)
+        sent = k - delay  # the tick of the message that arrives now
+        usable = (delay >= 0) & (delay < self.depth) & (sent >= 0) & self.same_swarm
+        slot = np.where(usable, sent % self.depth, 0)
+        cols = np.broadcast_to(np.arange(self.n), (self.n, self.n))
+        usable &= (self.sent_tick[slot] == sent) & self.h_sent[slot, cols]
+        update = usable & (sent > self.stamp)
+        if update.any():
+            i, j = np.nonzero(update)
+            s = slot[i, j]
+            self.stamp[i, j] = sent[i, j]
+            self.state[i, j] = self.h_state[s, j]
+            self.pos[i, j] = self.h_pos[s, j]
+            self.vel[i, j] = self.h_vel[s, j]
+            self.u[i, j] = self.h_u[s, j]
+        self.present = (self.stamp != NO_ENTRY) & (k - self.stamp <= self.msg_ticks)
+        return self.present
+
+    def age(self) -> np.ndarray:
+        """Age of every entry, s (inf where absent)."""
+        return np.where(self.present, (self.k - self.stamp) * self.T_s, np.inf)
