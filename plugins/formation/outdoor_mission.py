@@ -34,9 +34,11 @@ Choices where the text is loose (figures 4.1-4.4 are missing from the copy):
   is far slower than the hand-over needs. Holding home also uses the tracker.
 - APF neighbours (F_i) are the agents of agent i's own map, at their mapped positions, on its
   flight level; candidates are pruned with the tick's k-d tree with a staleness margin.
-- The assignment's hysteresis (``switch_margin``) can only use what the map shows: a follower is
-  taken to hold the slot it is within eps_r of, so every agent with the same map still computes
-  the same assignment. Assignments are cached per identical (decimetre-rounded) view.
+- Only FORM followers update the assignment (the thesis: FLOW followers keep their offset), so
+  a FLOW follower in the map is taken to hold the slot nearest its mapped position and the FORM
+  and INIT followers share the other slots (eq. 4.12-4.13 on those). Every agent with the same
+  map computes the same answer; without this a FORM agent could be sent onto a FLOW agent's
+  slot. Assignments are cached per identical (decimetre-rounded) view.
 """
 
 from __future__ import annotations
@@ -54,7 +56,8 @@ from swarmscene.core.state import WorldState
 from swarmscene.plugins.formation.apf_navigation_math import (
     LEVEL_BAND, arrived_on_target, attraction_velocity, close_to_target, collision_gain,
     flight_level_altitude, saturate)
-from swarmscene.plugins.formation.hex_pattern import assign_offsets, formation_graph, hex_pattern
+from swarmscene.plugins.formation.hex_pattern import (
+    DECIMETRE, assign_offsets, assignment_cost, formation_graph, hex_pattern, solve_assignment)
 from swarmscene.plugins.formation.static_shape import WaypointPath
 from swarmscene.plugins.formation.swarm_map import SwarmMap, hop_matrix
 
@@ -247,8 +250,6 @@ class OutdoorMission(Formation):
         T_end: float = Field(10.0, ge=0, description="end delay (followers to STOP), s")
         tau_com: float = Field(0.2, ge=0, description="single-hop delay tau_com, s (thesis ~0.2)")
         self_hops: int = Field(1, ge=0, description="hops of an agent's own message to its own map")
-        switch_margin: float = Field(
-            0.5, ge=0, description="assignment hysteresis for a follower already on a slot, m")
         level_offset: float = Field(1.0, description="navigation flight level above target, in d_c")
         altitude_gain: float = Field(1.0, gt=0, description="vertical speed per m on the flight level, 1/s")
 
@@ -298,32 +299,43 @@ class OutdoorMission(Formation):
         """Slot of every FORM follower in ``rows``, from its own map (cached per identical view)."""
         m = self.map
         lead = self.leader_of[rows]
-        view = present[rows] & (m.state[rows] != Task.LEAD) & (m.state[rows] != Task.STOP)
+        states = m.state[rows]
+        view = present[rows] & (states != Task.LEAD) & (states != Task.STOP)
         view[np.arange(rows.size), lead] = False
         dm = np.rint(m.pos[rows] * 10).astype(np.int64) * view[:, :, None]
         lead_dm = np.rint(m.pos[rows, lead] * 10).astype(np.int64)
-        key_rows = np.concatenate([view, dm.reshape(rows.size, -1), lead_dm], axis=1)
+        key_rows = np.concatenate([view * (1 + states), dm.reshape(rows.size, -1), lead_dm], axis=1)
         keys = key_rows @ self._hash_w
         for key in np.unique(keys):
             at = np.flatnonzero(keys == key)
+            r, v = rows[at[0]], view[at[0]]
             slots = self._cache.get(int(key))
-            r = rows[at[0]]
-            ids = np.flatnonzero(view[at[0]])
             if slots is None:
-                slots = self._solve(ids, m.pos[r, ids], m.pos[r, lead[at[0]]])
+                slots = self._solve(v, states[at[0]] == Task.FLOW, m.pos[r], m.pos[r, lead[at[0]]])
                 self._cache[int(key)] = slots
-            full = np.full(self.n, -1)
-            full[ids] = slots
-            self.slot[rows[at]] = np.where(full[rows[at]] >= 0, full[rows[at]], self.slot[rows[at]])
+            self.slot[rows[at]] = np.where(slots[rows[at]] >= 0, slots[rows[at]], self.slot[rows[at]])
         if len(self._cache) > 512:
             self._cache.clear()
 
-    def _solve(self, ids: np.ndarray, xy: np.ndarray, leader_pos: np.ndarray) -> np.ndarray:
+    def _solve(self, view: np.ndarray, flow: np.ndarray, pos: np.ndarray,
+               leader_pos: np.ndarray) -> np.ndarray:
+        """Eq. 4.12-4.13 on one map: FLOW followers keep the slot they are on (they no longer
+        re-assign), the others share the remaining slots. Returns the slot of every agent (-1)."""
         self.stats["solves"] += 1
-        rel = cdist(xy[:, :2] - leader_pos[:2], self.pattern.offsets_xy)
-        nearest = rel.argmin(axis=1)
-        held = np.where(rel[np.arange(len(ids)), nearest] < self.params.eps_r, nearest, -1)
-        return assign_offsets(self.pattern, ids, xy, leader_pos, held, self.params.switch_margin)
+        out = np.full(self.n, -1)
+        flowing = np.flatnonzero(view & flow)
+        if flowing.size:
+            rel = cdist(pos[flowing, :2] - leader_pos[:2], self.pattern.offsets_xy)
+            out[flowing] = rel.argmin(axis=1)
+        free = np.setdiff1d(np.arange(self.pattern.m), out[flowing])
+        ids = np.flatnonzero(view & ~flow)  # ascending ids: the thesis' deterministic order
+        if ids.size and ids.size <= free.size:
+            cost = assignment_cost(self.pattern, pos[ids], leader_pos)[:, free]
+            penalty = np.rint(self.pattern.periphery_penalty[free] / DECIMETRE)
+            out[ids] = free[solve_assignment(cost, penalty)]
+        elif ids.size:  # more followers than free slots (a stale map): plain assignment
+            out[ids] = assign_offsets(self.pattern, ids, pos[ids], leader_pos)
+        return out
 
     # -- the tick -----------------------------------------------------------------------------
 

@@ -61,7 +61,11 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
     if m < 2:
         return hops
     if n <= DENSE_HOPS_LIMIT or tree is None:
-        adjacent = squareform(pdist(pos[idx]) <= d_com)
+        within = pdist(pos[idx]) <= d_com
+        if within.all():
+            adjacent = None
+        else:
+            adjacent = squareform(within)
     else:
         pairs = tree.query_pairs(d_com, output_type="ndarray")
         keep = members[pairs[:, 0]] & members[pairs[:, 1]]
@@ -70,7 +74,7 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
         a, b = rank[pairs[keep, 0]], rank[pairs[keep, 1]]
         adjacent = np.zeros((m, m), dtype=bool)
         adjacent[a, b] = adjacent[b, a] = True
-    if adjacent.sum() == m * (m - 1):  # everyone in range of everyone: one hop (the usual case)
+    if adjacent is None or adjacent.sum() == m * (m - 1):  # everyone in range of everyone: one hop (the usual case)
         sub = np.ones((m, m))
         np.fill_diagonal(sub, 0.0)
     else:
@@ -104,15 +108,12 @@ class SwarmMap:
         self.sent_tick = np.full(self.depth, -1, dtype=np.int64)
         self.h_sent = np.zeros((self.depth, n), dtype=bool)
         self.h_state = np.zeros((self.depth, n), dtype=np.int8)
-        self.h_pos = np.zeros((self.depth, n, 3))
-        self.h_vel = np.zeros((self.depth, n, 3))
-        self.h_u = np.zeros((self.depth, n, 3))
+        self.h_kin = np.zeros((self.depth * n, 9))  # rows tick-slot * n + agent: pos, vel, u
         # the maps: observer i (row), entry j (column)
         self.stamp = np.full((n, n), NO_ENTRY, dtype=np.int64)
         self.state = np.zeros((n, n), dtype=np.int8)
-        self.pos = np.zeros((n, n, 3))
-        self.vel = np.zeros((n, n, 3))
-        self.u = np.zeros((n, n, 3))
+        self.kin = np.zeros((n, n, 9))
+        self.pos, self.vel, self.u = self.kin[..., 0:3], self.kin[..., 3:6], self.kin[..., 6:9]
         self.present = np.zeros((n, n), dtype=bool)
         self.k = -1
 
@@ -131,9 +132,8 @@ class SwarmMap:
         self.sent_tick[slot] = k
         self.h_sent[slot] = sending
         self.h_state[slot] = state
-        self.h_pos[slot] = pos
-        self.h_vel[slot] = vel
-        self.h_u[slot] = u
+        rows = self.h_kin[slot * self.n:(slot + 1) * self.n]
+        rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = pos, vel, u
 
     def deliver(self, hops: np.ndarray) -> np.ndarray:
         """Update every map with the messages arriving at the current tick; returns ``present``.
@@ -149,14 +149,16 @@ class SwarmMap:
         cols = np.broadcast_to(np.arange(self.n), (self.n, self.n))
         usable &= (self.sent_tick[slot] == sent) & self.h_sent[slot, cols]
         update = usable & (sent > self.stamp)
-        if update.any():
+        if update.all():  # the usual case: every entry refreshed (one gather per field)
+            self.stamp[...] = sent
+            self.state[...] = self.h_state[slot, cols]
+            np.take(self.h_kin, slot * self.n + cols, axis=0, out=self.kin)
+        elif update.any():
             i, j = np.nonzero(update)
             s = slot[i, j]
             self.stamp[i, j] = sent[i, j]
             self.state[i, j] = self.h_state[s, j]
-            self.pos[i, j] = self.h_pos[s, j]
-            self.vel[i, j] = self.h_vel[s, j]
-            self.u[i, j] = self.h_u[s, j]
+            self.kin[i, j] = self.h_kin[s * self.n + j]
         self.present = (self.stamp != NO_ENTRY) & (k - self.stamp <= self.msg_ticks)
         return self.present
 
