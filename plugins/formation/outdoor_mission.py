@@ -218,7 +218,7 @@ class LeaderLogic:
         """Waypoints in order: visited once the reference has reached it and the leader is within eps_r."""
         cum = self.path.cumulative
         for w in np.flatnonzero(~self.visited):
-            reached = self.s >= cum[w + 1] - 1e-9
+            reached = self.s * self.path.speed >= cum[w + 1] - 1e-9
             if not (reached and np.linalg.norm(pos - self.path.points[w + 1]) < self.p.eps_r):
                 return
             self.visited[w] = True
