@@ -294,3 +294,53 @@ def test_ctrl_c_writes_outputs_marked_incomplete_and_exits_130(tmp_path):
     traj = np.load(run / "trajectory.npz")
     assert traj["t"][-1] == pytest.approx(metrics["duration"], abs=0.11)
     assert [r["status"] for r in sweep.collect_rows(run)] == ["incomplete"]
+
+
+# -- presets ------------------------------------------------------------------------------------
+def _grid(preset: str) -> dict[str, list[str]]:
+    import yaml
+
+    data = yaml.safe_load((Path(sweep.__file__).parents[1] / "scenarios" / "sweep" / f"{preset}.yaml").read_text())
+    assert data["hydra"]["mode"] == "MULTIRUN"
+    params = data["hydra"]["sweeper"]["params"]
+    out = {}
+    for key, value in params.items():
+        text = str(value)
+        if text.startswith("range("):
+            lo, hi = (int(v) for v in text[6:-1].split(","))
+            out[key] = [str(v) for v in range(lo, hi)]
+        else:
+            out[key] = text.split(",")
+    return out
+
+
+@pytest.mark.parametrize(
+    ("preset", "expected"),
+    [
+        ("cem_k", {"scenario": ["cem_six_vehicle"], "avoidance.K": ["1", "2", "5"]}),
+        ("failure_time", {"scenario": ["cem_six_vehicle"], "events.0.at": ["1.0", "2.0", "4.0", "8.0"]}),
+        ("fast", {"formation.speed": ["1.0", "2.0"], "seed": ["0", "1"]}),
+    ],
+)
+def test_sweep_presets_grid_and_every_job_validates(preset, expected):
+    from swarmscene import api
+
+    grid = _grid(preset)
+    assert grid == expected
+    keys = list(grid)
+    import itertools
+
+    for combo in itertools.product(*grid.values()):
+        overrides = [f"+sweep={preset}", *(f"{k}={v}" for k, v in zip(keys, combo))]
+        api.load(overrides)
+
+
+def test_indoor_corridor_preset_is_the_thesis_grid():
+    grid = _grid("indoor_corridor")
+    assert grid["scenario"] == ["indoor_corridor"]
+    assert grid["environment"] == [f"indoor_corridor_w0{w}0" for w in (5, 6, 7, 8, 9)]
+    assert grid["seed"] == [str(s) for s in range(30)]
+    from swarmscene import api
+
+    for env in grid["environment"]:
+        api.load(["+sweep=indoor_corridor", "scenario=indoor_corridor", f"environment={env}", "seed=29"])
