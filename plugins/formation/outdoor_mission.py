@@ -72,7 +72,7 @@ class Task(IntEnum):
     STOP = 4
 
 
-def map_repulsion(pos, map_pos, present, pairs, navigating, d_c, v_sat) -> np.ndarray:
+def map_repulsion(pos, smap: SwarmMap, present, pairs, navigating, d_c, v_sat) -> np.ndarray:
     """v_col of eq. 4.23-4.24 from each agent's own map, (N, 2).
 
     Agent i is repelled by every j of its map within 2 d_c horizontally and on its flight level
@@ -87,7 +87,7 @@ def map_repulsion(pos, map_pos, present, pairs, navigating, d_c, v_sat) -> np.nd
     j = np.concatenate([pairs[:, 1], pairs[:, 0]])
     keep = navigating[i] & present[i, j]
     i, j = i[keep], j[keep]
-    delta = map_pos[i, j] - pos[i]
+    delta = smap.positions(i, j) - pos[i]
     dist = np.hypot(delta[:, 0], delta[:, 1])
     on_level = (np.abs(delta[:, 2]) < LEVEL_BAND * d_c) & (dist < 2.0 * d_c)
     i, j, delta, dist = i[on_level], j[on_level], delta[on_level, :2], dist[on_level]
@@ -143,7 +143,7 @@ class LeaderLogic:
     def _catch_up(self, world: WorldState, m: SwarmMap, flow: np.ndarray) -> bool:
         """Eq. 4.1-4.2 on W = ``flow`` (see the module docstring for the reading of 4.1)."""
         t, p = world.t, self.p
-        rel = m.pos[self.L] - world.pos[self.L]
+        rel = m.positions(self.L, slice(None)) - world.pos[self.L]
         if not flow.any():
             self.W[:] = False
             self.del_since = None
@@ -275,6 +275,7 @@ class OutdoorMission(Formation):
         self.last_lead_seen = np.zeros(n)
         self._prev_present = np.zeros((n, n), dtype=bool)
         self._cache: dict[int, np.ndarray] = {}
+        self._hops, self._one_hop, self._members = None, False, None
         self._hash_w = np.random.default_rng(12345).integers(1, 2**62, size=4 * n + 3)
         th = p.catchup_threshold if p.catchup_threshold is not None else p.d_r / 2
         self.leader = LeaderLogic(self.home[leader], np.asarray(p.waypoints, dtype=float), p, th,
@@ -290,8 +291,14 @@ class OutdoorMission(Formation):
         members = world.healthy & world.comm_ok
         u = world.extras.get("u", np.zeros_like(world.pos))
         self.map.broadcast(self.k, world.healthy, self.task, world.pos, world.vel, u)
-        tree = sensing.tree if sensing is not None else None
-        return self.map.deliver(hop_matrix(world.pos, members, self.ctx.comm_range, tree))
+        d_com = self.ctx.comm_range
+        box = world.pos[members].max(axis=0) - world.pos[members].min(axis=0) if members.any() else 0
+        one_hop = bool(np.linalg.norm(box) <= d_com)  # everyone in range of everyone
+        if not (one_hop and self._one_hop and np.array_equal(members, self._members)):
+            tree = sensing.tree if sensing is not None else None
+            self._hops = hop_matrix(world.pos, members, d_com, tree)
+        self._one_hop, self._members = one_hop, members
+        return self.map.deliver(self._hops)
 
     # -- assignment (eq. 4.12-4.13) on each agent's map ------------------------------------------
 
@@ -302,17 +309,21 @@ class OutdoorMission(Formation):
         states = m.state[rows]
         view = present[rows] & (states != Task.LEAD) & (states != Task.STOP)
         view[np.arange(rows.size), lead] = False
-        dm = np.rint(m.pos[rows] * 10).astype(np.int64) * view[:, :, None]
-        lead_dm = np.rint(m.pos[rows, lead] * 10).astype(np.int64)
-        key_rows = np.concatenate([view * (1 + states), dm.reshape(rows.size, -1), lead_dm], axis=1)
-        keys = key_rows @ self._hash_w
-        for key in np.unique(keys):
-            at = np.flatnonzero(keys == key)
-            r, v = rows[at[0]], view[at[0]]
-            slots = self._cache.get(int(key))
+        # Maps holding the same messages are the same view: group rows by their stamps first,
+        # then key each distinct view on its decimetre-rounded content (hits across ticks too).
+        same = np.concatenate([view * (1 + states), m.stamp[rows], lead[:, None]], axis=1)
+        groups = same @ self._hash_w[: 2 * self.n + 1]
+        for group in np.unique(groups):
+            at = np.flatnonzero(groups == group)
+            r, v, lr = rows[at[0]], view[at[0]], lead[at[0]]
+            pos = m.positions(r, slice(None))
+            dm = np.rint(pos * 10).astype(np.int64) * v[:, None]
+            key = int(np.concatenate([v * (1 + states[at[0]]), dm.ravel(),
+                                      np.rint(pos[lr] * 10).astype(np.int64)]) @ self._hash_w)
+            slots = self._cache.get(key)
             if slots is None:
-                slots = self._solve(v, states[at[0]] == Task.FLOW, m.pos[r], m.pos[r, lead[at[0]]])
-                self._cache[int(key)] = slots
+                slots = self._solve(v, states[at[0]] == Task.FLOW, pos, pos[lr])
+                self._cache[key] = slots
             self.slot[rows[at]] = np.where(slots[rows[at]] >= 0, slots[rows[at]], self.slot[rows[at]])
         if len(self._cache) > 512:
             self._cache.clear()
@@ -370,7 +381,8 @@ class OutdoorMission(Formation):
             self._assign(form, present)
         rows = np.arange(n)
         lid = np.where(self.leader_of >= 0, self.leader_of, self.L)
-        lead_pos, lead_vel, lead_u = m.pos[rows, lid], m.vel[rows, lid], m.u[rows, lid]
+        lead_kin = m.kin(rows, lid)
+        lead_pos, lead_vel, lead_u = lead_kin[:, 0:3], lead_kin[:, 3:6], lead_kin[:, 6:9]
         targets = self.home.copy()
         placed = f & np.isin(task, (Task.FORM, Task.FLOW)) & (self.slot >= 0)
         targets[placed, :2] = lead_pos[placed, :2] + self.pattern.offsets_xy[self.slot[placed]]
@@ -406,7 +418,7 @@ class OutdoorMission(Formation):
         radius = p.d_c * np.hypot(2.0, LEVEL_BAND) + 1.0  # + staleness of mapped positions
         pairs = (sensing.pairs(radius) if sensing is not None
                  else np.array([(a, b) for a in range(self.n) for b in range(a + 1, self.n)]))
-        v = map_repulsion(world.pos, self.map.pos, present, pairs, far, p.d_c, p.v_sat)
+        v = map_repulsion(world.pos, self.map, present, pairs, far, p.d_c, p.v_sat)
         v = saturate(v + attraction_velocity(world.pos, targets, p.d_c, p.v_sat), p.v_sat)
         z_ref = flight_level_altitude(targets[:, 2], p.d_c, p.level_offset)
         vz = np.clip(p.altitude_gain * (z_ref - world.pos[:, 2]), -p.v_sat, p.v_sat)

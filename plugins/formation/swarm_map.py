@@ -111,11 +111,40 @@ class SwarmMap:
         self.h_kin = np.zeros((self.depth * n, 9))  # rows tick-slot * n + agent: pos, vel, u
         # the maps: observer i (row), entry j (column)
         self.stamp = np.full((n, n), NO_ENTRY, dtype=np.int64)
+        self.row = np.zeros((n, n), dtype=np.int64)  # ring row (slot * n + j) of each entry
         self.state = np.zeros((n, n), dtype=np.int8)
-        self.kin = np.zeros((n, n, 9))
-        self.pos, self.vel, self.u = self.kin[..., 0:3], self.kin[..., 3:6], self.kin[..., 6:9]
         self.present = np.zeros((n, n), dtype=bool)
         self.k = -1
+        self._hops: np.ndarray | None = None
+        self._delay = np.zeros((n, n), dtype=np.int64)
+        self._cols = np.broadcast_to(np.arange(n), (n, n))
+
+    # The entries' (position, velocity, input) are read from the ring on demand: an entry is
+    # present only while its message is at most T_msg old, i.e. still in the ring. An absent
+    # entry reads some message of the same agent: callers mask with ``present``.
+
+    def kin(self, i, j) -> np.ndarray:
+        """(position, velocity, input) that observer(s) ``i`` hold about ``j``, shape (..., 9)."""
+        return self.h_kin[self.row[i, j]]
+
+    def positions(self, i, j) -> np.ndarray:
+        """Position observer(s) ``i`` hold for agent(s) ``j``, shape (..., 3)."""
+        return self.h_kin[self.row[i, j], 0:3]
+
+    @property
+    def pos(self) -> np.ndarray:
+        """Every map's positions, (N, N, 3) (a full gather: for inspection and tests)."""
+        return self.h_kin[self.row, 0:3]
+
+    @property
+    def vel(self) -> np.ndarray:
+        """Every map's velocities, (N, N, 3)."""
+        return self.h_kin[self.row, 3:6]
+
+    @property
+    def u(self) -> np.ndarray:
+        """Every map's inputs, (N, N, 3)."""
+        return self.h_kin[self.row, 6:9]
 
     def delay_ticks(self, hops: np.ndarray) -> np.ndarray:
         """ceil(hops tau_com / T_s) as int, with -1 where unreachable (inf hops)."""
@@ -141,24 +170,23 @@ class SwarmMap:
         Args:
             hops: (N, N) hop distances of this tick (:func:`hop_matrix`), inf: not connected.
         """
-        k = self.k
-        delay = self.delay_ticks(hops)
+        k, cols = self.k, self._cols
+        if hops is not self._hops:  # the same graph as last tick: same delays
+            self._hops, self._delay = hops, self.delay_ticks(hops)
+        delay = self._delay
         sent = k - delay  # the tick of the message that arrives now
         usable = (delay >= 0) & (delay < self.depth) & (sent >= 0) & self.same_swarm
         slot = np.where(usable, sent % self.depth, 0)
-        cols = np.broadcast_to(np.arange(self.n), (self.n, self.n))
         usable &= (self.sent_tick[slot] == sent) & self.h_sent[slot, cols]
         update = usable & (sent > self.stamp)
-        if update.all():  # the usual case: every entry refreshed (one gather per field)
+        if update.all():  # the usual case: every entry refreshed
             self.stamp[...] = sent
-            self.state[...] = self.h_state[slot, cols]
-            np.take(self.h_kin, slot * self.n + cols, axis=0, out=self.kin)
+            np.multiply(slot, self.n, out=self.row)
+            self.row += cols
         elif update.any():
-            i, j = np.nonzero(update)
-            s = slot[i, j]
-            self.stamp[i, j] = sent[i, j]
-            self.state[i, j] = self.h_state[s, j]
-            self.kin[i, j] = self.h_kin[s * self.n + j]
+            self.stamp[update] = sent[update]
+            self.row[update] = slot[update] * self.n + cols[update]
+        self.state = self.h_state.reshape(-1)[self.row]
         self.present = (self.stamp != NO_ENTRY) & (k - self.stamp <= self.msg_ticks)
         return self.present
 
