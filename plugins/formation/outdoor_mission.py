@@ -368,7 +368,7 @@ class OutdoorMission(Formation):
         task = self.task
 
         # Stop triggers (Fig. 4.1/4.3): no LEAD and one STOP; or no leader for T_fol.
-        running = f & np.isin(task, (Task.INIT, Task.FORM, Task.FLOW))
+        running = f & (task <= Task.FLOW)  # INIT, FORM or FLOW
         lost = (t - self.last_lead_seen >= p.T_fol) & ~lead_any
         task[running & ((~lead_any & stop_any) | lost)] = Task.STOP
         # INIT -> FORM once the map is stable for T_ini and shows a leader.
@@ -384,7 +384,7 @@ class OutdoorMission(Formation):
         lead_kin = m.kin(rows, lid)
         lead_pos, lead_vel, lead_u = lead_kin[:, 0:3], lead_kin[:, 3:6], lead_kin[:, 6:9]
         targets = self.home.copy()
-        placed = f & np.isin(task, (Task.FORM, Task.FLOW)) & (self.slot >= 0)
+        placed = f & ((task == Task.FORM) | (task == Task.FLOW)) & (self.slot >= 0)
         targets[placed, :2] = lead_pos[placed, :2] + self.pattern.offsets_xy[self.slot[placed]]
         targets[placed, 2] = lead_pos[placed, 2]
 

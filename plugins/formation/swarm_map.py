@@ -105,7 +105,6 @@ class SwarmMap:
         self.same_swarm = self.swarm_id[:, None] == self.swarm_id[None, :]
         self.self_hops = self_hops
         # ring of broadcasts, indexed by tick % depth
-        self.sent_tick = np.full(self.depth, -1, dtype=np.int64)
         self.h_sent = np.zeros((self.depth, n), dtype=bool)
         self.h_state = np.zeros((self.depth, n), dtype=np.int8)
         self.h_kin = np.zeros((self.depth * n, 9))  # rows tick-slot * n + agent: pos, vel, u
@@ -155,10 +154,12 @@ class SwarmMap:
 
     def broadcast(self, k: int, sending: np.ndarray, state: np.ndarray, pos: np.ndarray,
                   vel: np.ndarray, u: np.ndarray) -> None:
-        """Tick k: agents with ``sending`` True broadcast their (state, position, velocity, input)."""
+        """Tick k: agents with ``sending`` True broadcast their (state, position, velocity, input).
+
+        Called once per tick, k = 0, 1, 2, ... (the ring slots are then always current).
+        """
         slot = k % self.depth
         self.k = k
-        self.sent_tick[slot] = k
         self.h_sent[slot] = sending
         self.h_state[slot] = state
         rows = self.h_kin[slot * self.n:(slot + 1) * self.n]
@@ -171,13 +172,16 @@ class SwarmMap:
             hops: (N, N) hop distances of this tick (:func:`hop_matrix`), inf: not connected.
         """
         k, cols = self.k, self._cols
-        if hops is not self._hops:  # the same graph as last tick: same delays
+        if hops is not self._hops:  # a new graph: new delays (else the last tick's are reused)
             self._hops, self._delay = hops, self.delay_ticks(hops)
-        delay = self._delay
-        sent = k - delay  # the tick of the message that arrives now
-        usable = (delay >= 0) & (delay < self.depth) & (sent >= 0) & self.same_swarm
-        slot = np.where(usable, sent % self.depth, 0)
-        usable &= (self.sent_tick[slot] == sent) & self.h_sent[slot, cols]
+            self._reachable = (self._delay >= 0) & (self._delay < self.depth) & self.same_swarm
+        sent = k - self._delay  # the tick of the message that arrives now
+        slot = sent % self.depth
+        usable = self._reachable
+        if k < self.depth:  # the ring is not full yet
+            usable = usable & (sent >= 0)
+        if not self.h_sent.all():  # somebody was silent within the last T_msg
+            usable = usable & self.h_sent[slot, cols]
         update = usable & (sent > self.stamp)
         if update.all():  # the usual case: every entry refreshed
             self.stamp[...] = sent
