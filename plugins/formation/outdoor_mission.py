@@ -39,6 +39,15 @@ Choices where the text is loose (figures 4.1-4.4 are missing from the copy):
   and INIT followers share the other slots (eq. 4.12-4.13 on those). Every agent with the same
   map computes the same answer; without this a FORM agent could be sent onto a FLOW agent's
   slot. Assignments are cached per identical (decimetre-rounded) view.
+
+Like the thesis, the workflow assumes a connected communication graph: with d_com below the
+formation spacing d_r the maps split, followers disagree on the assignment and lose the leader.
+
+Metrics (``outdoor.*``): milestones (``formed_at``, ``departed_at``, ``path_done_at``,
+``leader_done_at``, ``last_home_at``), ``mission_complete``, ``waypoints_visited``, ``ignored``
+and ``ignored_at``, and the thesis' figures over the following sequence (leader on its path, FLOW
+followers): ``mean_neighbour_distance`` and ``neighbour_distance_min``/``max`` over the formation
+graph's edges (Fig. 4.21), ``tracking_error_mean``/``max`` to r_N + h_slot (Fig. 4.24).
 """
 
 from __future__ import annotations
@@ -54,12 +63,12 @@ from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.plugins.formation.apf_navigation_math import (
-    LEVEL_BAND, arrived_on_target, attraction_velocity, close_to_target, collision_gain,
-    flight_level_altitude, saturate)
+    LEVEL_BAND, arrived_on_target, attraction_velocity, close_to_target, flight_level_altitude,
+    saturate)
 from swarmscene.plugins.formation.hex_pattern import (
     DECIMETRE, assign_offsets, assignment_cost, formation_graph, hex_pattern, solve_assignment)
 from swarmscene.plugins.formation.static_shape import WaypointPath
-from swarmscene.plugins.formation.swarm_map import SwarmMap, hop_matrix
+from swarmscene.plugins.formation.swarm_map import SwarmMap, hop_matrix, map_repulsion
 
 
 class Task(IntEnum):
@@ -70,35 +79,6 @@ class Task(IntEnum):
     FLOW = 2
     LEAD = 3
     STOP = 4
-
-
-def map_repulsion(pos, smap: SwarmMap, present, pairs, navigating, d_c, v_sat) -> np.ndarray:
-    """v_col of eq. 4.23-4.24 from each agent's own map, (N, 2).
-
-    Agent i is repelled by every j of its map within 2 d_c horizontally and on its flight level
-    (|dz| < 2/3 d_c), at the position its map holds for j. ``pairs`` (P, 2) are candidate pairs
-    (from the true positions, with a margin); only rows with ``navigating[i]`` are computed.
-    """
-    n = pos.shape[0]
-    v = np.zeros((n, 2))
-    if pairs.size == 0:
-        return v
-    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
-    keep = navigating[i] & present[i, j]
-    i, j = i[keep], j[keep]
-    delta = smap.positions(i, j) - pos[i]
-    dist = np.hypot(delta[:, 0], delta[:, 1])
-    on_level = (np.abs(delta[:, 2]) < LEVEL_BAND * d_c) & (dist < 2.0 * d_c)
-    i, j, delta, dist = i[on_level], j[on_level], delta[on_level, :2], dist[on_level]
-    coincident = dist < 1e-9
-    # same fixed tie-break as apf_navigation_math: the lower index goes towards -x
-    tie = np.where((i < j)[:, None], [1.0, 0.0], [-1.0, 0.0])
-    unit = np.where(coincident[:, None], tie, delta / np.where(coincident, 1.0, dist)[:, None])
-    push = collision_gain(dist, d_c, v_sat)[:, None] * unit
-    for axis in range(2):
-        v[:, axis] = np.bincount(i, push[:, axis], n)
-    return v
 
 
 class LeaderLogic:

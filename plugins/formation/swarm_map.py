@@ -35,6 +35,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 from scipy.spatial.distance import pdist, squareform
 
+from swarmscene.plugins.formation.apf_navigation_math import LEVEL_BAND, collision_gain
+
 NO_ENTRY = -1
 """``stamp`` of an entry never received."""
 
@@ -197,3 +199,32 @@ class SwarmMap:
     def age(self) -> np.ndarray:
         """Age of every entry, s (inf where absent)."""
         return np.where(self.present, (self.k - self.stamp) * self.T_s, np.inf)
+
+
+def map_repulsion(pos, smap: SwarmMap, present, pairs, navigating, d_c, v_sat) -> np.ndarray:
+    """v_col of eq. 4.23-4.24 from each agent's own map, (N, 2).
+
+    Agent i is repelled by every j of its map within 2 d_c horizontally and on its flight level
+    (|dz| < 2/3 d_c), at the position its map holds for j. ``pairs`` (P, 2) are candidate pairs
+    (from the true positions, with a margin); only rows with ``navigating[i]`` are computed.
+    """
+    n = pos.shape[0]
+    v = np.zeros((n, 2))
+    if pairs.size == 0:
+        return v
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    keep = navigating[i] & present[i, j]
+    i, j = i[keep], j[keep]
+    delta = smap.positions(i, j) - pos[i]
+    dist = np.hypot(delta[:, 0], delta[:, 1])
+    on_level = (np.abs(delta[:, 2]) < LEVEL_BAND * d_c) & (dist < 2.0 * d_c)
+    i, j, delta, dist = i[on_level], j[on_level], delta[on_level, :2], dist[on_level]
+    coincident = dist < 1e-9
+    # same fixed tie-break as apf_navigation_math: the lower index goes towards -x
+    tie = np.where((i < j)[:, None], [1.0, 0.0], [-1.0, 0.0])
+    unit = np.where(coincident[:, None], tie, delta / np.where(coincident, 1.0, dist)[:, None])
+    push = collision_gain(dist, d_c, v_sat)[:, None] * unit
+    for axis in range(2):
+        v[:, axis] = np.bincount(i, push[:, axis], n)
+    return v
