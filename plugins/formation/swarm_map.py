@@ -76,7 +76,7 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
         a, b = rank[pairs[keep, 0]], rank[pairs[keep, 1]]
         adjacent = np.zeros((m, m), dtype=bool)
         adjacent[a, b] = adjacent[b, a] = True
-    if adjacent is None or adjacent.sum() == m * (m - 1):  # everyone in range of everyone: one hop (the usual case)
+    if adjacent is None or adjacent.sum() == m * (m - 1):  # all in range of all: one hop
         sub = np.ones((m, m))
         np.fill_diagonal(sub, 0.0)
     else:
