@@ -256,11 +256,12 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
 
     keys = np.unique(np.linspace(0, len(run.t) - 1, min(frames, len(run.t))).round().astype(int))
     xy = run.pos[..., :2]
-    fig = Figure(figsize=(6, 5), layout="constrained")
-    ax = fig.add_subplot()
-    _draw_obstacles(ax, run.obstacles)
     lo, hi = xy.reshape(-1, 2).min(axis=0), xy.reshape(-1, 2).max(axis=0)
     pad = 0.05 * max(hi - lo) + 0.5
+    aspect = (hi[1] - lo[1] + 2 * pad) / (hi[0] - lo[0] + 2 * pad)
+    fig = Figure(figsize=(7, float(np.clip(7 * aspect, 2.5, 7)) + 0.8), layout="constrained")
+    ax = fig.add_subplot()
+    _draw_obstacles(ax, run.obstacles)
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
@@ -285,6 +286,9 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
         title.set_text(f"{run.config.get('name', 'run')}  t = {run.t[k]:.1f} s")
         return dots, trails, edge_lines, title
 
+    draw(keys[-1])
+    fig.get_layout_engine().execute(fig)  # lay out once (widest title), then keep it for every frame
+    fig.set_layout_engine("none")
     anim = animation.FuncAnimation(fig, draw, frames=keys, blit=False)
     use_mp4 = animation.writers.is_available("ffmpeg")
     suffix = "mp4" if use_mp4 else "gif"
