@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from swarmscene import api
-from swarmscene.plugins.formation.outdoor_mission import Task
+from swarmscene.core.setpoint import Setpoints
+from swarmscene.core.state import WorldState
+from swarmscene.plugins.formation.outdoor_mission import LeaderLogic, OutdoorMission, Task
 from swarmscene.plugins.formation.swarm_map import SwarmMap, hop_matrix
 
 QUIET = ["output.progress=off", "output.summary=false", "output.trajectory=false"]
@@ -142,6 +144,47 @@ def test_multi_hop_maps_still_complete_the_mission_safely():
     assert m["outdoor.mission_complete"] is True and m["outdoor.ignored"] == []
     assert m["collisions"] == 0 and m["min_separation"] >= D_Q
     assert 4.2 <= m["outdoor.neighbour_distance_min"] <= m["outdoor.neighbour_distance_max"] <= 5.8
+
+
+def test_catch_up_eq_4_1_waits_T_del_then_ignores_the_lagging_follower():
+    # Leader 0 on its path, followers 1-3 in FLOW; the maps are instantaneous here (0 hops).
+    n, T_s, T_del, th = 4, 0.1, 5.0, 2.0
+    params = OutdoorMission.Params(waypoints=[(0.0, 100.0, 0.0)], T_del=T_del)
+    lead = LeaderLogic(np.zeros(3), np.array([[0.0, 100.0, 0.0]]), params, th, n, 0, T_s)
+    smap = SwarmMap(n, T_s, TAU, T_MSG, self_hops=0)
+    offsets = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [-5.0, 0.0, 0.0], [0.0, 5.0, 0.0]])
+    world = WorldState.at_rest(offsets, leader=0)
+    task = np.array([Task.LEAD, Task.FLOW, Task.FLOW, Task.FLOW], dtype=np.int8)
+    lag = np.zeros((n, 3))
+
+    def tick(k):
+        world.t = k * T_s
+        smap.broadcast(k, np.ones(n, dtype=bool), task, world.pos + lag, world.vel, world.vel)
+        present = smap.deliver(np.zeros((n, n)))
+        lead.update(world, present, smap, task, Setpoints.hold(world.pos))
+
+    for k in range(3):
+        tick(k)
+    assert lead.phase == "path" and not lead.waiting
+    lag[3] = [0.0, -7.5, 0.0]  # follower 3 falls 7.5 m behind: the barycentre drifts 2.5 m
+    tick(3)
+    np.testing.assert_allclose(lead.delta, [0.0, -2.5 / 2, 0.0])  # eq. 4.1: half the drift
+    assert not lead.waiting
+    tick(4)
+    np.testing.assert_allclose(lead.delta, [0.0, -2.5 * 3 / 4, 0.0])
+    k = 5
+    while not lead.waiting:
+        tick(k)
+        k += 1
+    t_wait = world.t
+    assert np.linalg.norm(lead.delta) >= th
+    while not lead.ignored.any():
+        tick(k)
+        k += 1
+    assert world.t == pytest.approx(t_wait + T_del)
+    assert np.flatnonzero(lead.ignored).tolist() == [3]  # only the lagging one
+    tick(k)
+    assert not lead.waiting  # W = {1, 2}: caught up
 
 
 def test_a_lone_leader_aborts_after_T_led_and_the_cut_off_follower_stops_after_T_fol():
