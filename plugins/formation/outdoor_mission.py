@@ -43,9 +43,9 @@ Choices where the text is loose (figures 4.1-4.4 are missing from the copy):
 Like the thesis, the workflow assumes a connected communication graph: with d_com below the
 formation spacing d_r the maps split, followers disagree on the assignment and lose the leader.
 
-Metrics (``outdoor.*``): milestones (``formed_at``, ``departed_at``, ``path_done_at``,
-``leader_done_at``, ``last_home_at``), ``mission_complete``, ``waypoints_visited``, ``ignored``
-and ``ignored_at``, and the thesis' figures over the following sequence (leader on its path, FLOW
+Metrics (``outdoor.*``): milestones (``last_flow_at``: last follower in FLOW, ``formed_at``,
+``departed_at``, ``path_done_at``, ``leader_done_at``, ``last_home_at``), ``mission_complete``,
+``waypoints_visited``, ``ignored`` and ``ignored_at``, and the thesis' figures over the following sequence (leader on its path, FLOW
 followers): ``mean_neighbour_distance`` and ``neighbour_distance_min``/``max`` over the formation
 graph's edges (Fig. 4.21), ``tracking_error_mean``/``max`` to r_N + h_slot (Fig. 4.24).
 """
@@ -457,6 +457,8 @@ class OutdoorMission(Formation):
             "outdoor.aborted": lead.aborted,
             "outdoor.ignored": np.flatnonzero(lead.ignored).tolist(),
             "outdoor.ignored_at": lead.ignored_at,
+            "outdoor.last_flow_at": (float(np.nanmax(s["flow_at"]))
+                                     if np.isfinite(s["flow_at"]).any() else None),
             "outdoor.followers_home": int(self.home_done[f].sum()),
             "outdoor.last_home_at": float(np.nanmax(s["home_at"])) if self.home_done.any() else None,
             "outdoor.mean_neighbour_distance": float(np.mean(nm)) if nm else None,
