@@ -47,7 +47,8 @@ Metrics (``outdoor.*``): milestones (``last_flow_at``: last follower in FLOW, ``
 ``departed_at``, ``path_done_at``, ``leader_done_at``, ``last_home_at``), ``mission_complete``,
 ``waypoints_visited``, ``ignored`` and ``ignored_at``, and the thesis' figures over the following
 sequence (leader on its path, FLOW followers): ``mean_neighbour_distance`` and
-``neighbour_distance_min``/``max`` over the formation graph's edges (Fig. 4.21), ``tracking_error_mean``/``max`` to r_N + h_slot (Fig. 4.24).
+``neighbour_distance_min``/``max`` over the formation graph's edges (Fig. 4.21),
+``tracking_error_mean``/``max`` to r_N + h_slot (Fig. 4.24).
 """
 
 from __future__ import annotations
