@@ -14,6 +14,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -274,17 +275,25 @@ def test_ctrl_c_writes_outputs_marked_incomplete_and_exits_130(tmp_path):
     env = {**os.environ}
     env.pop("HYDRA_FULL_ERROR", None)
     proc = subprocess.Popen(
-        [*EXE, "clock.duration=20000", "termination.on_complete=false", f"hydra.run.dir={run}"],
+        [*EXE, "clock.duration=20000", "termination.on_complete=false", "output.progress=on", f"hydra.run.dir={run}"],
         cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
     )
-    deadline = time.monotonic() + 60
-    while not (run / ".hydra").is_dir() and time.monotonic() < deadline:
+    # The progress line (shown after 2 s of simulating) proves the run is inside its loop.
+    seen: list[str] = []
+    reader = threading.Thread(target=lambda: seen.extend(iter(lambda: proc.stderr.read(1), "")), daemon=True)
+    reader.start()
+    deadline = time.monotonic() + 90
+    while "x real time" not in "".join(seen) and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.1)
-    time.sleep(2.0)  # well inside the simulation loop
+    assert "x real time" in "".join(seen), "".join(seen)
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
+    out = proc.stdout.read()
+    proc.wait(timeout=60)
+    reader.join(timeout=10)
+    err = "".join(seen)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "interrupted at t =" in err
+    assert "stopped by interrupted" in out  # the summary of what ran
     manifest = json.loads((run / "manifest.json").read_text())
     assert manifest["complete"] is False
     metrics = json.loads((run / "metrics.json").read_text())
