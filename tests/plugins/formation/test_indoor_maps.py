@@ -60,7 +60,12 @@ def test_l_corridor_turns_north():
 def test_building_has_rooms_and_a_path_around_the_block():
     mp = building()
     for room_centre in [(13.8, 15.0), (21.2, 15.0), (13.8, 7.0), (21.2, 7.0)]:
-        assert mp.free_space.contains(Point(room_centre))  # rooms reachable through their doors
+        assert mp.free_space.contains(Point(room_centre))
+    # Doors closed: the four rooms are separate pieces of free space; open, one piece.
+    assert len(shapely.get_parts(mp.free_space)) == 5
+    opened = building(doors_open=True)
+    assert opened.free_space.geom_type == "Polygon"
+    assert opened.free_space.contains(LineString([(13.8, 15.0), (13.8, 20.5)]))  # through a door
     assert not mp.free_space.contains(Point(17.5, 11.0))  # inside a wall between rooms
     # Start and end halls are only joined the long way round: the direct line crosses walls.
     assert not mp.free_space.contains(LineString([(5.0, 17.0), (5.0, 5.0)]))

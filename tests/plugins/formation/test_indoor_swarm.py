@@ -42,7 +42,7 @@ def _environment(name: str) -> list:
     "name, mp",
     [(f"indoor_corridor_w{round(w * 100):03d}", straight_corridor(w)) for w in WIDTHS]
     + [(f"indoor_l_corridor_w{round(w * 100):03d}", l_corridor(w)) for w in WIDTHS]
-    + [("indoor_building", building())],
+    + [("indoor_building", building()), ("indoor_building_open_doors", building(doors_open=True))],
 )
 def test_environment_files_match_the_map_builders(name, mp):
     walls = shapely.union_all(_environment(name))
