@@ -17,7 +17,8 @@ y north, z up): the thesis gives its path (Table 4.2) in the initial leader's NE
 (north, east, down) -> (east, north, -down). ``alpha_deg`` keeps the thesis convention (from
 North towards East); the pattern module converts it.
 
-Simplifications (the full INIT/FORM/FLOW/LEAD/STOP workflow with the swarm map is separate):
+Simplifications (the full INIT/FORM/FLOW/LEAD/STOP workflow on delayed swarm maps is the formation
+``outdoor_mission``, :mod:`~swarmscene.plugins.formation.outdoor_mission`):
 the plugin reads the true state, not a delayed swarm map; followers are not sent home at the end;
 the catch-up test (eq. 4.1-4.2) is replaced by the slot-distance test above. Slots are
 re-assigned each tick only while the leader waits (the thesis' FORM; once it moves, FLOW

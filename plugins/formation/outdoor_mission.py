@@ -255,6 +255,7 @@ class OutdoorMission(Formation):
         self.last_change = np.zeros(n)
         self.last_lead_seen = np.zeros(n)
         self._prev_present = np.zeros((n, n), dtype=bool)
+        self._others = ~np.eye(n, dtype=bool)
         self._cache: dict[int, np.ndarray] = {}
         self._hops, self._one_hop, self._members = None, False, None
         self._hash_w = np.random.default_rng(12345).integers(1, 2**62, size=4 * n + 3)
@@ -340,10 +341,9 @@ class OutdoorMission(Formation):
         self.last_change[changed] = t
         self._prev_present = present.copy()
 
-        others = ~np.eye(n, dtype=bool)
         lead_here = present & (m.state == Task.LEAD)
         lead_any = lead_here.any(axis=1)
-        stop_any = (present & others & (m.state == Task.STOP)).any(axis=1)
+        stop_any = (present & self._others & (m.state == Task.STOP)).any(axis=1)
         self.last_lead_seen[lead_any] = t
         f = self.is_follower & alive
         task = self.task
