@@ -60,10 +60,11 @@ state = sum(a.nbytes for a in (world.pos, world.vel, world.healthy, world.comm_o
 scratch = sim.formation.heading.nbytes + sim.dynamics.u.nbytes
 out = {"n": n, "steps": m["steps"], "wall": wall, "median_ms": m["step_ms_median"], "neighbours": m["flocking.mean_neighbours"],
        "state": state / n, "scratch": scratch / n, "min_separation": m["min_separation"],
-       "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "rss0": rss0}
+       "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "rss0": rss0,
+       "collisions": m["collisions"]}
 if record:
     rec = result.observer("TrajectoryRecorder")
-    out.update(frames=rec.count, buffer_mib=rec.buffer_bytes() / 2**20, streaming=rec.streaming,
+    out.update(frames=rec.count, buffer_mib=rec.buffer_bytes() / 2**20, streaming=bool(rec.streaming),
                spill_mib=sum(f.path.stat().st_size for f in rec.files.values()) / 2**20)
 else:  # a few more ticks under tracemalloc: the peak of what one tick allocates
     sim.total_steps += 3
@@ -118,7 +119,8 @@ def recorder_case(n: int = 100_000, steps: int = 200) -> None:
     for s in (steps // 4, steps):
         r = run_case(n, s, record=True)
         print(f"  {r['frames']:5d} frames: streamed={r['streaming']} buffer {r['buffer_mib']:.1f} MiB, "
-              f"spilled {r['spill_mib']:.0f} MiB, peak RSS {r['rss']:.0f} MiB, {r['steps'] / r['wall']:.2f} steps/s")
+              f"spilled {r['spill_mib']:.0f} MiB, peak RSS {r['rss']:.0f} MiB, {r['steps'] / r['wall']:.2f} steps/s, "
+              f"{r['collisions']} distinct pairs under min_separation held by the monitor")
     frame = n * (3 * 4 + 3 * 4 + 1) / 2**30
     print(f"  100,000 agents x 10,000 frames would spill {frame * 10_001:.1f} GiB with the same buffer")
 

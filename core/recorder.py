@@ -67,7 +67,8 @@ class NpyAppender:
 
     def append(self, block: np.ndarray) -> None:
         """Append frames ``block`` (k, *frame_shape), converted to this file's dtype."""
-        self._fh.write(np.ascontiguousarray(block, dtype=self.dtype).tobytes())
+        data = np.ascontiguousarray(block, dtype=self.dtype)  # no copy for a buffer slice
+        self._fh.write(data.reshape(-1).view(np.uint8))
         self.frames += len(block)
 
     def sync(self) -> None:
