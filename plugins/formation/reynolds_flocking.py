@@ -27,17 +27,18 @@ Choices, and why:
   (from the run's one generator, so a run is seeded).
 - Failed boids (``healthy`` False) hold position; they still repel the others (separation) but are
   not followed (no cohesion, alignment, nor count in |N_i|).
-- ``planar`` (Mesa's 2-D space): headings stay in the x-y plane and altitude is held; neighbour
-  distances are the 3-D ones (equal to the planar ones while the flock shares one altitude).
+- ``planar`` (Mesa's 2-D space): headings stay in the x-y plane and altitude is held.
 
 Space (``space``): ``open`` (no walls), ``bounded`` (steered back into the box ``box_min``..
-``box_max``), ``toroidal`` (periodic box, as Mesa's ``ContinuousSpace(torus=True)``). In a toroidal
-space neighbours come from this plugin's own k-d tree with ``boxsize`` (the minimum-image metric;
-the tick's shared tree is Euclidean) and the plugin wraps the agents' positions back into the box at
-the end of every tick, before any observer reads them (a ``tryfirst`` step-end hook), so monitors,
+``box_max``), ``toroidal`` (periodic box on the x-y axes, or x-y-z when not planar, as Mesa's
+``ContinuousSpace(torus=True)``). Neighbours always come from the tick's shared k-d tree,
+``sensing.pairs(vision)``; in a torus the pairs through the seams are added by querying the images
+of the agents near a face against the same tree (:func:`seam_pairs`, exact minimum image while
+``vision`` < half the box), and the plugin wraps the agents' positions back into the box at the end
+of every tick, before any observer reads them (a ``tryfirst`` step-end hook), so monitors,
 recorders and the next tick see positions in the box, as in Mesa. Note the engine's safety monitor
-measures Euclidean distance in the box: pairs close across a seam are not seen by it. In the
-other spaces neighbours are the shared tree's ``sensing.pairs(vision)``.
+measures Euclidean distance in the box: pairs close across a seam are not seen by it. Distances are
+3-D (equal to Mesa's 2-D ones while the flock shares one altitude).
 
 Memory per boid (plugin scratch): the heading (3 float64) plus, per tick, O(neighbours) pair arrays.
 """
@@ -52,11 +53,11 @@ from scipy.spatial import cKDTree
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.sensing import Sensing
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
 if TYPE_CHECKING:  # pragma: no cover
-    from swarmscene.core.sensing import Sensing
     from swarmscene.core.simulation import Simulation
 
 Point3 = tuple[float, float, float]
@@ -93,8 +94,11 @@ class FlockingParams(PluginParams):
     @model_validator(mode="after")
     def _box_not_empty(self) -> "FlockingParams":
         axes = 2 if self.planar else 3
-        if any(hi <= lo for lo, hi in zip(self.box_min[:axes], self.box_max[:axes])):
+        sides = [hi - lo for lo, hi in zip(self.box_min[:axes], self.box_max[:axes])]
+        if min(sides) <= 0:
             raise ValueError(f"box_max: must exceed box_min on every axis (got {self.box_max})")
+        if self.space == "toroidal" and self.vision >= min(sides) / 2:
+            raise ValueError(f"vision: must be below half the torus' smallest side {min(sides)} (got {self.vision})")
         return self
 
 
@@ -139,6 +143,54 @@ def wrap(pos: np.ndarray, lo: np.ndarray | float, size: np.ndarray) -> np.ndarra
     q = np.mod(pos - lo, size)
     q[q >= size] = 0.0  # np.mod of a tiny negative can round up to exactly `size`
     return q + lo if np.any(lo) else q
+
+
+def periodic_shifts(axes: int) -> np.ndarray:
+    """Half of the 3^A - 1 neighbouring images (first non-zero entry +1), in box units, (K, A).
+
+    With ``vision`` below half the box, an unordered pair has one minimum image, and each
+    seam-crossing pair is met through exactly one of these shifts (the other half mirror them).
+    """
+    grid = np.array(np.meshgrid(*[[-1, 0, 1]] * axes, indexing="ij")).reshape(axes, -1).T
+    first = np.array([row[np.flatnonzero(row)[0]] if row.any() else 0 for row in grid])
+    return grid[first > 0]
+
+
+def seam_pairs(
+    pos: np.ndarray, tree: cKDTree, lo: np.ndarray, hi: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs within ``radius`` through the seams of a periodic box (the ones a Euclidean tree misses).
+
+    Args:
+        pos: (N, 3) positions inside the box on its periodic axes (the first A = ``len(lo)``).
+        tree: the k-d tree over ``pos`` (the tick's shared one).
+        lo, hi: (A,) corners of the box on the periodic axes; ``radius`` < half its smallest side.
+    Returns:
+        i, j (M,) and p_j - (p_i + shift) on the periodic axes, (A, M): the minimum-image vectors.
+
+    For each shift s, only agents within ``radius`` of the face that s carries them across can meet
+    anyone: their images p_i + s are queried against the tree (3-D distance, so non-periodic axes
+    count as usual).
+    """
+    axes, size = len(lo), hi - lo
+    found_i, found_j, found_delta = [], [], []
+    for shift in periodic_shifts(axes):
+        near = np.ones(len(pos), dtype=bool)
+        for k in np.flatnonzero(shift):
+            near &= pos[:, k] <= lo[k] + radius if shift[k] > 0 else pos[:, k] >= hi[k] - radius
+        agents = np.flatnonzero(near)
+        if agents.size == 0:
+            continue
+        image = pos[agents].copy()
+        image[:, :axes] += shift * size
+        hits = cKDTree(image).sparse_distance_matrix(tree, radius, output_type="ndarray")
+        i, j = agents[hits["i"]], hits["j"]
+        found_i.append(i)
+        found_j.append(j)
+        found_delta.append((pos[j, :axes] - image[hits["i"], :axes]).T)
+    if not found_i:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros((axes, 0))
+    return np.concatenate(found_i), np.concatenate(found_j), np.concatenate(found_delta, axis=1)
 
 
 def flocking_steer(
@@ -214,20 +266,25 @@ class ReynoldsFlocking(Formation):
     def neighbours(self, world: WorldState, sensing: "Sensing") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs within ``vision`` as index arrays i, j (M,) and p_j - p_i on the steered axes (A, M)."""
         a = self.axes
-        coords = np.ascontiguousarray(world.pos[:, :a].T)  # axis-major: fast 1-D gathers
-        if self.params.space == "toroidal":
-            box = self.size[:a]
-            tree = cKDTree(wrap(world.pos[:, :a] - self.lo[:a], 0.0, box), boxsize=box)
-            pairs = tree.query_pairs(self.params.vision, output_type="ndarray")
-        else:
-            pairs = sensing.pairs(self.params.vision)
+        pairs = sensing.pairs(self.params.vision)  # the tick's shared tree (in a torus: the interior)
         i, j = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
+        coords = np.ascontiguousarray(world.pos[:, :a].T)  # axis-major: fast 1-D gathers
         delta = np.empty((a, len(i)))
         for k in range(a):
             np.subtract(coords[k].take(j), coords[k].take(i), out=delta[k])
-            if self.params.space == "toroidal":  # minimum image: |delta| <= box / 2
-                delta[k] -= self.size[k] * np.rint(delta[k] / self.size[k])
+        if self.params.space == "toroidal":
+            if not self._in_box(world.pos):  # not wrapped by the kernel's hooks: wrap a copy
+                pos = world.pos.copy()
+                pos[:, :a] = wrap(pos[:, :a], self.lo[:a], self.size[:a])
+                wrapped = WorldState.at_rest(pos)
+                return self.neighbours(wrapped, Sensing(wrapped, sensing.environment, sensing.comm_range))
+            si, sj, sdelta = seam_pairs(world.pos, sensing.tree, self.lo[:a], self.hi[:a], self.params.vision)
+            return np.concatenate([i, si]), np.concatenate([j, sj]), np.concatenate([delta, sdelta], axis=1)
         return i, j, delta
+
+    def _in_box(self, pos: np.ndarray) -> bool:
+        a = self.axes
+        return bool(np.all(pos[:, :a] >= self.lo[:a]) and np.all(pos[:, :a] < self.hi[:a]))
 
     # -- steering terms beside the flock's own ------------------------------------------------
     def goal_steer(self, pos: np.ndarray) -> np.ndarray:

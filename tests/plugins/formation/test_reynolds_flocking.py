@@ -16,8 +16,11 @@ from swarmscene.plugins.formation.reynolds_flocking import (
     ReynoldsFlocking,
     minimum_image,
     params_from_mesa,
+    periodic_shifts,
+    seam_pairs,
     wrap,
 )
+from scipy.spatial import cKDTree
 
 OPEN = Environment([])
 
@@ -164,6 +167,10 @@ def test_toroidal_neighbours_across_the_seam_and_wrap():
     tick(flock, world)
     assert flock.neighbour_count.tolist() == [1, 1]
     assert flock.heading[0, 0] > 0 and flock.heading[1, 0] < 0  # apart, through the seam
+    # Positions not yet folded into the box (setpoints called outside a run): same neighbours.
+    flock, world = make([[-0.5, 50, 2], [99.0, 50, 2]], [[0, 1, 0], [0, 1, 0]], space="toroidal")
+    flock.setpoints(world, Sensing(world, OPEN, 10.0))
+    assert flock.neighbour_count.tolist() == [1, 1]
     # A lone boid crossing x = 100 reappears at the other side.
     flock, world = make([[99.8, 50, 2]], [[1, 0, 0]], space="toroidal")
     tick(flock, world)
@@ -176,6 +183,25 @@ def test_wrap_and_minimum_image():
                                [[9.5, 0.5], [3.0, 0.0]])
     assert np.all(wrap(np.array([[-1e-18, 0.0]]), np.zeros(2), size) < size)
     np.testing.assert_allclose(minimum_image(np.array([[9.0, -6.0]]), size), [[-1.0, 4.0]])
+
+
+@pytest.mark.parametrize("axes", [2, 3])
+def test_shared_tree_plus_seam_pairs_equal_the_periodic_neighbours(axes):
+    rng = np.random.default_rng(11)
+    lo, hi = np.array([-5.0, 0.0, 1.0]), np.array([15.0, 30.0, 21.0])
+    pos = rng.uniform(lo, hi, size=(400, 3))
+    radius = 3.0
+    inner = cKDTree(pos).query_pairs(radius, output_type="ndarray")
+    si, sj, sdelta = seam_pairs(pos, cKDTree(pos), lo[:axes], hi[:axes], radius)
+    found = {tuple(sorted(p)) for p in inner.tolist()} | {tuple(sorted(p)) for p in zip(si.tolist(), sj.tolist())}
+    assert len(found) == len(inner) + len(si)  # no pair twice
+    size = hi[:axes] - lo[:axes]
+    expected = cKDTree(np.column_stack([pos[:, :axes] - lo[:axes], pos[:, axes:]]),
+                       boxsize=np.r_[size, np.full(3 - axes, 1e9)]).query_pairs(radius)
+    assert found == expected and len(si) > 0
+    direct = pos[sj, :axes] - pos[si, :axes]
+    np.testing.assert_allclose(sdelta.T, minimum_image(direct, size), atol=1e-9)
+    assert len(periodic_shifts(axes)) == (3**axes - 1) // 2
 
 
 def test_bounded_space_turns_boids_back():
@@ -212,7 +238,10 @@ def test_goal_seeking_reaches_the_goal():
     assert result.stop_reason == "complete" and result.metrics["steps"] < 200
 
 
-@pytest.mark.parametrize("bad", [{"box_max": (0.0, 10.0, 10.0)}, {"vision": 0.0}, {"space": "sphere"}])
+@pytest.mark.parametrize("bad", [
+    {"box_max": (0.0, 10.0, 10.0)}, {"vision": 0.0}, {"space": "sphere"},
+    {"space": "toroidal", "vision": 50.0},  # seams need vision below half the box
+])
 def test_bad_params_are_rejected(bad):
     with pytest.raises(ValueError):
         FlockingParams(**bad)
