@@ -173,24 +173,24 @@ def seam_pairs(
     count as usual).
     """
     axes, size = len(lo), hi - lo
-    found_i, found_j, found_delta = [], [], []
+    agents, images = [], []
     for shift in periodic_shifts(axes):
         near = np.ones(len(pos), dtype=bool)
         for k in np.flatnonzero(shift):
             near &= pos[:, k] <= lo[k] + radius if shift[k] > 0 else pos[:, k] >= hi[k] - radius
-        agents = np.flatnonzero(near)
-        if agents.size == 0:
-            continue
-        image = pos[agents].copy()
+        idx = np.flatnonzero(near)
+        image = pos[idx].copy()
         image[:, :axes] += shift * size
-        hits = cKDTree(image).sparse_distance_matrix(tree, radius, output_type="ndarray")
-        i, j = agents[hits["i"]], hits["j"]
-        found_i.append(i)
-        found_j.append(j)
-        found_delta.append((pos[j, :axes] - image[hits["i"], :axes]).T)
-    if not found_i:
+        agents.append(idx)
+        images.append(image)
+    agents_all, images_all = np.concatenate(agents), np.concatenate(images)
+    if agents_all.size == 0:
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros((axes, 0))
-    return np.concatenate(found_i), np.concatenate(found_j), np.concatenate(found_delta, axis=1)
+    # One tree over every image, one query against the shared tree.
+    hits = cKDTree(images_all).sparse_distance_matrix(tree, radius, output_type="ndarray")
+    row, j = hits["i"], hits["j"]
+    delta = (pos[j, :axes] - images_all[row, :axes]).T
+    return agents_all[row], j, np.ascontiguousarray(delta)
 
 
 def flocking_steer(
