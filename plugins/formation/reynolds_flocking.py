@@ -316,8 +316,10 @@ class ReynoldsFlocking(Formation):
         healthy = world.healthy
         i, j, delta = self.neighbours(world, sensing)
         steer, count = flocking_steer(i, j, delta, heading, healthy, p)
-        turning = count > 0
-        steer /= np.maximum(count, 1.0)[:, None]  # Mesa divides the summed steer by |N_i|
+        # Mesa divides the summed steer by |N_i|; a boid seeing only failed boids still keeps
+        # clear of them (their separation term over a count of one).
+        turning = (count > 0) | np.any(steer != 0.0, axis=1)
+        steer /= np.maximum(count, 1.0)[:, None]
         if p.goal is not None and p.goal_weight > 0:
             steer += self.goal_steer(world.pos)
             turning[:] = True

@@ -217,6 +217,11 @@ def test_failed_boids_hold_and_are_not_followed():
     sp = flock.setpoints(world, Sensing(world, OPEN, 10.0))
     assert sp.mode[1] == Mode.HOLD and np.all(sp.vel[1] == 0)
     assert flock.neighbour_count[0] == 0 and np.allclose(flock.heading[0], [0, 1, 0])
+    # ...but a failed boid closer than `separation` still repels.
+    flock, world = make([[0, 0, 2], [1, 0, 2]], [[1, 0, 0], [1, 0, 0]], separate=2.0, space="open")
+    world.healthy[1] = False
+    flock.setpoints(world, Sensing(world, OPEN, 10.0))
+    assert flock.neighbour_count[0] == 0 and flock.heading[0, 0] < 0
 
 
 def test_flocking_scenario_runs_in_the_box_and_flocks():
