@@ -97,3 +97,13 @@ def test_npy_appender_reads_back_as_one_array(tmp_path):
     app.close()
     np.testing.assert_array_equal(np.load(tmp_path / "x.npy"), frames)
     assert len(npy_header(np.dtype(np.float64), (10**15, 10**6, 3))) == 256
+
+
+def test_attitude_is_streamed_too():
+    base = ["dynamics=quadrotor", "clock.duration=1", "clock.physics_step=0.005"]
+    memory = api.run([*base, "output.trajectory_stream=off"]).trajectory
+    streamed = api.run([*base, "output.trajectory_stream=on", "output.trajectory_buffer_mb=0.001"])
+    assert recorder(streamed).chunk < recorder(streamed).count
+    assert set(streamed.trajectory) == set(memory) == {"t", "pos", "vel", "healthy", "quat"}
+    for key, value in memory.items():
+        np.testing.assert_array_equal(value, streamed.trajectory[key])
