@@ -38,7 +38,7 @@ def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[
     if not values:
         raise ValueError(f"{metric!r}: no complete run has this metric")
     rate = all(isinstance(v, bool) for v in values)
-    x = sorted({r.get(param) for r in rows}, key=lambda v: (isinstance(v, str), v))
+    x = sorted({r.get(param) for r in rows}, key=_order)
     others = [k for k in sweep.swept_parameters(rows) if k not in (param, "seed")]
     lines: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for key, members in sweep.groups(done, others):
@@ -57,6 +57,13 @@ def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[
                 stats[:, j] = (mean, mean - half, mean + half)
         lines[label] = (stats[0], stats[1], stats[2])
     return {"x": x, "lines": lines, "rate": rate}
+
+
+def _order(value: Any) -> tuple[int, Any]:
+    """Numbers first (by value), then text, then missing values."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return (0, value)
+    return (1, str(value)) if value is not None else (2, "")
 
 
 def plot_metric(rows: list[dict[str, Any]], metric: str, param: str, title: str = "") -> Any:

@@ -356,3 +356,23 @@ def test_indoor_corridor_preset_is_the_thesis_grid():
 
     for env in grid["environment"]:
         api.load(["+sweep=indoor_corridor", "scenario=indoor_corridor", f"environment={env}", "seed=29"])
+
+
+def test_metric_against_pools_seeds_skips_failures_and_uses_wilson_for_rates():
+    def row(job, width, seed, status, success, t):
+        return {"job": job, "status": status, "error": None, "seed": seed, "environment": width,
+                "overrides": f"environment={width} seed={seed}", "config_hash": None,
+                **({} if status == "failed" else {"success": success, "duration": t})}
+
+    rows = [
+        row("0", "w070", 0, "complete", True, 10.0), row("1", "w070", 1, "complete", False, 14.0),
+        row("2", "w050", 0, "complete", False, 20.0), row("3", "w050", 1, "failed", None, None),
+    ]
+    data = report.metric_against(rows, "success", "environment")
+    assert data["x"] == ["w050", "w070"] and data["rate"] is True
+    ((mean, lo, hi),) = data["lines"].values()
+    assert list(mean) == [0.0, 0.5]  # the failed job counts in neither numerator nor denominator
+    assert (lo[1], hi[1]) == pytest.approx(sweep.wilson(1, 2))
+    numbers = report.metric_against(rows, "duration", "environment")
+    ((mean, lo, hi),) = numbers["lines"].values()
+    assert list(mean) == [20.0, 12.0] and hi[1] - mean[1] == pytest.approx(sweep.mean_ci([10.0, 14.0])[1])
