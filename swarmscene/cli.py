@@ -158,16 +158,26 @@ def _run_and_write(sim: Any, run_dir: Path, sweep: bool) -> Any:
             progress.close()
     api.write_outputs(sim, result, run_dir)
     if output.plots or output.animation:
+        _require("matplotlib", "output.plots/output.animation", "plots")
         from .plots import write_run_plots
 
         write_run_plots(run_dir, sim=sim, result=result)
     if output.rerun:
+        _require("rerun", "output.rerun", "rerun")
         from .replay import export_rerun
 
         export_rerun(run_dir, sim=sim, result=result)
     if output.summary and not sweep:
         print(summary_text(sim, result, run_dir))
     return result
+
+
+def _require(module: str, option: str, extra: str) -> None:
+    """A one-line error naming the extra to install when an optional output's package is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise ImportError(f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'")
 
 
 def _objective(sim: Any, result: Any) -> Any:

@@ -146,3 +146,11 @@ def test_cli_output_plots_true_writes_pictures(tmp_path):
     assert not (run / "animation.gif").exists()  # only on output.animation=true
     assert json.loads((run / "manifest.json").read_text())["complete"] is True
 
+
+
+def test_missing_extra_is_named_in_one_line():
+    from swarmscene import cli
+
+    with pytest.raises(ImportError, match=r"output.plots=true needs the 'plots' extra: pip install 'swarmscene\[plots\]'"):
+        cli._require("no_such_module_for_swarmscene", "output.plots", "plots")
+    cli._require("matplotlib", "output.plots", "plots")  # installed: no error
