@@ -42,26 +42,34 @@ class Environment:
     def empty(self) -> bool:
         return not self.obstacles
 
-    def _nearest(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Index of each point's nearest obstacle, the point geometries and their distances."""
+    def _nearest(
+        self, xy: np.ndarray, max_distance: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Index of each point's nearest obstacle (-1 beyond ``max_distance``), the point
+        geometries and their distances (``inf`` beyond ``max_distance``)."""
         pts = shapely.points(xy)
-        pairs, dist = self.tree.query_nearest(pts, return_distance=True, all_matches=False)
-        # query_nearest returns one pair per point when all_matches=False, in point order.
-        nearest = np.empty(len(xy), dtype=int)
-        distance = np.empty(len(xy))
+        pairs, dist = self.tree.query_nearest(
+            pts, return_distance=True, all_matches=False, max_distance=max_distance
+        )
+        # One pair per point found (all_matches=False), in point order.
+        nearest = np.full(len(xy), -1)
+        distance = np.full(len(xy), np.inf)
         nearest[pairs[0]] = pairs[1]
         distance[pairs[0]] = dist
         return nearest, pts, distance
 
-    def clearance(self, points: np.ndarray) -> np.ndarray:
+    def clearance(self, points: np.ndarray, max_distance: float | None = None) -> np.ndarray:
         """Signed distance from each point to the nearest obstacle, m: positive outside,
-        negative inside (minus the depth to the boundary). ``inf`` when there are no obstacles."""
+        negative inside (minus the depth to the boundary). ``inf`` when there are no obstacles,
+        and for points farther than ``max_distance`` from every obstacle when it is given (a
+        bounded query is an order of magnitude cheaper near walls)."""
         xy = _xy(points).reshape(-1, 2)
         if self.empty:
             return np.full(len(xy), np.inf)
-        _, pts, distance = self._nearest(xy)
-        inside = shapely.contains_xy(self.union, xy[:, 0], xy[:, 1])
+        _, pts, distance = self._nearest(xy, max_distance)
+        inside = distance == 0.0
         if inside.any():
+            inside[inside] = shapely.contains_xy(self.union, xy[inside, 0], xy[inside, 1])
             boundary = shapely.boundary(self.union)
             distance[inside] = -shapely.distance(boundary, pts[inside])
         return distance

@@ -67,16 +67,18 @@ class Potential(Avoidance):
     def _obstacle_repulsion(self, world, sensing) -> np.ndarray:
         p, c_s = self.params, self.ctx.min_clearance
         v = np.zeros_like(world.pos)
-        near = np.flatnonzero(sensing.clearance < c_s + p.obstacle_influence)
+        d_range = c_s + p.obstacle_influence
+        clearance = sensing.clearance_within(d_range)
+        near = np.flatnonzero(clearance < d_range)
         if near.size == 0:
             return v
         point = sensing.environment.nearest_point(world.pos[near])
         away = world.pos[near, :2] - point
-        d = np.maximum(sensing.clearance[near], 1e-9)
+        d = np.maximum(clearance[near], 1e-9)
         direction = away / np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)
         # Inside an obstacle the nearest point lies behind: push outwards all the same.
-        direction[sensing.clearance[near] < 0] *= -1
-        v[near, :2] = (p.v_max * barrier(d, c_s, c_s + p.obstacle_influence))[:, None] * direction
+        direction[clearance[near] < 0] *= -1
+        v[near, :2] = (p.v_max * barrier(d, c_s, d_range))[:, None] * direction
         return v
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:

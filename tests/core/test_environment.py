@@ -81,3 +81,17 @@ def test_connectivity_matches_networkx_small_and_large(n):
         graph.add_nodes_from(members)
         graph.add_edges_from((a, b) for a, b in zip(*np.nonzero(d <= radius)) if a in members and b in members and a != b and a > 0 and b > 0)
         assert Sensing(world, Environment(), comm_range=radius).comm_connected == nx.is_connected(graph)
+
+
+def test_bounded_clearance_is_exact_inside_its_range(env):
+    pts = np.array([[3.0, 0.0], [0.0, 2.0], [0.5, 0.0], [5.0, 2.5], [20.0, 20.0]])
+    full = env.clearance(pts)
+    bounded = env.clearance(pts, max_distance=1.5)
+    near = full < 1.5
+    assert bounded[near] == pytest.approx(full[near])
+    assert np.isinf(bounded[~near]).all()
+    world = WorldState.at_rest(np.column_stack([pts, np.zeros(5)]))
+    sensing = Sensing(world, env, comm_range=3.0)
+    assert np.array_equal(sensing.clearance_within(1.5), bounded)
+    sensing.clearance  # once the exact array exists, bounded views derive from it
+    assert np.array_equal(sensing.clearance_within(1.5), bounded)
