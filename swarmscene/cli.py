@@ -24,8 +24,6 @@ from typing import Any
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
 DEBUG_ENV = "SWARMSCENE_DEBUG"
-# Every multirun ends by writing the sweep's tables (summary.csv, summary.md); see swarmscene.sweep.
-SWEEP_CALLBACK = "++hydra.callbacks.swarmscene_summary._target_=swarmscene.sweep.SweepSummary"
 
 
 def main() -> None:
@@ -44,8 +42,6 @@ def main() -> None:
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
     )
-    if not {"-sc", "--shell-completion"} & set(sys.argv[1:]):
-        sys.argv.append(SWEEP_CALLBACK)  # last: options before it keep their arguments
     try:
         app()
     except KeyboardInterrupt:

@@ -1,7 +1,7 @@
 """Sweeps as first-class results: job records, resume, and the sweep's tidy tables.
 
 A sweep directory (Hydra's ``hydra.sweep.dir``) holds one run directory per job. When a multirun
-ends, :class:`SweepSummary` (a Hydra callback the ``swarmscene`` command installs) writes:
+ends, :class:`SweepSummary` (``hydra.callbacks.swarmscene_summary`` in the primary config) writes:
 
     summary.csv      one row per job: job, status, error, seed, one column per overridden key,
                      the overrides as typed, the config hash, then every metric (dotted keys)
