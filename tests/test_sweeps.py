@@ -376,3 +376,10 @@ def test_metric_against_pools_seeds_skips_failures_and_uses_wilson_for_rates():
     numbers = report.metric_against(rows, "duration", "environment")
     ((mean, lo, hi),) = numbers["lines"].values()
     assert list(mean) == [20.0, 12.0] and hi[1] - mean[1] == pytest.approx(sweep.mean_ci([10.0, 14.0])[1])
+
+
+def test_summary_callback_is_configured_and_leaves_other_flags_alone(tmp_path):
+    proc = swarmscene("--cfg", "hydra", cwd=tmp_path)
+    assert proc.returncode == 0 and "_target_: swarmscene.sweep.SweepSummary" in proc.stdout
+    proc = swarmscene("avoidance=none", "--cfg", "job", "--resolve", cwd=tmp_path)
+    assert proc.returncode == 0 and "name: none" in proc.stdout
