@@ -90,11 +90,11 @@ def export(run: RunData, path: Path, every: int = 1, trail_seconds: float = 3.0)
     rec.send_columns(
         "world/agents",
         indexes=index,
-        columns=[
-            *rr.Points3D.columns(positions=run.pos[frames].reshape(-1, 3)).partition([n] * len(frames)),
-            *rr.Points3D.columns(colors=colors.reshape(-1, 3)).partition([n] * len(frames)),
-            *rr.Points3D.columns(radii=np.full(n * len(frames), radius)).partition([n] * len(frames)),
-        ],
+        columns=rr.Points3D.columns(
+            positions=run.pos[frames].reshape(-1, 3),
+            colors=colors.reshape(-1, 3),
+            radii=np.full(n * len(frames), radius),
+        ).partition([n] * len(frames)),  # N points per frame
     )
     # Trails and the other time-varying shapes are logged per recorded frame on the timeline.
     dt = float(np.median(np.diff(run.t))) if len(run.t) > 1 else 1.0

@@ -75,3 +75,22 @@ def test_cli_output_rerun_true(tmp_path):
     assert proc.returncode == 0, proc.stderr
     store = RrdReader(str(tmp_path / "run" / "replay.rrd")).store()
     assert "/world/agents" in set(store.schema().entity_paths())
+
+
+def test_agent_positions_and_colours_read_back(exported):
+    """The logged points are the recorded positions, on the sim_time timeline, red once failed."""
+    _, path, run = exported
+    batches = [ch.to_record_batch() for ch in RrdReader(str(path)).store().stream() if ch.entity_path == "/world/agents"]
+    times, positions, colors = [], [], []
+    for rb in batches:
+        names = rb.schema.names
+        times += rb.column(names.index("sim_time")).to_pylist()
+        positions += rb.column(names.index("Points3D:positions")).to_pylist()
+        colors += rb.column(names.index("Points3D:colors")).to_pylist()
+    order = np.argsort([t.total_seconds() if hasattr(t, "total_seconds") else t for t in times])
+    pos = np.array([positions[i] for i in order])
+    assert pos.shape == run.pos.shape
+    np.testing.assert_allclose(pos, run.pos, atol=1e-5)  # stored as float32
+    last = [colors[i] for i in order][-1]
+    assert len(set(last)) == 2 and last[0] != last[1]  # agent 0 failed: a colour of its own
+    assert last[1:] == [last[1]] * (run.n - 1)
