@@ -77,7 +77,8 @@ def plot_metric(rows: list[dict[str, Any]], metric: str, param: str, title: str 
     fig = Figure(figsize=(7, 4.5), layout="constrained")
     ax = fig.add_subplot()
     for label, (mean, lo, hi) in data["lines"].items():
-        ax.errorbar(pos, mean, yerr=[mean - lo, hi - mean], marker="o", capsize=3, label=label)
+        yerr = np.clip([mean - lo, hi - mean], 0.0, None)  # rounding may put a bound a hair inside
+        ax.errorbar(pos, mean, yerr=yerr, marker="o", capsize=3, label=label)
     if not numeric:
         ax.set_xticks(pos, [str(v) for v in x], rotation=20, ha="right")
     ax.set_xlabel(param)

@@ -376,6 +376,11 @@ def test_metric_against_pools_seeds_skips_failures_and_uses_wilson_for_rates():
     numbers = report.metric_against(rows, "duration", "environment")
     ((mean, lo, hi),) = numbers["lines"].values()
     assert list(mean) == [20.0, 12.0] and hi[1] - mean[1] == pytest.approx(sweep.mean_ci([10.0, 14.0])[1])
+    # Rates of exactly 0 and 1 draw (error bars never negative) with the parameter as tick labels.
+    rows.append(row("4", "w090", 0, "complete", True, 9.0))
+    ax = report.plot_metric(rows, "success", "environment").axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["w050", "w070", "w090"]
+    assert ax.get_ylabel() == "success (rate)"
 
 
 def test_summary_callback_is_configured_and_leaves_other_flags_alone(tmp_path):
