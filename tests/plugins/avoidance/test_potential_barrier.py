@@ -66,3 +66,25 @@ def test_position_modes_get_feed_forward_and_shifted_reference():
     assert w == pytest.approx(200.0)
     np.testing.assert_allclose(out.pos[1, :2], [3.0, 0.35 - w])
     np.testing.assert_allclose(out.vel[1, :2], [0.0, -w / T_S])
+
+
+def test_collision_term_needs_line_of_sight_like_the_thesis():
+    """w_col sums over N_i(G_sigma) (eq. 5.35), and G_sigma is in G_s, whose edges need the joining
+    segment d_l clear of obstacles (eq. 5.8): two agents 0.31 m apart on either side of the
+    corridor's entrance corner (0, 0.4) do not sense each other, so they do not repel; past the
+    corner, at the same distance, they do."""
+    from swarmscene.plugins.formation.indoor_control import w_obs
+    from swarmscene.plugins.formation.indoor_swarm import shared_snapshot
+
+    hidden = build([[-3.0, 0.0, 1.0], [-0.12, 0.52, 1.0], [0.1, 0.3, 1.0]])
+    snap = shared_snapshot(hidden.sensing, hidden.avoidance.gains)
+    assert len(snap.g_n) == 0  # the segment passes 0.014 m from the corner, below d_l = 0.05 m
+    w = hidden.avoidance.terms(hidden.sensing)
+    np.testing.assert_allclose(w, w_obs(snap.r, snap.o, hidden.avoidance.gains), atol=1e-15)
+    seen = build([[-3.0, 0.0, 1.0], [0.5, 0.0, 1.0], [0.72, -0.22, 1.0]])
+    snap = shared_snapshot(seen.sensing, seen.avoidance.gains)
+    assert snap.g_sigma.edge_set() == {(1, 2)}
+    w_pair = seen.avoidance.terms(seen.sensing) - w_obs(snap.r, snap.o, seen.avoidance.gains)
+    unit = np.array([0.22, -0.22]) / np.hypot(0.22, 0.22)
+    np.testing.assert_allclose(w_pair[1], psi_col(np.hypot(0.22, 0.22)) * unit, atol=1e-12)
+    assert w_pair[1] @ unit < 0  # agent 1 is pushed away from agent 2
