@@ -22,6 +22,12 @@ Metrics (``metrics.json``, keys ``indoor.*``):
     indoor.max_rank: largest rank rho_i (eq. 5.23) over the run (N means an agent was cut off).
     indoor.mean_neighbours: mean |N_i(G_n)| over agents and ticks; ``indoor.mean_neighbours_sigma``
         the same on G_sigma (Fig. 5.17).
+    indoor.disconnect.*: where G_n first split (diagnostics, absent when it never did): ``t`` (s),
+        ``lost_agents`` (cut off from the leader), ``links`` (edges of the last tick across the
+        cut), ``link_length`` and ``link_clearance`` (m, of the cut edge nearest an obstacle: a
+        clearance below d_l is a wall breaking line of sight, a length above d_n a link stretched
+        out of range), ``link_mid_x``, ``link_mid_y`` (its midpoint, m) and ``leader_done`` (the leader had
+        reached its last way-point).
     indoor.success: arrived and connected throughout, no collision (eq. 5.2 with
         ``safety.min_separation`` = d_c) and no clearance violation (eq. 5.3 with
         ``safety.min_clearance`` = d_o); also written as ``success``.
@@ -136,6 +142,8 @@ class IndoorSwarm(Formation):
         self._initial_connected: bool | None = None
         self._degree_sum = np.zeros(2)
         self._ticks = 0
+        self._prev: IndoorSnapshot | None = None
+        self._cut: dict[str, Any] = {}
 
     def setpoints(self, world: WorldState, sensing: Any) -> Setpoints:
         g, T = self.gains, self.gains.T_s
@@ -148,22 +156,27 @@ class IndoorSwarm(Formation):
             w = saturate(w, g.u_sat)
         w[self.leader], self.m = leader_input(r, self.leader, snap.g_sigma, self.waypoints, self.m, g)
         self.rho_bar = rank_estimate_step(self.rho_bar, snap.g_sigma, self.leader)
-        self._observe(snap)
+        self._observe(snap, world.t, sensing.environment.tree)
         sp = Setpoints.hold(world.pos)
         moving = world.healthy
         sp.mode[moving] = Mode.VELOCITY
         sp.vel[moving, :2] = w[moving] / T
         return sp
 
-    def _observe(self, snap: IndoorSnapshot) -> None:
+    def _observe(self, snap: IndoorSnapshot, t: float, obstacles: Any) -> None:
         """Ranks and neighbour counts of this tick's graphs (measured, for the metrics)."""
-        max_rank = int(ranks(snap.g_n, self.leader).max())
+        rank = ranks(snap.g_n, self.leader)
+        max_rank = int(rank.max())
         if self._initial_connected is None:
             self._initial_connected = max_rank < self.ctx.n
+        elif max_rank >= self.ctx.n and self._connected and self._prev is not None:
+            self._cut = _cut_links(self._prev, snap, rank >= self.ctx.n, obstacles, t)
+            self._cut["leader_done"] = self.m == len(self.waypoints) - 1
         self._max_rank = max(self._max_rank, max_rank)
         self._connected &= max_rank < self.ctx.n
         self._degree_sum += [2 * len(snap.g_n) / self.ctx.n, 2 * len(snap.g_sigma) / self.ctx.n]
         self._ticks += 1
+        self._prev = snap
 
     def arrived(self, world: WorldState) -> np.ndarray:
         """(N,) bool: agents inside the end region."""
@@ -182,9 +195,41 @@ class IndoorSwarm(Formation):
         metrics["indoor.max_rank"] = self._max_rank
         metrics["indoor.mean_neighbours"] = float(self._degree_sum[0] / ticks)
         metrics["indoor.mean_neighbours_sigma"] = float(self._degree_sum[1] / ticks)
+        for key, value in self._cut.items():
+            metrics[f"indoor.disconnect.{key}"] = value
         safe = metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
         metrics["indoor.success"] = bool(arrived and self._connected and safe)
         metrics["success"] = metrics["indoor.success"]
+
+
+def _cut_links(
+    prev: IndoorSnapshot, now: IndoorSnapshot, lost: np.ndarray, obstacles: Any, t: float
+) -> dict[str, Any]:
+    """How G_n split at time ``t``: the last tick's edges between the cut-off agents and the rest.
+
+    For each such edge, its length now and the clearance of its segment from the obstacles now:
+    a clearance below d_l is a line of sight broken by a wall (eq. 5.8), a length above d_n a link
+    stretched out of range (eq. 5.12). Reported for the first split only (diagnostics).
+    """
+    cross = lost[prev.g_n.i] != lost[prev.g_n.j]
+    i, j = prev.g_n.i[cross], prev.g_n.j[cross]
+    length = np.linalg.norm(now.r[j] - now.r[i], axis=1)
+    clearance = np.full(len(i), np.inf)
+    if obstacles is not None and len(i):
+        seg = shapely.linestrings(np.stack([now.r[i], now.r[j]], axis=1))
+        (which, _), dist = obstacles.query_nearest(seg, return_distance=True, all_matches=False)
+        clearance[which] = dist
+    k = int(np.argmin(clearance)) if len(i) else 0
+    mid = (now.r[i[k]] + now.r[j[k]]) / 2 if len(i) else np.full(2, np.nan)
+    return {
+        "t": float(t),
+        "lost_agents": int(lost.sum()),
+        "links": len(i),
+        "link_length": float(length[k]) if len(i) else float("nan"),
+        "link_clearance": float(clearance[k]) if len(i) else float("nan"),
+        "link_mid_x": float(mid[0]),
+        "link_mid_y": float(mid[1]),
+    }
 
 
 @hookimpl

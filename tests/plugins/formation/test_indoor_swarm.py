@@ -149,3 +149,26 @@ def test_building_n_100_succeeds():
         assert m["indoor.success"] and m["indoor.max_rank"] < 100
         assert 4.5 < m["indoor.mean_neighbours_sigma"] < 6.0
         assert m["min_separation"] >= D_C and m["min_clearance"] >= D_O
+
+
+def test_first_split_is_diagnosed_as_a_wall_breaking_line_of_sight():
+    """indoor.disconnect.*: the tail's only link across the L's inner corner (4.6, 0.4) is cut by the
+    wall (segment clearance < d_l = 0.05 m, length < d_n), as in the L-corridor failures."""
+    from shapely import STRtree
+
+    from swarmscene.plugins.formation.indoor_control import sense
+    from swarmscene.plugins.formation.indoor_graphs import ranks
+    from swarmscene.plugins.formation.indoor_swarm import _cut_links
+
+    walls = STRtree(l_corridor(0.8).wall_polygons(0.1))
+    before = np.array([[5.0, 2.0], [4.8, 1.2], [4.8, 0.53], [4.3, 0.0]])  # tail link clears by 0.056 m
+    after = before.copy()
+    after[3] = [4.2, 0.0]  # the tail drops back 0.1 m: its only link now passes the corner too close
+    prev, now = sense(before, walls), sense(after, walls)
+    assert ranks(prev.g_n, 0).max() < 4
+    lost = ranks(now.g_n, 0) >= 4
+    np.testing.assert_array_equal(lost, [False, False, False, True])
+    cut = _cut_links(prev, now, lost, walls, 12.5)
+    assert cut["t"] == 12.5 and cut["lost_agents"] == 1 and cut["links"] == 1
+    assert cut["link_clearance"] < 0.05 and cut["link_length"] < 1.0
+    np.testing.assert_allclose([cut["link_mid_x"], cut["link_mid_y"]], [4.5, 0.265])
