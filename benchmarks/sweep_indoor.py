@@ -4,7 +4,11 @@ Runs every (shape, width, seed) through the engine (``swarmscene.api.run``), one
 this process, and prints per width: the success rate (every agent in the exit room, G_n connected
 throughout, eq. 5.2 and 5.3 held), the worst minimum inter-agent distance (>= d_c = 0.3 m) and the
 worst minimum obstacle distance (>= d_o = 0.1 m) over the seeds, the runs that violated safety,
-the mean G_n / G_sigma neighbour counts, and the failed seeds.
+the mean G_n / G_sigma neighbour counts, the failed seeds, and why they failed (from the
+``indoor.disconnect.*`` metrics): ``los`` a wall broke the last link's line of sight (segment
+clearance < d_l), ``range`` the last link stretched past d_n, ``stuck`` G_n stayed connected but not
+every agent reached the exit room; ``+done`` marks splits after the leader reached its last
+way-point.
 
     python benchmarks/sweep_indoor.py                       # straight + L, w 0.5..0.9, seeds 0..29
     python benchmarks/sweep_indoor.py --shapes l --widths 070 080 --seeds 10
@@ -24,7 +28,17 @@ from swarmscene import api
 
 SHAPES = {"straight": "indoor_corridor", "l": "indoor_l_corridor", "building": "indoor_building"}
 WIDTHS = ("050", "060", "070", "080", "090")
-D_C, D_O = 0.3, 0.1  # Table 5.1
+D_C, D_O, D_L = 0.3, 0.1, 0.05  # Table 5.1
+
+
+def cause(m: dict) -> str:
+    """Why a failed run failed (see the module docstring)."""
+    if m.get("indoor.connected", True):
+        return "stuck"
+    if "indoor.disconnect.link_clearance" not in m:
+        return "split"
+    why = "los" if m["indoor.disconnect.link_clearance"] < D_L else "range"
+    return why + ("+done" if m["indoor.disconnect.leader_done"] else "")
 
 
 def run_one(scenario: str, environment: str | None, seed: int) -> dict:
@@ -49,15 +63,22 @@ def summarise(label: str, runs: list[dict], seeds: list[int]) -> dict:
         "nb_n": float(np.mean([m["indoor.mean_neighbours"] for m in runs])),
         "nb_sigma": float(np.mean([m["indoor.mean_neighbours_sigma"] for m in runs])),
         "failed": [s for s, good in zip(seeds, ok) if not good],
+        "causes": [cause(m) for m, good in zip(runs, ok) if not good],
     }
+
+
+def causes(names: list[str]) -> str:
+    """'los 3, range 1' from a list of causes."""
+    counts = {name: names.count(name) for name in sorted(set(names))}
+    return ", ".join(f"{k} {v}" for k, v in counts.items()) or "-"
 
 
 def print_table(title: str, rows: list[dict], markdown: bool) -> None:
     head = ("case", "runs", "success %", "worst min sep (m)", "worst min clearance (m)",
-            "unsafe runs", "mean nb G_n", "mean nb G_sigma", "failed seeds")
+            "unsafe runs", "mean nb G_n", "mean nb G_sigma", "failed seeds", "causes")
     cells = [(r["label"], str(r["runs"]), f"{r['success']:.1f}", f"{r['min_sep']:.3f}",
               f"{r['min_clear']:.3f}", str(r["unsafe"]), f"{r['nb_n']:.2f}", f"{r['nb_sigma']:.2f}",
-              " ".join(map(str, r["failed"])) or "-") for r in rows]
+              " ".join(map(str, r["failed"])) or "-", causes(r["causes"])) for r in rows]
     print(f"\n{title}")
     if markdown:
         print("| " + " | ".join(head) + " |")
@@ -98,7 +119,8 @@ def main() -> None:
                     print(f"  {scenario} {label} seed {seed}: success={m['indoor.success']} "
                           f"connected={m['indoor.connected']} arrived={m['indoor.arrived']} "
                           f"max_rank={m['indoor.max_rank']} min_sep={m['min_separation']:.3f} "
-                          f"min_clear={m['min_clearance']:.3f}", flush=True)
+                          f"min_clear={m['min_clearance']:.3f} cause={'-' if m['indoor.success'] else cause(m)}",
+                          flush=True)
             rows.append(summarise(label, runs, seeds))
         print_table(f"{scenario}: {len(seeds)} seeds per case ({time.perf_counter() - t0:.0f} s)",
                     rows, args.markdown)
