@@ -15,6 +15,33 @@ Units: the thesis' inputs are displacements per sampling period T_s (Table 5.1 g
 a setpoint velocity is w / T_s with T_s = ``clock.guidance_period``. The swarm is planar (world x-y);
 altitudes are held. Failed agents hold still and stay in the graphs.
 
+Checked against sections 5.2-5.4 (the Fig. 5.13 gap of issue 6): every term of eq. 5.30-5.44 has
+the thesis' sign, range and Table 5.1 value (psi_con attracts, see the notes with the source text);
+no term is missing (w = w_obs + w_col + w_con + w_com + w_led over G_sigma); Algorithm 1 runs on
+the corridor's centreline resampled every 0.25 m, so the leader cuts the L's corner by 0.03 m (it
+passes 0.32 m from the inner corner of the 0.7 m corridor, 0.35 m on the centreline); u_lcon
+(eq. 5.43) bounds the leader by its *nearest* G_sigma neighbour only, as written, so the leader
+does not wait for a swarm stretched behind that neighbour. Collision avoidance between agents
+needs line of sight, as in the thesis: w_col sums over N_i(G_sigma) (eq. 5.35), and G_sigma is in
+G_s, whose edges need the joining segment d_l clear of walls (eq. 5.8).
+What remains is the limitation the thesis states (no LOS maintenance, section 5.3.3); the
+``indoor.disconnect.*`` metrics classify each split (benchmarks/sweep_indoor.py). Measured with
+30 seeds per width (docs/benchmarks.md): straight 0 / 0 / 90 / 96.7 / 100 % and L 0 / 0 / 86.7 /
+73.3 / 100 % for w = 0.5 ... 0.9 m. In the L the failed runs at 0.7-0.8 m are (a) a link stretched
+to about 0.9 m across the inner corner while the tail is still held in the entrance jam (the
+leader, whose nearest neighbour is close, keeps going), or (b) after the leader has stopped, the
+swarm compacts in the north leg, the last agent but one is pressed against the inner wall just
+past the corner, and the tail's only link (0.74 m) grazes the corner; at 0.8 m (b) is 7 of 8
+failures (two files fit side by side, so one hugs the inner wall; at 0.7 m they stay single file).
+A link "stretched past d_n" is a tug of war: the leader pulls the file through the corridor while
+agents jammed at the entrance hold its tail, every link sits near d_n, and with all inputs
+saturated at u_sat both ends of a link can move apart by up to 2 u_sat = 0.04 m in one step, more
+than the width of the barrier of eq. 5.38 (psi_con is 0.04 at 0.9 m and 0.19 at 0.97 m with
+eps_con = 1e-4): a link at 0.972 m went to 1.004 m in one tick (straight and L, 0.7 m, seed 16).
+The straight corridor's failures at 0.7 m are one such split at the entrance and two
+deadlocks (G_n connected, a few agents pinned in the corners beside the corridor mouth by the
+compactness repulsion, K_com = 0.1 m per step being 5 u_sat).
+
 Metrics (``metrics.json``, keys ``indoor.*``):
     indoor.arrived: every agent in the end region at the end of the run.
     indoor.connected: G_n connected at every tick (max rank < N, the thesis' criterion).

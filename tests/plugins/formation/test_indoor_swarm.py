@@ -131,9 +131,12 @@ def test_straight_corridor_succeeds_for_w_at_least_0_7():
 
 @pytest.mark.slow
 def test_l_corridor_succeeds_at_0_9_and_stays_safe():
-    """Fig. 5.13 reduced (5 seeds). Full sweep (30 seeds): 0 %, 0 %, 86.7 %, 73.3 %, 100 % for
-    w = 0.5 ... 0.9 m: below the thesis at 0.7-0.8 m, where the tail agent's last link grazes the
-    inner corner once the leader has stopped (no LOS maintenance, section 5.3.3)."""
+    """Fig. 5.13 reduced (5 seeds). Full sweep (30 seeds, benchmarks/sweep_indoor.py): 0 %, 0 %,
+    86.7 %, 73.3 %, 100 % for w = 0.5 ... 0.9 m: below the thesis at 0.7-0.8 m. 11 of the 12 failed
+    runs there lose a link's line of sight at the inner corner (no LOS maintenance, section 5.3.3):
+    a link stretched to ~0.9 m while the entrance jam holds the tail, or, once the leader has
+    stopped, the tail's 0.74 m link to an agent pressed against the inner wall; one is a link
+    stretched past d_n (see the indoor_swarm module docstring)."""
     for w, runs in _sweep("indoor_l_corridor", ("070", "080", "090"), range(5)).items():
         if w == "090":
             assert sum(m["indoor.success"] for m in runs) >= 4
