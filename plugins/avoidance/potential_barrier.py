@@ -10,6 +10,13 @@ are added to the formation's command and the sum is saturated at u_sat (eq. 5.30
 nearest obstacle point in line of sight, G_sigma the sensed graph after edge deactivation. psi_obs
 and psi_col are held at -K below d_o and d_c (see the notes that come with the source text).
 
+Collision avoidance needs line of sight, as in the thesis: w_col sums over N_i(G_sigma), and
+G_sigma is in G_s, whose edges need the joining segment d_l = 0.05 m clear of walls (eq. 5.8), so
+two close agents on either side of a wall corner do not repel. Eq. 5.2-5.3 can still be grazed
+where they cannot both hold: in the 0.5 m corridor's mouth two agents side by side had 0.298 m
+and 0.097 m (they saw each other; psi_col and psi_obs are both held at 200 there, so the
+saturated step splits the difference).
+
 Units: the thesis' terms are displacements per sampling period T_s; they enter the setpoint as
 velocities w / T_s (T_s = ``clock.guidance_period``). VELOCITY setpoints get the sum, saturated;
 other modes get the term as feed-forward and their reference position shifted by one step of it.
