@@ -40,22 +40,50 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
-def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write an uncompressed ``.npz`` atomically, streamed from ``arrays`` (memory maps welcome).
+COPY_CHUNK = 16 * 1024 * 1024
+"""Bytes per read when a spilled ``.npy`` file is copied into an archive."""
 
-    numpy writes each member 16 MiB at a time, so a streamed trajectory is archived without being
-    loaded (:mod:`swarmscene.core.recorder`).
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write an uncompressed ``.npz`` atomically; memory stays bounded whatever the arrays' size.
+
+    An array that is a whole ``.npy`` file memory-mapped (a streamed trajectory,
+    :mod:`swarmscene.core.recorder`) is copied into the archive file to file, 16 MiB at a time,
+    without mapping its pages; any other array is written by numpy, which also goes in 16 MiB chunks.
+    The archive is what ``numpy.savez`` writes: one ``<name>.npy`` member per array.
     """
+    import zipfile
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)  # uncompressed: fast to write, each member readable alone
+        with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+            for name, array in arrays.items():
+                with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                    source = _whole_npy_file(array)
+                    if source is None:
+                        np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
+                    else:
+                        with open(source, "rb") as src:
+                            while block := src.read(COPY_CHUNK):
+                                member.write(block)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _whole_npy_file(array: np.ndarray) -> str | None:
+    """The ``.npy`` file ``array`` maps in full (from ``numpy.load(..., mmap_mode=...)``), else None."""
+    filename = getattr(array, "filename", None)
+    if not isinstance(array, np.memmap) or filename is None or not array.flags.c_contiguous:
+        return None
+    try:
+        size = os.path.getsize(filename)
+    except OSError:
+        return None
+    return filename if array.offset + array.nbytes == size else None
 
 
 def _jsonable(value: Any) -> Any:

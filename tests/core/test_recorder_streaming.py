@@ -107,3 +107,19 @@ def test_attitude_is_streamed_too():
     assert set(streamed.trajectory) == set(memory) == {"t", "pos", "vel", "healthy", "quat"}
     for key, value in memory.items():
         np.testing.assert_array_equal(value, streamed.trajectory[key])
+
+
+def test_npz_copies_whole_spill_files_and_writes_other_arrays(tmp_path):
+    from swarmscene.core.outputs import _whole_npy_file, write_npz
+
+    frames = np.arange(6 * 2 * 3, dtype=np.float32).reshape(6, 2, 3)
+    app = NpyAppender(tmp_path / "pos.npy", (2, 3), np.float32)
+    app.append(frames)
+    mapped = app.load()
+    assert _whole_npy_file(mapped) == str(tmp_path / "pos.npy")  # copied file to file
+    assert _whole_npy_file(mapped[1:]) is None and _whole_npy_file(frames) is None  # written by numpy
+    write_npz(tmp_path / "out.npz", {"pos": mapped, "tail": mapped[2:], "t": np.arange(6.0)})
+    archive = np.load(tmp_path / "out.npz")
+    np.testing.assert_array_equal(archive["pos"], frames)
+    np.testing.assert_array_equal(archive["tail"], frames[2:])
+    np.testing.assert_array_equal(archive["t"], np.arange(6.0))
