@@ -81,9 +81,9 @@ def _whole_npy_file(array: np.ndarray) -> str | None:
         return None
     try:
         size = os.path.getsize(filename)
-    except OSError:
+    except (OSError, TypeError):
         return None
-    return filename if array.offset + array.nbytes == size else None
+    return str(filename) if array.offset + array.nbytes == size else None
 
 
 def _jsonable(value: Any) -> Any:
