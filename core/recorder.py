@@ -73,6 +73,8 @@ class NpyAppender:
 
     def sync(self) -> None:
         """Rewrite the header with the frame count and flush, so the file reads as a whole array."""
+        if self._fh.closed:
+            return  # closed files were synced on closing
         end = self._fh.tell()
         self._fh.seek(0)
         self._fh.write(npy_header(self.dtype, (self.frames, *self.frame_shape)))
