@@ -48,19 +48,25 @@ class SafetyMonitor:
         self.min_clearance = np.full(size, np.inf)
         self.connected = np.ones(size, dtype=bool)
         self.count = 0
-        self.collision_pairs: set[tuple[int, int]] = set()
+        self.n = sim.world.n
+        # Pairs closer than d_sep, as keys i * N + j in chunks, merged now and then: 8 bytes per
+        # pair (a set of tuples costs ~500 and grew to 1 GB over 1,000 ticks of 100,000 boids).
+        self._collision_keys: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        self._unmerged = 0
         self.clearance_agents: set[int] = set()
         self.first: dict[str, tuple[float, list[int]]] = {}
 
     def _observe(self, sim: "Simulation") -> None:
         sensing, t, k = sim.sensing, sim.world.t, self.count
-        nearest, _ = sensing.nearest
         self.t[k] = t
-        self.min_separation[k] = nearest.min() if nearest.size else np.inf
+        # Connectivity first: the pair list it may build makes the separation free.
+        self.connected[k] = sensing.comm_connected
+        self.min_separation[k] = sensing.min_separation
         if self.min_separation[k] < self.d_sep:
             pairs = sensing.pairs(self.d_sep)
-            self.collision_pairs.update(map(tuple, pairs.tolist()))
-            self._first("separation", t, np.unique(pairs).tolist())
+            self._add_collisions(pairs)
+            if "separation" not in self.first:
+                self._first("separation", t, np.unique(pairs).tolist())
             if self.stop_on_collision:
                 sim.request_stop("collision")
         clearance = sensing.clearance_within(self.horizon)
@@ -71,10 +77,27 @@ class SafetyMonitor:
             agents = np.flatnonzero(clearance < self.d_clear)
             self.clearance_agents.update(agents.tolist())
             self._first("clearance", t, agents.tolist())
-        self.connected[k] = sensing.comm_connected
         if not self.connected[k]:
             self._first("connectivity", t, np.flatnonzero(sensing.comm_members).tolist())
         self.count += 1
+
+    def _add_collisions(self, pairs: np.ndarray) -> None:
+        keys = pairs[:, 0].astype(np.int64) * self.n + pairs[:, 1]
+        self._collision_keys.append(keys)
+        self._unmerged += keys.size
+        if self._unmerged > max(1_000_000, self._collision_keys[0].size):
+            self._merge_collisions()
+
+    def _merge_collisions(self) -> np.ndarray:
+        merged = np.unique(np.concatenate(self._collision_keys))
+        self._collision_keys, self._unmerged = [merged], 0
+        return merged
+
+    @property
+    def collision_pairs(self) -> set[tuple[int, int]]:
+        """Distinct pairs (i < j) that came closer than ``safety.min_separation``."""
+        keys = self._merge_collisions()
+        return set(zip((keys // self.n).tolist(), (keys % self.n).tolist()))
 
     def _first(self, condition: str, t: float, agents: list[int]) -> None:
         self.first.setdefault(condition, (float(t), agents))
@@ -101,7 +124,7 @@ class SafetyMonitor:
         min_clear = float(self.min_clearance[:k].min()) if k else float("inf")
         metrics["min_separation"] = min_sep if np.isfinite(min_sep) else None
         metrics["min_clearance"] = min_clear if np.isfinite(min_clear) else None
-        metrics["collisions"] = len(self.collision_pairs)
+        metrics["collisions"] = int(self._merge_collisions().size)
         metrics["clearance_violations"] = len(self.clearance_agents)
         metrics["connected"] = bool(self.connected[:k].all())
         for condition, (t, agents) in sorted(self.first.items()):

@@ -24,6 +24,11 @@ DENSE_LIMIT = 128
 """Up to this many members, connectivity is a dense reachability sweep (no sparse overhead)."""
 NEAR_K = 4
 """Nearest neighbours per member in the sparse connectivity test of large swarms."""
+SPARSE_NEIGHBOURS = 128
+"""A comm graph with at most this many neighbours per member (estimated from a sample) is cheap
+enough to list whole: connectivity then goes straight to the exact pair graph."""
+DENSITY_SAMPLE = 16
+"""Members sampled (evenly, deterministic) to estimate the neighbours per member."""
 
 
 def _dense_connected(pos: np.ndarray, radius: float) -> bool:
@@ -75,10 +80,46 @@ class Sensing:
         return cKDTree(self.world.pos)
 
     def pairs(self, radius: float) -> np.ndarray:
-        """Index pairs (i < j) of agents closer than ``radius`` m, shape (M, 2); cached per radius."""
+        """Index pairs (i < j) of agents closer than ``radius`` m, shape (M, 2); cached per radius.
+
+        Filtered from the list of a larger cached radius when there is one (exact, and cheaper than
+        walking the tree again: the separation check reuses the connectivity or flocking pairs).
+        """
         if radius not in self._pairs:
-            self._pairs[radius] = self.tree.query_pairs(radius, output_type="ndarray")
+            larger = [r for r in self._pairs if r >= radius]
+            if larger:
+                wide = self._pairs[min(larger)]
+                self._pairs[radius] = wide[self._pair_dist2(wide) <= radius * radius]
+            else:
+                self._pairs[radius] = self.tree.query_pairs(radius, output_type="ndarray")
         return self._pairs[radius]
+
+    def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
+        """Squared distances of ``pairs`` (axis by axis: 1-D gathers are several times faster)."""
+        i, j = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
+        d2 = np.zeros(len(pairs))
+        for k in range(self.world.pos.shape[1]):
+            col = np.ascontiguousarray(self.world.pos[:, k])
+            diff = col.take(j) - col.take(i)
+            d2 += diff * diff
+        return d2
+
+    @cached_property
+    def min_separation(self) -> float:
+        """Smallest distance between two agents, m (``inf`` with fewer than two).
+
+        Free when any pair list is cached and not empty (its closest pair is the closest overall:
+        a closer pair would be in it); else from the kNN query if it ran; else one 2-nearest query.
+        """
+        if self.world.n < 2:
+            return float("inf")
+        for radius in sorted(self._pairs):
+            if len(self._pairs[radius]):
+                return float(np.sqrt(self._pair_dist2(self._pairs[radius]).min()))
+        if "knn" in self.__dict__:
+            return float(self.knn[0][:, 0].min())
+        dist, _ = self.tree.query(self.world.pos, k=2)
+        return float(dist[:, 1].min())
 
     @cached_property
     def knn(self) -> tuple[np.ndarray, np.ndarray]:
@@ -138,9 +179,11 @@ class Sensing:
         """True when the communication graph over its members is connected (one member counts).
 
         Exact, and cheap in the common case: a small swarm uses a dense reachability sweep; a
-        large one first tests the sparse subgraph of each member's nearest neighbours within
-        range (connected subgraph => connected graph) and only builds every pair when that test
-        fails.
+        large sparse one (a few neighbours each, e.g. a flock whose vision is the comm range)
+        lists its pairs within range once, and that list also serves the separation check and any
+        plugin asking for the same radius; a large dense one first tests the sparse subgraph of each
+        member's nearest neighbours within range (connected subgraph => connected graph) and only
+        builds every pair when that test fails.
         """
         members = np.flatnonzero(self.comm_members)
         m = members.size
@@ -148,11 +191,20 @@ class Sensing:
             return True
         if m <= DENSE_LIMIT:
             return _dense_connected(self.world.pos[members], self.comm_range)
-        if _components(m, *self._near_member_edges(members)) == 1:
-            return True
+        if not self._comm_pairs_are_cheap(members):
+            if _components(m, *self._near_member_edges(members)) == 1:
+                return True
         pairs = self.pairs(self.comm_range)
         keep = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
         return _components(m, *_renumber(self.world.n, members, pairs[keep])) == 1
+
+    def _comm_pairs_are_cheap(self, members: np.ndarray) -> bool:
+        """Already listed, or about ``SPARSE_NEIGHBOURS`` or fewer per member (sampled estimate)."""
+        if self.comm_range in self._pairs:
+            return True
+        sample = members[:: max(1, members.size // DENSITY_SAMPLE)]
+        counts = self.tree.query_ball_point(self.world.pos[sample], self.comm_range, return_length=True)
+        return float(np.mean(counts)) - 1.0 <= SPARSE_NEIGHBOURS
 
     def _near_member_edges(self, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         dist, idx = self.knn
