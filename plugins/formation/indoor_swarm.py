@@ -106,7 +106,7 @@ def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     key = (gains.d_n, gains.d_l, gains.phi_d, min(gains.l_o, gains.d_s))
     per_tick = _SNAPSHOTS.setdefault(sensing, {})
     if key not in per_tick:
-        r = sensing.world.pos[:, :2]
+        r = np.array(sensing.world.pos[:, :2])  # a copy: the snapshot outlives the tick (diagnostics)
         per_tick[key] = sense(r, sensing.environment.tree, gains, tree=sensing.tree)
     return per_tick[key]
 
