@@ -311,12 +311,18 @@ def solve_assignment(cost: np.ndarray, column_penalty: np.ndarray | None = None)
     return solve_square(_square_problem(cost - column_penalty, column_penalty))[: cost.shape[0]]
 
 
-def _square_problem(distance: np.ndarray, column_penalty: np.ndarray) -> np.ndarray:
-    """Eq. 4.13 with the column penalty on the dummy rows: real rows, then M - K rows of -p_j."""
+def _square_problem(distance: np.ndarray, column_penalty: np.ndarray, dtype=None) -> np.ndarray:
+    """Eq. 4.13 with the column penalty on the dummy rows: real rows, then M - K rows of -p_j.
+
+    ``dtype`` (default: that of the inputs) lets whole-decimetre costs be stored as int32, which
+    halves the memory traffic of the warm start's passes over the matrix (about 6 ms at N = 1,000).
+    """
     k, m = distance.shape
     if k > m:
         raise ValueError(f"{k} followers but only {m} offsets")
-    square = np.empty((m, m), dtype=np.result_type(distance, column_penalty))
+    if dtype is None:
+        dtype = np.result_type(distance, column_penalty)
+    square = np.empty((m, m), dtype=dtype)
     square[:k] = distance
     square[k:] = -column_penalty
     return square
@@ -361,7 +367,10 @@ def assign_offsets(
         rows = np.flatnonzero(held >= 0)
         distance[rows, held[rows]] -= np.rint(switch_margin / DECIMETRE)
     slots = np.empty(order.size, dtype=np.int64)
-    slots[order] = solve_square(_square_problem(distance, _penalty_dm(pattern)))[: order.size]
+    # Whole decimetres: int32 is exact while the costs stay far below 2**31 (2**28 dm = 27,000 km).
+    exact_int32 = distance.size == 0 or np.abs(distance).max() < 2**28
+    square = _square_problem(distance, _penalty_dm(pattern), np.int32 if exact_int32 else np.int64)
+    slots[order] = solve_square(square)[: order.size]
     return slots
 
 
