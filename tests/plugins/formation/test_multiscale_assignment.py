@@ -69,3 +69,22 @@ def test_steady_state_is_certified_by_the_reduction_zeros():
     packed = np.rint(cdist(rng.uniform(0, 10, size=slots.shape), slots) * 10)
     assert _matching_on_reduction_zeros(packed) is None
     assert packed[np.arange(len(packed)), solve_square(packed)].sum() == _optimum(packed)
+
+
+def test_tie_heavy_line_start_is_optimal_and_deterministic():
+    # Agents on a long line, slots on a compact disc: far agents tie on many slots (the case the
+    # fewest-zeros-first row order speeds up); the optimum must still be scipy's, deterministically.
+    from swarmscene.plugins.formation.multiscale_assignment import _solve_reduced
+
+    n = 240
+    agents = np.c_[np.arange(n) * 1.5, np.zeros(n)]
+    rng = np.random.default_rng(5)
+    slots = rng.uniform(-20, 20, size=(n, 2))
+    cost = np.rint(cdist(agents, slots) * 10).astype(np.int32)
+    cols = solve_square(cost, coarsen=3, direct_size=20)
+    assert np.array_equal(np.sort(cols), np.arange(n))
+    assert cost[np.arange(n), cols].sum() == _optimum(cost)
+    np.testing.assert_array_equal(cols, solve_square(cost.copy(), coarsen=3, direct_size=20))
+    reduced = cost - cost.min(axis=1, keepdims=True)
+    direct = _solve_reduced(reduced)
+    assert reduced[np.arange(n), direct].sum() == _optimum(reduced)
