@@ -368,7 +368,10 @@ def assign_offsets(
         distance[rows, held[rows]] -= np.rint(switch_margin / DECIMETRE)
     slots = np.empty(order.size, dtype=np.int64)
     # Whole decimetres: int32 is exact while the costs stay far below 2**31 (2**28 dm = 27,000 km).
-    exact_int32 = distance.size == 0 or np.abs(distance).max() < 2**28
+    # Bound from the geometry (O(K)) rather than a pass over the matrix.
+    reach = np.linalg.norm(np.asarray(follower_xy, dtype=float)[:, :2] - np.asarray(leader_xy, dtype=float)[:2], axis=1)
+    bound = (reach.max(initial=0.0) + np.linalg.norm(pattern.offsets_xy, axis=1).max(initial=0.0)) / DECIMETRE
+    exact_int32 = bound + abs(switch_margin) / DECIMETRE + 2 < 2**28
     square = _square_problem(distance, _penalty_dm(pattern), np.int32 if exact_int32 else np.int64)
     slots[order] = solve_square(square)[: order.size]
     return slots
