@@ -15,6 +15,11 @@ by the c-transforms v_j = min_k (c_kj - u_k), u_i = min_j (c_ij - v_j), v_j = mi
 (which also make them feasible: every reduced cost is >= 0). The result is exactly optimal:
 only the solver's starting point changes, never the problem. Integer costs stay integer, so ties
 are exact and the answer is a deterministic function of the matrix.
+
+Two row orders, both fixed functions of the matrix, keep the paths short: rows are sorted by their
+cheapest column before sampling (a stratified coarse sample, hence better duals), and scipy takes
+the rows of each reduced matrix with the fewest zeros first (tie-heavy rows last). At N = 1,000
+(benchmarks/bench_hex_assignment.py) every starting configuration then solves in under 50 ms.
 """
 
 from __future__ import annotations
