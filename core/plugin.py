@@ -17,6 +17,7 @@ learns of failures and contributes metrics through the same hooks as the monitor
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -66,8 +67,8 @@ class BuildContext:
     initial: WorldState
 
 
-class Plugin:
-    """Common part of every plugin class."""
+class Plugin(ABC):
+    """Common part of every plugin class (abstract: a kind's required methods must be defined)."""
 
     name: ClassVar[str]
     """Registered name, the value users write in ``formation=``, ``avoidance=``, ``dynamics=``."""
@@ -82,9 +83,9 @@ class Plugin:
 class Formation(Plugin):
     """Produces each agent's setpoint for this tick (where it should be or go, and how)."""
 
+    @abstractmethod
     def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
         """Return the setpoints of all N agents for this guidance tick."""
-        raise NotImplementedError  # abstract: every formation defines it
 
     def complete(self, world: WorldState) -> bool | None:
         """Whether the formation's mission is complete; ``None`` when it defines no mission.
@@ -98,9 +99,9 @@ class Formation(Plugin):
 class Avoidance(Plugin):
     """Takes the formation's setpoints and returns safe ones."""
 
+    @abstractmethod
     def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
         """Return setpoints that keep agents apart and clear of obstacles (may return ``sp``)."""
-        raise NotImplementedError  # abstract: every avoidance method defines it
 
 
 class Dynamics(Plugin):
@@ -112,16 +113,16 @@ class Dynamics(Plugin):
     def initialize(self, world: WorldState) -> None:
         """Add the model's own state (attitude, integrators) to ``world`` at t = 0."""
 
+    @abstractmethod
     def control(self, world: WorldState, sp: Setpoints) -> None:
         """Compute the control input from ``sp``; called once per guidance tick (zero-order hold)."""
-        raise NotImplementedError  # abstract: every dynamics model defines it
 
+    @abstractmethod
     def step(self, world: WorldState, dt: float) -> None:
         """Advance ``world.pos``/``world.vel`` (and attitude) in place by one physics step ``dt``.
 
         Failed agents may be moved here; the kernel restores them afterwards (they hover in place).
         """
-        raise NotImplementedError  # abstract: every dynamics model defines it
 
 
 PLUGIN_KINDS: dict[str, type[Plugin]] = {

@@ -20,6 +20,7 @@ import pluggy
 
 from .config import Scenario
 from .environment import Environment
+from .errors import ConfigError
 from .events import Event, EventKind, EventQueue
 from .geometry import build_obstacles, initial_positions
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
@@ -85,7 +86,11 @@ class Simulation:
             self.pm.register(obj)
 
     def _build(self, kind: str, ctx: BuildContext) -> Any:
-        obj = self.scenario.plugin_classes[kind](self.scenario.plugin_params[kind], ctx)
+        try:
+            obj = self.scenario.plugin_classes[kind](self.scenario.plugin_params[kind], ctx)
+        except ValueError as exc:
+            # A plugin refusing the scenario (e.g. "needs a leader") is a config problem too.
+            raise ConfigError([f"{kind}: {exc}"]) from exc
         # A chosen plugin that implements lifecycle hooks takes part in them for this run.
         if any(callable(getattr(obj, name, None)) for name in _LIFECYCLE_HOOKS):
             self.pm.register(obj, name=f"{kind}:{obj.name}")

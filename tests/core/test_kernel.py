@@ -166,3 +166,22 @@ def test_kernel_names_no_plugin():
     for name in ("static_shape", "potential", "cem", "double_integrator", "plugins."):
         assert name not in source
     assert issubclass(Simulation, object) and Formation and Avoidance and Dynamics and Setpoints
+
+
+def test_plugin_refusing_the_scenario_is_a_config_error(data):
+    from swarmscene.core.errors import ConfigError
+
+    data["swarm"]["leader"] = None
+    data["formation"] = {"name": "hex_lattice"}
+    with pytest.raises(ConfigError) as info:
+        api.build(data)
+    (line,) = info.value.lines
+    assert line.startswith("formation: ") and "leader" in line
+
+
+def test_plugin_without_its_kinds_methods_cannot_be_built():
+    class Incomplete(Formation):
+        name = "incomplete"
+
+    with pytest.raises(TypeError, match="abstract method"):
+        Incomplete(Incomplete.Params(), None)
