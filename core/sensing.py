@@ -165,12 +165,17 @@ class Sensing:
         return self.world.healthy & self.world.comm_ok
 
     @cached_property
+    def comm_edges(self) -> np.ndarray:
+        """Links (i < j) of the communication graph: pairs within range, both ends members."""
+        pairs = self.pairs(self.comm_range)
+        return pairs[self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]]
+
+    @cached_property
     def comm_adjacency(self) -> csr_matrix:
         """Symmetric sparse adjacency of the communication graph (range ``comm_range``)."""
         n = self.world.n
-        pairs = self.pairs(self.comm_range)
-        keep = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
-        i, j = pairs[keep, 0], pairs[keep, 1]
+        edges = self.comm_edges
+        i, j = edges[:, 0], edges[:, 1]
         data = np.ones(2 * len(i), dtype=np.int8)
         return coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
 
@@ -194,9 +199,7 @@ class Sensing:
         if not self._comm_pairs_are_cheap(members):
             if _components(m, *self._near_member_edges(members)) == 1:
                 return True
-        pairs = self.pairs(self.comm_range)
-        keep = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
-        return _components(m, *_renumber(self.world.n, members, pairs[keep])) == 1
+        return _components(m, *_renumber(self.world.n, members, self.comm_edges)) == 1
 
     def _comm_pairs_are_cheap(self, members: np.ndarray) -> bool:
         """Already listed, or about ``SPARSE_NEIGHBOURS`` or fewer per member (sampled estimate)."""

@@ -21,6 +21,7 @@ from pydantic import Field
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.vectors import clip_norm
 
 
 def barrier(d: np.ndarray, d_safe: float, d_range: float) -> np.ndarray:
@@ -61,8 +62,7 @@ class Potential(Avoidance):
             np.add.at(v, j, -push)
         if not sensing.environment.empty:
             v += self._obstacle_repulsion(world, sensing)
-        norm = np.linalg.norm(v, axis=1, keepdims=True)
-        return v * np.minimum(1.0, p.v_max / np.maximum(norm, 1e-12))
+        return clip_norm(v, p.v_max)
 
     def _obstacle_repulsion(self, world, sensing) -> np.ndarray:
         p, c_s = self.params, self.ctx.min_clearance

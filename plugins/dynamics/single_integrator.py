@@ -17,13 +17,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-
-
-def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
-    """Scale rows of ``v`` (N, 3) down so that none is longer than ``limit``."""
-    norm = np.linalg.norm(v, axis=1, keepdims=True)
-    scale = np.minimum(1.0, limit / np.maximum(norm, 1e-12))
-    return v * scale
+from swarmscene.core.vectors import clip_norm
 
 
 class SingleIntegrator(Dynamics):

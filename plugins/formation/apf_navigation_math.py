@@ -36,6 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from swarmscene.core.vectors import clip_norm
+
 LEVEL_BAND = 2.0 / 3.0
 """Agents with |dz| < LEVEL_BAND * d_c are on the same flight level (F_i of section 4.3.3)."""
 
@@ -54,8 +56,7 @@ def target_gain(z: np.ndarray, d_c: float, v_sat: float) -> np.ndarray:
 
 def saturate(v: np.ndarray, v_sat: float) -> np.ndarray:
     """Eq. 4.21: scale each row of ``v`` (N, k) down to norm v_sat when it is longer."""
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v * np.minimum(1.0, v_sat / np.maximum(norm, np.finfo(float).tiny))
+    return clip_norm(v, v_sat)
 
 
 def flight_level_altitude(target_z: np.ndarray, d_c: float, level_offset: float = 1.0) -> np.ndarray:

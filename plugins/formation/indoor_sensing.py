@@ -21,6 +21,8 @@ from scipy.spatial import cKDTree
 from shapely import STRtree
 from shapely.geometry.base import BaseGeometry
 
+from swarmscene.core.vectors import clip_norm
+
 Obstacles = Sequence[BaseGeometry] | STRtree | None
 
 
@@ -36,9 +38,7 @@ def obstacle_tree(obstacles: Obstacles) -> STRtree | None:
 
 def saturate(w: np.ndarray, limit: float) -> np.ndarray:
     """Scale each row of ``w`` (N, 2) down to norm ``limit`` when it exceeds it (thesis eq. 5.30)."""
-    norm = np.sqrt(np.einsum("ij,ij->i", w, w))
-    scale = np.minimum(1.0, limit / np.maximum(norm, 1e-300))
-    return w * scale[:, None]
+    return clip_norm(w, limit)
 
 
 def single_integrator_step(r: np.ndarray, u: np.ndarray, u_max: float) -> np.ndarray:
