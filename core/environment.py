@@ -48,14 +48,22 @@ class Environment:
         """Index of each point's nearest obstacle (-1 beyond ``max_distance``), the point
         geometries and their distances (``inf`` beyond ``max_distance``)."""
         pts = shapely.points(xy)
-        pairs, dist = self.tree.query_nearest(
-            pts, return_distance=True, all_matches=False, max_distance=max_distance
-        )
-        # One pair per point found (all_matches=False), in point order.
         nearest = np.full(len(xy), -1)
         distance = np.full(len(xy), np.inf)
-        nearest[pairs[0]] = pairs[1]
-        distance[pairs[0]] = dist
+        if max_distance is None:
+            (point, geom), dist = self.tree.query_nearest(pts, return_distance=True, all_matches=False)
+        else:
+            # Within a range, the vectorised "dwithin" predicate and one distance per candidate
+            # pair are ~3x faster than query_nearest's own bounded search (100 agents among the
+            # building's walls: 55 vs 165 us); the nearest candidate of each point wins.
+            point, geom = self.tree.query(pts, predicate="dwithin", distance=max_distance)
+            dist = shapely.distance(pts[point], self._geoms[geom])
+            order = np.lexsort((dist, point))
+            point, geom, dist = point[order], geom[order], dist[order]
+            first = np.r_[True, point[1:] != point[:-1]] if point.size else np.zeros(0, bool)
+            point, geom, dist = point[first], geom[first], dist[first]
+        nearest[point] = geom
+        distance[point] = dist
         return nearest, pts, distance
 
     def clearance(self, points: np.ndarray, max_distance: float | None = None) -> np.ndarray:
@@ -63,16 +71,23 @@ class Environment:
         negative inside (minus the depth to the boundary). ``inf`` when there are no obstacles,
         and for points farther than ``max_distance`` from every obstacle when it is given (a
         bounded query is an order of magnitude cheaper near walls)."""
+        return self.nearest_obstacle(points, max_distance)[1]
+
+    def nearest_obstacle(
+        self, points: np.ndarray, max_distance: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each point's nearest obstacle: its index in :attr:`obstacles` (-1 when there is none
+        within ``max_distance``) and the signed clearance of :meth:`clearance`, from one query."""
         xy = _xy(points).reshape(-1, 2)
         if self.empty:
-            return np.full(len(xy), np.inf)
-        _, pts, distance = self._nearest(xy, max_distance)
+            return np.full(len(xy), -1), np.full(len(xy), np.inf)
+        nearest, pts, distance = self._nearest(xy, max_distance)
         inside = distance == 0.0
         if inside.any():
             inside[inside] = shapely.contains_xy(self.union, xy[inside, 0], xy[inside, 1])
             boundary = shapely.boundary(self.union)
             distance[inside] = -shapely.distance(boundary, pts[inside])
-        return distance
+        return nearest, distance
 
     def nearest_point(self, points: np.ndarray) -> np.ndarray:
         """Nearest obstacle point to each point, shape (N, 2); NaN when there are no obstacles."""

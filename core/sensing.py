@@ -13,7 +13,7 @@ from functools import cached_property
 import networkx as nx
 import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import connected_components, shortest_path
+from scipy.sparse.csgraph import connected_components, minimum_spanning_tree, shortest_path
 from scipy.spatial import cKDTree
 
 from .environment import Environment
@@ -65,14 +65,24 @@ class Sensing:
             the state changes).
         environment: the obstacle map.
         comm_range: communication range, m.
+        previous: the last tick's snapshot, if any: the obstacle ranges its callers asked for
+            decide this one's first obstacle query (see :meth:`obstacle_nearest`).
     """
 
-    def __init__(self, world: WorldState, environment: Environment, comm_range: float) -> None:
+    def __init__(
+        self,
+        world: WorldState,
+        environment: Environment,
+        comm_range: float,
+        previous: "Sensing | None" = None,
+    ) -> None:
         self.world = world
         self.environment = environment
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
-        self._clearance: dict[float, np.ndarray] = {}
+        self._nearest: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self.obstacle_reach = previous.obstacle_reach if previous is not None else 0.0
+        """Widest obstacle range asked of this snapshot or an earlier one, m."""
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -149,15 +159,35 @@ class Sensing:
         return self.environment.clearance(self.world.pos)
 
     def clearance_within(self, radius: float) -> np.ndarray:
-        """Signed clearance, exact where it is below ``radius`` m and ``inf`` beyond; cached per
-        radius. Much cheaper than :attr:`clearance` near many obstacles: use it whenever only
+        """Signed clearance, exact where it is at most ``radius`` m and ``inf`` beyond; cached
+        per radius. Much cheaper than :attr:`clearance` near many obstacles: use it whenever only
         nearby obstacles matter (repulsion ranges, safety checks)."""
         if "clearance" in self.__dict__:
             full = self.clearance
-            return np.where(full < radius, full, np.inf)
-        if radius not in self._clearance:
-            self._clearance[radius] = self.environment.clearance(self.world.pos, max_distance=radius)
-        return self._clearance[radius]
+            return np.where(full <= radius, full, np.inf)
+        return self.obstacle_nearest(radius)[1]
+
+    def obstacle_nearest(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Each agent's nearest obstacle within ``radius`` m: its index in
+        ``environment.obstacles`` (-1 beyond) and the signed clearance (``inf`` beyond); cached.
+
+        The first query of a tick walks the obstacle tree once at the widest range asked so far
+        (this tick or the previous ones, :attr:`obstacle_reach`); narrower requests are filtered
+        from it, exactly. So the safety monitor's horizon and a plugin's sensing range, asked in
+        either order, cost one STRtree query per tick instead of one each.
+        """
+        if radius not in self._nearest:
+            wider = [r for r in self._nearest if r >= radius]
+            if wider:
+                index, clearance = self._nearest[min(wider)]
+                beyond = clearance > radius
+                self._nearest[radius] = (np.where(beyond, -1, index), np.where(beyond, np.inf, clearance))
+            else:
+                reach = max(radius, self.obstacle_reach)
+                self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach)
+                self.obstacle_reach = reach
+                return self.obstacle_nearest(radius)
+        return self._nearest[radius]
 
     @cached_property
     def comm_members(self) -> np.ndarray:
@@ -217,6 +247,27 @@ class Sensing:
         rows, cols = rows[ok], cols[ok]
         ok = self.comm_members[cols]
         return _renumber(self.world.n, members, np.column_stack([rows[ok], cols[ok]]))
+
+    def comm_spanning_tree(self) -> np.ndarray | None:
+        """Links (i, j), shape (m - 1, 2), of a minimum spanning tree of the communication graph
+        over its m members, lengths as weights; ``None`` when the graph is not connected.
+
+        Its links are the shortest that keep the members connected, so they are the last to
+        stretch out of range: :class:`~swarmscene.core.monitors.ConnectivityCertificate` keeps
+        one from tick to tick as a proof of connectivity.
+        """
+        members = np.flatnonzero(self.comm_members)
+        m = members.size
+        edges = self.comm_edges
+        if m <= 1:
+            return np.zeros((0, 2), dtype=np.intp)
+        i, j = _renumber(self.world.n, members, edges)
+        # csgraph reads a zero weight as a missing link: co-located members weigh a little.
+        length = np.maximum(np.sqrt(self._pair_dist2(edges)), 1e-12)
+        tree = minimum_spanning_tree(coo_matrix((length, (i, j)), shape=(m, m))).tocoo()
+        if tree.nnz != m - 1:
+            return None
+        return np.column_stack([members[tree.row], members[tree.col]])
 
     def hop_distances(self, source: int) -> np.ndarray:
         """Hops from ``source`` to every agent over the communication graph (``inf`` if unreachable)."""

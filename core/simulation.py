@@ -109,7 +109,7 @@ class Simulation:
         self._hold_failed()
         self.step_count += 1
         self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
-        self.sensing = Sensing(self.world, self.environment, self.config.comm.range)
+        self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
         self.hook.swarmscene_step_end(sim=self)
 
     def _apply_due_events(self) -> None:
@@ -118,7 +118,7 @@ class Simulation:
             if event.kind is EventKind.HOVER:
                 idx = list(event.agents)
                 self._hover_pos[idx] = self.world.pos[idx]
-            self.sensing = Sensing(self.world, self.environment, self.config.comm.range)
+            self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
             self.hook.swarmscene_event(sim=self, event=event)
 
     def _hold_failed(self) -> None:

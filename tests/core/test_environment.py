@@ -95,3 +95,39 @@ def test_bounded_clearance_is_exact_inside_its_range(env):
     assert np.array_equal(sensing.clearance_within(1.5), bounded)
     sensing.clearance  # once the exact array exists, bounded views derive from it
     assert np.array_equal(sensing.clearance_within(1.5), bounded)
+
+
+def test_nearest_obstacle_index_and_bounded_query_match_brute_force(env):
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-3, 9, size=(400, 2))
+    index, clearance = env.nearest_obstacle(pts)
+    each = np.array([[g.distance(Point(p)) for g in env.obstacles] for p in pts])
+    assert index.tolist() == each.argmin(axis=1).tolist()
+    outside = clearance > 0
+    assert clearance[outside] == pytest.approx(each.min(axis=1)[outside], abs=1e-12)
+    assert (clearance[~outside] <= 0).all() and env.contains(pts[~outside]).all()
+    b_index, b_clearance = env.nearest_obstacle(pts, max_distance=0.8)
+    near = clearance <= 0.8
+    assert b_index[near].tolist() == index[near].tolist()
+    assert np.array_equal(b_clearance[near], clearance[near])
+    assert (b_index[~near] == -1).all() and np.isinf(b_clearance[~near]).all()
+
+
+def test_one_obstacle_query_per_tick_serves_every_range(env, monkeypatch):
+    """Narrower ranges are filtered from the widest one asked, this tick or the last one."""
+    rng = np.random.default_rng(6)
+    world = WorldState.at_rest(np.column_stack([rng.uniform(-3, 9, size=(200, 2)), np.zeros(200)]))
+    calls = []
+    query = env.nearest_obstacle
+    monkeypatch.setattr(env, "nearest_obstacle", lambda p, r=None: calls.append(r) or query(p, r))
+    first = Sensing(world, env, comm_range=3.0)
+    narrow, wide = first.obstacle_nearest(0.5), first.obstacle_nearest(0.7)
+    assert calls == [0.5, 0.7]
+    for radius, (idx, clr) in ((0.5, narrow), (0.7, wide)):
+        direct_idx, direct_clr = query(world.pos, radius)
+        assert np.array_equal(idx, direct_idx) and np.array_equal(clr, direct_clr)
+    second = Sensing(world, env, comm_range=3.0, previous=first)
+    again = second.obstacle_nearest(0.5), second.obstacle_nearest(0.7), second.clearance_within(0.3)
+    assert calls == [0.5, 0.7, 0.7]  # the second tick asks the tree once, at 0.7 m
+    assert np.array_equal(again[0][1], narrow[1]) and np.array_equal(again[1][0], wide[0])
+    assert np.array_equal(again[2], np.where(narrow[1] <= 0.3, narrow[1], np.inf))
