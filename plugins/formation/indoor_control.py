@@ -249,7 +249,11 @@ class IndoorSnapshot:
 
 
 def sense(
-    r: np.ndarray, obstacles: Obstacles, g: IndoorGains = TABLE_5_1, tree: cKDTree | None = None
+    r: np.ndarray,
+    obstacles: Obstacles,
+    g: IndoorGains = TABLE_5_1,
+    tree: cKDTree | None = None,
+    nearest: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> IndoorSnapshot:
     """Sensing and graphs of one step: o_i, G_n with LOS, G_sigma (eq. 5.4-5.22).
 
@@ -257,10 +261,12 @@ def sense(
     for the control law and cheaper; call :func:`~.indoor_sensing.nearest_obstacle` with d_s for
     the full detection set. The obstacle distances double as LOS certificates (see
     :func:`~.indoor_sensing.sensing_pairs`), so most pairs skip the shapely segment test.
-    ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree).
+    ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree);
+    ``nearest`` optional precomputed (o, distance) within min(l_o, d_s), as
+    :func:`~.indoor_sensing.nearest_obstacle` returns them (the engine's shared obstacle query).
     """
     reach = min(g.l_o, g.d_s)
-    o, dist = nearest_obstacle(r, obstacles, max_distance=reach)
+    o, dist = nearest if nearest is not None else nearest_obstacle(r, obstacles, max_distance=reach)
     g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach))
     return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d))
 

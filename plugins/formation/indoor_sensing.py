@@ -84,20 +84,26 @@ def nearest_obstacle(
         dist: (N,) its distance, m; ``inf`` where nothing was detected.
     """
     n = len(r)
-    o = np.full((n, 2), np.nan)
-    dist = np.full(n, np.inf)
     tree = obstacle_tree(obstacles)
     if tree is None or n == 0:
-        return o, dist
-    pts = shapely.points(r)
+        return np.full((n, 2), np.nan), np.full(n, np.inf)
     (agent, geom), d = tree.query_nearest(
-        pts, max_distance=max_distance, return_distance=True, all_matches=False
+        shapely.points(r), max_distance=max_distance, return_distance=True, all_matches=False
     )
+    index, dist = np.full(n, -1), np.full(n, np.inf)
+    index[agent], dist[agent] = geom, d
+    return nearest_points(r, tree.geometries, index), dist
+
+
+def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """o_i, the point of obstacle ``geometries[index[i]]`` closest to r_i (eq. 5.32), (N, 2);
+    NaN where ``index`` is -1 (nothing detected). One vectorised ``shapely.shortest_line``."""
+    o = np.full((len(r), 2), np.nan)
+    agent = np.flatnonzero(index >= 0)
     if agent.size:
-        lines = shapely.shortest_line(pts[agent], tree.geometries[geom])
+        lines = shapely.shortest_line(shapely.points(r[agent]), geometries[index[agent]])
         o[agent] = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 1]
-        dist[agent] = d
-    return o, dist
+    return o
 
 
 def obstacle_free(r: np.ndarray, obstacles: Obstacles, d_o: float) -> bool:

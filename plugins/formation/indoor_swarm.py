@@ -89,7 +89,7 @@ from .indoor_control import (
 )
 from .indoor_graphs import initial_rank_estimate, rank_estimate_step, ranks, virtual_leader
 from .indoor_maps import resample_path
-from .indoor_sensing import saturate
+from .indoor_sensing import nearest_points, saturate
 
 Point2 = tuple[float, float]
 
@@ -103,11 +103,17 @@ def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     per-tick ``sensing`` (with its shared k-d tree), so the second caller reuses the first one's
     graphs. Weakly keyed: a snapshot dies with its tick.
     """
-    key = (gains.d_n, gains.d_l, gains.phi_d, min(gains.l_o, gains.d_s))
+    reach = min(gains.l_o, gains.d_s)
+    key = (gains.d_n, gains.d_l, gains.phi_d, reach)
     per_tick = _SNAPSHOTS.setdefault(sensing, {})
     if key not in per_tick:
         r = np.array(sensing.world.pos[:, :2])  # a copy: the snapshot outlives the tick (diagnostics)
-        per_tick[key] = sense(r, sensing.environment.tree, gains, tree=sensing.tree)
+        obstacles = sensing.environment.tree
+        nearest = None
+        if obstacles is not None:  # the engine's obstacle query, shared with the safety monitor
+            index, clearance = sensing.obstacle_nearest(reach)
+            nearest = (nearest_points(r, obstacles.geometries, index), np.maximum(clearance, 0.0))
+        per_tick[key] = sense(r, obstacles, gains, tree=sensing.tree, nearest=nearest)
     return per_tick[key]
 
 
