@@ -60,7 +60,8 @@ class Environment:
             dist = shapely.distance(pts[point], self._geoms[geom])
             order = np.lexsort((dist, point))
             point, geom, dist = point[order], geom[order], dist[order]
-            first = np.r_[True, point[1:] != point[:-1]] if point.size else np.zeros(0, bool)
+            first = np.ones(point.size, dtype=bool)
+            first[1:] = point[1:] != point[:-1]
             point, geom, dist = point[first], geom[first], dist[first]
         nearest[point] = geom
         distance[point] = dist

@@ -65,8 +65,10 @@ class Sensing:
             the state changes).
         environment: the obstacle map.
         comm_range: communication range, m.
-        previous: the last tick's snapshot, if any: the obstacle ranges its callers asked for
-            decide this one's first obstacle query (see :meth:`obstacle_nearest`).
+        previous: the last tick's snapshot, if any. The widest ranges its callers asked for
+            (pairs, obstacles) are queried at once here, so that every narrower request of this
+            tick, in whatever order the monitor and the plugins make them, is filtered from one
+            tree walk (see :meth:`pairs`, :meth:`obstacle_nearest`).
     """
 
     def __init__(
@@ -81,8 +83,9 @@ class Sensing:
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
         self._nearest: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-        self.obstacle_reach = previous.obstacle_reach if previous is not None else 0.0
-        """Widest obstacle range asked of this snapshot or an earlier one, m."""
+        # Widest range asked of this snapshot ("asked") and of the previous one ("hint"), m.
+        self.asked = {"pairs": 0.0, "obstacles": 0.0}
+        self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -93,15 +96,19 @@ class Sensing:
         """Index pairs (i < j) of agents closer than ``radius`` m, shape (M, 2); cached per radius.
 
         Filtered from the list of a larger cached radius when there is one (exact, and cheaper than
-        walking the tree again: the separation check reuses the connectivity or flocking pairs).
+        walking the tree again: the separation check reuses the connectivity or flocking pairs);
+        the first query walks the tree at the widest radius the previous tick was asked for.
         """
+        self.asked["pairs"] = max(self.asked["pairs"], radius)
         if radius not in self._pairs:
             larger = [r for r in self._pairs if r >= radius]
             if larger:
                 wide = self._pairs[min(larger)]
                 self._pairs[radius] = wide[self._pair_dist2(wide) <= radius * radius]
             else:
-                self._pairs[radius] = self.tree.query_pairs(radius, output_type="ndarray")
+                reach = max(radius, self._hint["pairs"])
+                self._pairs[reach] = self.tree.query_pairs(reach, output_type="ndarray")
+                return self.pairs(radius)
         return self._pairs[radius]
 
     def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
@@ -120,9 +127,13 @@ class Sensing:
 
         Free when any pair list is cached and not empty (its closest pair is the closest overall:
         a closer pair would be in it); else from the kNN query if it ran; else one 2-nearest query.
+        When the previous tick was asked for pairs, they are listed now (the same caller will
+        ask again), which makes this free.
         """
         if self.world.n < 2:
             return float("inf")
+        if not self._pairs and self._hint["pairs"] > 0:
+            self.pairs(self._hint["pairs"])
         for radius in sorted(self._pairs):
             if len(self._pairs[radius]):
                 return float(np.sqrt(self._pair_dist2(self._pairs[radius]).min()))
@@ -171,11 +182,11 @@ class Sensing:
         """Each agent's nearest obstacle within ``radius`` m: its index in
         ``environment.obstacles`` (-1 beyond) and the signed clearance (``inf`` beyond); cached.
 
-        The first query of a tick walks the obstacle tree once at the widest range asked so far
-        (this tick or the previous ones, :attr:`obstacle_reach`); narrower requests are filtered
-        from it, exactly. So the safety monitor's horizon and a plugin's sensing range, asked in
+        The first query of a tick walks the obstacle tree once at the widest range the previous
+        tick was asked for; narrower requests are filtered from it, exactly. So the safety monitor's horizon and a plugin's sensing range, asked in
         either order, cost one STRtree query per tick instead of one each.
         """
+        self.asked["obstacles"] = max(self.asked["obstacles"], radius)
         if radius not in self._nearest:
             wider = [r for r in self._nearest if r >= radius]
             if wider:
@@ -183,9 +194,8 @@ class Sensing:
                 beyond = clearance > radius
                 self._nearest[radius] = (np.where(beyond, -1, index), np.where(beyond, np.inf, clearance))
             else:
-                reach = max(radius, self.obstacle_reach)
+                reach = max(radius, self._hint["obstacles"])
                 self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach)
-                self.obstacle_reach = reach
                 return self.obstacle_nearest(radius)
         return self._nearest[radius]
 
