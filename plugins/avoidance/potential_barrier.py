@@ -68,7 +68,7 @@ class PotentialBarrier(Avoidance):
     def terms(self, sensing: Any) -> np.ndarray:
         """w_obs + w_col (N, 2), m per step, from this tick's shared snapshot."""
         snap = shared_snapshot(sensing, self.gains)
-        return w_obs(snap.r, snap.o, self.gains) + w_col(snap.r, snap.g_sigma, self.gains)
+        return w_obs(snap.r, snap.o, self.gains) + w_col(snap.r, snap.pair_geometry, self.gains)
 
     def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
         T = self.gains.T_s
@@ -80,8 +80,9 @@ class PotentialBarrier(Avoidance):
         velocity = acting & (out.mode == Mode.VELOCITY)
         other = acting & (out.mode != Mode.VELOCITY)
         out.vel[velocity, :2] = saturate(out.vel[velocity, :2] * T + w[velocity], self.gains.u_sat) / T
-        out.vel[other, :2] += w[other] / T
-        out.pos[other, :2] += w[other]
+        if other.any():
+            out.vel[other, :2] += w[other] / T
+            out.pos[other, :2] += w[other]
         return out
 
 

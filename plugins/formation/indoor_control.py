@@ -19,6 +19,7 @@ text's "psi_con(d_n) = -K_con" contradicts its own formula and purpose).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -247,6 +248,11 @@ class IndoorSnapshot:
     g_n: EdgeList
     g_sigma: EdgeList
 
+    @cached_property
+    def pair_geometry(self) -> PairGeometry:
+        """G_sigma's directed edges with unit vectors and lengths, computed once for every term."""
+        return PairGeometry.of(self.r, self.g_sigma)
+
 
 def sense(
     r: np.ndarray,
@@ -254,6 +260,7 @@ def sense(
     g: IndoorGains = TABLE_5_1,
     tree: cKDTree | None = None,
     nearest: tuple[np.ndarray, np.ndarray] | None = None,
+    candidates: np.ndarray | None = None,
 ) -> IndoorSnapshot:
     """Sensing and graphs of one step: o_i, G_n with LOS, G_sigma (eq. 5.4-5.22).
 
@@ -263,11 +270,12 @@ def sense(
     :func:`~.indoor_sensing.sensing_pairs`), so most pairs skip the shapely segment test.
     ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree);
     ``nearest`` optional precomputed (o, distance) within min(l_o, d_s), as
-    :func:`~.indoor_sensing.nearest_obstacle` returns them (the engine's shared obstacle query).
+    :func:`~.indoor_sensing.nearest_obstacle` returns them (the engine's shared obstacle query);
+    ``candidates`` optional pairs within d_n (the engine's cached pair list).
     """
     reach = min(g.l_o, g.d_s)
     o, dist = nearest if nearest is not None else nearest_obstacle(r, obstacles, max_distance=reach)
-    g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach))
+    g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach), candidates)
     return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d))
 
 

@@ -45,7 +45,7 @@ class EdgeList:
     def from_pairs(cls, n: int, pairs: np.ndarray) -> "EdgeList":
         """From an (P, 2) array of pairs (either order; duplicates are not allowed), sorted by (i, j)."""
         pairs = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
-        lo, hi = pairs.min(axis=1), pairs.max(axis=1)
+        lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
         order = np.argsort(lo * n + hi)
         return cls(n, lo[order], hi[order])
 
@@ -120,13 +120,16 @@ def neighbour_graph(
     d_l: float,
     tree: "cKDTree | None" = None,
     clearance: np.ndarray | None = None,
+    candidates: np.ndarray | None = None,
 ) -> EdgeList:
     """G_n: the edges of G_s no longer than d_n (thesis eq. 5.11-5.12), sensed directly at d_n.
 
     ``clearance`` (N,) lower bounds of obstacle distances let certified pairs skip the shapely
-    LOS test (see :func:`~.indoor_sensing.sensing_pairs`).
+    LOS test; ``candidates`` are the pairs within d_n if already listed (see
+    :func:`~.indoor_sensing.sensing_pairs`).
     """
-    return EdgeList.from_pairs(len(r), sensing_pairs(r, d_n, obstacles, d_l, tree, clearance))
+    pairs = sensing_pairs(r, d_n, obstacles, d_l, tree, clearance, candidates)
+    return EdgeList.from_pairs(len(r), pairs)
 
 
 def restrict(graph: EdgeList, r: np.ndarray, d_max: float) -> EdgeList:

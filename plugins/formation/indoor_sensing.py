@@ -148,6 +148,7 @@ def sensing_pairs(
     d_l: float,
     tree: cKDTree | None = None,
     clearance: np.ndarray | None = None,
+    candidates: np.ndarray | None = None,
 ) -> np.ndarray:
     """Pairs of agents that sense each other: range and line of sight (thesis eq. 5.7-5.8).
 
@@ -168,18 +169,21 @@ def sensing_pairs(
         clearance: (N,) lower bounds of each agent's obstacle distance (e.g. from
             :func:`nearest_obstacle`, where ``inf`` beyond its range must first be replaced by
             that range); ``None`` tests every pair with shapely.
+        candidates: (P, 2) the pairs within ``d_range`` if already listed (the engine's cached
+            ``Sensing.pairs``); ``None`` lists them from ``tree``.
 
     Returns:
         (P, 2) int array of pairs (i < j).
     """
-    pairs = candidate_pairs(r, d_range, tree)
+    pairs = candidate_pairs(r, d_range, tree) if candidates is None else candidates
     tree_o = obstacle_tree(obstacles)
     if tree_o is None or len(pairs) == 0:
         return pairs
     ri, rj = r[pairs[:, 0]], r[pairs[:, 1]]
     if clearance is None:
         return pairs[segments_clear(ri, rj, tree_o, d_l)]
-    length = np.linalg.norm(rj - ri, axis=1)
+    gap = rj - ri
+    length = np.sqrt(np.einsum("ij,ij->i", gap, gap))
     unsure = np.flatnonzero(clearance[pairs[:, 0]] + clearance[pairs[:, 1]] < length + 2.0 * d_l)
     keep = np.ones(len(pairs), dtype=bool)
     keep[unsure] = segments_clear(ri[unsure], rj[unsure], tree_o, d_l)

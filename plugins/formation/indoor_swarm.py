@@ -80,7 +80,6 @@ from .indoor_control import (
     TABLE_5_1,
     IndoorGains,
     IndoorSnapshot,
-    PairGeometry,
     leader_input,
     psi_com,
     psi_con,
@@ -113,7 +112,8 @@ def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
         if obstacles is not None:  # the engine's obstacle query, shared with the safety monitor
             index, clearance = sensing.obstacle_nearest(reach)
             nearest = (nearest_points(r, obstacles.geometries, index), np.maximum(clearance, 0.0))
-        per_tick[key] = sense(r, obstacles, gains, tree=sensing.tree, nearest=nearest)
+        candidates = sensing.pairs(gains.d_n)  # the engine's pair list, shared with the monitor
+        per_tick[key] = sense(r, obstacles, gains, sensing.tree, nearest, candidates)
     return per_tick[key]
 
 
@@ -183,7 +183,7 @@ class IndoorSwarm(Formation):
         snap = self.snapshot = shared_snapshot(sensing, g)
         r = snap.r
         l, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
-        pg = PairGeometry.of(r, snap.g_sigma)
+        pg = snap.pair_geometry
         w = pg.sum(psi_con(pg.length, g) + psi_com(pg.length, g)) + w_led(r, l, has, g)
         if self.params.saturate:
             w = saturate(w, g.u_sat)
