@@ -100,6 +100,10 @@ class Sensing:
         the first query walks the tree at the widest radius the previous tick was asked for.
         """
         self.asked["pairs"] = max(self.asked["pairs"], radius)
+        return self._listed_pairs(radius)
+
+    def _listed_pairs(self, radius: float) -> np.ndarray:
+        """:meth:`pairs` without recording the request (a prefetch must not feed its own hint)."""
         if radius not in self._pairs:
             larger = [r for r in self._pairs if r >= radius]
             if larger:
@@ -108,7 +112,7 @@ class Sensing:
             else:
                 reach = max(radius, self._hint["pairs"])
                 self._pairs[reach] = self.tree.query_pairs(reach, output_type="ndarray")
-                return self.pairs(radius)
+                return self._listed_pairs(radius)
         return self._pairs[radius]
 
     def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
@@ -133,7 +137,7 @@ class Sensing:
         if self.world.n < 2:
             return float("inf")
         if not self._pairs and self._hint["pairs"] > 0:
-            self.pairs(self._hint["pairs"])
+            self._listed_pairs(self._hint["pairs"])
         for radius in sorted(self._pairs):
             if len(self._pairs[radius]):
                 return float(np.sqrt(self._pair_dist2(self._pairs[radius]).min()))

@@ -151,3 +151,16 @@ def test_pairs_of_the_previous_ticks_range_are_listed_once_and_give_the_separati
         i, j = np.nonzero(np.triu(d <= radius, k=1))
         assert sorted(map(tuple, second.pairs(radius).tolist())) == sorted(zip(i.tolist(), j.tolist()))
     assert walks == [1.5]
+
+
+def test_a_prefetch_does_not_keep_itself_alive():
+    """Pairs listed for the separation only (nobody asked) are not listed again on the next tick."""
+    world = WorldState.at_rest(np.random.default_rng(9).uniform(0, 10, size=(100, 3)))
+    first = Sensing(world, Environment(), comm_range=3.0)
+    first.pairs(2.0)
+    second = Sensing(world, Environment(), comm_range=3.0, previous=first)
+    second.min_separation
+    assert list(second._pairs) == [2.0]
+    third = Sensing(world, Environment(), comm_range=3.0, previous=second)
+    third.min_separation
+    assert third._pairs == {} and third.min_separation == pytest.approx(second.min_separation)
