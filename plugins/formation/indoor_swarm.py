@@ -86,7 +86,8 @@ from .indoor_control import (
     sense,
     w_led,
 )
-from .indoor_graphs import initial_rank_estimate, rank_estimate_step, ranks, virtual_leader
+from .indoor_graphs import initial_rank_estimate, rank_estimate_step, virtual_leader
+from .indoor_graphs import max_rank as max_rank_of
 from .indoor_maps import resample_path
 from .indoor_sensing import nearest_points, saturate
 
@@ -198,12 +199,11 @@ class IndoorSwarm(Formation):
 
     def _observe(self, snap: IndoorSnapshot, t: float, obstacles: Any) -> None:
         """Ranks and neighbour counts of this tick's graphs (measured, for the metrics)."""
-        rank = ranks(snap.g_n, self.leader)
-        max_rank = int(rank.max())
+        max_rank, reached = max_rank_of(snap.g_n, self.leader)
         if self._initial_connected is None:
             self._initial_connected = max_rank < self.ctx.n
         elif max_rank >= self.ctx.n and self._connected and self._prev is not None:
-            self._cut = _cut_links(self._prev, snap, rank >= self.ctx.n, obstacles, t)
+            self._cut = _cut_links(self._prev, snap, ~reached, obstacles, t)
             self._cut["leader_done"] = self.m == len(self.waypoints) - 1
         self._max_rank = max(self._max_rank, max_rank)
         self._connected &= max_rank < self.ctx.n

@@ -189,3 +189,22 @@ def test_virtual_leader_eq_5_24_5_25_averages_lowest_rank_neighbours():
     np.testing.assert_allclose(l[3], r[0])  # its only neighbour
     assert has.tolist() == [True, True, True, True, False]
     np.testing.assert_allclose(l[4], r[4])
+
+
+def test_max_rank_and_neighbour_min_match_networkx_on_random_graphs():
+    """The per-tick shortcuts: the largest rank (eq. 5.23, N when cut off) and min over N_i."""
+    from swarmscene.plugins.formation.indoor_graphs import max_rank
+
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        n = int(rng.integers(1, 40))
+        graph = nx.gnp_random_graph(n, rng.uniform(0.02, 0.3), seed=int(rng.integers(1 << 30)))
+        edges = EdgeList.from_pairs(n, np.array(list(graph.edges()), dtype=int).reshape(-1, 2))
+        leader = int(rng.integers(n))
+        hops = nx.single_source_shortest_path_length(graph, leader)
+        worst, reached = max_rank(edges, leader)
+        assert worst == (max(hops.values()) if len(hops) == n else n)
+        assert reached.tolist() == [v in hops for v in range(n)]
+        values = rng.integers(0, 50, n)
+        expected = [min((values[j] for j in graph.neighbors(i)), default=-1) for i in range(n)]
+        assert edges.neighbour_min(values, -1).tolist() == expected
