@@ -18,6 +18,7 @@ import platform
 import sys
 import tempfile
 from importlib.metadata import PackageNotFoundError, version
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -130,8 +131,13 @@ def write_run_dir(
     trajectory: dict[str, np.ndarray],
     complete: bool,
     seed: int,
+    extras: Sequence[Callable[[Path], Any]] = (),
 ) -> None:
-    """Write a run's files; the manifest goes last and marks the directory complete."""
+    """Write a run's files; the manifest goes last and marks the directory complete.
+
+    ``extras`` write further files into the directory (plots, a replay) before the manifest, so
+    the manifest lists them and a directory without one was not finished.
+    """
     import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
 
     run_dir = Path(run_dir)
@@ -139,6 +145,8 @@ def write_run_dir(
     if trajectory:
         write_npz(run_dir / "trajectory.npz", trajectory)
     atomic_write_json(run_dir / "metrics.json", metrics)
+    for extra in extras:
+        extra(run_dir)
     manifest = {
         "config_hash": config_hash(data),
         "seed": seed,

@@ -75,8 +75,11 @@ def run(
     return result
 
 
-def write_outputs(sim: Simulation, result: RunResult, run_dir: Path) -> None:
-    """Write config, trajectory, metrics and manifest of a finished run into ``run_dir``."""
+def write_outputs(
+    sim: Simulation, result: RunResult, run_dir: Path, extras: Sequence[Callable[[Path], Any]] = ()
+) -> None:
+    """Write config, trajectory, metrics and manifest of a finished run into ``run_dir``;
+    ``extras(run_dir)`` (plots, replay) write theirs before the manifest, which lists them."""
     from .core.outputs import write_run_dir
 
     write_run_dir(
@@ -86,5 +89,6 @@ def write_outputs(sim: Simulation, result: RunResult, run_dir: Path) -> None:
         trajectory=result.trajectory,
         complete=result.complete,
         seed=sim.config.seed,
+        extras=extras,
     )
     result.run_dir = run_dir

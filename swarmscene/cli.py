@@ -110,6 +110,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
 
     try:
         sim = api.build(data)
+        _extra_writers(sim)  # a missing optional package fails now, not after the run
     except ConfigError as exc:
         if os.environ.get(DEBUG_ENV):
             raise
@@ -146,34 +147,44 @@ def _run_and_write(sim: Any, run_dir: Path, sweep: bool) -> Any:
     from .summary import Progress, summary_text
 
     output = sim.config.output
+    writers = _extra_writers(sim)
     progress = Progress.maybe(output.progress, enabled=not sweep)
     try:
         result = sim.run(progress=progress)
     finally:
         if progress is not None:
             progress.close()
-    api.write_outputs(sim, result, run_dir)
+    extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
+    api.write_outputs(sim, result, run_dir, extras)  # the manifest, written last, lists their files
+    if output.summary and not sweep:
+        print(summary_text(sim, result, run_dir))
+    return result
+
+
+def _extra_writers(sim: Any) -> list[Any]:
+    """The optional outputs asked for (plots, animation, Rerun replay), as writer functions."""
+    output, writers = sim.config.output, []
     if output.plots or output.animation:
         _require("matplotlib", "output.plots/output.animation", "plots")
         from .plots import write_run_plots
 
-        write_run_plots(run_dir, sim=sim, result=result)
+        writers.append(write_run_plots)
     if output.rerun:
         _require("rerun", "output.rerun", "rerun")
         from .replay import export_rerun
 
-        export_rerun(run_dir, sim=sim, result=result)
-    if output.summary and not sweep:
-        print(summary_text(sim, result, run_dir))
-    return result
+        writers.append(export_rerun)
+    return writers
 
 
 def _require(module: str, option: str, extra: str) -> None:
     """A one-line error naming the extra to install when an optional output's package is missing."""
     import importlib.util
 
+    from .core.errors import ConfigError
+
     if importlib.util.find_spec(module) is None:
-        raise ImportError(f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'")
+        raise ConfigError([f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'"])
 
 
 def _objective(sim: Any, result: Any) -> Any:

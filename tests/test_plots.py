@@ -144,13 +144,31 @@ def test_cli_output_plots_true_writes_pictures(tmp_path):
     run = tmp_path / "run"
     assert {"trajectories.png", "safety.png", "speed.png"} <= {p.name for p in run.iterdir()}
     assert not (run / "animation.gif").exists()  # only on output.animation=true
-    assert json.loads((run / "manifest.json").read_text())["complete"] is True
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["complete"] is True
+    assert {"trajectories.png", "safety.png", "speed.png"} <= set(manifest["files"])  # written before it
 
+
+def test_missing_extra_fails_before_the_run_and_leaves_no_run_directory(tmp_path):
+    env = {**os.environ}
+    env.pop("HYDRA_FULL_ERROR", None)
+    hide = "import sys; sys.modules['matplotlib'] = None; from swarmscene.cli import main; main()"
+    proc = subprocess.run(
+        [sys.executable, "-c", hide, *OVERRIDES, "output.plots=true", f"hydra.run.dir={tmp_path}/run"],
+        cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "swarmscene: output.plots/output.animation=true needs the 'plots' extra: pip install 'swarmscene[plots]'"
+    ]
+    assert not (tmp_path / "run").exists()
 
 
 def test_missing_extra_is_named_in_one_line():
     from swarmscene import cli
 
-    with pytest.raises(ImportError, match=r"output.plots=true needs the 'plots' extra: pip install 'swarmscene\[plots\]'"):
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"output.plots=true needs the 'plots' extra: pip install 'swarmscene\[plots\]'"):
         cli._require("no_such_module_for_swarmscene", "output.plots", "plots")
     cli._require("matplotlib", "output.plots", "plots")  # installed: no error
