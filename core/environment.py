@@ -42,8 +42,19 @@ class Environment:
     def empty(self) -> bool:
         return not self.obstacles
 
+    def near_pairs(self, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """(point index, obstacle index) of every obstacle within ``radius`` m of each point."""
+        xy = _xy(points).reshape(-1, 2)
+        if self.empty:
+            return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+        point, geom = self.tree.query(shapely.points(xy), predicate="dwithin", distance=radius)
+        return point, geom
+
     def _nearest(
-        self, xy: np.ndarray, max_distance: float | None = None
+        self,
+        xy: np.ndarray,
+        max_distance: float | None = None,
+        candidates: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Index of each point's nearest obstacle (-1 beyond ``max_distance``), the point
         geometries and their distances (``inf`` beyond ``max_distance``)."""
@@ -56,12 +67,16 @@ class Environment:
             # Within a range, the vectorised "dwithin" predicate and one distance per candidate
             # pair are ~3x faster than query_nearest's own bounded search (100 agents among the
             # building's walls: 55 vs 165 us); the nearest candidate of each point wins.
-            point, geom = self.tree.query(pts, predicate="dwithin", distance=max_distance)
+            if candidates is None:
+                point, geom = self.tree.query(pts, predicate="dwithin", distance=max_distance)
+            else:
+                point, geom = candidates
             dist = shapely.distance(pts[point], self._geoms[geom])
             order = np.lexsort((dist, point))
             point, geom, dist = point[order], geom[order], dist[order]
             first = np.ones(point.size, dtype=bool)
             first[1:] = point[1:] != point[:-1]
+            first &= dist <= max_distance  # candidates may come from a wider search
             point, geom, dist = point[first], geom[first], dist[first]
         nearest[point] = geom
         distance[point] = dist
@@ -75,20 +90,36 @@ class Environment:
         return self.nearest_obstacle(points, max_distance)[1]
 
     def nearest_obstacle(
-        self, points: np.ndarray, max_distance: float | None = None
+        self,
+        points: np.ndarray,
+        max_distance: float | None = None,
+        candidates: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Each point's nearest obstacle: its index in :attr:`obstacles` (-1 when there is none
-        within ``max_distance``) and the signed clearance of :meth:`clearance`, from one query."""
+        within ``max_distance``) and the signed clearance of :meth:`clearance`, from one query.
+
+        ``candidates``: (point, obstacle) index pairs that include every obstacle within
+        ``max_distance`` of each point (:meth:`near_pairs` at a wider radius, possibly around
+        earlier positions); the nearest is then picked among them without a tree query.
+        """
         xy = _xy(points).reshape(-1, 2)
         if self.empty:
             return np.full(len(xy), -1), np.full(len(xy), np.inf)
-        nearest, pts, distance = self._nearest(xy, max_distance)
+        nearest, pts, distance = self._nearest(xy, max_distance, candidates)
         inside = distance == 0.0
         if inside.any():
             inside[inside] = shapely.contains_xy(self.union, xy[inside, 0], xy[inside, 1])
             boundary = shapely.boundary(self.union)
             distance[inside] = -shapely.distance(boundary, pts[inside])
         return nearest, distance
+
+    def distance(self, points: np.ndarray) -> float:
+        """Distance from a set of points to the nearest obstacle, m (``inf`` with none): one GEOS
+        distance between their multipoint and the obstacles' prepared union, ~8x cheaper than the
+        per-point clearance when only the minimum matters. 0 when a point touches or is inside."""
+        if self.empty or len(points) == 0:
+            return float("inf")
+        return float(shapely.distance(self.union, shapely.multipoints(_xy(points).reshape(-1, 2))))
 
     def nearest_point(self, points: np.ndarray) -> np.ndarray:
         """Nearest obstacle point to each point, shape (N, 2); NaN when there are no obstacles."""

@@ -116,9 +116,10 @@ class SafetyMonitor:
             if self.stop_on_collision:
                 sim.request_stop("collision")
         clearance = sensing.clearance_within(self.horizon)
-        if not np.isfinite(clearance).any():
-            clearance = sensing.clearance  # every agent is far from obstacles: measure exactly
-        self.min_clearance[k] = clearance.min()
+        if np.isfinite(clearance).any():
+            self.min_clearance[k] = clearance.min()
+        else:  # every agent is beyond the horizon: only the swarm's distance to the obstacles
+            self.min_clearance[k] = sensing.environment.distance(sensing.world.pos)
         if self.min_clearance[k] < self.d_clear:
             agents = np.flatnonzero(clearance < self.d_clear)
             self.clearance_agents.update(agents.tolist())

@@ -8,6 +8,7 @@ lazy and cached: a plugin that never asks for the communication graph does not p
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cached_property
 
 import networkx as nx
@@ -29,6 +30,29 @@ SPARSE_NEIGHBOURS = 128
 enough to list whole: connectivity then goes straight to the exact pair graph."""
 DENSITY_SAMPLE = 16
 """Members sampled (evenly, deterministic) to estimate the neighbours per member."""
+OBSTACLE_SKIN = 0.25
+"""Obstacle candidates are listed this fraction of the range beyond it, and kept from tick to tick
+until some agent has moved farther than that margin (a Verlet list)."""
+
+
+@dataclass(frozen=True)
+class ObstacleCandidates:
+    """Every (agent, obstacle) pair within ``radius`` of the agents' positions ``xy`` (Verlet list).
+
+    While no agent is farther than ``radius - r`` from its position in ``xy``, the pairs include
+    every obstacle within ``r`` of it, so the nearest one is found among them without a tree query.
+    """
+
+    xy: np.ndarray
+    radius: float
+    point: np.ndarray
+    geom: np.ndarray
+
+    def cover(self, xy: np.ndarray, reach: float) -> bool:
+        if xy.shape != self.xy.shape or reach > self.radius:
+            return False
+        moved = xy - self.xy
+        return float(np.einsum("ij,ij->i", moved, moved).max(initial=0.0)) <= (self.radius - reach) ** 2
 
 
 def _dense_connected(pos: np.ndarray, radius: float) -> bool:
@@ -86,6 +110,7 @@ class Sensing:
         # Widest range asked of this snapshot ("asked") and of the previous one ("hint"), m.
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
+        self._candidates = previous._candidates if previous is not None else None
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -199,9 +224,21 @@ class Sensing:
                 self._nearest[radius] = (np.where(beyond, -1, index), np.where(beyond, np.inf, clearance))
             else:
                 reach = max(radius, self._hint["obstacles"])
-                self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach)
+                self._nearest[reach] = self.environment.nearest_obstacle(
+                    self.world.pos, reach, self._obstacle_candidates(reach)
+                )
                 return self.obstacle_nearest(radius)
         return self._nearest[radius]
+
+    def _obstacle_candidates(self, reach: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The Verlet list of (agent, obstacle) pairs covering ``reach``, rebuilt when stale."""
+        if self.environment.empty:
+            return None
+        xy = self.world.pos[:, :2]
+        if self._candidates is None or not self._candidates.cover(xy, reach):
+            radius = reach * (1.0 + OBSTACLE_SKIN)
+            self._candidates = ObstacleCandidates(xy.copy(), radius, *self.environment.near_pairs(xy, radius))
+        return self._candidates.point, self._candidates.geom
 
     @cached_property
     def comm_members(self) -> np.ndarray:

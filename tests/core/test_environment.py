@@ -119,7 +119,7 @@ def test_one_obstacle_query_per_tick_serves_every_range(env, monkeypatch):
     world = WorldState.at_rest(np.column_stack([rng.uniform(-3, 9, size=(200, 2)), np.zeros(200)]))
     calls = []
     query = env.nearest_obstacle
-    monkeypatch.setattr(env, "nearest_obstacle", lambda p, r=None: calls.append(r) or query(p, r))
+    monkeypatch.setattr(env, "nearest_obstacle", lambda p, r=None, c=None: calls.append(r) or query(p, r, c))
     first = Sensing(world, env, comm_range=3.0)
     narrow, wide = first.obstacle_nearest(0.5), first.obstacle_nearest(0.7)
     assert calls == [0.5, 0.7]
@@ -164,3 +164,27 @@ def test_a_prefetch_does_not_keep_itself_alive():
     third = Sensing(world, Environment(), comm_range=3.0, previous=second)
     third.min_separation
     assert third._pairs == {} and third.min_separation == pytest.approx(second.min_separation)
+
+
+def test_obstacle_candidates_carried_between_ticks_give_the_exact_nearest(env, monkeypatch):
+    """The Verlet list: exact at every tick, and the tree is walked only when agents moved far."""
+    rng = np.random.default_rng(12)
+    world = WorldState.at_rest(np.column_stack([rng.uniform(-2, 8, size=(80, 2)), np.zeros(80)]))
+    walks = []
+    near_pairs = env.near_pairs
+    monkeypatch.setattr(env, "near_pairs", lambda p, r: walks.append(r) or near_pairs(p, r))
+    sensing = None
+    for _ in range(40):
+        world.pos[:, :2] += rng.normal(0, 0.01, size=(80, 2))
+        sensing = Sensing(world, env, comm_range=3.0, previous=sensing)
+        index, clearance = sensing.obstacle_nearest(0.7)
+        direct_index, direct_clearance = env.nearest_obstacle(world.pos, 0.7)
+        assert np.array_equal(index, direct_index) and np.array_equal(clearance, direct_clearance)
+    assert 1 <= len(walks) < 20  # ~0.03 m per tick against a 0.175 m margin
+
+
+def test_distance_of_a_point_set_is_its_smallest_clearance(env):
+    pts = np.array([[3.0, 0.0], [0.0, 2.5], [5.0, 2.5], [-4.0, -4.0]])
+    assert env.distance(pts) == pytest.approx(env.clearance(pts).min(), abs=1e-12)
+    assert env.distance(np.array([[5.0, 0.0], [9.0, 9.0]])) == 0.0  # one inside the block
+    assert Environment().distance(pts) == np.inf
