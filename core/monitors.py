@@ -28,8 +28,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 CLEARANCE_HORIZON = 0.5
-"""m: least range of the monitor's bounded clearance query (a short range is cheap near walls;
-the monitor falls back to an exact query on ticks where no agent is inside it)."""
+"""m: least range of the monitor's bounded clearance query (a short range is cheap near walls; on
+ticks where no agent is inside it, the minimum is the swarm's distance to the obstacles' union)."""
 
 
 class ConnectivityCertificate:
