@@ -242,6 +242,12 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
     classes, params = _validate_plugins(data, registry, errors)
     if config is not None:
         errors += _scenario_checks(config)
+        formation = classes.get("formation")
+        if formation is not None and formation.requires_leader and config.swarm.leader is None:
+            errors.append(
+                f"swarm.leader: formation {formation.name!r} needs a leader "
+                f"(an agent index 0..{config.swarm.n - 1})"
+            )
     if errors:
         raise ConfigError(errors)
     return Scenario(config=config, plugin_classes=classes, plugin_params=params, data=data)

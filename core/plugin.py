@@ -83,6 +83,9 @@ class Plugin(ABC):
 class Formation(Plugin):
     """Produces each agent's setpoint for this tick (where it should be or go, and how)."""
 
+    requires_leader: ClassVar[bool] = False
+    """True when the method needs ``swarm.leader``: a scenario without one is refused at validation."""
+
     @abstractmethod
     def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
         """Return the setpoints of all N agents for this guidance tick."""

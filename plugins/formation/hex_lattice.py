@@ -49,6 +49,7 @@ class HexLattice(Formation):
     """Followers on a pruned hexagonal lattice around a waypoint-following leader."""
 
     name = "hex_lattice"
+    requires_leader = True
 
     class Params(PluginParams):
         d_r: float = Field(5.0, gt=0, description="formation spacing d_r, m (Table 4.3: 5 m)")
@@ -82,9 +83,7 @@ class HexLattice(Formation):
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        leader = ctx.initial.leader
-        if leader is None:
-            raise ValueError("hex_lattice needs a leader (swarm.leader)")
+        leader = ctx.initial.leader  # requires_leader: validation checked it
         if ctx.n < 2:
             raise ValueError("hex_lattice needs at least one follower")
         self.leader = leader

@@ -134,6 +134,7 @@ class IndoorSwarm(Formation):
     """Leader-follower swarm with LOS sensing, edge deactivation and ranks (thesis ch. 5)."""
 
     name = "indoor_swarm"
+    requires_leader = True
 
     class Params(GraphParams):
         waypoints: list[Point2] = Field(min_length=2, description="leader path vertices [x, y], m")
@@ -157,10 +158,7 @@ class IndoorSwarm(Formation):
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        leader = ctx.initial.leader
-        if leader is None:
-            raise ValueError("formation indoor_swarm needs a leader (swarm.leader)")
-        self.leader = leader
+        self.leader = leader = ctx.initial.leader  # requires_leader: validation checked it
         fields = IndoorGains.__dataclass_fields__
         self.gains = replace(
             TABLE_5_1, T_s=ctx.guidance_period, **{k: v for k, v in params if k in fields}

@@ -209,6 +209,7 @@ class OutdoorMission(Formation):
     """Leader-follower mission on a hexagonal lattice with swarm-map communication (chapter 4)."""
 
     name = "outdoor_mission"
+    requires_leader = True
 
     class Params(PluginParams):
         d_r: float = Field(5.0, gt=0, description="formation spacing d_r, m (Table 4.3)")
@@ -236,9 +237,9 @@ class OutdoorMission(Formation):
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        leader = ctx.initial.leader
-        if leader is None or ctx.n < 2:
-            raise ValueError("outdoor_mission needs a leader (swarm.leader) and a follower")
+        leader = ctx.initial.leader  # requires_leader: validation checked it
+        if ctx.n < 2:
+            raise ValueError("outdoor_mission needs a follower besides the leader (swarm.n >= 2)")
         p = params
         n = ctx.n
         self.n, self.L, self.T_s = n, leader, ctx.guidance_period

@@ -65,6 +65,10 @@ def test_default_config_validates(data):
         ),
         (lambda d: d["clock"].update(duration=float("inf")), "clock.duration: must be a finite number (got inf)"),
         (lambda d: d["swarm"].update(leader=7), "swarm.leader: must be < swarm.n = 5 (got 7)"),
+        (
+            lambda d: (d["swarm"].update(leader=None), d.update(formation={"name": "hex_lattice"})),
+            "swarm.leader: formation 'hex_lattice' needs a leader (an agent index 0..4)",
+        ),
     ],
 )
 def test_bad_input_gives_one_line(data, edit, expected):

@@ -90,9 +90,12 @@ def test_failed_follower_loses_its_slot_and_the_rest_are_reassigned():
 
 
 def test_a_leader_is_required():
-    ctx, _ = _context([[0.0, 0.0, 4.0], [3.0, 0.0, 4.0]], leader=None)
-    with pytest.raises(ValueError, match="leader"):
-        HexLattice(HexLattice.Params(), ctx)
+    from swarmscene.core.errors import ConfigError
+
+    assert HexLattice.requires_leader
+    with pytest.raises(ConfigError) as info:
+        api.load(["formation=hex_lattice", "swarm.leader=null"])
+    assert info.value.lines == ["swarm.leader: formation 'hex_lattice' needs a leader (an agent index 0..4)"]
 
 
 def test_thesis_line_start_forms_then_flies_the_square_in_formation():
