@@ -18,6 +18,7 @@ class MyFormation(Formation):
     """One line on what it does."""
 
     name = "my_formation"
+    requires_leader = False  # True: validation refuses a scenario without swarm.leader
 
     class Params(PluginParams):
         spacing: float = Field(2.0, gt=0, description="distance between agents, m")
