@@ -70,7 +70,7 @@ class ConnectivityCertificate:
         return connected
 
     def _holds(self, sensing: Any) -> bool:
-        if not np.array_equal(sensing.comm_members, self.members):
+        if (sensing.comm_members != self.members).any():
             return False
         pos = sensing.world.pos
         gap = pos[self.links[:, 1]] - pos[self.links[:, 0]]
