@@ -211,9 +211,11 @@ class Sensing:
         """Each agent's nearest obstacle within ``radius`` m: its index in
         ``environment.obstacles`` (-1 beyond) and the signed clearance (``inf`` beyond); cached.
 
-        The first query of a tick walks the obstacle tree once at the widest range the previous
-        tick was asked for; narrower requests are filtered from it, exactly. So the safety monitor's horizon and a plugin's sensing range, asked in
-        either order, cost one STRtree query per tick instead of one each.
+        The first query of a tick works at the widest range the previous tick was asked for;
+        narrower requests are filtered from it, exactly. So the safety monitor's horizon and a
+        plugin's sensing range, asked in either order, cost one search per tick, and that search
+        picks each agent's nearest obstacle among the candidates of a Verlet list
+        (:class:`ObstacleCandidates`) instead of walking the obstacle tree.
         """
         self.asked["obstacles"] = max(self.asked["obstacles"], radius)
         if radius not in self._nearest:
@@ -309,9 +311,9 @@ class Sensing:
         """
         members = np.flatnonzero(self.comm_members)
         m = members.size
-        edges = self.comm_edges
         if m <= 1:
             return np.zeros((0, 2), dtype=np.intp)
+        edges = self.comm_edges
         i, j = _renumber(self.world.n, members, edges)
         # csgraph reads a zero weight as a missing link: co-located members weigh a little.
         length = np.maximum(np.sqrt(self._pair_dist2(edges)), 1e-12)
