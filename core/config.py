@@ -73,7 +73,9 @@ class StartConfig(_Strict):
     kinds: ``line`` (along +y through ``center``, ``spacing`` apart), ``grid`` (square-ish grid,
     ``spacing`` apart, centred on ``center``), ``circle`` (radius ``spacing * n / (2 pi)``),
     ``explicit`` (``positions``, one [x, y, z] per agent), ``random`` (uniform in a square of side
-    ``extent`` around ``center``, redrawn until agents are ``spacing`` apart; seeded).
+    ``extent`` around ``center``, redrawn until agents are ``spacing`` apart; seeded; with
+    ``connected`` the whole swarm is redrawn until its communication graph at ``comm.range`` is
+    connected, the "random eligible initial state" of the thesis' section 5.4).
     """
 
     kind: Literal["line", "grid", "circle", "explicit", "random"] = Field(
@@ -83,6 +85,9 @@ class StartConfig(_Strict):
     center: Point3 = Field((0.0, 0.0, 1.0), description="[x, y, z] of the swarm's centre, m")
     extent: float = Field(10.0, gt=0, description="side of the square for kind=random, m")
     positions: list[Point3] = Field(default_factory=list, description="for kind=explicit, m")
+    connected: bool = Field(
+        False, description="for kind=random: redraw until the comm graph (comm.range) is connected"
+    )
 
 
 class SwarmConfig(_Strict):

@@ -56,9 +56,39 @@ def initial_positions(config: "ScenarioConfig", rng: np.random.Generator) -> np.
         radius = s * n / (2 * math.pi) if n > 1 else 0.0
         angle = 2 * math.pi * np.arange(n) / n
         offsets = np.stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(n)], axis=1)
-    else:  # random: rejection sampling keeps the run seeded and agents `spacing` apart
+    elif not start.connected:  # random: rejection sampling keeps the run seeded and agents apart
         offsets = _random_spread(n, start.extent, s, rng)
+    else:
+        offsets = _connected_spread(n, start.extent, s, config.comm.range, rng)
     return center + offsets
+
+
+CONNECTED_DRAWS = 200
+"""Whole-swarm draws tried for ``swarm.start.connected`` before the scenario is refused."""
+
+
+def _connected_spread(
+    n: int, extent: float, spacing: float, comm_range: float, rng: np.random.Generator
+) -> np.ndarray:
+    """A random spread redrawn whole until its disk graph of radius ``comm_range`` is connected.
+
+    Whole redraws (not moving single agents) keep each draw uniform, so the accepted swarm is a
+    uniform draw conditioned on connectivity; a first draw that is connected is returned as is.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    for _ in range(CONNECTED_DRAWS):
+        offsets = _random_spread(n, extent, spacing, rng)
+        pairs = cKDTree(offsets).query_pairs(comm_range, output_type="ndarray")
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        if connected_components(graph, directed=False)[0] == 1:
+            return offsets
+    raise ValueError(
+        f"swarm.start: no connected swarm (comm.range = {comm_range} m) in {CONNECTED_DRAWS} random "
+        f"draws of {n} agents {spacing} m apart in a {extent} m square; shrink swarm.start.extent"
+    )
 
 
 def _random_spread(n: int, extent: float, spacing: float, rng: np.random.Generator) -> np.ndarray:

@@ -159,3 +159,35 @@ def test_random_overrides_run_or_fail_cleanly(default_data, edits):
         return  # valid but long: the kernel is exercised by the other examples
     result = api.run(scenario)
     assert result.metrics["steps"] >= 1
+
+
+def test_connected_random_start_redraws_until_connected_and_keeps_a_connected_first_draw():
+    import networkx as nx
+    import numpy as np
+
+    from swarmscene.core.geometry import initial_positions
+
+    def positions(edits: list[str]) -> np.ndarray:
+        config = api.load(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "+swarm.start.extent=9",
+                           "swarm.start.spacing=0.6", "comm.range=3", *edits]).config
+        return initial_positions(config, np.random.default_rng(config.seed))
+
+    def connected(pos: np.ndarray) -> bool:
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
+        return nx.is_connected(nx.from_numpy_array((d <= 3.0).astype(int)))
+
+    plain = [positions([f"seed={s}"]) for s in range(20)]
+    drawn = [positions([f"seed={s}", "+swarm.start.connected=true"]) for s in range(20)]
+    assert not all(connected(p) for p in plain)  # the case exercises redraws
+    assert all(connected(p) for p in drawn)
+    assert all(np.array_equal(a, b) for a, b in zip(plain, drawn) if connected(a))
+    lines = errors_of_overrides(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "+swarm.start.extent=500",
+                                 "+swarm.start.connected=true", "comm.range=1"])
+    assert lines == ["swarm.start: no connected swarm (comm.range = 1.0 m) in 200 random draws of 12 agents "
+                     "2.0 m apart in a 500.0 m square; shrink swarm.start.extent"]
+
+
+def errors_of_overrides(overrides: list[str]) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        api.load(overrides)
+    return info.value.lines
