@@ -27,12 +27,20 @@ G_s, whose edges need the joining segment d_l clear of walls (eq. 5.8).
 What remains is the limitation the thesis states (no LOS maintenance, section 5.3.3); the
 ``indoor.disconnect.*`` metrics classify each split (benchmarks/sweep_indoor.py). Measured with
 30 seeds per width (docs/benchmarks.md): straight 0 / 0 / 90 / 96.7 / 100 % and L 0 / 0 / 86.7 /
-73.3 / 100 % for w = 0.5 ... 0.9 m. In the L the failed runs at 0.7-0.8 m are (a) a link stretched
-to about 0.9 m across the inner corner while the tail is still held in the entrance jam (the
-leader, whose nearest neighbour is close, keeps going), or (b) after the leader has stopped, the
-swarm compacts in the north leg, the last agent but one is pressed against the inner wall just
-past the corner, and the tail's only link (0.74 m) grazes the corner; at 0.8 m (b) is 7 of 8
-failures (two files fit side by side, so one hugs the inner wall; at 0.7 m they stay single file).
+73.3 / 100 % for w = 0.5 ... 0.9 m. In the L the failed runs at 0.7-0.8 m are (a) at 0.7 m, a link
+stretched to 0.87-0.95 m across the inner corner while 7-17 agents are still jammed in the
+entrance room (the leader, whose nearest neighbour is close, keeps going), or (b) at 0.8 m, where
+the file runs two abreast: the last agent, still in the east leg, follows one that has just turned
+the corner on the inner-wall side, and their single 0.74 m link passes 0.038-0.050 m from the
+corner, under d_l; the tail, left without neighbours, stops. (b) happens whether or not the leader
+has stopped: with the path extended a seed splits at the same instant while the leader still
+moves, so the split's ``leader_done`` flag is incidental.
+Six reconstructions of the L scenario that the text allows (path from one extremity to the other,
+path ending deeper in the exit room, a start grown anywhere in the entrance room, way-points
+0.5 m apart, a corridor without rooms) were each measured on seeds 0..29: none reaches 90 % at
+0.7 or 0.8 m (pooled over the room-based ones 84 % and 73 %); each only reshuffles which seeds
+fail (docs/benchmarks.md). Giving the leader the avoidance terms
+(``avoidance.exempt_leader=false``, not in eq. 5.44) is worse: 63 / 50 %.
 A link "stretched past d_n" is a tug of war: the leader pulls the file through the corridor while
 agents jammed at the entrance hold its tail, every link sits near d_n, and with all inputs
 saturated at u_sat both ends of a link can move apart by up to 2 u_sat = 0.04 m in one step, more
