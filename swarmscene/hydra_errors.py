@@ -13,10 +13,13 @@ def hydra_error_line(exc: BaseException) -> str | None:
     """One line ``key: problem (got value)`` for a Hydra composition error, else ``None``."""
     from hydra.errors import (
         ConfigCompositionException,
+        InstantiationException,
         MissingConfigException,
         OverrideParseException,
     )
 
+    if isinstance(exc, InstantiationException) and isinstance(exc.__cause__, ValueError):
+        return str(exc.__cause__).splitlines()[0]  # a plugin of Hydra's (sweeper) refused its options
     message = str(exc)
     if isinstance(exc, MissingConfigException):
         match = _MISSING_GROUP_OPTION.search(message)

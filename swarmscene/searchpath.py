@@ -43,7 +43,11 @@ class SwarmsceneSearchPathPlugin(SearchPathPlugin):
 
 
 def register_search_path() -> None:
-    """Make Hydra use :class:`SwarmsceneSearchPathPlugin` (idempotent)."""
+    """Make Hydra use :class:`SwarmsceneSearchPathPlugin` and know swarmscene's sweeper
+    (``hydra_plugins.swarmscene_sweeper``); idempotent."""
+    from hydra_plugins.swarmscene_sweeper import register as register_sweeper
+
     plugins = Plugins.instance()
     if SwarmsceneSearchPathPlugin not in plugins.class_name_to_class.values():
         plugins.register(SwarmsceneSearchPathPlugin)
+    register_sweeper()

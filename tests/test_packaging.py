@@ -8,7 +8,10 @@ import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-MAPPING = {"swarmscene": "swarmscene", "core": "swarmscene/core", "plugins": "swarmscene/plugins", "scenarios": "swarmscene/scenarios"}
+MAPPING = {
+    "swarmscene": "swarmscene", "core": "swarmscene/core", "plugins": "swarmscene/plugins",
+    "scenarios": "swarmscene/scenarios", "hydra_plugins": "hydra_plugins",
+}
 
 
 def source_files() -> set[str]:

@@ -388,3 +388,32 @@ def test_summary_callback_is_configured_and_leaves_other_flags_alone(tmp_path):
     assert proc.returncode == 0 and "_target_: swarmscene.sweep.SweepSummary" in proc.stdout
     proc = swarmscene("avoidance=none", "--cfg", "job", "--resolve", cwd=tmp_path)
     assert proc.returncode == 0 and "name: none" in proc.stdout
+
+
+# -- up-front validation ------------------------------------------------------------------------
+def test_sweeper_composes_one_job_per_distinct_override_up_front():
+    from hydra_plugins.swarmscene_sweeper import jobs_to_validate
+
+    batch = [[f"environment={env}", f"seed={seed}", "avoidance.K=2"] for env in ("a", "b", "c") for seed in range(30)]
+    assert jobs_to_validate(batch) == [batch[0], batch[30], batch[60]]
+    # non-numeric values are each composed once; a numeric value counts as its key only
+    batch = [["formation=x", "clock.duration=4.0"], ["formation=x", "clock.duration=8"], ["formation=y", "clock.duration=4.0"]]
+    assert jobs_to_validate(batch) == [batch[0], batch[2]]
+    assert jobs_to_validate([]) == []
+
+
+@pytest.mark.parametrize("mode", ["each_value", "all"])
+def test_a_bad_override_anywhere_in_the_sweep_fails_before_any_job(tmp_path, mode):
+    proc = swarmscene("--multirun", "scenario=indoor_corridor", "environment=indoor_corridor_w070,no_such_map",
+                      "seed=0,1", f"hydra.sweeper.validate={mode}", f"hydra.sweep.dir={tmp_path}/sweep", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1].startswith("swarmscene: environment: unknown option 'no_such_map'")
+    assert not any(p.is_dir() for p in (tmp_path / "sweep").iterdir())  # no job ran
+
+
+def test_an_unknown_validation_mode_is_one_line(tmp_path):
+    proc = swarmscene("--multirun", "seed=0,1", "hydra.sweeper.validate=bogus", f"hydra.sweep.dir={tmp_path}/s", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "swarmscene: hydra.sweeper.validate: must be one of ('each_value', 'all') (got 'bogus')"
+    ]
