@@ -75,15 +75,14 @@ def _connected_spread(
     Whole redraws (not moving single agents) keep each draw uniform, so the accepted swarm is a
     uniform draw conditioned on connectivity; a first draw that is connected is returned as is.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
+
+    from .sensing import _components  # the comm graph's own component count
 
     for _ in range(CONNECTED_DRAWS):
         offsets = _random_spread(n, extent, spacing, rng)
         pairs = cKDTree(offsets).query_pairs(comm_range, output_type="ndarray")
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        if connected_components(graph, directed=False)[0] == 1:
+        if _components(n, pairs[:, 0], pairs[:, 1]) == 1:
             return offsets
     raise ValueError(
         f"swarm.start: no connected swarm (comm.range = {comm_range} m) in {CONNECTED_DRAWS} random "

@@ -110,14 +110,14 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
 
     try:
         sim = api.build(data)
-        _extra_writers(sim)  # a missing optional package fails now, not after the run
+        writers = _extra_writers(sim)  # a missing optional package fails now, not after the run
     except ConfigError as exc:
         if os.environ.get(DEBUG_ENV):
             raise
         _remove_unfinished(run_dir)
         # Exit here: an exception would pass through Hydra's job runner, which adds its own line.
         _report(exc.lines)
-    result = _run_and_write(sim, run_dir, sweep=False)
+    result = _run_and_write(sim, run_dir, writers, sweep=False)
     if not result.complete:
         print(f"swarmscene: interrupted at t = {result.metrics['duration']:.2f} s; "
               f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
@@ -136,18 +136,17 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
         return _objective_from(scenario.config.output.objective, done)
     sim = api.build(scenario)
-    result = _run_and_write(sim, run_dir, sweep=True)
+    result = _run_and_write(sim, run_dir, _extra_writers(sim), sweep=True)
     if not result.complete:
         raise KeyboardInterrupt  # outputs are written and marked incomplete; stop the sweep
     return _objective(sim, result)
 
 
-def _run_and_write(sim: Any, run_dir: Path, sweep: bool) -> Any:
+def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> Any:
     from . import api
     from .summary import Progress, summary_text
 
     output = sim.config.output
-    writers = _extra_writers(sim)
     progress = Progress.maybe(output.progress, enabled=not sweep)
     try:
         result = sim.run(progress=progress)
