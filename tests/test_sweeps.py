@@ -405,15 +405,45 @@ def test_sweeper_composes_one_job_per_distinct_override_up_front():
 @pytest.mark.parametrize("mode", ["each_value", "all"])
 def test_a_bad_override_anywhere_in_the_sweep_fails_before_any_job(tmp_path, mode):
     proc = swarmscene("--multirun", "scenario=indoor_corridor", "environment=indoor_corridor_w070,no_such_map",
-                      "seed=0,1", f"hydra.sweeper.validate={mode}", f"hydra.sweep.dir={tmp_path}/sweep", cwd=tmp_path)
+                      "seed=0,1", "hydra/sweeper=swarmscene", f"hydra.sweeper.validate={mode}",
+                      f"hydra.sweep.dir={tmp_path}/sweep", cwd=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1].startswith("swarmscene: environment: unknown option 'no_such_map'")
     assert not any(p.is_dir() for p in (tmp_path / "sweep").iterdir())  # no job ran
 
 
 def test_an_unknown_validation_mode_is_one_line(tmp_path):
-    proc = swarmscene("--multirun", "seed=0,1", "hydra.sweeper.validate=bogus", f"hydra.sweep.dir={tmp_path}/s", cwd=tmp_path)
+    proc = swarmscene("--multirun", "seed=0,1", "hydra/sweeper=swarmscene", "hydra.sweeper.validate=bogus",
+                      f"hydra.sweep.dir={tmp_path}/s", cwd=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         "swarmscene: hydra.sweeper.validate: must be one of ('each_value', 'all') (got 'bogus')"
     ]
+
+
+def _sweeper_choice(overrides: list[str]) -> str:
+    from hydra import compose, initialize_config_module
+
+    from swarmscene.searchpath import register_search_path
+
+    register_search_path()
+    with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
+        cfg = compose("config", overrides=overrides, return_hydra_config=True)
+    return cfg.hydra.runtime.choices["hydra/sweeper"]
+
+
+@pytest.mark.parametrize("preset", ["cem_k", "failure_time", "fast", "indoor_corridor"])
+def test_grid_presets_use_swarmscenes_sweeper(preset):
+    assert _sweeper_choice([f"+sweep={preset}"]) == "swarmscene"
+
+
+def test_the_tuning_preset_keeps_its_optuna_sweeper():
+    """Nothing may pin the sweeper above the presets: Hydra keeps the first override of a group."""
+    from hydra.errors import MissingConfigException
+
+    try:
+        choice = _sweeper_choice(["+sweep=tune_indoor"])
+    except MissingConfigException as exc:  # the optuna extra is not installed here
+        assert "hydra/sweeper/optuna" in str(exc)
+    else:
+        assert choice == "optuna"

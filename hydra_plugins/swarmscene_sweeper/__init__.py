@@ -12,6 +12,7 @@ composed in at least one job; a number is a plain value (our config nodes are un
 numeric override only its key needs composing once. The thesis sweep (5 widths x 30 seeds) then
 composes 5 jobs up front instead of 150. ``hydra.sweeper.validate: all`` restores Hydra's check
 of every job; everything else is the basic sweeper unchanged (``params``, ``max_batch_size``).
+Selected with ``hydra/sweeper=swarmscene`` (the grid presets in ``scenarios/sweep`` do).
 
 A job whose config still fails to compose at launch is reported by the launcher as usual.
 """
