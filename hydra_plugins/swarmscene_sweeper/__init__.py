@@ -80,7 +80,7 @@ class SwarmsceneSweeper(Sweeper):
         return self.basic.sweep(arguments)
 
 
-def register() -> Any:
+def register() -> None:
     """Make Hydra know the sweeper (its scan of ``hydra_plugins`` misses editable installs)."""
     from hydra.core.plugins import Plugins
 
