@@ -71,7 +71,8 @@ class StartConfig(_Strict):
     """Initial positions of the swarm.
 
     kinds: ``line`` (along +y through ``center``, ``spacing`` apart), ``grid`` (square-ish grid,
-    ``spacing`` apart, centred on ``center``), ``circle`` (radius ``spacing * n / (2 pi)``),
+    ``spacing`` apart, centred on ``center``), ``circle`` (agent k at angle ``2 pi k / n`` on a ring
+    of ``radius``, or of ``spacing * n / (2 pi)`` when ``radius`` is null),
     ``explicit`` (``positions``, one [x, y, z] per agent), ``random`` (uniform in a square of side
     ``extent`` around ``center``, redrawn until agents are ``spacing`` apart; seeded; with
     ``connected`` the whole swarm is redrawn until its communication graph at ``comm.range`` is
@@ -84,6 +85,9 @@ class StartConfig(_Strict):
     spacing: float = Field(2.0, gt=0, description="distance between neighbours, m")
     center: Point3 = Field((0.0, 0.0, 1.0), description="[x, y, z] of the swarm's centre, m")
     extent: float = Field(10.0, gt=0, description="side of the square for kind=random, m")
+    radius: float | None = Field(
+        None, gt=0, description="for kind=circle: ring radius, m (null: spacing * n / (2 pi))"
+    )
     positions: list[Point3] = Field(default_factory=list, description="for kind=explicit, m")
     connected: bool = Field(
         False, description="for kind=random: redraw until the comm graph (comm.range) is connected"

@@ -53,7 +53,8 @@ def initial_positions(config: "ScenarioConfig", rng: np.random.Generator) -> np.
         offsets[:, 0] = (k // cols - (math.ceil(n / cols) - 1) / 2) * s
         offsets[:, 1] = (k % cols - (cols - 1) / 2) * s
     elif start.kind == "circle":
-        radius = s * n / (2 * math.pi) if n > 1 else 0.0
+        radius = start.radius if start.radius is not None else s * n / (2 * math.pi)
+        radius = radius if n > 1 else 0.0
         angle = 2 * math.pi * np.arange(n) / n
         offsets = np.stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(n)], axis=1)
     elif not start.connected:  # random: rejection sampling keeps the run seeded and agents apart

@@ -10,7 +10,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 MAPPING = {
     "swarmscene": "swarmscene", "core": "swarmscene/core", "plugins": "swarmscene/plugins",
-    "scenarios": "swarmscene/scenarios", "hydra_plugins": "hydra_plugins",
+    "scenarios": "swarmscene/scenarios", "methods": "swarmscene/methods",
+    "hydra_plugins": "hydra_plugins",
 }
 
 
