@@ -31,7 +31,7 @@ from swarmscene.core.plugin import BuildContext  # noqa: E402
 from swarmscene.core.setpoint import Mode, Setpoints  # noqa: E402
 from swarmscene.core.state import WorldState  # noqa: E402
 from swarmscene.plugins.avoidance.cem import CEM  # noqa: E402
-from swarmscene.plugins.avoidance.cem_flow import CEMNavigator  # noqa: E402
+from swarmscene.methods.cem.flow import CEMNavigator  # noqa: E402
 
 A_P = 1.36
 DT = 0.01

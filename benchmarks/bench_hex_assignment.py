@@ -16,7 +16,7 @@ import time
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from swarmscene.plugins.formation.hex_pattern import DECIMETRE, assign_offsets, assignment_cost, hex_pattern
+from swarmscene.methods.outdoor.hex_pattern import DECIMETRE, assign_offsets, assignment_cost, hex_pattern
 
 D_R, D_I = 5.0, 1.5  # Table 4.3: formation spacing, initial spacing
 

@@ -28,9 +28,9 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from swarmscene.plugins.formation.indoor_control import TABLE_5_1, IndoorController
-from swarmscene.plugins.formation.indoor_maps import building, open_map, random_connected_swarm
-from swarmscene.plugins.formation.indoor_sensing import single_integrator_step
+from swarmscene.methods.indoor.control import TABLE_5_1, IndoorController
+from swarmscene.methods.indoor.maps import building, open_map, random_connected_swarm
+from swarmscene.methods.indoor.sensing import single_integrator_step
 
 
 def bench(name: str, mp, n: int, steps: int, warmup: int, seed: int = 0) -> dict:

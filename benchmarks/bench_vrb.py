@@ -24,14 +24,14 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from swarmscene.plugins.formation.vrb_airshow import (  # noqa: E402
+from swarmscene.methods.vrb.airshow import (  # noqa: E402
     AIRSHOW_LAW,
     airshow_formations,
     airshow_keyframes,
     airshow_sequence,
 )
-from swarmscene.plugins.formation.vrb_trajectory import VRBTrajectory  # noqa: E402
-from swarmscene.plugins.formation.vrb_transform import (  # noqa: E402
+from swarmscene.methods.vrb.trajectory import VRBTrajectory  # noqa: E402
+from swarmscene.methods.vrb.transform import (  # noqa: E402
     FormationSequence,
     assign_targets,
     plan_flight,

@@ -125,7 +125,10 @@ def test_core_never_imports_plugins():
 
 def all_modules() -> list[str]:
     mods = []
-    for folder, package in (("core", "swarmscene.core"), ("plugins", "swarmscene.plugins"), ("swarmscene", "swarmscene")):
+    for folder, package in (
+        ("core", "swarmscene.core"), ("methods", "swarmscene.methods"),
+        ("plugins", "swarmscene.plugins"), ("swarmscene", "swarmscene"),
+    ):
         for path in (ROOT / folder).rglob("*.py"):
             rel = path.relative_to(ROOT / folder).with_suffix("").parts
             if rel[-1] == "__init__":

@@ -22,7 +22,7 @@ def source_files() -> set[str]:
         for path in (ROOT / folder).rglob("*"):
             if "__pycache__" in path.parts or not path.is_file():
                 continue
-            if path.suffix in (".py", ".yaml") or (path.name == "README.md" and folder == "plugins"):
+            if path.suffix in (".py", ".yaml") or (path.name == "README.md" and folder in ("plugins", "methods")):
                 found.add(f"{target}/{path.relative_to(ROOT / folder).as_posix()}")
     return found
 

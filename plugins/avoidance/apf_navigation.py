@@ -14,7 +14,7 @@ when it is near, exactly as the thesis' followers do in their FORM and STOP sequ
 
 Agents not engaged (and the leader, and failed agents) keep their setpoints and still repel the
 engaged agents on their level. The vectorised maths is in
-:mod:`~swarmscene.plugins.formation.apf_navigation_math`; neighbours come from the tick's shared
+:mod:`~swarmscene.methods.outdoor.apf_navigation`; neighbours come from the tick's shared
 k-d tree.
 
 Frames: world (z up). The thesis' altitude reference t^T z_o - d_c is in NED (z_o down), i.e.
@@ -33,7 +33,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import Role, WorldState
-from swarmscene.plugins.formation.apf_navigation_math import apf_navigation
+from swarmscene.methods.outdoor.apf_navigation import apf_navigation
 
 
 class ApfNavigation(Avoidance):

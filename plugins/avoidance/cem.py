@@ -6,7 +6,7 @@ every failed vehicle becomes a doublet of planned exclusion radius a_p = a_f + d
 uniform flow along the flight direction, each healthy agent's (phi, psi) is fixed from its position,
 and every guidance tick the healthy agents slide along their streamlines (Algorithm 1, CalcXY of
 Algorithm 2) as TRACK setpoints (position and first-difference velocity; altitude from the
-formation). The math lives in :mod:`swarmscene.plugins.avoidance.cem_flow`.
+formation). The math lives in :mod:`swarmscene.methods.cem.flow`.
 
 Choices (the paper leaves these open):
 
@@ -66,7 +66,7 @@ from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .cem_flow import CEMNavigator, planned_exclusion_radius
+from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
 
 if TYPE_CHECKING:  # pragma: no cover
     from swarmscene.core.sensing import Sensing

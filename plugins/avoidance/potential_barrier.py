@@ -35,9 +35,9 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import Role, WorldState
-from swarmscene.plugins.formation.indoor_control import TABLE_5_1, IndoorGains, w_col, w_obs
-from swarmscene.plugins.formation.indoor_sensing import saturate
-from swarmscene.plugins.formation.indoor_swarm import GraphParams, shared_snapshot
+from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, w_col, w_obs
+from swarmscene.methods.indoor.sensing import saturate
+from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
 
 
 class PotentialBarrier(Avoidance):

@@ -38,7 +38,7 @@ from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
+from swarmscene.methods.quadrotor.thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
 
 
 class DoubleIntegrator(Dynamics):

@@ -34,9 +34,9 @@ from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .flatness import flat_state, heading_vector
-from .quadrotor_model import AIRFRAMES, allocate, pack, quat_to_rotmat, rk4, wrench, yaw_to_quat
-from .se3_controller import se3_control, se3_gains
+from swarmscene.methods.quadrotor.flatness import flat_state, heading_vector
+from swarmscene.methods.quadrotor.model import AIRFRAMES, allocate, pack, quat_to_rotmat, rk4, wrench, yaw_to_quat
+from swarmscene.methods.quadrotor.se3_controller import se3_control, se3_gains
 
 
 class Quadrotor(Dynamics):

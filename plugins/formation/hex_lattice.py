@@ -1,7 +1,7 @@
 """Hexagonal lattice formation around a leader flying waypoints (thesis chapter 4, section 4.3).
 
 The leader (``world.leader``) sits on node 0 of the hexagonal pattern of
-:mod:`~swarmscene.plugins.formation.hex_pattern` (eq. 4.3-4.11, spacing d_r, yaw alpha); the
+:mod:`~swarmscene.methods.outdoor.hex_pattern` (eq. 4.3-4.11, spacing d_r, yaw alpha); the
 followers are assigned to its offsets by the id-ordered, decimetre-rounded rectangular assignment
 with the periphery penalty (eq. 4.12-4.13). Every follower gets a TRACK setpoint on its slot
 r_N + h_j with the leader's velocity and applied input (``world.extras["u"]`` when the dynamics
@@ -41,8 +41,8 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-from swarmscene.plugins.formation.hex_pattern import assign_offsets, hex_pattern
-from swarmscene.plugins.formation.static_shape import WaypointPath
+from swarmscene.methods.outdoor.hex_pattern import assign_offsets, hex_pattern
+from swarmscene.methods.paths import WaypointPath
 
 
 class HexLattice(Formation):

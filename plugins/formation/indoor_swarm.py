@@ -70,7 +70,6 @@ Metrics (``metrics.json``, keys ``indoor.*``):
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import replace
 from typing import Any
 
@@ -80,63 +79,26 @@ from pydantic import Field
 from shapely.geometry import Polygon
 
 from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.plugin import BuildContext, Formation
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .indoor_control import (
+from swarmscene.methods.indoor.control import (
     TABLE_5_1,
     IndoorGains,
     IndoorSnapshot,
     leader_input,
     psi_com,
     psi_con,
-    sense,
     w_led,
 )
-from .indoor_graphs import initial_rank_estimate, rank_estimate_step, virtual_leader
-from .indoor_graphs import max_rank as max_rank_of
-from .indoor_maps import resample_path
-from .indoor_sensing import nearest_points, saturate
+from swarmscene.methods.indoor.graphs import initial_rank_estimate, rank_estimate_step, virtual_leader
+from swarmscene.methods.indoor.graphs import max_rank as max_rank_of
+from swarmscene.methods.indoor.maps import resample_path
+from swarmscene.methods.indoor.sensing import saturate
+from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
 
 Point2 = tuple[float, float]
-
-_SNAPSHOTS: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
-
-
-def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
-    """The tick's :class:`IndoorSnapshot`, computed once per Sensing object and sensing parameters.
-
-    The formation and the avoidance plugin both need G_sigma; the kernel hands them the same
-    per-tick ``sensing`` (with its shared k-d tree), so the second caller reuses the first one's
-    graphs. Weakly keyed: a snapshot dies with its tick.
-    """
-    reach = min(gains.l_o, gains.d_s)
-    key = (gains.d_n, gains.d_l, gains.phi_d, reach)
-    per_tick = _SNAPSHOTS.setdefault(sensing, {})
-    if key not in per_tick:
-        r = np.array(sensing.world.pos[:, :2])  # a copy: the snapshot outlives the tick (diagnostics)
-        obstacles = sensing.environment.tree
-        nearest = None
-        if obstacles is not None:  # the engine's obstacle query, shared with the safety monitor
-            index, clearance = sensing.obstacle_nearest(reach)
-            nearest = (nearest_points(r, obstacles.geometries, index), np.maximum(clearance, 0.0))
-        candidates = sensing.pairs(gains.d_n)  # the engine's pair list, shared with the monitor
-        per_tick[key] = sense(r, obstacles, gains, sensing.tree, nearest, candidates)
-    return per_tick[key]
-
-
-class GraphParams(PluginParams):
-    """Sensing and graph parameters shared by ``indoor_swarm`` and ``potential_barrier``."""
-
-    d_s: float = Field(TABLE_5_1.d_s, gt=0, description="sensing range d_s, m")
-    d_l: float = Field(TABLE_5_1.d_l, ge=0, description="LOS clearance d_l, m")
-    d_n: float = Field(TABLE_5_1.d_n, gt=0, description="neighbour maximum distance d_n, m")
-    phi_d: float = Field(
-        TABLE_5_1.phi_d, gt=0, lt=0.7072, description="edge deactivation threshold phi_d (< 1/sqrt 2)"
-    )
-    l_o: float = Field(TABLE_5_1.l_o, gt=0, description="obstacle avoidance range l_o, m")
-
 
 class IndoorSwarm(Formation):
     """Leader-follower swarm with LOS sensing, edge deactivation and ranks (thesis ch. 5)."""

@@ -63,13 +63,13 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-from swarmscene.plugins.formation.apf_navigation_math import (
+from swarmscene.methods.outdoor.apf_navigation import (
     LEVEL_BAND, arrived_on_target, attraction_velocity, close_to_target, flight_level_altitude,
     saturate)
-from swarmscene.plugins.formation.hex_pattern import (
+from swarmscene.methods.outdoor.hex_pattern import (
     DECIMETRE, assign_offsets, assignment_cost, formation_graph, hex_pattern, solve_assignment)
-from swarmscene.plugins.formation.static_shape import WaypointPath
-from swarmscene.plugins.formation.swarm_map import SwarmMap, hop_matrix, map_repulsion
+from swarmscene.methods.paths import WaypointPath
+from swarmscene.methods.outdoor.swarm_map import SwarmMap, hop_matrix, map_repulsion
 
 
 class Task(IntEnum):

@@ -22,61 +22,8 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-
-
-def shape_offsets(shape: str, n: int, spacing: float) -> np.ndarray:
-    """Slot offsets (n, 3) in the formation frame (x forward, y left), centred on their centroid."""
-    k = np.arange(n)
-    xy = np.zeros((n, 2))
-    if shape == "line":  # abreast, perpendicular to the direction of travel
-        xy[:, 1] = (k - (n - 1) / 2) * spacing
-    elif shape == "grid":
-        cols = int(np.ceil(np.sqrt(n)))
-        xy[:, 0] = -(k // cols) * spacing
-        xy[:, 1] = (k % cols) * spacing
-    elif shape == "circle":  # neighbours on the circle are `spacing` apart (chord length)
-        radius = spacing / (2 * np.sin(np.pi / n)) if n > 1 else 0.0
-        angle = 2 * np.pi * k / max(n, 1)
-        xy[:, 0], xy[:, 1] = radius * np.cos(angle), radius * np.sin(angle)
-    elif shape == "v":  # apex forward, arms trailing at 45 degrees
-        rank = (k + 1) // 2
-        side = np.where(k % 2 == 1, 1.0, -1.0)
-        xy[:, 0] = -rank * spacing / np.sqrt(2)
-        xy[:, 1] = side * rank * spacing / np.sqrt(2)
-    elif shape == "triangle":  # filled rows of 1, 2, 3, ... agents, apex forward
-        row = np.floor((np.sqrt(8 * k + 1) - 1) / 2).astype(int)
-        col = k - row * (row + 1) // 2
-        xy[:, 0] = -row * spacing * np.sqrt(3) / 2
-        xy[:, 1] = (col - row / 2) * spacing
-    else:  # pragma: no cover - Params restricts the choices
-        raise ValueError(shape)
-    xy -= xy.mean(axis=0)
-    return np.column_stack([xy, np.zeros(n)])
-
-
-class WaypointPath:
-    """A polyline flown at constant speed: position and velocity of the reference at time t."""
-
-    def __init__(self, waypoints: np.ndarray, speed: float) -> None:
-        self.points = np.asarray(waypoints, dtype=float)
-        legs = np.diff(self.points, axis=0)
-        self.lengths = np.linalg.norm(legs, axis=1)
-        self.cumulative = np.concatenate([[0.0], np.cumsum(self.lengths)])
-        self.directions = legs / np.maximum(self.lengths, 1e-12)[:, None]
-        self.speed = speed
-
-    @property
-    def length(self) -> float:
-        return float(self.cumulative[-1])
-
-    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, int, bool]:
-        """Reference position (3,), velocity (3,), current leg and whether the end is reached."""
-        s = min(self.speed * t, self.length)
-        if len(self.lengths) == 0 or s >= self.length:
-            return self.points[-1].copy(), np.zeros(3), max(len(self.lengths) - 1, 0), True
-        leg = int(np.searchsorted(self.cumulative, s, side="right") - 1)
-        pos = self.points[leg] + self.directions[leg] * (s - self.cumulative[leg])
-        return pos, self.directions[leg] * self.speed, leg, False
+from swarmscene.methods.paths import WaypointPath
+from swarmscene.methods.shapes import shape_offsets
 
 
 class StaticShape(Formation):

@@ -43,10 +43,10 @@ from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from .static_shape import shape_offsets
-from .vrb_airshow import airshow_keyframes, airshow_sequence
-from .vrb_trajectory import ORDER, Keyframes, VRBTrajectory
-from .vrb_transform import (
+from swarmscene.methods.shapes import shape_offsets
+from swarmscene.methods.vrb.airshow import airshow_keyframes, airshow_sequence
+from swarmscene.methods.vrb.trajectory import ORDER, Keyframes, VRBTrajectory
+from swarmscene.methods.vrb.transform import (
     FormationSequence,
     TransformationLaw,
     plan_flight,

@@ -10,7 +10,7 @@ from swarmscene.builtins import BUILTIN_PLUGINS
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.simulation import Simulation
-from swarmscene.plugins.formation.indoor_control import psi_col, psi_obs
+from swarmscene.methods.indoor.control import psi_col, psi_obs
 
 MODULES = (
     "swarmscene.plugins.formation.indoor_swarm",
@@ -73,8 +73,8 @@ def test_collision_term_needs_line_of_sight_like_the_thesis():
     segment d_l clear of obstacles (eq. 5.8): two agents 0.31 m apart on either side of the
     corridor's entrance corner (0, 0.4) do not sense each other, so they do not repel; past the
     corner, at the same distance, they do."""
-    from swarmscene.plugins.formation.indoor_control import w_obs
-    from swarmscene.plugins.formation.indoor_swarm import shared_snapshot
+    from swarmscene.methods.indoor.control import w_obs
+    from swarmscene.methods.indoor.shared import shared_snapshot
 
     hidden = build([[-3.0, 0.0, 1.0], [-0.12, 0.52, 1.0], [0.1, 0.3, 1.0]])
     snap = shared_snapshot(hidden.sensing, hidden.avoidance.gains)

@@ -10,7 +10,7 @@ from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.plugins.dynamics import quadrotor as quadrotor_module
 from swarmscene.plugins.dynamics.quadrotor import Quadrotor
-from swarmscene.plugins.dynamics.quadrotor_model import AIRFRAMES, euler_zyx, quat_to_rotmat
+from swarmscene.methods.quadrotor.model import AIRFRAMES, euler_zyx, quat_to_rotmat
 
 T_S = 0.1
 PHYSICS = 1.0 / 240.0

@@ -14,7 +14,7 @@ from swarmscene.core.setpoint import Mode
 from swarmscene.core.simulation import Simulation
 from swarmscene.core.state import WorldState
 from swarmscene.plugins.formation.hex_lattice import HexLattice
-from swarmscene.plugins.formation.hex_pattern import formation_graph
+from swarmscene.methods.outdoor.hex_pattern import formation_graph
 
 # Listed here as well until swarmscene/builtins.py registers them (a no-op afterwards).
 MODULES = ("swarmscene.plugins.formation.hex_lattice", "swarmscene.plugins.avoidance.apf_navigation")

@@ -15,8 +15,8 @@ from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.config import EnvironmentConfig
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.simulation import Simulation
-from swarmscene.plugins.formation.indoor_control import IndoorController
-from swarmscene.plugins.formation.indoor_maps import building, l_corridor, straight_corridor
+from swarmscene.methods.indoor.control import IndoorController
+from swarmscene.methods.indoor.maps import building, l_corridor, straight_corridor
 
 MODULES = (
     "swarmscene.plugins.formation.indoor_swarm",
@@ -159,8 +159,8 @@ def test_first_split_is_diagnosed_as_a_wall_breaking_line_of_sight():
     wall (segment clearance < d_l = 0.05 m, length < d_n), as in the L-corridor failures."""
     from shapely import STRtree
 
-    from swarmscene.plugins.formation.indoor_control import sense
-    from swarmscene.plugins.formation.indoor_graphs import ranks
+    from swarmscene.methods.indoor.control import sense
+    from swarmscene.methods.indoor.graphs import ranks
     from swarmscene.plugins.formation.indoor_swarm import _cut_links
 
     walls = STRtree(l_corridor(0.8).wall_polygons(0.1))

@@ -10,7 +10,7 @@ from swarmscene import api
 from swarmscene.core.setpoint import Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.plugins.formation.outdoor_mission import LeaderLogic, OutdoorMission, Task
-from swarmscene.plugins.formation.swarm_map import SwarmMap, hop_matrix
+from swarmscene.methods.outdoor.swarm_map import SwarmMap, hop_matrix
 
 QUIET = ["output.progress=off", "output.summary=false", "output.trajectory=false"]
 D_Q, T_MSG, T_FOR, T_INI, T_LED, T_FOL, TAU = 0.55, 2.0, 40.0, 5.0, 10.0, 10.0, 0.2

@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from swarmscene.plugins.formation.multiscale_assignment import assignment_duals, solve_square
+from swarmscene.methods.assignment import assignment_duals, solve_square
 
 
 def _optimum(cost):
@@ -55,7 +55,7 @@ def test_multiscale_solution_is_deterministic():
 def test_steady_state_is_certified_by_the_reduction_zeros():
     # Agents each near their own slot (the re-assignment of a formed swarm): row and column
     # reduction already leave a perfect matching of zeros, which is returned as it is.
-    from swarmscene.plugins.formation.multiscale_assignment import _matching_on_reduction_zeros
+    from swarmscene.methods.assignment import _matching_on_reduction_zeros
 
     rng = np.random.default_rng(4)
     slots = np.stack(np.meshgrid(np.arange(15.0), np.arange(15.0)), axis=-1).reshape(-1, 2) * 5
@@ -74,7 +74,7 @@ def test_steady_state_is_certified_by_the_reduction_zeros():
 def test_tie_heavy_line_start_is_optimal_and_deterministic():
     # Agents on a long line, slots on a compact disc: far agents tie on many slots (the case the
     # fewest-zeros-first row order speeds up); the optimum must still be scipy's, deterministically.
-    from swarmscene.plugins.formation.multiscale_assignment import _solve_reduced
+    from swarmscene.methods.assignment import _solve_reduced
 
     n = 240
     agents = np.c_[np.arange(n) * 1.5, np.zeros(n)]

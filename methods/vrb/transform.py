@@ -64,7 +64,7 @@ from scipy.interpolate import BSpline
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import pdist
 
-from .vrb_trajectory import ORDER, VRBState, VRBTrajectory
+from .trajectory import ORDER, VRBState, VRBTrajectory
 
 SPLINE_DEGREE = 5
 """Quintic B-spline for the deviation E_i(s): the lowest degree that is C^4."""

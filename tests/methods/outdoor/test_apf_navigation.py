@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from swarmscene.plugins.formation.apf_navigation_math import (
+from swarmscene.methods.outdoor.apf_navigation import (
     apf_navigation,
     arrived_on_target,
     attraction_velocity,
@@ -18,7 +18,7 @@ from swarmscene.plugins.formation.apf_navigation_math import (
     saturate,
     target_gain,
 )
-from swarmscene.plugins.formation.hex_pattern import assign_offsets, hex_pattern, slot_positions
+from swarmscene.methods.outdoor.hex_pattern import assign_offsets, hex_pattern, slot_positions
 
 # Table 4.3
 D_Q, D_C, D_R, V_SAT, EPS_R, T_S = 0.55, 1.65, 5.0, 0.5, 0.5, 0.1

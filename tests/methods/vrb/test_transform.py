@@ -8,14 +8,14 @@ from itertools import permutations
 import numpy as np
 import pytest
 
-from swarmscene.plugins.formation.vrb_airshow import (
+from swarmscene.methods.vrb.airshow import (
     AIRSHOW_LAW,
     Airshow,
     airshow_formations,
     airshow_sequence,
     build_airshow,
 )
-from swarmscene.plugins.formation.vrb_transform import (
+from swarmscene.methods.vrb.transform import (
     FormationSequence,
     TransformationLaw,
     assign_targets,

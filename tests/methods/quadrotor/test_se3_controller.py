@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from swarmscene.plugins.dynamics.flatness import flat_inputs, flat_state, taylor_propagate
-from swarmscene.plugins.dynamics.quadrotor_model import (
+from swarmscene.methods.quadrotor.flatness import flat_inputs, flat_state, taylor_propagate
+from swarmscene.methods.quadrotor.model import (
     CRAZYFLIE,
     GRAVITY,
     M330,
@@ -16,7 +16,7 @@ from swarmscene.plugins.dynamics.quadrotor_model import (
     step_rotors,
     yaw_to_quat,
 )
-from swarmscene.plugins.dynamics.se3_controller import se3_control, se3_gains
+from swarmscene.methods.quadrotor.se3_controller import se3_control, se3_gains
 
 DT = 1.0 / 240.0
 

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from .indoor_sensing import Obstacles, sensing_pairs
+from .sensing import Obstacles, sensing_pairs
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx

@@ -5,8 +5,8 @@ import pytest
 import shapely
 from shapely.geometry import LineString, Point, box
 
-from swarmscene.plugins.formation.indoor_graphs import is_connected, neighbour_graph
-from swarmscene.plugins.formation.indoor_maps import (
+from swarmscene.methods.indoor.graphs import is_connected, neighbour_graph
+from swarmscene.methods.indoor.maps import (
     building,
     in_region,
     l_corridor,
@@ -15,7 +15,7 @@ from swarmscene.plugins.formation.indoor_maps import (
     resample_path,
     straight_corridor,
 )
-from swarmscene.plugins.formation.indoor_sensing import nearest_obstacle
+from swarmscene.methods.indoor.sensing import nearest_obstacle
 
 
 def _corridor_part(mp):

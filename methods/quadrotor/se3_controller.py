@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .flatness import heading_axes
-from .quadrotor_model import GRAVITY, Airframe, cross_rows
+from .model import GRAVITY, Airframe, cross_rows
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from swarmscene.plugins.formation.indoor_graphs import (
+from swarmscene.methods.indoor.graphs import (
     EdgeList,
     deactivation_rules,
     edge_activation,
@@ -19,7 +19,7 @@ from swarmscene.plugins.formation.indoor_graphs import (
     sigma_graph,
     virtual_leader,
 )
-from swarmscene.plugins.formation.indoor_maps import building
+from swarmscene.methods.indoor.maps import building
 
 D_N, D_L, PHI_D = 1.0, 0.05, 0.2  # Table 5.1
 
@@ -193,7 +193,7 @@ def test_virtual_leader_eq_5_24_5_25_averages_lowest_rank_neighbours():
 
 def test_max_rank_and_neighbour_min_match_networkx_on_random_graphs():
     """The per-tick shortcuts: the largest rank (eq. 5.23, N when cut off) and min over N_i."""
-    from swarmscene.plugins.formation.indoor_graphs import max_rank
+    from swarmscene.methods.indoor.graphs import max_rank
 
     rng = np.random.default_rng(11)
     for _ in range(200):

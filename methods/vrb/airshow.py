@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vrb_trajectory import ORDER, Keyframes, VRBTrajectory
-from .vrb_transform import FormationFlight, FormationSequence, TransformationLaw, plan_flight
+from .trajectory import ORDER, Keyframes, VRBTrajectory
+from .transform import FormationFlight, FormationSequence, TransformationLaw, plan_flight
 
 N_ROBOTS = 3
 LINE_SPACING = 0.7

@@ -7,8 +7,8 @@ from scipy.spatial import cKDTree
 from shapely import STRtree
 from shapely.geometry import LineString, box
 
-from swarmscene.plugins.formation.indoor_maps import building
-from swarmscene.plugins.formation.indoor_sensing import (
+from swarmscene.methods.indoor.maps import building
+from swarmscene.methods.indoor.sensing import (
     collision_free,
     nearest_obstacle,
     obstacle_free,

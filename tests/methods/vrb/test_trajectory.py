@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from swarmscene.plugins.formation.vrb_airshow import (
+from swarmscene.methods.vrb.airshow import (
     CIRCLE_HEIGHT,
     CIRCLE_RADIUS,
     DURATION,
     airshow_keyframes,
 )
-from swarmscene.plugins.formation.vrb_trajectory import (
+from swarmscene.methods.vrb.trajectory import (
     ORDER,
     Keyframes,
     VRBTrajectory,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from swarmscene.plugins.avoidance.cem_flow import (
+from swarmscene.methods.cem.flow import (
     CEMNavigator,
     NewtonInverter,
     calc_xy,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from swarmscene.plugins.dynamics.quadrotor_model import (
+from swarmscene.methods.quadrotor.model import (
     AIRFRAMES,
     CRAZYFLIE,
     GRAVITY,

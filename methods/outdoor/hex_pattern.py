@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import Voronoi
 from scipy.spatial.distance import cdist
 
-from swarmscene.plugins.formation.multiscale_assignment import solve_square
+from swarmscene.methods.assignment import solve_square
 
 # ---------------------------------------------------------------------------------------------
 # Hexagonal axial frame {h} (eq. 4.3-4.7)
@@ -304,7 +304,7 @@ def solve_assignment(cost: np.ndarray, column_penalty: np.ndarray | None = None)
     solver matches far faster (and the dummy rows take up the penalised columns first).
     The square problem is solved exactly by scipy's ``linear_sum_assignment`` (Jonker-Volgenant
     shortest augmenting paths), warm-started for large swarms by
-    :func:`~swarmscene.plugins.formation.multiscale_assignment.solve_square`.
+    :func:`~swarmscene.methods.assignment.solve_square`.
     """
     if column_penalty is None:
         column_penalty = np.zeros(cost.shape[1])

@@ -35,7 +35,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 from scipy.spatial.distance import pdist, squareform
 
-from swarmscene.plugins.formation.apf_navigation_math import LEVEL_BAND, collision_gain
+from swarmscene.methods.outdoor.apf_navigation import LEVEL_BAND, collision_gain
 
 NO_ENTRY = -1
 """``stamp`` of an entry never received."""

@@ -24,7 +24,7 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .indoor_graphs import (
+from .graphs import (
     EdgeList,
     initial_rank_estimate,
     neighbour_graph,
@@ -32,7 +32,7 @@ from .indoor_graphs import (
     sigma_graph,
     virtual_leader,
 )
-from .indoor_sensing import Obstacles, nearest_obstacle, obstacle_tree, saturate
+from .sensing import Obstacles, nearest_obstacle, obstacle_tree, saturate
 
 
 @dataclass(frozen=True)

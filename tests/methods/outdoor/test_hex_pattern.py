@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
-from swarmscene.plugins.formation.hex_pattern import (
+from swarmscene.methods.outdoor.hex_pattern import (
     assign_offsets,
     assignment_cost,
     corner_distance,

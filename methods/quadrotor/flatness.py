@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .quadrotor_model import GRAVITY, cross_rows
+from .model import GRAVITY, cross_rows
 
 
 @dataclass

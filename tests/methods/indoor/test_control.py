@@ -4,7 +4,7 @@ and a closed-loop corridor run with Table 5.1 parameters."""
 import numpy as np
 import pytest
 
-from swarmscene.plugins.formation.indoor_control import (
+from swarmscene.methods.indoor.control import (
     TABLE_5_1,
     IndoorController,
     follower_input,
@@ -21,15 +21,15 @@ from swarmscene.plugins.formation.indoor_control import (
     w_led,
     w_obs,
 )
-from swarmscene.plugins.formation.indoor_graphs import (
+from swarmscene.methods.indoor.graphs import (
     EdgeList,
     is_connected,
     neighbour_graph,
     sigma_graph,
     virtual_leader,
 )
-from swarmscene.plugins.formation.indoor_maps import in_region, random_connected_swarm, straight_corridor
-from swarmscene.plugins.formation.indoor_sensing import (
+from swarmscene.methods.indoor.maps import in_region, random_connected_swarm, straight_corridor
+from swarmscene.methods.indoor.sensing import (
     nearest_obstacle,
     pairwise_min_distance,
     single_integrator_step,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from swarmscene.core.setpoint import Mode
-from swarmscene.plugins.dynamics.thesis_controllers import (
+from swarmscene.methods.quadrotor.thesis_controllers import (
     ThesisController,
     conjugate_poles,
     position_gains,

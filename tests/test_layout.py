@@ -1,0 +1,81 @@
+"""The layout shows the architecture: dependencies point one way (app -> plugins -> methods -> core),
+a plugin folder holds registered plugin modules only, and each method package stands on its own."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from swarmscene.builtins import BUILTIN_PLUGINS
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = {"core": "swarmscene.core", "methods": "swarmscene.methods", "plugins": "swarmscene.plugins"}
+
+
+def module_name(path: Path) -> str:
+    folder = path.relative_to(ROOT).parts[0]
+    rel = path.relative_to(ROOT / folder).with_suffix("").parts
+    return ".".join((PACKAGES[folder], *(rel[:-1] if rel[-1] == "__init__" else rel)))
+
+
+def imported_modules(path: Path) -> set[str]:
+    """Absolute names of every module ``path`` imports (relative imports resolved)."""
+    package = module_name(path).rsplit(".", 1)[0] if path.name != "__init__.py" else module_name(path)
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")
+                parts = parts[: len(parts) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names)
+    return found
+
+
+def sources(folder: str) -> list[Path]:
+    return sorted(p for p in (ROOT / folder).rglob("*.py") if "__pycache__" not in p.parts)
+
+
+@pytest.mark.parametrize("path", sources("plugins"), ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_a_plugin_module_imports_no_other_plugin_module(path):
+    me = module_name(path)
+    others = {
+        name for name in imported_modules(path)
+        if name.startswith("swarmscene.plugins.") and name.count(".") >= 3 and not me.startswith(name)
+        and name.rsplit(".", 1)[0] != "swarmscene.plugins"  # the kind's package itself
+    }
+    others = {n for n in others if module_name_exists(n)}
+    assert not others, f"{me} imports plugin modules {sorted(others)}: move shared numerics to methods/"
+
+
+def module_name_exists(name: str) -> bool:
+    parts = name.split(".")
+    if parts[:2] != ["swarmscene", "plugins"]:
+        return False
+    path = ROOT / "plugins" / Path(*parts[2:])
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+
+@pytest.mark.parametrize("folder, forbidden", [("core", ("plugins", "methods")), ("methods", ("plugins",))])
+def test_dependencies_point_one_way(folder, forbidden):
+    for path in sources(folder):
+        for name in imported_modules(path):
+            parts = name.split(".")
+            assert not (parts[0] == "swarmscene" and len(parts) > 1 and parts[1] in forbidden), (
+                f"{path.relative_to(ROOT)} imports {name}"
+            )
+
+
+def test_plugin_folders_hold_registered_plugins_only():
+    modules = {
+        module_name(p) for p in sources("plugins")
+        if p.name != "__init__.py" and not p.name.startswith("_")
+    }
+    unregistered = sorted(modules - set(BUILTIN_PLUGINS))
+    assert not unregistered, f"not registered plugins (move their numerics to methods/): {unregistered}"
