@@ -1,0 +1,1 @@
+"""flocking's tuning of each dynamics method (see scenarios/config.yaml)."""

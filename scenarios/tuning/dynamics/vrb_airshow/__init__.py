@@ -1,0 +1,1 @@
+"""vrb_airshow's tuning of each dynamics method (see scenarios/config.yaml)."""

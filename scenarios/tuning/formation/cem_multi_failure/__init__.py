@@ -1,0 +1,1 @@
+"""cem_multi_failure's tuning of each formation method (see scenarios/config.yaml)."""

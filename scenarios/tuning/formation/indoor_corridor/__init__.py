@@ -1,0 +1,1 @@
+"""indoor_corridor's tuning of each formation method (see scenarios/config.yaml)."""

@@ -1,0 +1,1 @@
+"""outdoor_square's tuning of each formation method (see scenarios/config.yaml)."""

@@ -1,0 +1,1 @@
+"""vrb_airshow's tuning of each formation method (see scenarios/config.yaml)."""
