@@ -25,12 +25,18 @@ from __future__ import annotations
 import argparse
 import time
 
+import sys
+from pathlib import Path
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-from swarmscene.methods.indoor.control import TABLE_5_1, IndoorController
-from swarmscene.methods.indoor.maps import building, open_map, random_connected_swarm
-from swarmscene.methods.indoor.sensing import single_integrator_step
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the stand-alone loop
+from oracles.indoor import IndoorController, random_connected_swarm  # noqa: E402
+
+from swarmscene.methods.indoor.control import TABLE_5_1  # noqa: E402
+from swarmscene.methods.indoor.maps import building, open_map  # noqa: E402
+from swarmscene.methods.indoor.sensing import single_integrator_step  # noqa: E402
 
 
 def bench(name: str, mp, n: int, steps: int, warmup: int, seed: int = 0) -> dict:

@@ -63,7 +63,7 @@ out = {"n": n, "steps": m["steps"], "wall": wall, "median_ms": m["step_ms_median
        "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "rss0": rss0,
        "collisions": m["collisions"]}
 if record:
-    rec = result.observer("TrajectoryRecorder")
+    rec = result.recorder
     out.update(frames=rec.count, buffer_mib=rec.buffer_bytes() / 2**20, streaming=bool(rec.streaming),
                spill_mib=sum(f.path.stat().st_size for f in rec.files.values()) / 2**20)
 else:  # a few more ticks under tracemalloc: the peak of what one tick allocates

@@ -140,12 +140,6 @@ class SafetyMonitor:
         self._collision_keys, self._unmerged = [merged], 0
         return merged
 
-    @property
-    def collision_pairs(self) -> set[tuple[int, int]]:
-        """Distinct pairs (i < j) that came closer than ``safety.min_separation``."""
-        keys = self._merge_collisions()
-        return set(zip((keys // self.n).tolist(), (keys % self.n).tolist()))
-
     def _first(self, condition: str, t: float, agents: list[int]) -> None:
         self.first.setdefault(condition, (float(t), agents))
 

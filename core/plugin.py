@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -90,6 +90,15 @@ class Formation(Plugin):
     def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
         """Return the setpoints of all N agents for this guidance tick."""
 
+    def periodic_box(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The formation's space when it is periodic (a torus), else ``None`` (the default).
+
+        Returns ``(lo, size)``, arrays (A,) in m for the first A world axes: the kernel folds
+        positions into ``[lo, lo + size)`` in its ``wrap`` phase, at the start of the run and
+        after every physics update, before any observer reads them.
+        """
+        return None
+
     def complete(self, world: WorldState) -> bool | None:
         """Whether the formation's mission is complete; ``None`` when it defines no mission.
 
@@ -134,3 +143,34 @@ PLUGIN_KINDS: dict[str, type[Plugin]] = {
     "dynamics": Dynamics,
 }
 """The config group of each kind and the base class its plugins derive from."""
+
+
+SHARED = "shared"
+"""Key of a Params field's ``json_schema_extra`` naming the per-tick quantity the option describes
+(e.g. ``Field(1.0, json_schema_extra={SHARED: "thesis.indoor_snapshot"})``). Chosen plugins whose
+options describe the same quantity must agree: it is built once per tick for all of them
+(:meth:`~swarmscene.core.sensing.Sensing.shared`)."""
+
+
+def shared_option_conflicts(params: dict[str, PluginParams]) -> list[str]:
+    """One line per option that two chosen plugins declare for one shared quantity with two values.
+
+    Args:
+        params: each chosen plugin's validated Params, by kind (``formation``, ``avoidance``, ...).
+    """
+    first: dict[tuple[str, str], tuple[str, Any]] = {}
+    lines = []
+    for kind, model in params.items():
+        for field, info in type(model).model_fields.items():
+            extra = info.json_schema_extra
+            quantity = extra.get(SHARED) if isinstance(extra, dict) else None
+            if quantity is None:
+                continue
+            value = getattr(model, field)
+            seen = first.setdefault((quantity, field), (kind, value))
+            if seen[1] != value:
+                lines.append(
+                    f"{kind}.{field}: must equal {seen[0]}.{field} = {seen[1]!r} (got {value!r}): both "
+                    f"describe {quantity}, built once per tick for every plugin"
+                )
+    return lines

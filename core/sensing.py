@@ -8,8 +8,10 @@ lazy and cached: a plugin that never asks for the communication graph does not p
 
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any, TypeVar
 
 import networkx as nx
 import numpy as np
@@ -30,6 +32,8 @@ SPARSE_NEIGHBOURS = 128
 enough to list whole: connectivity then goes straight to the exact pair graph."""
 DENSITY_SAMPLE = 16
 """Members sampled (evenly, deterministic) to estimate the neighbours per member."""
+T = TypeVar("T")
+
 OBSTACLE_SKIN = 0.25
 """Obstacle candidates are listed this fraction of the range beyond it, and kept from tick to tick
 until some agent has moved farther than that margin (a Verlet list)."""
@@ -111,6 +115,33 @@ class Sensing:
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
         self._candidates = previous._candidates if previous is not None else None
+        self._shared: dict[str, tuple[Hashable, Any]] = {}
+
+    def shared(self, name: str, params: Hashable, compute: Callable[[], T]) -> T:
+        """Derived data several plugins need this tick, computed once by the first caller.
+
+        The thesis' formation and avoidance terms both read the graph G_sigma, for example: the
+        first asks ``shared("thesis.indoor_snapshot", params, build)`` and builds it, the second
+        gets the same object. The memo lives on this tick's Sensing, so it dies with the tick.
+
+        Args:
+            name: what the data is (prefix it with the method's name).
+            params: the parameters it is computed with. A second caller asking for ``name`` with
+                other parameters gets a ``ValueError`` naming both: two plugins would otherwise
+                silently disagree about one quantity.
+            compute: builds the data (called at most once per tick and name).
+        """
+        if name in self._shared:
+            known, value = self._shared[name]
+            if known != params:
+                raise ValueError(
+                    f"{name} was computed this tick with {known} and is asked for with {params}: "
+                    "the plugins sharing it must be configured with the same parameters"
+                )
+            return value
+        value = compute()
+        self._shared[name] = (params, value)
+        return value
 
     @cached_property
     def tree(self) -> cKDTree:

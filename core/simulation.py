@@ -2,7 +2,8 @@
 
 Each guidance tick (period T_s = ``clock.guidance_period``)::
 
-    events -> sense/communicate -> formation -> avoidance -> dynamics (physics sub-steps) -> observers
+    events -> sense/communicate -> formation -> avoidance -> dynamics (physics sub-steps)
+        -> hold failed -> wrap (periodic space) -> observers
 
 The physics step divides T_s; the dynamics model's controller runs once per tick (zero-order hold)
 and its plant ``T_s / physics_step`` times. Observers (monitors, metrics, recorders, and any chosen
@@ -23,10 +24,13 @@ from .environment import Environment
 from .errors import ConfigError
 from .events import Event, EventKind, EventQueue
 from .geometry import build_obstacles, initial_positions
+from .monitors import SafetyMonitor
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
+from .recorder import TrajectoryRecorder
 from .result import RunResult
 from .sensing import Sensing
 from .state import WorldState
+from .vectors import wrap
 
 
 class Simulation:
@@ -79,6 +83,8 @@ class Simulation:
         self.avoidance: Avoidance = self._build("avoidance", ctx)
         self.dynamics: Dynamics = self._build("dynamics", ctx)
         self.dynamics.initialize(self.world)
+        self._periodic = self.formation.periodic_box()
+        self._wrap_periodic()
         self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
         self.step_seconds = np.zeros(self.total_steps)
         self.observers = [cls(self) for cls in observers]
@@ -107,6 +113,7 @@ class Simulation:
         for _ in range(self.substeps):
             self.dynamics.step(self.world, self.physics_step)
         self._hold_failed()
+        self._wrap_periodic()
         self.step_count += 1
         self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
         self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
@@ -120,6 +127,13 @@ class Simulation:
                 self._hover_pos[idx] = self.world.pos[idx]
             self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
             self.hook.swarmscene_event(sim=self, event=event)
+
+    def _wrap_periodic(self) -> None:
+        """Positions folded back into the formation's periodic box, if its space is one."""
+        if self._periodic is not None:
+            lo, size = self._periodic
+            a = lo.size
+            self.world.pos[:, :a] = wrap(self.world.pos[:, :a], lo, size)
 
     def _hold_failed(self) -> None:
         """Failed vehicles hover where they failed, whatever the dynamics model did."""
@@ -163,8 +177,14 @@ class Simulation:
             metrics=metrics,
             stop_reason=self.stop_reason or "duration",
             complete=self.stop_reason != "interrupted",
+            recorder=self._observer_of(TrajectoryRecorder),
+            monitor=self._observer_of(SafetyMonitor),
             observers=self.observers,
         )
+
+    def _observer_of(self, cls: type) -> Any:
+        """This run's observer of class ``cls`` (or a subclass), if one was registered."""
+        return next((obs for obs in self.observers if isinstance(obs, cls)), None)
 
     def _engine_metrics(self, wall: float) -> dict[str, Any]:
         steps = self.step_count

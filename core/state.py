@@ -11,7 +11,7 @@ for the whole run and equal the agent ids used in config (0 .. N-1).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
@@ -41,6 +41,9 @@ class WorldState:
         omega: body angular rates, shape (N, 3), rad/s, body frame; ``None`` unless the dynamics
             model has attitude.
         rotor_speed: (N, 4) rad/s, for rotor-level models, else ``None``.
+        acc: (N, 3) m/s^2, world frame: the acceleration input the dynamics model applied this
+            tick (thesis u, eq. 3.21), for models with one; ``None`` otherwise. Formations use it
+            as the leader's feed-forward (thesis eq. 4.11).
     """
 
     t: float
@@ -52,8 +55,7 @@ class WorldState:
     quat: np.ndarray | None = None
     omega: np.ndarray | None = None
     rotor_speed: np.ndarray | None = None
-    extras: dict[str, np.ndarray] = field(default_factory=dict)
-    """Per-agent arrays a dynamics model adds (documented by that model), e.g. integrator states."""
+    acc: np.ndarray | None = None
 
     @classmethod
     def at_rest(cls, pos: np.ndarray, leader: int | None = None) -> "WorldState":

@@ -1,4 +1,4 @@
-"""Small vectorised helpers shared by plugins."""
+"""Small vectorised helpers shared by the kernel and plugins."""
 
 from __future__ import annotations
 
@@ -10,3 +10,10 @@ def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     (and zero rows) are returned unchanged. The saturation of thesis eq. 4.21 and 5.30."""
     norm = np.sqrt(np.einsum("...i,...i->...", v, v))[..., None]  # one C call per step (hot path)
     return v * np.minimum(1.0, limit / np.maximum(norm, 1e-300))
+
+
+def wrap(pos: np.ndarray, lo: np.ndarray | float, size: np.ndarray) -> np.ndarray:
+    """Positions folded into the periodic box [lo, lo + size) (per column of ``lo``/``size``)."""
+    q = np.mod(pos - lo, size)
+    q[q >= size] = 0.0  # np.mod of a tiny negative can round up to exactly `size`
+    return q + lo if np.any(lo) else q

@@ -438,10 +438,6 @@ class CEMNavigator:
     def phi(self) -> np.ndarray:
         return self.w.real
 
-    @property
-    def psi0(self) -> np.ndarray:
-        return self.w0.imag
-
     def step(self) -> tuple[np.ndarray, np.ndarray]:
         """One guidance tick: returns world (N, 2) commanded positions and velocities (views).
 

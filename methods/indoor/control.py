@@ -26,13 +26,10 @@ from scipy.spatial import cKDTree
 
 from .graphs import (
     EdgeList,
-    initial_rank_estimate,
     neighbour_graph,
-    rank_estimate_step,
     sigma_graph,
-    virtual_leader,
 )
-from .sensing import Obstacles, nearest_obstacle, obstacle_tree, saturate
+from .sensing import Obstacles, nearest_obstacle, saturate
 
 
 @dataclass(frozen=True)
@@ -277,51 +274,3 @@ def sense(
     o, dist = nearest if nearest is not None else nearest_obstacle(r, obstacles, max_distance=reach)
     g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach), candidates)
     return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d))
-
-
-class IndoorController:
-    """One guidance step of the whole indoor swarm: sensing, graphs, ranks, follower and leader laws.
-
-    Holds the two pieces of state the method carries between steps: the rank estimates rho_bar
-    (eq. 5.26) and the leader's way-point index m (Algorithm 1).
-
-    Args:
-        n: number of agents N.
-        leader: index of the leader (the thesis' agent N).
-        waypoints: (n_wp, 2) leader path P, m.
-        obstacles: geometries or their STRtree.
-        gains: parameters (Table 5.1 by default).
-    """
-
-    def __init__(
-        self,
-        n: int,
-        leader: int,
-        waypoints: np.ndarray,
-        obstacles: Obstacles,
-        gains: IndoorGains = TABLE_5_1,
-    ) -> None:
-        self.n, self.leader, self.gains = n, leader, gains
-        self.waypoints = np.asarray(waypoints, dtype=float)
-        self.obstacles = obstacle_tree(obstacles)
-        self.rho_bar = initial_rank_estimate(n, leader)
-        self.m = 0
-        self.g_n: EdgeList | None = None
-        self.g_sigma: EdgeList | None = None
-
-    def input(self, r: np.ndarray, tree: cKDTree | None = None) -> np.ndarray:
-        """The inputs u(k) (N, 2), m per T_s, for positions r(k) (N, 2); advances rho_bar and m.
-
-        ``tree`` is an optional prebuilt cKDTree over the positions (the engine's shared tree).
-        """
-        return self.input_from(sense(r, self.obstacles, self.gains, tree))
-
-    def input_from(self, snap: IndoorSnapshot) -> np.ndarray:
-        """As :meth:`input`, from an already computed :class:`IndoorSnapshot`."""
-        g, r = self.gains, snap.r
-        self.g_n, self.g_sigma = snap.g_n, snap.g_sigma
-        l, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
-        u = follower_input(r, snap.g_sigma, snap.o, l, has, g)
-        u[self.leader], self.m = leader_input(r, self.leader, snap.g_sigma, self.waypoints, self.m, g)
-        self.rho_bar = rank_estimate_step(self.rho_bar, snap.g_sigma, self.leader)
-        return u

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from scipy.spatial import cKDTree
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
 from shapely.ops import unary_union
 
@@ -202,73 +201,6 @@ def open_map(size: float) -> IndoorMap:
     )
 
 
-def random_connected_swarm(
-    region: Polygon,
-    n: int,
-    rng: np.random.Generator,
-    min_separation: float = 0.4,
-    max_link: float = 0.9,
-    anchor: np.ndarray | None = None,
-    batch: int = 16,
-) -> np.ndarray:
-    """A random swarm of ``n`` agents in ``region`` whose disc graph of radius ``max_link`` is connected.
-
-    Random eligible initial state of section 5.4: each new agent is drawn at a distance in
-    [min_separation, max_link] from a random earlier agent, and kept if it lies in ``region`` and
-    at least ``min_separation`` from every agent (so eq. 5.2 holds with d_c <= min_separation).
-    With max_link < d_n and a convex region (or one whose links cannot cross a wall) G_n is
-    connected. This runs once per scenario (a loop over agents, not on a per-step path).
-
-    Args:
-        region: where agents may be placed.
-        n: number of agents.
-        rng: the random generator (seeded by the caller).
-        min_separation: minimum inter-agent distance, m.
-        max_link: maximum distance to the agent it is attached to, m.
-        anchor: (2,) first agent's position; a random point of ``region`` by default.
-        batch: candidates drawn at once (the first admissible one is kept).
-
-    Returns:
-        (n, 2) positions, m.
-    """
-    minx, miny, maxx, maxy = region.bounds
-    if anchor is None:
-        while True:
-            anchor = rng.uniform((minx, miny), (maxx, maxy))
-            if region.contains(shapely.points(anchor)):
-                break
-    r = np.empty((n, 2))
-    r[0] = anchor
-    count = 1
-    for _ in range(200 * n):  # batches; one agent is accepted per batch, growing outward
-        if count == n:
-            return r
-        parent = r[rng.integers(count, size=batch)]
-        rho = rng.uniform(min_separation, max_link, size=batch)
-        theta = rng.uniform(0.0, 2.0 * np.pi, size=batch)
-        cand = parent + rho[:, None] * np.column_stack([np.cos(theta), np.sin(theta)])
-        cand = cand[shapely.contains_xy(region, cand[:, 0], cand[:, 1])]
-        if len(cand):
-            gap = np.linalg.norm(cand[:, None, :] - r[None, :count, :], axis=2).min(axis=1)
-            ok = np.flatnonzero(gap >= min_separation)
-            if ok.size:
-                r[count] = cand[ok[0]]
-                count += 1
-    if count < n:
-        raise ValueError(f"cannot place {n} agents in the region (placed {count})")
-    return r
-
-
 def in_region(r: np.ndarray, region: Polygon) -> np.ndarray:
     """(N,) bool: agents inside ``region`` (vectorised shapely.contains_xy)."""
     return shapely.contains_xy(region, r[:, 0], r[:, 1])
-
-
-def disc_graph_connected(r: np.ndarray, radius: float) -> bool:
-    """True when the disc graph of ``radius`` over ``r`` is connected (no LOS; a quick check)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    pairs = cKDTree(r).query_pairs(radius, output_type="ndarray")
-    adj = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(r), len(r)))
-    return connected_components(adj, directed=False)[0] == 1

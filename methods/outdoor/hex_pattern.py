@@ -145,11 +145,6 @@ def ne_to_world_xy(ne: np.ndarray) -> np.ndarray:
     return np.asarray(ne)[..., ::-1].copy()
 
 
-def world_xy_to_ne(xy: np.ndarray) -> np.ndarray:
-    """World (x east, y north) -> (north, east) of the thesis frame {o}."""
-    return np.asarray(xy)[..., ::-1].copy()
-
-
 # ---------------------------------------------------------------------------------------------
 # The pattern
 # ---------------------------------------------------------------------------------------------

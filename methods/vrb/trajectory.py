@@ -198,11 +198,6 @@ class VRBState:
         """(T, 3) rad/s, angular velocity of F_v in F_w: (dR_v/dt R_v^T)^vee."""
         return _vee(np.einsum("tij,tkj->tik", self.R[1], self.R[0]))
 
-    @property
-    def alpha_body(self) -> np.ndarray:
-        """(T, 3) rad/s^2, angular acceleration in F_v: skew part of R^T R'' (R'^T R' is symmetric)."""
-        return _vee(np.einsum("tji,tjk->tik", self.R[0], self.R[2]))
-
 
 def _vee(m: np.ndarray) -> np.ndarray:
     """(T, 3, 3) -> (T, 3), the vector of the skew-symmetric part."""

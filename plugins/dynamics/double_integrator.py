@@ -22,7 +22,7 @@ identical as in the thesis (eq. 3.20 decoupling), so u_sat and v_max bound each 
 
 Frames: the laws commute with the thesis' NED -> world change of axes (see thesis_controllers.py),
 so they run on world arrays directly. Failed agents are switched to HOLD where they are.
-Added to the world: ``extras["u"]`` (N, 3) m/s^2, the input applied this tick (the ū another
+Fills ``world.acc`` (N, 3) m/s^2, the input applied this tick (the ū another
 agent's tracker can use as feed-forward).
 """
 
@@ -95,7 +95,7 @@ class DoubleIntegrator(Dynamics):
         self.controller = ThesisController(world.n, self.velocity, self.position, self.tracker,
                                            p.u_sat, self.K_lim, p.eps_lim)
         self.u = np.zeros_like(world.pos)
-        world.extras["u"] = self.u
+        world.acc = self.u
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
         healthy = world.healthy

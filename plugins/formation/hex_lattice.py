@@ -4,7 +4,7 @@ The leader (``world.leader``) sits on node 0 of the hexagonal pattern of
 :mod:`~swarmscene.methods.outdoor.hex_pattern` (eq. 4.3-4.11, spacing d_r, yaw alpha); the
 followers are assigned to its offsets by the id-ordered, decimetre-rounded rectangular assignment
 with the periphery penalty (eq. 4.12-4.13). Every follower gets a TRACK setpoint on its slot
-r_N + h_j with the leader's velocity and applied input (``world.extras["u"]`` when the dynamics
+r_N + h_j with the leader's velocity and applied input (``world.acc`` when the dynamics
 provides it) as feed-forward: the thesis' tracker control in FLOW (section 3.2.5).
 
 The leader holds its home until every healthy follower is within ``arrival_tolerance`` (eps_r)
@@ -78,7 +78,7 @@ class HexLattice(Formation):
             "discounted by this distance, m (0: the thesis' plain re-assignment)"
         )
         input_feedforward: bool = Field(
-            True, description="add the leader's applied input (world.extras['u']) as TRACK feed-forward"
+            True, description="add the leader's applied input (world.acc) as TRACK feed-forward"
         )
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
@@ -154,7 +154,7 @@ class HexLattice(Formation):
         sp.mode[f] = Mode.TRACK
         sp.pos[f] = targets[f]
         sp.vel[f] = world.vel[self.leader]
-        u = world.extras.get("u")
+        u = world.acc
         if p.input_feedforward and u is not None:
             sp.acc[f] = u[self.leader]
         self._targets = targets

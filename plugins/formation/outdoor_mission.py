@@ -272,7 +272,7 @@ class OutdoorMission(Formation):
 
     def _communicate(self, world: WorldState, sensing) -> np.ndarray:
         members = world.healthy & world.comm_ok
-        u = world.extras.get("u", np.zeros_like(world.pos))
+        u = world.acc if world.acc is not None else np.zeros_like(world.pos)
         self.map.broadcast(self.k, world.healthy, self.task, world.pos, world.vel, u)
         d_com = self.ctx.comm_range
         box = world.pos[members].max(axis=0) - world.pos[members].min(axis=0) if members.any() else 0

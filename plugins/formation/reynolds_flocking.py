@@ -34,9 +34,9 @@ Space (``space``): ``open`` (no walls), ``bounded`` (steered back into the box `
 ``ContinuousSpace(torus=True)``). Neighbours always come from the tick's shared k-d tree,
 ``sensing.pairs(vision)``; in a torus the pairs through the seams are added by querying the images
 of the agents near a face against the same tree (:func:`seam_pairs`, exact minimum image while
-``vision`` < half the box), and the plugin wraps the agents' positions back into the box at the end
-of every tick, before any observer reads them (a ``tryfirst`` step-end hook), so monitors,
-recorders and the next tick see positions in the box, as in Mesa. Note the engine's safety monitor
+``vision`` < half the box). The plugin declares the box (:meth:`periodic_box`) and the kernel folds
+positions back into it in its ``wrap`` phase, after every physics update and before any observer
+reads them, so monitors, recorders and the next tick see positions in the box, as in Mesa. Note the engine's safety monitor
 measures Euclidean distance in the box: pairs close across a seam are not seen by it. Distances are
 3-D (equal to Mesa's 2-D ones while the flock shares one altitude).
 
@@ -56,6 +56,7 @@ from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.sensing import Sensing
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import wrap
 
 if TYPE_CHECKING:  # pragma: no cover
     from swarmscene.core.simulation import Simulation
@@ -136,13 +137,6 @@ def initial_headings(rng: np.random.Generator, n: int, planar: bool) -> np.ndarr
 def minimum_image(delta: np.ndarray, size: np.ndarray) -> np.ndarray:
     """Shortest periodic representative of difference vectors ``delta`` (M, D) in a box ``size`` (D,)."""
     return delta - size * np.round(delta / size)
-
-
-def wrap(pos: np.ndarray, lo: np.ndarray | float, size: np.ndarray) -> np.ndarray:
-    """Positions folded into [lo, lo + size) (per column of ``lo``/``size``)."""
-    q = np.mod(pos - lo, size)
-    q[q >= size] = 0.0  # np.mod of a tiny negative can round up to exactly `size`
-    return q + lo if np.any(lo) else q
 
 
 def periodic_shifts(axes: int) -> np.ndarray:
@@ -369,21 +363,11 @@ class ReynoldsFlocking(Formation):
         return self._centroid_error <= self.params.goal_tolerance
 
     # -- periodic space ----------------------------------------------------------------------
-    def wrap_world(self, world: WorldState) -> None:
-        """Fold positions back into the periodic box (toroidal space only)."""
-        if self.params.space == "toroidal":
-            a = self.axes
-            world.pos[:, :a] = wrap(world.pos[:, :a], self.lo[:a], self.size[:a])
-
-    @hookimpl(tryfirst=True)
-    def swarmscene_run_start(self, sim: "Simulation") -> None:
-        self.wrap_world(sim.world)
-
-    @hookimpl(tryfirst=True)
-    def swarmscene_step_end(self, sim: "Simulation") -> None:
-        # Before the monitors and the recorder (tryfirst), and before anything has queried the
-        # tick's fresh Sensing snapshot (its tree is built lazily), so all of them see the box.
-        self.wrap_world(sim.world)
+    def periodic_box(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The torus (x-y, or x-y-z when not planar) for the kernel's wrap phase; else ``None``."""
+        if self.params.space != "toroidal":
+            return None
+        return self.lo[: self.axes].copy(), self.size[: self.axes].copy()
 
     @hookimpl
     def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:

@@ -19,7 +19,7 @@ def run(*overrides: str, output_dir=None):
 
 
 def recorder(result):
-    return result.observer("TrajectoryRecorder")
+    return result.recorder
 
 
 @pytest.mark.parametrize("extra", [[], ["output.trajectory_every=3"], ["output.float32=true"]])

@@ -6,7 +6,6 @@ import pytest
 
 from swarmscene.methods.indoor.control import (
     TABLE_5_1,
-    IndoorController,
     follower_input,
     leader_direction,
     leader_input,
@@ -28,12 +27,13 @@ from swarmscene.methods.indoor.graphs import (
     sigma_graph,
     virtual_leader,
 )
-from swarmscene.methods.indoor.maps import in_region, random_connected_swarm, straight_corridor
+from swarmscene.methods.indoor.maps import in_region, straight_corridor
 from swarmscene.methods.indoor.sensing import (
     nearest_obstacle,
     pairwise_min_distance,
     single_integrator_step,
 )
+from oracles.indoor import IndoorController, random_connected_swarm
 
 G = TABLE_5_1
 

@@ -11,11 +11,11 @@ from swarmscene.methods.indoor.maps import (
     in_region,
     l_corridor,
     open_map,
-    random_connected_swarm,
     resample_path,
     straight_corridor,
 )
 from swarmscene.methods.indoor.sensing import nearest_obstacle
+from oracles.indoor import random_connected_swarm
 
 
 def _corridor_part(mp):

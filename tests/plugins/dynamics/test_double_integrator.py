@@ -107,7 +107,7 @@ def test_tracker_fig_3_13_and_modes_per_agent():
     assert -x.min() / 2.5 < 0.01
     np.testing.assert_allclose(v[-1, 1], [1.0, 0.0, 0.0], atol=1e-6)
     np.testing.assert_allclose(r[:, 2], np.broadcast_to(pos[2], r[:, 2].shape), atol=1e-12)
-    np.testing.assert_allclose(world.extras["u"][2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(world.acc[2], 0.0, atol=1e-12)
 
 
 def test_tracker_follows_a_moving_target_with_its_input():

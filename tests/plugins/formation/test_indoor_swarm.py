@@ -15,8 +15,8 @@ from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.config import EnvironmentConfig
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.simulation import Simulation
-from swarmscene.methods.indoor.control import IndoorController
 from swarmscene.methods.indoor.maps import building, l_corridor, straight_corridor
+from oracles.indoor import IndoorController
 
 MODULES = (
     "swarmscene.plugins.formation.indoor_swarm",

@@ -18,8 +18,8 @@ from swarmscene.plugins.formation.reynolds_flocking import (
     params_from_mesa,
     periodic_shifts,
     seam_pairs,
-    wrap,
 )
+from swarmscene.core.vectors import wrap
 from scipy.spatial import cKDTree
 
 OPEN = Environment([])
@@ -44,7 +44,9 @@ def tick(flock: ReynoldsFlocking, world: WorldState, dt: float = 1.0) -> None:
     sp = flock.setpoints(world, Sensing(world, OPEN, 10.0))
     world.pos += sp.vel * dt
     world.vel[:] = sp.vel
-    flock.wrap_world(world)
+    box = flock.periodic_box()  # the kernel's wrap phase
+    if box is not None:
+        world.pos[:, : box[0].size] = wrap(world.pos[:, : box[0].size], *box)
 
 
 def mesa_rule(pos: np.ndarray, d: np.ndarray, p: FlockingParams, size: np.ndarray) -> np.ndarray:
