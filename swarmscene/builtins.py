@@ -22,4 +22,5 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.avoidance.cem",
     "swarmscene.plugins.avoidance.potential_barrier",
     "swarmscene.plugins.avoidance.apf_navigation",
+    "swarmscene.plugins.avoidance.policy",
 )

@@ -1,0 +1,150 @@
+"""The observation of each agent: what it can sense this tick, as one float32 row per agent.
+
+Row layout (``ObservationLayout``, k = ``neighbours``; world frame, SI units, nothing normalised):
+
+    own_pos        3   position p_i, m
+    own_vel        3   velocity v_i, m/s
+    healthy        1   1 while the agent flies, 0 once failed
+    nbr_pos      3 k   p_j - p_i of the k nearest other agents within the sensing range R, m,
+                       nearest first, zero-padded
+    nbr_vel      3 k   v_j - v_i of the same agents, m/s, zero-padded
+    nbr_mask       k   1 where a neighbour is present, 0 for padding
+    obs_clearance  1   signed clearance to the nearest obstacle within R_o, m (R_o when none)
+    obs_dir        3   unit vector from the agent to that obstacle's nearest point (x-y plane; 0 when none
+                       or inside)
+    obs_mask       1   1 when an obstacle is within R_o
+    ref_offset     3   p_ref - p_i, the formation's reference position minus the agent's, m
+                       (0 when the reference has no position: VELOCITY or HOLD)
+    ref_vel        3   the reference's velocity (command or feed-forward), m/s
+    ref_mask       1   1 when ``ref_offset`` holds a position reference (POSITION or TRACK)
+
+The reference is the formation's setpoint of the previous guidance tick (none at t = 0): the
+kernel runs the formation inside the tick, after the observation of its start was taken, so
+both the environment and the ``policy`` plugin observe the last one known. Failed neighbours are
+sensed like the others (they still occupy space).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+OWN = (("own_pos", 3), ("own_vel", 3), ("healthy", 1))
+OBSTACLE = (("obs_clearance", 1), ("obs_dir", 3), ("obs_mask", 1))
+REFERENCE = (("ref_offset", 3), ("ref_vel", 3), ("ref_mask", 1))
+
+
+@dataclass(frozen=True)
+class ObservationLayout:
+    """Where each feature block sits in an observation row of ``k`` neighbours."""
+
+    k: int
+
+    @property
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        k = self.k
+        return (*OWN, ("nbr_pos", 3 * k), ("nbr_vel", 3 * k), ("nbr_mask", k), *OBSTACLE, *REFERENCE)
+
+    @property
+    def size(self) -> int:
+        """Length D of a row: 19 + 7 k."""
+        return sum(width for _, width in self.blocks)
+
+    def slices(self) -> dict[str, slice]:
+        out, start = {}, 0
+        for name, width in self.blocks:
+            out[name] = slice(start, start + width)
+            start += width
+        return out
+
+    def split(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """Views of each block of ``obs`` (N, D): ``nbr_pos``/``nbr_vel`` as (N, k, 3)."""
+        parts = {name: obs[..., s] for name, s in self.slices().items()}
+        for name in ("nbr_pos", "nbr_vel"):
+            parts[name] = parts[name].reshape(*obs.shape[:-1], self.k, 3)
+        return parts
+
+
+def nearest_neighbours(sensing, k: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (N, k) of each agent's k nearest others within ``radius`` (N where missing), and a
+    mask (N, k) of the present ones. One query of the tick's shared k-d tree."""
+    world = sensing.world
+    n = world.n
+    if k == 0 or n < 2:
+        return np.full((n, k), n), np.zeros((n, k), dtype=bool)
+    q = min(k + 1, n)
+    _, idx = sensing.tree.query(world.pos, k=q, distance_upper_bound=radius)
+    idx = idx.reshape(n, q)
+    # Drop the agent itself (not always column 0: agents may coincide) and keep the order.
+    valid = (idx < n) & (idx != np.arange(n)[:, None])
+    order = np.argsort(~valid, axis=1, kind="stable")
+    idx = np.take_along_axis(np.where(valid, idx, n), order, axis=1)[:, :k]
+    mask = idx < n
+    if idx.shape[1] < k:  # fewer agents than k + 1
+        pad = k - idx.shape[1]
+        idx = np.pad(idx, ((0, 0), (0, pad)), constant_values=n)
+        mask = np.pad(mask, ((0, 0), (0, pad)))
+    return idx, mask
+
+
+def obstacle_features(sensing, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Clearance (N,) (``radius`` where none is in range), unit direction (N, 3) to the nearest
+    obstacle point and mask (N,), from the tick's shared obstacle query."""
+    world, env = sensing.world, sensing.environment
+    n = world.n
+    clearance = np.full(n, radius)
+    direction = np.zeros((n, 3))
+    if env.empty:
+        return clearance, direction, np.zeros(n, dtype=bool)
+    index, signed = sensing.obstacle_nearest(radius)
+    near = index >= 0
+    clearance[near] = signed[near]
+    if near.any():
+        xy = world.pos[near, :2]
+        geoms = np.array(env.obstacles, dtype=object)[index[near]]
+        lines = shapely.shortest_line(geoms, shapely.points(xy))
+        closest = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 0, :]
+        gap = closest - xy
+        length = np.linalg.norm(gap, axis=1, keepdims=True)
+        direction[near, :2] = np.divide(gap, length, out=np.zeros_like(gap), where=length > 0)
+    return clearance, direction, near
+
+
+def reference_features(world: WorldState, ref: Setpoints | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Offset p_ref - p_i (N, 3), reference velocity (N, 3) and position-reference mask (N,)."""
+    n = world.n
+    if ref is None:
+        return np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, dtype=bool)
+    has_pos = (ref.mode == Mode.POSITION) | (ref.mode == Mode.TRACK)
+    offset = np.where(has_pos[:, None], ref.pos - world.pos, 0.0)
+    has_vel = (ref.mode == Mode.VELOCITY) | (ref.mode == Mode.TRACK) | (ref.mode == Mode.POSITION)
+    return offset, np.where(has_vel[:, None], ref.vel, 0.0), has_pos
+
+
+def observe(
+    sensing, ref: Setpoints | None, layout: ObservationLayout, radius: float, obstacle_radius: float
+) -> np.ndarray:
+    """Every agent's observation row, shape (N, D) float32 (see the module docstring)."""
+    world = sensing.world
+    n, k = world.n, layout.k
+    idx, mask = nearest_neighbours(sensing, k, radius)
+    safe = np.where(mask, idx, 0)
+    nbr_pos = np.where(mask[..., None], world.pos[safe] - world.pos[:, None, :], 0.0)
+    nbr_vel = np.where(mask[..., None], world.vel[safe] - world.vel[:, None, :], 0.0)
+    clearance, direction, near = obstacle_features(sensing, obstacle_radius)
+    offset, ref_vel, has_ref = reference_features(world, ref)
+    return np.concatenate(
+        [
+            world.pos, world.vel, world.healthy[:, None],
+            nbr_pos.reshape(n, 3 * k), nbr_vel.reshape(n, 3 * k), mask,
+            clearance[:, None], direction, near[:, None],
+            offset, ref_vel, has_ref[:, None],
+        ],
+        axis=1,
+        dtype=np.float32,
+    )

@@ -1,0 +1,99 @@
+"""Policy: a trained or scripted policy flies the agents, from what each one senses.
+
+Each guidance tick, every agent's observation row (own state, the k nearest neighbours within the
+sensing range, the nearest obstacle, the formation's reference: ``methods/policy/observation.py``)
+goes to a policy that returns a normalised action per agent, turned into a velocity or
+acceleration setpoint (``methods/policy/actions.py``). The formation's setpoints are the task (the
+reference in the observation); this plugin replaces them, so the policy must keep the swarm safe
+itself, and the safety monitor judges it like any other method.
+
+``policy`` names where the actions come from: a registered policy (the built-in scripted
+``seek_reference``, or a package's entry point in the group ``swarmscene.policies``), or null when
+:mod:`swarmscene.env` drives the agents (the environment hands each tick's actions to
+:meth:`PolicyAvoidance.command`). A scenario file names a policy, never an import path.
+
+Choices: the reference observed is the formation's setpoint of the previous tick (none at t = 0),
+which is what an environment can show its agents before they act; the plugin does the same when it
+flies, so a policy meets exactly the inputs it was trained on.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.setpoint import Setpoints
+from swarmscene.core.state import WorldState
+from swarmscene.methods.policy.actions import ActionKind, ActionSpec, action_setpoints
+from swarmscene.methods.policy.observation import ObservationLayout, observe
+from swarmscene.methods.policy.policies import make_policy
+
+
+class PolicyAvoidance(Avoidance):
+    """Setpoints from a policy's actions over each agent's observation."""
+
+    name = "policy"
+
+    class Params(PluginParams):
+        policy: str | None = Field(
+            None, description="registered policy that flies the agents (built-in: seek_reference; "
+            "packages add theirs through the entry-point group swarmscene.policies); null: the "
+            "actions come from swarmscene.env")
+        policy_options: dict[str, Any] = Field(
+            default_factory=dict, description="keyword options of the chosen policy (e.g. the path "
+            "of a trained model); seek_reference takes gain, repulsion, radius")
+        action: ActionKind = Field(
+            "velocity", description="what an action commands: velocity (a * max_speed) or "
+            "acceleration (a * max_accel, through the dynamics' velocity loop)")
+        max_speed: float = Field(2.0, gt=0, description="m/s commanded by a velocity action of 1")
+        max_accel: float = Field(2.0, gt=0, description="m/s^2 commanded by an acceleration action of 1")
+        neighbours: int = Field(4, ge=0, le=64, description="k: nearest neighbours observed")
+        sensing_range: float | None = Field(
+            None, gt=0, description="R: neighbours observed within this distance, m (null: comm.range)")
+        obstacle_range: float = Field(
+            5.0, gt=0, description="R_o: the nearest obstacle is observed within this distance, m")
+
+    def __init__(self, params: "PolicyAvoidance.Params", ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        self.layout = ObservationLayout(params.neighbours)
+        self.spec = ActionSpec(params.action, params.max_speed, params.max_accel, ctx.guidance_period)
+        self.sensing_range = params.sensing_range or ctx.comm_range
+        self.policy = (
+            None if params.policy is None
+            else make_policy(params.policy, self.layout, self.spec, params.policy_options)
+        )
+        self.reference: Setpoints | None = None
+        """The formation's setpoints of the last tick (observed as the reference)."""
+        self._action: np.ndarray | None = None
+        self._active = np.ones(ctx.n, dtype=bool)
+
+    def observe(self, sensing) -> np.ndarray:
+        """Every agent's observation row now, shape (N, D) float32."""
+        return observe(sensing, self.reference, self.layout, self.sensing_range, self.params.obstacle_range)
+
+    def command(self, action: np.ndarray, active: np.ndarray) -> None:
+        """Set the actions (N, 3) of the next tick; agents not ``active`` (N,) bool hold."""
+        self._action = np.asarray(action, dtype=float)
+        self._active = np.asarray(active, dtype=bool)
+
+    def adjust(self, world: WorldState, sensing, sp: Setpoints) -> Setpoints:
+        if self.policy is not None:
+            self.command(self.policy(self.observe(sensing)), np.ones(world.n, dtype=bool))
+        elif self._action is None:
+            raise RuntimeError(
+                "avoidance 'policy' without avoidance.policy takes its actions from swarmscene.env; "
+                "name a registered policy to fly it on its own")
+        out = action_setpoints(world, self._action, self._active, self.spec)
+        self.reference = sp
+        if self.policy is None:
+            self._action = None  # an environment must command every tick
+        return out
+
+
+@hookimpl
+def swarmscene_register_avoidances(register) -> None:
+    register(PolicyAvoidance)
