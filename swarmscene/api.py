@@ -33,16 +33,20 @@ def plugins() -> tuple[Any, Registry]:
 
 
 def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
-    """Compose the config tree with Hydra overrides; return plain data without the ``hydra`` node."""
+    """Compose the config tree with Hydra overrides; return plain data without the ``hydra`` node.
+
+    Every documented option is set with plain ``key=value`` (rewritten to ``++key=value``,
+    :func:`swarmscene.searchpath.plain_overrides`), whether or not the composed YAML holds it.
+    """
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
     from omegaconf import OmegaConf
 
-    from .searchpath import register_search_path
+    from .searchpath import plain_overrides, register_search_path
 
     register_search_path()
     with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
-        cfg = hydra_compose(config_name=CONFIG_NAME, overrides=list(overrides))
+        cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
     return OmegaConf.to_container(cfg, resolve=True)
 
 

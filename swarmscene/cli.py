@@ -30,9 +30,12 @@ def main() -> None:
     """Console entry point."""
     import hydra
 
-    from .searchpath import register_search_path
+    from .searchpath import plain_command_line, register_search_path
 
     register_search_path()
+    # Plain `key=value` for every documented option, before Hydra parses the command line
+    # (searchpath.plain_overrides: `a.b=v` -> `++a.b=v`).
+    sys.argv[1:] = plain_command_line(sys.argv[1:])
     debug = bool(os.environ.get(DEBUG_ENV)) or bool(os.environ.get("HYDRA_FULL_ERROR"))
     if debug:
         os.environ[DEBUG_ENV] = "1"  # the task reads it too

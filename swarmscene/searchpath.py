@@ -1,4 +1,5 @@
-"""Third-party config folders on Hydra's search path.
+"""The engine's Hydra setup before composing: third-party config folders on the search path, and
+plain ``key=value`` for every documented option.
 
 A plugin package contributes YAML options (``avoidance/myalgo.yaml``...) through an entry point in
 the group ``swarmscene.conf`` whose value names the package holding its config folders (each
@@ -11,10 +12,19 @@ The package joins Hydra's search path as ``pkg://myalgo.conf``.
 
 Hydra's own discovery of ``hydra_plugins.*`` does not see setuptools editable installs, so the
 engine registers this search-path plugin in code before composing.
+
+Hydra's struct mode refuses ``key=value`` for a key the composed YAML does not hold (``+key``
+adds one). Group YAML files hold only the plugin's ``name`` and deliberate deviations from its
+``Params`` defaults, so most documented options are absent from the composition:
+:func:`plain_overrides` rewrites each plain dotted override ``a.b=v`` (and each value list of a
+sweep) into ``++a.b=v`` (add or replace) before Hydra parses the command line, and the engine's
+validation then names a misspelt key with the valid ones (``avoidance.Kx: unknown key (valid keys:
+...)``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from importlib.metadata import entry_points
 
 from hydra.core.config_search_path import ConfigSearchPath
@@ -51,3 +61,63 @@ def register_search_path() -> None:
     if SwarmsceneSearchPathPlugin not in plugins.class_name_to_class.values():
         plugins.register(SwarmsceneSearchPathPlugin)
     register_sweeper()
+
+
+def plain_overrides(overrides: Sequence[str]) -> list[str]:
+    """``overrides`` with every plain dotted value override ``a.b=v`` spelled ``++a.b=v``.
+
+    Left as written: ``+``, ``++`` and ``~`` overrides, group choices (no dot: ``avoidance=cem``,
+    ``hydra/launcher=joblib``), ``key@package`` overrides, Hydra's own ``hydra.*`` keys and text
+    Hydra cannot parse (Hydra reports it). A sweep ``a.b=1,2`` becomes ``++a.b=1,2``, which Hydra's
+    sweepers expand into one ``++a.b=v`` per job.
+    """
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import OverrideType
+    from hydra.errors import OverrideParseException
+
+    parser = OverridesParser.create()
+    rewritten = []
+    for text in overrides:
+        try:
+            (override,) = parser.parse_overrides([text])
+        except OverrideParseException:
+            rewritten.append(text)
+            continue
+        key = override.key_or_group
+        plain = (
+            override.type == OverrideType.CHANGE
+            and override.package is None
+            and "." in key
+            and "/" not in key
+            and not key.startswith("hydra.")
+            and text.startswith(key)
+        )
+        rewritten.append(f"++{text}" if plain else text)
+    return rewritten
+
+
+OPTIONS_WITH_VALUE = frozenset(
+    {"-cp", "--config-path", "-cn", "--config-name", "-cd", "--config-dir", "-c", "--cfg",
+     "-p", "--package", "--experimental-rerun"}
+)
+"""Hydra's command-line flags followed by a value (which is not an override)."""
+
+
+def plain_command_line(argv: Sequence[str]) -> list[str]:
+    """``argv`` (without the program name) with :func:`plain_overrides` applied to its overrides.
+
+    Shell completion (``-sc``) is left alone: its ``query=...`` words are not the app's overrides.
+    ``--info`` takes an optional word, never of the form ``key=value``.
+    """
+    args = list(argv)
+    if any(a in ("-sc", "--shell-completion") for a in args):
+        return args
+    out: list[str] = []
+    skip = False
+    for arg in args:
+        if skip or arg.startswith("-"):
+            out.append(arg)
+            skip = not skip and arg in OPTIONS_WITH_VALUE
+            continue
+        out.extend(plain_overrides([arg]))
+    return out

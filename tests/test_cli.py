@@ -45,7 +45,8 @@ def test_default_scenario_writes_run_directory(tmp_path):
     [
         (["formation=nope"], "swarmscene: formation: unknown option 'nope' (valid: "),
         (["bogus=1"], "swarmscene: bogus: unknown key (got '1')"),
-        (["avoidance.K=0"], "swarmscene: avoidance.K: unknown key (got '0')"),
+        (["avoidance.K=0"], "swarmscene: avoidance.K: unknown key (valid keys: v_max, influence, obstacle_influence, lookahead) (got 0)"),
+        (["+swarm.n=3"], "swarmscene: Could not append to config. An item is already at 'swarm.n'. Either remove + prefix: 'swarm.n=3' Or add a second + to add or override 'swarm.n': '++swarm.n=3'"),
         (["scenario=cem_six_vehicle", "avoidance.K=0"], "swarmscene: avoidance.K: must be >= 1 (got 0)"),
         (["swarm.n=0"], "swarmscene: swarm.n: must be >= 1 (got 0)"),
         (["clock.guidance_period=-1"], "swarmscene: clock.guidance_period: must be > 0.0 (got -1)"),
@@ -93,3 +94,33 @@ def test_shell_completion(tmp_path):
     assert {"avoidance=none", "avoidance=potential", "avoidance=cem"} <= set(proc.stdout.split())
     proc = swarmscene("-sc", "install=bash", cwd=tmp_path)
     assert proc.returncode == 0 and "complete -o nospace -o default -F hydra_bash_completion" in proc.stdout
+
+
+def test_every_documented_option_is_set_with_plain_key_value(tmp_path):
+    """Options absent from the composed YAML (plugin defaults, swarm.start.extent) need no `+`."""
+    proc = swarmscene("--cfg", "job", "dynamics.k_v=3.5", "swarm.start.extent=9", "swarm.start.connected=true",
+                      "avoidance=cem", "avoidance.K=5", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    for text in ("k_v: 3.5", "extent: 9", "connected: true", "K: 5"):
+        assert text in proc.stdout
+
+
+def test_multirun_sweeps_a_plain_option_absent_from_the_yaml(tmp_path):
+    proc = swarmscene("--multirun", "scenario=cem_six_vehicle", "avoidance.K=1,2", "clock.duration=1",
+                      "output.trajectory=false", f"hydra.sweep.dir={tmp_path}/m", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    import yaml
+
+    ks = [yaml.safe_load((tmp_path / "m" / job / "config.yaml").read_text())["avoidance"]["K"] for job in ("0", "1")]
+    assert ks == [1, 2]
+
+
+def test_plain_command_line_rewrites_only_dotted_value_overrides():
+    from swarmscene.searchpath import plain_command_line
+
+    argv = ["--multirun", "-cn", "config", "--cfg", "job", "avoidance=cem", "avoidance.K=1,2", "+a.b=1",
+            "++c.d=2", "~e.f", "seed=3", "hydra.run.dir=x", "hydra/launcher=joblib", "g.h@pkg=1", "i.j=[1"]
+    assert plain_command_line(argv) == [
+        "--multirun", "-cn", "config", "--cfg", "job", "avoidance=cem", "++avoidance.K=1,2", "+a.b=1",
+        "++c.d=2", "~e.f", "seed=3", "hydra.run.dir=x", "hydra/launcher=joblib", "g.h@pkg=1", "i.j=[1"]
+    assert plain_command_line(["-sc", "query=bash", "a.b=1"]) == ["-sc", "query=bash", "a.b=1"]
