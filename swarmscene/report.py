@@ -3,11 +3,17 @@
     swarmscene-report multirun/cem_k                                   # summary.csv/.parquet/.md
     swarmscene-report multirun/indoor_corridor --plot indoor.success --against environment
     swarmscene-report outputs/default/2026-...  --run-plots --rerun    # a run's pictures, replay
+    swarmscene-report multirun/methods --methods                       # scenario x method table
 
 ``--plot METRIC --against PARAM`` writes ``METRIC_vs_PARAM.png`` into the directory: the mean of
 the metric over each value of the parameter (complete runs only) with its 95 % confidence interval
 as error bars (Student t for numbers, Wilson for booleans, which are shown as rates), one line per
 combination of the other swept parameters. The seed is never a line: runs of all seeds are pooled.
+
+``--methods`` writes ``methods.md``: one row per scenario (the combination of the swept parameters
+other than the method and the seed), one column per method (``--method-key``, default
+``avoidance``), each cell the success rate, the worst minimum separation and the median completion
+time (:func:`methods_table`); a combination that could not run shows why in one word.
 """
 
 from __future__ import annotations
@@ -91,6 +97,74 @@ def plot_metric(rows: list[dict[str, Any]], metric: str, param: str, title: str 
     return fig
 
 
+def methods_table(rows: list[dict[str, Any]], method_key: str = "avoidance") -> str:
+    """The scenario x method table (markdown) of a sweep's rows.
+
+    Each cell: success rate over the combination's jobs (a job that failed counts as no success),
+    the worst (smallest) minimum separation over its complete runs, and the median completion time
+    over the runs that completed the mission; ``(k failed)`` when some of its jobs failed, and
+    ``det.`` when every seed gave the same run (the seed changes nothing there). A combination with
+    no complete run shows its jobs' one-word reason (``invalid``, ``failed``, a plugin's own word
+    such as ``needs-leader``; the most common when they differ) or ``not-run`` when the grid has no
+    such job: never a blank.
+    """
+    if not rows:
+        raise ValueError("no jobs found")
+    if method_key not in {k for row in rows for k in row}:
+        raise ValueError(f"{method_key!r} is not a column (parameters: {', '.join(sweep.param_columns(rows)) or 'none'})")
+    case_keys = [k for k in sweep.swept_parameters(rows) if k != method_key]
+    methods = list(dict.fromkeys(r.get(method_key) for r in rows))
+    cases: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        cases.setdefault(_case_label(row, case_keys), []).append(row)
+    header = " / ".join(case_keys) if case_keys else "scenario"
+    lines = [
+        f"| {header} | " + " | ".join(str(m) for m in methods) + " |",
+        "|---|" + "---|" * len(methods),
+    ]
+    for label, members in cases.items():
+        cells = [_method_cell([r for r in members if r.get(method_key) == m]) for m in methods]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    legend = (
+        f"Each cell: success rate of the jobs · worst minimum separation over the complete runs, m · "
+        f"median completion time, s (runs that completed the mission; 'not complete' when none did). "
+        f"(k failed): jobs of the cell that did not complete; det.: every seed gave the same run. "
+        f"A word instead: why the combination could not run (its jobs' error records)."
+    )
+    return legend + "\n\n" + "\n".join(lines) + "\n"
+
+
+def _case_label(row: dict[str, Any], keys: list[str]) -> str:
+    values = [str(row[k]) for k in keys if row.get(k) is not None]
+    if values:
+        return " / ".join(values)
+    return str(row.get("scenario") or "all jobs")
+
+
+def _method_cell(members: list[dict[str, Any]]) -> str:
+    if not members:
+        return "not-run"
+    done = [r for r in members if r["status"] == "complete"]
+    if not done:
+        reasons = [r.get("reason") or r["status"] for r in members]
+        return max(dict.fromkeys(reasons), key=reasons.count)
+    flags = [r.get("success") is True for r in members]
+    separations = [float(r["min_separation"]) for r in done if sweep._is_number(r.get("min_separation"))]
+    times = [t for t in (sweep.completion_time(r) for r in done) if t is not None]
+    parts = [
+        f"{100 * sum(flags) / len(flags):.0f} %",
+        f"{min(separations):.2f} m" if separations else "n/a",
+        f"{float(np.median(times)):.1f} s" if times else "not complete",
+    ]
+    text = " · ".join(parts)
+    failed = len(members) - len(done)
+    if failed:
+        text += f" ({failed} failed)"
+    if sweep.deterministic(done):
+        text += " det."
+    return text
+
+
 def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "._-" else "_" for c in name)
 
@@ -108,6 +182,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-plots", action="store_true", help="redraw each run's pictures (plots extra)")
     parser.add_argument("--animation", action="store_true", help="with --run-plots: also the animation")
     parser.add_argument("--rerun", action="store_true", help="write each run's replay.rrd (rerun extra)")
+    parser.add_argument("--methods", action="store_true", help="write methods.md: the scenario x method table")
+    parser.add_argument("--method-key", default="avoidance", metavar="PARAM",
+                        help="the swept parameter that names the method (default: avoidance)")
     args = parser.parse_args(argv)
     if bool(args.plot) != bool(args.against):
         parser.error("--plot and --against go together")
@@ -132,6 +209,17 @@ def main(argv: list[str] | None = None) -> int:
 
         atomic_write_bytes(out, buffer.getvalue())
         print(f"swarmscene-report: plot -> {out}")
+    if args.methods:
+        try:
+            table = methods_table(rows, args.method_key)
+        except ValueError as exc:
+            print(f"swarmscene-report: {exc}", file=sys.stderr)
+            return 2
+        from .core.outputs import atomic_write_bytes
+
+        atomic_write_bytes(directory / "methods.md", table.encode())
+        print(table, end="")
+        print(f"swarmscene-report: methods table -> {directory / 'methods.md'}")
     if args.run_plots or args.rerun:
         for run_dir in sweep.job_dirs(directory):
             if not (run_dir / "trajectory.npz").is_file():

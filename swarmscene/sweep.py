@@ -13,6 +13,11 @@ ends, :class:`SweepSummary` (``hydra.callbacks.swarmscene_summary`` in the prima
 A job's status is ``complete`` (manifest complete), ``incomplete`` (interrupted), ``failed``
 (``error.json``: the exception that ended it) or ``unfinished`` (no manifest: killed hard).
 ``swarmscene-report DIR`` (:mod:`swarmscene.report`) rebuilds the same files from any directory.
+
+A sweep directory belongs to one grid: ``sweep.json`` records every job's overrides when the sweep
+is launched (:func:`record_grid`), and a launch of another grid into it is refused with one line
+(:func:`check_grid_owner`). A sweep in which a job did not complete ends with exit status 1
+(:func:`sweep_exit_status`; ``hydra.callbacks.swarmscene_summary.allow_failed=true`` keeps 0).
 """
 
 from __future__ import annotations
@@ -33,7 +38,9 @@ from .core.outputs import atomic_write_bytes, atomic_write_json, config_hash, pa
 
 ERROR_FILE = "error.json"
 MANIFEST = "manifest.json"
-BASE_COLUMNS = ("job", "status", "error", "seed")
+SWEEP_FILE = "sweep.json"
+EXIT_FAILED_JOBS = 1
+BASE_COLUMNS = ("job", "status", "error", "reason", "seed")
 TAIL_COLUMNS = ("overrides", "config_hash")
 
 
@@ -49,6 +56,7 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
         run_dir / ERROR_FILE,
         {
             "error": message,
+            "reason": failure_reason(exc),
             "type": type(exc).__name__,
             "lines": lines,
             "traceback": "".join(traceback.format_exception(exc)),
@@ -67,6 +75,17 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
             "files": sorted(p.name for p in run_dir.iterdir() if not p.name.startswith(".")),
         },
     )
+
+
+def failure_reason(exc: BaseException) -> str:
+    """One word for why a job could not run: the exception's own ``reason`` when it has one
+    (e.g. ``needs-leader``), else ``invalid`` for a configuration the schema rejects, else ``failed``."""
+    from .core.errors import ConfigError
+
+    reason = getattr(exc, "reason", None)
+    if isinstance(reason, str) and reason and not any(c.isspace() for c in reason):
+        return reason
+    return "invalid" if isinstance(exc, ConfigError) else "failed"
 
 
 def completed_metrics(run_dir: Path, data: dict[str, Any]) -> dict[str, Any] | None:
@@ -89,6 +108,82 @@ def _read_json(path: Path) -> Any:
         return json.loads(Path(path).read_text())
     except (OSError, ValueError):
         return None
+
+
+# -- one grid per sweep directory ---------------------------------------------------------------
+def check_grid_owner(sweep_dir: Path, grid: list[str], jobs: list[list[str]]) -> None:
+    """Raise ConfigError (one line) when ``sweep_dir`` holds the jobs of another grid.
+
+    The same grid (the same overrides for every job) may run again: that resumes it. A directory
+    without ``sweep.json`` (written before it existed) is judged by its jobs' own overrides.
+    """
+    from .core.errors import ConfigError
+
+    sweep_dir = Path(sweep_dir)
+    recorded = _read_json(sweep_dir / SWEEP_FILE)
+    if isinstance(recorded, dict):
+        if recorded.get("jobs") == jobs:
+            return
+        there, here = _difference(recorded.get("grid") or [], grid)
+    else:
+        clash = _first_foreign_job(sweep_dir, jobs)
+        if clash is None:
+            return
+        there, here = clash
+    raise ConfigError([
+        f"hydra.sweep.dir: {sweep_dir} holds another sweep ({there}; this one: {here}): "
+        "choose another hydra.sweep.dir, or delete that directory to start over"
+    ])
+
+
+def record_grid(sweep_dir: Path, grid: list[str], jobs: list[list[str]]) -> None:
+    """Write ``sweep.json``: the grid as given and every job's overrides (job ``i`` is ``jobs[i]``)."""
+    sweep_dir = Path(sweep_dir)
+    sweep_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(sweep_dir / SWEEP_FILE, {"grid": list(grid), "jobs": [list(j) for j in jobs]})
+
+
+def _override_key(override: str) -> str:
+    return override.partition("=")[0].lstrip("+~")
+
+
+def _difference(old: list[str], new: list[str]) -> tuple[str, str]:
+    """The grid entries that differ, as ("there", "here") texts."""
+    before = {_override_key(o): o for o in old}
+    after = {_override_key(o): o for o in new}
+    keys = [k for k in dict.fromkeys([*before, *after]) if before.get(k) != after.get(k)]
+    if not keys:  # the same grid text, other jobs (another Hydra version): show the sizes
+        return "a different job list", "the grid " + " ".join(new)
+    return (
+        " ".join(_shown(before.get(k, f"no {k}")) for k in keys),
+        " ".join(_shown(after.get(k, f"no {k}")) for k in keys),
+    )
+
+
+def _shown(override: str) -> str:
+    """An override as the user wrote it: the command line spells plain values ``++a.b=v``."""
+    return override[2:] if override.startswith("++") else override
+
+
+def _first_foreign_job(sweep_dir: Path, jobs: list[list[str]]) -> tuple[str, str] | None:
+    """The first job directory whose overrides are not this grid's job of the same number."""
+    import yaml
+
+    if not sweep_dir.is_dir():
+        return None
+    for run_dir in job_dirs(sweep_dir):
+        overrides_file = run_dir / ".hydra" / "overrides.yaml"
+        if not run_dir.name.isdigit() or not overrides_file.is_file():
+            continue
+        old = [str(o) for o in (yaml.safe_load(overrides_file.read_text()) or [])]
+        index = int(run_dir.name)
+        new = jobs[index] if index < len(jobs) else None
+        if old != new:
+            return (
+                f"job {index}: {' '.join(map(_shown, old)) or 'no overrides'}",
+                f"job {index}: {' '.join(map(_shown, new)) or 'no overrides'}" if new is not None else f"{len(jobs)} jobs",
+            )
+    return None
 
 
 # -- the table ----------------------------------------------------------------------------------
@@ -143,6 +238,7 @@ def job_row(run_dir: Path, root: Path | None = None) -> dict[str, Any]:
         "job": str(run_dir.relative_to(root)) if root is not None and run_dir != root else run_dir.name,
         "status": status,
         "error": error.get("error") if error else None,
+        "reason": _reason(status, error),
         "seed": seed,
     }
     for key, value in params.items():
@@ -155,6 +251,18 @@ def job_row(run_dir: Path, root: Path | None = None) -> dict[str, Any]:
         column = f"metric.{key}" if key in row else key
         row[column] = json.dumps(value) if isinstance(value, (list, dict)) else value
     return row
+
+
+def _reason(status: str, error: dict[str, Any] | None) -> str | None:
+    """One word for a job that did not complete (records written before ``reason`` existed: from
+    the exception type)."""
+    if status == "complete":
+        return None
+    if status != "failed":
+        return {"incomplete": "interrupted"}.get(status, status)
+    if error.get("reason"):
+        return str(error["reason"])
+    return "invalid" if error.get("type") == "ConfigError" else "failed"
 
 
 def collect_rows(directory: Path) -> list[dict[str, Any]]:
@@ -290,30 +398,140 @@ def _label(by: list[str], values: tuple[Any, ...]) -> str:
     return ", ".join(f"{k}={v}" for k, v in zip(by, values)) if by else "all jobs"
 
 
+# The outcome of a run, in the overview and the methods table: safety first, then the mission.
+SAFETY_CONDITIONS = ("separation", "clearance")
+# A group is deterministic when its runs of different seeds agree on all of these to the bit.
+OUTCOME_KEYS = ("success", "min_separation", "min_clearance", "duration", "steps", "collisions")
+
+
+def first_violation_time(row: dict[str, Any]) -> float | None:
+    """The first time a safety condition (separation or clearance) was violated, s; None if never."""
+    times = [row.get(f"violations.{c}.first_time") for c in SAFETY_CONDITIONS]
+    times = [t for t in times if _is_number(t)]
+    return float(min(times)) if times else None
+
+
+def completion_time(row: dict[str, Any]) -> float | None:
+    """When the mission was complete (the run stopped on completion), s; None if it never was."""
+    if _is_number(row.get("completion_time")):
+        return float(row["completion_time"])
+    if row.get("stop_reason") == "complete" and _is_number(row.get("duration")):
+        return float(row["duration"])
+    return None
+
+
+def deterministic(done: list[dict[str, Any]]) -> bool:
+    """True when runs of at least two different seeds gave the same outcome to the bit: the seed
+    changes nothing here, so the runs are one sample repeated and no interval is meaningful."""
+    seeds = {_key(r.get("seed")) for r in done}
+    if len(done) < 2 or len(seeds) < 2:
+        return False
+    return all(len({_key(r.get(k)) for r in done}) == 1 for k in OUTCOME_KEYS)
+
+
+def _identical(values: list[float]) -> bool:
+    return len(values) >= 2 and len(set(values)) == 1
+
+
+def mean_cell(values: Iterable[float | None], unit: str = "") -> str:
+    """``mean [95 % CI]`` of the values, or what stands in for the interval when there is none."""
+    x = [float(v) for v in values if v is not None and np.isfinite(v)]
+    mean, half, n = mean_ci(x)
+    if n == 0:
+        return "n/a"
+    if n == 1:
+        return f"{_fmt(mean)}{unit} (one run)"
+    if _identical(x):
+        return f"{_fmt(mean)}{unit} (identical in {n} runs)"
+    return f"{_fmt(mean)}{unit} [{_fmt(mean - half)}, {_fmt(mean + half)}]"
+
+
+def success_cell(done: list[dict[str, Any]]) -> str:
+    flags = [r["success"] for r in done if isinstance(r.get("success"), bool)]
+    if not flags:
+        return "n/a"
+    rate = sum(flags) / len(flags)
+    if deterministic(done):
+        return f"{rate:.2f} (deterministic)"
+    lo, hi = wilson(sum(flags), len(flags))
+    return f"{rate:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def violation_cell(done: list[dict[str, Any]]) -> str:
+    times = [first_violation_time(r) for r in done]
+    hit = [t for t in times if t is not None]
+    if not done:
+        return "n/a"
+    if not hit:
+        return f"none in {len(done)}"
+    return f"{len(hit)}/{len(done)}: " + mean_cell(hit, " s")
+
+
+def completion_cell(done: list[dict[str, Any]]) -> str:
+    times = [completion_time(r) for r in done]
+    reached = [t for t in times if t is not None]
+    if not done:
+        return "n/a"
+    if not reached:
+        return f"not complete in {len(done)}"
+    share = "" if len(reached) == len(done) else f"{len(reached)}/{len(done)}: "
+    return share + mean_cell(reached, " s")
+
+
+OVERVIEW = (
+    "success rate (95 % CI)", "min separation, m", "min clearance, m", "first safety violation",
+    "completion time",
+)
+
+
+def overview_cells(done: list[dict[str, Any]]) -> list[str]:
+    """The overview's outcome columns for one group's complete runs (see OVERVIEW)."""
+    return [
+        success_cell(done),
+        mean_cell(r.get("min_separation") for r in done if _is_number(r.get("min_separation"))),
+        mean_cell(r.get("min_clearance") for r in done if _is_number(r.get("min_clearance"))),
+        violation_cell(done),
+        completion_cell(done),
+    ]
+
+
 def markdown(rows: list[dict[str, Any]], title: str) -> str:
     """The short grouped report (see the module docstring)."""
     by = swept_parameters(rows)
     rates, numbers = metric_names(rows)
     counts = {s: sum(r["status"] == s for r in rows) for s in ("complete", "incomplete", "failed", "unfinished")}
-    seeds = sorted({r.get("seed") for r in rows if r.get("seed") is not None})
+    seeds = sorted({r.get("seed") for r in rows if r.get("seed") is not None}, key=str)
+    grouped = groups(rows, by)
+    fixed = [_label(by, values) for values, members in grouped
+             if deterministic([r for r in members if r["status"] == "complete"])]
     lines = [
         f"# Sweep summary: {title}",
         "",
         f"{len(rows)} jobs: " + ", ".join(f"{n} {s}" for s, n in counts.items() if n) + ". "
         + (f"Grouped by {', '.join(by)}" if by else "One group")
         + f"; {len(seeds)} seed(s). Means and 95 % confidence intervals (Student t) over "
-        "the complete runs of each group; rates with 95 % Wilson intervals.",
+        "the complete runs of each group; rates with 95 % Wilson intervals. The first safety "
+        "violation is the earliest time separation or clearance was violated, over the runs that "
+        "violated one; the completion time is over the runs that completed the mission.",
         "",
+    ]
+    if fixed:
+        lines += [
+            "Deterministic (every seed gave the same run, so the seed changes nothing there and no "
+            "interval is shown): " + "; ".join(fixed) + ".",
+            "",
+        ]
+    lines += [
         "## Overview",
         "",
-        "| " + " | ".join([*by, "runs", "complete", "failed", "success rate (95 % CI)"]) + " |",
-        "|" + "---|" * (len(by) + 4),
+        "| " + " | ".join([*by, "runs", "complete", "failed", *OVERVIEW]) + " |",
+        "|" + "---|" * (len(by) + 3 + len(OVERVIEW)),
     ]
-    grouped = groups(rows, by)
     for values, members in grouped:
         done = [r for r in members if r["status"] == "complete"]
         failed = sum(r["status"] == "failed" for r in members)
-        lines.append("| " + " | ".join([*map(str, values), str(len(members)), str(len(done)), str(failed), _rate_text(done, "success")]) + " |")
+        cells = [*map(str, values), str(len(members)), str(len(done)), str(failed), *overview_cells(done)]
+        lines.append("| " + " | ".join(cells) + " |")
     failures = [r for r in rows if r["status"] in ("failed", "incomplete", "unfinished")]
     if failures:
         lines += ["", "## Jobs that did not complete", "", "| job | status | overrides | error |", "|---|---|---|---|"]
@@ -322,30 +540,33 @@ def markdown(rows: list[dict[str, Any]], title: str) -> str:
             lines.append(f"| {r['job']} | {r['status']} | {r.get('overrides', '')} | {error} |")
     for values, members in grouped:
         done = [r for r in members if r["status"] == "complete"]
+        fixed_group = deterministic(done)
         lines += ["", f"## {_label(by, values)}", "", "| metric | mean | 95 % CI | n |", "|---|---|---|---|"]
         for name in rates:
             flags = [r[name] for r in done if isinstance(r.get(name), bool)]
             if flags:
-                lo, hi = wilson(sum(flags), len(flags))
-                lines.append(f"| {name} (rate) | {_fmt(sum(flags) / len(flags))} | [{_fmt(lo)}, {_fmt(hi)}] | {len(flags)} |")
+                if fixed_group:
+                    ci = "none: deterministic"
+                else:
+                    lo, hi = wilson(sum(flags), len(flags))
+                    ci = f"[{_fmt(lo)}, {_fmt(hi)}]"
+                lines.append(f"| {name} (rate) | {_fmt(sum(flags) / len(flags))} | {ci} | {len(flags)} |")
         for name in numbers:
-            mean, half, n = mean_ci(r.get(name) for r in done if _is_number(r.get(name)))
+            sample = [float(r[name]) for r in done if _is_number(r.get(name)) and np.isfinite(r[name])]
+            mean, half, n = mean_ci(sample)
             if n:
-                ci = f"[{_fmt(mean - half)}, {_fmt(mean + half)}]" if np.isfinite(half) else "n/a (one run)"
+                if n == 1:
+                    ci = "n/a (one run)"
+                elif _identical(sample):
+                    ci = f"none: identical in all {n} runs"
+                else:
+                    ci = f"[{_fmt(mean - half)}, {_fmt(mean + half)}]"
                 lines.append(f"| {name} | {_fmt(mean)} | {ci} | {n} |")
     return "\n".join(lines) + "\n"
 
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _rate_text(done: list[dict[str, Any]], name: str) -> str:
-    flags = [r[name] for r in done if isinstance(r.get(name), bool)]
-    if not flags:
-        return "n/a"
-    lo, hi = wilson(sum(flags), len(flags))
-    return f"{sum(flags) / len(flags):.2f} [{lo:.2f}, {hi:.2f}]"
 
 
 def write_summary(directory: Path) -> list[dict[str, Any]]:
@@ -360,15 +581,85 @@ def write_summary(directory: Path) -> list[dict[str, Any]]:
     return rows
 
 
+# -- the end of a sweep ---------------------------------------------------------------------------
+def outcome_line(rows: list[dict[str, Any]]) -> str:
+    """``4 jobs, all complete`` or ``1 of 4 jobs failed`` (with the other statuses when any)."""
+    if rows and all(r["status"] == "complete" for r in rows):
+        return f"{len(rows)} jobs, all complete"
+    counts = {s: sum(r["status"] == s for r in rows) for s in ("failed", "incomplete", "unfinished")}
+    missing = sum(counts.values())
+    if missing == counts["failed"]:
+        return f"{missing} of {len(rows)} jobs failed"
+    detail = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
+    return f"{missing} of {len(rows)} jobs did not complete ({detail})"
+
+
+def exit_status(rows: list[dict[str, Any]], allow_failed: bool = False) -> int:
+    """The process status a sweep ends with: 1 when a job did not complete (or none ran), else 0."""
+    if allow_failed:
+        return 0
+    return EXIT_FAILED_JOBS if not rows or any(r["status"] != "complete" for r in rows) else 0
+
+
+def sweep_exit_status(sweep_dir: Path, allow_failed: bool = False) -> int:
+    """:func:`exit_status` of the jobs found in ``sweep_dir``."""
+    return exit_status(collect_rows(Path(sweep_dir)), allow_failed)
+
+
+def _stop(lines: list[str], status: int) -> None:
+    """Print the lines as the command line does and end the process (a Hydra callback's ordinary
+    exception would only become a warning)."""
+    for line in lines:
+        print(f"swarmscene: {line}", file=sys.stderr)
+    raise SystemExit(status)
+
+
 # -- the Hydra callback -------------------------------------------------------------------------
 try:
     from hydra.experimental.callback import Callback as _Callback
 except ImportError:  # pragma: no cover - hydra-core is a dependency
     _Callback = object
 
+BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
+
 
 class SweepSummary(_Callback):
-    """Hydra callback: when a multirun ends, write the sweep directory's tables."""
+    """Hydra callback of every multirun (``hydra.callbacks.swarmscene_summary``).
+
+    At the start, for Hydra's basic sweeper, it makes the checks that swarmscene's sweeper makes
+    itself (the directory's grid, every distinct override validated: see
+    ``hydra_plugins.swarmscene_sweeper``): a problem ends the process with status 2 and one line.
+    At the end it writes the sweep directory's tables, prints how many jobs failed, and ends the
+    process with status 1 when a job did not complete, unless ``allow_failed`` is true.
+
+    Args:
+        allow_failed: keep exit status 0 when jobs failed (the summary still counts them).
+    """
+
+    def __init__(self, allow_failed: bool = False) -> None:
+        self.allow_failed = bool(allow_failed)
+
+    def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        if config.hydra.sweeper.get("_target_") != BASIC_SWEEPER:
+            return  # swarmscene's sweeper checks for itself; other sweepers have no grid
+        from hydra.core.global_hydra import GlobalHydra
+        from hydra.core.override_parser.overrides_parser import OverridesParser
+        from omegaconf import OmegaConf
+
+        from hydra_plugins.swarmscene_sweeper import expand, prepare
+
+        from .core.errors import ConfigError
+
+        loader = GlobalHydra.instance().config_loader()
+        params = OmegaConf.to_container(config.hydra.sweeper.params) if config.hydra.sweeper.get("params") else {}
+        arguments = list(OmegaConf.to_container(config.hydra.overrides.task, resolve=False))
+        try:
+            grid, jobs = expand(params, arguments, OverridesParser.create(config_loader=loader), plain_params=False)
+            prepare(loader, config, Path(config.hydra.sweep.dir), grid, jobs)
+        except ConfigError as exc:
+            _stop(exc.lines, 2)
+        except ValueError as exc:
+            _stop([str(exc)], 2)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
@@ -377,6 +668,8 @@ class SweepSummary(_Callback):
         except Exception as exc:  # a table problem must not hide the jobs' own outputs
             print(f"swarmscene: could not write the sweep summary: {exc}", file=sys.stderr)
             return
-        failed = sum(r["status"] == "failed" for r in rows)
-        note = f", {failed} failed" if failed else ""
-        print(f"swarmscene: {len(rows)} jobs{note}; summary in {sweep_dir / 'summary.md'}", file=sys.stderr)
+        status = exit_status(rows, self.allow_failed)
+        kept = " (allow_failed: exit status 0)" if self.allow_failed and exit_status(rows) else ""
+        print(f"swarmscene: {outcome_line(rows)}{kept}; summary in {sweep_dir / 'summary.md'}", file=sys.stderr)
+        if status:
+            raise SystemExit(status)

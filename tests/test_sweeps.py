@@ -1,6 +1,8 @@
-"""Sweeps: failed jobs recorded and the rest run, resume by config hash, tidy tables with means and
-confidence intervals, identical metrics whichever launcher ran them (basic, joblib, Ray on a local
-head), the report command, and Ctrl-C leaving outputs marked incomplete."""
+"""Sweeps: one grid per sweep directory, every distinct override validated before any job, failed
+jobs recorded and the rest run, a non-zero exit status when jobs failed, resume by config hash,
+tidy tables with means and confidence intervals (none where the seed changes nothing), identical
+metrics whichever launcher ran them (basic, joblib, Ray on a local head, whatever an earlier Ray
+run left in the home directory), the report command, and Ctrl-C leaving outputs marked incomplete."""
 
 from __future__ import annotations
 
@@ -92,36 +94,61 @@ def test_sweep_writes_tidy_table_and_grouped_summary(basic_sweep):
     assert "## formation.speed=1.0" in md and "## formation.speed=2.0" in md
     assert "| metric | mean | 95 % CI | n |" in md
     assert "| success (rate) |" in md
+    # The default scenario has no randomness: both seeds give the same run, and the summary says so
+    # instead of presenting a zero-width interval.
     group = [r for r in rows if r["formation.speed"] == "2.0"]
-    values = [float(r["min_separation"]) for r in group]
-    mean, half, _ = sweep.mean_ci(values)
+    assert group[0]["min_separation"] == group[1]["min_separation"]
+    assert "Deterministic (every seed gave the same run" in md
     section = md.split("## formation.speed=2.0")[1]
     line = next(line for line in section.splitlines() if line.startswith("| min_separation |"))
     cells = [c.strip() for c in line.strip("|").split("|")]
-    assert float(cells[1]) == pytest.approx(mean, rel=1e-3)
-    lo, hi = (float(v) for v in cells[2].strip("[]").split(","))
-    assert (lo, hi) == pytest.approx((mean - half, mean + half), rel=1e-3, abs=1e-6)
-    assert cells[3] == "2"
+    assert float(cells[1]) == pytest.approx(float(group[0]["min_separation"]), rel=1e-3)
+    assert cells[2:] == ["none: identical in all 2 runs", "2"]
+    overview = md.split("## Overview")[1].split("\n## ")[0]
+    assert "| 2.0 | 2 | 2 | 0 | 0.00 (deterministic) |" in overview
 
 
-def test_failing_job_is_recorded_and_the_sweep_goes_on(tmp_path):
-    # K = 0 is rejected by the CEM schema (a job error), K = 1 and K = 2 run.
-    proc = swarmscene(
-        "--multirun", "scenario=cem_six_vehicle", "avoidance.K=0,1,2", "clock.duration=3.0",
-        f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path,
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert "job 0 failed: avoidance.K: must be >= 1 (got 0)" in proc.stderr
+def test_an_invalid_value_stops_the_sweep_before_any_job_naming_key_and_job(tmp_path):
+    """The plain command line (Hydra's basic sweeper) and swarmscene's sweeper check every distinct
+    value, numbers included, with the engine's schema before launching anything."""
+    for sweeper in ([], ["hydra/sweeper=swarmscene"]):
+        proc = swarmscene("--multirun", "scenario=cem_six_vehicle", "avoidance.K=1,0", "seed=0,1", *sweeper,
+                          f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.splitlines() == ["swarmscene: job 2 (avoidance.K=0): avoidance.K: must be >= 1 (got 0)"]
+        assert not (tmp_path / "sw").exists()  # nothing launched, nothing written
+
+
+def test_recorded_invalid_jobs_and_failed_jobs_set_the_exit_status(tmp_path):
+    # on_invalid=record: K = 0 is rejected by the CEM schema in its job (recorded), K = 1 runs.
+    args = ["--multirun", "scenario=cem_six_vehicle", "avoidance.K=0,1", "clock.duration=0.5",
+            "hydra/sweeper=swarmscene", "hydra.sweeper.on_invalid=record"]
+    proc = swarmscene(*args, f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    err = proc.stderr.splitlines()
+    assert err[0] == "swarmscene: job 0 (avoidance.K=0) will fail (on_invalid=record: it is recorded): avoidance.K: must be >= 1 (got 0)"
+    assert "swarmscene: job 0 failed: avoidance.K: must be >= 1 (got 0)" in err
+    assert err[-1] == f"swarmscene: 1 of 2 jobs failed; summary in {tmp_path}/sw/summary.md"
     rows = read_csv(tmp_path / "sw" / "summary.csv")
-    assert [(r["avoidance.K"], r["status"]) for r in rows] == [("0", "failed"), ("1", "complete"), ("2", "complete")]
+    assert [(r["avoidance.K"], r["status"], r["reason"]) for r in rows] == [("0", "failed", "invalid"), ("1", "complete", "")]
     assert rows[0]["error"] == "avoidance.K: must be >= 1 (got 0)"
     assert rows[1]["error"] == "" and rows[1]["min_separation"] != ""
     job = tmp_path / "sw" / "0"
     manifest = json.loads((job / "manifest.json").read_text())
     assert manifest["status"] == "failed" and manifest["complete"] is False
-    assert json.loads((job / "error.json").read_text())["type"] == "ConfigError"
+    error = json.loads((job / "error.json").read_text())
+    assert (error["type"], error["reason"]) == ("ConfigError", "invalid")
     md = (tmp_path / "sw" / "summary.md").read_text()
     assert "## Jobs that did not complete" in md and "avoidance.K: must be >= 1 (got 0)" in md
+    assert sweep.sweep_exit_status(tmp_path / "sw") == 1 and sweep.sweep_exit_status(tmp_path / "sw", allow_failed=True) == 0
+    # Every job failing is a failure too; allow_failed keeps status 0 and still says how many failed.
+    proc = swarmscene(*args[:2], "avoidance.K=0", *args[3:], "seed=0,1", f"hydra.sweep.dir={tmp_path}/all", cwd=tmp_path)
+    assert proc.returncode == 1 and proc.stderr.splitlines()[-1].startswith("swarmscene: 2 of 2 jobs failed;")
+    proc = swarmscene(*args, "+hydra.callbacks.swarmscene_summary.allow_failed=true", f"hydra.sweep.dir={tmp_path}/ok", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.splitlines()[-1] == (
+        f"swarmscene: 1 of 2 jobs failed (allow_failed: exit status 0); summary in {tmp_path}/ok/summary.md"
+    )
 
 
 def test_runtime_exception_in_one_job_does_not_stop_the_others(tmp_path, monkeypatch):
@@ -139,7 +166,9 @@ def test_runtime_exception_in_one_job_does_not_stop_the_others(tmp_path, monkeyp
     monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "seed=0,1,2", "clock.duration=2.0",
                                       f"hydra.sweep.dir={tmp_path}/sw"])
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
-    cli.main()
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main()
+    assert exit_info.value.code == 1  # one job failed: the sweep's status says so
     rows = read_csv(tmp_path / "sw" / "summary.csv")
     assert [(r["seed"], r["status"]) for r in rows] == [("0", "complete"), ("1", "failed"), ("2", "complete")]
     assert rows[1]["error"] == "FloatingPointError: non-finite setpoint for agent 3"
@@ -166,10 +195,60 @@ def test_resume_skips_jobs_complete_for_the_same_config_hash(tmp_path):
     assert after["0"] == before["0"] and after["2"] == before["2"]  # untouched
     assert after["1"] != before["1"]  # ran again
     assert {r["status"] for r in read_csv(sw / "summary.csv")} == {"complete"}
-    # A different config (here the duration) has a different hash: nothing is skipped.
-    proc = swarmscene("--multirun", "seed=0,1,2", "clock.duration=2.5", f"hydra.sweep.dir={sw}", cwd=tmp_path)
-    assert proc.returncode == 0 and "skipped" not in proc.stderr
-    assert {r["duration"] for r in read_csv(sw / "summary.csv")} == {"2.5"}
+    # A job whose config changed (here its recorded hash, as after an edit of a preset) runs again.
+    manifest = json.loads((sw / "2" / "manifest.json").read_text())
+    (sw / "2" / "manifest.json").write_text(json.dumps({**manifest, "config_hash": "0" * 64}))
+    proc = swarmscene(*args, cwd=tmp_path)
+    assert proc.returncode == 0 and "job 2 already complete" not in proc.stderr
+    assert stamp("2") != after["2"] and stamp("0") == before["0"]
+
+
+def test_a_sweep_directory_belongs_to_one_grid(tmp_path):
+    """The issue's case: the fast preset (a fixed directory, multirun/sweep_fast) run again with
+    another grid is refused with one line and leaves the first sweep as it was; the same grid
+    resumes it."""
+    fast = ["+sweep=fast", "clock.duration=1.0"]
+    assert swarmscene(*fast, cwd=tmp_path).returncode == 0
+    sw = tmp_path / "multirun" / "sweep_fast"
+    recorded = json.loads((sw / "sweep.json").read_text())
+    # the preset's plain values are read as the command line reads them (++: set, default or not)
+    assert recorded["jobs"][1] == ["++formation.speed=1.0", "seed=1", "+sweep=fast", "++clock.duration=1.0"]
+    files = {p: p.stat().st_mtime_ns for p in sw.rglob("*") if p.is_file()}
+    proc = swarmscene(*fast, "seed=0", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == [
+        "swarmscene: hydra.sweep.dir: multirun/sweep_fast holds another sweep (seed=0,1; this one: seed=0): "
+        "choose another hydra.sweep.dir, or delete that directory to start over"
+    ]
+    assert {p: p.stat().st_mtime_ns for p in sw.rglob("*") if p.is_file()} == files  # nothing touched
+    # A changed fixed override is another sweep too (its jobs would differ).
+    proc = swarmscene("+sweep=fast", "clock.duration=2.0", cwd=tmp_path)
+    assert proc.returncode == 2 and "(clock.duration=1.0; this one: clock.duration=2.0)" in proc.stderr
+    # The same grid resumes, whichever launcher runs it.
+    proc = swarmscene(*fast, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("already complete (same config hash): skipped") == 4
+    assert [(r["formation.speed"], r["seed"]) for r in read_csv(sw / "summary.csv")] == [
+        ("1.0", "0"), ("1.0", "1"), ("2.0", "0"), ("2.0", "1")
+    ]
+
+
+def test_a_directory_without_a_grid_record_is_judged_by_its_jobs(tmp_path):
+    """Sweep directories written before sweep.json: the jobs' own overrides decide."""
+    from swarmscene.core.errors import ConfigError
+
+    for index, overrides in enumerate(["- seed=0\n", "- seed=1\n"]):
+        (tmp_path / str(index) / ".hydra").mkdir(parents=True)
+        (tmp_path / str(index) / ".hydra" / "overrides.yaml").write_text(overrides)
+    sweep.check_grid_owner(tmp_path, ["seed=0,1,2"], [["seed=0"], ["seed=1"], ["seed=2"]])  # a superset: resumes
+    with pytest.raises(ConfigError) as info:
+        sweep.check_grid_owner(tmp_path, ["avoidance.K=1,2"], [["avoidance.K=1"], ["avoidance.K=2"]])
+    assert info.value.lines == [
+        f"hydra.sweep.dir: {tmp_path} holds another sweep (job 0: seed=0; this one: job 0: avoidance.K=1): "
+        "choose another hydra.sweep.dir, or delete that directory to start over"
+    ]
+    with pytest.raises(ConfigError, match=r"\(job 1: seed=1; this one: 1 jobs\)"):
+        sweep.check_grid_owner(tmp_path, ["seed=0"], [["seed=0"]])
 
 
 # -- launchers ----------------------------------------------------------------------------------
@@ -391,15 +470,36 @@ def test_summary_callback_is_configured_and_leaves_other_flags_alone(tmp_path):
 
 
 # -- up-front validation ------------------------------------------------------------------------
-def test_sweeper_composes_one_job_per_distinct_override_up_front():
+def test_sweeper_checks_each_distinct_override_once_numbers_included():
     from hydra_plugins.swarmscene_sweeper import jobs_to_validate
 
     batch = [[f"environment={env}", f"seed={seed}", "avoidance.K=2"] for env in ("a", "b", "c") for seed in range(30)]
-    assert jobs_to_validate(batch) == [batch[0], batch[30], batch[60]]
-    # non-numeric values are each composed once; a numeric value counts as its key only
-    batch = [["formation=x", "clock.duration=4.0"], ["formation=x", "clock.duration=8"], ["formation=y", "clock.duration=4.0"]]
-    assert jobs_to_validate(batch) == [batch[0], batch[2]]
+    chosen = jobs_to_validate(batch)
+    # the first job with all its overrides, then the first job of every other value (each seed too)
+    assert chosen[0] == (0, batch[0])
+    assert chosen[1:30] == [(s, [f"seed={s}"]) for s in range(1, 30)]
+    assert chosen[30:] == [(30, ["environment=b"]), (60, ["environment=c"])]
     assert jobs_to_validate([]) == []
+
+
+def test_grid_expansion_matches_hydras_basic_sweeper_and_crosses_cases():
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from hydra_plugins.swarmscene_sweeper import expand
+
+    parser = OverridesParser.create()
+    params = {"avoidance": "cem,none", "seed": "range(0,3)"}
+    arguments = ["+sweep=x", "seed=5,6"]  # the command line replaces a params entry in place
+    grid, jobs = expand(params, arguments, parser, plain_params=False)
+    (hydras,) = BasicSweeper.split_arguments(parser.parse_overrides(["avoidance=cem,none", "seed=range(0,3)", *arguments]), None)
+    assert jobs == hydras and grid == ["avoidance=cem,none", "seed=5,6", "+sweep=x"]
+    cases = [["scenario=a"], ["scenario=b", "environment=w070"]]
+    grid, jobs = expand(params, [], parser, cases=cases, plain_params=False)
+    assert len(jobs) == 2 * 2 * 3 and grid[0] == "cases=scenario=a | scenario=b environment=w070"
+    assert jobs[6] == ["scenario=b", "environment=w070", "avoidance=cem", "seed=0"]
+    # a key of the cases given on the command line replaces the cases
+    assert expand(params, ["scenario=c"], parser, cases=cases, plain_params=False)[1][0] == ["avoidance=cem", "seed=0", "scenario=c"]
 
 
 @pytest.mark.parametrize("mode", ["each_value", "all"])
@@ -408,8 +508,10 @@ def test_a_bad_override_anywhere_in_the_sweep_fails_before_any_job(tmp_path, mod
                       "seed=0,1", "hydra/sweeper=swarmscene", f"hydra.sweeper.validate={mode}",
                       f"hydra.sweep.dir={tmp_path}/sweep", cwd=tmp_path)
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines()[-1].startswith("swarmscene: environment: unknown option 'no_such_map'")
-    assert not any(p.is_dir() for p in (tmp_path / "sweep").iterdir())  # no job ran
+    label = "job 2 (environment=no_such_map)" if mode == "each_value" else "job 2 (environment=no_such_map seed=0)"
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith(f"swarmscene: {label}: environment: unknown option 'no_such_map' (valid: ")
+    assert not (tmp_path / "sweep").exists()  # no job ran
 
 
 def test_an_unknown_validation_mode_is_one_line(tmp_path):
@@ -432,7 +534,7 @@ def _sweeper_choice(overrides: list[str]) -> str:
     return cfg.hydra.runtime.choices["hydra/sweeper"]
 
 
-@pytest.mark.parametrize("preset", ["cem_k", "failure_time", "fast", "indoor_corridor"])
+@pytest.mark.parametrize("preset", ["cem_k", "failure_time", "fast", "indoor_corridor", "methods"])
 def test_grid_presets_use_swarmscenes_sweeper(preset):
     assert _sweeper_choice([f"+sweep={preset}"]) == "swarmscene"
 
