@@ -1,0 +1,312 @@
+"""Reinforcement-learning environments over any composed scenario (the ``rl`` extra).
+
+    from swarmscene.env import make_env, make_gym_env
+    env = make_env(["scenario=default", "swarm.n=10"])        # PettingZoo ParallelEnv
+    obs, infos = env.reset(seed=0)
+    obs, rewards, terminations, truncations, infos = env.step(
+        {agent: env.action_space(agent).sample() for agent in env.agents})
+    central = make_gym_env(["scenario=default"])             # one Gymnasium agent for the swarm
+
+The scenario is composed and validated as for ``swarmscene`` (overrides, presets, plugins by
+name) with its avoidance replaced by the ``policy`` plugin, which takes the agents' actions from
+this environment: the scenario's formation is the task (its setpoint is the reference each agent
+observes), the policy's actions go through the scenario's dynamics, and the engine's monitors
+judge safety as in any run. The environment drives the one :class:`Simulation` tick by tick
+(``Simulation.step``), calling the lifecycle hooks ``run_start`` at reset and ``run_end`` when the
+episode ends, whose metrics (``min_separation``, ``collisions``...) it puts in the last infos.
+
+Observation of an agent: ``methods/policy/observation.py`` (own state, k nearest neighbours within
+range with a mask, nearest obstacle clearance and direction, the formation's reference).
+Action: ``Box(-1, 1, (3,))``, a velocity or acceleration command (``avoidance.action``,
+``avoidance.max_speed``/``max_accel``). Reward: :class:`RewardOptions`. An episode ends
+(terminations) at the first pair closer than ``safety.min_separation`` when
+``termination.on_collision`` is set, or when the formation reports its mission complete with
+``termination.on_complete``; it is truncated at ``clock.duration``. A failed agent (an ``hover``
+event) is terminated alone and leaves ``agents``; it keeps hovering in the world, where the others
+still sense it. ``reset(seed=s)`` runs the scenario with ``seed = s``; ``reset()`` draws the next
+seed from a generator seeded by the last seed given (or the scenario's own).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from . import api
+from .core.config import Scenario
+from .core.setpoint import Mode
+
+try:
+    import gymnasium
+    from pettingzoo import ParallelEnv
+except ImportError as exc:  # pragma: no cover - the rl extra is part of the test extra
+    raise ImportError(
+        "swarmscene.env needs the 'rl' extra: pip install 'swarmscene[rl]'"
+    ) from exc
+
+POLICY = "policy"
+"""The avoidance plugin that takes its actions from this environment."""
+
+
+class RewardOptions(BaseModel):
+    """Each agent's reward for one guidance tick, from the engine's own safety definitions.
+
+        r_i = progress * (|p_ref - p_i(t)| - |p_ref - p_i(t + T_s)|)
+              - separation * [nearest other agent closer than safety.min_separation]
+              - clearance  * [nearest obstacle closer than safety.min_clearance]
+              - effort * |a_i|^2
+              + complete * [the formation reports its mission complete]
+
+    p_ref is the formation's reference position of the tick (agents without one, e.g. in a
+    velocity-mode formation, get no progress term). The two indicator terms are the per-agent
+    form of the safety monitor's ``collisions`` and ``clearance_violations``.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    progress: float = Field(1.0, description="per metre gained toward the formation's reference position")
+    separation: float = Field(10.0, ge=0, description="penalty per tick closer than safety.min_separation to another agent")
+    clearance: float = Field(10.0, ge=0, description="penalty per tick closer than safety.min_clearance to an obstacle")
+    effort: float = Field(0.0, ge=0, description="penalty per unit squared norm of the normalised action")
+    complete: float = Field(0.0, description="bonus to every agent when the mission completes")
+
+
+class EnvOptions(BaseModel):
+    """Options of the environments (not part of the scenario: the scenario's keys stay its own)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    reward: RewardOptions = Field(default_factory=RewardOptions, description="reward terms")
+    record_trajectory: bool = Field(
+        False, description="keep the recorder's trajectory (memory grows with the episode)")
+
+
+def scenario_for_env(config: Sequence[str] | dict[str, Any]) -> Scenario:
+    """Compose and validate ``config`` with its avoidance replaced by the environment-driven
+    ``policy`` plugin (its observation and action options kept when the scenario chose it)."""
+    data = dict(config) if isinstance(config, dict) else api.compose(config)
+    data = {k: v for k, v in data.items() if k != "hydra"}
+    chosen = data.get("avoidance") or {}
+    options = {k: v for k, v in chosen.items() if k != "name"} if chosen.get("name") == POLICY else {}
+    data["avoidance"] = {**options, "name": POLICY, "policy": None}
+    return api.load(data)
+
+
+class _Episode:
+    """One simulation run, stepped by an environment: observations, rewards, ends (arrays)."""
+
+    def __init__(self, scenario: Scenario, options: EnvOptions) -> None:
+        self.sim = sim = api.build(scenario)
+        self.options = options
+        self.policy = sim.avoidance
+        self.n = sim.world.n
+        self.done = False
+        self.stop_reason: str | None = None
+        sim.hook.swarmscene_run_start(sim=sim)
+
+    def observe(self) -> np.ndarray:
+        return self.policy.observe(self.sim.sensing)
+
+    def step(self, action: np.ndarray, active: np.ndarray) -> tuple[np.ndarray, bool, bool]:
+        """Advance one tick; the rewards (N,), whether the episode terminated, was truncated."""
+        sim, weights = self.sim, self.options.reward
+        before = sim.world.pos.copy()
+        self.policy.command(action, active)
+        sim.step()
+        cfg = sim.config
+        complete = bool(cfg.termination.on_complete and sim.formation.complete(sim.world) is True)
+        if complete:
+            sim.request_stop("complete")
+        reward = weights.progress * self._progress(before) - weights.effort * np.einsum(
+            "ij,ij->i", action, action)
+        if weights.separation:
+            reward -= weights.separation * (sim.sensing.nearest[0] < cfg.safety.min_separation)
+        if weights.clearance:
+            reward -= weights.clearance * (sim.sensing.clearance_within(cfg.safety.min_clearance)
+                                           < cfg.safety.min_clearance)
+        if complete:
+            reward += weights.complete
+        terminated = sim.stop_reason is not None or not sim.world.healthy.any()
+        truncated = not terminated and sim.step_count >= sim.total_steps
+        return reward, terminated, truncated
+
+    def _progress(self, before: np.ndarray) -> np.ndarray:
+        ref = self.policy.reference
+        has = (ref.mode == Mode.POSITION) | (ref.mode == Mode.TRACK)
+        gained = np.linalg.norm(ref.pos - before, axis=1) - np.linalg.norm(ref.pos - self.sim.world.pos, axis=1)
+        return np.where(has & self.sim.world.healthy, gained, 0.0)
+
+    def finish(self) -> dict[str, Any]:
+        """The run's metrics, as ``metrics.json`` would hold them (lifecycle hook ``run_end``)."""
+        sim = self.sim
+        metrics: dict[str, Any] = {
+            "duration": float(sim.world.t),
+            "steps": sim.step_count,
+            "agents": self.n,
+            "stop_reason": sim.stop_reason or "duration",
+            "healthy_at_end": int(sim.world.healthy.sum()),
+        }
+        sim.hook.swarmscene_run_end(sim=sim, metrics=metrics)
+        self.done = True
+        return metrics
+
+
+class _Driver:
+    """What both environments share: the validated scenario, its seeds, the current episode."""
+
+    def __init__(self, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None) -> None:
+        self.options = options if isinstance(options, EnvOptions) else EnvOptions.model_validate(options or {})
+        scenario = scenario_for_env(config)
+        if not self.options.record_trajectory:
+            scenario = _with(scenario, output={**scenario.data.get("output", {}), "trajectory": False})
+        self.scenario = scenario
+        self.seeds = np.random.default_rng(scenario.config.seed)
+        params = scenario.plugin_params["avoidance"]
+        self.layout_size = 19 + 7 * params.neighbours
+        self.n = scenario.config.swarm.n
+        self.episode: _Episode | None = None
+
+    def reset(self, seed: int | None) -> _Episode:
+        if seed is not None:
+            self.seeds = np.random.default_rng(seed)
+        else:
+            seed = int(self.seeds.integers(2**31 - 1))
+        self.episode = _Episode(_with(self.scenario, seed=int(seed)), self.options)
+        return self.episode
+
+
+def _with(scenario: Scenario, **changes: Any) -> Scenario:
+    """``scenario`` with top-level keys changed, validated again (so the data and config agree)."""
+    return api.load({**scenario.data, **changes})
+
+
+def _observation_box(shape: tuple[int, ...]) -> gymnasium.spaces.Box:
+    return gymnasium.spaces.Box(-np.inf, np.inf, shape=shape, dtype=np.float32)
+
+
+def _action_box(shape: tuple[int, ...]) -> gymnasium.spaces.Box:
+    return gymnasium.spaces.Box(-1.0, 1.0, shape=shape, dtype=np.float32)
+
+
+class SwarmParallelEnv(ParallelEnv):
+    """PettingZoo parallel environment: one agent per vehicle, ``agent_0`` .. ``agent_{N-1}``.
+
+    Args:
+        config: Hydra overrides (``["scenario=cem_six_vehicle", "swarm.n=10"]``) or a composed dict.
+        options: :class:`EnvOptions` (or its dict).
+    """
+
+    metadata = {"name": "swarmscene_v0", "render_modes": [], "is_parallelizable": True}
+
+    def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
+                 render_mode: str | None = None) -> None:
+        self.driver = _Driver(config, options)
+        self.render_mode = render_mode
+        self.possible_agents = [f"agent_{i}" for i in range(self.driver.n)]
+        self.agents: list[str] = []
+        self._index = {name: i for i, name in enumerate(self.possible_agents)}
+        self._observation_space = _observation_box((self.driver.layout_size,))
+        self._action_space = _action_box((3,))
+        self._active = np.zeros(self.driver.n, dtype=bool)
+
+    def observation_space(self, agent: str) -> gymnasium.spaces.Box:
+        return self._observation_space
+
+    def action_space(self, agent: str) -> gymnasium.spaces.Box:
+        return self._action_space
+
+    @property
+    def sim(self):
+        """The current episode's :class:`~swarmscene.core.simulation.Simulation` (read it, e.g. ``sim.world``)."""
+        return self.driver.episode.sim
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        episode = self.driver.reset(seed)
+        self._active = episode.sim.world.healthy.copy()
+        self.agents = [a for a, alive in zip(self.possible_agents, self._active) if alive]
+        obs = episode.observe()
+        return {a: obs[self._index[a]] for a in self.agents}, {a: {} for a in self.agents}
+
+    def step(self, actions: dict[str, np.ndarray]):
+        episode = self.driver.episode
+        if episode is None or not self.agents:
+            raise RuntimeError("step() called before reset() or after every agent is done")
+        action = np.zeros((self.driver.n, 3))
+        given = np.zeros(self.driver.n, dtype=bool)
+        for name, value in actions.items():
+            i = self._index[name]
+            action[i], given[i] = value, True
+        acting = self.agents
+        reward, terminated, truncated = episode.step(action, given & self._active)
+        failed = self._active & ~episode.sim.world.healthy
+        obs = episode.observe()
+        ends = {a: bool(terminated or failed[self._index[a]]) for a in acting}
+        truncs = {a: bool(truncated) for a in acting}
+        infos: dict[str, dict] = {a: {} for a in acting}
+        if terminated or truncated:
+            metrics = episode.finish()
+            for a in acting:
+                infos[a] = {"metrics": metrics}
+        self._active &= ~failed
+        if terminated or truncated:
+            self._active[:] = False
+        self.agents = [a for a in acting if not (ends[a] or truncs[a])]
+        return (
+            {a: obs[self._index[a]] for a in acting},
+            {a: float(reward[self._index[a]]) for a in acting},
+            ends, truncs, infos,
+        )
+
+    def render(self) -> None:
+        return None
+
+    def close(self) -> None:
+        self.driver.episode = None
+
+
+class SwarmGymEnv(gymnasium.Env):
+    """Gymnasium environment for centralised control: one agent acting for the whole swarm.
+
+    Observation ``Box((N, D))`` (every vehicle's row, failed ones included), action
+    ``Box(-1, 1, (N, 3))``, reward the sum of the vehicles' rewards (:class:`RewardOptions`);
+    terminated and truncated as the parallel environment's episode (failed vehicles hover).
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
+                 render_mode: str | None = None) -> None:
+        self.driver = _Driver(config, options)
+        self.render_mode = render_mode
+        n = self.driver.n
+        self.observation_space = _observation_box((n, self.driver.layout_size))
+        self.action_space = _action_box((n, 3))
+
+    @property
+    def sim(self):
+        return self.driver.episode.sim
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        episode = self.driver.reset(seed)
+        return episode.observe(), {}
+
+    def step(self, action: np.ndarray):
+        episode = self.driver.episode
+        reward, terminated, truncated = episode.step(np.asarray(action, dtype=float), np.ones(self.driver.n, dtype=bool))
+        healthy = episode.sim.world.healthy
+        info: dict[str, Any] = {}
+        if terminated or truncated:
+            info["metrics"] = episode.finish()
+        return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
+
+
+def make_env(config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None) -> SwarmParallelEnv:
+    """A PettingZoo ``ParallelEnv`` over the scenario composed from ``config`` (overrides or dict)."""
+    return SwarmParallelEnv(config, options)
+
+
+def make_gym_env(config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None) -> SwarmGymEnv:
+    """A Gymnasium ``Env`` for centralised control of the scenario composed from ``config``."""
+    return SwarmGymEnv(config, options)
