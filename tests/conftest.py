@@ -1,8 +1,12 @@
-"""Shared test setup: Hydra's search-path plugin registered in code (editable installs hide it)."""
+"""Shared test setup: Hydra's search-path plugin registered in code (editable installs hide it), the
+default scenario composed once, and an environment for Ray processes isolated from the user's."""
 
 from __future__ import annotations
 
 import copy
+import os
+import secrets
+from pathlib import Path
 
 import pytest
 
@@ -21,3 +25,22 @@ def default_data() -> dict:
 @pytest.fixture
 def data(default_data: dict) -> dict:
     return copy.deepcopy(default_data)
+
+
+@pytest.fixture
+def ray_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
+    """A complete environment for Ray processes that does not depend on this machine's past.
+
+    ``HOME`` is a fresh folder holding what an earlier local Ray run leaves behind: since Ray 2.5x
+    ``ray.init()`` without an address writes ``~/.ray/auth_token``, and a later ``ray start --head``
+    finding it requires token authentication (tested with Ray 2.60.0). None of the caller's
+    ``RAY_*`` variables (an address, an auth mode, a token) is passed on. Every Ray service stays on
+    the loopback interface (``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``; Linux defaults to the host's
+    address) and no usage statistics are sent.
+    """
+    home = Path(tmp_path_factory.mktemp("home"))
+    (home / ".ray").mkdir()
+    (home / ".ray" / "auth_token").write_text(secrets.token_hex(32))  # as ray.init() writes it
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    env.update(HOME=str(home), RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER="0", RAY_USAGE_STATS_ENABLED="0")
+    return env

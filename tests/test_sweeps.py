@@ -31,7 +31,8 @@ FAST = ["+sweep=fast", "clock.duration=4.0"]
 
 
 def swarmscene(*args: str, cwd: Path, env: dict | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
-    full_env = {**os.environ, **(env or {})}
+    """The command line in a subprocess; ``env``: the complete environment (default: this one's)."""
+    full_env = dict(os.environ if env is None else env)
     full_env.pop("HYDRA_FULL_ERROR", None)
     return subprocess.run([*EXE, *args], cwd=cwd, capture_output=True, text=True, env=full_env, timeout=timeout)
 
@@ -265,20 +266,15 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-RAY_ENV = {
-    # Keep every Ray service on the loopback interface (Linux defaults to the host's address).
-    "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0",
-    "RAY_USAGE_STATS_ENABLED": "0",
-}
-
-
-@pytest.fixture
-def ray_head():
-    """A local Ray head on 127.0.0.1, started for this test and stopped after it."""
+@pytest.fixture(params=["token", "disabled"])
+def ray_cluster(request, ray_env):
+    """A local Ray head on 127.0.0.1 started by the recipe of docs/sweeps.md (``RAY_AUTH_MODE`` set
+    explicitly on the head and the client), in a home that an earlier local Ray run has left its
+    ``~/.ray/auth_token`` in; yields (address, the client's environment)."""
+    env = {**ray_env, "RAY_AUTH_MODE": request.param}
     ray_bin = Path(sys.executable).with_name("ray")
     port = _free_port()
     temp_dir = tempfile.mkdtemp(prefix="ray")  # short: Ray's socket paths have a length limit
-    env = {**os.environ, **RAY_ENV}
     head = subprocess.Popen(
         [str(ray_bin), "start", "--head", "--block", f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
          "--disable-usage-stats", f"--temp-dir={temp_dir}"],
@@ -292,7 +288,7 @@ def ray_head():
                     break
             assert head.poll() is None, "ray head exited"
             time.sleep(0.5)
-        yield f"127.0.0.1:{port}"
+        yield f"127.0.0.1:{port}", env
     finally:
         # The head's own process group (ours only): SIGTERM lets `ray start --block` stop its
         # services; whatever of the group is still there after a few seconds is killed.
@@ -309,14 +305,17 @@ def ray_head():
         shutil.rmtree(temp_dir, ignore_errors=True)
 
 
-def test_ray_launcher_on_a_local_head_gives_identical_metrics(basic_sweep, tmp_path, ray_head):
+def test_ray_launcher_on_a_local_head_gives_identical_metrics(basic_sweep, tmp_path, ray_cluster):
+    """The documented cluster recipe, in token mode and with authentication disabled, after an
+    earlier local Ray run (its token in the home directory)."""
+    address, env = ray_cluster
     proc = swarmscene(
-        *FAST, "hydra/launcher=ray", f"hydra.launcher.ray.init.address={ray_head}",
+        *FAST, "hydra/launcher=ray", f"hydra.launcher.ray.init.address={address}",
         "+hydra.launcher.ray.init.object_store_memory=null", f"hydra.sweep.dir={tmp_path}/sw",
-        cwd=tmp_path, env=RAY_ENV,
+        cwd=tmp_path, env=env,
     )
     assert proc.returncode == 0, proc.stderr
-    assert f"Connecting to existing Ray cluster at address: {ray_head}" in proc.stdout + proc.stderr
+    assert f"Connecting to existing Ray cluster at address: {address}" in proc.stdout + proc.stderr
     assert comparable(read_csv(tmp_path / "sw" / "summary.csv")) == comparable(read_csv(basic_sweep / "summary.csv"))
 
 
