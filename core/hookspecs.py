@@ -116,8 +116,10 @@ def swarmscene_run_end(sim: "Simulation", metrics: dict[str, Any]) -> None:
     """The run is over: add entries to ``metrics``.
 
     When: once per run, after the last tick (or an early termination). Implementations add flat,
-    dotted keys in SI units, prefixed with their plugin's name (``cem.max_speed``); the engine's own
-    keys (``min_separation``...) are unprefixed. Values must be JSON-serialisable.
+    dotted keys in SI units. A plugin's keys start with its class's ``metric_prefix`` and a dot
+    (``cem.max_speed``, ``indoor.success``; the prefix defaults to the plugin's ``name``); the
+    engine's own keys are unprefixed (``min_separation``) or under ``violations.``; a plugin may
+    also set the engine's ``success``. Values must be JSON-serialisable.
     Args:
         sim: the simulation.
         metrics: the run's metrics, to be written to ``metrics.json``.

@@ -74,6 +74,8 @@ class Plugin(ABC):
     """Registered name, the value users write in ``formation=``, ``avoidance=``, ``dynamics=``."""
     Params: ClassVar[type[PluginParams]] = PluginParams
     """Pydantic model of the YAML options (one docstring-described field per option)."""
+    metric_prefix: ClassVar[str | None] = None
+    """Prefix of the metrics the plugin adds (``<prefix>.<key>``); ``None``: its ``name``."""
 
     def __init__(self, params: PluginParams, ctx: BuildContext) -> None:
         self.params = params

@@ -14,10 +14,8 @@ import pytest
 
 from swarmscene import api
 from swarmscene.builtins import BUILTIN_PLUGINS
-from swarmscene.core.plugin import BuildContext, PluginParams
-from swarmscene.core.environment import Environment
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
+from swarmscene.core.plugin import PluginParams
+from swarmscene.core.setpoint import Setpoints
 
 ROOT = Path(__file__).resolve().parents[1]
 _, REGISTRY = api.plugins()
@@ -54,52 +52,12 @@ def test_every_plugin_declares_name_and_documented_params(kind):
         assert yaml.exists(), f"{kind} {name} has no {yaml.relative_to(ROOT)}"
 
 
-def _context(n: int, pos: np.ndarray) -> BuildContext:
-    return BuildContext(
-        n=n, guidance_period=0.1, physics_step=0.01, duration=10.0, min_separation=0.3,
-        min_clearance=0.1, comm_range=10.0, environment=Environment(), rng=np.random.default_rng(0),
-        initial=WorldState.at_rest(pos, leader=0),
-    )
-
-
-@pytest.mark.parametrize("name", REGISTRY.names("dynamics"))
-def test_dynamics_contract_hold_keeps_agents_near(name):
-    """Every dynamics model, told to HOLD where agents are, keeps them there (within 1 cm)."""
-    pos = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 2.0], [0.0, 3.0, 2.0]])
-    cls = REGISTRY.get("dynamics", name)
-    model = cls(cls.Params(), _context(3, pos))
-    world = WorldState.at_rest(pos, leader=0)
-    model.initialize(world)
-    sp = Setpoints.hold(pos)
-    for _ in range(20):
-        model.control(world, sp)
-        for _ in range(10):
-            model.step(world, 0.01)
-    assert np.abs(world.pos - pos).max() < 1e-2
-    assert world.pos.shape == (3, 3) and world.vel.shape == (3, 3)
-
-
-@pytest.mark.parametrize("name", REGISTRY.names("dynamics"))
-def test_dynamics_contract_position_setpoint_is_approached(name):
-    pos = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 2.0]])
-    cls = REGISTRY.get("dynamics", name)
-    model = cls(cls.Params(), _context(2, pos))
-    world = WorldState.at_rest(pos, leader=0)
-    model.initialize(world)
-    sp = Setpoints.hold(pos + [1.0, 0.0, 0.0])
-    sp.mode[:] = Mode.POSITION
-    before = np.linalg.norm(world.pos - sp.pos, axis=1)
-    for _ in range(300):  # 30 s: the thesis' position loop (omega_r = 0.23 rad/s) is slow
-        model.control(world, sp)
-        for _ in range(10):
-            model.step(world, 0.01)
-    assert np.all(np.linalg.norm(world.pos - sp.pos, axis=1) < 0.5 * before)
-
-
 def test_none_avoidance_passes_setpoints_through():
+    from swarmscene.testing import _build
+
     cls = REGISTRY.get("avoidance", "none")
-    sp = Setpoints.hold(np.zeros((2, 3)))
-    assert cls(cls.Params(), _context(2, np.zeros((2, 3)))).adjust(None, None, sp) is sp
+    sp = Setpoints.hold(np.zeros((6, 3)))
+    assert _build(cls, cls.Params(), None).adjust(None, None, sp) is sp
 
 
 def test_every_plugin_module_is_a_builtin():
@@ -147,3 +105,72 @@ def test_every_module_imports_on_its_own():
     with ThreadPoolExecutor(max_workers=2) as pool:
         failures = [f for f in pool.map(try_import, all_modules()) if f]
     assert not failures, failures
+
+
+def group_file_options(kind: str, name: str) -> dict:
+    """The options of the plugin's own group YAML (what `<kind>=<name>` gives), without `name`."""
+    import yaml
+
+    data = yaml.safe_load((ROOT / "scenarios" / kind / f"{name}.yaml").read_text()) or {}
+    return {k: v for k, v in data.items() if k != "name"}
+
+
+@pytest.mark.parametrize(
+    "kind, name",
+    [(kind, name) for kind in ("formation", "avoidance", "dynamics") for name in REGISTRY.names(kind)],
+)
+def test_every_builtin_passes_the_public_contract_checks(kind, name):
+    """The checks third-party authors run (swarmscene.testing) hold for every registered plugin."""
+    from swarmscene import testing
+
+    check = {"formation": testing.check_formation, "avoidance": testing.check_avoidance,
+             "dynamics": testing.check_dynamics}[kind]
+    check(REGISTRY.get(kind, name), group_file_options(kind, name))
+
+
+def test_the_contract_checks_catch_a_plugin_that_breaks_the_rules():
+    """A check that cannot fail is no check: an avoidance that edits its input in place, moves a
+    failed agent and draws unseeded noise is refused, rule by rule."""
+    from swarmscene.core.plugin import Avoidance
+    from swarmscene.testing import check_avoidance
+
+    class InPlace(Avoidance):
+        name = "in_place"
+
+        def adjust(self, world, sensing, sp):
+            sp.vel *= 0.5
+            return sp
+
+    class MovesFailed(Avoidance):
+        name = "moves_failed"
+
+        def adjust(self, world, sensing, sp):
+            out = sp.copy()
+            out.pos += 0.1
+            return out
+
+    class Unseeded(Avoidance):
+        name = "unseeded"
+
+        def adjust(self, world, sensing, sp):
+            out = sp.copy()
+            out.vel[world.healthy] += np.random.default_rng().normal(size=(int(world.healthy.sum()), 3))
+            return out
+
+    for cls, rule in ((InPlace, "modified its input"), (MovesFailed, "failed agent"), (Unseeded, "deterministic")):
+        with pytest.raises(AssertionError, match=rule):
+            check_avoidance(cls)
+
+
+@pytest.mark.parametrize("kind", ["formation", "avoidance", "dynamics"])
+def test_each_template_is_a_working_plugin(kind):
+    """A copy of plugins/<kind>/_template.py runs as is: it registers its class, which passes the
+    contract checks of its kind."""
+    from swarmscene import testing
+
+    module = importlib.import_module(f"swarmscene.plugins.{kind}._template")
+    hook = getattr(module, f"swarmscene_register_{kind}s" if kind != "dynamics" else "swarmscene_register_dynamics")
+    registered = []
+    hook(registered.append)
+    (cls,) = registered
+    getattr(testing, f"check_{kind}")(cls)

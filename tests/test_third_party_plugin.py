@@ -54,3 +54,16 @@ def test_third_party_params_are_validated(site, tmp_path):
 def test_help_and_completion_see_the_new_option(site, tmp_path):
     proc = run_cli(site, tmp_path, "--help")
     assert "slowdown" in proc.stdout
+
+
+def test_the_example_package_passes_the_contract_checks_in_its_own_tests(site, tmp_path):
+    """The packaged example runs swarmscene.testing's checks in its own test suite, as a third-party
+    author would (its tests/ folder, run by pytest against the installed package)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--rootdir", str(tmp_path),
+         "-c", os.devnull, str(EXAMPLE / "tests")],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "1 passed" in proc.stdout

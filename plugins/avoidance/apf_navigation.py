@@ -40,6 +40,7 @@ class ApfNavigation(Avoidance):
     """Thesis APF navigation: target attraction, same-level repulsion, flight levels."""
 
     name = "apf_navigation"
+    metric_prefix = "apf"
 
     class Params(PluginParams):
         d_c: float = Field(1.65, gt=0, description="collision-free distance d_c, m (Table 4.3)")

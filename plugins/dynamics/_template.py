@@ -1,17 +1,23 @@
-"""Template of a dynamics plugin: copy this file, rename the class and ``name``, fill in."""
+"""Template of a dynamics plugin: copy this file, rename the class and ``name``, fill in.
+
+A copy runs as is: list your module under the ``swarmscene`` entry-point group of your package (or
+in swarmscene/builtins.py for a built-in), add ``dynamics/<name>.yaml`` holding ``name: <name>``,
+and check it with ``swarmscene.testing.check_dynamics(MyDynamics)`` in your tests.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 from pydantic import Field
 
+from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Dynamics, PluginParams
-from swarmscene.core.setpoint import Setpoints
+from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
 
 class MyDynamics(Dynamics):
-    """One line on the model and its controller."""
+    """A kinematic point under a proportional position controller with velocity feed-forward."""
 
     name = "my_dynamics"
 
@@ -22,13 +28,18 @@ class MyDynamics(Dynamics):
         self.u = np.zeros_like(world.pos)
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
-        self.u = sp.vel + self.params.gain * (sp.pos - world.pos)  # once per guidance tick
+        """Once per guidance tick: the velocity command (N, 3) m/s, held until the next tick."""
+        self.u = sp.vel + self.params.gain * (sp.pos - world.pos)
+        velocity = sp.mode == Mode.VELOCITY  # VELOCITY setpoints ignore pos
+        self.u[velocity] = sp.vel[velocity]
+        hold = sp.mode == Mode.HOLD  # HOLD: stay where the setpoint says
+        self.u[hold] = self.params.gain * (sp.pos[hold] - world.pos[hold])
 
     def step(self, world: WorldState, dt: float) -> None:
         world.pos += self.u * dt  # once per physics step, in place
         world.vel[:] = self.u
 
 
-# @hookimpl
-# def swarmscene_register_dynamics(register):
-#     register(MyDynamics)
+@hookimpl
+def swarmscene_register_dynamics(register):
+    register(MyDynamics)

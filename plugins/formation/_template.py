@@ -1,5 +1,8 @@
 """Template of a formation plugin: copy this file, rename the class and ``name``, fill in.
 
+A copy runs as is: list your module under the ``swarmscene`` entry-point group of your package (or
+in swarmscene/builtins.py for a built-in), add ``formation/<name>.yaml`` holding ``name: <name>``,
+and check it with ``swarmscene.testing.check_formation(MyFormation)`` in your tests.
 Cite the paper's section, symbols and equation numbers here, and say what you chose where the
 paper is ambiguous.
 """
@@ -9,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
+from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
@@ -37,7 +41,6 @@ class MyFormation(Formation):
         return bool(np.all(np.linalg.norm(world.pos - self.home, axis=1) < 0.1))
 
 
-# Register it (uncomment in your module and list the module in swarmscene/builtins.py):
-# @hookimpl
-# def swarmscene_register_formations(register):
-#     register(MyFormation)
+@hookimpl
+def swarmscene_register_formations(register):
+    register(MyFormation)

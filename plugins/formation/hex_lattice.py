@@ -49,6 +49,7 @@ class HexLattice(Formation):
     """Followers on a pruned hexagonal lattice around a waypoint-following leader."""
 
     name = "hex_lattice"
+    metric_prefix = "hex"
     requires_leader = True
 
     class Params(PluginParams):

@@ -104,6 +104,7 @@ class IndoorSwarm(Formation):
     """Leader-follower swarm with LOS sensing, edge deactivation and ranks (thesis ch. 5)."""
 
     name = "indoor_swarm"
+    metric_prefix = "indoor"
     requires_leader = True
 
     class Params(GraphParams):

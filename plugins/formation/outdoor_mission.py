@@ -209,6 +209,7 @@ class OutdoorMission(Formation):
     """Leader-follower mission on a hexagonal lattice with swarm-map communication (chapter 4)."""
 
     name = "outdoor_mission"
+    metric_prefix = "outdoor"
     requires_leader = True
 
     class Params(PluginParams):

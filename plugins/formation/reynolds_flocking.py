@@ -244,6 +244,7 @@ class ReynoldsFlocking(Formation):
     """Boids: separation, alignment, cohesion within ``vision``; optional goal; open, bounded or torus."""
 
     name = "reynolds_flocking"
+    metric_prefix = "flocking"
     Params = FlockingParams
 
     def __init__(self, params: FlockingParams, ctx: BuildContext) -> None:

@@ -105,6 +105,7 @@ class VirtualRigidBody(Formation):
     """Formations and transformations in a body frame flying a C^4 trajectory in SE(3)."""
 
     name = "virtual_rigid_body"
+    metric_prefix = "vrb"
 
     class Params(PluginParams):
         preset: Literal["airshow", "custom"] = Field(

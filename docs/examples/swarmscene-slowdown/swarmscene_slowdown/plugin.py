@@ -29,7 +29,7 @@ class Slowdown(Avoidance):
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
         distance, _ = sensing.nearest  # the tick's shared k-d tree
-        near = distance < self.params.radius
+        near = (distance < self.params.radius) & world.healthy  # failed agents are left alone
         self.slowed += int(near.sum())
         out = sp.copy()
         out.vel[near] *= self.params.factor
