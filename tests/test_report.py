@@ -1,0 +1,138 @@
+"""The sweep summary's outcome columns and its honesty about seeds that change nothing, and the
+scenario x method table (issue 14): one row per scenario, one column per method, a one-word reason
+where a combination could not run."""
+
+from __future__ import annotations
+
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from swarmscene import report, sweep
+
+EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
+
+
+def row(job, scenario, method, seed, *, status="complete", success=True, sep=1.0, clear=None,
+        duration=20.0, stop="complete", sep_violation=None, clear_violation=None, reason=None):
+    r = {"job": str(job), "status": status, "error": None if status == "complete" else "boom",
+         "reason": reason, "seed": seed, "scenario": scenario, "avoidance": method,
+         "overrides": f"scenario={scenario} avoidance={method} seed={seed}", "config_hash": None}
+    if status == "complete":
+        r.update(success=success, min_separation=sep, min_clearance=clear, duration=duration, steps=int(duration * 10),
+                 collisions=0, stop_reason=stop)
+        if sep_violation is not None:
+            r["violations.separation.first_time"] = sep_violation
+        if clear_violation is not None:
+            r["violations.clearance.first_time"] = clear_violation
+    return r
+
+
+def test_a_group_whose_seeds_change_nothing_shows_no_interval():
+    same = [row(i, "a", "cem", i, sep=0.7, duration=24.0) for i in range(3)]
+    varied = [row(3 + i, "a", "orca", i, sep=s, duration=d, success=ok)
+              for i, (s, d, ok) in enumerate([(0.6, 20.0, True), (0.8, 22.0, True), (0.7, 30.0, False)])]
+    assert sweep.deterministic(same) and not sweep.deterministic(varied)
+    assert not sweep.deterministic(same[:1])  # one run: no evidence either way
+    md = sweep.markdown(same + varied, "t")
+    assert "Deterministic (every seed gave the same run, so the seed changes nothing there and no interval is shown): avoidance=cem." in md
+    overview = {line.split(" | ")[0]: line for line in md.splitlines() if line.startswith("| cem |") or line.startswith("| orca |")}
+    assert overview["| cem"] == (
+        "| cem | 3 | 3 | 0 | 1.00 (deterministic) | 0.7 (identical in 3 runs) | n/a | none in 3 | 24 s (identical in 3 runs) |"
+    )
+    mean, half, _ = sweep.mean_ci([0.6, 0.8, 0.7])
+    lo, hi = sweep.wilson(2, 3)
+    assert overview["| orca"].startswith(
+        f"| orca | 3 | 3 | 0 | 0.67 [{lo:.2f}, {hi:.2f}] | 0.7 [{sweep._fmt(mean - half)}, {sweep._fmt(mean + half)}] |"
+    )
+    section = md.split("## avoidance=cem")[1].split("## ")[0]
+    assert "| success (rate) | 1 | none: deterministic | 3 |" in section
+    assert "| min_separation | 0.7 | none: identical in all 3 runs | 3 |" in section
+
+
+def test_first_violation_and_completion_columns():
+    runs = [
+        row(0, "a", "none", 0, sep_violation=4.0, clear_violation=3.0, stop="duration"),
+        row(1, "a", "none", 1, sep_violation=6.0, duration=31.0),
+        row(2, "a", "none", 2, duration=25.0),
+    ]
+    assert [sweep.first_violation_time(r) for r in runs] == [3.0, 6.0, None]  # the earliest condition
+    assert [sweep.completion_time(r) for r in runs] == [None, 31.0, 25.0]
+    mean, half, _ = sweep.mean_ci([3.0, 6.0])
+    assert sweep.violation_cell(runs) == f"2/3: {sweep._fmt(mean)} s [{sweep._fmt(mean - half)}, {sweep._fmt(mean + half)}]"
+    mean, half, _ = sweep.mean_ci([31.0, 25.0])
+    assert sweep.completion_cell(runs) == f"2/3: {sweep._fmt(mean)} s [{sweep._fmt(mean - half)}, {sweep._fmt(mean + half)}]"
+    assert sweep.violation_cell(runs[2:]) == "none in 1"
+    assert sweep.completion_cell(runs[:1]) == "not complete in 1"
+
+
+def test_methods_table_cells_and_one_word_reasons():
+    rows = [
+        row(0, "cem_six_vehicle", "cem", 0, sep=1.36, duration=24.0),
+        row(1, "cem_six_vehicle", "cem", 1, sep=1.35, duration=26.0),
+        row(2, "cem_six_vehicle", "none", 0, success=False, sep=0.01, stop="duration"),
+        row(3, "cem_six_vehicle", "none", 1, status="failed", reason="failed"),
+        row(4, "vrb_airshow", "cem", 0, status="failed", reason="needs-leader"),
+        row(5, "vrb_airshow", "cem", 1, status="failed", reason="needs-leader"),
+        row(6, "vrb_airshow", "none", 0, status="failed", reason="invalid"),
+    ]
+    table = report.methods_table(rows)
+    lines = table.splitlines()
+    assert lines[2:] == [
+        "| scenario | cem | none |",
+        "|---|---|---|",
+        "| cem_six_vehicle | 100 % · 1.35 m · 25.0 s | 0 % · 0.01 m · not complete (1 failed) |",
+        "| vrb_airshow | needs-leader | invalid |",
+    ]
+    # a combination absent from the grid is named too, never blank
+    assert report.methods_table(rows[:6]).splitlines()[-1] == "| vrb_airshow | needs-leader | not-run |"
+    with pytest.raises(ValueError, match="'controller' is not a column"):
+        report.methods_table(rows, "controller")
+
+
+def test_failure_reason_words():
+    from swarmscene.core.errors import ConfigError
+
+    class NeedsLeader(RuntimeError):
+        reason = "needs-leader"
+
+    assert sweep.failure_reason(ConfigError(["avoidance.K: must be >= 1 (got 0)"])) == "invalid"
+    assert sweep.failure_reason(FloatingPointError("nan")) == "failed"
+    assert sweep.failure_reason(NeedsLeader("cem needs a leader")) == "needs-leader"
+
+
+def test_comparing_methods_from_the_command_line(tmp_path):
+    """The natural command groups the summary by method, and the report renders the table."""
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+    proc = subprocess.run(
+        [*EXE, "-m", "scenario=cem_six_vehicle", "avoidance=cem,potential,none", "seed=0,1", "clock.duration=3.0",
+         f"hydra.sweep.dir={tmp_path}/sw"],
+        cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr
+    sw = tmp_path / "sw"
+    with open(sw / "summary.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["avoidance"], r["seed"]) for r in rows] == [
+        (m, s) for m in ("cem", "potential", "none") for s in ("0", "1")
+    ]
+    md = (sw / "summary.md").read_text()
+    assert "Grouped by avoidance;" in md
+    header = "| avoidance | runs | complete | failed | " + " | ".join(sweep.OVERVIEW) + " |"
+    assert header in md
+    for method in ("cem", "potential", "none"):
+        assert f"\n| {method} | 2 | 2 | 0 | " in md
+    assert report.main([str(sw), "--methods"]) == 0
+    table = (sw / "methods.md").read_text().splitlines()
+    assert table[2] == "| scenario | cem | potential | none |"
+    cells = [c.strip() for c in table[4].strip("|").split("|")]
+    assert cells[0] == "cem_six_vehicle"
+    for method, cell in zip(("cem", "potential", "none"), cells[1:]):
+        group = [r for r in rows if r["avoidance"] == method]
+        worst = min(float(r["min_separation"]) for r in group)
+        success = sum(r["success"] == "True" for r in group) / 2
+        assert cell.startswith(f"{100 * success:.0f} % · {worst:.2f} m · ")
