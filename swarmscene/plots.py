@@ -4,23 +4,36 @@ On ``output.plots=true`` a run directory gets:
 
     trajectories.png  top-down paths (x east, y north) with the obstacles, start and end points,
                       and every failed vehicle marked where it failed
-    safety.png        minimum separation and minimum clearance over time against their limits
-                      (``safety.min_separation``, ``safety.min_clearance``), violations shaded
-    speed.png         every agent's speed over time (failed agents dashed)
+    safety.png        the distribution over agents of each agent's nearest-neighbour distance
+                      (top) and obstacle clearance (bottom, with obstacles only) over time: median, 10-90 % band and
+                      min-max envelope, the minimum (the safety monitor's series) as a line, the
+                      limits ``safety.min_separation`` and ``safety.min_clearance`` dashed red,
+                      violations shaded
+    speed.png         the distribution over healthy agents of the speed over time (median, bands);
+                      a plugin's published ``<name>.speed_limit`` metric (m/s) is drawn as a limit
+    altitude.png      the same distribution of the altitude z over time (the 6-DOF runs, the VRB
+                      air show)
 
-and on ``output.animation=true`` ``animation.mp4`` (when matplotlib finds ffmpeg) or
+For swarms of at most ``INDIVIDUAL_LINES`` agents every agent's own thin line is drawn as well.
+Agent i has the colour ``agent_colors(N)[i]`` in every picture, the animation and the Rerun
+replay; red is kept for failures and limits.
+
+On ``output.animation=true`` ``animation.mp4`` (when matplotlib finds ffmpeg) or
 ``animation.gif``: the top-down view over time, trails, failed vehicles, and with
-``output.comm_edges=true`` the communication edges (healthy pairs within ``comm.range``).
+``output.comm_edges=true`` the communication edges (healthy pairs within ``comm.range``). Writing it
+reports the frames written and the time left on a terminal (:class:`swarmscene.summary.Progress`).
 
-Everything works from a run directory alone (config.yaml + trajectory.npz), so
-``swarmscene-report RUN_DIR --run-plots`` redraws them later. Inside a run the safety monitor's
-series (every guidance tick) are used; from a directory they are recomputed at the recorded frames.
-Only the object-oriented matplotlib API is used (no pyplot state, no display needed).
+Everything works from a run directory alone (config.yaml + trajectory.npz, metrics.json when
+present), so ``swarmscene-report RUN_DIR --run-plots`` redraws them later. Inside a run the safety
+monitor's series (every guidance tick) give the minimum lines; from a directory they are recomputed
+at the recorded frames. Only the object-oriented matplotlib API is used (no pyplot state, no display
+needed).
 """
 
 from __future__ import annotations
 
 import io
+import json
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -31,15 +44,57 @@ import numpy as np
 
 from .core.outputs import atomic_write_bytes
 
-HEALTHY_COLOR = "tab:blue"
 FAILED_COLOR = "tab:red"
 LIMIT_COLOR = "tab:red"
+LEGEND = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": 7, "borderaxespad": 0.0}
+"""Legends beside the axes, so they never hide a series."""
 OBSTACLE_COLOR = "0.6"
+BAND_COLOR = "0.35"
+"""Grey: the bands are no agent's colour."""
+MEDIAN_COLOR = "0.05"
+INDIVIDUAL_LINES = 10
+"""Swarms up to this size also get one thin line per agent in the distribution plots."""
+
+# tab10 without its red (d62728), which marks failures and limits.
+_PALETTE = np.array(
+    [
+        (31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189), (140, 86, 75),
+        (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207),
+    ],
+    dtype=np.uint8,
+)
+
+
+def agent_colors(n: int) -> np.ndarray:
+    """(n, 3) uint8 RGB: agent i's colour in every picture, the animation and the replay.
+
+    Up to nine agents: the tab10 colours without red. More: evenly spaced hues from orange
+    (30 degrees) round to magenta (330 degrees), so red stays free for failures and limits.
+    """
+    if n <= len(_PALETTE):
+        return _PALETTE[:n].copy()
+    hue = np.linspace(30.0, 330.0, n) / 60.0  # HSV with S = 0.75, V = 0.85, vectorised
+    sector = np.floor(hue).astype(int) % 6
+    frac = hue - np.floor(hue)
+    v, s = 0.85, 0.75
+    p, q, t = v * (1 - s), v * (1 - s * frac), v * (1 - s * (1 - frac))
+    table = np.stack(
+        [np.stack([np.full(n, v), t, np.full(n, p)], 1), np.stack([q, np.full(n, v), np.full(n, p)], 1),
+         np.stack([np.full(n, p), np.full(n, v), t], 1), np.stack([np.full(n, p), q, np.full(n, v)], 1),
+         np.stack([t, np.full(n, p), np.full(n, v)], 1), np.stack([np.full(n, v), np.full(n, p), q], 1)]
+    )  # (6, n, 3)
+    rgb = table[sector, np.arange(n)]
+    return np.round(rgb * 255).astype(np.uint8)
+
+
+def _mpl_colors(n: int) -> np.ndarray:
+    """agent_colors as matplotlib RGB floats in [0, 1]."""
+    return agent_colors(n) / 255.0
 
 
 @dataclass
 class RunData:
-    """What the pictures need from one run (see :func:`load_run`)."""
+    """What the pictures and the replay need from one run (see :func:`load_run`)."""
 
     config: dict[str, Any]
     t: np.ndarray  # (T,) s
@@ -48,10 +103,22 @@ class RunData:
     healthy: np.ndarray  # (T, N) bool
     obstacles: list[Any] = field(default_factory=list)  # shapely polygons
     series: dict[str, np.ndarray] | None = None  # the safety monitor's, when known
+    quat: np.ndarray | None = None  # (T, N, 4) (w, x, y, z) body to world, attitude dynamics only
+    metrics: dict[str, Any] = field(default_factory=dict)  # metrics.json
+    config_hash: str | None = None  # the manifest's (or the one it will hold)
 
     @property
     def n(self) -> int:
         return self.pos.shape[1]
+
+    @property
+    def name(self) -> str:
+        return str(self.config.get("name", "run"))
+
+    @property
+    def seed(self) -> int | None:
+        seed = self.config.get("seed")
+        return None if seed is None else int(seed)
 
     @property
     def min_separation_limit(self) -> float:
@@ -64,6 +131,11 @@ class RunData:
     @property
     def comm_range(self) -> float:
         return float(self.config.get("comm", {}).get("range", np.inf))
+
+    def speed_limits(self) -> dict[str, float]:
+        """Speed limits plugins publish as ``<name>.speed_limit`` metrics (m/s), by metric key."""
+        return {k: float(v) for k, v in sorted(self.metrics.items())
+                if k.endswith(".speed_limit") and isinstance(v, (int, float)) and np.isfinite(v)}
 
     def failures(self) -> list[tuple[int, float, np.ndarray]]:
         """(agent, time, position) of every agent that failed during the recorded run.
@@ -94,8 +166,12 @@ def _obstacles(config: dict[str, Any]) -> list[Any]:
     return obstacles
 
 
+def _read_json(path: Path) -> dict[str, Any]:
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
 def load_run(run_dir: Path) -> RunData:
-    """Read a run directory's config.yaml and trajectory.npz."""
+    """Read a run directory's config.yaml and trajectory.npz (metrics.json, manifest.json if there)."""
     import yaml
 
     run_dir = Path(run_dir)
@@ -105,7 +181,18 @@ def load_run(run_dir: Path) -> RunData:
         raise FileNotFoundError(f"{path}: no trajectory recorded (output.trajectory=false?)")
     with np.load(path) as traj:
         arrays = {k: traj[k] for k in ("t", "pos", "vel", "healthy")}
-    return RunData(config=config, obstacles=_obstacles(config), **arrays)
+        quat = traj["quat"] if "quat" in traj.files else None
+    manifest = _read_json(run_dir / "manifest.json")
+    return RunData(config=config, obstacles=_obstacles(config), quat=quat,
+                   metrics=_read_json(run_dir / "metrics.json"),
+                   config_hash=manifest.get("config_hash") or _hash(config), **arrays)
+
+
+def _hash(config: dict[str, Any]) -> str:
+    """The config hash the manifest holds for this config (the manifest is written last)."""
+    from .core.outputs import config_hash
+
+    return config_hash(config)
 
 
 def from_simulation(sim: Any, result: Any) -> RunData:
@@ -117,7 +204,8 @@ def from_simulation(sim: Any, result: Any) -> RunData:
         config=sim.scenario.data,
         t=traj["t"], pos=traj["pos"], vel=traj["vel"], healthy=traj["healthy"],
         obstacles=list(sim.environment.obstacles),
-        series=result.series,
+        series=result.series, quat=traj.get("quat"), metrics=dict(result.metrics),
+        config_hash=_hash(sim.scenario.data),
     )
 
 
@@ -125,20 +213,50 @@ def safety_series(run: RunData) -> dict[str, np.ndarray]:
     """Min separation and min clearance over time: the monitor's series, or recomputed per frame."""
     if run.series is not None:
         return {k: np.asarray(run.series[k]) for k in ("t", "min_separation", "min_clearance")}
-    from scipy.spatial.distance import pdist
+    return {"t": run.t, "min_separation": nearest_neighbour(run).min(axis=1),
+            "min_clearance": agent_clearance(run).min(axis=1)}
 
-    pos = run.pos
-    if run.n > 1:
-        sep = np.array([pdist(frame).min() for frame in pos])  # one C call per frame
-    else:
-        sep = np.full(len(pos), np.inf)
-    clear = np.full(len(pos), np.inf)
-    if run.obstacles:
-        from .core.environment import Environment
 
-        env = Environment(run.obstacles)
-        clear = env.clearance(pos.reshape(-1, 3)).reshape(pos.shape[:2]).min(axis=1)
-    return {"t": run.t, "min_separation": sep, "min_clearance": clear}
+def nearest_neighbour(run: RunData) -> np.ndarray:
+    """(T, N) m: each agent's distance to its nearest other agent at every recorded frame."""
+    from scipy.spatial import cKDTree
+
+    if run.n < 2:
+        return np.full(run.pos.shape[:2], np.inf)
+    # one k-d tree query per frame (a C call over all agents)
+    return np.stack([cKDTree(frame).query(frame, k=2)[0][:, 1] for frame in np.asarray(run.pos)])
+
+
+def agent_clearance(run: RunData) -> np.ndarray:
+    """(T, N) m: each agent's signed distance to the nearest obstacle (inf without obstacles)."""
+    pos = np.asarray(run.pos)
+    if not run.obstacles:
+        return np.full(pos.shape[:2], np.inf)
+    from .core.environment import Environment
+
+    return Environment(run.obstacles).clearance(pos.reshape(-1, 3)).reshape(pos.shape[:2])
+
+
+def agent_speed(run: RunData) -> np.ndarray:
+    """(T, N) m/s: each agent's speed; NaN once the agent has failed (it hovers, speed 0)."""
+    speed = np.linalg.norm(run.vel, axis=2)
+    return np.where(run.healthy, speed, np.nan)
+
+
+BANDS = {"median": 50.0, "p10": 10.0, "p90": 90.0, "min": 0.0, "max": 100.0}
+"""Percentiles over agents drawn by the distribution plots."""
+
+
+def bands(values: np.ndarray) -> dict[str, np.ndarray]:
+    """Percentiles over agents (axis 1) of (T, N) values, ignoring NaN and inf: {name: (T,)}."""
+    finite = np.where(np.isfinite(values), values, np.nan)
+    out = {k: np.full(len(values), np.nan) for k in BANDS}
+    rows = ~np.all(np.isnan(finite), axis=1)
+    if rows.any():
+        q = np.nanpercentile(finite[rows], list(BANDS.values()), axis=1)
+        for k, row in zip(BANDS, q):
+            out[k][rows] = row
+    return out
 
 
 # -- figures ------------------------------------------------------------------------------------
@@ -155,17 +273,19 @@ def _draw_obstacles(ax: Any, obstacles: list[Any]) -> None:
 
 
 def trajectory_figure(run: RunData) -> Any:
-    """Top-down paths, obstacles, start (circle) and end (square) points, failures (red x)."""
+    """Top-down paths in the agents' colours, obstacles, start (circle) and end (square) points,
+    failures (red x)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(7, 6), layout="constrained")
     ax = fig.add_subplot()
     _draw_obstacles(ax, run.obstacles)
     failed = {agent for agent, _, _ in run.failures()}
+    colors = _mpl_colors(run.n)
     xy = run.pos[..., :2]
     for i in range(run.n):
-        color = FAILED_COLOR if i in failed else HEALTHY_COLOR
-        ax.plot(xy[:, i, 0], xy[:, i, 1], color=color, linewidth=0.8, alpha=0.8, gid=f"agent{i}")
+        ax.plot(xy[:, i, 0], xy[:, i, 1], color=colors[i], linewidth=0.8, alpha=0.8, gid=f"agent{i}",
+                linestyle="--" if i in failed else "-")
     ax.scatter(xy[0, :, 0], xy[0, :, 1], s=12, facecolors="none", edgecolors="k", label="start")
     ax.scatter(xy[-1, :, 0], xy[-1, :, 1], s=12, marker="s", color="k", label="end")
     fails = run.failures()
@@ -179,55 +299,113 @@ def trajectory_figure(run: RunData) -> Any:
     ax.set_ylabel("y (m, north)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
-    ax.set_title(f"{run.config.get('name', 'run')}: trajectories of {run.n} agents")
+    ax.set_title(f"{run.name}: trajectories of {run.n} agents")
     ax.legend(loc="best", fontsize=8)
     return fig
 
 
+def _distribution(ax: Any, t: np.ndarray, values: np.ndarray, run: RunData, name: str) -> dict[str, np.ndarray]:
+    """Median, 10-90 % band and min-max envelope over agents of (T, N) ``values`` on ``ax``.
+
+    Swarms of at most ``INDIVIDUAL_LINES`` agents also get one thin line per agent in its colour
+    (gid ``<name>_agent<i>``). Returns the bands.
+    """
+    b = bands(values)
+    if run.n <= INDIVIDUAL_LINES:
+        colors = _mpl_colors(run.n)
+        for i in range(run.n):
+            ax.plot(t, values[:, i], color=colors[i], linewidth=0.7, alpha=0.85, zorder=3,
+                    gid=f"{name}_agent{i}", label=f"agent {i}")
+    ax.fill_between(t, b["min"], b["max"], color=BAND_COLOR, alpha=0.12, linewidth=0, label="min-max",
+                    gid=f"{name}_envelope")
+    ax.fill_between(t, b["p10"], b["p90"], color=BAND_COLOR, alpha=0.3, linewidth=0, label="10-90 %",
+                    gid=f"{name}_band")
+    ax.plot(t, b["median"], color=MEDIAN_COLOR, linewidth=1.8, zorder=4, label="median", gid=f"{name}_median")
+    return b
+
+
+def _limit(ax: Any, limit: float, name: str, label: str) -> None:
+    ax.axhline(limit, color=LIMIT_COLOR, linestyle="--", linewidth=1.2, label=label, gid=f"{name}_limit")
+
+
 def safety_figure(run: RunData) -> Any:
-    """Separation (top) and clearance (bottom) over time with their limits as dashed red lines."""
+    """Nearest-neighbour distance (top) and obstacle clearance (bottom) over agents and time: the
+    distribution, the minimum (the monitor's series when known) and the limits."""
     from matplotlib.figure import Figure
 
     series = safety_series(run)
-    fig = Figure(figsize=(8, 6), layout="constrained")
-    top, bottom = fig.subplots(2, 1, sharex=True)
-    panels = (
-        (top, series["min_separation"], run.min_separation_limit, "min separation (m)", "separation"),
-        (bottom, series["min_clearance"], run.min_clearance_limit, "min clearance (m)", "clearance"),
-    )
-    for ax, values, limit, label, name in panels:
-        finite = np.isfinite(values)
-        if finite.any():
-            ax.plot(series["t"], np.where(finite, values, np.nan), color=HEALTHY_COLOR, label=label.split(" (")[0])
-            if (finite & (values < limit)).any():
-                ax.fill_between(series["t"], 0, 1, where=finite & (values < limit), color=LIMIT_COLOR,
-                                alpha=0.15, transform=ax.get_xaxis_transform(), label="below limit")
+    per_agent = {"separation": nearest_neighbour(run), "clearance": agent_clearance(run)}
+    with_obstacles = bool(run.obstacles)
+    fig = Figure(figsize=(9, 6.5 if with_obstacles else 4), layout="constrained")
+    axes = fig.subplots(2 if with_obstacles else 1, 1, sharex=True, squeeze=False)[:, 0]
+    panels = [(axes[0], "separation", series["min_separation"], run.min_separation_limit,
+               "nearest neighbour (m)", "min separation")]
+    if with_obstacles:
+        panels.append((axes[1], "clearance", series["min_clearance"], run.min_clearance_limit,
+                       "obstacle clearance (m)", "min clearance"))
+    for ax, name, minimum, limit, label, min_label in panels:
+        values = per_agent[name]
+        if np.isfinite(values).any():
+            _distribution(ax, run.t, values, run, name)
+            finite = np.isfinite(minimum)
+            ax.plot(series["t"], np.where(finite, minimum, np.nan), color="k", linewidth=1.4, linestyle=":",
+                    zorder=5, label=min_label, gid=f"{name}_min")
+            below = finite & (minimum < limit)
+            if below.any():
+                ax.fill_between(series["t"], 0, 1, where=below, color=LIMIT_COLOR, alpha=0.15,
+                                transform=ax.get_xaxis_transform(), label="below limit")
         else:
             ax.text(0.5, 0.5, f"no {'obstacles' if name == 'clearance' else 'pairs'}", transform=ax.transAxes,
                     ha="center", va="center")
-        ax.axhline(limit, color=LIMIT_COLOR, linestyle="--", label=f"limit {limit:g} m", gid=f"{name}_limit")
+        _limit(ax, limit, name, f"limit {limit:g} m")
         ax.set_ylabel(label)
-        ax.legend(loc="best", fontsize=8)
-    bottom.set_xlabel("time (s)")
-    top.set_title(f"{run.config.get('name', 'run')}: safety over time")
+        ax.legend(**LEGEND)
+    axes[-1].set_xlabel("time (s)")
+    what = "agent and obstacle" if with_obstacles else "agent (no obstacles)"
+    axes[0].set_title(f"{run.name}: distance to the nearest {what}, over {run.n} agents")
     return fig
 
 
 def speed_figure(run: RunData) -> Any:
-    """Every agent's speed over time; failed agents dashed."""
+    """Speed of the healthy agents over time: median and bands, published speed limits."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(8, 4), layout="constrained")
+    fig = Figure(figsize=(9, 4), layout="constrained")
     ax = fig.add_subplot()
-    speed = np.linalg.norm(run.vel, axis=2)
-    failed = {agent for agent, _, _ in run.failures()}
-    for i in range(run.n):
-        ax.plot(run.t, speed[:, i], linewidth=0.8, color=FAILED_COLOR if i in failed else None,
-                linestyle="--" if i in failed else "-", alpha=0.8)
+    speed = agent_speed(run)
+    _distribution(ax, run.t, speed, run, "speed")
+    for key, limit in run.speed_limits().items():
+        _limit(ax, limit, "speed", f"{key} {limit:g} m/s")
+    peak = np.nanmax(speed) if np.isfinite(speed).any() else 0.0
     ax.set_xlabel("time (s)")
     ax.set_ylabel("speed (m/s)")
-    ax.set_title(f"{run.config.get('name', 'run')}: speed of each agent (max {speed.max():.2f} m/s)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(f"{run.name}: speed of the healthy agents (max {peak:.2f} m/s)")
+    ax.legend(**LEGEND)
     return fig
+
+
+def altitude_figure(run: RunData) -> Any:
+    """Altitude z of every agent over time: median and bands (failed agents included: they hover)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 4), layout="constrained")
+    ax = fig.add_subplot()
+    z = np.asarray(run.pos[..., 2], float)
+    _distribution(ax, run.t, z, run, "altitude")
+    ax.axhline(0.0, color="0.3", linewidth=0.8, gid="ground")
+    for agent, t, p in run.failures():
+        ax.plot([t], [p[2]], marker="x", color=FAILED_COLOR, markersize=8, mew=2, gid=f"failed{agent}")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("altitude z (m)")
+    ax.set_title(f"{run.name}: altitude (range {z.min():.2f} to {z.max():.2f} m)")
+    ax.legend(**LEGEND)
+    return fig
+
+
+FIGURES = {"trajectories": trajectory_figure, "safety": safety_figure, "speed": speed_figure,
+           "altitude": altitude_figure}
+"""The pictures of ``output.plots=true``, by file stem."""
 
 
 def _png(fig: Any) -> bytes:
@@ -248,8 +426,12 @@ def comm_edges(xy: np.ndarray, healthy: np.ndarray, comm_range: float) -> np.nda
     return idx[pairs]
 
 
-def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool = False) -> Path:
-    """animation.mp4 when an ffmpeg writer exists, else animation.gif; returns the path."""
+def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool = False,
+                    progress: Any = None) -> Path:
+    """animation.mp4 when an ffmpeg writer exists, else animation.gif; returns the path.
+
+    ``progress``: a :class:`swarmscene.summary.Progress` told of every frame written (None: quiet).
+    """
     from matplotlib import animation
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
@@ -269,9 +451,11 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
     ax.set_ylabel("y (m, north)")
     edge_lines = LineCollection([], colors="tab:green", linewidths=0.5, alpha=0.6)
     ax.add_collection(edge_lines)
-    trails = LineCollection([], colors="0.5", linewidths=0.6)
+    colors = _mpl_colors(run.n)
+    trails = LineCollection([], colors=colors, linewidths=0.6, alpha=0.7)
     ax.add_collection(trails)
-    dots = ax.scatter(xy[0, :, 0], xy[0, :, 1], s=20)
+    dots = ax.scatter(xy[0, :, 0], xy[0, :, 1], s=20, color=colors, zorder=3)
+    crosses = ax.scatter([], [], s=70, marker="x", color=FAILED_COLOR, linewidths=2, zorder=4)
     title = ax.set_title("")
     trail_len = max(1, len(run.t) // 20)
 
@@ -279,12 +463,12 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
         start = max(0, k - trail_len)
         trails.set_segments([xy[start : k + 1, i] for i in range(run.n)])
         dots.set_offsets(xy[k])
-        dots.set_color(np.where(run.healthy[k], HEALTHY_COLOR, FAILED_COLOR))
+        crosses.set_offsets(xy[k][~run.healthy[k]].reshape(-1, 2))
         if edges:
             pairs = comm_edges(xy[k], run.healthy[k], run.comm_range)
             edge_lines.set_segments(xy[k][pairs])
-        title.set_text(f"{run.config.get('name', 'run')}  t = {run.t[k]:.1f} s")
-        return dots, trails, edge_lines, title
+        title.set_text(f"{run.name}  t = {run.t[k]:.1f} s")
+        return dots, crosses, trails, edge_lines, title
 
     draw(keys[-1])
     fig.get_layout_engine().execute(fig)  # lay out once (widest title), then keep it for every frame
@@ -296,17 +480,28 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
     target = Path(run_dir) / f"animation.{suffix}"
     fd, tmp = tempfile.mkstemp(dir=run_dir, prefix=".animation.", suffix=f".{suffix}")
     os.close(fd)
+    report = None
+    if progress is not None:
+        def report(frame: int, total: int) -> None:
+            progress.update(frame + 1, len(keys), f"{target.name}: frame")
     try:
-        anim.save(tmp, writer=writer, dpi=80)
+        anim.save(tmp, writer=writer, dpi=80, progress_callback=report)
         os.replace(tmp, target)  # atomic, like every other output
     finally:
         Path(tmp).unlink(missing_ok=True)
+        if progress is not None:
+            progress.close()
     return target
 
 
 def write_run_plots(run_dir: Path, sim: Any = None, result: Any = None, plots: bool | None = None,
                     animation: bool | None = None) -> list[Path]:
-    """Write the pictures the run's ``output`` options ask for; returns the files written."""
+    """Write the pictures the run's ``output`` options ask for; returns the files written.
+
+    The animation reports its progress on a terminal as ``output.progress`` allows.
+    """
+    from .summary import Progress
+
     run_dir = Path(run_dir)
     run = from_simulation(sim, result) if sim is not None else load_run(run_dir)
     output = run.config.get("output", {})
@@ -314,11 +509,12 @@ def write_run_plots(run_dir: Path, sim: Any = None, result: Any = None, plots: b
     animation = output.get("animation", False) if animation is None else animation
     written = []
     if plots:
-        for name, make in (("trajectories", trajectory_figure), ("safety", safety_figure), ("speed", speed_figure)):
+        for name, make in FIGURES.items():
             path = run_dir / f"{name}.png"
             atomic_write_bytes(path, _png(make(run)))
             written.append(path)
     if animation:
+        progress = Progress.maybe(str(output.get("progress", "auto")), delay=0.0)
         written.append(write_animation(run, run_dir, int(output.get("animation_frames", 150)),
-                                       bool(output.get("comm_edges", False))))
+                                       bool(output.get("comm_edges", False)), progress=progress))
     return written

@@ -1,42 +1,88 @@
 """Replay in a 3-D viewer: export a run to a Rerun recording (``replay.rrd``; the ``rerun`` extra).
 
-On ``output.rerun=true`` (or ``swarmscene-report RUN_DIR --rerun``) the run directory gets
-``replay.rrd``; open it with ``rerun replay.rrd`` (the viewer ships with rerun-sdk). Entities,
-world frame (x east, y north, z up, metres), timeline ``sim_time`` (seconds):
+On ``output.rerun=true`` (or ``swarmscene-report RUN_DIR --rerun``, or
+``python -m swarmscene.replay RUN_DIR``) the run directory gets ``replay.rrd``; open it with
+``rerun replay.rrd`` (the viewer ships with rerun-sdk), or stream it to a viewer that is already
+running with ``python -m swarmscene.replay RUN_DIR --connect rerun+http://HOST:9876/proxy``.
 
-    world/obstacles        obstacle footprints, outlined at the ground and at the flight ceiling
-    world/agents           one point per agent, blue healthy, red failed (radius: half the
-                           separation limit, so touching spheres mean a separation violation)
-    world/trails           each agent's last few seconds of path
-    world/exclusion        an exclusion zone around every failed vehicle: a circle of the CEM
-                           planned exclusion radius a_p = a_f + delta + eps when the avoidance is
-                           ``cem``, else of ``safety.min_separation``
+Every run is its own recording: the recording id is ``<name>-seed<seed>-<hash>`` with the first 12
+hex digits of the manifest's ``config_hash`` (:func:`recording_id`), so two seeds of one scenario
+open as two recordings side by side, and the same run exported twice replaces itself. The
+recording's name is ``<name> seed <seed>``.
+
+Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (seconds):
+
+    world/obstacles        obstacle prisms from the ground to above the highest flight level:
+                           translucent walls and roof (``world/obstacles/solid``) and outlines
+    world/agents           one point per agent in its colour (``plots.agent_colors``, the colours of
+                           the pictures and the animation), labelled with its index ("3 failed"
+                           once failed); radius half the separation limit, so touching spheres
+                           mean a separation violation
+    world/bodies           with attitude dynamics (``quat`` in the trajectory): a flat box per
+                           vehicle oriented by its attitude, in the agent's colour, red once failed
+    world/body_axes        ... and its body axes x (red), y (green), z (blue, the thrust axis)
+    world/failures         a red marker where each vehicle failed, from the time it failed
+    world/trails           each agent's last few seconds of path, in its colour
+    world/exclusion        a circle around every failed vehicle: of the avoidance's published
+                           planned exclusion radius (the ``cem.a_p`` metric, a_p = a_f + delta +
+                           eps) with ``avoidance=cem``, none when a cem run lacks that metric; of
+                           ``safety.min_separation`` with any other avoidance
     world/comm_edges       communication edges: healthy pairs within ``comm.range``
+    safety/min_separation  minimum pairwise distance over time (the safety monitor's series, every
+                           guidance tick, inside a run; recomputed at the recorded frames from a
+                           directory), and ``safety/separation_limit`` (``safety.min_separation``)
+    safety/min_clearance   minimum obstacle clearance and ``safety/clearance_limit`` (with
+                           obstacles only)
+    safety/events          a marker on the separation series at every event
+    events                 a text log line per event: failures and radio losses (``events``), the
+                           first violation of each safety condition (``violations.*`` metrics) and
+                           the end of the run (``stop_reason``)
 
 Time-varying entities are sent as columns (one ``send_columns`` call per entity), not frame by
-frame, so exporting long runs stays fast.
+frame, so exporting long runs stays fast. Read a recording back in Python with
+:func:`read_recordings` (the extra installs what that needs: rerun-sdk's ``catalog`` extra).
 """
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .plots import RunData, comm_edges, from_simulation, load_run
+from .plots import RunData, agent_colors, comm_edges, from_simulation, load_run, safety_series
 
 TIMELINE = "sim_time"
-HEALTHY_RGB = (31, 119, 180)
+APPLICATION_ID = "swarmscene"
 FAILED_RGB = (214, 39, 40)
+LIMIT_RGB = (214, 39, 40)
+EDGE_RGB = (44, 160, 44)
+OBSTACLE_RGB = (150, 150, 150)
+AXIS_RGB = np.array([(230, 60, 60), (60, 200, 60), (60, 110, 240)], dtype=np.uint8)
 CIRCLE_POINTS = 48
+HASH_DIGITS = 12
+"""Hex digits of the config hash in the recording id."""
+PLANNED_EXCLUSION = {"cem": "cem.a_p"}
+"""Avoidances that plan an exclusion radius around failed vehicles, and the metric holding it."""
 
 
-def exclusion_radius(config: dict[str, Any]) -> float:
-    """Radius of the zone drawn around a failed vehicle (see the module docstring), m."""
-    avoidance = config.get("avoidance") or {}
-    if avoidance.get("name") == "cem" and {"a_f", "delta", "eps"} <= set(avoidance):
-        return float(avoidance["a_f"]) + float(avoidance["delta"]) + float(avoidance["eps"])
+def recording_id(run: RunData) -> str:
+    """``<name>-seed<seed>-<first 12 hex digits of the config hash>``: unique per run config."""
+    digest = (run.config_hash or "")[:HASH_DIGITS] or "nohash"
+    return f"{run.name}-seed{run.seed}-{digest}"
+
+
+def exclusion_radius(config: dict[str, Any], metrics: dict[str, Any]) -> float | None:
+    """Radius of the zone drawn around a failed vehicle (module docstring), m; None: draw none.
+
+    A value an avoidance derives (CEM's a_p) is read from the run's metrics, never re-derived from
+    its YAML: the app layer does not know a plugin's defaults.
+    """
+    avoidance = (config.get("avoidance") or {}).get("name")
+    if avoidance in PLANNED_EXCLUSION:
+        value = metrics.get(PLANNED_EXCLUSION[avoidance])
+        return float(value) if isinstance(value, (int, float)) and np.isfinite(value) else None
     return float((config.get("safety") or {}).get("min_separation", 0.5))
 
 
@@ -65,60 +111,212 @@ def obstacle_strips(run: RunData) -> list[np.ndarray]:
     return strips
 
 
+def obstacle_mesh(run: RunData) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3), triangles (F, 3)) of the obstacle prisms: walls and roof."""
+    import shapely
+
+    top = _ceiling(run)
+    verts: list[np.ndarray] = []
+    tris: list[np.ndarray] = []
+    base = 0
+    for geom in run.obstacles:
+        for poly in getattr(geom, "geoms", [geom]):
+            ring = np.asarray(poly.exterior.coords)[:-1, :2]
+            m = len(ring)
+            walls = np.concatenate([np.column_stack([ring, np.zeros(m)]), np.column_stack([ring, np.full(m, top)])])
+            i = np.arange(m)
+            j = (i + 1) % m
+            tris.append(base + np.concatenate([np.stack([i, j, m + j], 1), np.stack([i, m + j, m + i], 1)]))
+            verts.append(walls)
+            base += 2 * m
+            roof = shapely.constrained_delaunay_triangles(poly)
+            corners = np.array([np.asarray(t.exterior.coords)[:3, :2] for t in roof.geoms]).reshape(-1, 2)
+            verts.append(np.column_stack([corners, np.full(len(corners), top)]))
+            tris.append(base + np.arange(len(corners)).reshape(-1, 3))
+            base += len(corners)
+    if not verts:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    return np.concatenate(verts), np.concatenate(tris)
+
+
 def _frames(run: RunData, every: int) -> np.ndarray:
     return np.arange(0, len(run.t), max(1, every))
 
 
-def export(run: RunData, path: Path, every: int = 1, trail_seconds: float = 3.0) -> Path:
-    """Write ``path`` (.rrd) from a run's data; returns the path."""
+def quat_wxyz_to_xyzw(quat: np.ndarray) -> np.ndarray:
+    """The trajectory's (w, x, y, z) quaternions in Rerun's (x, y, z, w) order."""
+    return np.concatenate([quat[..., 1:], quat[..., :1]], axis=-1)
+
+
+def rotation_matrices(quat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) body-to-world rotations of unit quaternions (..., 4) in (w, x, y, z)."""
+    q = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def events(run: RunData) -> list[tuple[float, str, str]]:
+    """(time s, level, text) of every event of the run, in time order (module docstring)."""
+    out: list[tuple[float, str, str]] = []
+    for event in run.config.get("events") or []:
+        agents = ", ".join(str(a) for a in event.get("agents", []))
+        what = {"hover": "failed (hovers in place)", "comm_loss": "lost its radio"}.get(event.get("kind"), event.get("kind"))
+        if float(event["at"]) <= float(run.t[-1]) + 1e-9:
+            out.append((float(event["at"]), "WARN", f"agent {agents}: {what}"))
+    for condition in ("separation", "clearance", "connectivity"):
+        first = run.metrics.get(f"violations.{condition}.first_time")
+        if isinstance(first, (int, float)):
+            agents = run.metrics.get(f"violations.{condition}.agents") or []
+            out.append((float(first), "ERROR", f"{condition} first violated (agents {agents})"))
+    reason = run.metrics.get("stop_reason")
+    if reason is not None:
+        out.append((float(run.t[-1]), "INFO", f"run ended: {reason}"))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _log_static(rec: Any, run: RunData) -> None:
     import rerun as rr
 
-    path = Path(path)
-    rec = rr.RecordingStream("swarmscene", recording_id=f"{run.config.get('name', 'run')}")
-    rec.save(str(path))
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     strips = obstacle_strips(run)
     if strips:
-        rec.log("world/obstacles", rr.LineStrips3D(strips, colors=[(150, 150, 150)]), static=True)
+        rec.log("world/obstacles", rr.LineStrips3D(strips, colors=[OBSTACLE_RGB]), static=True)
+        verts, tris = obstacle_mesh(run)
+        rec.log("world/obstacles/solid", rr.Mesh3D(vertex_positions=verts, triangle_indices=tris,
+                                                   albedo_factor=(150, 150, 150, 90)), static=True)
+    rec.log("safety/min_separation", rr.SeriesLines(colors=[(31, 119, 180)], names=["min separation"]), static=True)
+    rec.log("safety/separation_limit", rr.SeriesLines(colors=[LIMIT_RGB], names=["separation limit"]), static=True)
+    rec.log("safety/min_clearance", rr.SeriesLines(colors=[(255, 127, 14)], names=["min clearance"]), static=True)
+    rec.log("safety/clearance_limit", rr.SeriesLines(colors=[(140, 86, 75)], names=["clearance limit"]), static=True)
+    rec.log("safety/events", rr.SeriesPoints(colors=[FAILED_RGB], names=["event"], marker_sizes=[6.0]), static=True)
 
-    frames = _frames(run, every)
-    times = run.t[frames]
-    index = [rr.TimeColumn(TIMELINE, duration=times)]
-    n = run.n
-    radius = 0.5 * float((run.config.get("safety") or {}).get("min_separation", 0.5))
-    colors = np.where(run.healthy[frames][..., None], HEALTHY_RGB, FAILED_RGB).astype(np.uint8)
+
+def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
+    """Points (and with attitude, boxes and body axes) of every agent at every frame, as columns."""
+    import rerun as rr
+
+    n, f = run.n, len(frames)
+    index = [rr.TimeColumn(TIMELINE, duration=run.t[frames])]
+    radius = 0.5 * run.min_separation_limit if run.min_separation_limit > 0 else 0.1
+    healthy = run.healthy[frames]
+    palette = agent_colors(n)
+    colors = np.broadcast_to(palette, (f, n, 3)).reshape(-1, 3)
+    names = np.array([str(i) for i in range(n)], dtype=object)
+    labels = np.where(healthy, names, np.char.add(names.astype(str), " failed").astype(object)).reshape(-1)
     rec.send_columns(
-        "world/agents",
-        indexes=index,
-        columns=rr.Points3D.columns(
-            positions=run.pos[frames].reshape(-1, 3),
-            colors=colors.reshape(-1, 3),
-            radii=np.full(n * len(frames), radius),
-        ).partition([n] * len(frames)),  # N points per frame
+        "world/agents", indexes=index,
+        columns=rr.Points3D.columns(positions=run.pos[frames].reshape(-1, 3), colors=colors,
+                                    radii=np.full(n * f, radius), labels=labels.tolist(),
+                                    show_labels=np.full(n * f, n <= 30)).partition([n] * f),
     )
-    # Trails and the other time-varying shapes are logged per recorded frame on the timeline.
+    if run.quat is None:
+        return
+    arm = 0.6 * radius  # a vehicle's half-width: inside its separation sphere
+    body_colors = np.where(healthy[..., None], palette[None], np.array(FAILED_RGB, np.uint8)).reshape(-1, 3)
+    quat = np.asarray(run.quat[frames], float)
+    rec.send_columns(
+        "world/bodies", indexes=index,
+        columns=rr.Boxes3D.columns(centers=run.pos[frames].reshape(-1, 3),
+                                   half_sizes=np.tile([arm, arm, 0.25 * arm], (n * f, 1)),
+                                   quaternions=quat_wxyz_to_xyzw(quat).reshape(-1, 4),
+                                   colors=body_colors).partition([n] * f),
+    )
+    rot = rotation_matrices(quat)  # (F, N, 3, 3); column k is body axis k in the world
+    vectors = 1.8 * arm * np.swapaxes(rot, -1, -2)  # (F, N, 3 axes, 3)
+    origins = np.repeat(np.asarray(run.pos[frames])[:, :, None, :], 3, axis=2)
+    rec.send_columns(
+        "world/body_axes", indexes=index,
+        columns=rr.Arrows3D.columns(vectors=vectors.reshape(-1, 3), origins=origins.reshape(-1, 3),
+                                    colors=np.tile(AXIS_RGB, (n * f, 1))).partition([3 * n] * f),
+    )
+
+
+def _log_safety(rec: Any, run: RunData) -> None:
+    """Safety series, their limits (two points each, at the first and last time) and event markers."""
+    import rerun as rr
+
+    series = safety_series(run)
+    t = np.asarray(series["t"], float)
+    ends = [rr.TimeColumn(TIMELINE, duration=np.array([t[0], t[-1]]))]
+    for name, limit_name, limit in (("min_separation", "separation_limit", run.min_separation_limit),
+                                    ("min_clearance", "clearance_limit", run.min_clearance_limit)):
+        values = np.asarray(series[name], float)
+        keep = np.isfinite(values)
+        if not keep.any():
+            continue  # no obstacles (or a single agent): no series
+        rec.send_columns(f"safety/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
+                         columns=rr.Scalars.columns(scalars=values[keep]))
+        rec.send_columns(f"safety/{limit_name}", indexes=ends, columns=rr.Scalars.columns(scalars=[limit, limit]))
+    marks = events(run)
+    sep = np.asarray(series["min_separation"], float)
+    if marks and np.isfinite(sep).any():
+        at = np.array([m[0] for m in marks])
+        k = np.clip(np.searchsorted(t, at - 1e-9), 0, len(t) - 1)
+        value = np.where(np.isfinite(sep[k]), sep[k], np.nanmin(np.where(np.isfinite(sep), sep, np.nan)))
+        rec.send_columns("safety/events", indexes=[rr.TimeColumn(TIMELINE, duration=at)],
+                         columns=rr.Scalars.columns(scalars=value))
+    for when, level, text in marks:
+        rec.set_time(TIMELINE, duration=when)
+        rec.log("events", rr.TextLog(text, level=level))
+
+
+def _log_frames(rec: Any, run: RunData, frames: np.ndarray, trail_seconds: float) -> None:
+    """Trails, failure markers, exclusion circles and comm edges, logged per recorded frame."""
+    import rerun as rr
+
     dt = float(np.median(np.diff(run.t))) if len(run.t) > 1 else 1.0
     trail = max(1, int(round(trail_seconds / dt)))
-    zone = exclusion_radius(run.config)
-    comm_range = run.comm_range
-    for k in frames:
+    zone = exclusion_radius(run.config, run.metrics)
+    palette = agent_colors(run.n)
+    for agent, when, where in run.failures():
+        rec.set_time(TIMELINE, duration=when)
+        rec.log(f"world/failures/{agent}", rr.Points3D([where], colors=[FAILED_RGB], radii=[0.06],
+                                                       labels=[f"{agent} failed @ {when:.1f} s"]))
+    for k in frames:  # per frame, vectorised over agents
         rec.set_time(TIMELINE, duration=float(run.t[k]))
         start = max(0, k - trail)
-        rec.log("world/trails", rr.LineStrips3D(np.transpose(run.pos[start : k + 1], (1, 0, 2)), radii=0.02))
+        rec.log("world/trails", rr.LineStrips3D(np.transpose(run.pos[start : k + 1], (1, 0, 2)), radii=0.02,
+                                                colors=palette))
         failed = np.flatnonzero(~run.healthy[k])
-        rec.log("world/exclusion", rr.LineStrips3D([_circle(run.pos[k, i], zone) for i in failed],
-                                                   colors=[FAILED_RGB]))
-        pairs = comm_edges(run.pos[k, :, :2], run.healthy[k], comm_range)
-        rec.log("world/comm_edges", rr.LineStrips3D(run.pos[k][pairs], colors=[(44, 160, 44)], radii=0.01))
+        if zone is not None:
+            rec.log("world/exclusion", rr.LineStrips3D([_circle(run.pos[k, i], zone) for i in failed],
+                                                       colors=[FAILED_RGB]))
+        pairs = comm_edges(run.pos[k, :, :2], run.healthy[k], run.comm_range)
+        rec.log("world/comm_edges", rr.LineStrips3D(run.pos[k][pairs], colors=[EDGE_RGB], radii=0.01))
+
+
+def export(run: RunData, path: Path | None, every: int = 1, trail_seconds: float = 3.0,
+           connect: str | None = None) -> Path | None:
+    """Write ``path`` (.rrd) from a run's data and/or stream it to the viewer at ``connect``
+    (a ``rerun+http://...`` address); returns ``path``."""
+    import rerun as rr
+
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(run))
+    sinks = ([rr.FileSink(str(path))] if path is not None else []) + ([rr.GrpcSink(connect)] if connect else [])
+    if not sinks:
+        raise ValueError("export needs a path or a viewer address to connect to")
+    rec.set_sinks(*sinks)
+    rec.send_recording_name(f"{run.name} seed {run.seed}")
+    _log_static(rec, run)
+    frames = _frames(run, every)
+    _log_agents(rec, run, frames)
+    _log_safety(rec, run)
+    _log_frames(rec, run, frames, trail_seconds)
     rec.flush()
     rec.disconnect()
-    return path
+    return None if path is None else Path(path)
 
 
-def export_rerun(run_dir: Path, sim: Any = None, result: Any = None, every: int | None = None) -> Path:
+def export_rerun(run_dir: Path, sim: Any = None, result: Any = None, every: int | None = None,
+                 connect: str | None = None) -> Path:
     """``replay.rrd`` in ``run_dir``, from a finished simulation or from the directory's files.
 
-    ``every`` thins the frames for the per-frame shapes (default: at most ~600 frames).
+    ``every`` thins the frames for the per-frame shapes (default: at most ~600 frames);
+    ``connect`` also streams the recording to a running viewer at that address.
     """
     run_dir = Path(run_dir)
     run = from_simulation(sim, result) if sim is not None else load_run(run_dir)
@@ -126,6 +324,42 @@ def export_rerun(run_dir: Path, sim: Any = None, result: Any = None, every: int 
         every = max(1, len(run.t) // 600)
     target = run_dir / "replay.rrd"
     tmp = run_dir / ".replay.rrd.tmp"
-    export(run, tmp, every=every)
+    export(run, tmp, every=every, connect=connect)
     tmp.replace(target)  # atomic, like every other output
     return target
+
+
+def read_recordings(paths: list[Path], index: str | None = TIMELINE,
+                    contents: str | list[str] = "/**") -> dict[str, Any]:
+    """Read ``.rrd`` files back: {recording id: pandas DataFrame} (one row per time of ``index``,
+    one column per entity and component, e.g. ``/world/agents:Points3D:positions``).
+
+    Uses Rerun's local catalog server and DataFusion (both installed by the ``rerun`` extra).
+    """
+    import rerun as rr
+
+    with rr.server.Server(datasets={"replay": [str(p) for p in paths]}) as server:
+        dataset = server.client().get_dataset("replay")
+        ids = sorted(dataset.segment_ids())
+        frame = dataset.filter_contents(contents).reader(index=index).to_pandas() if ids else None
+    out = {}
+    for rid in ids:
+        rows = frame[frame["rerun_segment_id"] == rid]
+        out[rid] = rows.sort_values(index).reset_index(drop=True) if index else rows.reset_index(drop=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m swarmscene.replay RUN_DIR [RUN_DIR ...] [--connect URL] [--every K]``."""
+    parser = argparse.ArgumentParser(prog="python -m swarmscene.replay", description=__doc__.splitlines()[0])
+    parser.add_argument("run_dirs", nargs="+", type=Path, help="run directories (config.yaml + trajectory.npz)")
+    parser.add_argument("--connect", metavar="URL", default=None,
+                        help="also stream to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy")
+    parser.add_argument("--every", type=int, default=None, help="keep every K-th frame (default: <= ~600 frames)")
+    args = parser.parse_args(argv)
+    for run_dir in args.run_dirs:
+        print(export_rerun(run_dir, every=args.every, connect=args.connect))
+
+
+if __name__ == "__main__":
+    main()
