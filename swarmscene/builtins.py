@@ -16,6 +16,7 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.formation.hex_lattice",
     "swarmscene.plugins.formation.outdoor_mission",
     "swarmscene.plugins.formation.reynolds_flocking",
+    "swarmscene.plugins.formation.antipodal_swap",
     # avoidance: how they stay safe
     "swarmscene.plugins.avoidance.none",
     "swarmscene.plugins.avoidance.potential",
@@ -23,4 +24,6 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.avoidance.potential_barrier",
     "swarmscene.plugins.avoidance.apf_navigation",
     "swarmscene.plugins.avoidance.policy",
+    "swarmscene.plugins.avoidance.orca",
+    "swarmscene.plugins.avoidance.cbf",
 )

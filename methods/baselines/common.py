@@ -1,0 +1,65 @@
+"""What both baselines need from a tick: preferred velocities from setpoints, nearest obstacles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.vectors import clip_norm
+
+
+def preferred_velocity(sp: Setpoints, pos: np.ndarray, gain: float, v_max: float) -> np.ndarray:
+    """v_pref (N, 3) m/s of every setpoint, at most ``v_max`` long.
+
+    VELOCITY: ``sp.vel``. POSITION, TRACK: ``sp.vel + gain (sp.pos - p)`` (feed-forward plus a
+    proportional pull onto the reference, the single integrator's own law). HOLD: ``gain (sp.pos -
+    p)`` (HOLD carries no feed-forward).
+    """
+    pull = gain * (sp.pos - pos)
+    v = np.where((sp.mode == Mode.VELOCITY)[:, None], sp.vel, sp.vel + pull)
+    v = np.where((sp.mode == Mode.HOLD)[:, None], pull, v)
+    return clip_norm(v, v_max)
+
+
+def perturb(v: np.ndarray, magnitude: float, rng: np.random.Generator) -> np.ndarray:
+    """``v`` (N, 2) plus a random vector of uniform direction and uniform length in [0, magnitude]
+    per row (RVO2's examples: "perturb a little to avoid deadlocks due to perfect symmetry")."""
+    if magnitude == 0.0:
+        return v
+    angle = rng.uniform(0.0, 2.0 * np.pi, len(v))
+    length = rng.uniform(0.0, magnitude, len(v))
+    return v + length[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+
+
+def velocity_setpoints(sp: Setpoints, active: np.ndarray, vel: np.ndarray) -> Setpoints:
+    """A copy of ``sp`` with the ``active`` agents switched to VELOCITY at ``vel`` (N, 3) m/s and
+    zero acceleration (and jerk, snap) feed-forward; the other agents' rows are left as they were."""
+    out = sp.copy()
+    out.mode[active] = Mode.VELOCITY
+    out.vel[active] = vel[active]
+    out.acc[active] = 0.0
+    for extra in (out.jerk, out.snap):
+        if extra is not None:
+            extra[active] = 0.0
+    return out
+
+
+def nearest_obstacles(sensing, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each agent's nearest obstacle point within ``reach`` m, from the tick's shared queries.
+
+    Returns (normal (N, 2) unit, from the obstacle point towards the agent; clearance (N,) m,
+    signed, ``inf`` beyond reach; near (N,) bool). Inside an obstacle the normal still points out.
+    """
+    n = sensing.world.n
+    normal = np.zeros((n, 2))
+    if sensing.environment.empty:
+        return normal, np.full(n, np.inf), np.zeros(n, dtype=bool)
+    _, clearance = sensing.obstacle_nearest(reach)
+    near = np.isfinite(clearance)
+    rows = np.flatnonzero(near)
+    if rows.size:
+        pos = sensing.world.pos[rows, :2]
+        away = pos - sensing.environment.nearest_point(pos)
+        away[clearance[rows] < 0] *= -1.0  # inside: the nearest boundary point lies outwards
+        normal[rows] = away / np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-12)
+    return normal, clearance, near

@@ -1,0 +1,138 @@
+"""CBF: safety barrier certificates (Wang, Ames, Egerstedt 2017; Borrmann et al. 2015), decentralised.
+
+Every guidance tick each healthy agent i replaces its setpoint by a velocity command u_i*:
+
+1. The nominal input u_i^nom is the preferred velocity of its setpoint
+   (``methods.baselines.common.preferred_velocity``): VELOCITY: ``sp.vel``; POSITION/TRACK:
+   ``sp.vel + gain (sp.pos - p)``; HOLD: ``gain (sp.pos - p)``; clipped to ``v_max`` (the Robotarium
+   also thresholds the nominal input before its QP).
+2. Barrier h_ij = |p_i - p_j|^2 - D_s^2 with D_s = ``safety.min_separation + margin``; certificate
+   dh_ij/dt >= -gamma h_ij^p, i.e. -2 (p_i - p_j)^T (u_i - u_j) <= gamma h_ij^p, split half and half
+   between the two agents (each keeps -2 (p_i - p_j)^T u_i <= gamma h_ij^p / 2), all of it against
+   a failed vehicle (it hovers: u_j = 0). Obstacles: the nearest obstacle point o_i within reach,
+   h_io = |p_i - o_i|^2 - D_o^2, D_o = ``safety.min_clearance + margin``, responsibility 1.
+3. u_i* = argmin |u_i - u_i^nom|^2 subject to those constraints and |u_i| <= ``v_max``: the
+   decentralised QP of each agent is a projection onto half-planes in a disc, solved exactly and
+   for all agents at once (``methods.baselines.cbf``; no iterative solver). Where it is infeasible
+   (agents already inside D_s and squeezed), the input minimising the largest violation is used,
+   the obstacle constraint kept hard.
+
+Output: healthy agents get ``Mode.VELOCITY`` with ``vel = (u*_x, u*_y, u^nom_z)`` and zero
+acceleration feed-forward; failed agents' setpoints pass through untouched; the input setpoints
+are never modified (a copy is returned).
+
+Dynamics: the certificate is the single-integrator one (section III of the paper): with
+single_integrator the filtered velocity is the velocity, and gamma T_s <= 1 keeps h >= 0 between
+ticks exactly (see ``methods.baselines.cbf``). double_integrator and quadrotor receive the same
+filtered velocity as a VELOCITY setpoint and track it with their velocity loops (a velocity-level
+filter, not the paper's acceleration-level certificate for double integrators); ``margin`` and a
+moderate ``gamma`` absorb their lag.
+
+Choices where the papers leave room:
+- planar: constraints and the QP in x-y, distances in x-y (conservative: altitude differences are
+  ignored), z command = u^nom_z;
+- neighbours: every agent within the range where a half-constraint can be active inside the speed
+  disc (``influence_range``), or the nearest ``max_neighbours`` of them when set;
+- kappa(h) = h^p with p = ``power`` (1: the linear certificate of the issue; 3: the Robotarium's).
+
+Metrics: ``cbf.fallback_ticks`` (agent-ticks where the QP was infeasible),
+``cbf.max_neighbours_used``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.setpoint import Setpoints
+from swarmscene.methods.baselines.cbf import influence_range, safe_velocities
+from swarmscene.methods.baselines.common import (
+    nearest_obstacles,
+    perturb,
+    preferred_velocity,
+    velocity_setpoints,
+)
+from swarmscene.methods.baselines.neighbours import neighbour_table
+
+
+class BarrierCertificates(Avoidance):
+    """Decentralised single-integrator safety barrier certificates, one exact QP per agent."""
+
+    name = "cbf"
+
+    class Params(PluginParams):
+        gamma: float = Field(
+            1.0, gt=0, description="barrier gain gamma of dh/dt >= -gamma h^p, 1/s (for p = 1); "
+            "gamma * clock.guidance_period <= 1 keeps a single integrator safe between ticks")
+        power: int = Field(
+            1, ge=1, description="p of the class-K function h^p (1: linear; 3: the Robotarium's)")
+        v_max: float = Field(
+            1.0, gt=0, description="speed limit |u_i| <= v_max, m/s; keep it at or below the "
+            "dynamics' speed limit")
+        margin: float = Field(
+            0.05, ge=0, description="added to safety.min_separation for D_s and to "
+            "safety.min_clearance for D_o, m (absorbs tracking lag)")
+        max_neighbours: int | None = Field(
+            None, ge=1, description="constraints per agent, nearest first; null: every neighbour "
+            "whose constraint can be active")
+        perturbation: float = Field(
+            0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks "
+            "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "
+            "generator")
+        detour: float = Field(
+            30.0, ge=0, lt=90, description="right-hand rule: u^nom of an agent that violates one of "
+            "its constraints is turned this many degrees clockwise (about +z), so symmetric "
+            "encounters circulate instead of deadlocking; 0: the plain certificate")
+        deadlock_turn: float = Field(
+            90.0, ge=0, lt=180, description="an agent the filter stops (|u*| < deadlock_ratio "
+            "|u^nom|) is filtered again with u^nom turned this many degrees to either side and keeps "
+            "the faster result: it slides along the obstruction instead of waiting; 0: never")
+        deadlock_ratio: float = Field(
+            0.1, gt=0, lt=1, description="|u*| / |u^nom| under which an agent counts as stopped")
+        gain: float = Field(
+            1.0, gt=0, description="pull onto POSITION/TRACK/HOLD references in u^nom, 1/s")
+
+    def __init__(self, params: "BarrierCertificates.Params", ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        self.safe_distance = ctx.min_separation + params.margin
+        self.range = influence_range(self.safe_distance, params.gamma, params.power, params.v_max)
+        self.obstacle_distance = ctx.min_clearance + params.margin
+        # a static constraint (responsibility 1) is inactive in the disc beyond this
+        self.obstacle_reach = influence_range(self.obstacle_distance, 2.0 * params.gamma, params.power, params.v_max)
+        self.fallback_ticks = 0
+        self.max_used = 0
+
+    def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        p = self.params
+        u_nom = preferred_velocity(sp, world.pos, p.gain, p.v_max)
+        index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
+        u, feasible = safe_velocities(
+            world.pos[:, :2], perturb(u_nom[:, :2], p.perturbation, self.ctx.rng), index, valid,
+            ~world.healthy, self.safe_distance, p.gamma, p.power, p.v_max, self._obstacles(sensing),
+            np.radians(p.detour), np.radians(p.deadlock_turn), p.deadlock_ratio,
+        )
+        healthy = world.healthy
+        self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
+        self.max_used = max(self.max_used, int(valid.sum(axis=1).max(initial=0)))
+        return velocity_setpoints(sp, healthy, np.column_stack([u, u_nom[:, 2]]))
+
+    def _obstacles(self, sensing):
+        if sensing.environment.empty:
+            return None
+        normal, clearance, near = nearest_obstacles(sensing, self.obstacle_reach)
+        return normal, np.where(near, clearance, 1.0), near, self.obstacle_distance
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """Add ``cbf.fallback_ticks`` and ``cbf.max_neighbours_used``."""
+        metrics["cbf.fallback_ticks"] = self.fallback_ticks
+        metrics["cbf.max_neighbours_used"] = self.max_used
+
+
+@hookimpl
+def swarmscene_register_avoidances(register) -> None:
+    register(BarrierCertificates)

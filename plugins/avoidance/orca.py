@@ -1,0 +1,138 @@
+"""ORCA: Optimal Reciprocal Collision Avoidance (van den Berg, Guy, Lin, Manocha 2011), planar.
+
+Every guidance tick each healthy agent A replaces its setpoint by a velocity command:
+
+1. v_A^pref from the formation's setpoint (``methods.baselines.common.preferred_velocity``):
+   VELOCITY: ``sp.vel``; POSITION/TRACK: ``sp.vel + gain (sp.pos - p)``; HOLD: ``gain (sp.pos - p)``;
+   clipped to ``v_max``.
+2. One half-plane ORCA^tau_{A|B} = {v : (v - (v_A + u/2)) . n >= 0} (eq. 4) per neighbour B among
+   the ``max_neighbours`` nearest within ``neighbour_dist`` (the tick's shared k-d tree pairs), from
+   the truncated velocity obstacle VO^tau_{A|B} with combined radius r_A + r_B =
+   ``safety.min_separation + margin`` (eq. 2-3). A failed vehicle does not avoid: it is a static
+   neighbour (velocity 0) and A takes all of u (responsibility 1).
+3. The environment's nearest obstacle point within reach gives one hard half-plane,
+   {v : v . n >= -(c - c_s)/tau_obst} (c its clearance, c_s = ``safety.min_clearance + margin``).
+4. v_A^new = the velocity of the disc |v| <= ``v_max`` closest to v_A^pref within every half-plane
+   (eq. 5), by RVO2's linear programs for all agents in lock-step; if none exists, the velocity of
+   least penetration with the obstacle half-plane kept hard (section 5.3).
+
+Output: healthy agents get ``Mode.VELOCITY`` with ``vel = (v_new_x, v_new_y, v_pref_z)`` and zero
+acceleration feed-forward; failed agents' setpoints are passed through untouched; the input
+setpoints are never modified (a copy is returned). ``pos`` keeps the formation's reference (unused
+in VELOCITY mode, useful for plots).
+
+Dynamics: single_integrator flies the command exactly (ORCA's own model). double_integrator and
+quadrotor track it through their velocity loops with a lag; ``margin`` absorbs it and v_A is the
+measured velocity, so the next tick corrects. Keep ``v_max`` at or below the dynamics' own speed
+limit (single_integrator.u_max), else the plant clips commands the LP chose inside the disc.
+
+Choices where the paper leaves room:
+- planar: velocity obstacles, the disc and the LP are in x-y (the swarm flies at one altitude in
+  the scenarios that use it); the z command is v_pref_z. Distances in x-y ignore altitude
+  differences, which is conservative (agents are treated as infinite vertical cylinders).
+- neighbours: RVO2's rule (the nearest ``max_neighbours`` within ``neighbour_dist``, nearest first);
+  ``neighbour_dist`` null means 2 v_max tau + r_A + r_B, beyond which no relative velocity in reach
+  can enter VO^tau.
+- agents already closer than r_A + r_B use the cut-off disc of one guidance period (RVO2).
+- obstacles: the nearest point's tangent half-plane instead of RVO2's polygon-edge obstacles.
+
+Metrics: ``orca.fallback_ticks`` (agent-ticks where the half-planes were infeasible and the
+section 5.3 fallback ran), ``orca.max_neighbours_used``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.setpoint import Setpoints
+from swarmscene.methods.baselines.common import (
+    nearest_obstacles,
+    perturb,
+    preferred_velocity,
+    velocity_setpoints,
+)
+from swarmscene.methods.baselines.neighbours import neighbour_table
+from swarmscene.methods.baselines.orca import new_velocities, obstacle_lines
+
+
+class Orca(Avoidance):
+    """Optimal Reciprocal Collision Avoidance (planar), all agents' linear programs in lock-step."""
+
+    name = "orca"
+
+    class Params(PluginParams):
+        time_horizon: float = Field(
+            3.0, gt=0, description="tau, s: velocity obstacles are truncated at this horizon (eq. 2)")
+        time_horizon_obstacle: float = Field(
+            1.0, gt=0, description="tau_obst, s: horizon of the obstacle half-plane")
+        v_max: float = Field(
+            1.0, gt=0, description="speed limit, m/s: radius of the disc D(0, v_max) of eq. 5; keep "
+            "it at or below the dynamics' speed limit")
+        margin: float = Field(
+            0.05, ge=0, description="added to safety.min_separation for the combined radius "
+            "r_A + r_B, and to safety.min_clearance for obstacles, m (absorbs tracking lag)")
+        max_neighbours: int = Field(
+            10, ge=1, description="neighbours considered per agent, nearest first (RVO2 maxNeighbors)")
+        neighbour_dist: float | None = Field(
+            None, gt=0, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
+        perturbation: float = Field(
+            0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks "
+            "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "
+            "generator")
+        detour: float = Field(
+            30.0, ge=0, lt=90, description="right-hand rule: v_pref of an agent outside one of its "
+            "ORCA half-planes is turned this many degrees clockwise (about +z), so symmetric "
+            "encounters circulate instead of deadlocking; 0: the paper's ORCA")
+        gain: float = Field(
+            1.0, gt=0, description="pull onto POSITION/TRACK/HOLD references in v_pref, 1/s")
+
+    def __init__(self, params: "Orca.Params", ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        self.combined_radius = ctx.min_separation + params.margin
+        self.range = (params.neighbour_dist if params.neighbour_dist is not None
+                      else 2.0 * params.v_max * params.time_horizon + self.combined_radius)
+        self.obstacle_limit = ctx.min_clearance + params.margin
+        # an obstacle plane cannot cut the speed disc from farther than this
+        self.obstacle_reach = self.obstacle_limit + params.v_max * params.time_horizon_obstacle
+        self.fallback_ticks = 0
+        self.max_used = 0
+
+    def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        p = self.params
+        v_pref = preferred_velocity(sp, world.pos, p.gain, p.v_max)
+        index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
+        static = ~world.healthy
+        vel = np.where(static[:, None], 0.0, world.vel[:, :2])
+        v_new, feasible = new_velocities(
+            world.pos[:, :2], vel, perturb(v_pref[:, :2], p.perturbation, self.ctx.rng), index, valid, static, self.combined_radius,
+            p.time_horizon, self.ctx.guidance_period, p.v_max, self._obstacle_halfplanes(sensing),
+            np.radians(p.detour),
+        )
+        healthy = world.healthy
+        self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
+        self.max_used = max(self.max_used, int(valid.sum(axis=1).max(initial=0)))
+        return velocity_setpoints(sp, healthy, np.column_stack([v_new, v_pref[:, 2]]))
+
+    def _obstacle_halfplanes(self, sensing):
+        if sensing.environment.empty:
+            return None
+        normal, clearance, near = nearest_obstacles(sensing, self.obstacle_reach)
+        clearance = np.where(near, clearance, 0.0)
+        point, direction = obstacle_lines(normal, clearance, self.obstacle_limit, self.params.time_horizon_obstacle)
+        return point[:, None], direction[:, None], near[:, None]
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """Add ``orca.fallback_ticks`` and ``orca.max_neighbours_used``."""
+        metrics["orca.fallback_ticks"] = self.fallback_ticks
+        metrics["orca.max_neighbours_used"] = self.max_used
+
+
+@hookimpl
+def swarmscene_register_avoidances(register) -> None:
+    register(Orca)

@@ -1,0 +1,70 @@
+"""Antipodal swap: every agent flies to the point opposite its start through the ring's centre.
+
+The standard stress test of multi-robot collision avoidance (the circle scenario of the RVO2
+examples; the swap of the barrier-certificate papers): N agents start on a ring of radius R
+(``swarm.start.kind: circle``) and each one's goal is its antipode,
+
+    g_i = 2 c - p_i(0),   c = the centroid of the start positions (the ring's centre),
+
+so all straight paths cross at c at the same time and avoidance has to do all the work.
+
+Setpoints: ``Mode.VELOCITY`` with the RVO2 examples' preferred velocity, towards the goal at
+``speed`` and slowing down within ``speed / gain`` of it,
+
+    v_i = clip(gain (g_i - p_i), speed),
+
+and ``pos = g_i`` for reference. Velocity commands are what velocity-level avoidance (ORCA, barrier
+certificates) filters; they also keep the mission the same for every dynamics model (each one's
+velocity loop tracks them), where a POSITION goal would hand each model's position controller its
+own approach profile. Failed agents hold where they are.
+
+The mission is complete when every healthy agent is within ``arrival_tolerance`` of its goal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import BuildContext, Formation, PluginParams
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import clip_norm
+
+
+class AntipodalSwap(Formation):
+    """Each agent flies to the antipode of its start through the ring centre."""
+
+    name = "antipodal_swap"
+
+    class Params(PluginParams):
+        speed: float = Field(1.0, gt=0, description="preferred speed towards the goal, m/s")
+        gain: float = Field(
+            1.0, gt=0, description="slow-down gain near the goal, 1/s (v = clip(gain (g - p), speed))")
+        arrival_tolerance: float = Field(
+            0.1, gt=0, description="distance to its goal at which an agent has arrived, m")
+
+    def __init__(self, params: "AntipodalSwap.Params", ctx: BuildContext) -> None:
+        super().__init__(params, ctx)
+        start = ctx.initial.pos
+        self.center = start.mean(axis=0)
+        self.goal = 2.0 * self.center - start
+
+    def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        p = self.params
+        sp = Setpoints.hold(world.pos)
+        healthy = world.healthy
+        sp.mode[healthy] = Mode.VELOCITY
+        sp.pos[healthy] = self.goal[healthy]
+        sp.vel[healthy] = clip_norm(p.gain * (self.goal[healthy] - world.pos[healthy]), p.speed)
+        return sp
+
+    def complete(self, world: WorldState) -> bool:
+        error = np.linalg.norm(world.pos - self.goal, axis=1)
+        return bool(np.all(error[world.healthy] <= self.params.arrival_tolerance))
+
+
+@hookimpl
+def swarmscene_register_formations(register) -> None:
+    register(AntipodalSwap)
