@@ -1,0 +1,126 @@
+"""A JSON Schema of the whole configuration: the engine's sections and every registered plugin's
+options (third-party plugins included), for editors and other tools.
+
+    python -m swarmscene.schema > swarmscene.schema.json            # a composed configuration
+    python -m swarmscene.schema --partial > swarmscene.partial.json  # hand-written scenario files
+
+Both come from the same pydantic models the engine validates with (:mod:`swarmscene.core.config`
+and each plugin's ``Params``). ``formation``, ``avoidance`` and ``dynamics`` are each one of the
+registered plugins of their kind, told apart by ``name`` (a ``const``), so an editor completes and
+checks the options of the plugin chosen. The full schema describes what the engine validates after
+Hydra composition (``swarmscene --cfg job``, ``api.compose``); the partial one describes the files a
+user writes (presets, experiment files): every key optional, a Hydra ``defaults`` list and a
+``hydra`` node allowed, and a plugin section whose ``name`` comes from the defaults list accepted.
+What a schema cannot say (cross-section checks such as agents starting inside an obstacle) is
+still checked by the engine. docs/editors.md shows the YAML language server using it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+from typing import Any
+
+from pydantic.json_schema import models_json_schema
+
+from .core.config import ScenarioConfig
+from .core.plugin import PLUGIN_KINDS
+
+DIALECT = "https://json-schema.org/draft/2020-12/schema"
+REF = "#/$defs/{model}"
+
+
+def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[str, Any]:
+    """The JSON Schema of a configuration, with the plugins of ``registry`` (default: every
+    installed plugin); ``partial`` for hand-written scenario files (see the module docstring)."""
+    if registry is None:
+        from .api import plugins
+
+        _, registry = plugins()
+    plugins_by_kind = {kind: [registry.get(kind, n) for n in registry.names(kind)] for kind in PLUGIN_KINDS}
+    models = [(ScenarioConfig, "validation")] + [
+        (cls.Params, "validation") for classes in plugins_by_kind.values() for cls in classes
+    ]
+    refs, top = models_json_schema(models, ref_template=REF)
+    defs = top["$defs"]
+    root = defs.pop(_name(refs[(ScenarioConfig, "validation")]))
+    defs.pop("PluginChoice", None)
+    for kind, classes in plugins_by_kind.items():
+        variants = []
+        for cls in classes:
+            key = f"{kind}.{cls.name}"
+            defs[key] = _variant(kind, cls, defs.pop(_name(refs[(cls.Params, "validation")])))
+            variants.append({"$ref": REF.format(model=key)})
+        root["properties"][kind] = {
+            "description": f"the {kind} plugin, chosen by name ({', '.join(c.name for c in classes)}), and its options",
+            "anyOf" if partial else "oneOf": variants,
+        }
+    schema = {
+        "$schema": DIALECT,
+        "$id": "https://swarmscene/scenario" + (".partial" if partial else "") + ".schema.json",
+        "title": "swarmscene scenario" + (" file" if partial else " (composed)"),
+        **root,
+        "$defs": defs,
+    }
+    return _partial(schema) if partial else schema
+
+
+def _name(ref: dict[str, str]) -> str:
+    return ref["$ref"].rsplit("/", 1)[-1]
+
+
+def _variant(kind: str, cls: Any, params: dict[str, Any]) -> dict[str, Any]:
+    """A plugin's Params schema with its ``name`` as a const (the discriminator)."""
+    doc = (cls.__doc__ or "").strip().splitlines()
+    return {
+        **{k: v for k, v in params.items() if k not in ("properties", "required", "title", "description")},
+        "title": f"{kind}={cls.name}",
+        "description": doc[0] if doc else f"{kind} {cls.name}",
+        "type": "object",
+        "properties": {"name": {"const": cls.name, "description": f"registered {kind} name"},
+                       **params.get("properties", {})},
+        "required": ["name", *params.get("required", [])],
+        "additionalProperties": False,
+    }
+
+
+def _partial(schema: dict[str, Any]) -> dict[str, Any]:
+    """Every key optional, and the Hydra keys a scenario file may hold."""
+    out = copy.deepcopy(schema)
+
+    def relax(node: Any) -> None:
+        if isinstance(node, dict):
+            node.pop("required", None)
+            for value in node.values():
+                relax(value)
+        elif isinstance(node, list):
+            for value in node:
+                relax(value)
+
+    relax(out)
+    out["properties"]["defaults"] = {
+        "description": "Hydra defaults list (e.g. '- override /avoidance: cem')",
+        "type": "array",
+        "items": {"type": ["string", "object"]},
+    }
+    out["properties"]["hydra"] = {"description": "Hydra's own settings (sweeps, run directories)", "type": "object"}
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m swarmscene.schema", description=__doc__.splitlines()[0])
+    parser.add_argument("--partial", action="store_true", help="schema of hand-written scenario files")
+    parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    args = parser.parse_args(argv)
+    text = json.dumps(scenario_schema(partial=args.partial), indent=2) + "\n"
+    if args.output:
+        with open(args.output, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    else:
+        sys.stdout.write(text)
+
+
+if __name__ == "__main__":
+    main()
