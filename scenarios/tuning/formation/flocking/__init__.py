@@ -1,0 +1,1 @@
+"""flocking's tuning of each formation method (see scenarios/config.yaml)."""
