@@ -8,8 +8,9 @@ widths 0.5 ... 0.9 m x ``--seeds`` seeds, ~2 s of computing per job; the default
 150-job sweep, about 8 minutes for both launchers). Goal (issue 8): on 2 cores the joblib sweep is
 at least 1.8x faster than the sequential one. Both launchers pay a serial part in the main process
 that no launcher can spread: the configs composed up front to fail early (Hydra's basic sweeper
-composes every job, about 0.1 s each, hydra#1324; swarmscene's sweeper one per distinct
-override, see docs/sweeps.md), the workers' start-up and the summary written at the end. The
+composes every job, about 0.1 s each, hydra#1324; swarmscene's sweeper, which the preset selects,
+composes one config per distinct set of config-group overrides and validates every distinct value
+once, see docs/sweeps.md), the workers' start-up and the summary written at the end. The
 time from the command's start to its first job's start is printed. The metrics of both sweeps are also compared (they must be
 identical apart from wall-clock figures). The cores each command actually got (CPU time / wall
 time) are printed too: on a machine shared with other work the speed-up is bounded by them.

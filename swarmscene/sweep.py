@@ -658,8 +658,6 @@ class SweepSummary(_Callback):
             prepare(loader, config, Path(config.hydra.sweep.dir), grid, jobs)
         except ConfigError as exc:
             _stop(exc.lines, 2)
-        except ValueError as exc:
-            _stop([str(exc)], 2)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)

@@ -501,6 +501,32 @@ def test_grid_expansion_matches_hydras_basic_sweeper_and_crosses_cases():
     assert expand(params, ["scenario=c"], parser, cases=cases, plain_params=False)[1][0] == ["avoidance=cem", "seed=0", "scenario=c"]
 
 
+def test_plain_values_are_set_as_hydra_sets_them():
+    """The check's shortcut (a plain value set in the composed data) gives the data Hydra's own
+    application of the override to a copy of the composed config gives."""
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    from hydra_plugins.swarmscene_sweeper import JobCheck
+
+    with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
+        master = compose("config", overrides=["+sweep=cem_k"], return_hydra_config=True)
+        check = JobCheck(GlobalHydra.instance().config_loader(), master)
+        jobs = [
+            ["scenario=cem_six_vehicle", "++avoidance.K=5", "seed=17"],
+            ["scenario=cem_six_vehicle", "++avoidance.new_key=0.5", "++clock.duration=3"],
+            ["scenario=cem_six_vehicle", "avoidance.K=0", "events.0.at=4.0"],
+        ]
+        fast = [check.data(job) for job in jobs]
+        groups = ("scenario=cem_six_vehicle",)
+        cfg, plain = check.composed[groups]
+        assert plain is not None  # the shortcut was taken
+        check.composed[groups] = (cfg, None)  # now the way Hydra does it
+        assert [check.data(job) for job in jobs] == fast
+    assert (fast[0]["avoidance"]["K"], fast[0]["seed"], fast[1]["clock"]["duration"]) == (5, 17, 3)
+    assert fast[2]["events"][0]["at"] == 4.0  # a list element: Hydra's path (the shortcut sets mappings)
+
+
 @pytest.mark.parametrize("mode", ["each_value", "all"])
 def test_a_bad_override_anywhere_in_the_sweep_fails_before_any_job(tmp_path, mode):
     proc = swarmscene("--multirun", "scenario=indoor_corridor", "environment=indoor_corridor_w070,no_such_map",
