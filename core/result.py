@@ -19,8 +19,10 @@ class RunResult:
 
     Attributes:
         metrics: flat dotted keys in SI units (see docs/outputs.md).
-        stop_reason: ``duration``, ``complete``, ``collision`` or ``interrupted``.
+        stop_reason: ``duration``, ``complete``, ``collision``, ``interrupted`` or ``non_finite``.
         complete: False when the run was interrupted before its end.
+        error: why the run failed (one line), or ``None``; a run stopped by a non-finite state
+            names the first agent and tick here, and its ``success`` is False.
         recorder: this run's trajectory recorder (``None`` when ``output.trajectory`` is off).
         monitor: this run's safety monitor (its time series).
         observers: every observer instance of this run (third-party ones included).
@@ -30,6 +32,7 @@ class RunResult:
     metrics: dict[str, Any]
     stop_reason: str
     complete: bool
+    error: str | None = None
     recorder: "TrajectoryRecorder | None" = None
     monitor: "SafetyMonitor | None" = None
     observers: list[Any] = field(default_factory=list)

@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 
 from .environment import Environment
 from .state import WorldState
+from .vectors import min_pair_distance
 
 
 DENSE_LIMIT = 128
@@ -199,8 +200,7 @@ class Sensing:
                 return float(np.sqrt(self._pair_dist2(self._pairs[radius]).min()))
         if "knn" in self.__dict__:
             return float(self.knn[0][:, 0].min())
-        dist, _ = self.tree.query(self.world.pos, k=2)
-        return float(dist[:, 1].min())
+        return min_pair_distance(self.world.pos, self.tree)
 
     @cached_property
     def knn(self) -> tuple[np.ndarray, np.ndarray]:

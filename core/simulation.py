@@ -23,7 +23,6 @@ from .config import Scenario
 from .environment import Environment
 from .errors import ConfigError
 from .events import Event, EventKind, EventQueue
-from .geometry import build_obstacles, initial_positions
 from .monitors import SafetyMonitor
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
 from .recorder import TrajectoryRecorder
@@ -52,17 +51,19 @@ class Simulation:
         self.config = cfg
         self.pm = plugin_manager
         self.hook = plugin_manager.hook
+        # The start was drawn from default_rng(seed) during validation; the run continues that stream.
         self.rng = np.random.default_rng(cfg.seed)
+        self.rng.bit_generator.state = scenario.rng_state
         self.guidance_period = cfg.clock.guidance_period
         self.physics_step = cfg.physics_step
         self.substeps = cfg.substeps
         self.total_steps = int(round(cfg.clock.duration / self.guidance_period))
         self.step_count = 0
         self.stop_reason: str | None = None
+        self.error: str | None = None
 
-        obstacles, _ = build_obstacles(cfg.environment)
-        self.environment = Environment(obstacles, name=cfg.environment.name)
-        self.world = WorldState.at_rest(initial_positions(cfg, self.rng), leader=cfg.swarm.leader)
+        self.environment = Environment(scenario.obstacles, name=cfg.environment.name)
+        self.world = WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader)
         self._hover_pos = self.world.pos.copy()
         self.events = EventQueue(
             [Event(e.at, tuple(e.agents), EventKind(e.kind)) for e in cfg.events]
@@ -114,6 +115,7 @@ class Simulation:
             self.dynamics.step(self.world, self.physics_step)
         self._hold_failed()
         self._wrap_periodic()
+        self._check_finite()
         self.step_count += 1
         self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
         self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
@@ -127,6 +129,19 @@ class Simulation:
                 self._hover_pos[idx] = self.world.pos[idx]
             self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
             self.hook.swarmscene_event(sim=self, event=event)
+
+    def _check_finite(self) -> None:
+        """Stop at the first non-finite position or velocity, naming the agent and the tick."""
+        state = self.world.pos, self.world.vel
+        if all(np.isfinite(a).all() for a in state):  # one reduction per array: cheap at any N
+            return
+        bad = ~(np.isfinite(state[0]).all(axis=1) & np.isfinite(state[1]).all(axis=1))
+        agent = int(np.flatnonzero(bad)[0])
+        raise NonFiniteState(
+            f"non-finite state of agent {agent} at tick {self.step_count + 1} "
+            f"(t = {(self.step_count + 1) * self.guidance_period:g} s; {int(bad.sum())} agents): "
+            f"pos = {self.world.pos[agent].tolist()}, vel = {self.world.vel[agent].tolist()}"
+        )
 
     def _wrap_periodic(self) -> None:
         """Positions folded back into the formation's periodic box, if its space is one."""
@@ -154,7 +169,9 @@ class Simulation:
         Args:
             progress: called after every tick (e.g. a progress line); must be cheap.
         A Ctrl-C ends the run cleanly: the result is marked incomplete (``stop_reason``
-        ``"interrupted"``) and holds everything recorded so far.
+        ``"interrupted"``) and holds everything recorded so far. A position or velocity that
+        becomes NaN or infinite stops the run before that tick is observed: ``stop_reason``
+        ``"non_finite"``, ``error`` names the first such agent and the tick, ``success`` is False.
         """
         self.hook.swarmscene_run_start(sim=self)
         wall_start = time.perf_counter()
@@ -169,14 +186,20 @@ class Simulation:
                     progress(self)
         except KeyboardInterrupt:
             self.stop_reason = "interrupted"
+        except NonFiniteState as exc:  # the tick is not recorded: observers keep finite data
+            self.stop_reason = "non_finite"
+            self.error = str(exc)
         wall = time.perf_counter() - wall_start
         metrics = self._engine_metrics(wall)
         self.hook.swarmscene_run_end(sim=self, metrics=metrics)
         metrics.setdefault("success", self._default_success(metrics))
+        if self.error is not None:
+            metrics["success"] = False
         return RunResult(
             metrics=metrics,
             stop_reason=self.stop_reason or "duration",
             complete=self.stop_reason != "interrupted",
+            error=self.error,
             recorder=self._observer_of(TrajectoryRecorder),
             monitor=self._observer_of(SafetyMonitor),
             observers=self.observers,
@@ -205,6 +228,10 @@ class Simulation:
         safe = metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
         done = self.formation.complete(self.world)
         return bool(safe and done is not False and self.stop_reason != "interrupted")
+
+
+class NonFiniteState(ArithmeticError):
+    """A position or velocity became NaN or infinite: the run cannot go on."""
 
 
 _LIFECYCLE_HOOKS = (

@@ -41,6 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarmscene.core.vectors import min_pair_distance
+
 NEWTON_TOL = 1e-10
 """m; a Newton update below this means the estimate has converged (see module docstring)."""
 
@@ -204,13 +206,7 @@ class Theorem2Check:
 
 def _min_pairwise(points: np.ndarray) -> float:
     """Minimum distance between distinct complex points (inf for fewer than two)."""
-    if points.size < 2:
-        return float("inf")
-    from scipy.spatial import cKDTree
-
-    xy = np.stack([points.real, points.imag], -1)
-    d, _ = cKDTree(xy).query(xy, k=2)
-    return float(d[:, 1].min())
+    return min_pair_distance(np.stack([points.real, points.imag], -1))
 
 
 REL_TOL = 1e-9

@@ -21,7 +21,9 @@ from scipy.spatial import cKDTree
 from shapely import STRtree
 from shapely.geometry.base import BaseGeometry
 
-from swarmscene.core.vectors import clip_norm
+from swarmscene.core.environment import nearest_within
+from swarmscene.core.environment import segments_clear as segments_clear_of
+from swarmscene.core.vectors import clip_norm, min_pair_distance
 
 Obstacles = Sequence[BaseGeometry] | STRtree | None
 
@@ -52,11 +54,7 @@ def single_integrator_step(r: np.ndarray, u: np.ndarray, u_max: float) -> np.nda
 
 def pairwise_min_distance(r: np.ndarray, tree: cKDTree | None = None) -> float:
     """Smallest inter-agent distance ||r_i - r_j||, m (``inf`` for fewer than two agents)."""
-    if len(r) < 2:
-        return float("inf")
-    tree = cKDTree(r) if tree is None else tree
-    dist, _ = tree.query(tree.data, k=2)
-    return float(dist[:, 1].min())
+    return min_pair_distance(r, tree)
 
 
 def collision_free(r: np.ndarray, d_c: float, tree: cKDTree | None = None) -> bool:
@@ -71,7 +69,8 @@ def nearest_obstacle(
 
     The closest point of all obstacles is always visible (a geometry hiding it would be closer),
     so the argmin of eq. 5.32 over the visible set O_i is the plain nearest point, restricted to
-    the sensing range (eq. 5.9). One ``STRtree.query_nearest`` and one ``shapely.shortest_line``.
+    the sensing range (eq. 5.9). The engine's bounded search (core.environment.nearest_within) and one
+    ``shapely.shortest_line``.
 
     Args:
         r: (N, 2) positions, m.
@@ -87,11 +86,7 @@ def nearest_obstacle(
     tree = obstacle_tree(obstacles)
     if tree is None or n == 0:
         return np.full((n, 2), np.nan), np.full(n, np.inf)
-    (agent, geom), d = tree.query_nearest(
-        shapely.points(r), max_distance=max_distance, return_distance=True, all_matches=False
-    )
-    index, dist = np.full(n, -1), np.full(n, np.inf)
-    index[agent], dist[agent] = geom, d
+    index, dist = nearest_within(tree, r, max_distance)  # the engine's own bounded search
     return nearest_points(r, tree.geometries, index), dist
 
 
@@ -124,14 +119,7 @@ def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: floa
         (P,) bool, True where the segment keeps clearance d_l. A segment exactly at d_l counts as
         blocked (shapely's ``dwithin`` is inclusive), a measure-zero difference from eq. 5.8.
     """
-    clear = np.ones(len(a), dtype=bool)
-    tree = obstacle_tree(obstacles)
-    if tree is None or len(a) == 0:
-        return clear
-    lines = shapely.linestrings(np.stack([a, b], axis=1))
-    hit, _ = tree.query(lines, predicate="dwithin", distance=d_l)
-    clear[hit] = False
-    return clear
+    return segments_clear_of(obstacle_tree(obstacles), a, b, d_l)  # the engine's LOS test
 
 
 def candidate_pairs(r: np.ndarray, radius: float, tree: cKDTree | None = None) -> np.ndarray:

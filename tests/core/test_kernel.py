@@ -185,3 +185,25 @@ def test_plugin_without_its_kinds_methods_cannot_be_built():
 
     with pytest.raises(TypeError, match="abstract method"):
         Incomplete(Incomplete.Params(), None)
+
+
+def test_a_non_finite_state_stops_the_run_naming_the_agent_and_tick():
+    """Agent 2's velocity turns NaN during tick 3: the run stops there, says so in one line, is not
+    a success, and every recorded frame (t = 0 and ticks 1-2) is finite."""
+    sim = api.build(["clock.duration=2", "clock.guidance_period=0.1", "clock.physics_step=0.1"])
+    step = sim.dynamics.step
+
+    def failing_step(world, dt):
+        step(world, dt)
+        if sim.step_count == 2:  # during the third tick
+            world.vel[2, 1] = np.nan
+
+    sim.dynamics.step = failing_step
+    result = sim.run()
+    assert result.stop_reason == "non_finite" and result.metrics["stop_reason"] == "non_finite"
+    assert result.error.startswith("non-finite state of agent 2 at tick 3 (t = 0.3 s; 1 agents)")
+    assert "\n" not in result.error
+    assert result.metrics["success"] is False
+    assert result.metrics["steps"] == 2
+    traj = result.trajectory
+    assert traj["pos"].shape[0] == 3 and np.isfinite(traj["pos"]).all() and np.isfinite(traj["vel"]).all()
