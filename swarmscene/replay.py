@@ -17,7 +17,7 @@ Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (se
     world/agents           one point per agent in its colour (``plots.agent_colors``, the colours of
                            the pictures and the animation), labelled with its index ("3 failed"
                            once failed); radius half the separation limit, so touching spheres
-                           mean a separation violation
+                           mean a separation violation (a quarter of that with attitude boxes)
     world/bodies           with attitude dynamics (``quat`` in the trajectory): a flat box per
                            vehicle oriented by its attitude, in the agent's colour, red once failed
     world/body_axes        ... and its body axes x (red), y (green), z (blue, the thrust axis)
@@ -28,15 +28,18 @@ Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (se
                            eps) with ``avoidance=cem``, none when a cem run lacks that metric; of
                            ``safety.min_separation`` with any other avoidance
     world/comm_edges       communication edges: healthy pairs within ``comm.range``
-    safety/min_separation  minimum pairwise distance over time (the safety monitor's series, every
+    safety/separation/min  minimum pairwise distance over time (the safety monitor's series, every
                            guidance tick, inside a run; recomputed at the recorded frames from a
-                           directory), and ``safety/separation_limit`` (``safety.min_separation``)
-    safety/min_clearance   minimum obstacle clearance and ``safety/clearance_limit`` (with
+                           directory), ``safety/separation/limit`` (``safety.min_separation``) and
+                           ``safety/separation/events``, a marker on the series at every event
+    safety/clearance/min   minimum obstacle clearance and ``safety/clearance/limit`` (with
                            obstacles only)
-    safety/events          a marker on the separation series at every event
     events                 a text log line per event: failures and radio losses (``events``), the
                            first violation of each safety condition (``violations.*`` metrics) and
                            the end of the run (``stop_reason``)
+
+The recording carries a default layout (blueprint): the 3-D world beside the separation and
+clearance series and the event log.
 
 Time-varying entities are sent as columns (one ``send_columns`` call per entity), not frame by
 frame, so exporting long runs stays fast. Read a recording back in Python with
@@ -178,6 +181,23 @@ def events(run: RunData) -> list[tuple[float, str, str]]:
     return sorted(out, key=lambda e: e[0])
 
 
+def blueprint(run: RunData) -> Any:
+    """The default layout: the 3-D world, beside it the safety series and the event log."""
+    import rerun.blueprint as rrb
+
+    series = [rrb.TimeSeriesView(origin="safety/separation", name="separation (m)")]
+    if run.obstacles:
+        series.append(rrb.TimeSeriesView(origin="safety/clearance", name="clearance (m)"))
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="world", name=f"{run.name} seed {run.seed}"),
+            rrb.Vertical(*series, rrb.TextLogView(origin="events", name="events"), row_shares=[2] * len(series) + [1]),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
 def _log_static(rec: Any, run: RunData) -> None:
     import rerun as rr
 
@@ -188,11 +208,11 @@ def _log_static(rec: Any, run: RunData) -> None:
         verts, tris = obstacle_mesh(run)
         rec.log("world/obstacles/solid", rr.Mesh3D(vertex_positions=verts, triangle_indices=tris,
                                                    albedo_factor=(150, 150, 150, 90)), static=True)
-    rec.log("safety/min_separation", rr.SeriesLines(colors=[(31, 119, 180)], names=["min separation"]), static=True)
-    rec.log("safety/separation_limit", rr.SeriesLines(colors=[LIMIT_RGB], names=["separation limit"]), static=True)
-    rec.log("safety/min_clearance", rr.SeriesLines(colors=[(255, 127, 14)], names=["min clearance"]), static=True)
-    rec.log("safety/clearance_limit", rr.SeriesLines(colors=[(140, 86, 75)], names=["clearance limit"]), static=True)
-    rec.log("safety/events", rr.SeriesPoints(colors=[FAILED_RGB], names=["event"], marker_sizes=[6.0]), static=True)
+    for name in ("separation", "clearance"):
+        rec.log(f"safety/{name}/min", rr.SeriesLines(colors=[(31, 119, 180)], names=[f"min {name} (m)"]), static=True)
+        rec.log(f"safety/{name}/limit", rr.SeriesLines(colors=[LIMIT_RGB], names=[f"{name} limit (m)"]), static=True)
+    rec.log("safety/separation/events", rr.SeriesPoints(colors=[(0, 0, 0)], names=["event"], marker_sizes=[5.0]),
+            static=True)
 
 
 def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
@@ -201,7 +221,10 @@ def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
 
     n, f = run.n, len(frames)
     index = [rr.TimeColumn(TIMELINE, duration=run.t[frames])]
-    radius = 0.5 * run.min_separation_limit if run.min_separation_limit > 0 else 0.1
+    half = 0.5 * run.min_separation_limit if run.min_separation_limit > 0 else 0.1
+    # Without attitude a sphere of half the separation limit (touching spheres: a violation); with
+    # it a small point, so the oriented body and its axes stay visible.
+    radius = half if run.quat is None else 0.25 * half
     healthy = run.healthy[frames]
     palette = agent_colors(n)
     colors = np.broadcast_to(palette, (f, n, 3)).reshape(-1, 3)
@@ -215,7 +238,7 @@ def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
     )
     if run.quat is None:
         return
-    arm = 0.6 * radius  # a vehicle's half-width: inside its separation sphere
+    arm = 0.5 * half  # a vehicle's drawn half-width (a Crazyflie's arm is 4.6 cm: enlarged to be seen)
     body_colors = np.where(healthy[..., None], palette[None], np.array(FAILED_RGB, np.uint8)).reshape(-1, 3)
     quat = np.asarray(run.quat[frames], float)
     rec.send_columns(
@@ -242,22 +265,21 @@ def _log_safety(rec: Any, run: RunData) -> None:
     series = safety_series(run)
     t = np.asarray(series["t"], float)
     ends = [rr.TimeColumn(TIMELINE, duration=np.array([t[0], t[-1]]))]
-    for name, limit_name, limit in (("min_separation", "separation_limit", run.min_separation_limit),
-                                    ("min_clearance", "clearance_limit", run.min_clearance_limit)):
-        values = np.asarray(series[name], float)
+    for name, limit in (("separation", run.min_separation_limit), ("clearance", run.min_clearance_limit)):
+        values = np.asarray(series[f"min_{name}"], float)
         keep = np.isfinite(values)
         if not keep.any():
             continue  # no obstacles (or a single agent): no series
-        rec.send_columns(f"safety/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
+        rec.send_columns(f"safety/{name}/min", indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
                          columns=rr.Scalars.columns(scalars=values[keep]))
-        rec.send_columns(f"safety/{limit_name}", indexes=ends, columns=rr.Scalars.columns(scalars=[limit, limit]))
+        rec.send_columns(f"safety/{name}/limit", indexes=ends, columns=rr.Scalars.columns(scalars=[limit, limit]))
     marks = events(run)
     sep = np.asarray(series["min_separation"], float)
     if marks and np.isfinite(sep).any():
         at = np.array([m[0] for m in marks])
         k = np.clip(np.searchsorted(t, at - 1e-9), 0, len(t) - 1)
         value = np.where(np.isfinite(sep[k]), sep[k], np.nanmin(np.where(np.isfinite(sep), sep, np.nan)))
-        rec.send_columns("safety/events", indexes=[rr.TimeColumn(TIMELINE, duration=at)],
+        rec.send_columns("safety/separation/events", indexes=[rr.TimeColumn(TIMELINE, duration=at)],
                          columns=rr.Scalars.columns(scalars=value))
     for when, level, text in marks:
         rec.set_time(TIMELINE, duration=when)
@@ -299,7 +321,7 @@ def export(run: RunData, path: Path | None, every: int = 1, trail_seconds: float
     sinks = ([rr.FileSink(str(path))] if path is not None else []) + ([rr.GrpcSink(connect)] if connect else [])
     if not sinks:
         raise ValueError("export needs a path or a viewer address to connect to")
-    rec.set_sinks(*sinks)
+    rec.set_sinks(*sinks, default_blueprint=blueprint(run))
     rec.send_recording_name(f"{run.name} seed {run.seed}")
     _log_static(rec, run)
     frames = _frames(run, every)

@@ -3,6 +3,8 @@ the obstacles, separation and clearance against their limits, speeds, an animati
 
 from __future__ import annotations
 
+import colorsys
+import io
 import json
 import os
 import subprocess
@@ -11,6 +13,7 @@ import sys
 import numpy as np
 import pytest
 from matplotlib.collections import LineCollection
+from matplotlib.colors import to_rgb
 from matplotlib.patches import Polygon
 
 from swarmscene import api, plots
@@ -48,23 +51,65 @@ def test_trajectory_figure_shows_paths_obstacles_and_failure(finished):
     np.testing.assert_allclose(failed.get_offsets(), pos[k, :1, :2])
     np.testing.assert_allclose(pos[k:, 0], np.broadcast_to(pos[k, 0], pos[k:, 0].shape))  # hovers there
     assert run.failures()[0][:2] == (0, 3.0)
-    assert paths[0].get_color() == plots.FAILED_COLOR and paths[1].get_color() == plots.HEALTHY_COLOR
+    colors = plots.agent_colors(5) / 255.0
+    for i, path in enumerate(paths):  # each agent in its own colour; the failed one dashed
+        np.testing.assert_allclose(to_rgb(path.get_color()), colors[i])
+    assert paths[0].get_linestyle() == "--" and paths[1].get_linestyle() == "-"
     assert "failed (1)" in [text.get_text() for text in ax.get_legend().get_texts()]
 
 
-def test_safety_figure_draws_series_against_limits(finished):
+def test_agent_colors_are_distinct_and_never_red():
+    """One colour map for every picture, the animation and the replay; red marks failures only."""
+    small = plots.agent_colors(9)
+    assert len({tuple(c) for c in small}) == 9 and (214, 39, 40) not in {tuple(c) for c in small}
+    np.testing.assert_array_equal(plots.agent_colors(4), small[:4])  # stable: agent i keeps its colour
+    large = plots.agent_colors(200).astype(float) / 255.0
+    assert large.shape == (200, 3) and len({tuple(c) for c in large.round(6)}) == 200
+    hue = np.array([colorsys.rgb_to_hsv(*c)[0] * 360 for c in large])
+    assert hue.min() >= 29.5 and hue.max() <= 330.5  # no red (hue near 0/360)
+
+
+def test_bands_are_percentiles_over_agents_ignoring_nan():
+    values = np.array([[1.0, 2.0, 3.0, 4.0, np.nan], [np.nan] * 5, [5.0, np.inf, 5.0, 5.0, 5.0]])
+    b = plots.bands(values)
+    assert b["median"][0] == 2.5 and b["min"][0] == 1.0 and b["max"][0] == 4.0
+    assert b["p10"][0] == pytest.approx(np.percentile([1, 2, 3, 4], 10))
+    assert np.isnan(b["median"][1]) and b["median"][2] == 5.0
+
+
+def _band(ax, gid):
+    """(lower, upper) of a fill_between collection drawn with ``gid``."""
+    (poly,) = _by_gid(ax, gid)
+    verts = poly.get_paths()[0].vertices  # start, lower 0..n-1, upper n-1..0 (doubled end), start, close
+    n = (len(verts) - 3) // 2
+    return verts[1 : n + 1, 1], verts[n + 2 : 2 * n + 2, 1][::-1]
+
+
+def test_safety_figure_draws_distributions_minimum_and_limits(finished):
+    """Median and bands of each agent's nearest-neighbour distance and clearance (an oracle from
+    scipy's pdist), the monitor's minimum, and the limits."""
+    from scipy.spatial.distance import pdist, squareform
+
     sim, result, _ = finished
     run = plots.from_simulation(sim, result)
     top, bottom = plots.safety_figure(run).axes
-    assert top.get_ylabel() == "min separation (m)" and bottom.get_xlabel() == "time (s)"
+    assert top.get_ylabel() == "nearest neighbour (m)" and bottom.get_xlabel() == "time (s)"
     (sep_limit,) = _by_gid(top, "separation_limit")
     (clear_limit,) = _by_gid(bottom, "clearance_limit")
     assert set(sep_limit.get_ydata()) == {sim.config.safety.min_separation}
     assert set(clear_limit.get_ydata()) == {sim.config.safety.min_clearance}
-    series = [line for line in top.lines if line.get_gid() is None][0]
-    assert np.nanmin(series.get_ydata()) == pytest.approx(result.metrics["min_separation"])
-    clearance = [line for line in bottom.lines if line.get_gid() is None][0]
+    (minimum,) = _by_gid(top, "separation_min")
+    assert np.nanmin(minimum.get_ydata()) == pytest.approx(result.metrics["min_separation"])
+    (clearance,) = _by_gid(bottom, "clearance_min")
     assert np.nanmin(clearance.get_ydata()) == pytest.approx(result.metrics["min_clearance"])
+    pos = result.trajectory["pos"]
+    nearest = np.array([np.sort(squareform(pdist(frame)), axis=1)[:, 1] for frame in pos])
+    (median,) = _by_gid(top, "separation_median")
+    np.testing.assert_allclose(median.get_ydata(), np.median(nearest, axis=1), rtol=1e-12)
+    low, high = _band(top, "separation_envelope")
+    np.testing.assert_allclose(low, nearest.min(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(high, nearest.max(axis=1), rtol=1e-12)
+    assert len([line for line in top.lines if (line.get_gid() or "").startswith("separation_agent")]) == 5
 
 
 def test_series_recomputed_from_directory_match_the_monitor(finished):
@@ -77,14 +122,54 @@ def test_series_recomputed_from_directory_match_the_monitor(finished):
     np.testing.assert_allclose(from_dir["min_clearance"], live["min_clearance"], rtol=1e-9)
 
 
-def test_speed_figure_one_line_per_agent(finished):
+def test_speed_figure_is_a_distribution_over_healthy_agents(finished):
     sim, result, _ = finished
-    ax = plots.speed_figure(plots.from_simulation(sim, result)).axes[0]
-    assert ax.get_ylabel() == "speed (m/s)" and len(ax.lines) == 5
-    speed = np.linalg.norm(result.trajectory["vel"][:, 4], axis=1)
-    np.testing.assert_allclose(ax.lines[4].get_ydata(), speed)
-    assert ax.lines[0].get_linestyle() == "--"  # the failed leader
-    assert ax.lines[0].get_ydata()[-1] == 0.0  # it hovers
+    run = plots.from_simulation(sim, result)
+    ax = plots.speed_figure(run).axes[0]
+    assert ax.get_ylabel() == "speed (m/s)"
+    speed = np.linalg.norm(result.trajectory["vel"], axis=2)
+    healthy = result.trajectory["healthy"]
+    (median,) = _by_gid(ax, "speed_median")
+    np.testing.assert_allclose(median.get_ydata(), np.nanmedian(np.where(healthy, speed, np.nan), axis=1))
+    low, high = _band(ax, "speed_band")
+    k = len(speed) - 1  # at the end the failed leader (speed 0) is out of the distribution
+    assert low[k] == pytest.approx(np.percentile(speed[k, 1:], 10)) and high[k] == pytest.approx(np.percentile(speed[k, 1:], 90))
+    (leader,) = _by_gid(ax, "speed_agent0")
+    assert np.isnan(leader.get_ydata()[-1]) and leader.get_ydata()[0] == speed[0, 0]
+    assert _by_gid(ax, "speed_limit") == []  # no plugin publishes a speed limit here
+
+
+def test_speed_limit_is_drawn_from_a_published_metric(finished):
+    sim, result, _ = finished
+    run = plots.from_simulation(sim, result)
+    run.metrics["single_integrator.speed_limit"] = 1.5
+    (limit,) = _by_gid(plots.speed_figure(run).axes[0], "speed_limit")
+    assert set(limit.get_ydata()) == {1.5}
+
+
+def test_altitude_figure_for_the_vrb_show(tmp_path):
+    """The air show climbs to its 2 m circle: median and envelope of z over the three vehicles."""
+    sim = api.build(["scenario=vrb_airshow", "clock.duration=6.0"])
+    result = sim.run()
+    run = plots.from_simulation(sim, result)
+    ax = plots.altitude_figure(run).axes[0]
+    z = result.trajectory["pos"][..., 2]
+    (median,) = _by_gid(ax, "altitude_median")
+    np.testing.assert_allclose(median.get_ydata(), np.median(z, axis=1))
+    low, high = _band(ax, "altitude_envelope")
+    np.testing.assert_allclose(high, z.max(axis=1))
+    assert z[0].max() == pytest.approx(0.0, abs=1e-9) and high.max() > 1.0  # takes off from the ground
+
+
+def test_progress_line_reports_the_time_left():
+    from swarmscene.summary import Progress, format_duration
+
+    progress = Progress(stream=io.StringIO(), delay=0.0)
+    assert progress.line(25, 100, "frame 25/100", elapsed=10.0) == (
+        "  [#######-----------------------] frame 25/100, 30 s left ")
+    assert format_duration(185) == "3 min 05 s" and format_duration(3720) == "1 h 02 min"
+    assert Progress.maybe("auto") is None  # stderr is not a terminal under pytest: quiet
+    assert isinstance(Progress.maybe("on"), Progress) and Progress.maybe("off") is None
 
 
 def test_comm_edges_are_healthy_pairs_within_range():
@@ -97,15 +182,20 @@ def test_comm_edges_are_healthy_pairs_within_range():
 def test_write_run_plots_and_gif_animation(finished, tmp_path):
     sim, result, _ = finished
     written = plots.write_run_plots(tmp_path, sim=sim, result=result, plots=True, animation=False)
-    assert [p.name for p in written] == ["trajectories.png", "safety.png", "speed.png"]
+    assert [p.name for p in written] == ["trajectories.png", "safety.png", "speed.png", "altitude.png"]
     from PIL import Image
 
     for path in written:
         with Image.open(path) as image:
             assert image.format == "PNG" and image.size[0] > 500
     run = plots.from_simulation(sim, result)
-    path = plots.write_animation(run, tmp_path, frames=8, edges=True)
+    from swarmscene.summary import Progress
+
+    stream = io.StringIO()
+    path = plots.write_animation(run, tmp_path, frames=8, edges=True, progress=Progress(stream=stream, delay=0.0))
     assert path.suffix in (".gif", ".mp4") and path.stat().st_size > 0
+    last = stream.getvalue().split("\r")[-1]  # the writer reports frames written and the time left
+    assert last.startswith(f"  [{'#' * 30}] {path.name}: frame 8/8, 0 s left") and stream.getvalue().endswith("\n")
     if path.suffix == ".gif":
         with Image.open(path) as image:
             assert image.n_frames == 8
@@ -142,11 +232,11 @@ def test_cli_output_plots_true_writes_pictures(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     run = tmp_path / "run"
-    assert {"trajectories.png", "safety.png", "speed.png"} <= {p.name for p in run.iterdir()}
+    assert {"trajectories.png", "safety.png", "speed.png", "altitude.png"} <= {p.name for p in run.iterdir()}
     assert not (run / "animation.gif").exists()  # only on output.animation=true
     manifest = json.loads((run / "manifest.json").read_text())
     assert manifest["complete"] is True
-    assert {"trajectories.png", "safety.png", "speed.png"} <= set(manifest["files"])  # written before it
+    assert {"trajectories.png", "safety.png", "speed.png", "altitude.png"} <= set(manifest["files"])  # written before it
 
 
 def test_missing_extra_fails_before_the_run_and_leaves_no_run_directory(tmp_path):

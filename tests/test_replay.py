@@ -74,9 +74,9 @@ def test_recording_holds_every_entity(seeds):
     for entity in ("/world/agents:Points3D:positions", "/world/trails:LineStrips3D:strips",
                    "/world/obstacles:LineStrips3D:strips", "/world/obstacles/solid:Mesh3D:vertex_positions",
                    "/world/exclusion:LineStrips3D:strips", "/world/comm_edges:LineStrips3D:strips",
-                   "/world/failures/0:Points3D:positions", "/safety/min_separation:Scalars:scalars",
-                   "/safety/separation_limit:Scalars:scalars", "/safety/min_clearance:Scalars:scalars",
-                   "/safety/clearance_limit:Scalars:scalars", "/safety/events:Scalars:scalars",
+                   "/world/failures/0:Points3D:positions", "/safety/separation/min:Scalars:scalars",
+                   "/safety/separation/limit:Scalars:scalars", "/safety/clearance/min:Scalars:scalars",
+                   "/safety/clearance/limit:Scalars:scalars", "/safety/separation/events:Scalars:scalars",
                    "/events:TextLog:text"):
         assert entity in columns, entity
     assert not any("bodies" in c for c in columns)  # point-mass dynamics: no attitude to draw
@@ -107,13 +107,13 @@ def test_safety_series_equal_the_trajectorys_and_limits_span_the_run(seeds):
     run = plots.load_run(dirs[1])
     frame = recordings[replay.recording_id(run)]
     expected = plots.safety_series(run)
-    for name in ("min_separation", "min_clearance"):
-        times, values = _column(frame, f"/safety/{name}", "Scalars:scalars")
+    for name in ("separation", "clearance"):
+        times, values = _column(frame, f"/safety/{name}/min", "Scalars:scalars")
         np.testing.assert_allclose(times, run.t, atol=1e-9)
-        np.testing.assert_allclose(np.array(values).ravel(), expected[name], rtol=1e-12)
-    times, values = _column(frame, "/safety/separation_limit", "Scalars:scalars")
+        np.testing.assert_allclose(np.array(values).ravel(), expected[f"min_{name}"], rtol=1e-12)
+    times, values = _column(frame, "/safety/separation/limit", "Scalars:scalars")
     assert times.tolist() == pytest.approx([0.0, 8.0]) and np.ravel(values).tolist() == [0.5, 0.5]
-    _, values = _column(frame, "/safety/clearance_limit", "Scalars:scalars")
+    _, values = _column(frame, "/safety/clearance/limit", "Scalars:scalars")
     assert np.ravel(values).tolist() == [run.min_clearance_limit] * 2
 
 
@@ -124,7 +124,7 @@ def test_events_are_logged_and_marked_on_the_separation_series(seeds):
     times, texts = _column(frame, "/events", "TextLog:text")
     assert dict(zip(np.round(times, 9).tolist(), texts)) == {3.0: ["agent 0: failed (hovers in place)"],
                                                               8.0: ["run ended: duration"]}
-    times, values = _column(frame, "/safety/events", "Scalars:scalars")
+    times, values = _column(frame, "/safety/separation/events", "Scalars:scalars")
     assert times.tolist() == [3.0, 8.0]
     sep = plots.safety_series(run)["min_separation"]
     assert np.ravel(values).tolist() == pytest.approx([sep[np.searchsorted(run.t, 3.0 - 1e-9)], sep[-1]])
@@ -199,7 +199,9 @@ def test_cli_output_rerun_true_with_cem_does_not_crash(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     run = plots.load_run(tmp_path / "run")
-    (frame,) = replay.read_recordings([tmp_path / "run" / "replay.rrd"]).values()
+    ((rid, frame),) = replay.read_recordings([tmp_path / "run" / "replay.rrd"]).items()
+    digest = json.loads((tmp_path / "run" / "manifest.json").read_text())["config_hash"]
+    assert rid == f"default-seed{run.seed}-{digest[:12]}"  # exported during the run, before the manifest
     a_p = run.metrics.get("cem.a_p")
     if a_p is None:  # the cem plugin does not publish it (yet): no circle
         assert "/world/exclusion:LineStrips3D:strips" not in frame.columns

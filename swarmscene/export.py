@@ -1,0 +1,400 @@
+"""Exports for other tools and for real vehicles: per-agent CSV, Crazyflie piecewise polynomials.
+
+    python -m swarmscene.export RUN_DIR --csv OUT_DIR          # one CSV per agent
+    python -m swarmscene.export RUN_DIR --crazyflie OUT_DIR    # a planned show for Crazyflies
+
+Per-agent CSV (:func:`trajectory_csv`): ``agent_<i>.csv`` with a header line and the columns
+``t, x, y, z, vx, vy, vz, healthy`` (s, m, m/s, 0/1), and with attitude dynamics also
+``yaw, qw, qx, qy, qz`` (rad, unwrapped; body-to-world quaternion), one row per recorded frame.
+
+Crazyflie export (:func:`crazyflie_trajectories`): each vehicle's path as piecewise polynomials in
+the format the Crazyflie firmware's high-level commander stores (``struct poly4d``: for each
+piece, 8 float32 coefficients of x, y, z and yaw in ascending powers of the time since the start
+of the piece, and its float32 duration; 132 bytes), written as the CSV that Crazyswarm2's
+``uav_trajectory.Trajectory.loadcsv`` reads and ``cf.uploadTrajectory`` sends::
+
+    Duration,x^0,...,x^7,y^0,...,y^7,z^0,...,z^7,yaw^0,...,yaw^7
+
+one file ``cf_<i>.csv`` per vehicle, plus ``crazyflie.json`` with the fit's numbers and the
+limits checked. The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
+bytes (``crtp_commander_high_level.h``: "4k allows us to store 31 poly4d pieces"), so a vehicle's
+path has at most 31 pieces.
+
+Source of the path (``source``): ``plan`` evaluates the formation's open-loop plan (the VRB air
+show's flat outputs p_i(t), psi_i(t), Theorems 1-2) at 100 Hz; ``flown`` uses the recorded
+trajectory (positions, yaw from the attitude). ``auto`` (default) takes the plan when the run's
+formation has one.
+
+Fit: a degree-7 B-spline per vehicle (x, y, z, yaw share its knots, as a poly4d piece shares one
+duration) fitted by least squares to the samples, each interior knot of multiplicity 4, so every
+join is C^3 (position to jerk continuous: the commander's velocity, acceleration and the body
+rates it derives from jerk have no jumps; C^4 needs about 15 % more pieces for the same error). Knots are added where the error is largest (the worst
+piece is split in two) until the error is below ``tolerance`` (5 mm, 0.01 rad yaw by default) or the
+memory is full. The polynomials are then evaluated with float32 coefficients, as the vehicle stores
+them, to report the error.
+
+Limits (:data:`CRAZYFLIE`, Crazyflie 2.x, ``platform_defaults_cf2.h`` of the firmware):
+    collective thrust per unit mass |a + g e_3| <= 4 THRUST_MAX / CF_MASS = 15.5 m/s^2
+        (THRUST_MAX 0.1125 N per motor, CF_MASS 0.029 kg) and a_z >= -g (rotors only push);
+    with the PID controller (``stabilizer.controller: 1``, Crazyswarm2's default) also:
+        |v_x|, |v_y|, |v_z| <= 1.0 m/s (PID_POS_VEL_X/Y/Z_MAX, the position loop's velocity cap:
+        that controller takes no velocity feed-forward, so a faster plan cannot be tracked) and
+        tilt <= 20 degrees (PID_VEL_ROLL_MAX / PID_VEL_PITCH_MAX).
+    The Mellinger controller (``controller: 2``) tracks the polynomials' velocity and acceleration
+    as feed-forward and has no velocity cap; only the thrust limit applies.
+``time_scale`` > 1 slows the show down uniformly (same path; velocity / s, acceleration / s^2);
+``time_scale="auto"`` picks the smallest scale >= 1 (in steps of 0.05) within the chosen
+controller's limits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .core.outputs import atomic_write_bytes, atomic_write_json
+
+GRAVITY = 9.81
+POLY_DEGREE = 7
+"""Degree of each axis's polynomial in a poly4d piece (8 coefficients)."""
+AXES = ("x", "y", "z", "yaw")
+PIECE_BYTES = (len(AXES) * (POLY_DEGREE + 1) + 1) * 4
+"""Bytes of one ``struct poly4d``: float p[4][8] and float duration (132)."""
+TRAJECTORY_MEMORY_BYTES = 4096
+"""The firmware's TRAJECTORY_MEMORY_SIZE (crtp_commander_high_level.h)."""
+MAX_PIECES = TRAJECTORY_MEMORY_BYTES // PIECE_BYTES
+"""31 pieces fit in the trajectory memory."""
+KNOT_MULTIPLICITY = 4
+"""Each interior knot's multiplicity: continuity C^(7-4) = C^3 at every join."""
+SAMPLE_RATE = 100.0
+"""Hz, samples of the plan fitted and checked."""
+CSV_HEADER = "Duration," + ",".join(f"{axis}^{k}" for axis in AXES for k in range(POLY_DEGREE + 1))
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a Crazyflie can fly with a given controller (module docstring for the sources)."""
+
+    controller: str
+    max_collective_acc: float  # m/s^2, |a + g e_3|
+    max_axis_speed: float | None = None  # m/s, per world axis; None: no cap
+    max_tilt_deg: float | None = None  # degrees; None: no cap
+
+
+_CF_MASS = 0.029  # kg, CF_MASS
+_THRUST_MAX = 0.1125  # N per motor, THRUST_MAX
+CRAZYFLIE = {
+    "mellinger": Limits("mellinger", 4 * _THRUST_MAX / _CF_MASS),
+    "pid": Limits("pid", 4 * _THRUST_MAX / _CF_MASS, max_axis_speed=1.0, max_tilt_deg=20.0),
+}
+
+
+@dataclass(frozen=True)
+class Poly4D:
+    """A vehicle's piecewise polynomial trajectory in the high-level commander's poly4d layout.
+
+    Attributes:
+        durations: (P,) s, each piece's duration.
+        coeffs: (P, 4, 8) coefficients of x, y, z (m) and yaw (rad) in ascending powers of the
+            time since the start of the piece.
+        t0: s, the simulation time of the start of the first piece.
+    """
+
+    durations: np.ndarray
+    coeffs: np.ndarray
+    t0: float = 0.0
+
+    @property
+    def pieces(self) -> int:
+        return len(self.durations)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes in the vehicle's trajectory memory (PIECE_BYTES per piece)."""
+        return self.pieces * PIECE_BYTES
+
+    @property
+    def duration(self) -> float:
+        return float(np.sum(self.durations))
+
+    def as_float32(self) -> "Poly4D":
+        """The polynomials as the vehicle stores them (float32 coefficients and durations)."""
+        return Poly4D(self.durations.astype(np.float32).astype(float),
+                      self.coeffs.astype(np.float32).astype(float), self.t0)
+
+    def evaluate(self, t: np.ndarray, derivative: int = 0) -> np.ndarray:
+        """(T, 4): x, y, z, yaw (or their ``derivative``-th time derivative) at times ``t``
+        (simulation time; clipped to the trajectory), vectorised over times."""
+        t = np.atleast_1d(np.asarray(t, float)) - self.t0
+        starts = np.concatenate([[0.0], np.cumsum(self.durations)[:-1]])
+        piece = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, self.pieces - 1)
+        tau = np.clip(t - starts[piece], 0.0, self.durations[piece])
+        k = np.arange(POLY_DEGREE + 1)
+        # d^n/dt^n tau^k = k! / (k-n)! tau^(k-n)
+        fall = np.array([np.prod(np.arange(j - derivative + 1, j + 1)) if j >= derivative else 0.0 for j in k])
+        powers = np.where(k >= derivative, tau[:, None] ** np.maximum(k - derivative, 0), 0.0) * fall
+        return np.einsum("tak,tk->ta", self.coeffs[piece], powers)
+
+    def to_csv(self, path: Path) -> None:
+        """Crazyswarm2's trajectory CSV (module docstring), written atomically."""
+        rows = np.column_stack([self.durations, self.coeffs.reshape(self.pieces, -1)])
+        lines = [CSV_HEADER] + [",".join(f"{v:.9g}" for v in row) for row in rows]
+        atomic_write_bytes(Path(path), ("\n".join(lines) + "\n").encode())
+
+    @classmethod
+    def from_csv(cls, path: Path, t0: float = 0.0) -> "Poly4D":
+        """Read a trajectory CSV as Crazyswarm2 does (skip the header, 33 columns)."""
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        return cls(data[:, 0], data[:, 1:].reshape(-1, len(AXES), POLY_DEGREE + 1), t0)
+
+
+def _lsq_spline(t: np.ndarray, y: np.ndarray, breaks: np.ndarray) -> Any:
+    """Least-squares degree-7 B-spline through samples y (T, 4) with interior ``breaks``."""
+    from scipy.interpolate import make_lsq_spline
+
+    k = POLY_DEGREE
+    interior = np.repeat(breaks[1:-1], KNOT_MULTIPLICITY)
+    knots = np.concatenate([np.full(k + 1, breaks[0]), interior, np.full(k + 1, breaks[-1])])
+    return make_lsq_spline(t, y, knots, k=k)
+
+
+def _to_poly4d(spline: Any, breaks: np.ndarray) -> Poly4D:
+    """Taylor coefficients of each piece at its start: c_k = f^(k)(t_j+) / k!."""
+    from math import factorial
+
+    starts = breaks[:-1]
+    # BSpline evaluates at a knot with the piece to its right, so these are the right-hand limits
+    coeffs = np.stack([spline(starts, nu=n) / factorial(n) for n in range(POLY_DEGREE + 1)], axis=-1)  # (P, 4, 8)
+    return Poly4D(np.diff(breaks), coeffs, float(breaks[0]))
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted vehicle path and how well it matches its samples."""
+
+    poly: Poly4D
+    max_position_error: float  # m, float32 coefficients, at the samples
+    max_yaw_error: float  # rad
+
+
+def fit_poly4d(t: np.ndarray, samples: np.ndarray, tolerance: float = 0.005, yaw_tolerance: float = 0.01,
+               max_pieces: int = MAX_PIECES) -> Fit:
+    """Fit piecewise degree-7 polynomials to ``samples`` (T, 4: x, y, z m, yaw rad) at times ``t``.
+
+    Starts from pieces of about 4 s and splits the piece with the largest error (relative to the
+    tolerances) until every sample is within ``tolerance`` m and ``yaw_tolerance`` rad or the
+    vehicle's memory (``max_pieces``) is full; the best fit found is returned either way.
+    """
+    t = np.asarray(t, float)
+    samples = np.asarray(samples, float)
+    scale = np.array([tolerance] * 3 + [yaw_tolerance])
+    pieces = int(np.clip(np.ceil((t[-1] - t[0]) / 4.0), 1, max_pieces))
+    breaks = np.linspace(t[0], t[-1], pieces + 1)
+    while True:
+        poly = _to_poly4d(_lsq_spline(t, samples, breaks), breaks).as_float32()
+        err = np.abs(poly.evaluate(t) - samples)
+        worst = np.max(err / scale, axis=1)  # (T,) relative to the tolerances
+        if worst.max() <= 1.0 or poly.pieces >= max_pieces:
+            return Fit(poly, float(err[:, :3].max()), float(err[:, 3].max()))
+        piece = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, poly.pieces - 1)
+        per_piece = np.zeros(poly.pieces)
+        np.maximum.at(per_piece, piece, worst)
+        j = int(np.argmax(per_piece))
+        breaks = np.insert(breaks, j + 1, 0.5 * (breaks[j] + breaks[j + 1]))
+
+
+# -- sources ------------------------------------------------------------------------------------
+def planned_flat_outputs(config: dict[str, Any], t: np.ndarray) -> np.ndarray | None:
+    """(T, N, 4) planned x, y, z, yaw of every agent at times ``t``, or None when the run's
+    formation flies no open-loop plan (only the VRB formation does)."""
+    from . import api
+
+    formation = api.build(config).formation
+    if not (hasattr(formation, "trajectory") and hasattr(formation, "flight")):
+        return None
+    from .methods.vrb.transform import robot_flat_outputs
+
+    fo = robot_flat_outputs(formation.trajectory, formation.flight, t)
+    return np.concatenate([fo.p[0], fo.yaw[0][..., None]], axis=-1)
+
+
+def plan_span(config: dict[str, Any]) -> tuple[float, float]:
+    """(start, end) s of the show: from t = 0 to the end of the run's clock."""
+    return 0.0, float((config.get("clock") or {}).get("duration", 0.0))
+
+
+def yaw_from_quat(quat: np.ndarray) -> np.ndarray:
+    """(T, N) rad, unwrapped over time: the heading of the body x axis, from (w, x, y, z)."""
+    w, x, y, z = np.moveaxis(np.asarray(quat, float), -1, 0)
+    return np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)), axis=0)
+
+
+def show_samples(run_dir: Path, source: str = "auto") -> tuple[np.ndarray, np.ndarray, str]:
+    """(t (T,), samples (T, N, 4), source used) of a run directory's show (module docstring)."""
+    from .plots import load_run
+
+    run = load_run(run_dir)
+    if source in ("auto", "plan"):
+        start, end = plan_span(run.config)
+        t = np.linspace(start, end, int(round((end - start) * SAMPLE_RATE)) + 1)
+        planned = planned_flat_outputs(run.config, t)
+        if planned is not None:
+            return t, planned, "plan"
+        if source == "plan":
+            name = (run.config.get("formation") or {}).get("name")
+            raise ValueError(f"formation {name!r} flies no open-loop plan: use source 'flown'")
+    yaw = yaw_from_quat(run.quat) if run.quat is not None else np.zeros(run.pos.shape[:2])
+    return np.asarray(run.t, float), np.concatenate([run.pos, yaw[..., None]], axis=-1), "flown"
+
+
+# -- limits -------------------------------------------------------------------------------------
+def limit_checks(poly: Poly4D, limits: Limits, t: np.ndarray) -> list[dict[str, Any]]:
+    """Each limit of ``limits`` with the polynomials' extreme value over times ``t``."""
+    vel = poly.evaluate(t, 1)[:, :3]
+    acc = poly.evaluate(t, 2)[:, :3]
+    thrust = acc + np.array([0.0, 0.0, GRAVITY])
+    checks = [
+        {"name": "collective thrust |a + g e3| (m/s^2)", "value": float(np.linalg.norm(thrust, axis=1).max()),
+         "limit": limits.max_collective_acc},
+        {"name": "downward acceleration -a_z (m/s^2)", "value": float(-acc[:, 2].min()), "limit": GRAVITY},
+    ]
+    if limits.max_axis_speed is not None:
+        checks.append({"name": "axis speed max(|vx|, |vy|, |vz|) (m/s)", "value": float(np.abs(vel).max()),
+                       "limit": limits.max_axis_speed})
+    if limits.max_tilt_deg is not None:
+        tilt = np.degrees(np.arccos(np.clip(thrust[:, 2] / np.linalg.norm(thrust, axis=1), -1.0, 1.0)))
+        checks.append({"name": "tilt (deg)", "value": float(tilt.max()), "limit": limits.max_tilt_deg})
+    for check in checks:
+        check["holds"] = bool(check["value"] <= check["limit"])
+    return checks
+
+
+def _auto_time_scale(samples: np.ndarray, t: np.ndarray, limits: Limits) -> float:
+    """Smallest scale >= 1 (steps of 0.05) at which the sampled plan is within ``limits``."""
+    dt = np.gradient(t)
+    vel = np.gradient(samples[..., :3], axis=0) / dt[:, None, None]
+    acc = np.gradient(vel, axis=0) / dt[:, None, None]
+    for scale in np.arange(1.0, 5.0001, 0.05):
+        a = acc / scale**2 + np.array([0.0, 0.0, GRAVITY])
+        ok = np.linalg.norm(a, axis=-1).max() <= limits.max_collective_acc and (acc[..., 2] / scale**2).min() >= -GRAVITY
+        if limits.max_axis_speed is not None:
+            ok &= np.abs(vel / scale).max() <= limits.max_axis_speed * 0.98  # margin for the fit
+        if limits.max_tilt_deg is not None:
+            ok &= np.degrees(np.arccos(np.clip(a[..., 2] / np.linalg.norm(a, axis=-1), -1, 1))).max() <= limits.max_tilt_deg
+        if ok:
+            return float(round(scale, 2))
+    raise ValueError(f"no time scale up to 5 brings the show within the {limits.controller} limits")
+
+
+@dataclass(frozen=True)
+class ShowExport:
+    """The fitted trajectories of every vehicle and the checks (what ``crazyflie.json`` holds)."""
+
+    fits: list[Fit]
+    source: str
+    time_scale: float
+    controller: str
+    checks: list[list[dict[str, Any]]]
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "format": "poly4d (Crazyflie high-level commander; Crazyswarm2 trajectory CSV)",
+            "source": self.source, "time_scale": self.time_scale, "controller": self.controller,
+            "memory_bytes": TRAJECTORY_MEMORY_BYTES, "piece_bytes": PIECE_BYTES, "max_pieces": MAX_PIECES,
+            "vehicles": [
+                {"file": f"cf_{i}.csv", "pieces": fit.poly.pieces, "bytes": fit.poly.nbytes,
+                 "duration": fit.poly.duration, "start_time": fit.poly.t0,
+                 "max_position_error": fit.max_position_error, "max_yaw_error": fit.max_yaw_error,
+                 "limits": checks}
+                for i, (fit, checks) in enumerate(zip(self.fits, self.checks))
+            ],
+        }
+
+
+def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
+                           controller: str = "mellinger", time_scale: float | str = 1.0,
+                           tolerance: float = 0.005, kind: str = "auto") -> ShowExport:
+    """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
+    ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring)."""
+    limits = CRAZYFLIE[controller]
+    if isinstance(source, tuple):
+        t, samples = (np.asarray(a, float) for a in source)
+        used = "samples"
+    else:
+        t, samples, used = show_samples(Path(source), kind)
+    scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
+    ts = t[0] + (t - t[0]) * scale
+    fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance) for i in range(samples.shape[1])]
+    dense = np.linspace(ts[0], ts[-1], 4 * len(ts))
+    checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
+    result = ShowExport(fits, used, scale, controller, checks)
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        for i, fit in enumerate(fits):
+            fit.poly.to_csv(out_dir / f"cf_{i}.csv")
+        atomic_write_json(out_dir / "crazyflie.json", result.summary())
+    return result
+
+
+def trajectory_csv(source: Any, out_dir: Path) -> list[Path]:
+    """One ``agent_<i>.csv`` per agent from a run directory or a run's RunData (module docstring)."""
+    from .plots import RunData, load_run
+
+    run = source if isinstance(source, RunData) else load_run(Path(source))
+    columns = ["t", "x", "y", "z", "vx", "vy", "vz", "healthy"]
+    t = np.broadcast_to(np.asarray(run.t, float)[:, None], run.pos.shape[:2])
+    blocks = [t[..., None], np.asarray(run.pos, float), np.asarray(run.vel, float),
+              np.asarray(run.healthy, float)[..., None]]
+    if run.quat is not None:
+        columns += ["yaw", "qw", "qx", "qy", "qz"]
+        blocks += [yaw_from_quat(run.quat)[..., None], np.asarray(run.quat, float)]
+    table = np.concatenate(blocks, axis=-1)  # (T, N, C)
+    fmt = ["%.9g"] * (len(columns))
+    fmt[columns.index("healthy")] = "%d"
+    out_dir = Path(out_dir)
+    written = []
+    for i in range(run.n):  # one file per agent (export, not a per-step path)
+        import io
+
+        buffer = io.StringIO()
+        np.savetxt(buffer, table[:, i], delimiter=",", fmt=fmt, header=",".join(columns), comments="")
+        path = out_dir / f"agent_{i}.csv"
+        atomic_write_bytes(path, buffer.getvalue().encode())
+        written.append(path)
+    return written
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m swarmscene.export RUN_DIR [--csv DIR] [--crazyflie DIR] ...``."""
+    parser = argparse.ArgumentParser(prog="python -m swarmscene.export", description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
+    parser.add_argument("--crazyflie", type=Path, metavar="DIR", help="write cf_<i>.csv and crazyflie.json")
+    parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
+    parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
+    parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor, or 'auto'")
+    parser.add_argument("--tolerance", type=float, default=0.005, help="position fit tolerance, m")
+    args = parser.parse_args(argv)
+    if args.csv is None and args.crazyflie is None:
+        parser.error("nothing to do: give --csv DIR and/or --crazyflie DIR")
+    if args.csv is not None:
+        print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
+    if args.crazyflie is not None:
+        scale = args.time_scale if args.time_scale == "auto" else float(args.time_scale)
+        show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, args.tolerance, args.source)
+        print(f"crazyflie: {len(show.fits)} vehicles from the {show.source}, time scale {show.time_scale:g}, "
+              f"controller {show.controller}")
+        for i, (fit, checks) in enumerate(zip(show.fits, show.checks)):
+            bad = [c["name"] for c in checks if not c["holds"]]
+            print(f"  cf_{i}.csv: {fit.poly.pieces} pieces ({fit.poly.nbytes} of {TRAJECTORY_MEMORY_BYTES} bytes), "
+                  f"max error {fit.max_position_error * 1000:.1f} mm, {fit.max_yaw_error:.4f} rad; "
+                  + ("limits hold" if not bad else "EXCEEDS " + "; ".join(bad)))
+
+
+if __name__ == "__main__":
+    main()

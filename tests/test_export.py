@@ -1,0 +1,166 @@
+"""Exports: the VRB air show as Crazyflie poly4d trajectories (evaluated against the plan: under 1 cm,
+C^3 joins, within the vehicle's memory and thrust limits, the PID controller's velocity cap found and
+met by slowing the show), the Crazyswarm2 CSV read back as Crazyswarm2 reads it, and per-agent CSV."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from swarmscene import api, export, plots
+from swarmscene.methods.vrb.transform import robot_flat_outputs
+
+SHOW = ["scenario=vrb_airshow"]
+
+
+@pytest.fixture(scope="module")
+def plan():
+    """The air show's plan (no simulation): the formation's flat outputs of the three vehicles."""
+    formation = api.build(SHOW).formation
+
+    def at(t):
+        fo = robot_flat_outputs(formation.trajectory, formation.flight, t)
+        return fo.p, fo.yaw  # (5, T, N, 3), (5, T, N)
+
+    return at
+
+
+@pytest.fixture(scope="module")
+def fitted(plan):
+    t = np.linspace(0.0, 71.0, 7101)
+    p, yaw = plan(t)
+    samples = np.concatenate([p[0], yaw[0][..., None]], axis=-1)
+    return export.crazyflie_trajectories((t, samples)), samples
+
+
+def test_memory_layout_is_the_firmwares():
+    """struct poly4d { float p[4][8]; float duration; }: 132 bytes; 4096 bytes hold 31 pieces."""
+    assert export.PIECE_BYTES == 132 and export.MAX_PIECES == 31
+    assert export.CSV_HEADER.split(",")[:3] == ["Duration", "x^0", "x^1"]
+    assert export.CSV_HEADER.split(",")[-1] == "yaw^7" and len(export.CSV_HEADER.split(",")) == 33
+
+
+def test_fit_matches_the_plan_within_one_centimetre(plan, fitted):
+    show, _ = fitted
+    dense = np.linspace(0.0, 71.0, 71001)  # 1 kHz, ten times the fitted samples
+    p, yaw = plan(dense)
+    assert len(show.fits) == 3
+    for i, fit in enumerate(show.fits):
+        poly = fit.poly  # float32 coefficients, as the vehicle stores them
+        assert poly.pieces <= export.MAX_PIECES and poly.nbytes <= export.TRAJECTORY_MEMORY_BYTES
+        assert poly.duration == pytest.approx(71.0, abs=1e-5)
+        position = np.linalg.norm(poly.evaluate(dense)[:, :3] - p[0][:, i], axis=1)
+        assert position.max() < 0.01
+        assert np.abs(poly.evaluate(dense)[:, 3] - yaw[0][:, i]).max() < 0.01  # rad
+        velocity = np.linalg.norm(poly.evaluate(dense, 1)[:, :3] - p[1][:, i], axis=1)
+        assert velocity.max() < 0.1  # m/s: the feed-forward the commander sends is the plan's
+
+
+def test_joins_are_continuous_up_to_jerk(fitted):
+    show, _ = fitted
+    for fit in show.fits:
+        poly = fit.poly
+        joins = poly.t0 + np.cumsum(poly.durations)[:-1]
+        for n, tol in ((0, 1e-5), (1, 1e-4), (2, 1e-3), (3, 1e-2)):  # float32 coefficients
+            jump = np.abs(poly.evaluate(joins - 1e-9, n) - poly.evaluate(joins + 1e-9, n))
+            assert jump.max() < tol, (n, jump.max())
+
+
+def test_thrust_limits_hold_and_the_pid_velocity_cap_is_reported(fitted):
+    """Mellinger (feed-forward, no velocity cap): thrust within 4 THRUST_MAX / CF_MASS. The PID
+    controller's 1.0 m/s per-axis cap is exceeded by the show as planned (1.25 m/s)."""
+    show, samples = fitted
+    assert export.CRAZYFLIE["mellinger"].max_collective_acc == pytest.approx(4 * 0.1125 / 0.029)
+    for checks in show.checks:
+        assert all(c["holds"] for c in checks), checks
+    t = np.linspace(0.0, 71.0, 7101)
+    pid = export.crazyflie_trajectories((t, samples), controller="pid")
+    speed = [next(c for c in checks if c["name"].startswith("axis speed")) for checks in pid.checks]
+    assert max(c["value"] for c in speed) == pytest.approx(1.25, abs=0.01)
+    assert [c["holds"] for c in speed] == [False, False, False]
+
+
+def test_auto_time_scale_brings_the_show_within_the_pid_limits(plan, fitted):
+    _, samples = fitted
+    t = np.linspace(0.0, 71.0, 7101)
+    slow = export.crazyflie_trajectories((t, samples), controller="pid", time_scale="auto")
+    assert slow.time_scale == pytest.approx(1.3)
+    for fit, checks in zip(slow.fits, slow.checks):
+        assert {c["name"]: c["holds"] for c in checks} == {
+            "collective thrust |a + g e3| (m/s^2)": True, "downward acceleration -a_z (m/s^2)": True,
+            "axis speed max(|vx|, |vy|, |vz|) (m/s)": True, "tilt (deg)": True}
+        assert fit.poly.duration == pytest.approx(71.0 * 1.3, abs=1e-4)
+    p, _ = plan(np.array([10.0]))  # the same path, later: the plan at t is the slowed show at 1.3 t
+    np.testing.assert_allclose(slow.fits[0].poly.evaluate([13.0])[0, :3], p[0][0, 0], atol=0.01)
+
+
+def test_crazyswarm_csv_round_trip(fitted, tmp_path):
+    """Each row is a piece: duration then x, y, z, yaw coefficients in ascending powers, evaluated
+    by Horner's rule as Crazyswarm2's uav_trajectory.Polynomial.eval does."""
+    show, samples = fitted
+    poly = show.fits[1].poly
+    path = tmp_path / "cf_1.csv"
+    poly.to_csv(path)
+    assert path.read_text().splitlines()[0] == export.CSV_HEADER
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    assert data.shape == (poly.pieces, 33)
+    np.testing.assert_array_equal(data[:, 0].astype(np.float32), poly.durations.astype(np.float32))
+    start = np.concatenate([[0.0], np.cumsum(data[:, 0])])
+    t = 12.345
+    j = int(np.searchsorted(start, t, side="right") - 1)
+    tau = t - start[j]
+    x = 0.0
+    for c in data[j, 1:9][::-1]:  # Horner, highest power first
+        x = x * tau + c
+    assert x == pytest.approx(poly.evaluate([t])[0, 0], abs=1e-6)
+    assert abs(x - float(np.interp(t, np.linspace(0, 71, 7101), samples[:, 1, 0]))) < 0.01
+    back = export.Poly4D.from_csv(path)
+    np.testing.assert_allclose(back.coeffs, poly.coeffs, rtol=1e-7, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def short_show(tmp_path_factory):
+    """The first 3 s of the show (take-off), simulated and written: a run directory."""
+    run_dir = tmp_path_factory.mktemp("show")
+    sim = api.build([*SHOW, "clock.duration=3.0"])
+    api.write_outputs(sim, sim.run(), run_dir)
+    return run_dir
+
+
+def test_cli_crazyflie_export_from_a_run_directory(short_show, tmp_path):
+    out = tmp_path / "cf"
+    proc = subprocess.run([sys.executable, "-m", "swarmscene.export", str(short_show), "--crazyflie", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[0] == "crazyflie: 3 vehicles from the plan, time scale 1, controller mellinger"
+    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json"]
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["source"] == "plan" and summary["max_pieces"] == 31
+    for vehicle in summary["vehicles"]:
+        assert vehicle["duration"] == pytest.approx(3.0, abs=1e-6)
+        assert vehicle["max_position_error"] < 0.005 and vehicle["bytes"] == 132 * vehicle["pieces"]
+    poly = export.Poly4D.from_csv(out / "cf_2.csv")
+    run = plots.load_run(short_show)
+    # the plan starts where the vehicle stands on the ground
+    np.testing.assert_allclose(poly.evaluate([0.0])[0, :3], run.pos[0, 2], atol=0.005)
+
+
+def test_trajectory_csv_one_file_per_agent(short_show, tmp_path):
+    written = export.trajectory_csv(short_show, tmp_path)
+    assert [p.name for p in written] == ["agent_0.csv", "agent_1.csv", "agent_2.csv"]
+    header = written[0].read_text().splitlines()[0]
+    assert header == "t,x,y,z,vx,vy,vz,healthy,yaw,qw,qx,qy,qz"
+    run = plots.load_run(short_show)
+    table = np.loadtxt(written[1], delimiter=",", skiprows=1)
+    np.testing.assert_allclose(table[:, 0], run.t, rtol=1e-9)
+    np.testing.assert_allclose(table[:, 1:4], run.pos[:, 1], rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(table[:, 4:7], run.vel[:, 1], rtol=1e-8, atol=1e-12)
+    assert set(table[:, 7]) == {1.0}
+    np.testing.assert_allclose(table[:, 9:], run.quat[:, 1], rtol=1e-8, atol=1e-12)
+    w, x, y, z = run.quat[:, 1].T
+    np.testing.assert_allclose(np.cos(table[:, 8]), np.cos(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))),
+                               atol=1e-8)
