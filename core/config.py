@@ -4,8 +4,12 @@ Hydra composes plain YAML; ``OmegaConf.to_container(resolve=True)`` turns it int
 :func:`validate` checks it in one pass: the engine's own keys against :class:`ScenarioConfig`, each
 chosen plugin's keys against that plugin's ``Params``, then scenario-level checks (physics step
 divides the guidance period, events name existing agents, agents start clear of obstacles and of
-each other). Every problem becomes one line ``dotted.key: what is allowed (got value)``, collected in
-a :class:`ConfigError`.
+each other, the run fits the machine). Every problem becomes one line ``dotted.key: what is allowed
+(got value)``, collected in a :class:`ConfigError`.
+
+Validation builds what it checks (the obstacle footprints, the start positions) once: the returned
+:class:`Scenario` carries them to the simulation, with the effective configuration (every default
+resolved) that the run directory records.
 """
 
 from __future__ import annotations
@@ -15,33 +19,61 @@ import warnings
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .errors import ConfigError, format_validation_error
-from .plugin import PLUGIN_KINDS, PluginParams
+from .plugin import PLUGIN_KINDS, PluginParams, reject_bool_as_number
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_numbers(cls, value: Any, info: Any) -> Any:
+        """``true``/``false`` where a number is expected is an error (pydantic would read 1/0)."""
+        return reject_bool_as_number(cls, value, info)
 
 
 MAX_AGENTS = 1_000_000
 """Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
 MAX_SUBSTEPS = 10_000
 """Most physics steps per guidance tick (a smaller physics step is almost surely a typo)."""
+MAX_TICKS = 10_000_000
+"""Most guidance ticks in one run (``clock.duration / clock.guidance_period``): 11.5 days of
+simulated time at T_s = 0.1 s; the kernel keeps 8 bytes of timing per tick."""
+MAX_ANIMATION_FRAMES = 10_000
+"""Most frames in the animation (each is drawn by matplotlib)."""
+AGENT_WORKING_BYTES = 4096
+"""Estimated engine memory per agent besides the trajectory record: state arrays, the tick's
+k-d trees and neighbour lists, plugin arrays (measured peak ~2-3 KiB per agent at N = 10^5 with
+potential avoidance; rounded up)."""
+BASE_WORKING_BYTES = 256 * 2**20
+"""Estimated memory of the interpreter and the imported packages."""
 
 Point2 = tuple[float, float]
 Point3 = tuple[float, float, float]
 
 
-class PolygonObstacle(_Strict):
+class _Shape(BaseModel):
+    """Base of the obstacle footprints: their ``type`` tags a union, which admits no ``*`` validator."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("points", "center", "radius", "thickness", mode="before", check_fields=False)
+    @classmethod
+    def _no_bool_for_numbers(cls, value: Any, info: Any) -> Any:
+        return reject_bool_as_number(cls, value, info)
+
+
+class PolygonObstacle(_Shape):
     """A polygonal footprint; ``points`` in order, at least 3, not self-intersecting."""
 
     type: Literal["polygon"]
     points: list[Point2] = Field(min_length=3, description="vertices [x, y], m")
 
 
-class CircleObstacle(_Strict):
+class CircleObstacle(_Shape):
     """A disc footprint (pillar, no-fly cylinder)."""
 
     type: Literal["circle"]
@@ -49,7 +81,7 @@ class CircleObstacle(_Strict):
     radius: float = Field(gt=0, description="m")
 
 
-class WallObstacle(_Strict):
+class WallObstacle(_Shape):
     """A thick wall: the polyline ``points`` buffered by ``thickness / 2`` with flat caps."""
 
     type: Literal["wall"]
@@ -164,7 +196,9 @@ class OutputConfig(_Strict):
     animation: bool = Field(
         False, description="write animation.gif (animation.mp4 when ffmpeg is available); plots extra"
     )
-    animation_frames: int = Field(150, ge=2, description="most frames in the animation (evenly subsampled)")
+    animation_frames: int = Field(
+        150, ge=2, le=MAX_ANIMATION_FRAMES, description="most frames in the animation (evenly subsampled)"
+    )
     comm_edges: bool = Field(False, description="draw communication edges (within comm.range) in the animation")
     rerun: bool = Field(False, description="write replay.rrd for the Rerun viewer (needs the rerun extra)")
     objective: list[str] = Field(
@@ -226,13 +260,42 @@ class ScenarioConfig(_Strict):
 
 
 class Scenario(BaseModel):
-    """A validated scenario: the engine config plus each chosen plugin's class and Params."""
+    """A validated scenario, ready to build: the engine config, each chosen plugin's class and
+    Params, and what validation built to check it.
+
+    Attributes:
+        config: the engine's validated config.
+        plugin_classes: the chosen class of each kind (``formation``, ``avoidance``, ``dynamics``).
+        plugin_params: each chosen plugin's validated Params, defaults included.
+        data: the effective configuration: ``config`` with every field and each chosen plugin's
+            ``name`` and Params with every field, as plain data in the shape a user writes (what
+            the run directory's ``config.yaml`` records; validating it again gives this scenario).
+        composed: the data as composed (the input to :func:`validate`).
+        obstacles: the obstacle footprints, shapely geometries (:func:`~.geometry.build_obstacles`).
+        initial_positions: positions at t = 0, (N, 3), m, read-only.
+        rng_state: the state of ``numpy.random.default_rng(seed)`` after drawing the start, so the
+            run continues the same random stream as if it had drawn the start itself.
+    """
 
     model_config = ConfigDict(arbitrary_types_allowed=True, frozen=True)
     config: ScenarioConfig
     plugin_classes: dict[str, Any]
     plugin_params: dict[str, PluginParams]
     data: dict[str, Any]
+    composed: dict[str, Any] = Field(default_factory=dict)
+    obstacles: list[Any] = Field(default_factory=list)
+    initial_positions: np.ndarray
+    rng_state: dict[str, Any]
+
+
+def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: dict[str, PluginParams]) -> dict[str, Any]:
+    """The configuration a run uses, every default resolved, as plain data (JSON types) in the
+    nested shape of the composed config: the engine schema's fields, then for each plugin kind its
+    ``name`` and every field of its Params."""
+    data = config.model_dump(mode="json")
+    for kind in PLUGIN_KINDS:
+        data[kind] = {"name": classes[kind].name, **params[kind].model_dump(mode="json")}
+    return data
 
 
 def validate(data: dict[str, Any], registry: "Any") -> Scenario:
@@ -241,6 +304,8 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
     Args:
         data: plain composed config (no ``hydra`` node).
         registry: a :class:`~swarmscene.core.registry.Registry` (plugin classes by kind and name).
+    Returns:
+        the :class:`Scenario`, with the obstacles and start positions built while checking it.
     """
     errors: list[str] = []
     try:
@@ -249,6 +314,7 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
         errors += format_validation_error(exc, ScenarioConfig, data)
         config = None
     classes, params = _validate_plugins(data, registry, errors)
+    world = None
     if config is not None:
         errors += _scenario_checks(config)
         formation = classes.get("formation")
@@ -257,9 +323,24 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
                 f"swarm.leader: formation {formation.name!r} needs a leader "
                 f"(an agent index 0..{config.swarm.n - 1})"
             )
+        if not errors and len(classes) == len(PLUGIN_KINDS):
+            errors += memory_checks(config, classes["dynamics"])
+        if not errors:
+            world, world_errors = _build_world(config)
+            errors += world_errors
     if errors:
         raise ConfigError(errors)
-    return Scenario(config=config, plugin_classes=classes, plugin_params=params, data=data)
+    obstacles, positions, rng_state = world
+    return Scenario(
+        config=config,
+        plugin_classes=classes,
+        plugin_params=params,
+        data=effective_config(config, classes, params),
+        composed=data,
+        obstacles=obstacles,
+        initial_positions=positions,
+        rng_state=rng_state,
+    )
 
 
 def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dict, dict]:
@@ -285,27 +366,10 @@ def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dic
 
 
 def _scenario_checks(config: ScenarioConfig) -> list[str]:
-    """Checks across sections that no single field can make."""
-    from .geometry import build_obstacles, initial_positions  # geometry imports shapely lazily
+    """Checks across sections that no single field can make (before anything is built)."""
+    from .geometry import build_obstacles
 
-    errors: list[str] = []
-    clock = config.clock
-    ratio = clock.guidance_period / config.physics_step
-    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
-        errors.append(
-            f"clock.physics_step: must divide clock.guidance_period = {clock.guidance_period} "
-            f"(got {config.physics_step})"
-        )
-    elif clock.duration < clock.guidance_period:
-        errors.append(
-            f"clock.duration: must be >= clock.guidance_period = {clock.guidance_period} "
-            f"(got {clock.duration})"
-        )
-    elif ratio > MAX_SUBSTEPS:
-        errors.append(
-            f"clock.physics_step: must be >= clock.guidance_period / {MAX_SUBSTEPS} "
-            f"(got {config.physics_step})"
-        )
+    errors: list[str] = _clock_checks(config)
     n = config.swarm.n
     if config.swarm.leader is not None and config.swarm.leader >= n:
         errors.append(f"swarm.leader: must be < swarm.n = {n} (got {config.swarm.leader})")
@@ -313,16 +377,98 @@ def _scenario_checks(config: ScenarioConfig) -> list[str]:
         bad = [a for a in event.agents if not 0 <= a < n]
         if bad:
             errors.append(f"events.{k}.agents: agents are 0..{n - 1} (got {bad})")
-    obstacles, obstacle_errors = build_obstacles(config.environment)
-    errors += obstacle_errors
-    if errors:
-        return errors
-    try:
-        pos = initial_positions(config, np.random.default_rng(config.seed))
-    except ValueError as exc:
-        return [str(exc)]
-    errors += _start_checks(config, pos, obstacles)
+    errors += build_obstacles(config.environment)[1]
     return errors
+
+
+def _clock_checks(config: ScenarioConfig) -> list[str]:
+    """The physics step divides the guidance period, and the run has a bounded number of ticks."""
+    clock = config.clock
+    substeps = clock.guidance_period / config.physics_step  # may overflow to inf: no round() before
+    if not substeps <= MAX_SUBSTEPS:
+        return [f"clock.physics_step: must be >= clock.guidance_period / {MAX_SUBSTEPS} "
+                f"(got {config.physics_step})"]
+    if abs(substeps - round(substeps)) > 1e-9 * max(1.0, substeps) or round(substeps) < 1:
+        return [f"clock.physics_step: must divide clock.guidance_period = {clock.guidance_period} "
+                f"(got {config.physics_step})"]
+    if clock.duration < clock.guidance_period:
+        return [f"clock.duration: must be >= clock.guidance_period = {clock.guidance_period} "
+                f"(got {clock.duration})"]
+    ticks = clock.duration / clock.guidance_period
+    if not ticks <= MAX_TICKS:
+        return [f"clock.duration: at most {MAX_TICKS} guidance ticks of clock.guidance_period = "
+                f"{clock.guidance_period} s (got {clock.duration}: {ticks:.3g} ticks)"]
+    return []
+
+
+def memory_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
+    """The run's estimated peak memory against the machine's: one line when it does not fit.
+
+    Estimate: :data:`BASE_WORKING_BYTES` + N x :data:`AGENT_WORKING_BYTES` + 8 bytes per tick
+    (timing) + the trajectory frames held in memory (the whole record, or one chunk of
+    ``output.trajectory_buffer_mb`` when it is streamed; see :mod:`swarmscene.core.recorder`).
+    """
+    need = estimated_memory(config, getattr(dynamics, "has_attitude", False))
+    have = machine_memory()
+    if have is None or need <= have:
+        return []
+    return [
+        f"swarm.n: the run needs an estimated {need / 2**30:.3g} GiB of memory, the machine has "
+        f"{have / 2**30:.3g} GiB (got swarm.n = {config.swarm.n}, {config.clock.duration / config.clock.guidance_period:.3g}"
+        f" ticks, output.trajectory_buffer_mb = {config.output.trajectory_buffer_mb})"
+    ]
+
+
+def estimated_memory(config: ScenarioConfig, has_attitude: bool) -> float:
+    """Estimated peak memory of a run, bytes (see :func:`memory_checks`)."""
+    n, out = config.swarm.n, config.output
+    ticks = config.clock.duration / config.clock.guidance_period
+    total = BASE_WORKING_BYTES + n * AGENT_WORKING_BYTES + 8.0 * ticks
+    if out.trajectory:
+        itemsize = 4 if out.float32 else 8
+        frame = n * ((6 + (4 if has_attitude else 0)) * itemsize + 1)
+        frames = ticks // out.trajectory_every + 1
+        held = frames * frame
+        streamed = out.trajectory_stream == "on" or (
+            out.trajectory_stream == "auto" and held > out.trajectory_buffer_mb * 2**20
+        )
+        if streamed:
+            held = max(1.0, min(frames, out.trajectory_buffer_mb * 2**20 // frame)) * frame
+        total += held + 8.0 * frames
+    return total
+
+
+def machine_memory() -> int | None:
+    """Memory the run may use, bytes: MemAvailable of /proc/meminfo, else physical memory
+    (``os.sysconf``), else None (unknown: not checked)."""
+    import os
+
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _build_world(config: ScenarioConfig) -> tuple[tuple | None, list[str]]:
+    """The obstacles, the start positions and the generator state after drawing them, or errors."""
+    from .geometry import build_obstacles, initial_positions
+
+    obstacles, _ = build_obstacles(config.environment)
+    rng = np.random.default_rng(config.seed)
+    try:
+        pos = initial_positions(config, rng)
+    except ValueError as exc:
+        return None, [str(exc)]
+    errors = _start_checks(config, pos, obstacles)
+    pos.flags.writeable = False
+    return (obstacles, pos, rng.bit_generator.state), errors
 
 
 def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> list[str]:

@@ -107,7 +107,11 @@ def format_validation_error(
         message = _describe(err, model)
         key = _dotted(tuple(err["loc"]), prefix)
         if err["type"] == "value_error" and ":" in message and not err["loc"]:
-            lines.append(message)  # a model-level check already names its key
+            # A model-level check names its key relative to its model: `vision: ...` in a
+            # formation's Params is `formation.vision: ...` to the user.
+            if prefix and not message.startswith(f"{prefix}."):
+                message = f"{prefix}.{message}"
+            lines.append(message)
             continue
         got = "" if err["type"] == "missing" else f" (got {err['input']!r})"
         lines.append(f"{key}: {message}{got}")

@@ -1,11 +1,17 @@
 """The run directory: resolved config, metrics, trajectory and manifest, each written atomically.
 
 Layout of a run directory:
-    config.yaml      the resolved, validated scenario config
+    config.yaml      the effective configuration: every engine option and every option of each
+                     chosen plugin, defaults included (``Scenario.data``); re-run it exactly with
+                     ``swarmscene --config-dir <run dir> --config-name config``
     metrics.json     flat dotted keys, SI units (docs/outputs.md)
     trajectory.npz   see :mod:`swarmscene.core.recorder`
-    manifest.json    config hash, seed, package versions, command line, status; written last, so a
-                     directory without it (or with ``"complete": false``) is unfinished.
+    manifest.json    config hash, seed, start time, package versions and source revision, command
+                     line, status; written last, so a directory without it (or with
+                     ``"complete": false``) is unfinished.
+
+Files are created with the permissions the user's umask gives (``0o666 & ~umask``), like any file
+``open()`` creates, although they are written through a private temporary file.
 """
 
 from __future__ import annotations
@@ -15,8 +21,10 @@ import json
 import math
 import os
 import platform
+import subprocess
 import sys
 import tempfile
+from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -25,13 +33,47 @@ from typing import Any
 import numpy as np
 
 MANIFEST_PACKAGES = ("swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core")
+COSMETIC_KEYS = (
+    ("description",),
+    ("output", "summary"),
+    ("output", "progress"),
+    ("output", "objective"),
+    ("output", "trajectory_stream"),
+    ("output", "trajectory_buffer_mb"),
+    ("output", "trajectory_spill_dir"),
+)
+"""Options left out of the config hash: they change neither the numbers a run computes nor the
+files it writes (a label, what is printed, what a sweeper is handed from metrics.json, how the
+trajectory is buffered on its way to the same trajectory.npz)."""
+
+
+def user_file_mode() -> int:
+    """``0o666 & ~umask``: the mode ``open()`` gives a new file (read without changing the umask
+    where /proc tells it, since setting it is process-wide)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def _private_temp(path: Path) -> tuple[int, str]:
+    """A temporary file beside ``path`` (mkstemp: mode 0600), given the user's file mode."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.fchmod(fd, user_file_mode())
+    return fd, tmp
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file and ``os.replace`` (never half-written)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = _private_temp(path)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -57,7 +99,7 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = _private_temp(path)
     try:
         with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
             for name, array in arrays.items():
@@ -109,9 +151,29 @@ def atomic_write_json(path: Path, data: Any) -> None:
 
 
 def config_hash(data: dict[str, Any]) -> str:
-    """SHA-256 of the canonical JSON of a config (same scenario and seed, same hash)."""
-    canonical = json.dumps(_jsonable(data), sort_keys=True, separators=(",", ":"))
+    """SHA-256 of the canonical JSON of an effective configuration without :data:`COSMETIC_KEYS`.
+
+    ``data`` is the effective configuration (``Scenario.data``, a run directory's config.yaml):
+    every value the run uses is in it, so the hash changes when any of them changes, including a
+    plugin default changed by an upgrade. Same hash, same numbers for the same package versions.
+    """
+    canonical = json.dumps(_jsonable(_without_cosmetic(data)), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _without_cosmetic(data: dict[str, Any]) -> dict[str, Any]:
+    data = dict(data)
+    for path in COSMETIC_KEYS:
+        node = data
+        for key in path[:-1]:
+            child = node.get(key)
+            if not isinstance(child, dict):
+                break
+            node[key] = child = dict(child)  # copies along the path: the caller's data is untouched
+            node = child
+        else:
+            node.pop(path[-1], None)
+    return data
 
 
 def package_versions() -> dict[str, str]:
@@ -124,6 +186,35 @@ def package_versions() -> dict[str, str]:
     return versions
 
 
+@lru_cache(maxsize=1)
+def source_revision() -> dict[str, Any] | None:
+    """``{"revision": <commit>, "dirty": <bool>}`` when the swarmscene package runs from a git
+    checkout that tracks it (an editable install), else None (an installed wheel: its version says
+    what ran). ``dirty``: tracked files differ from the commit."""
+    package = Path(__file__).resolve().parent  # core/, tracked in the source tree
+    def git(*args: str) -> str | None:
+        try:
+            proc = subprocess.run(["git", "-C", str(package), *args], capture_output=True, text=True, timeout=10)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return proc.stdout.strip() if proc.returncode == 0 else None
+
+    # a wheel installed into a virtual environment inside some checkout is not tracked by it
+    if git("ls-files", "--error-unmatch", Path(__file__).name) is None:
+        return None
+    revision = git("rev-parse", "HEAD")
+    if not revision:
+        return None
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"revision": revision, "dirty": bool(status)}
+
+
+CONFIG_HEADER = (
+    "# The effective configuration of this run: every option, defaults included.\n"
+    "# Re-run it exactly: swarmscene --config-dir <this directory> --config-name config\n"
+)
+
+
 def write_run_dir(
     run_dir: Path,
     data: dict[str, Any],
@@ -132,16 +223,19 @@ def write_run_dir(
     complete: bool,
     seed: int,
     extras: Sequence[Callable[[Path], Any]] = (),
+    started_at: str | None = None,
 ) -> None:
     """Write a run's files; the manifest goes last and marks the directory complete.
 
-    ``extras`` write further files into the directory (plots, a replay) before the manifest, so
-    the manifest lists them and a directory without one was not finished.
+    ``data`` is the effective configuration (``Scenario.data``); ``started_at`` the run's start,
+    UTC ISO 8601. ``extras`` write further files into the directory (plots, a replay) before the
+    manifest, so the manifest lists them and a directory without one was not finished.
     """
     import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
 
     run_dir = Path(run_dir)
-    atomic_write_bytes(run_dir / "config.yaml", yaml.safe_dump(_jsonable(data), sort_keys=False).encode())
+    text = CONFIG_HEADER + yaml.safe_dump(_jsonable(data), sort_keys=False)
+    atomic_write_bytes(run_dir / "config.yaml", text.encode())
     if trajectory:
         write_npz(run_dir / "trajectory.npz", trajectory)
     atomic_write_json(run_dir / "metrics.json", metrics)
@@ -151,8 +245,12 @@ def write_run_dir(
         "config_hash": config_hash(data),
         "seed": seed,
         "complete": complete,
+        "started_at": started_at,
         "command": sys.argv,
         "versions": package_versions(),
         "files": sorted(p.name for p in run_dir.iterdir() if not p.name.startswith(".")),
     }
+    source = source_revision()
+    if source is not None:
+        manifest["source"] = source
     atomic_write_json(run_dir / "manifest.json", manifest)

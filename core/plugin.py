@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, field_validator
 
 from .setpoint import Setpoints
 from .state import WorldState
@@ -32,10 +32,39 @@ if TYPE_CHECKING:  # pragma: no cover
     from .sensing import Sensing
 
 
+def _admits_bool(annotation: Any) -> bool:
+    """Whether a field's type accepts a boolean anywhere (``bool``, ``bool | None``, ``Any``...)."""
+    if annotation is bool or annotation is Any:
+        return True
+    return any(_admits_bool(arg) for arg in getattr(annotation, "__args__", ()) or ())
+
+
+def _holds_bool(value: Any) -> bool:
+    if isinstance(value, bool):
+        return True
+    return isinstance(value, (list, tuple)) and any(_holds_bool(v) for v in value)
+
+
+def reject_bool_as_number(model: type[BaseModel], value: Any, info: Any) -> Any:
+    """A ``before`` field validator: ``true``/``false`` given where the field's type has no
+    boolean is an error (pydantic's lax mode would read 1 or 0: ``swarm.n=true`` would run one
+    agent). Lists are searched too (``center: [true, 0, 1]``)."""
+    field = model.model_fields.get(info.field_name) if info.field_name else None
+    if field is None or not _holds_bool(value) or _admits_bool(field.annotation):
+        return value
+    raise ValueError("must be a number, not true/false")
+
+
 class PluginParams(BaseModel):
-    """Base of every plugin's ``Params``: unknown keys are errors, values are validated on assignment."""
+    """Base of every plugin's ``Params``: unknown keys are errors, values are validated on
+    assignment, non-finite numbers are refused and so are booleans where a number is expected."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_numbers(cls, value: Any, info: Any) -> Any:
+        return reject_bool_as_number(cls, value, info)
 
 
 @dataclass(frozen=True)

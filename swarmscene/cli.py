@@ -10,20 +10,35 @@ with status 2, without a traceback (set ``SWARMSCENE_DEBUG=1`` for one) and with
 directory behind. In a multirun, a failing job is recorded with its error (the others run), a
 job already complete for the same config is skipped, and the sweep directory gets summary.csv and
 summary.md at the end (docs/sweeps.md). Ctrl-C writes what the run has, marked incomplete, and
-exits with status 130.
+exits with status 130; SIGTERM (a scheduler's cancel, ``kill``) does the same with status 143.
 """
 
 from __future__ import annotations
 
 import os
 import shutil
+import signal
 import sys
 from pathlib import Path
 from typing import Any
 
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 DEBUG_ENV = "SWARMSCENE_DEBUG"
+_terminated = False  # set by the SIGTERM handler: the interruption was a SIGTERM, not a Ctrl-C
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    """SIGTERM is handled like Ctrl-C (the run stops after its tick, partial outputs are written,
+    marked incomplete); only the exit status differs."""
+    global _terminated
+    _terminated = True
+    raise KeyboardInterrupt
+
+
+def _interrupted_status() -> tuple[int, str]:
+    return (EXIT_TERMINATED, "terminated") if _terminated else (EXIT_INTERRUPTED, "interrupted")
 
 
 def main() -> None:
@@ -45,11 +60,13 @@ def main() -> None:
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
     )
+    signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         app()
     except KeyboardInterrupt:
-        print("swarmscene: interrupted", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
+        status, word = _interrupted_status()
+        print(f"swarmscene: {word}", file=sys.stderr)
+        sys.exit(status)
     except Exception as exc:  # every user-fixable problem becomes one line
         if debug:
             raise
@@ -87,9 +104,19 @@ def _task(cfg: Any) -> Any:
     from hydra.types import RunMode
     from omegaconf import OmegaConf
 
+    from .core.errors import ConfigError
+    from .hydra_errors import resolution_error_line
+
     hydra_cfg = HydraConfig.get()
     run_dir = Path(hydra_cfg.runtime.output_dir)
-    data = OmegaConf.to_container(cfg, resolve=True)
+    try:
+        data = OmegaConf.to_container(cfg, resolve=True)
+    except Exception as exc:  # an interpolation that does not resolve: name its key
+        line = resolution_error_line(exc)
+        if line is None or hydra_cfg.mode == RunMode.MULTIRUN:
+            raise ConfigError([line]) if line is not None else exc
+        _remove_unfinished(run_dir)
+        _report([line])
     if hydra_cfg.mode != RunMode.MULTIRUN:
         return _single(data, run_dir)
     from .sweep import record_failure
@@ -120,25 +147,33 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         _remove_unfinished(run_dir)
         # Exit here: an exception would pass through Hydra's job runner, which adds its own line.
         _report(exc.lines)
+    except BaseException:
+        _remove_unfinished(run_dir)
+        raise
     result = _run_and_write(sim, run_dir, writers, sweep=False)
     if not result.complete:
-        print(f"swarmscene: interrupted at t = {result.metrics['duration']:.2f} s; "
+        status, word = _interrupted_status()
+        print(f"swarmscene: {word} at t = {result.metrics['duration']:.2f} s; "
               f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(status)
     return _objective(sim, result)
 
 
 def _job(data: dict[str, Any], run_dir: Path) -> Any:
-    """One job of a sweep: skip when already complete for this config, else run and write."""
+    """One job of a sweep: skip when already complete for this config, else run and write.
+
+    One plugin manager serves the job: it validates the scenario and the simulation owns it.
+    """
     from . import api
     from .sweep import completed_metrics
 
-    scenario = api.load(data)
-    done = completed_metrics(run_dir, scenario.data)
+    plugin_set = api.plugins()
+    scenario = api.load(data, plugin_set[1])
+    done = completed_metrics(run_dir, scenario.data)  # hashed over the effective configuration
     if done is not None:
         print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
         return _objective_from(scenario.config.output.objective, done)
-    sim = api.build(scenario)
+    sim = api.build(scenario, plugin_set)
     result = _run_and_write(sim, run_dir, _extra_writers(sim), sweep=True)
     if not result.complete:
         raise KeyboardInterrupt  # outputs are written and marked incomplete; stop the sweep
@@ -151,13 +186,14 @@ def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> 
 
     output = sim.config.output
     progress = Progress.maybe(output.progress, enabled=not sweep)
+    started_at = api.utc_now()
     try:
         result = sim.run(progress=progress)
     finally:
         if progress is not None:
             progress.close()
     extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
-    api.write_outputs(sim, result, run_dir, extras)  # the manifest, written last, lists their files
+    api.write_outputs(sim, result, run_dir, extras, started_at=started_at)  # the manifest, last, lists them
     if output.summary and not sweep:
         print(summary_text(sim, result, run_dir))
     return result

@@ -1,4 +1,5 @@
-"""Hydra's composition errors, reworded as the engine's one-line messages."""
+"""Hydra's composition errors (and YAML and interpolation errors), reworded as the engine's
+one-line messages."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import re
 
 _NOT_IN_STRUCT = re.compile(r"Could not override '([^']+)'")
 _APPEND_HINT = re.compile(r"use \+([^=\s]+)=(\S*)")
+_MERGING = re.compile(r"Error merging override (\S+)")
 _MISSING_GROUP_OPTION = re.compile(r"Could not find '([^'/]+(?:/[^'/]+)*)/([^'/]+)'")
 
 
@@ -18,6 +20,9 @@ def hydra_error_line(exc: BaseException) -> str | None:
         OverrideParseException,
     )
 
+    yaml_line = yaml_error_line(exc)
+    if yaml_line is not None:
+        return yaml_line
     if isinstance(exc, InstantiationException) and isinstance(exc.__cause__, ValueError):
         return str(exc.__cause__).splitlines()[0]  # a plugin of Hydra's (sweeper) refused its options
     message = str(exc)
@@ -40,5 +45,41 @@ def hydra_error_line(exc: BaseException) -> str | None:
             hint = _APPEND_HINT.search(message)
             value = hint.group(2) if hint else "?"
             return f"{key}: unknown key (got {value!r})"
+        merging = _MERGING.search(message)
+        if merging and exc.__cause__ is not None:
+            key = merging.group(1).lstrip("+~").split("=")[0]
+            cause = " ".join(str(exc.__cause__).split("\n")[0].split())
+            return f"{key}: cannot set this key: {cause} (got {merging.group(1)!r})"
         return " ".join(message.split())
-    return None
+    return resolution_error_line(exc)
+
+
+def yaml_error_line(exc: BaseException) -> str | None:
+    """``file:line: cannot parse YAML: problem`` for a YAML file that does not parse, else None."""
+    import yaml
+
+    while exc is not None and not isinstance(exc, yaml.YAMLError):
+        exc = exc.__cause__ or exc.__context__
+    if exc is None:
+        return None
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    if mark is None:
+        return f"cannot parse YAML: {problem}"
+    where = f"{mark.name}:{mark.line + 1}:{mark.column + 1}"
+    context = getattr(exc, "context", None)
+    started = getattr(exc, "context_mark", None)
+    tail = f" ({context} started at line {started.line + 1})" if context and started is not None else ""
+    return f"{where}: cannot parse YAML: {problem}{tail}"
+
+
+def resolution_error_line(exc: BaseException) -> str | None:
+    """``key: cannot resolve ${...}: reason`` for an interpolation that does not resolve, else None."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    while exc is not None and not isinstance(exc, OmegaConfBaseException):
+        exc = exc.__cause__
+    if exc is None or not getattr(exc, "full_key", None):
+        return None
+    reason = " ".join((getattr(exc, "msg", None) or str(exc)).splitlines()[0].split())
+    return f"{exc.full_key}: cannot resolve the value: {reason}"
