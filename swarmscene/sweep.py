@@ -122,7 +122,7 @@ def check_grid_owner(sweep_dir: Path, grid: list[str], jobs: list[list[str]]) ->
     sweep_dir = Path(sweep_dir)
     recorded = _read_json(sweep_dir / SWEEP_FILE)
     if isinstance(recorded, dict):
-        if recorded.get("jobs") == jobs:
+        if _same_jobs(recorded.get("jobs"), jobs):
             return
         there, here = _difference(recorded.get("grid") or [], grid)
     else:
@@ -141,6 +141,14 @@ def record_grid(sweep_dir: Path, grid: list[str], jobs: list[list[str]]) -> None
     sweep_dir = Path(sweep_dir)
     sweep_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_json(sweep_dir / SWEEP_FILE, {"grid": list(grid), "jobs": [list(j) for j in jobs]})
+
+
+def _same_jobs(old: Any, new: list[list[str]] | None) -> bool:
+    """The same jobs, ``++a.b=v`` and ``a.b=v`` counting as one (the command line's spelling of a
+    plain value has changed before; the config hash still tells a changed job)."""
+    if not isinstance(old, list) or new is None or len(old) != len(new):
+        return False
+    return all([_shown(str(o)) for o in a] == [_shown(o) for o in b] for a, b in zip(old, new))
 
 
 def _override_key(override: str) -> str:
@@ -178,7 +186,7 @@ def _first_foreign_job(sweep_dir: Path, jobs: list[list[str]]) -> tuple[str, str
         old = [str(o) for o in (yaml.safe_load(overrides_file.read_text()) or [])]
         index = int(run_dir.name)
         new = jobs[index] if index < len(jobs) else None
-        if old != new:
+        if not _same_jobs([old], [new] if new is not None else None):
             return (
                 f"job {index}: {' '.join(map(_shown, old)) or 'no overrides'}",
                 f"job {index}: {' '.join(map(_shown, new)) or 'no overrides'}" if new is not None else f"{len(jobs)} jobs",
