@@ -194,7 +194,9 @@ def blueprint(run: RunData) -> Any:
             rrb.Vertical(*series, rrb.TextLogView(origin="events", name="events"), row_shares=[2] * len(series) + [1]),
             column_shares=[3, 2],
         ),
-        collapse_panels=True,
+        rrb.BlueprintPanel(state="expanded"),  # lists the recordings: one per run (seed)
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline=TIMELINE),
     )
 
 
@@ -301,7 +303,7 @@ def _log_frames(rec: Any, run: RunData, frames: np.ndarray, trail_seconds: float
     for k in frames:  # per frame, vectorised over agents
         rec.set_time(TIMELINE, duration=float(run.t[k]))
         start = max(0, k - trail)
-        rec.log("world/trails", rr.LineStrips3D(np.transpose(run.pos[start : k + 1], (1, 0, 2)), radii=0.02,
+        rec.log("world/trails", rr.LineStrips3D(np.transpose(run.pos[start : k + 1], (1, 0, 2)), radii=0.008,
                                                 colors=palette))
         failed = np.flatnonzero(~run.healthy[k])
         if zone is not None:
