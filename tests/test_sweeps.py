@@ -425,6 +425,30 @@ def test_sweep_presets_grid_and_every_job_validates(preset, expected):
         api.load(overrides)
 
 
+def test_methods_preset_is_every_paper_scenario_times_every_method():
+    """Issue 14's comparison: 5 scenarios (cases: the corridor at 0.7 m) x 5 methods x 10 seeds,
+    every scenario x method combination composing and validating."""
+    import yaml
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from hydra_plugins.swarmscene_sweeper import expand
+    from swarmscene import api
+
+    data = yaml.safe_load((Path(sweep.__file__).parents[1] / "scenarios" / "sweep" / "methods.yaml").read_text())
+    sweeper = data["hydra"]["sweeper"]
+    assert sweeper["on_invalid"] == "record" and data["hydra"]["callbacks"]["swarmscene_summary"]["allow_failed"] is True
+    _, jobs = expand(sweeper["params"], ["+sweep=methods"], OverridesParser.create(), sweeper["cases"])
+    methods = ["cem", "orca", "cbf", "potential", "none"]
+    cases = [["scenario=cem_six_vehicle"], ["scenario=outdoor_square"],
+             ["scenario=indoor_corridor", "environment=indoor_corridor_w070"], ["scenario=vrb_airshow"], ["scenario=swap"]]
+    assert jobs == [[*case, f"avoidance={m}", f"seed={s}", "+sweep=methods"] for case in cases for m in methods for s in range(10)]
+    _, registry = api.plugins()
+    for case in cases:
+        for method in methods:
+            scenario = api.load(api.compose(["+sweep=methods", *case, f"avoidance={method}"]), registry)
+            assert scenario.data["avoidance"]["name"] == method
+
+
 def test_indoor_corridor_preset_is_the_thesis_grid():
     grid = _grid("indoor_corridor")
     assert grid["scenario"] == ["indoor_corridor"]
