@@ -50,7 +50,7 @@ controller's limits.
 from __future__ import annotations
 
 import argparse
-import json
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -359,8 +359,6 @@ def trajectory_csv(source: Any, out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     written = []
     for i in range(run.n):  # one file per agent (export, not a per-step path)
-        import io
-
         buffer = io.StringIO()
         np.savetxt(buffer, table[:, i], delimiter=",", fmt=fmt, header=",".join(columns), comments="")
         path = out_dir / f"agent_{i}.csv"
@@ -385,9 +383,14 @@ def main(argv: list[str] | None = None) -> None:
     if args.csv is not None:
         print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
     if args.crazyflie is not None:
-        scale = args.time_scale if args.time_scale == "auto" else float(args.time_scale)
-        show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, args.tolerance, args.source)
-        print(f"crazyflie: {len(show.fits)} vehicles from the {show.source}, time scale {show.time_scale:g}, "
+        try:
+            scale = args.time_scale if args.time_scale == "auto" else float(args.time_scale)
+            show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, args.tolerance,
+                                          args.source)
+        except ValueError as exc:  # a formation without a plan, a show no time scale rescues
+            parser.exit(2, f"swarmscene.export: {exc}\n")
+        origin = {"plan": "plan", "flown": "flown trajectory"}.get(show.source, show.source)
+        print(f"crazyflie: {len(show.fits)} vehicles from the {origin}, time scale {show.time_scale:g}, "
               f"controller {show.controller}")
         for i, (fit, checks) in enumerate(zip(show.fits, show.checks)):
             bad = [c["name"] for c in checks if not c["holds"]]
