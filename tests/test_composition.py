@@ -10,7 +10,10 @@ and a few dynamics) runs the method asked for, or fails with one line naming a k
 from __future__ import annotations
 
 import json
-import re
+import os
+import shutil
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -206,6 +209,44 @@ def test_every_preset_runs_every_avoidance(preset, avoidance, tmp_path):
     assert_ran_with(*outcome, "avoidance", avoidance, preset, tmp_path)
 
 
+_RUN_EACH = """
+import json, sys, warnings
+from swarmscene import api
+from swarmscene.core.errors import ConfigError
+from swarmscene.summary import summary_text
+warnings.simplefilter("ignore")
+out = {}
+for preset, overrides in json.loads(sys.argv[1]).items():
+    try:
+        sim = api.build(overrides)
+        out[preset] = summary_text(sim, sim.run(), None).splitlines()[0]
+    except ConfigError as exc:
+        out[preset] = exc.lines
+print(json.dumps(out))
+"""
+
+
+def test_every_preset_runs_a_third_party_avoidance(tmp_path):
+    """The issue's case: ``scenario=cem_six_vehicle avoidance=<a third-party avoidance>`` failed
+    with one line per CEM option. The packaged example (docs/examples/swarmscene-slowdown),
+    installed into a private folder, flies every shipped preset."""
+    source = tmp_path / "src"
+    shutil.copytree(ROOT / "docs" / "examples" / "swarmscene-slowdown", source,
+                    ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
+    site = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
+                    "--target", str(site), str(source)], check=True, capture_output=True)
+    jobs = {p: [f"scenario={p}", "avoidance=slowdown", *short(p)] for p in PRESETS}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-c", _RUN_EACH, json.dumps(jobs)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    headers = json.loads(proc.stdout.splitlines()[-1])
+    for preset in PRESETS:
+        assert isinstance(headers[preset], str), f"{preset}: {headers[preset]}"
+        assert f"scenario {preset!r} (" in headers[preset] and "/ slowdown /" in headers[preset]
+
+
 @pytest.mark.parametrize("formation", REGISTRY.names("formation"))
 @pytest.mark.parametrize("preset", PRESETS)
 def test_every_preset_runs_every_formation_or_says_why_not(preset, formation, tmp_path):
@@ -269,6 +310,7 @@ def test_swapped_dynamics_gets_its_own_defaults_not_the_presets_tuning():
             "(agents [1, 3, 4, 5] start outside; the kernel would wrap them)",
         ),
     ],
+    ids=lambda case: " ".join(case) if isinstance(case, list) else "line",
 )
 def test_meaningless_combination_is_one_line_naming_the_key(overrides, line):
     preset = overrides[0].removeprefix("scenario=")
