@@ -16,7 +16,7 @@ Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (se
                            translucent walls and roof (``world/obstacles/solid``) and outlines
     world/agents           one point per agent in its colour (``plots.agent_colors``, the colours of
                            the pictures and the animation), labelled with its index ("3 failed"
-                           once failed); radius half the separation limit, so touching spheres
+                           once failed; up to 500 agents, drawn up to 30); radius half the separation limit, so touching spheres
                            mean a separation violation (a quarter of that with attitude boxes)
     world/bodies           with attitude dynamics (``quat`` in the trajectory): a flat box per
                            vehicle oriented by its attitude, in the agent's colour, red once failed
@@ -66,6 +66,10 @@ AXIS_RGB = np.array([(230, 60, 60), (60, 200, 60), (60, 110, 240)], dtype=np.uin
 CIRCLE_POINTS = 48
 HASH_DIGITS = 12
 """Hex digits of the config hash in the recording id."""
+MAX_LABELLED = 500
+"""Agents are labelled (index, "failed") in swarms up to this size."""
+SHOWN_LABELS = 30
+"""... and the labels drawn in the 3-D view up to this size (else on hover only)."""
 PLANNED_EXCLUSION = {"cem": "cem.a_p"}
 """Avoidances that plan an exclusion radius around failed vehicles, and the metric holding it."""
 
@@ -230,13 +234,15 @@ def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
     healthy = run.healthy[frames]
     palette = agent_colors(n)
     colors = np.broadcast_to(palette, (f, n, 3)).reshape(-1, 3)
-    names = np.array([str(i) for i in range(n)], dtype=object)
-    labels = np.where(healthy, names, np.char.add(names.astype(str), " failed").astype(object)).reshape(-1)
+    labelled = {}
+    if n <= MAX_LABELLED:  # a label per agent per frame: affordable for small swarms only
+        names = np.array([str(i) for i in range(n)], dtype=object)
+        labels = np.where(healthy, names, np.char.add(names.astype(str), " failed").astype(object)).reshape(-1)
+        labelled = {"labels": labels.tolist(), "show_labels": np.full(n * f, n <= SHOWN_LABELS)}
     rec.send_columns(
         "world/agents", indexes=index,
         columns=rr.Points3D.columns(positions=run.pos[frames].reshape(-1, 3), colors=colors,
-                                    radii=np.full(n * f, radius), labels=labels.tolist(),
-                                    show_labels=np.full(n * f, n <= 30)).partition([n] * f),
+                                    radii=np.full(n * f, radius), **labelled).partition([n] * f),
     )
     if run.quat is None:
         return
