@@ -14,7 +14,6 @@ resolved) that the run directory records.
 
 from __future__ import annotations
 
-import math
 import warnings
 from typing import Annotated, Any, Literal
 
@@ -51,8 +50,16 @@ potential avoidance; rounded up)."""
 BASE_WORKING_BYTES = 256 * 2**20
 """Estimated memory of the interpreter and the imported packages."""
 
-Point2 = tuple[float, float]
-Point3 = tuple[float, float, float]
+MAX_LENGTH = 1e7
+"""Largest coordinate magnitude and length, m (10,000 km): squared distances stay far from float
+overflow in every k-d tree and geometry query."""
+MAX_PERIOD = 3600.0
+"""Longest guidance period, s."""
+MAX_DURATION = 1e9
+"""Longest simulated duration, s (~32 years; the tick count is bounded by MAX_TICKS as well)."""
+Coordinate = Annotated[float, Field(ge=-MAX_LENGTH, le=MAX_LENGTH)]
+Point2 = tuple[Coordinate, Coordinate]
+Point3 = tuple[Coordinate, Coordinate, Coordinate]
 
 
 class _Shape(BaseModel):
@@ -78,7 +85,7 @@ class CircleObstacle(_Shape):
 
     type: Literal["circle"]
     center: Point2 = Field(description="[x, y], m")
-    radius: float = Field(gt=0, description="m")
+    radius: float = Field(gt=0, le=MAX_LENGTH, description="m")
 
 
 class WallObstacle(_Shape):
@@ -86,7 +93,7 @@ class WallObstacle(_Shape):
 
     type: Literal["wall"]
     points: list[Point2] = Field(min_length=2, description="polyline [x, y], m")
-    thickness: float = Field(gt=0, description="m")
+    thickness: float = Field(gt=0, le=MAX_LENGTH, description="m")
 
 
 Obstacle = Annotated[PolygonObstacle | CircleObstacle | WallObstacle, Field(discriminator="type")]
@@ -114,11 +121,11 @@ class StartConfig(_Strict):
     kind: Literal["line", "grid", "circle", "explicit", "random"] = Field(
         "grid", description="layout: line | grid | circle | explicit | random (see above)"
     )
-    spacing: float = Field(2.0, gt=0, description="distance between neighbours, m")
+    spacing: float = Field(2.0, gt=0, le=MAX_LENGTH, description="distance between neighbours, m")
     center: Point3 = Field((0.0, 0.0, 1.0), description="[x, y, z] of the swarm's centre, m")
-    extent: float = Field(10.0, gt=0, description="side of the square for kind=random, m")
+    extent: float = Field(10.0, gt=0, le=MAX_LENGTH, description="side of the square for kind=random, m")
     radius: float | None = Field(
-        None, gt=0, description="for kind=circle: ring radius, m (null: spacing * n / (2 pi))"
+        None, gt=0, le=MAX_LENGTH, description="for kind=circle: ring radius, m (null: spacing * n / (2 pi))"
     )
     positions: list[Point3] = Field(default_factory=list, description="for kind=explicit, m")
     connected: bool = Field(
@@ -137,18 +144,20 @@ class SwarmConfig(_Strict):
 class ClockConfig(_Strict):
     """Time: guidance (formation, avoidance, controllers) and physics run at their own periods."""
 
-    guidance_period: float = Field(0.1, gt=0, description="T_s, s")
+    guidance_period: float = Field(0.1, gt=0, le=MAX_PERIOD, description="T_s, s")
     physics_step: float | None = Field(
         None, gt=0, description="s; must divide guidance_period (null: equal to it)"
     )
-    duration: float = Field(30.0, gt=0, description="simulated duration, s")
+    duration: float = Field(
+        30.0, gt=0, le=MAX_DURATION, description="simulated duration, s (at most 10^7 guidance ticks)"
+    )
 
 
 class SafetyConfig(_Strict):
     """The limits every run is measured against."""
 
-    min_separation: float = Field(0.5, ge=0, description="safety distance between agents, m")
-    min_clearance: float = Field(0.2, ge=0, description="safety distance to obstacles, m")
+    min_separation: float = Field(0.5, ge=0, le=MAX_LENGTH, description="safety distance between agents, m")
+    min_clearance: float = Field(0.2, ge=0, le=MAX_LENGTH, description="safety distance to obstacles, m")
     start_overlap: Literal["error", "warn"] = Field(
         "error",
         description="agents starting closer than min_separation: an error, or a warning where a "
@@ -159,7 +168,7 @@ class SafetyConfig(_Strict):
 class CommConfig(_Strict):
     """Communication graph: agents within ``range`` of each other are linked."""
 
-    range: float = Field(20.0, gt=0, description="m")
+    range: float = Field(20.0, gt=0, le=MAX_LENGTH, description="m")
 
 
 class TerminationConfig(_Strict):
@@ -210,7 +219,7 @@ class OutputConfig(_Strict):
 class EventConfig(_Strict):
     """One scheduled event (see :mod:`swarmscene.core.events`)."""
 
-    at: float = Field(ge=0, description="time, s")
+    at: float = Field(ge=0, le=MAX_DURATION, description="time, s")
     agents: list[int] = Field(min_length=1, description="indices of the agents hit")
     kind: Literal["hover", "comm_loss"] = Field(description="hover: failure, holds position")
 
@@ -476,6 +485,10 @@ def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> l
 
     from .environment import Environment
 
+    reach = float(np.abs(pos).max(initial=0.0))
+    if not reach <= MAX_LENGTH:  # NaN too
+        return [f"swarm.start: positions must lie within {MAX_LENGTH:g} m of the origin on each axis "
+                f"(got {reach:.3g} m from swarm.start with swarm.n = {config.swarm.n})"]
     errors: list[str] = []
     env = Environment(obstacles)
     inside = np.flatnonzero(env.clearance(pos) < 0)
@@ -493,6 +506,4 @@ def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> l
                 errors.append(msg)
             else:
                 warnings.warn(msg, stacklevel=2)
-    if not math.isfinite(float(np.abs(pos).max(initial=0.0))):
-        errors.append("swarm.start: positions must be finite")
     return errors

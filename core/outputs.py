@@ -3,7 +3,7 @@
 Layout of a run directory:
     config.yaml      the effective configuration: every engine option and every option of each
                      chosen plugin, defaults included (``Scenario.data``); re-run it exactly with
-                     ``swarmscene --config-dir <run dir> --config-name config``
+                     ``swarmscene --config-path <run dir> --config-name config``
     metrics.json     flat dotted keys, SI units (docs/outputs.md)
     trajectory.npz   see :mod:`swarmscene.core.recorder`
     manifest.json    config hash, seed, start time, package versions and source revision, command
@@ -211,7 +211,7 @@ def source_revision() -> dict[str, Any] | None:
 
 CONFIG_HEADER = (
     "# The effective configuration of this run: every option, defaults included.\n"
-    "# Re-run it exactly: swarmscene --config-dir <this directory> --config-name config\n"
+    "# Re-run it exactly: swarmscene --config-path <this directory> --config-name config\n"
 )
 
 

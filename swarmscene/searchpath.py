@@ -104,7 +104,10 @@ OPTIONS_WITH_VALUE = frozenset(
 
 
 def plain_command_line(argv: Sequence[str]) -> list[str]:
-    """``argv`` (without the program name) with :func:`plain_overrides` applied to its overrides.
+    """``argv`` (without the program name) with :func:`plain_overrides` applied to its overrides,
+    and a relative ``--config-path`` made absolute from the working directory (Hydra would resolve
+    it against the installed package), so a run directory is re-run with
+    ``swarmscene --config-path <run dir> --config-name config``.
 
     Shell completion (``-sc``) is left alone: its ``query=...`` words are not the app's overrides.
     ``--info`` takes an optional word, never of the form ``key=value``.
@@ -113,11 +116,22 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
     if any(a in ("-sc", "--shell-completion") for a in args):
         return args
     out: list[str] = []
-    skip = False
+    option = None  # the flag whose value comes next
     for arg in args:
-        if skip or arg.startswith("-"):
+        if option is not None:
+            out.append(_absolute(arg) if option in ("-cp", "--config-path") else arg)
+            option = None
+        elif arg.startswith("--config-path="):
+            out.append("--config-path=" + _absolute(arg.partition("=")[2]))
+        elif arg.startswith("-"):
             out.append(arg)
-            skip = not skip and arg in OPTIONS_WITH_VALUE
-            continue
-        out.extend(plain_overrides([arg]))
+            option = arg if arg in OPTIONS_WITH_VALUE else None
+        else:
+            out.extend(plain_overrides([arg]))
     return out
+
+
+def _absolute(path: str) -> str:
+    import os
+
+    return path if "://" in path or os.path.isabs(path) else os.path.abspath(path)

@@ -55,6 +55,17 @@ def test_default_scenario_writes_run_directory(tmp_path):
         (["formation.waypoints=[]"], "swarmscene: formation.waypoints: must have at least 1 item(s) (got [])"),
         (["swarm.n=abc"], "swarmscene: swarm.n: must be an integer (got 'abc')"),
         (["swarm.n=[1"], "swarmscene: swarm.n: cannot parse override"),
+        (["swarm.n=true"], "swarmscene: swarm.n: must be a number, not true/false (got True)"),
+        (["name=${nope}"], "swarmscene: name: cannot resolve the value: Interpolation key 'nope' not found"),
+        (["clock.duration=1e12"], "swarmscene: clock.duration: must be <= 1000000000.0 (got 1000000000000.0)"),
+        (["clock.duration=1e8"], "swarmscene: clock.duration: at most 10000000 guidance ticks of "
+                                 "clock.guidance_period = 0.1 s (got 100000000.0: 1e+09 ticks)"),
+        (["swarm.start.kind=random", "swarm.n=100000"], "swarmscene: swarm.start: cannot place 100000 agents 2.0 m "
+                                                         "apart in a 10.0 m square (at most 39 fit; raise swarm.start.extent)"),
+        (["swarm.n=1000000"], "swarmscene: formation: 'static_shape' cannot be built for this scenario "
+                              "(swarm.n = 1000000): MemoryError: Unable to allocate"),
+        (["formation=reynolds_flocking", "formation.vision=60"],
+         "swarmscene: formation.vision: must be below half the torus' smallest side 100.0 (got 60.0)"),
     ],
 )
 def test_bad_input_one_line_exit_2_nothing_left_behind(tmp_path, args, line):
@@ -124,3 +135,16 @@ def test_plain_command_line_rewrites_only_dotted_value_overrides():
         "--multirun", "-cn", "config", "--cfg", "job", "avoidance=cem", "++avoidance.K=1,2", "+a.b=1",
         "++c.d=2", "~e.f", "seed=3", "hydra.run.dir=x", "hydra/launcher=joblib", "g.h@pkg=1", "i.j=[1"]
     assert plain_command_line(["-sc", "query=bash", "a.b=1"]) == ["-sc", "query=bash", "a.b=1"]
+
+
+def test_a_yaml_file_that_does_not_parse_is_one_line_with_file_and_line(tmp_path):
+    conf = tmp_path / "conf" / "avoidance"
+    conf.mkdir(parents=True)
+    (conf / "broken.yaml").write_text("name: potential\nv_max: [1.0\n")
+    proc = swarmscene("--config-dir", str(tmp_path / "conf"), "avoidance=broken", f"hydra.run.dir={tmp_path}/run",
+                      cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"swarmscene: {conf / 'broken.yaml'}:3:1: cannot parse YAML: expected ',' or ']', but got '<stream end>' "
+        "(while parsing a flow sequence started at line 2)"]
+    assert not (tmp_path / "run").exists()

@@ -71,13 +71,13 @@ class BarrierCertificates(Avoidance):
         power: int = Field(
             1, ge=1, description="p of the class-K function h^p (1: linear; 3: the Robotarium's)")
         v_max: float = Field(
-            1.0, gt=0, description="speed limit |u_i| <= v_max, m/s; keep it at or below the "
+            1.0, gt=0, le=1000.0, description="speed limit |u_i| <= v_max, m/s (at most 1000); keep it at or below the "
             "dynamics' speed limit")
         margin: float = Field(
-            0.05, ge=0, description="added to safety.min_separation for D_s and to "
+            0.05, ge=0, le=1000.0, description="added to safety.min_separation for D_s and to "
             "safety.min_clearance for D_o, m (absorbs tracking lag)")
         max_neighbours: int | None = Field(
-            None, ge=1, description="constraints per agent, nearest first; null: every neighbour "
+            None, ge=1, le=1_000_000, description="constraints per agent, nearest first; null: every neighbour "
             "whose constraint can be active")
         perturbation: float = Field(
             0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks "

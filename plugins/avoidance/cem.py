@@ -90,8 +90,9 @@ class CEM(Avoidance):
     class Params(PluginParams):
         """Options of ``avoidance=cem`` (defaults: the paper's section IV-V values)."""
 
-        K: int = Field(2, ge=1, description="sliding-step passes per tick (Alg. 1 line 14)")
-        n: int = Field(20, ge=1, description="Newton iterations of CalcXY (Alg. 2)")
+        K: int = Field(2, ge=1, le=1000, description="sliding-step passes per tick (Alg. 1 line 14); "
+                       "at most 1000 (the paper uses 1-5)")
+        n: int = Field(20, ge=1, le=1000, description="Newton iterations of CalcXY (Alg. 2); at most 1000")
         sigma: float = Field(1e-3, ge=0.0, description="saddle noise deviation, m (eq. 6)")
         v_des: float = Field(1.0, gt=0.0, description="desired speed of the fastest agent, m/s")
         eps: float = Field(0.28, ge=0.0, description="vehicle enclosing radius epsilon, m")

@@ -67,19 +67,21 @@ class Orca(Avoidance):
 
     class Params(PluginParams):
         time_horizon: float = Field(
-            3.0, gt=0, description="tau, s: velocity obstacles are truncated at this horizon (eq. 2)")
+            3.0, gt=0, le=1000.0, description="tau, s: velocity obstacles are truncated at this horizon "
+            "(eq. 2); at most 1000 s")
         time_horizon_obstacle: float = Field(
-            1.0, gt=0, description="tau_obst, s: horizon of the obstacle half-plane")
+            1.0, gt=0, le=1000.0, description="tau_obst, s: horizon of the obstacle half-plane; at most 1000 s")
         v_max: float = Field(
-            1.0, gt=0, description="speed limit, m/s: radius of the disc D(0, v_max) of eq. 5; keep "
-            "it at or below the dynamics' speed limit")
+            1.0, gt=0, le=1000.0, description="speed limit, m/s: radius of the disc D(0, v_max) of eq. 5; "
+            "keep it at or below the dynamics' speed limit; at most 1000 m/s")
         margin: float = Field(
-            0.05, ge=0, description="added to safety.min_separation for the combined radius "
+            0.05, ge=0, le=1000.0, description="added to safety.min_separation for the combined radius "
             "r_A + r_B, and to safety.min_clearance for obstacles, m (absorbs tracking lag)")
         max_neighbours: int = Field(
-            10, ge=1, description="neighbours considered per agent, nearest first (RVO2 maxNeighbors)")
+            10, ge=1, le=1_000_000, description="neighbours considered per agent, nearest first (RVO2 "
+            "maxNeighbors); at most 10^6")
         neighbour_dist: float | None = Field(
-            None, gt=0, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
+            None, gt=0, le=1e6, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
         perturbation: float = Field(
             0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks "
             "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "

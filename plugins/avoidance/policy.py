@@ -53,9 +53,10 @@ class PolicyAvoidance(Avoidance):
         max_accel: float = Field(2.0, gt=0, description="m/s^2 commanded by an acceleration action of 1")
         neighbours: int = Field(4, ge=0, le=64, description="k: nearest neighbours observed")
         sensing_range: float | None = Field(
-            None, gt=0, description="R: neighbours observed within this distance, m (null: comm.range)")
+            None, gt=0, le=1e6, description="R: neighbours observed within this distance, m (null: comm.range)")
         obstacle_range: float = Field(
-            5.0, gt=0, description="R_o: the nearest obstacle is observed within this distance, m")
+            5.0, gt=0, le=1e6, description="R_o: the nearest obstacle is observed within this distance, m "
+            "(at most 1000 km)")
 
     def __init__(self, params: "PolicyAvoidance.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)

@@ -38,10 +38,12 @@ class Potential(Avoidance):
     class Params(PluginParams):
         v_max: float = Field(1.5, gt=0, description="largest repulsive speed, m/s")
         influence: float = Field(
-            2.5, gt=1, description="agent range as a multiple of safety.min_separation"
+            2.5, gt=1, le=1000.0, description="agent range as a multiple of safety.min_separation (at most "
+            "1000: the pair query lists every neighbour within it)"
         )
         obstacle_influence: float = Field(
-            1.5, gt=0, description="obstacle range beyond safety.min_clearance, m"
+            1.5, gt=0, le=1000.0, description="obstacle range beyond safety.min_clearance, m (at most 1 km: "
+            "the obstacle query lists every footprint within it)"
         )
         lookahead: float = Field(
             1.0, ge=0, description="shift of the position reference along v_rep, s"

@@ -61,9 +61,10 @@ class Quadrotor(Dynamics):
         max_tilt: float = Field(
             45.0, gt=0, lt=90, description="cap on the commanded tilt from vertical, degrees")
         max_step: float = Field(
-            1.0 / 240.0, gt=0,
-            description="longest internal integration step, s: a longer clock.physics_step is "
-            "split into equal sub-steps, so the inner loop stays stable at any physics rate",
+            1.0 / 240.0, ge=1e-5,
+            description="longest internal integration step, s (at least 10 us): a longer "
+            "clock.physics_step is split into equal sub-steps, so the inner loop stays stable at "
+            "any physics rate",
         )
         propagate_reference: bool = Field(
             True, description="in TRACK mode, move the reference along its Taylor polynomial "

@@ -110,7 +110,8 @@ class IndoorSwarm(Formation):
     class Params(GraphParams):
         waypoints: list[Point2] = Field(min_length=2, description="leader path vertices [x, y], m")
         waypoint_spacing: float = Field(
-            0.25, gt=0, description="the path is resampled every this many m (Algorithm 1 cuts corners)"
+            0.25, ge=1e-3, description="the path is resampled every this many m (Algorithm 1 cuts "
+            "corners); at least 1 mm"
         )
         end_region: list[Point2] = Field(min_length=3, description="polygon every agent must reach")
         d_c: float = Field(TABLE_5_1.d_c, gt=0, description="collision-free distance d_c, m")

@@ -119,8 +119,9 @@ class VirtualRigidBody(Formation):
         threshold: float = Field(0.7, gt=0, description="D, m: repelling neighbourhood (eq. 8)")
         repel_gain: float = Field(0.8, ge=0, description="B_j, m/s (eq. 8); 0 = field off")
         return_gain: float = Field(1.5, ge=0, description="k_r, 1/s: pull back to the straight path")
-        max_step: float = Field(0.06, gt=0, description="integration step of the law, s")
-        knot_spacing: float = Field(0.3, gt=0, description="deviation spline knot spacing, s")
+        max_step: float = Field(0.06, ge=1e-4, description="integration step of the law, s (at least 0.1 ms)")
+        knot_spacing: float = Field(
+            0.3, ge=1e-3, description="deviation spline knot spacing, s (at least 1 ms)")
 
         @model_validator(mode="after")
         def _preset_or_custom(self) -> "VirtualRigidBody.Params":
