@@ -34,6 +34,16 @@ Choices where the papers leave room:
 - neighbours: every agent within the range where a half-constraint can be active inside the speed
   disc (``influence_range``), or the nearest ``max_neighbours`` of them when set;
 - kappa(h) = h^p with p = ``power`` (1: the linear certificate of the issue; 3: the Robotarium's).
+- deadlocks (a deliberate deviation, measured in docs/benchmarks.md): minimally invasive filters
+  stop agents whose nominal input points into their neighbours' constraints, and the symmetric swap
+  deadlocks already at N = 8, random perturbations (``perturbation``) notwithstanding. Two changes
+  of the nominal input, never of the constraints: an agent whose u^nom violates one of its
+  constraints has it turned ``detour`` degrees clockwise (the right-hand rule: the crowd
+  circulates); an agent the filter still stops (|u*| < ``deadlock_ratio`` |u^nom|, e.g. pressed
+  into the gap between two neighbours resting on their goals, which never yield) is filtered again
+  with u^nom turned ``deadlock_turn`` degrees to either side and keeps the faster result (it
+  slides along the obstruction; Grover et al. 2021 resolve CBF deadlocks in the same spirit).
+  ``detour=0 deadlock_turn=0`` is the plain certificate.
 
 Metrics: ``cbf.fallback_ticks`` (agent-ticks where the QP was infeasible),
 ``cbf.max_neighbours_used``.

@@ -35,6 +35,13 @@ Choices where the paper leaves room:
   can enter VO^tau.
 - agents already closer than r_A + r_B use the cut-off disc of one guidance period (RVO2).
 - obstacles: the nearest point's tangent half-plane instead of RVO2's polygon-edge obstacles.
+- deadlocks (a deliberate deviation, measured in docs/benchmarks.md): in a perfectly symmetric
+  swap ORCA settles into a ring of agents pressed together round the centre, and a random
+  perturbation of v_pref (RVO2's examples; ``perturbation``, from the run's seeded generator) does
+  not break it from N = 16 on. An agent whose v_pref lies outside one of its half-planes therefore
+  has it turned ``detour`` degrees clockwise (the right-hand rule): the crowd circulates round the
+  centre like a roundabout and leaves it. Only the objective of eq. 5 changes, not the half-planes;
+  ``detour=0`` is the paper's ORCA.
 
 Metrics: ``orca.fallback_ticks`` (agent-ticks where the half-planes were infeasible and the
 section 5.3 fallback ran), ``orca.max_neighbours_used``.
