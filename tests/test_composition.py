@@ -189,7 +189,9 @@ def assert_ran_with(sim, result, kind: str, method: str, preset: str, run_dir: P
     )
     recorded = yaml.safe_load((run_dir / "config.yaml").read_text())
     assert recorded[kind]["name"] == method
-    assert json.loads((run_dir / "manifest.json").read_text())["complete"] is True
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    assert manifest["complete"] is True
+    assert (manifest["scenario"], manifest["methods"]) == (preset, names)
 
 
 EXPECTED_AVOIDANCE_ERRORS: dict[tuple[str, str], str] = {}
