@@ -523,6 +523,14 @@ def test_grid_expansion_matches_hydras_basic_sweeper_and_crosses_cases():
     assert jobs[6] == ["scenario=b", "environment=w070", "avoidance=cem", "seed=0"]
     # a key of the cases given on the command line replaces the cases
     assert expand(params, ["scenario=c"], parser, cases=cases, plain_params=False)[1][0] == ["avoidance=cem", "seed=0", "scenario=c"]
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as info:
+        expand({}, ["++avoidance.K=interval(1,5)"], parser)
+    assert info.value.lines == [
+        "avoidance.K: a grid sweep takes a list of values (a,b,c / range / choice / glob), not an interval "
+        "(got 'avoidance.K=interval(1,5)'): use an optimising sweeper"
+    ]
 
 
 def test_plain_values_are_set_as_hydra_sets_them():

@@ -82,9 +82,10 @@ def expand(
             if not override.is_discrete_sweep():
                 from swarmscene.core.errors import ConfigError
 
+                kind = override.value_type.name.lower().replace("_sweep", "")
                 raise ConfigError([
-                    f"{key}: a grid sweep takes a list of values (a,b,c / range / choice / glob), "
-                    f"not {override.value_type.name.lower()} (got {_as_given(override)!r}): use an optimising sweeper"
+                    f"{override.key_or_group}: a grid sweep takes a list of values (a,b,c / range / choice / "
+                    f"glob), not an {kind} (got {shown(_as_given(override))!r}): use an optimising sweeper"
                 ])
             values.append([f"{key}={v}" for v in override.sweep_string_iterator()])
         else:
