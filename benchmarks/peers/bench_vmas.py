@@ -1,0 +1,150 @@
+"""Side by side: VMAS environment steps against swarmscene.env, N = 10, 100, 1,000 agents, CPU.
+
+    python benchmarks/peers/bench_vmas.py               # N = 10, 100, 1,000
+    python benchmarks/peers/bench_vmas.py 100 --steps 300
+
+VMAS runs in its own virtual environment, ``benchmarks/peers/.venv-vmas`` (created on first use
+with ``pip install torch==2.13.0 vmas==1.5.2``: on this machine pip takes torch 2.13.0's CPU build
+from the local disk; the folder holds a ``.gitignore`` of its own so git ignores it), swarmscene in
+the interpreter running this script. Every measurement runs in a fresh process pinned to one core
+(``taskset -c 0`` where available) with one thread (``torch.set_num_threads(1)``, BLAS threads 1),
+and times the same number of steps from the first to the last after a reset; the cases alternate
+``--repeat`` times (default 3) and the fastest run of each counts (the machine is shared).
+VMAS steps one environment (``num_envs=1``): what a single-environment user of either sees
+(VMAS's strength, many environments batched in one tensor step, is not what is measured here).
+
+Cases, each stepped with uniform random actions drawn before the clock starts:
+  VMAS simple      VMAS's ``simple`` scenario (MPE: a point agent going to a landmark, no
+                   collisions) with N agents instead of one around its landmark (``SimpleN``
+                   below: VMAS's own classes, Simple's reset, reward and observation); the cost of
+                   VMAS's engine step
+  VMAS navigation  VMAS's ``navigation`` scenario with ``n_agents=N`` (agent collisions, 12 lidar
+                   rays per agent, goals), spawning in a square of side sqrt(N) m (its default 2 m
+                   square cannot place 40 agents: the spawning loop never ends); defaults otherwise
+  ours ParallelEnv swarmscene.env ``make_env`` on benchmarks/bench_env.py's case (grid of agents
+                   flying their grid slots in the open, double integrator, k = 4 neighbours observed
+                   within 20 m, the safety monitor every tick)
+  ours Gymnasium   the same through ``make_gym_env`` (one centralised agent, arrays)
+What differs, on purpose: VMAS is 2-D with force-based physics in torch; swarmscene is 3-D with
+the thesis' digital controllers and its safety monitor (min separation, connectivity) on every tick.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+VENV = HERE / ".venv-vmas"
+VMAS_REQUIREMENTS = ["torch==2.13.0", "vmas==1.5.2"]
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"}
+
+VMAS_CHILD = r"""
+import json, sys, time
+import torch
+torch.set_num_threads(1)
+import vmas
+from vmas.simulator.core import Agent, Landmark, World
+from vmas.scenarios.mpe.simple import Scenario as Simple
+
+class SimpleN(Simple):
+    # VMAS's simple scenario with n agents instead of one, around its one landmark; reset,
+    # reward (-|p - landmark|^2) and observation (velocity, landmark offset) are Simple's own.
+    def make_world(self, batch_dim, device, n_agents=1):
+        world = World(batch_dim, device)
+        for i in range(n_agents):
+            world.add_agent(Agent(name=f"agent_{i}", collide=False))
+        world.add_landmark(Landmark(name="landmark 0", collide=False))
+        return world
+
+case, n, steps = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+if case == "simple":
+    env = vmas.make_env(SimpleN(), num_envs=1, device="cpu", continuous_actions=True, seed=0, n_agents=n)
+else:  # agents and goals spawn in a square of side sqrt(N) m (the default 2 m square fits ~30)
+    half = max(1.0, 0.5 * n ** 0.5)
+    env = vmas.make_env("navigation", num_envs=1, device="cpu", continuous_actions=True, seed=0, n_agents=n,
+                        world_spawning_x=half, world_spawning_y=half)
+env.reset()
+gen = torch.Generator().manual_seed(0)
+actions = [[torch.rand((1, env.get_agent_action_size(a)), generator=gen) * 2 - 1 for a in env.agents]
+           for _ in range(steps)]
+t0 = time.perf_counter()
+for step_actions in actions:
+    env.step(step_actions)
+wall = time.perf_counter() - t0
+print(json.dumps({"wall": wall, "steps_per_s": steps / wall, "version": vmas.__version__,
+                  "torch": torch.__version__}))
+"""
+
+
+def vmas_python() -> Path:
+    """The VMAS environment's interpreter, creating the environment on first use."""
+    python = VENV / "bin" / "python"
+    if not python.exists():
+        print(f"creating {VENV} and installing {' '.join(VMAS_REQUIREMENTS)} (first run only)", flush=True)
+        venv.create(VENV, with_pip=True)
+        (VENV / ".gitignore").write_text("*\n")
+        subprocess.run([str(python), "-m", "pip", "install", "-q", *VMAS_REQUIREMENTS], check=True)
+    (VENV / ".gitignore").write_text("*\n")
+    return python
+
+
+def pinned(cmd: list[str]) -> list[str]:
+    has_taskset = subprocess.run(["which", "taskset"], capture_output=True).returncode == 0
+    return ["taskset", "-c", "0", *cmd] if has_taskset else cmd
+
+
+def child(cmd: list[str]) -> dict:
+    out = subprocess.run(pinned(cmd), check=True, capture_output=True, text=True,
+                         env={**os.environ, **ONE_THREAD}).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def default_steps(n: int) -> int:
+    return 500 if n <= 10 else 200 if n <= 100 else 50
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("n", nargs="*", type=int, default=[10, 100, 1000], help="swarm sizes")
+    parser.add_argument("--steps", type=int, default=0, help="steps per run (default: by N)")
+    parser.add_argument("--repeat", type=int, default=3, help="runs of each; the fastest counts")
+    parser.add_argument("--cases", default="simple,navigation,parallel,gym",
+                        help="comma-separated subset of: simple, navigation, parallel, gym")
+    args = parser.parse_args()
+    chosen = set(args.cases.split(","))
+    python = vmas_python()
+    bench_env = str(ROOT / "benchmarks" / "bench_env.py")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"load average (1 min) at start: {load:.2f}")
+    names = ("VMAS simple", "VMAS navigation", "ours ParallelEnv", "ours Gymnasium")
+    print(f"{'N':>6} {'steps':>6} " + " ".join(f"{name + ' steps/s':>24}" for name in names))
+    vmas_version = "?"
+    for n in args.n:
+        steps = args.steps or default_steps(n)
+        cases = {
+            "VMAS simple": [str(python), "-c", VMAS_CHILD, "simple", str(n), str(steps)],
+            "VMAS navigation": [str(python), "-c", VMAS_CHILD, "navigation", str(n), str(steps)],
+            "ours ParallelEnv": [sys.executable, bench_env, "--json", "parallel", str(n), str(steps)],
+            "ours Gymnasium": [sys.executable, bench_env, "--json", "gym", str(n), str(steps)],
+        }
+        keys = dict(zip(names, ("simple", "navigation", "parallel", "gym")))
+        cases = {name: cmd for name, cmd in cases.items() if keys[name] in chosen}
+        best: dict[str, float] = {name: float("nan") for name in names}
+        for _ in range(args.repeat):  # alternate, so a burst of load hits every case alike
+            for name, cmd in cases.items():
+                result = child(cmd)
+                best[name] = max(best[name], result["steps_per_s"]) if best[name] == best[name] else result["steps_per_s"]
+                vmas_version = result.get("version", vmas_version)
+        print(f"{n:6d} {steps:6d} " + " ".join(f"{best[name]:24.1f}" for name in names), flush=True)
+    print(f"VMAS {vmas_version}, torch {VMAS_REQUIREMENTS[0].split('==')[1]} (CPU), one thread each")
+
+
+if __name__ == "__main__":
+    main()
