@@ -157,14 +157,14 @@ def _override_key(override: str) -> str:
 
 def _difference(old: list[str], new: list[str]) -> tuple[str, str]:
     """The grid entries that differ, as ("there", "here") texts."""
-    before = {_override_key(o): o for o in old}
-    after = {_override_key(o): o for o in new}
+    before = {_override_key(o): _shown(o) for o in old}
+    after = {_override_key(o): _shown(o) for o in new}
     keys = [k for k in dict.fromkeys([*before, *after]) if before.get(k) != after.get(k)]
-    if not keys:  # the same grid text, other jobs (another Hydra version): show the sizes
-        return "a different job list", "the grid " + " ".join(new)
+    if not keys:  # the same grid text expanded into other jobs (another version of Hydra)
+        return "a different job list", "the grid " + " ".join(after.values())
     return (
-        " ".join(_shown(before.get(k, f"no {k}")) for k in keys),
-        " ".join(_shown(after.get(k, f"no {k}")) for k in keys),
+        " ".join(before.get(k, f"no {k}") for k in keys),
+        " ".join(after.get(k, f"no {k}") for k in keys),
     )
 
 
