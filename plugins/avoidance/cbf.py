@@ -112,7 +112,8 @@ class BarrierCertificates(Avoidance):
         self.range = influence_range(self.safe_distance, params.gamma, params.power, params.v_max)
         self.obstacle_distance = ctx.min_clearance + params.margin
         # a static constraint (responsibility 1) is inactive in the disc beyond this
-        self.obstacle_reach = influence_range(self.obstacle_distance, 2.0 * params.gamma, params.power, params.v_max)
+        self.obstacle_reach = influence_range(self.obstacle_distance, 2.0 * params.gamma, params.power,
+                                              params.v_max)
         self.fallback_ticks = 0
         self.max_used = 0
 

@@ -117,10 +117,10 @@ class Orca(Avoidance):
         index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
         static = ~world.healthy
         vel = np.where(static[:, None], 0.0, world.vel[:, :2])
+        preferred = perturb(v_pref[:, :2], p.perturbation, self.ctx.rng)
         v_new, feasible = new_velocities(
-            world.pos[:, :2], vel, perturb(v_pref[:, :2], p.perturbation, self.ctx.rng), index, valid, static, self.combined_radius,
-            p.time_horizon, self.ctx.guidance_period, p.v_max, self._obstacle_halfplanes(sensing),
-            np.radians(p.detour),
+            world.pos[:, :2], vel, preferred, index, valid, static, self.combined_radius, p.time_horizon,
+            self.ctx.guidance_period, p.v_max, self._obstacle_halfplanes(sensing), np.radians(p.detour),
         )
         healthy = world.healthy
         self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
@@ -132,7 +132,8 @@ class Orca(Avoidance):
             return None
         normal, clearance, near = nearest_obstacles(sensing, self.obstacle_reach)
         clearance = np.where(near, clearance, 0.0)
-        point, direction = obstacle_lines(normal, clearance, self.obstacle_limit, self.params.time_horizon_obstacle)
+        point, direction = obstacle_lines(normal, clearance, self.obstacle_limit,
+                                          self.params.time_horizon_obstacle)
         return point[:, None], direction[:, None], near[:, None]
 
     @hookimpl

@@ -90,8 +90,8 @@ def test_dense_fallback_penetrates_no_deeper_than_rvo2():
 
 def closest_approach(rel_pos, rel_vel, horizon):
     """min over t in [0, horizon] of |rel_pos + t rel_vel| (rows)."""
-    t = np.clip(-np.einsum("ij,ij->i", rel_pos, rel_vel) / np.maximum(np.einsum("ij,ij->i", rel_vel, rel_vel), 1e-300),
-                0.0, horizon)
+    speed2 = np.maximum(np.einsum("ij,ij->i", rel_vel, rel_vel), 1e-300)
+    t = np.clip(-np.einsum("ij,ij->i", rel_pos, rel_vel) / speed2, 0.0, horizon)
     return np.linalg.norm(rel_pos + t[:, None] * rel_vel, axis=1)
 
 
