@@ -28,8 +28,9 @@ from pydantic.json_schema import models_json_schema
 from .core.config import ScenarioConfig
 from .core.plugin import PLUGIN_KINDS
 
-DIALECT = "https://json-schema.org/draft/2020-12/schema"
-REF = "#/$defs/{model}"
+DIALECT = "http://json-schema.org/draft-07/schema#"
+"""Draft 7: the newest the YAML language server supports."""
+REF = "#/definitions/{model}"
 
 
 def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[str, Any]:
@@ -44,7 +45,7 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
         (cls.Params, "validation") for classes in plugins_by_kind.values() for cls in classes
     ]
     refs, top = models_json_schema(models, ref_template=REF)
-    defs = top["$defs"]
+    defs = top.pop("$defs")
     root = defs.pop(_name(refs[(ScenarioConfig, "validation")]))
     defs.pop("PluginChoice", None)
     for kind, classes in plugins_by_kind.items():
@@ -59,11 +60,11 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
         }
     schema = {
         "$schema": DIALECT,
-        "$id": "https://swarmscene/scenario" + (".partial" if partial else "") + ".schema.json",
         "title": "swarmscene scenario" + (" file" if partial else " (composed)"),
         **root,
-        "$defs": defs,
+        "definitions": defs,
     }
+    schema = _draft7(schema)
     return _partial(schema) if partial else schema
 
 
@@ -84,6 +85,20 @@ def _variant(kind: str, cls: Any, params: dict[str, Any]) -> dict[str, Any]:
         "required": ["name", *params.get("required", [])],
         "additionalProperties": False,
     }
+
+
+def _draft7(node: Any) -> Any:
+    """pydantic writes fixed-length arrays (``tuple[float, float]``) as draft 2020-12's
+    ``prefixItems``; draft 7 says the same with an array of ``items``."""
+    if isinstance(node, list):
+        return [_draft7(v) for v in node]
+    if not isinstance(node, dict):
+        return node
+    out = {k: _draft7(v) for k, v in node.items()}
+    if "prefixItems" in out:
+        out["items"] = out.pop("prefixItems")
+        out.setdefault("additionalItems", False)
+    return out
 
 
 def _partial(schema: dict[str, Any]) -> dict[str, Any]:

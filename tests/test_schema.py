@@ -28,13 +28,13 @@ FILES = sorted((ROOT / "scenarios" / "scenario").glob("*.yaml")) + sorted((ROOT 
 
 
 def errors(schema: dict, data: dict) -> list[str]:
-    validator = jsonschema.Draft202012Validator(schema)
+    validator = jsonschema.Draft7Validator(schema)
     return [f"{'.'.join(map(str, e.absolute_path))}: {e.message}" for e in validator.iter_errors(data)]
 
 
 def test_the_schemas_are_valid_json_schema():
-    jsonschema.Draft202012Validator.check_schema(FULL)
-    jsonschema.Draft202012Validator.check_schema(PARTIAL)
+    jsonschema.Draft7Validator.check_schema(FULL)
+    jsonschema.Draft7Validator.check_schema(PARTIAL)
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -53,7 +53,7 @@ def test_each_plugin_kind_is_one_of_its_registered_plugins_by_name():
     for kind in ("formation", "avoidance", "dynamics"):
         refs = [v["$ref"].rsplit("/", 1)[1] for v in FULL["properties"][kind]["oneOf"]]
         assert refs == [f"{kind}.{name}" for name in REGISTRY.names(kind)]
-    cem = FULL["$defs"]["avoidance.cem"]
+    cem = FULL["definitions"]["avoidance.cem"]
     assert cem["properties"]["name"] == {"const": "cem", "description": "registered avoidance name"}
     assert cem["additionalProperties"] is False and cem["required"] == ["name"]
     assert cem["properties"]["K"]["minimum"] == 1  # the Params' own constraint
@@ -67,6 +67,8 @@ def test_each_plugin_kind_is_one_of_its_registered_plugins_by_name():
         (lambda d: d.update(avoidance={"name": "cem", "K": 0}), "avoidance.K: must be >= 1 (got 0)"),
         (lambda d: d.update(avoidance={"name": "nope"}), "avoidance.name: unknown avoidance 'nope'"),
         (lambda d: d["swarm"].update(n=0), "swarm.n: must be >= 1 (got 0)"),
+        (lambda d: d["environment"].update(obstacles=[{"type": "circle", "center": [1, 2, 3], "radius": 1}]),
+         "environment.obstacles.0.center: must have at most 2 item(s)"),
     ],
 )
 def test_the_schema_refuses_what_the_engine_refuses(default_data, change, engine_line):
@@ -94,7 +96,7 @@ def test_a_third_party_plugin_brings_its_options():
     _, registry = api.plugins()
     registry.register("formation", Spiral)
     schema = scenario_schema(registry)
-    spiral = schema["$defs"]["formation.spiral"]
+    spiral = schema["definitions"]["formation.spiral"]
     assert spiral["title"] == "formation=spiral" and spiral["description"] == "A spiral, from another package."
     assert spiral["properties"]["turns"] == {"default": 3, "description": "turns of the spiral", "minimum": 1,
                                             "title": "Turns", "type": "integer"}
