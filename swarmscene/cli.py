@@ -150,7 +150,11 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     except BaseException:
         _remove_unfinished(run_dir)
         raise
-    result = _run_and_write(sim, run_dir, writers, sweep=False)
+    try:
+        result = _run_and_write(sim, run_dir, writers, sweep=False)
+    except Exception:
+        _remove_unfinished(run_dir)  # nothing written: no `.hydra/`-only directory left behind
+        raise
     if not result.complete:
         status, word = _interrupted_status()
         print(f"swarmscene: {word} at t = {result.metrics['duration']:.2f} s; "

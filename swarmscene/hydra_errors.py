@@ -47,9 +47,9 @@ def hydra_error_line(exc: BaseException) -> str | None:
             return f"{key}: unknown key (got {value!r})"
         merging = _MERGING.search(message)
         if merging and exc.__cause__ is not None:
-            key = merging.group(1).lstrip("+~").split("=")[0]
+            key, _, value = merging.group(1).lstrip("+~").partition("=")
             cause = " ".join(str(exc.__cause__).split("\n")[0].split())
-            return f"{key}: cannot set this key: {cause} (got {merging.group(1)!r})"
+            return f"{key}: cannot set this key: {cause} (got {value!r})"
         return " ".join(message.split())
     return resolution_error_line(exc)
 

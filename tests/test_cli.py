@@ -56,6 +56,7 @@ def test_default_scenario_writes_run_directory(tmp_path):
         (["swarm.n=abc"], "swarmscene: swarm.n: must be an integer (got 'abc')"),
         (["swarm.n=[1"], "swarmscene: swarm.n: cannot parse override"),
         (["swarm.n=true"], "swarmscene: swarm.n: must be a number, not true/false (got True)"),
+        (["events.1.agents=[9]"], "swarmscene: events.1.agents: cannot set this key: list index out of range (got '[9]')"),
         (["name=${nope}"], "swarmscene: name: cannot resolve the value: Interpolation key 'nope' not found"),
         (["clock.duration=1e12"], "swarmscene: clock.duration: must be <= 1000000000.0 (got 1000000000000.0)"),
         (["clock.duration=1e8"], "swarmscene: clock.duration: at most 10000000 guidance ticks of "
