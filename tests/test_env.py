@@ -187,3 +187,16 @@ def test_a_packaged_policy_flies_as_a_plugin_by_name(tmp_path, monkeypatch):
                    "avoidance.max_speed=4"])
     climb = run.trajectory["pos"][:, 0, 2] - run.trajectory["pos"][0, 0, 2]
     np.testing.assert_allclose(climb, np.arange(len(climb)) * 0.1, atol=1e-12)  # 1 m/s for 2 s
+
+
+def test_neighbours_beyond_the_shared_knn_query_extend_it_in_order():
+    """k <= NEAR_K reads the tick's shared kNN query, larger k queries the tree: same neighbours."""
+    rng = np.random.default_rng(1)
+    world = WorldState.at_rest(rng.uniform(0.0, 30.0, (300, 3)))
+    small = ObservationLayout(4).split(observe(Sensing(world, Environment(), 20.0), None, ObservationLayout(4), 3.0, 5.0))
+    large = ObservationLayout(9).split(observe(Sensing(world, Environment(), 20.0), None, ObservationLayout(9), 3.0, 5.0))
+    np.testing.assert_array_equal(large["nbr_pos"][:, :4], small["nbr_pos"])
+    np.testing.assert_array_equal(large["nbr_mask"][:, :4], small["nbr_mask"])
+    assert 0 < small["nbr_mask"].mean() < 1  # some agents have fewer than 4 neighbours within 3 m
+    dist = np.linalg.norm(large["nbr_pos"], axis=2)
+    assert np.all(np.diff(np.where(large["nbr_mask"] > 0, dist, np.inf), axis=1) >= 0)  # nearest first

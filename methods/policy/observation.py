@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from swarmscene.core.sensing import NEAR_K
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
@@ -72,20 +73,28 @@ class ObservationLayout:
 
 def nearest_neighbours(sensing, k: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Indices (N, k) of each agent's k nearest others within ``radius`` (N where missing), and a
-    mask (N, k) of the present ones. One query of the tick's shared k-d tree."""
+    mask (N, k) of the present ones. Up to ``NEAR_K`` neighbours this is the tick's shared kNN
+    query (``Sensing.knn``, which the separation check also reads); more take one query of the
+    shared k-d tree."""
     world = sensing.world
     n = world.n
     if k == 0 or n < 2:
         return np.full((n, k), n), np.zeros((n, k), dtype=bool)
-    q = min(k + 1, n)
-    _, idx = sensing.tree.query(world.pos, k=q, distance_upper_bound=radius)
-    idx = idx.reshape(n, q)
-    # Drop the agent itself (not always column 0: agents may coincide) and keep the order.
-    valid = (idx < n) & (idx != np.arange(n)[:, None])
-    order = np.argsort(~valid, axis=1, kind="stable")
-    idx = np.take_along_axis(np.where(valid, idx, n), order, axis=1)[:, :k]
-    mask = idx < n
-    if idx.shape[1] < k:  # fewer agents than k + 1
+    if k <= NEAR_K:
+        dist, idx = sensing.knn
+        dist, idx = dist[:, :k], idx[:, :k]
+        mask = dist <= radius
+        idx = np.where(mask, idx, n)
+    else:
+        q = min(k + 1, n)
+        _, idx = sensing.tree.query(world.pos, k=q, distance_upper_bound=radius)
+        idx = idx.reshape(n, q)
+        # Drop the agent itself (not always column 0: agents may coincide) and keep the order.
+        valid = (idx < n) & (idx != np.arange(n)[:, None])
+        order = np.argsort(~valid, axis=1, kind="stable")
+        idx = np.take_along_axis(np.where(valid, idx, n), order, axis=1)[:, :k]
+        mask = idx < n
+    if idx.shape[1] < k:  # fewer other agents than k
         pad = k - idx.shape[1]
         idx = np.pad(idx, ((0, 0), (0, pad)), constant_values=n)
         mask = np.pad(mask, ((0, 0), (0, pad)))
