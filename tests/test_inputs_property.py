@@ -156,7 +156,7 @@ def test_every_plugin_and_section_is_covered():
     assert {path[0] for kind, _, path in CASES if not kind} == {*ENGINE_SECTIONS, "seed"}
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                    HealthCheck.too_slow])
 @given(case=st.sampled_from(CASES), value=st.sampled_from(BOUNDARY_VALUES))
 def test_boundary_values_run_or_give_one_line(limits, case, value):
