@@ -86,6 +86,7 @@ class Progress:
         self.start = time.perf_counter()
         self.last = -1.0
         self.shown = False
+        self.first: tuple[float, float] | None = None  # (done, elapsed) at a write's first item
 
     @classmethod
     def maybe(cls, mode: str, enabled: bool = True, delay: float | None = None) -> "Progress | None":
@@ -97,13 +98,16 @@ class Progress:
             return None
         return cls(delay=delay)
 
-    def line(self, done: float, total: float, text: str, elapsed: float) -> str:
-        """The progress line (no carriage return) for ``done`` of ``total`` after ``elapsed`` s."""
+    def line(self, done: float, total: float, text: str, elapsed: float,
+             since: tuple[float, float] = (0.0, 0.0)) -> str:
+        """The progress line (no carriage return) for ``done`` of ``total`` after ``elapsed`` s;
+        the rate is measured from ``since`` = (done, elapsed) on (a write's set-up is not its rate)."""
         fraction = min(max(done / total, 0.0), 1.0) if total > 0 else 1.0
         filled = int(self.WIDTH * fraction)
         bar = "#" * filled + "-" * (self.WIDTH - filled)
-        if done > 0 and elapsed > 0:
-            left = f", {format_duration((total - done) * elapsed / done)} left"
+        done0, elapsed0 = since
+        if done > done0 and elapsed > elapsed0:
+            left = f", {format_duration((total - done) * (elapsed - elapsed0) / (done - done0))} left"
         else:
             left = ""
         return f"  [{bar}] {text}{left} "
@@ -131,10 +135,12 @@ class Progress:
     def update(self, done: int, total: int, label: str) -> None:
         """A write's line: ``label done/total`` and the time left (the last item always shows)."""
         now = time.perf_counter() - self.start
+        if self.first is None:
+            self.first = (float(done), now)
         if now < self.delay or (done < total and now - self.last < 0.2):
             return
         self.last, self.shown = now, True
-        self._show(self.line(done, total, f"{label} {done}/{total}", now))
+        self._show(self.line(done, total, f"{label} {done}/{total}", now, since=self.first))
 
     def close(self) -> None:
         if self.shown:
