@@ -308,8 +308,8 @@ def test_swapped_dynamics_gets_its_own_defaults_not_the_presets_tuning():
         ),
         (   # ... and would teleport the agents that start outside its box at t = 0
             ["scenario=cem_six_vehicle", "formation=reynolds_flocking", "formation.space=toroidal"],
-            "formation.box_min: the toroidal box [0.0, 0.0] to [100.0, 100.0] m must hold the start "
-            "(agents [1, 3, 4, 5] start outside; the kernel would wrap them)",
+            "swarm.start: agents [1, 3, 4, 5] start outside the periodic box of formation "
+            "'reynolds_flocking', [0.0, 0.0] to [100.0, 100.0] m (its wrap would move them at t = 0)",
         ),
     ],
     ids=lambda case: " ".join(case) if isinstance(case, list) else "line",
