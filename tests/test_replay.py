@@ -202,10 +202,8 @@ def test_cli_output_rerun_true_with_cem_does_not_crash(tmp_path):
     ((rid, frame),) = replay.read_recordings([tmp_path / "run" / "replay.rrd"]).items()
     digest = json.loads((tmp_path / "run" / "manifest.json").read_text())["config_hash"]
     assert rid == f"default-seed{run.seed}-{digest[:12]}"  # exported during the run, before the manifest
-    a_p = run.metrics.get("cem.a_p")
-    if a_p is None:  # the cem plugin does not publish it (yet): no circle
-        assert "/world/exclusion:LineStrips3D:strips" not in frame.columns
-    else:
-        _, strips = _column(frame, "/world/exclusion", "LineStrips3D:strips")
-        circle = np.array([s for s in strips if s][-1][0])
-        assert np.linalg.norm(circle[0] - circle[:-1].mean(axis=0)) == pytest.approx(a_p, rel=1e-3)  # closed ring
+    a_p = run.metrics["cem.a_p"]  # published by the cem plugin: a_f + delta + eps with a_f = eps + delta
+    assert a_p == pytest.approx(2 * (0.28 + 0.40))
+    _, strips = _column(frame, "/world/exclusion", "LineStrips3D:strips")
+    circle = np.array([s for s in strips if s][-1][0])
+    assert np.linalg.norm(circle[0] - circle[:-1].mean(axis=0)) == pytest.approx(a_p, rel=1e-3)  # closed ring

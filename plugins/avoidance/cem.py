@@ -29,6 +29,8 @@ Choices (the paper leaves these open):
   (2-D, the x-y plane of the theorems), speeds and tracking error.
 
 Metrics added at run end (SI units; distances in m, speeds in m/s):
+    cem.a_f, cem.a_p: the failed vehicle's no-fly radius and the planned exclusion radius (eq. 4),
+        as derived for this run (replays and plots read them here).
     cem.activations: number of (re)activations. cem.handback_time: s, or None if never handed back.
     cem.start_inside_exclusion: healthy agents already within a_p of a failure at an activation
         (outside every assumption: their first command is pushed out of the disk).
@@ -251,6 +253,8 @@ class CEM(Avoidance):
         bound = 2.0 * (self.params.delta + self.params.eps)
         last1, last2 = (t1[-1] if t1 else None), (t2[-1] if t2 else None)
         return {
+            "cem.a_f": float(self.a_f),
+            "cem.a_p": float(self.a_p),
             "cem.activations": len(t1),
             "cem.handback_time": self.handback_time,
             "cem.start_inside_exclusion": self.start_inside,
