@@ -243,6 +243,8 @@ def write_run_dir(
         extra(run_dir)
     manifest = {
         "config_hash": config_hash(data),
+        "scenario": data.get("name"),
+        "methods": {kind: (data.get(kind) or {}).get("name") for kind in ("formation", "avoidance", "dynamics")},
         "seed": seed,
         "complete": complete,
         "started_at": started_at,

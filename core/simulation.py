@@ -85,6 +85,7 @@ class Simulation:
         self.dynamics: Dynamics = self._build("dynamics", ctx)
         self.dynamics.initialize(self.world)
         self._periodic = self.formation.periodic_box()
+        self._refuse_start_outside_periodic_box()
         self._wrap_periodic()
         self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
         self.step_seconds = np.zeros(self.total_steps)
@@ -96,8 +97,12 @@ class Simulation:
         try:
             obj = self.scenario.plugin_classes[kind](self.scenario.plugin_params[kind], ctx)
         except ValueError as exc:
-            # A plugin refusing the scenario (e.g. "needs a leader") is a config problem too.
-            raise ConfigError([f"{kind}: {exc}"]) from exc
+            # A plugin refusing the scenario (e.g. "needs a leader") is a config problem too; a
+            # message that starts with one of its options ("space: ...") names it as kind.option.
+            message = str(exc)
+            option = message.split(": ", 1)[0]
+            sep = "." if option in type(self.scenario.plugin_params[kind]).model_fields else ": "
+            raise ConfigError([f"{kind}{sep}{message}"]) from exc
         # A chosen plugin that implements lifecycle hooks takes part in them for this run.
         if any(callable(getattr(obj, name, None)) for name in _LIFECYCLE_HOOKS):
             self.pm.register(obj, name=f"{kind}:{obj.name}")
@@ -142,6 +147,21 @@ class Simulation:
             f"(t = {(self.step_count + 1) * self.guidance_period:g} s; {int(bad.sum())} agents): "
             f"pos = {self.world.pos[agent].tolist()}, vel = {self.world.vel[agent].tolist()}"
         )
+
+    def _refuse_start_outside_periodic_box(self) -> None:
+        """The wrap phase folds positions into the formation's periodic box: at t = 0 it would
+        silently move the agents that start outside it, so such a start is refused."""
+        if self._periodic is None:
+            return
+        lo, size = self._periodic
+        start = self.world.pos[:, : lo.size]
+        outside = np.flatnonzero(np.any((start < lo) | (start >= lo + size), axis=1))
+        if outside.size:
+            raise ConfigError([
+                f"swarm.start: agents {outside.tolist()} start outside the periodic box of formation "
+                f"{self.formation.name!r}, {lo.tolist()} to {(lo + size).tolist()} m (its wrap would "
+                f"move them at t = 0)"
+            ])
 
     def _wrap_periodic(self) -> None:
         """Positions folded back into the formation's periodic box, if its space is one."""

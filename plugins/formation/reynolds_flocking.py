@@ -256,6 +256,12 @@ class ReynoldsFlocking(Formation):
         self.size = self.hi - self.lo
         self.neighbour_count = np.zeros(ctx.n)
         self._centroid_error = np.inf
+        obstacles = len(ctx.environment.obstacles)
+        if params.space == "toroidal" and obstacles:  # the kernel's wrap would cross walls
+            raise ValueError(
+                f"space: toroidal wraps agents across the box's faces, through obstacles: "
+                f"environment {ctx.environment.name!r} has {obstacles} (use space: open or bounded)"
+            )
 
     # -- neighbours --------------------------------------------------------------------------
     def neighbours(self, world: WorldState, sensing: "Sensing") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
