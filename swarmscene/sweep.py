@@ -403,7 +403,8 @@ def _fmt(value: float) -> str:
 
 
 def _label(by: list[str], values: tuple[Any, ...]) -> str:
-    return ", ".join(f"{k}={v}" for k, v in zip(by, values)) if by else "all jobs"
+    """``k=v, ...`` of a group; a key its jobs do not set (another case of the sweep) is left out."""
+    return ", ".join(f"{k}={v}" for k, v in zip(by, values) if v is not None) or "all jobs"
 
 
 # The outcome of a run, in the overview and the methods table: safety first, then the mission.
@@ -538,7 +539,8 @@ def markdown(rows: list[dict[str, Any]], title: str) -> str:
     for values, members in grouped:
         done = [r for r in members if r["status"] == "complete"]
         failed = sum(r["status"] == "failed" for r in members)
-        cells = [*map(str, values), str(len(members)), str(len(done)), str(failed), *overview_cells(done)]
+        shown = ["-" if v is None else str(v) for v in values]  # "-": not set in these jobs
+        cells = [*shown, str(len(members)), str(len(done)), str(failed), *overview_cells(done)]
         lines.append("| " + " | ".join(cells) + " |")
     failures = [r for r in rows if r["status"] in ("failed", "incomplete", "unfinished")]
     if failures:
