@@ -136,3 +136,20 @@ def test_comparing_methods_from_the_command_line(tmp_path):
         worst = min(float(r["min_separation"]) for r in group)
         success = sum(r["success"] == "True" for r in group) / 2
         assert cell.startswith(f"{100 * success:.0f} % · {worst:.2f} m · ")
+
+
+def test_a_key_one_case_does_not_set_is_left_out_of_its_label():
+    a = [row(i, "outdoor_square", "cem", i, sep=1.3 + i / 10) for i in range(2)]
+    b = [row(2 + i, "indoor_corridor", "cem", i, sep=0.3 + i / 10) for i in range(2)]
+    for r in b:
+        r["environment"] = "indoor_corridor_w070"
+        r["overrides"] += " environment=indoor_corridor_w070"
+    md = sweep.markdown(a + b, "t")
+    assert "## scenario=outdoor_square" in md and "## scenario=indoor_corridor, environment=indoor_corridor_w070" in md
+    assert "| outdoor_square | - | 2 | 2 | 0 |" in md  # the scenario's own environment: not set by the job
+    assert report.methods_table(a + b).splitlines()[2:] == [
+        "| scenario / environment | cem |",
+        "|---|---|",
+        "| outdoor_square | 100 % · 1.30 m · 20.0 s |",
+        "| indoor_corridor / indoor_corridor_w070 | 100 % · 0.30 m · 20.0 s |",
+    ]
