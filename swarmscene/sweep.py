@@ -17,7 +17,7 @@ A job's status is ``complete`` (manifest complete), ``incomplete`` (interrupted)
 A sweep directory belongs to one grid: ``sweep.json`` records every job's overrides when the sweep
 is launched (:func:`record_grid`), and a launch of another grid into it is refused with one line
 (:func:`check_grid_owner`). A sweep in which a job did not complete ends with exit status 1
-(:func:`sweep_exit_status`; ``hydra.callbacks.swarmscene_summary.allow_failed=true`` keeps 0).
+(:func:`sweep_exit_status`; ``++hydra.callbacks.swarmscene_summary.allow_failed=true`` keeps 0).
 """
 
 from __future__ import annotations

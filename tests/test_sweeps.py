@@ -145,7 +145,7 @@ def test_recorded_invalid_jobs_and_failed_jobs_set_the_exit_status(tmp_path):
     # Every job failing is a failure too; allow_failed keeps status 0 and still says how many failed.
     proc = swarmscene(*args[:2], "avoidance.K=0", *args[3:], "seed=0,1", f"hydra.sweep.dir={tmp_path}/all", cwd=tmp_path)
     assert proc.returncode == 1 and proc.stderr.splitlines()[-1].startswith("swarmscene: 2 of 2 jobs failed;")
-    proc = swarmscene(*args, "+hydra.callbacks.swarmscene_summary.allow_failed=true", f"hydra.sweep.dir={tmp_path}/ok", cwd=tmp_path)
+    proc = swarmscene(*args, "++hydra.callbacks.swarmscene_summary.allow_failed=true", f"hydra.sweep.dir={tmp_path}/ok", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.splitlines()[-1] == (
         f"swarmscene: 1 of 2 jobs failed (allow_failed: exit status 0); summary in {tmp_path}/ok/summary.md"
