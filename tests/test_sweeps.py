@@ -426,8 +426,9 @@ def test_sweep_presets_grid_and_every_job_validates(preset, expected):
 
 
 def test_methods_preset_is_every_paper_scenario_times_every_method():
-    """Issue 14's comparison: 5 scenarios (cases: the corridor at 0.7 m) x 5 methods x 10 seeds,
-    every scenario x method combination composing and validating."""
+    """Issue 14's comparison: 5 scenarios (cases: the corridor at 0.7 m) x every built-in avoidance
+    method (the learned-policy adapter aside: it is no method of its own) x 10 seeds, every
+    scenario x method combination composing and validating."""
     import yaml
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
@@ -438,7 +439,8 @@ def test_methods_preset_is_every_paper_scenario_times_every_method():
     sweeper = data["hydra"]["sweeper"]
     assert sweeper["on_invalid"] == "record" and data["hydra"]["callbacks"]["swarmscene_summary"]["allow_failed"] is True
     _, jobs = expand(sweeper["params"], ["+sweep=methods"], OverridesParser.create(), sweeper["cases"])
-    methods = ["cem", "orca", "cbf", "potential", "none"]
+    methods = ["cem", "orca", "cbf", "potential", "potential_barrier", "apf_navigation", "none"]
+    assert set(methods) == set(api.plugins()[1].names("avoidance")) - {"policy"}
     cases = [["scenario=cem_six_vehicle"], ["scenario=outdoor_square"],
              ["scenario=indoor_corridor", "environment=indoor_corridor_w070"], ["scenario=vrb_airshow"], ["scenario=swap"]]
     assert jobs == [[*case, f"avoidance={m}", f"seed={s}", "+sweep=methods"] for case in cases for m in methods for s in range(10)]
