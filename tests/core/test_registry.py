@@ -46,7 +46,7 @@ def test_duplicate_name_names_both_sources():
 
 def test_unknown_name_lists_valid():
     _, reg = make_plugin_manager(BUILTIN_PLUGINS, load_entry_points=False)
-    with pytest.raises(PluginError, match=r"unknown avoidance 'nope' \(valid: (\w+, )*cem, none, potential"):
+    with pytest.raises(PluginError, match=r"unknown avoidance 'nope' \(valid: .*\bcem\b.*\bnone\b.*\bpotential\b"):
         reg.get("avoidance", "nope")
 
 
