@@ -43,7 +43,8 @@ Choices where the papers leave room:
   into the gap between two neighbours resting on their goals, which never yield) is filtered again
   with u^nom turned ``deadlock_turn`` degrees to either side and keeps the faster result (it
   slides along the obstruction; Grover et al. 2021 resolve CBF deadlocks in the same spirit).
-  ``detour=0 deadlock_turn=0`` is the plain certificate.
+  ``detour=0 deadlock_turn=0``, the defaults, is the plain certificate; the ``swap`` preset's
+  tuning (scenarios/tuning/avoidance/swap/cbf.yaml) sets 30 and 90 degrees.
 
 Metrics: ``cbf.fallback_ticks`` (agent-ticks where the QP was infeasible),
 ``cbf.max_neighbours_used``.
@@ -94,13 +95,15 @@ class BarrierCertificates(Avoidance):
             "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "
             "generator")
         detour: float = Field(
-            30.0, ge=0, lt=90, description="right-hand rule: u^nom of an agent that violates one of "
+            0.0, ge=0, lt=90, description="right-hand rule: u^nom of an agent that violates one of "
             "its constraints is turned this many degrees clockwise (about +z), so symmetric "
-            "encounters circulate instead of deadlocking; 0: the plain certificate")
+            "encounters circulate instead of deadlocking; 0 (default): the plain certificate (the "
+            "swap preset's tuning sets 30)")
         deadlock_turn: float = Field(
-            90.0, ge=0, lt=180, description="an agent the filter stops (|u*| < deadlock_ratio "
+            0.0, ge=0, lt=180, description="an agent the filter stops (|u*| < deadlock_ratio "
             "|u^nom|) is filtered again with u^nom turned this many degrees to either side and keeps "
-            "the faster result: it slides along the obstruction instead of waiting; 0: never")
+            "the faster result: it slides along the obstruction instead of waiting; 0 (default): "
+            "never (the swap preset's tuning sets 90)")
         deadlock_ratio: float = Field(
             0.1, gt=0, lt=1, description="|u*| / |u^nom| under which an agent counts as stopped")
         gain: float = Field(

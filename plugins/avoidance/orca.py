@@ -40,8 +40,9 @@ Choices where the paper leaves room:
   perturbation of v_pref (RVO2's examples; ``perturbation``, from the run's seeded generator) does
   not break it from N = 16 on. An agent whose v_pref lies outside one of its half-planes therefore
   has it turned ``detour`` degrees clockwise (the right-hand rule): the crowd circulates round the
-  centre like a roundabout and leaves it. Only the objective of eq. 5 changes, not the half-planes;
-  ``detour=0`` is the paper's ORCA.
+  centre like a roundabout and leaves it. Only the objective of eq. 5 changes, not the half-planes.
+  The default ``detour=0`` is the paper's ORCA; the ``swap`` preset's tuning
+  (scenarios/tuning/avoidance/swap/orca.yaml) sets 30 degrees.
 
 Metrics: ``orca.fallback_ticks`` (agent-ticks where the half-planes were infeasible and the
 section 5.3 fallback ran), ``orca.max_neighbours_used``.
@@ -94,9 +95,10 @@ class Orca(Avoidance):
             "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "
             "generator")
         detour: float = Field(
-            30.0, ge=0, lt=90, description="right-hand rule: v_pref of an agent outside one of its "
+            0.0, ge=0, lt=90, description="right-hand rule: v_pref of an agent outside one of its "
             "ORCA half-planes is turned this many degrees clockwise (about +z), so symmetric "
-            "encounters circulate instead of deadlocking; 0: the paper's ORCA")
+            "encounters circulate instead of deadlocking; 0 (default): the paper's ORCA (the swap "
+            "preset's tuning sets 30)")
         gain: float = Field(
             1.0, gt=0, description="pull onto POSITION/TRACK/HOLD references in v_pref, 1/s")
 

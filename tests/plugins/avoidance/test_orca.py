@@ -72,3 +72,16 @@ def test_setpoints_become_velocities_and_failed_agents_pass_through():
     np.testing.assert_array_equal(out.vel[3], before.vel[3])
     for name in ("mode", "pos", "vel", "acc", "yaw"):
         np.testing.assert_array_equal(getattr(sp, name), getattr(before, name))
+
+
+@pytest.mark.parametrize("method, deviations", [("orca", {"detour": 30.0}), ("cbf", {"detour": 30.0, "deadlock_turn": 90.0})])
+def test_the_published_method_is_the_default_and_the_swap_preset_tunes_its_deadlock_remedy(method, deviations):
+    """The plugins' defaults are the papers' methods; only the swap preset turns on the right-hand
+    rule (and cbf's deadlock turn), through its tuning of that method."""
+    from swarmscene import api
+
+    elsewhere = api.load(["scenario=cem_six_vehicle", f"avoidance={method}"]).plugin_params["avoidance"]
+    swap = api.load(["scenario=swap", f"avoidance={method}"]).plugin_params["avoidance"]
+    for key, value in deviations.items():
+        assert getattr(elsewhere, key) == 0.0
+        assert getattr(swap, key) == value

@@ -1,0 +1,1 @@
+"""A preset's per-method tuning (see scenarios/config.yaml)."""
