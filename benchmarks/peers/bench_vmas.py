@@ -106,6 +106,11 @@ def child(cmd: list[str]) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
+def _rate(value: float) -> str:
+    """Steps/s with one decimal, or three significant digits below 10 (VMAS at N = 1,000)."""
+    return f"{value:.1f}" if not value < 10 else f"{value:.3g}"
+
+
 def default_steps(n: int) -> int:
     return 500 if n <= 10 else 200 if n <= 100 else 50
 
@@ -142,7 +147,7 @@ def main() -> None:
                 result = child(cmd)
                 best[name] = max(best[name], result["steps_per_s"]) if best[name] == best[name] else result["steps_per_s"]
                 vmas_version = result.get("version", vmas_version)
-        print(f"{n:6d} {steps:6d} " + " ".join(f"{best[name]:24.1f}" for name in names), flush=True)
+        print(f"{n:6d} {steps:6d} " + " ".join(f"{_rate(best[name]):>24}" for name in names), flush=True)
     print(f"VMAS {vmas_version}, torch {VMAS_REQUIREMENTS[0].split('==')[1]} (CPU), one thread each")
 
 
