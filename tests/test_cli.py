@@ -65,7 +65,7 @@ def test_default_scenario_writes_run_directory(tmp_path):
                                                          "apart in a 10.0 m square (at most 39 fit; raise swarm.start.extent)"),
         (["swarm.n=1000000"], "swarmscene: formation: 'static_shape' cannot be built for this scenario "
                               "(swarm.n = 1000000): MemoryError: Unable to allocate"),
-        (["formation=reynolds_flocking", "formation.vision=60"],
+        (["formation=reynolds_flocking", "formation.space=toroidal", "formation.vision=60"],
          "swarmscene: formation.vision: must be below half the torus' smallest side 100.0 (got 60.0)"),
     ],
 )

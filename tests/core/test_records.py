@@ -143,13 +143,14 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path):
 
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     proc = subprocess.Popen([*EXE, "swarm=grid", "swarm.n=400", "clock.duration=3000", "output.trajectory=false",
+                             "termination.on_complete=false",
                              f"hydra.run.dir={tmp_path}/run"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env)
     run = tmp_path / "run"
     deadline = time.monotonic() + 120
     while not (run / ".hydra").is_dir() and time.monotonic() < deadline:  # the job has started
         time.sleep(0.2)
-    time.sleep(3.0)  # into the stepping loop
+    time.sleep(4.0)  # into the stepping loop (30,000 ticks of 400 agents take far longer)
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 143, err
