@@ -43,10 +43,10 @@ MAX_TICKS = 10_000_000
 simulated time at T_s = 0.1 s; the kernel keeps 8 bytes of timing per tick."""
 MAX_ANIMATION_FRAMES = 10_000
 """Most frames in the animation (each is drawn by matplotlib)."""
-AGENT_WORKING_BYTES = 4096
+AGENT_WORKING_BYTES = 16 * 1024
 """Estimated engine memory per agent besides the trajectory record: state arrays, the tick's
-k-d trees and neighbour lists, plugin arrays (measured peak ~2-3 KiB per agent at N = 10^5 with
-potential avoidance; rounded up)."""
+k-d trees and neighbour lists, plugin arrays (measured peak 15.4 and 16.5 KiB per agent at
+N = 2 x 10^4 and 10^5: reynolds_flocking with ~80 neighbours each and potential avoidance)."""
 BASE_WORKING_BYTES = 256 * 2**20
 """Estimated memory of the interpreter and the imported packages."""
 

@@ -63,8 +63,8 @@ def test_default_scenario_writes_run_directory(tmp_path):
                                  "clock.guidance_period = 0.1 s (got 100000000.0: 1e+09 ticks)"),
         (["swarm.start.kind=random", "swarm.n=100000"], "swarmscene: swarm.start: cannot place 100000 agents 2.0 m "
                                                          "apart in a 10.0 m square (at most 39 fit; raise swarm.start.extent)"),
-        (["swarm.n=1000000"], "swarmscene: formation: 'static_shape' cannot be built for this scenario "
-                              "(swarm.n = 1000000): MemoryError: Unable to allocate"),
+        (["swarm.n=100000"], "swarmscene: formation: 'static_shape' cannot be built for this scenario "
+                             "(swarm.n = 100000): MemoryError: Unable to allocate"),
         (["formation=reynolds_flocking", "formation.space=toroidal", "formation.vision=60"],
          "swarmscene: formation.vision: must be below half the torus' smallest side 100.0 (got 60.0)"),
     ],
