@@ -21,7 +21,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .errors import ConfigError, format_validation_error
-from .plugin import PLUGIN_KINDS, PluginParams, reject_bool_as_number
+from .plugin import PLUGIN_KINDS, PluginParams, reject_bool_as_number, shared_option_conflicts
 
 
 class _Strict(BaseModel):
@@ -323,6 +323,7 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
         errors += format_validation_error(exc, ScenarioConfig, data)
         config = None
     classes, params = _validate_plugins(data, registry, errors)
+    errors += shared_option_conflicts(params)  # e.g. the thesis' graph parameters, declared twice
     world = None
     if config is not None:
         errors += _scenario_checks(config)

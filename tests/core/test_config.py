@@ -196,3 +196,18 @@ def errors_of_overrides(overrides: list[str]) -> list[str]:
     with pytest.raises(ConfigError) as info:
         api.load(overrides)
     return info.value.lines
+
+
+def test_options_two_plugins_declare_for_one_shared_quantity_must_agree():
+    """The thesis' formation and avoidance both declare the sensing graph's parameters (built once
+    per tick for both): two values for one of them is refused in one line naming both keys."""
+    from swarmscene import api
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        api.load(["scenario=indoor_corridor", "formation.d_n=1.2"])
+    assert err.value.lines == [
+        "avoidance.d_n: must equal formation.d_n = 1.2 (got 1.0): both describe the thesis' sensing "
+        "graphs (G_s, G_n, G_sigma), built once per tick for every plugin"
+    ]
+    api.load(["scenario=indoor_corridor", "formation.d_n=1.2", "avoidance.d_n=1.2"])  # agreeing: fine
