@@ -58,8 +58,8 @@ def time_plugin(ticks: int) -> np.ndarray:
     failed, healthy = six_vehicle()
     pos = np.column_stack([np.vstack([failed, healthy]), np.full(6, 2.0)])
     world = WorldState.at_rest(pos)
-    ctx = BuildContext(n=6, guidance_period=DT, physics_step=DT, duration=ticks * DT, min_separation=1.36,
-                       min_clearance=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(0),
+    ctx = BuildContext(n=6, guidance_period=DT, physics_step=DT, duration=ticks * DT, separation_limit=1.36,
+                       clearance_limit=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(0),
                        initial=world)
     plugin = CEM(CEM.Params(hand_back=False), ctx)
     ev = Event(at=0.0, agents=(0,), kind=EventKind.HOVER)

@@ -52,7 +52,7 @@ def bench(n: int, seconds: float, airframe: str) -> dict[str, float]:
     phase = np.zeros(n)
     world = WorldState.at_rest(centres + [1.0, 0.0, 0.0])
     ctx = BuildContext(n=n, guidance_period=GUIDANCE, physics_step=PHYSICS, duration=seconds,
-                       min_separation=0.3, min_clearance=0.3, comm_range=10.0, environment=None,
+                       separation_limit=0.3, clearance_limit=0.3, comm_range=10.0, environment=None,
                        rng=np.random.default_rng(0), initial=world)
     dyn = Quadrotor(Quadrotor.Params(airframe=airframe), ctx)
     dyn.initialize(world)

@@ -1,7 +1,7 @@
 """Every built-in avoidance on the antipodal swap (issue #14): collisions, separation, arrival, speed.
 
 The swap preset (scenarios/scenario/swap.yaml): N agents on a ring fly to the opposite slot through
-the centre at 1 m/s, safety.min_separation = 0.56 m. Each avoidance runs with its own defaults
+the centre at 1 m/s, safety.separation_limit = 0.56 m. Each avoidance runs with its own defaults
 (nothing tuned here), for N in {8, 16, 32, 100} under single_integrator and double_integrator, and
 N = 8 under quadrotor. The ring radius is the preset's R = 6 m, except R = 16 m for N = 100 (at
 6 m the start slots would be 0.38 m apart, closer than the safety distance; at 16 m they are 1.0 m).

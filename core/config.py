@@ -153,16 +153,42 @@ class ClockConfig(_Strict):
     )
 
 
-class SafetyConfig(_Strict):
-    """The limits every run is measured against."""
+DEPRECATED_SAFETY_KEYS = {"min_separation": "separation_limit", "min_clearance": "clearance_limit"}
+"""Old names of the safety limits (they named the measured metrics too), accepted for one release."""
 
-    min_separation: float = Field(0.5, ge=0, le=MAX_LENGTH, description="safety distance between agents, m")
-    min_clearance: float = Field(0.2, ge=0, le=MAX_LENGTH, description="safety distance to obstacles, m")
+
+class SafetyConfig(_Strict):
+    """The limits every run is measured against (the measured values are the metrics
+    ``min_separation`` and ``min_clearance``)."""
+
+    separation_limit: float = Field(
+        0.5, ge=0, le=MAX_LENGTH, description="safety distance between agents, m (was min_separation)"
+    )
+    clearance_limit: float = Field(
+        0.2, ge=0, le=MAX_LENGTH, description="safety distance to obstacles, m (was min_clearance)"
+    )
     start_overlap: Literal["error", "warn"] = Field(
         "error",
-        description="agents starting closer than min_separation: an error, or a warning where a "
+        description="agents starting closer than separation_limit: an error, or a warning where a "
         "scenario starts that way on purpose (thesis 4.5.2)",
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _deprecated_names(cls, data: Any) -> Any:
+        """``safety.min_separation``/``min_clearance`` still work for one release, with a warning;
+        an old key given (e.g. on the command line) wins over the new one's default."""
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        for old, new in DEPRECATED_SAFETY_KEYS.items():
+            if old in data:
+                warnings.warn(
+                    f"safety.{old} is deprecated: write safety.{new} (the limit; {old} is the "
+                    "measured metric)", DeprecationWarning, stacklevel=2,
+                )
+                data[new] = data.pop(old)
+        return data
 
 
 class CommConfig(_Strict):
@@ -175,7 +201,7 @@ class TerminationConfig(_Strict):
     """Optional early ends of a run."""
 
     on_complete: bool = Field(True, description="stop when the formation reports its mission done")
-    on_collision: bool = Field(False, description="stop at the first pair closer than min_separation")
+    on_collision: bool = Field(False, description="stop at the first pair closer than safety.separation_limit")
 
 
 class OutputConfig(_Strict):
@@ -495,13 +521,13 @@ def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> l
     inside = np.flatnonzero(env.clearance(pos) < 0)
     if inside.size:
         errors.append(f"swarm.start: agents {inside.tolist()} start inside an obstacle")
-    d_min = config.safety.min_separation
+    d_min = config.safety.separation_limit
     if len(pos) > 1 and d_min > 0:
         pairs = cKDTree(pos).query_pairs(d_min, output_type="ndarray")
         if len(pairs):
             msg = (
                 f"swarm.start: {len(pairs)} pairs of agents start closer than "
-                f"safety.min_separation = {d_min} m (first: {pairs[0].tolist()})"
+                f"safety.separation_limit = {d_min} m (first: {pairs[0].tolist()})"
             )
             if config.safety.start_overlap == "error":
                 errors.append(msg)

@@ -7,8 +7,8 @@ O(N log N) per tick and never builds an N x N matrix.
 Metrics (``metrics.json``):
     min_separation: smallest distance between any two agents over the run, m.
     min_clearance: smallest signed distance from an agent to an obstacle, m (null: no obstacles).
-    collisions: distinct pairs that came closer than ``safety.min_separation``.
-    clearance_violations: distinct agents that came closer than ``safety.min_clearance`` to an
+    collisions: distinct pairs that came closer than ``safety.separation_limit``.
+    clearance_violations: distinct agents that came closer than ``safety.clearance_limit`` to an
         obstacle.
     connected: the communication graph was connected at every tick.
     violations.<condition>.first_time / .agents: for each violated condition (``separation``,
@@ -81,8 +81,8 @@ class SafetyMonitor:
     """Records min separation, min clearance and connectivity at t = 0 and after every tick."""
 
     def __init__(self, sim: "Simulation") -> None:
-        self.d_sep = sim.config.safety.min_separation
-        self.d_clear = sim.config.safety.min_clearance
+        self.d_sep = sim.config.safety.separation_limit
+        self.d_clear = sim.config.safety.clearance_limit
         # Clearance is exact within the horizon; the minimum over agents is then exact too,
         # since agents beyond it are farther than any agent inside it.
         self.horizon = max(CLEARANCE_HORIZON, 4.0 * self.d_clear)

@@ -17,6 +17,7 @@ learns of failures and contributes metrics through the same hooks as the monitor
 
 from __future__ import annotations
 
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -76,8 +77,8 @@ class BuildContext:
         guidance_period: T_s, s; formation, avoidance and controllers run at this period.
         physics_step: s; the plant integrates at this step (divides ``guidance_period``).
         duration: simulated duration, s.
-        min_separation: safety distance between agents, m (``safety.min_separation``).
-        min_clearance: safety distance to obstacles, m (``safety.min_clearance``).
+        separation_limit: safety distance between agents, m (``safety.separation_limit``).
+        clearance_limit: safety distance to obstacles, m (``safety.clearance_limit``).
         comm_range: communication range, m.
         environment: the obstacle map and its geometric queries.
         rng: the run's one random generator (draws from it are part of the seeded run).
@@ -88,12 +89,26 @@ class BuildContext:
     guidance_period: float
     physics_step: float
     duration: float
-    min_separation: float
-    min_clearance: float
+    separation_limit: float
+    clearance_limit: float
     comm_range: float
     environment: "Environment"
     rng: np.random.Generator
     initial: WorldState
+
+    @property
+    def min_separation(self) -> float:
+        """Deprecated name of :attr:`separation_limit` (kept for one release)."""
+        warnings.warn("BuildContext.min_separation is deprecated: use separation_limit",
+                      DeprecationWarning, stacklevel=2)
+        return self.separation_limit
+
+    @property
+    def min_clearance(self) -> float:
+        """Deprecated name of :attr:`clearance_limit` (kept for one release)."""
+        warnings.warn("BuildContext.min_clearance is deprecated: use clearance_limit",
+                      DeprecationWarning, stacklevel=2)
+        return self.clearance_limit
 
 
 class Plugin(ABC):

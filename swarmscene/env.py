@@ -19,7 +19,7 @@ Observation of an agent: ``methods/policy/observation.py`` (own state, k nearest
 range with a mask, nearest obstacle clearance and direction, the formation's reference).
 Action: ``Box(-1, 1, (3,))``, a velocity or acceleration command (``avoidance.action``,
 ``avoidance.max_speed``/``max_accel``). Reward: :class:`RewardOptions`. An episode ends
-(terminations) at the first pair closer than ``safety.min_separation`` when
+(terminations) at the first pair closer than ``safety.separation_limit`` when
 ``termination.on_collision`` is set, or when the formation reports its mission complete with
 ``termination.on_complete``; it is truncated at ``clock.duration``. A failed agent (an ``hover``
 event) is terminated alone and leaves ``agents``; it keeps hovering in the world, where the others
@@ -55,8 +55,8 @@ class RewardOptions(BaseModel):
     """Each agent's reward for one guidance tick, from the engine's own safety definitions.
 
         r_i = progress * (|p_ref - p_i(t)| - |p_ref - p_i(t + T_s)|)
-              - separation * [nearest other agent closer than safety.min_separation]
-              - clearance  * [nearest obstacle closer than safety.min_clearance]
+              - separation * [nearest other agent closer than safety.separation_limit]
+              - clearance  * [nearest obstacle closer than safety.clearance_limit]
               - effort * |a_i|^2
               + complete * [the formation reports its mission complete]
 
@@ -67,8 +67,8 @@ class RewardOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     progress: float = Field(1.0, description="per metre gained toward the formation's reference position")
-    separation: float = Field(10.0, ge=0, description="penalty per tick closer than safety.min_separation to another agent")
-    clearance: float = Field(10.0, ge=0, description="penalty per tick closer than safety.min_clearance to an obstacle")
+    separation: float = Field(10.0, ge=0, description="penalty per tick closer than safety.separation_limit to another agent")
+    clearance: float = Field(10.0, ge=0, description="penalty per tick closer than safety.clearance_limit to an obstacle")
     effort: float = Field(0.0, ge=0, description="penalty per unit squared norm of the normalised action")
     complete: float = Field(0.0, description="bonus to every agent when the mission completes")
 
@@ -121,10 +121,10 @@ class _Episode:
         reward = weights.progress * self._progress(before) - weights.effort * np.einsum(
             "ij,ij->i", action, action)
         if weights.separation:
-            reward -= weights.separation * (sim.sensing.nearest[0] < cfg.safety.min_separation)
+            reward -= weights.separation * (sim.sensing.nearest[0] < cfg.safety.separation_limit)
         if weights.clearance:
-            reward -= weights.clearance * (sim.sensing.clearance_within(cfg.safety.min_clearance)
-                                           < cfg.safety.min_clearance)
+            reward -= weights.clearance * (sim.sensing.clearance_within(cfg.safety.clearance_limit)
+                                           < cfg.safety.clearance_limit)
         if complete:
             reward += weights.complete
         terminated = sim.stop_reason is not None or not sim.world.healthy.any()

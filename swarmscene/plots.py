@@ -7,7 +7,7 @@ On ``output.plots=true`` a run directory gets:
     safety.png        the distribution over agents of each agent's nearest-neighbour distance
                       (top) and obstacle clearance (bottom, with obstacles only) over time: median, 10-90 % band and
                       min-max envelope, the minimum (the safety monitor's series) as a line, the
-                      limits ``safety.min_separation`` and ``safety.min_clearance`` dashed red,
+                      limits ``safety.separation_limit`` and ``safety.clearance_limit`` dashed red,
                       violations shaded
     speed.png         the distribution over healthy agents of the speed over time (median, bands);
                       a plugin's published ``<name>.speed_limit`` metric (m/s) is drawn as a limit
@@ -63,6 +63,14 @@ _PALETTE = np.array(
     ],
     dtype=np.uint8,
 )
+
+
+def safety_limit(config: dict, key: str) -> float:
+    """``safety.<key>`` of a run's config.yaml (0 when absent); run directories written before the
+    limits were renamed hold them as ``min_separation`` / ``min_clearance``."""
+    safety = config.get("safety") or {}
+    old = {"separation_limit": "min_separation", "clearance_limit": "min_clearance"}[key]
+    return float(safety.get(key, safety.get(old, 0.0)))
 
 
 def agent_colors(n: int) -> np.ndarray:
@@ -122,11 +130,11 @@ class RunData:
 
     @property
     def min_separation_limit(self) -> float:
-        return float(self.config.get("safety", {}).get("min_separation", 0.0))
+        return safety_limit(self.config, "separation_limit")
 
     @property
     def min_clearance_limit(self) -> float:
-        return float(self.config.get("safety", {}).get("min_clearance", 0.0))
+        return safety_limit(self.config, "clearance_limit")
 
     @property
     def comm_range(self) -> float:

@@ -26,11 +26,11 @@ Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (se
     world/exclusion        a circle around every failed vehicle: of the avoidance's published
                            planned exclusion radius (the ``cem.a_p`` metric, a_p = a_f + delta +
                            eps) with ``avoidance=cem``, none when a cem run lacks that metric; of
-                           ``safety.min_separation`` with any other avoidance
+                           ``safety.separation_limit`` with any other avoidance
     world/comm_edges       communication edges: healthy pairs within ``comm.range``
     safety/separation/min  minimum pairwise distance over time (the safety monitor's series, every
                            guidance tick, inside a run; recomputed at the recorded frames from a
-                           directory), ``safety/separation/limit`` (``safety.min_separation``) and
+                           directory), ``safety/separation/limit`` (``safety.separation_limit``) and
                            ``safety/separation/events``, a marker on the series at every event
     safety/clearance/min   minimum obstacle clearance and ``safety/clearance/limit`` (with
                            obstacles only)
@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from .plots import RunData, agent_colors, comm_edges, from_simulation, load_run, safety_series
+from .plots import RunData, agent_colors, comm_edges, from_simulation, load_run, safety_limit, safety_series
 
 TIMELINE = "sim_time"
 APPLICATION_ID = "swarmscene"
@@ -90,7 +90,7 @@ def exclusion_radius(config: dict[str, Any], metrics: dict[str, Any]) -> float |
     if avoidance in PLANNED_EXCLUSION:
         value = metrics.get(PLANNED_EXCLUSION[avoidance])
         return float(value) if isinstance(value, (int, float)) and np.isfinite(value) else None
-    return float((config.get("safety") or {}).get("min_separation", 0.5))
+    return safety_limit(config, "separation_limit") or 0.5
 
 
 def _circle(center: np.ndarray, radius: float) -> np.ndarray:

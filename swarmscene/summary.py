@@ -23,12 +23,12 @@ def verdicts(sim: Any, metrics: dict[str, Any]) -> list[tuple[str, bool, str]]:
         (
             "separation",
             metrics.get("collisions", 0) == 0,
-            f"min {_fmt(metrics.get('min_separation'), ' m')} vs {safety.min_separation} m",
+            f"min {_fmt(metrics.get('min_separation'), ' m')} vs {safety.separation_limit} m",
         ),
         (
             "clearance",
             metrics.get("clearance_violations", 0) == 0,
-            f"min {_fmt(metrics.get('min_clearance'), ' m')} vs {safety.min_clearance} m",
+            f"min {_fmt(metrics.get('min_clearance'), ' m')} vs {safety.clearance_limit} m",
         ),
         ("connectivity", bool(metrics.get("connected")), f"comm range {sim.config.comm.range} m"),
     ]

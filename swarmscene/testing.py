@@ -152,7 +152,7 @@ def _build(cls: type, params: PluginParams, environment: Environment | None,
     world = world or example_world()
     ctx = BuildContext(
         n=world.n, guidance_period=GUIDANCE_PERIOD, physics_step=PHYSICS_STEP, duration=10.0,
-        min_separation=0.5, min_clearance=0.2, comm_range=10.0,
+        separation_limit=0.5, clearance_limit=0.2, comm_range=10.0,
         environment=environment or Environment(), rng=np.random.default_rng(0),
         initial=WorldState.at_rest(world.pos, leader=world.leader),
     )

@@ -147,7 +147,7 @@ def test_reward_is_progress_minus_the_safety_penalties():
     _, reward, *_ = env.step(np.array([[0.3, 0.4, 0.0]], dtype=np.float32))
     np.testing.assert_allclose(env.driver.episode.policy.reference.pos, [[3.0, 4.0, 1.0]])
     assert reward == pytest.approx(0.1 - 0.125, abs=1e-7)  # the action is float32
-    # Separation: two agents 0.3 m apart (safety.min_separation 0.5) cost 10 each per tick.
+    # Separation: two agents 0.3 m apart (safety.separation_limit 0.5) cost 10 each per tick.
     env = make_env(["swarm.n=2", "swarm.start.kind=line", "swarm.start.spacing=0.3", "safety.start_overlap=warn",
                     "environment=open", *SHORT], {"reward": {"progress": 0.0}})
     env.reset(seed=0)

@@ -96,8 +96,8 @@ def test_safety_figure_draws_distributions_minimum_and_limits(finished):
     assert top.get_ylabel() == "nearest neighbour (m)" and bottom.get_xlabel() == "time (s)"
     (sep_limit,) = _by_gid(top, "separation_limit")
     (clear_limit,) = _by_gid(bottom, "clearance_limit")
-    assert set(sep_limit.get_ydata()) == {sim.config.safety.min_separation}
-    assert set(clear_limit.get_ydata()) == {sim.config.safety.min_clearance}
+    assert set(sep_limit.get_ydata()) == {sim.config.safety.separation_limit}
+    assert set(clear_limit.get_ydata()) == {sim.config.safety.clearance_limit}
     (minimum,) = _by_gid(top, "separation_min")
     assert np.nanmin(minimum.get_ydata()) == pytest.approx(result.metrics["min_separation"])
     (clearance,) = _by_gid(bottom, "clearance_min")

@@ -6,11 +6,11 @@ Every guidance tick each healthy agent i replaces its setpoint by a velocity com
    (``methods.baselines.common.preferred_velocity``): VELOCITY: ``sp.vel``; POSITION/TRACK:
    ``sp.vel + gain (sp.pos - p)``; HOLD: ``gain (sp.pos - p)``; clipped to ``v_max`` (the Robotarium
    also thresholds the nominal input before its QP).
-2. Barrier h_ij = |p_i - p_j|^2 - D_s^2 with D_s = ``safety.min_separation + margin``; certificate
+2. Barrier h_ij = |p_i - p_j|^2 - D_s^2 with D_s = ``safety.separation_limit + margin``; certificate
    dh_ij/dt >= -gamma h_ij^p, i.e. -2 (p_i - p_j)^T (u_i - u_j) <= gamma h_ij^p, split half and half
    between the two agents (each keeps -2 (p_i - p_j)^T u_i <= gamma h_ij^p / 2), all of it against
    a failed vehicle (it hovers: u_j = 0). Obstacles: the nearest obstacle point o_i within reach,
-   h_io = |p_i - o_i|^2 - D_o^2, D_o = ``safety.min_clearance + margin``, responsibility 1.
+   h_io = |p_i - o_i|^2 - D_o^2, D_o = ``safety.clearance_limit + margin``, responsibility 1.
 3. u_i* = argmin |u_i - u_i^nom|^2 subject to those constraints and |u_i| <= ``v_max``: the
    decentralised QP of each agent is a projection onto half-planes in a disc, solved exactly and
    for all agents at once (``methods.baselines.cbf``; no iterative solver). Where it is infeasible
@@ -85,8 +85,8 @@ class BarrierCertificates(Avoidance):
             1.0, gt=0, le=1000.0, description="speed limit |u_i| <= v_max, m/s (at most 1000); keep it at or below the "
             "dynamics' speed limit")
         margin: float = Field(
-            0.05, ge=0, le=1000.0, description="added to safety.min_separation for D_s and to "
-            "safety.min_clearance for D_o, m (absorbs tracking lag)")
+            0.05, ge=0, le=1000.0, description="added to safety.separation_limit for D_s and to "
+            "safety.clearance_limit for D_o, m (absorbs tracking lag)")
         max_neighbours: int | None = Field(
             None, ge=1, le=1_000_000, description="constraints per agent, nearest first; null: every neighbour "
             "whose constraint can be active")
@@ -111,9 +111,9 @@ class BarrierCertificates(Avoidance):
 
     def __init__(self, params: "BarrierCertificates.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        self.safe_distance = ctx.min_separation + params.margin
+        self.safe_distance = ctx.separation_limit + params.margin
         self.range = influence_range(self.safe_distance, params.gamma, params.power, params.v_max)
-        self.obstacle_distance = ctx.min_clearance + params.margin
+        self.obstacle_distance = ctx.clearance_limit + params.margin
         # a static constraint (responsibility 1) is inactive in the disc beyond this
         self.obstacle_reach = influence_range(self.obstacle_distance, 2.0 * params.gamma, params.power,
                                               params.v_max)

@@ -8,10 +8,10 @@ Every guidance tick each healthy agent A replaces its setpoint by a velocity com
 2. One half-plane ORCA^tau_{A|B} = {v : (v - (v_A + u/2)) . n >= 0} (eq. 4) per neighbour B among
    the ``max_neighbours`` nearest within ``neighbour_dist`` (the tick's shared k-d tree pairs), from
    the truncated velocity obstacle VO^tau_{A|B} with combined radius r_A + r_B =
-   ``safety.min_separation + margin`` (eq. 2-3). A failed vehicle does not avoid: it is a static
+   ``safety.separation_limit + margin`` (eq. 2-3). A failed vehicle does not avoid: it is a static
    neighbour (velocity 0) and A takes all of u (responsibility 1).
 3. The environment's nearest obstacle point within reach gives one hard half-plane,
-   {v : v . n >= -(c - c_s)/tau_obst} (c its clearance, c_s = ``safety.min_clearance + margin``).
+   {v : v . n >= -(c - c_s)/tau_obst} (c its clearance, c_s = ``safety.clearance_limit + margin``).
 4. v_A^new = the velocity of the disc |v| <= ``v_max`` closest to v_A^pref within every half-plane
    (eq. 5), by RVO2's linear programs for all agents in lock-step; if none exists, the velocity of
    least penetration with the obstacle half-plane kept hard (section 5.3).
@@ -83,8 +83,8 @@ class Orca(Avoidance):
             1.0, gt=0, le=1000.0, description="speed limit, m/s: radius of the disc D(0, v_max) of eq. 5; "
             "keep it at or below the dynamics' speed limit; at most 1000 m/s")
         margin: float = Field(
-            0.05, ge=0, le=1000.0, description="added to safety.min_separation for the combined radius "
-            "r_A + r_B, and to safety.min_clearance for obstacles, m (absorbs tracking lag)")
+            0.05, ge=0, le=1000.0, description="added to safety.separation_limit for the combined radius "
+            "r_A + r_B, and to safety.clearance_limit for obstacles, m (absorbs tracking lag)")
         max_neighbours: int = Field(
             10, ge=1, le=1_000_000, description="neighbours considered per agent, nearest first (RVO2 "
             "maxNeighbors); at most 10^6")
@@ -104,10 +104,10 @@ class Orca(Avoidance):
 
     def __init__(self, params: "Orca.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        self.combined_radius = ctx.min_separation + params.margin
+        self.combined_radius = ctx.separation_limit + params.margin
         self.range = (params.neighbour_dist if params.neighbour_dist is not None
                       else 2.0 * params.v_max * params.time_horizon + self.combined_radius)
-        self.obstacle_limit = ctx.min_clearance + params.margin
+        self.obstacle_limit = ctx.clearance_limit + params.margin
         # an obstacle plane cannot cut the speed disc from farther than this
         self.obstacle_reach = self.obstacle_limit + params.v_max * params.time_horizon_obstacle
         self.fallback_ticks = 0

@@ -1,8 +1,8 @@
 """Potential-field avoidance: pairwise and obstacle repulsion that keeps the safety distances.
 
 Each agent i gets a repulsive velocity from every agent j closer than the influence range
-``d_0 = influence * d_s`` (d_s = ``safety.min_separation``) and from the nearest obstacle point
-closer than ``d_0^obs = obstacle_influence + c_s`` (c_s = ``safety.min_clearance``):
+``d_0 = influence * d_s`` (d_s = ``safety.separation_limit``) and from the nearest obstacle point
+closer than ``d_0^obs = obstacle_influence + c_s`` (c_s = ``safety.clearance_limit``):
 
     v_rep = v_max * ((d_0 - d) / (d_0 - d_s))^2 * (r_i - r_j) / d,   clipped to 1 at d <= d_s
 
@@ -38,11 +38,11 @@ class Potential(Avoidance):
     class Params(PluginParams):
         v_max: float = Field(1.5, gt=0, description="largest repulsive speed, m/s")
         influence: float = Field(
-            2.5, gt=1, le=1000.0, description="agent range as a multiple of safety.min_separation (at most "
+            2.5, gt=1, le=1000.0, description="agent range as a multiple of safety.separation_limit (at most "
             "1000: the pair query lists every neighbour within it)"
         )
         obstacle_influence: float = Field(
-            1.5, gt=0, le=1000.0, description="obstacle range beyond safety.min_clearance, m (at most 1 km: "
+            1.5, gt=0, le=1000.0, description="obstacle range beyond safety.clearance_limit, m (at most 1 km: "
             "the obstacle query lists every footprint within it)"
         )
         lookahead: float = Field(
@@ -51,7 +51,7 @@ class Potential(Avoidance):
 
     def repulsion(self, world, sensing) -> np.ndarray:
         """Repulsive velocity (N, 3) from neighbours and obstacles (failed agents included)."""
-        p, d_s = self.params, self.ctx.min_separation
+        p, d_s = self.params, self.ctx.separation_limit
         v = np.zeros_like(world.pos)
         d_range = p.influence * max(d_s, 1e-3)
         pairs = sensing.pairs(d_range)
@@ -67,7 +67,7 @@ class Potential(Avoidance):
         return clip_norm(v, p.v_max)
 
     def _obstacle_repulsion(self, world, sensing) -> np.ndarray:
-        p, c_s = self.params, self.ctx.min_clearance
+        p, c_s = self.params, self.ctx.clearance_limit
         v = np.zeros_like(world.pos)
         d_range = c_s + p.obstacle_influence
         clearance = sensing.clearance_within(d_range)

@@ -64,8 +64,8 @@ Metrics (``metrics.json``, keys ``indoor.*``):
         out of range), ``link_mid_x``, ``link_mid_y`` (its midpoint, m) and ``leader_done`` (the leader had
         reached its last way-point).
     indoor.success: arrived and connected throughout, no collision (eq. 5.2 with
-        ``safety.min_separation`` = d_c) and no clearance violation (eq. 5.3 with
-        ``safety.min_clearance`` = d_o); also written as ``success``.
+        ``safety.separation_limit`` = d_c) and no clearance violation (eq. 5.3 with
+        ``safety.clearance_limit`` = d_o); also written as ``success``.
 """
 
 from __future__ import annotations

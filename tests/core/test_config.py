@@ -61,7 +61,7 @@ def test_default_config_validates(data):
         ),
         (
             lambda d: d["swarm"]["start"].update(spacing=0.2),
-            "swarm.start: 10 pairs of agents start closer than safety.min_separation = 0.5 m (first:",
+            "swarm.start: 10 pairs of agents start closer than safety.separation_limit = 0.5 m (first:",
         ),
         (lambda d: d["clock"].update(duration=float("inf")), "clock.duration: must be a finite number (got inf)"),
         (lambda d: d["swarm"].update(leader=7), "swarm.leader: must be < swarm.n = 5 (got 7)"),
@@ -82,7 +82,7 @@ def test_start_overlap_can_be_a_warning(data):
     """Thesis 4.5.2 starts its agents closer than d_c on purpose: `warn` lets it run."""
     data["swarm"]["start"]["spacing"] = 0.2
     data["safety"]["start_overlap"] = "warn"
-    with pytest.warns(UserWarning, match="start closer than safety.min_separation"):
+    with pytest.warns(UserWarning, match="start closer than safety.separation_limit"):
         api.load(data)
 
 
@@ -115,7 +115,7 @@ PATHS = [
     ("clock", "guidance_period"),
     ("clock", "physics_step"),
     ("clock", "duration"),
-    ("safety", "min_separation"),
+    ("safety", "separation_limit"),
     ("comm", "range"),
     ("formation", "spacing"),
     ("formation", "shape"),
@@ -211,3 +211,18 @@ def test_options_two_plugins_declare_for_one_shared_quantity_must_agree():
         "graphs (G_s, G_n, G_sigma), built once per tick for every plugin"
     ]
     api.load(["scenario=indoor_corridor", "formation.d_n=1.2", "avoidance.d_n=1.2"])  # agreeing: fine
+
+
+def test_the_old_names_of_the_safety_limits_still_work_for_one_release_with_a_warning():
+    """safety.min_separation / min_clearance named both the limit and the measured metric; the
+    limits are now separation_limit / clearance_limit, and the old keys are accepted (and win over
+    the new ones' defaults) with a one-line deprecation warning."""
+    from swarmscene import api
+
+    with pytest.warns(DeprecationWarning, match=r"safety.min_separation is deprecated: write safety.separation_limit"):
+        scenario = api.load(["safety.min_separation=0.7"])
+    assert scenario.config.safety.separation_limit == 0.7
+    assert "min_separation" not in scenario.data["safety"]  # the record holds the new name only
+    with pytest.warns(DeprecationWarning, match="BuildContext.min_clearance is deprecated"):
+        sim = api.build(["safety.clearance_limit=0.4"])
+        assert sim.formation.ctx.min_clearance == 0.4

@@ -24,8 +24,8 @@ def _setup(pos, targets, leader=0):
     world = WorldState.at_rest(np.asarray(pos, dtype=float), leader=leader)
     env = Environment()
     ctx = BuildContext(
-        n=world.n, guidance_period=0.1, physics_step=0.1, duration=10.0, min_separation=0.55,
-        min_clearance=0.0, comm_range=50.0, environment=env, rng=np.random.default_rng(0),
+        n=world.n, guidance_period=0.1, physics_step=0.1, duration=10.0, separation_limit=0.55,
+        clearance_limit=0.0, comm_range=50.0, environment=env, rng=np.random.default_rng(0),
         initial=world,
     )
     sp = Setpoints.hold(np.asarray(targets, dtype=float))
@@ -88,7 +88,7 @@ def test_serves_another_formation_tight_grid_to_circle_without_collisions():
         "formation=static_shape", "avoidance=apf_navigation", "environment=open", "swarm=grid",
         "swarm.n=9", "swarm.start.spacing=1.5", "formation.shape=circle", "formation.spacing=4.0",
         "formation.waypoints=[[0.0,0.0,2.0]]", "formation.rotate_with_heading=false",
-        "dynamics=double_integrator", "safety.min_separation=0.55", "clock.duration=120",
+        "dynamics=double_integrator", "safety.separation_limit=0.55", "clock.duration=120",
         "output.progress=off",
     ])
     result = sim.run()

@@ -17,7 +17,7 @@ SWAP = ["scenario=swap", "avoidance=cbf", "swarm.start.radius=4", *QUIET]
 
 def assert_swap_succeeded(metrics: dict) -> None:
     assert metrics["collisions"] == 0
-    assert metrics["min_separation"] >= 0.56  # safety.min_separation of the preset
+    assert metrics["min_separation"] >= 0.56  # safety.separation_limit of the preset
     assert metrics["stop_reason"] == "complete"  # every healthy agent within 0.1 m of its antipode
     assert metrics["success"] is True
 
@@ -44,7 +44,7 @@ def test_failed_vehicle_is_a_static_obstacle():
 
 def test_pillar_in_the_middle_is_kept_clear():
     metrics = api.run([*SWAP, "environment.obstacles=[{type:circle,center:[0.0,0.0],radius:1.0}]",
-                       "safety.min_clearance=0.3"]).metrics
+                       "safety.clearance_limit=0.3"]).metrics
     assert metrics["clearance_violations"] == 0
     assert metrics["min_clearance"] >= 0.3
     assert_swap_succeeded(metrics)

@@ -34,8 +34,8 @@ def six_vehicle_positions(d: float = 2.72) -> np.ndarray:
 
 def build(pos: np.ndarray, seed: int = 0, **params) -> tuple[CEM, WorldState, SimpleNamespace]:
     world = WorldState.at_rest(pos)
-    ctx = BuildContext(n=world.n, guidance_period=DT, physics_step=DT, duration=60.0, min_separation=1.36,
-                       min_clearance=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(seed),
+    ctx = BuildContext(n=world.n, guidance_period=DT, physics_step=DT, duration=60.0, separation_limit=1.36,
+                       clearance_limit=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(seed),
                        initial=world)
     return CEM(CEM.Params(**params), ctx), world, SimpleNamespace(world=world)
 

@@ -15,7 +15,7 @@ from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
 def build(pos, T_s=0.1, physics=0.02, **params):
     world = WorldState.at_rest(np.asarray(pos, dtype=float))
     ctx = BuildContext(n=world.n, guidance_period=T_s, physics_step=physics, duration=10.0,
-                       min_separation=0.3, min_clearance=0.3, comm_range=10.0, environment=None,
+                       separation_limit=0.3, clearance_limit=0.3, comm_range=10.0, environment=None,
                        rng=np.random.default_rng(0), initial=world)
     dyn = DoubleIntegrator(DoubleIntegrator.Params(**params), ctx)
     dyn.initialize(world)

@@ -19,7 +19,7 @@ PHYSICS = 1.0 / 240.0
 def build(pos, physics=PHYSICS, **params):
     world = WorldState.at_rest(np.asarray(pos, dtype=float))
     ctx = BuildContext(n=world.n, guidance_period=T_S, physics_step=physics, duration=10.0,
-                       min_separation=0.3, min_clearance=0.3, comm_range=10.0, environment=None,
+                       separation_limit=0.3, clearance_limit=0.3, comm_range=10.0, environment=None,
                        rng=np.random.default_rng(0), initial=world)
     dyn = Quadrotor(Quadrotor.Params(**params), ctx)
     dyn.initialize(world)

@@ -24,7 +24,7 @@ THESIS_LINE_START = [
     "formation=hex_lattice", "avoidance=apf_navigation", "environment=open",
     "dynamics=double_integrator", "dynamics.u_sat=2.0", "dynamics.v_max=0.5",
     "swarm.n=8", "swarm.leader=1", "swarm.start.kind=line", "swarm.start.spacing=1.5",
-    "swarm.start.center=[0.0,0.0,4.0]", "safety.min_separation=0.55", "safety.start_overlap=warn",
+    "swarm.start.center=[0.0,0.0,4.0]", "safety.separation_limit=0.55", "safety.start_overlap=warn",
     "clock.duration=250", "output.progress=off",
 ]
 D_Q, D_R = 0.55, 5.0
@@ -38,8 +38,8 @@ def simulation(overrides) -> Simulation:
 def _context(pos, leader=1):
     world = WorldState.at_rest(np.asarray(pos, dtype=float), leader=leader)
     ctx = BuildContext(
-        n=world.n, guidance_period=0.1, physics_step=0.1, duration=10.0, min_separation=0.55,
-        min_clearance=0.0, comm_range=50.0, environment=Environment(),
+        n=world.n, guidance_period=0.1, physics_step=0.1, duration=10.0, separation_limit=0.55,
+        clearance_limit=0.0, comm_range=50.0, environment=Environment(),
         rng=np.random.default_rng(0), initial=world,
     )
     return ctx, world

@@ -29,8 +29,8 @@ def make(pos: np.ndarray, heading: np.ndarray | None = None, **options) -> tuple
     pos = np.asarray(pos, dtype=float)
     world = WorldState.at_rest(pos, leader=None)
     ctx = BuildContext(
-        n=len(pos), guidance_period=1.0, physics_step=1.0, duration=100.0, min_separation=0.0,
-        min_clearance=0.0, comm_range=10.0, environment=OPEN, rng=np.random.default_rng(1),
+        n=len(pos), guidance_period=1.0, physics_step=1.0, duration=100.0, separation_limit=0.0,
+        clearance_limit=0.0, comm_range=10.0, environment=OPEN, rng=np.random.default_rng(1),
         initial=WorldState.at_rest(pos, leader=None),
     )
     flock = ReynoldsFlocking(FlockingParams(**options), ctx)
