@@ -57,10 +57,11 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from swarmscene.core.events import Event, EventKind
 from swarmscene.core.hookspecs import hookimpl
@@ -94,7 +95,8 @@ class CEM(Avoidance):
 
         K: int = Field(2, ge=1, le=1000, description="sliding-step passes per tick (Alg. 1 line 14); "
                        "at most 1000 (the paper uses 1-5)")
-        n: int = Field(20, ge=1, le=1000, description="Newton iterations of CalcXY (Alg. 2); at most 1000")
+        newton_iterations: int = Field(
+            20, ge=1, le=1000, description="Newton iterations n of CalcXY (Alg. 2); at most 1000 (was n)")
         sigma: float = Field(1e-3, ge=0.0, description="saddle noise deviation, m (eq. 6)")
         v_des: float = Field(1.0, gt=0.0, description="desired speed of the fastest agent, m/s")
         eps: float = Field(0.28, ge=0.0, description="vehicle enclosing radius epsilon, m")
@@ -107,6 +109,17 @@ class CEM(Avoidance):
         handback_distance: float | None = Field(
             None, gt=0.0, description="along-track distance past the last failure to hand back, m (None: 2 a_p)"
         )
+
+        @model_validator(mode="before")
+        @classmethod
+        def _deprecated_n(cls, data: Any) -> Any:
+            """``n`` (the paper's symbol, easily read as swarm.n) works for one release, with a warning."""
+            if isinstance(data, dict) and "n" in data:
+                warnings.warn("avoidance.n is deprecated: write avoidance.newton_iterations",
+                              DeprecationWarning, stacklevel=2)
+                data = {**data, "newton_iterations": data["n"]}
+                del data["n"]
+            return data
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
@@ -167,7 +180,7 @@ class CEM(Avoidance):
             theta = self.flight_direction(world, healthy, failed_xy)
         p = self.params
         self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
-                                dT=self.ctx.guidance_period, K=p.K, n=p.n, sigma=p.sigma,
+                                dT=self.ctx.guidance_period, K=p.K, n=p.newton_iterations, sigma=p.sigma,
                                 rng=self.ctx.rng, origin=origin)
         self.healthy_idx = healthy
         self.active = True

@@ -87,11 +87,11 @@ def hover(at_tick: int, *agents: int) -> Event:
 
 def test_params_defaults_are_the_papers_and_validate():
     p = CEM.Params()
-    assert (p.K, p.n, p.sigma, p.v_des, p.eps, p.delta, p.direction) == (2, 20, 1e-3, 1.0, 0.28, 0.40, "auto")
+    assert (p.K, p.newton_iterations, p.sigma, p.v_des, p.eps, p.delta, p.direction) == (2, 20, 1e-3, 1.0, 0.28, 0.40, "auto")
     plugin, _, _ = build(six_vehicle_positions())
     assert plugin.a_f == pytest.approx(0.68) and plugin.a_p == pytest.approx(1.36)
     assert plugin.handback_distance == pytest.approx(2.72)
-    for bad in ({"K": 0}, {"n": 0}, {"sigma": -1.0}, {"v_des": 0.0}, {"direction": "north"}, {"speed": 1.0}):
+    for bad in ({"K": 0}, {"newton_iterations": 0}, {"sigma": -1.0}, {"v_des": 0.0}, {"direction": "north"}, {"speed": 1.0}):
         with pytest.raises(ValidationError):
             CEM.Params(**bad)
     assert CEM.Params(direction=90).direction == 90
@@ -259,3 +259,15 @@ def test_agent_starting_inside_a_p_is_counted_and_commanded_out():
 def test_multi_failure_activations_start_outside(multi_run):
     _, m = multi_run
     assert m["cem.start_inside_exclusion"] == 0
+
+
+def test_newton_iterations_is_named_apart_from_swarm_n_and_the_old_key_still_works():
+    """CEM's Newton iteration count n (Alg. 2) reads avoidance.newton_iterations; avoidance.n, easily
+    read as swarm.n, is accepted for one release with a deprecation warning."""
+    from swarmscene import api
+
+    assert api.load(["scenario=cem_six_vehicle"]).plugin_params["avoidance"].newton_iterations == 20
+    with pytest.warns(DeprecationWarning, match="avoidance.n is deprecated: write avoidance.newton_iterations"):
+        scenario = api.load(["scenario=cem_six_vehicle", "avoidance.n=5"])
+    assert scenario.plugin_params["avoidance"].newton_iterations == 5
+    assert "n" not in scenario.data["avoidance"]
