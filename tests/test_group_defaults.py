@@ -53,6 +53,8 @@ def problems(
     for key, value in data.items():
         if key == "name" and not prefix:
             continue  # the choice's name (a plugin's registered name, the map's label)
+        if key == "defaults" and not prefix:
+            continue  # Hydra's defaults list (a deprecated alias naming the option it stands for)
         field = model.model_fields.get(key)
         if field is None:
             found.append(f"{prefix}{key}: not an option of {model.__name__}")
