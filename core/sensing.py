@@ -1,4 +1,9 @@
-"""Sensing and communication: one k-d tree per step, shared by every plugin and monitor.
+"""The tick's shared spatial queries: one k-d tree per step, shared by every plugin and monitor.
+
+Despite its name (kept: every plugin's signature reads ``sensing``), :class:`Sensing` is the
+engine's per-tick query cache (neighbour pairs, nearest obstacles, the communication graph, and
+the :meth:`Sensing.shared` memo), not a sensor model: what an agent can see under the thesis'
+line-of-sight rules is ``swarmscene.methods.indoor.sensing``.
 
 The kernel builds a :class:`Sensing` snapshot after each physics update; observers read it at the
 end of the tick and the formation/avoidance plugins read the same object at the start of the next
