@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs say so
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
@@ -160,7 +161,19 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: {word} at t = {result.metrics['duration']:.2f} s; "
               f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
         sys.exit(status)
+    if result.error is not None:
+        from .sweep import record_failure
+
+        record_failure(run_dir, RunFailed(result.error), sim.scenario.data)
+        print(f"swarmscene: {result.error}; outputs up to then (marked failed) in {run_dir}", file=sys.stderr)
+        sys.exit(EXIT_FAILED)
     return _objective(sim, result)
+
+
+class RunFailed(RuntimeError):
+    """A run stopped by a non-finite state: its outputs up to then are written, marked failed."""
+
+    reason = "non-finite"
 
 
 def _job(data: dict[str, Any], run_dir: Path) -> Any:
@@ -181,6 +194,8 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
     result = _run_and_write(sim, run_dir, _extra_writers(sim), sweep=True)
     if not result.complete:
         raise KeyboardInterrupt  # outputs are written and marked incomplete; stop the sweep
+    if result.error is not None:
+        raise RunFailed(result.error)  # recorded as a failed job (error.json, manifest), outputs kept
     return _objective(sim, result)
 
 

@@ -149,3 +149,36 @@ def test_a_yaml_file_that_does_not_parse_is_one_line_with_file_and_line(tmp_path
         f"swarmscene: {conf / 'broken.yaml'}:3:1: cannot parse YAML: expected ',' or ']', but got '<stream end>' "
         "(while parsing a flow sequence started at line 2)"]
     assert not (tmp_path / "run").exists()
+
+
+def test_a_non_finite_state_ends_the_run_as_failed_in_one_line(tmp_path, monkeypatch, capsys):
+    """The kernel stops at the first non-finite state; the command prints that one line, keeps the
+    outputs up to then, marks the run failed (error.json, manifest status) and exits with 1."""
+    import json
+    import sys
+
+    import numpy as np
+
+    from swarmscene import cli
+    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+    step = DoubleIntegrator.step
+
+    def failing_step(self, world, dt):
+        step(self, world, dt)
+        if world.t >= 0.5:
+            world.pos[3, 0] = np.inf
+
+    monkeypatch.setattr(DoubleIntegrator, "step", failing_step)
+    monkeypatch.setattr(sys, "argv", ["swarmscene", "clock.duration=2", f"hydra.run.dir={tmp_path}/run"])
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    with pytest.raises(SystemExit) as exit_:
+        cli.main()
+    assert exit_.value.code == cli.EXIT_FAILED
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("swarmscene: non-finite state of agent 3 at tick 6 (t = 0.6 s; 1 agents)")
+    manifest = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and manifest["error"].startswith("RunFailed: non-finite state of agent 3")
+    assert json.loads((tmp_path / "run" / "error.json").read_text())["reason"] == "non-finite"
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["stop_reason"] == "non_finite" and metrics["success"] is False and metrics["steps"] == 5
