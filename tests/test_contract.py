@@ -174,3 +174,13 @@ def test_each_template_is_a_working_plugin(kind):
     hook(registered.append)
     (cls,) = registered
     getattr(testing, f"check_{kind}")(cls)
+
+
+def test_the_packaged_example_is_the_avoidance_template_renamed():
+    """docs/examples/swarmscene-slowdown's plugin is plugins/avoidance/_template.py with its names
+    changed, so the template is known to work as a separately installed package."""
+    template = (ROOT / "plugins" / "avoidance" / "_template.py").read_text()
+    example = (ROOT / "docs" / "examples" / "swarmscene-slowdown" / "swarmscene_slowdown" / "plugin.py").read_text()
+    code = template[template.index("from __future__"):]
+    assert example[example.index("from __future__"):] == code.replace("MyAvoidance", "Slowdown").replace(
+        "my_avoidance", "slowdown")
