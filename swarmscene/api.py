@@ -105,13 +105,63 @@ def run(
     output_dir: str | Path | None = None,
     progress: Callable[[Simulation], None] | None = None,
 ) -> RunResult:
-    """Run a scenario; write its run directory when ``output_dir`` is given."""
+    """Run a scenario; write its run directory when ``output_dir`` is given.
+
+    Every output option is honoured as on the command line: with ``output_dir``, ``output.plots``,
+    ``output.animation`` and ``output.rerun`` write their files (a missing extra is a one-line
+    ConfigError before the run); without one, asking for files is a one-line ConfigError.
+    ``output.progress`` shows the progress line (``auto``: only on a terminal) unless ``progress``
+    is given; ``output.summary`` prints the run's summary (set it false to keep a notebook quiet).
+    """
+    from .summary import Progress, summary_text
+
     sim = build(config)
+    output = sim.config.output
+    if output_dir is None:
+        asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun") if getattr(output, key)]
+        if asked:
+            raise ConfigError([f"{asked[0]}: writes files, so it needs a run directory: api.run(..., output_dir=...)"])
+    writers = extra_writers(sim)
+    shown = Progress.maybe(output.progress) if progress is None else None
     started_at = utc_now()
-    result = sim.run(progress=progress)
+    try:
+        result = sim.run(progress=progress or shown)
+    finally:
+        if shown is not None:
+            shown.close()
     if output_dir is not None:
-        write_outputs(sim, result, Path(output_dir), started_at=started_at)
+        run_dir = Path(output_dir)
+        extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
+        write_outputs(sim, result, run_dir, extras, started_at=started_at)
+        result.run_dir = run_dir
+    if output.summary:
+        print(summary_text(sim, result, result.run_dir))
     return result
+
+
+def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
+    """The optional outputs asked for (plots, animation, Rerun replay), as writer functions; a
+    missing optional package is a one-line ConfigError now, not after the run."""
+    output, writers = sim.config.output, []
+    if output.plots or output.animation:
+        _require("matplotlib", "output.plots/output.animation", "plots")
+        from .plots import write_run_plots
+
+        writers.append(write_run_plots)
+    if output.rerun:
+        _require("rerun", "output.rerun", "rerun")
+        from .replay import export_rerun
+
+        writers.append(export_rerun)
+    return writers
+
+
+def _require(module: str, option: str, extra: str) -> None:
+    """A one-line error naming the extra to install when an optional output's package is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise ConfigError([f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'"])
 
 
 def utc_now() -> str:
@@ -147,3 +197,102 @@ def write_outputs(
         started_at=started_at,
     )
     result.run_dir = run_dir
+
+
+# -- sweeps ---------------------------------------------------------------------------------------
+LAUNCHERS = {"basic": None, "joblib": "hydra/launcher=joblib", "ray": "hydra/launcher=ray",
+             "submitit_slurm": "hydra/launcher=submitit_slurm"}
+"""``api.sweep``'s launcher names and the Hydra override that chooses each (basic: one process)."""
+
+
+class SweepResult:
+    """What :func:`sweep` returns: the sweep directory and its table.
+
+    Attributes:
+        sweep_dir: the sweep directory (one run directory per job, summary.csv/.md, sweep.json).
+        rows: one dict per job (the summary.csv row: job, status, error, reason, seed, overrides,
+            config_hash and every metric).
+        exit_status: the command's status (0; 1 when a job failed and failures were not allowed).
+    """
+
+    def __init__(self, sweep_dir: Path, rows: list[dict[str, Any]], exit_status: int) -> None:
+        self.sweep_dir, self.rows, self.exit_status = sweep_dir, rows, exit_status
+
+    @property
+    def failed(self) -> list[dict[str, Any]]:
+        """The rows of the jobs that did not complete."""
+        return [row for row in self.rows if row.get("status") != "complete"]
+
+    def table(self) -> Any:
+        """The tidy table: a pandas DataFrame when pandas is installed, else a pyarrow Table when
+        pyarrow is, else the rows."""
+        import importlib.util
+
+        if importlib.util.find_spec("pandas") is not None:
+            import pandas
+
+            return pandas.DataFrame(self.rows)
+        if importlib.util.find_spec("pyarrow") is not None:
+            import pyarrow
+
+            return pyarrow.Table.from_pylist(self.rows)
+        return self.rows
+
+
+def sweep(
+    grid: dict[str, Sequence[Any] | str],
+    overrides: Sequence[str] = (),
+    launcher: str = "basic",
+    sweep_dir: str | Path | None = None,
+    allow_failed: bool = True,
+) -> SweepResult:
+    """Run a sweep exactly as the command line does (``swarmscene -m ...``) and return its table.
+
+    Args:
+        grid: swept keys and their values, e.g. ``{"avoidance": ["cem", "orca"], "seed": range(3)}``;
+            a string is Hydra's own sweep syntax (``"range(0,10)"``, ``"1,2,5"``).
+        overrides: fixed overrides (``["scenario=cem_six_vehicle", "clock.duration=10"]``).
+        launcher: ``basic`` (this machine, one job at a time), ``joblib`` (all cores), ``ray``
+            (a local Ray, or a cluster with ``hydra.launcher.ray.init.address=...`` in
+            ``overrides``: docs/sweeps.md), ``submitit_slurm``.
+        sweep_dir: where the jobs go (default ``multirun/api/<UTC time>`` under the working
+            directory). The same grid into the same directory resumes (complete jobs are skipped);
+            another grid there is refused.
+        allow_failed: return normally when jobs failed (they are in ``rows`` with their reason).
+    Raises:
+        ConfigError: the sweep was refused before any job ran (a bad value anywhere in the grid,
+            a directory holding another grid), with the command line's one-line messages; or jobs
+            failed and ``allow_failed`` is false.
+    """
+    import subprocess
+    import sys
+    from datetime import datetime, timezone
+
+    from .sweep import collect_rows
+
+    if launcher not in LAUNCHERS:
+        raise ConfigError([f"launcher: must be one of {', '.join(LAUNCHERS)} (got {launcher!r})"])
+    if sweep_dir is None:
+        sweep_dir = Path("multirun", "api", datetime.now(timezone.utc).strftime("%Y-%m-%d_%H-%M-%S-%f"))
+    sweep_dir = Path(sweep_dir).resolve()
+    swept = [f"{key}={_sweep_values(values)}" for key, values in grid.items()]
+    command = [sys.executable, "-c", "from swarmscene.cli import main; main()", "--multirun",
+               *overrides, *swept, f"hydra.sweep.dir={sweep_dir}",
+               f"hydra.callbacks.swarmscene_summary.allow_failed={str(allow_failed).lower()}"]
+    if LAUNCHERS[launcher]:
+        command.append(LAUNCHERS[launcher])
+    proc = subprocess.run(command, capture_output=True, text=True)
+    lines = [line.removeprefix("swarmscene: ") for line in proc.stderr.splitlines() if line.startswith("swarmscene: ")]
+    if proc.returncode == 2 or not (sweep_dir / "summary.csv").is_file():
+        raise ConfigError(lines or [f"the sweep ended with status {proc.returncode}: {proc.stderr.strip()[-500:]}"])
+    result = SweepResult(sweep_dir, collect_rows(sweep_dir), proc.returncode)
+    if result.failed and not allow_failed:
+        raise ConfigError([lines[-1] if lines else f"{len(result.failed)} jobs failed"])
+    return result
+
+
+def _sweep_values(values: Sequence[Any] | str) -> str:
+    """Hydra's sweep syntax for ``values``: a string as given, a sequence joined with commas."""
+    if isinstance(values, str):
+        return values
+    return ",".join("null" if v is None else str(v).lower() if isinstance(v, bool) else str(v) for v in values)

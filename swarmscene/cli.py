@@ -141,7 +141,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
 
     try:
         sim = api.build(data)
-        writers = _extra_writers(sim)  # a missing optional package fails now, not after the run
+        writers = api.extra_writers(sim)  # a missing optional package fails now, not after the run
     except ConfigError as exc:
         if os.environ.get(DEBUG_ENV):
             raise
@@ -191,7 +191,7 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
         return _objective_from(scenario.config.output.objective, done)
     sim = api.build(scenario, plugin_set)
-    result = _run_and_write(sim, run_dir, _extra_writers(sim), sweep=True)
+    result = _run_and_write(sim, run_dir, api.extra_writers(sim), sweep=True)
     if not result.complete:
         raise KeyboardInterrupt  # outputs are written and marked incomplete; stop the sweep
     if result.error is not None:
@@ -216,32 +216,6 @@ def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> 
     if output.summary and not sweep:
         print(summary_text(sim, result, run_dir))
     return result
-
-
-def _extra_writers(sim: Any) -> list[Any]:
-    """The optional outputs asked for (plots, animation, Rerun replay), as writer functions."""
-    output, writers = sim.config.output, []
-    if output.plots or output.animation:
-        _require("matplotlib", "output.plots/output.animation", "plots")
-        from .plots import write_run_plots
-
-        writers.append(write_run_plots)
-    if output.rerun:
-        _require("rerun", "output.rerun", "rerun")
-        from .replay import export_rerun
-
-        writers.append(export_rerun)
-    return writers
-
-
-def _require(module: str, option: str, extra: str) -> None:
-    """A one-line error naming the extra to install when an optional output's package is missing."""
-    import importlib.util
-
-    from .core.errors import ConfigError
-
-    if importlib.util.find_spec(module) is None:
-        raise ConfigError([f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'"])
 
 
 def _objective(sim: Any, result: Any) -> Any:

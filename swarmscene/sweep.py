@@ -642,14 +642,32 @@ class SweepSummary(_Callback):
     At the end it writes the sweep directory's tables, prints how many jobs failed, and ends the
     process with status 1 when a job did not complete, unless ``allow_failed`` is true.
 
+    While the jobs run it shows their progress (jobs done of the total, failures so far, time left;
+    ``summary.SweepProgress``), whatever the launcher.
+
     Args:
         allow_failed: keep exit status 0 when jobs failed (the summary still counts them).
+        progress: ``auto`` (on a terminal), ``on`` or ``off``: the sweep's progress line.
     """
 
-    def __init__(self, allow_failed: bool = False) -> None:
+    def __init__(self, allow_failed: bool = False, progress: str = "auto") -> None:
         self.allow_failed = bool(allow_failed)
+        if progress not in ("auto", "on", "off"):
+            _stop([f"hydra.callbacks.swarmscene_summary.progress: must be auto, on or off (got {progress!r})"], 2)
+        self.progress_mode = progress
+        self.progress: Any = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        # Launchers pickle the callbacks with each job; the watcher thread stays in this process.
+        return {**self.__dict__, "progress": None}
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        self._check_basic_sweep(config)
+        from .summary import SweepProgress
+
+        self.progress = SweepProgress.maybe(Path(config.hydra.sweep.dir), self.progress_mode)
+
+    def _check_basic_sweep(self, config: Any) -> None:
         if config.hydra.sweeper.get("_target_") != BASIC_SWEEPER:
             return  # swarmscene's sweeper checks for itself; other sweepers have no grid
         from hydra.core.global_hydra import GlobalHydra
@@ -670,6 +688,8 @@ class SweepSummary(_Callback):
             _stop(exc.lines, 2)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        if self.progress is not None:
+            self.progress.stop()
         sweep_dir = Path(config.hydra.sweep.dir)
         try:
             rows = write_summary(sweep_dir)

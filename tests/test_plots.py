@@ -255,10 +255,8 @@ def test_missing_extra_fails_before_the_run_and_leaves_no_run_directory(tmp_path
 
 
 def test_missing_extra_is_named_in_one_line():
-    from swarmscene import cli
-
     from swarmscene.core.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"output.plots=true needs the 'plots' extra: pip install 'swarmscene\[plots\]'"):
-        cli._require("no_such_module_for_swarmscene", "output.plots", "plots")
-    cli._require("matplotlib", "output.plots", "plots")  # installed: no error
+        api._require("no_such_module_for_swarmscene", "output.plots", "plots")
+    api._require("matplotlib", "output.plots", "plots")  # installed: no error

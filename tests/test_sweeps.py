@@ -10,6 +10,7 @@ import csv
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import socket
@@ -253,10 +254,21 @@ def test_a_directory_without_a_grid_record_is_judged_by_its_jobs(tmp_path):
 
 
 # -- launchers ----------------------------------------------------------------------------------
+PROGRESS = "hydra.callbacks.swarmscene_summary.progress=on"  # the sweep's progress line, not on a terminal
+
+
+def progress_counts(stderr: str) -> list[str]:
+    """The sweep progress lines' 'k/n jobs done, f failed' texts, in order."""
+    return re.findall(r"(\d+/\d+ jobs done, \d+ failed)", stderr)
+
+
 def test_joblib_launcher_gives_identical_metrics(basic_sweep, tmp_path):
-    proc = swarmscene(*FAST, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
+    proc = swarmscene(*FAST, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={tmp_path}/sw",
+                      PROGRESS, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "Joblib.Parallel" in proc.stdout + proc.stderr  # it really was the joblib launcher
+    total = len(read_csv(basic_sweep / "summary.csv"))
+    assert progress_counts(proc.stderr)[-1] == f"{total}/{total} jobs done, 0 failed"  # jobs ran in workers
     assert comparable(read_csv(tmp_path / "sw" / "summary.csv")) == comparable(read_csv(basic_sweep / "summary.csv"))
 
 
@@ -311,11 +323,13 @@ def test_ray_launcher_on_a_local_head_gives_identical_metrics(basic_sweep, tmp_p
     address, env = ray_cluster
     proc = swarmscene(
         *FAST, "hydra/launcher=ray", f"hydra.launcher.ray.init.address={address}",
-        "+hydra.launcher.ray.init.object_store_memory=null", f"hydra.sweep.dir={tmp_path}/sw",
+        "+hydra.launcher.ray.init.object_store_memory=null", f"hydra.sweep.dir={tmp_path}/sw", PROGRESS,
         cwd=tmp_path, env=env,
     )
     assert proc.returncode == 0, proc.stderr
     assert f"Connecting to existing Ray cluster at address: {address}" in proc.stdout + proc.stderr
+    total = len(read_csv(basic_sweep / "summary.csv"))
+    assert progress_counts(proc.stderr)[-1] == f"{total}/{total} jobs done, 0 failed"
     assert comparable(read_csv(tmp_path / "sw" / "summary.csv")) == comparable(read_csv(basic_sweep / "summary.csv"))
 
 
@@ -608,3 +622,15 @@ def test_the_tuning_preset_keeps_its_optuna_sweeper():
         assert "hydra/sweeper/optuna" in str(exc)
     else:
         assert choice == "optuna"
+
+
+def test_sweep_progress_counts_failed_jobs_and_is_quiet_off_a_terminal(tmp_path):
+    """A job that fails is counted as it fails; with the default (auto) and no terminal, the sweep
+    prints no progress line at all."""
+    proc = swarmscene("-m", "clock.duration=1.0", "swarm.leader=0,7", f"hydra.sweep.dir={tmp_path}/sw", PROGRESS,
+                      "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "hydra.sweeper.on_invalid=record",
+                      "hydra/sweeper=swarmscene", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr  # one job failed
+    assert progress_counts(proc.stderr)[-1] == "2/2 jobs done, 1 failed"
+    quiet = swarmscene("-m", "clock.duration=1.0", "seed=0,1", f"hydra.sweep.dir={tmp_path}/quiet", cwd=tmp_path)
+    assert quiet.returncode == 0 and progress_counts(quiet.stderr) == []
