@@ -285,36 +285,56 @@ def ray_cluster(request, ray_env):
     ``~/.ray/auth_token`` in; yields (address, the client's environment)."""
     env = {**ray_env, "RAY_AUTH_MODE": request.param}
     ray_bin = Path(sys.executable).with_name("ray")
-    port = _free_port()
     temp_dir = tempfile.mkdtemp(prefix="ray")  # short: Ray's socket paths have a length limit
+    head, port = None, None
+    try:
+        for _ in range(3):  # a head can lose a race for a port it was given free: try another
+            head, port = _start_head(ray_bin, env, temp_dir)
+            if head is not None:
+                break
+        assert head is not None, "no ray head started in 3 attempts"
+        yield f"127.0.0.1:{port}", env
+    finally:
+        if head is not None:
+            _stop_head(head)
+        shutil.rmtree(temp_dir, ignore_errors=True)
+
+
+def _start_head(ray_bin: Path, env: dict, temp_dir: str) -> tuple[subprocess.Popen | None, int]:
+    """``ray start --head --block`` on a free port; the process once the port answers, or None
+    (after stopping what it left) when it exited first."""
+    port = _free_port()
     head = subprocess.Popen(
         [str(ray_bin), "start", "--head", "--block", f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
          "--disable-usage-stats", f"--temp-dir={temp_dir}"],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
     )
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            with socket.socket() as s:
-                if s.connect_ex(("127.0.0.1", port)) == 0:
-                    break
-            assert head.poll() is None, "ray head exited"
-            time.sleep(0.5)
-        yield f"127.0.0.1:{port}", env
-    finally:
-        # The head's own process group (ours only): SIGTERM lets `ray start --block` stop its
-        # services; whatever of the group is still there after a few seconds is killed.
-        os.killpg(head.pid, signal.SIGTERM)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return head, port
+        if head.poll() is not None:
+            _stop_head(head)
+            return None, port
+        time.sleep(0.5)
+    _stop_head(head)
+    return None, port
+
+
+def _stop_head(head: subprocess.Popen) -> None:
+    """The head's own process group (ours only): SIGTERM lets `ray start --block` stop its services;
+    whatever of the group is still there after a few seconds is killed."""
+    for sig, wait in ((signal.SIGTERM, 8), (signal.SIGKILL, None)):
         try:
-            head.wait(timeout=8)
+            os.killpg(head.pid, sig)
+        except ProcessLookupError:
+            break  # the group is gone already
+        try:
+            head.wait(timeout=wait)
         except subprocess.TimeoutExpired:
             pass
-        try:
-            os.killpg(head.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        head.wait()
-        shutil.rmtree(temp_dir, ignore_errors=True)
+    head.wait()
 
 
 def test_ray_launcher_on_a_local_head_gives_identical_metrics(basic_sweep, tmp_path, ray_cluster):
