@@ -3,9 +3,34 @@
 from __future__ import annotations
 
 import numpy as np
+from pydantic import Field
 
+from swarmscene.core.plugin import PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.vectors import clip_norm
+
+
+class VelocityFilterParams(PluginParams):
+    """The options both baselines share: how the preferred velocity v_pref (ORCA's v_A^pref, the
+    certificates' u^nom) is made from a setpoint, how fast it may be, and how symmetric deadlocks
+    are broken. Each method's Params adds its own."""
+
+    v_max: float = Field(
+        1.0, gt=0, le=1000.0, description="speed limit |v| <= v_max, m/s (ORCA's disc D(0, v_max) of "
+        "eq. 5); keep it at or below the dynamics' speed limit; at most 1000 m/s")
+    margin: float = Field(
+        0.05, ge=0, le=1000.0, description="added to safety.separation_limit (ORCA: the combined radius "
+        "r_A + r_B; cbf: D_s) and to safety.clearance_limit (obstacles), m; absorbs tracking lag")
+    perturbation: float = Field(
+        0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks the "
+        "deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded generator")
+    detour: float = Field(
+        0.0, ge=0, lt=90, description="right-hand rule: the preferred velocity of an agent outside one "
+        "of its constraints is turned this many degrees clockwise (about +z), so symmetric encounters "
+        "circulate instead of deadlocking; 0 (default): the published method (the swap preset's "
+        "tuning sets 30)")
+    gain: float = Field(
+        1.0, gt=0, description="pull onto POSITION/TRACK/HOLD references in the preferred velocity, 1/s")
 
 
 def preferred_velocity(sp: Setpoints, pos: np.ndarray, gain: float, v_max: float) -> np.ndarray:

@@ -58,10 +58,11 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.plugin import Avoidance, BuildContext
 from swarmscene.core.setpoint import Setpoints
 from swarmscene.methods.baselines.cbf import influence_range, safe_velocities
 from swarmscene.methods.baselines.common import (
+    VelocityFilterParams,
     nearest_obstacles,
     perturb,
     preferred_velocity,
@@ -75,30 +76,15 @@ class BarrierCertificates(Avoidance):
 
     name = "cbf"
 
-    class Params(PluginParams):
+    class Params(VelocityFilterParams):
         gamma: float = Field(
             1.0, gt=0, description="barrier gain gamma of dh/dt >= -gamma h^p, 1/s (for p = 1); "
             "gamma * clock.guidance_period <= 1 keeps a single integrator safe between ticks")
         power: int = Field(
             1, ge=1, description="p of the class-K function h^p (1: linear; 3: the Robotarium's)")
-        v_max: float = Field(
-            1.0, gt=0, le=1000.0, description="speed limit |u_i| <= v_max, m/s (at most 1000); keep it at or below the "
-            "dynamics' speed limit")
-        margin: float = Field(
-            0.05, ge=0, le=1000.0, description="added to safety.separation_limit for D_s and to "
-            "safety.clearance_limit for D_o, m (absorbs tracking lag)")
         max_neighbours: int | None = Field(
             None, ge=1, le=1_000_000, description="constraints per agent, nearest first; null: every neighbour "
             "whose constraint can be active")
-        perturbation: float = Field(
-            0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks "
-            "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "
-            "generator")
-        detour: float = Field(
-            0.0, ge=0, lt=90, description="right-hand rule: u^nom of an agent that violates one of "
-            "its constraints is turned this many degrees clockwise (about +z), so symmetric "
-            "encounters circulate instead of deadlocking; 0 (default): the plain certificate (the "
-            "swap preset's tuning sets 30)")
         deadlock_turn: float = Field(
             0.0, ge=0, lt=180, description="an agent the filter stops (|u*| < deadlock_ratio "
             "|u^nom|) is filtered again with u^nom turned this many degrees to either side and keeps "
@@ -106,8 +92,6 @@ class BarrierCertificates(Avoidance):
             "never (the swap preset's tuning sets 90)")
         deadlock_ratio: float = Field(
             0.1, gt=0, lt=1, description="|u*| / |u^nom| under which an agent counts as stopped")
-        gain: float = Field(
-            1.0, gt=0, description="pull onto POSITION/TRACK/HOLD references in u^nom, 1/s")
 
     def __init__(self, params: "BarrierCertificates.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)

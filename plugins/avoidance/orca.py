@@ -56,9 +56,10 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.plugin import Avoidance, BuildContext
 from swarmscene.core.setpoint import Setpoints
 from swarmscene.methods.baselines.common import (
+    VelocityFilterParams,
     nearest_obstacles,
     perturb,
     preferred_velocity,
@@ -73,34 +74,17 @@ class Orca(Avoidance):
 
     name = "orca"
 
-    class Params(PluginParams):
+    class Params(VelocityFilterParams):
         time_horizon: float = Field(
             3.0, gt=0, le=1000.0, description="tau, s: velocity obstacles are truncated at this horizon "
             "(eq. 2); at most 1000 s")
         time_horizon_obstacle: float = Field(
             1.0, gt=0, le=1000.0, description="tau_obst, s: horizon of the obstacle half-plane; at most 1000 s")
-        v_max: float = Field(
-            1.0, gt=0, le=1000.0, description="speed limit, m/s: radius of the disc D(0, v_max) of eq. 5; "
-            "keep it at or below the dynamics' speed limit; at most 1000 m/s")
-        margin: float = Field(
-            0.05, ge=0, le=1000.0, description="added to safety.separation_limit for the combined radius "
-            "r_A + r_B, and to safety.clearance_limit for obstacles, m (absorbs tracking lag)")
         max_neighbours: int = Field(
             10, ge=1, le=1_000_000, description="neighbours considered per agent, nearest first (RVO2 "
             "maxNeighbors); at most 10^6")
         neighbour_dist: float | None = Field(
             None, gt=0, le=1e6, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
-        perturbation: float = Field(
-            0.01, ge=0, description="random perturbation of the preferred velocity, m/s: breaks "
-            "the deadlocks of perfectly symmetric encounters (RVO2 examples); from the run's seeded "
-            "generator")
-        detour: float = Field(
-            0.0, ge=0, lt=90, description="right-hand rule: v_pref of an agent outside one of its "
-            "ORCA half-planes is turned this many degrees clockwise (about +z), so symmetric "
-            "encounters circulate instead of deadlocking; 0 (default): the paper's ORCA (the swap "
-            "preset's tuning sets 30)")
-        gain: float = Field(
-            1.0, gt=0, description="pull onto POSITION/TRACK/HOLD references in v_pref, 1/s")
 
     def __init__(self, params: "Orca.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)
