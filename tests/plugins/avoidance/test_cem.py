@@ -26,7 +26,7 @@ ALT = 2.0
 
 
 def six_vehicle_positions(d: float = 2.72) -> np.ndarray:
-    """Q1 (index 0) leads a triangle; Q2 (index 1) is right behind it (see test_cem_flow)."""
+    """Q1 (index 0) leads a triangle; Q2 (index 1) is right behind it (see tests/methods/cem/test_flow.py)."""
     s3 = np.sqrt(3.0)
     xy = np.array([[0, 0], [-s3 * d, 0], [-s3 / 2 * d, d / 2], [-s3 / 2 * d, -d / 2], [-s3 * d, d], [-s3 * d, -d]])
     return np.column_stack([xy, np.full(len(xy), ALT)])
