@@ -171,6 +171,7 @@ class SweepProgress:
         self.stop_event = threading.Event()
         self.thread = threading.Thread(target=self._watch, name="swarmscene-sweep-progress", daemon=True)
         self.first: tuple[float, float] | None = None
+        self.total: int | None = None  # read from sweep.json once it exists
 
     @classmethod
     def maybe(cls, sweep_dir: Path, mode: str = "auto") -> "SweepProgress | None":
@@ -191,11 +192,12 @@ class SweepProgress:
                 if job.is_dir() and (job / "manifest.json").is_file():
                     done += 1
                     failed += (job / "error.json").is_file()
-        try:
-            total = len(json.loads((self.sweep_dir / "sweep.json").read_text())["jobs"])
-        except (OSError, ValueError, KeyError, TypeError):
-            total = None
-        return done, failed, total
+        if self.total is None:  # the grid record does not change once written
+            try:
+                self.total = len(json.loads((self.sweep_dir / "sweep.json").read_text())["jobs"])
+            except (OSError, ValueError, KeyError, TypeError):
+                pass
+        return done, failed, self.total
 
     def line(self, elapsed: float) -> str:
         done, failed, total = self.counts()
