@@ -15,24 +15,22 @@ resolved) that the run directory records.
 from __future__ import annotations
 
 import warnings
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from .errors import ConfigError, format_validation_error
-from .plugin import PLUGIN_KINDS, PluginParams, reject_bool_as_number, shared_option_conflicts
+from .events import EventConfig, check_events
+from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
+from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
+from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts
 
+_Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-    @field_validator("*", mode="before")
-    @classmethod
-    def _no_bool_for_numbers(cls, value: Any, info: Any) -> Any:
-        """``true``/``false`` where a number is expected is an error (pydantic would read 1/0)."""
-        return reject_bool_as_number(cls, value, info)
-
+__all__ = ["CircleObstacle", "Coordinate", "EnvironmentConfig", "EventConfig", "MAX_DURATION",
+           "MAX_LENGTH", "Obstacle", "Point2", "PolygonObstacle", "Scenario", "ScenarioConfig",
+           "WallObstacle", "validate"]
 
 MAX_AGENTS = 1_000_000
 """Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
@@ -50,60 +48,8 @@ N = 2 x 10^4 and 10^5: reynolds_flocking with ~80 neighbours each and potential 
 BASE_WORKING_BYTES = 256 * 2**20
 """Estimated memory of the interpreter and the imported packages."""
 
-MAX_LENGTH = 1e7
-"""Largest coordinate magnitude and length, m (10,000 km): squared distances stay far from float
-overflow in every k-d tree and geometry query."""
 MAX_PERIOD = 3600.0
 """Longest guidance period, s."""
-MAX_DURATION = 1e9
-"""Longest simulated duration, s (~32 years; the tick count is bounded by MAX_TICKS as well)."""
-Coordinate = Annotated[float, Field(ge=-MAX_LENGTH, le=MAX_LENGTH)]
-Point2 = tuple[Coordinate, Coordinate]
-Point3 = tuple[Coordinate, Coordinate, Coordinate]
-
-
-class _Shape(BaseModel):
-    """Base of the obstacle footprints: their ``type`` tags a union, which admits no ``*`` validator."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-    @field_validator("points", "center", "radius", "thickness", mode="before", check_fields=False)
-    @classmethod
-    def _no_bool_for_numbers(cls, value: Any, info: Any) -> Any:
-        return reject_bool_as_number(cls, value, info)
-
-
-class PolygonObstacle(_Shape):
-    """A polygonal footprint; ``points`` in order, at least 3, not self-intersecting."""
-
-    type: Literal["polygon"]
-    points: list[Point2] = Field(min_length=3, description="vertices [x, y], m")
-
-
-class CircleObstacle(_Shape):
-    """A disc footprint (pillar, no-fly cylinder)."""
-
-    type: Literal["circle"]
-    center: Point2 = Field(description="[x, y], m")
-    radius: float = Field(gt=0, le=MAX_LENGTH, description="m")
-
-
-class WallObstacle(_Shape):
-    """A thick wall: the polyline ``points`` buffered by ``thickness / 2`` with flat caps."""
-
-    type: Literal["wall"]
-    points: list[Point2] = Field(min_length=2, description="polyline [x, y], m")
-    thickness: float = Field(gt=0, le=MAX_LENGTH, description="m")
-
-
-Obstacle = Annotated[PolygonObstacle | CircleObstacle | WallObstacle, Field(discriminator="type")]
-
-
-class EnvironmentConfig(_Strict):
-    """The obstacle map (footprints in the x-y plane, extruded over all altitudes)."""
-
-    name: str = Field("open", description="label of the map")
-    obstacles: list[Obstacle] = Field(default_factory=list, description="obstacle footprints")
 
 
 class StartConfig(_Strict):
@@ -240,14 +186,6 @@ class OutputConfig(_Strict):
         default_factory=list,
         description="metrics the run returns to a Hydra sweeper (one: a float, several: a tuple), e.g. Optuna",
     )
-
-
-class EventConfig(_Strict):
-    """One scheduled event (see :mod:`swarmscene.core.events`)."""
-
-    at: float = Field(ge=0, le=MAX_DURATION, description="time, s")
-    agents: list[int] = Field(min_length=1, description="indices of the agents hit")
-    kind: Literal["hover", "comm_loss"] = Field(description="hover: failure, holds position")
 
 
 class PluginChoice(BaseModel):
@@ -409,10 +347,7 @@ def _scenario_checks(config: ScenarioConfig) -> list[str]:
     n = config.swarm.n
     if config.swarm.leader is not None and config.swarm.leader >= n:
         errors.append(f"swarm.leader: must be < swarm.n = {n} (got {config.swarm.leader})")
-    for k, event in enumerate(config.events):
-        bad = [a for a in event.agents if not 0 <= a < n]
-        if bad:
-            errors.append(f"events.{k}.agents: agents are 0..{n - 1} (got {bad})")
+    errors += check_events(config.events, n)
     errors += build_obstacles(config.environment)[1]
     return errors
 

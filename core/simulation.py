@@ -22,7 +22,7 @@ import pluggy
 from .config import Scenario
 from .environment import Environment
 from .errors import ConfigError
-from .events import Event, EventKind, EventQueue
+from .events import EventQueue
 from .monitors import SafetyMonitor
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
 from .recorder import TrajectoryRecorder
@@ -64,10 +64,7 @@ class Simulation:
 
         self.environment = Environment(scenario.obstacles, name=cfg.environment.name)
         self.world = WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader)
-        self._hover_pos = self.world.pos.copy()
-        self.events = EventQueue(
-            [Event(e.at, tuple(e.agents), EventKind(e.kind)) for e in cfg.events]
-        )
+        self.events = EventQueue.from_config(cfg.events)
         ctx = BuildContext(
             n=cfg.swarm.n,
             guidance_period=self.guidance_period,
@@ -118,7 +115,7 @@ class Simulation:
         self.dynamics.control(self.world, setpoints)
         for _ in range(self.substeps):
             self.dynamics.step(self.world, self.physics_step)
-        self._hold_failed()
+        self.events.hold(self.world)
         self._wrap_periodic()
         self._check_finite()
         self.step_count += 1
@@ -127,11 +124,7 @@ class Simulation:
         self.hook.swarmscene_step_end(sim=self)
 
     def _apply_due_events(self) -> None:
-        for event in self.events.due(self.world.t):
-            event.apply(self.world)
-            if event.kind is EventKind.HOVER:
-                idx = list(event.agents)
-                self._hover_pos[idx] = self.world.pos[idx]
+        for event in self.events.apply_due(self.world):
             self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
             self.hook.swarmscene_event(sim=self, event=event)
 
@@ -169,13 +162,6 @@ class Simulation:
             lo, size = self._periodic
             a = lo.size
             self.world.pos[:, :a] = wrap(self.world.pos[:, :a], lo, size)
-
-    def _hold_failed(self) -> None:
-        """Failed vehicles hover where they failed, whatever the dynamics model did."""
-        failed = ~self.world.healthy
-        if failed.any():
-            self.world.pos[failed] = self._hover_pos[failed]
-            self.world.vel[failed] = 0.0
 
     # -- the run ----------------------------------------------------------------------------
     def request_stop(self, reason: str) -> None:
