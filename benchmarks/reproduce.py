@@ -1,0 +1,364 @@
+"""The reproduction report: every paper number a shipped scenario reproduces, for each reading.
+
+    python benchmarks/reproduce.py                    # all claims -> docs/reproduction.md
+    python benchmarks/reproduce.py --only cem         # claims whose id or paper contains "cem"
+    python benchmarks/reproduce.py --jobs 2 --cache /tmp/repro   # resume an interrupted run
+
+The claims are declared in ``benchmarks/claims/*.yaml`` (format: ``benchmarks/claims/README.md``):
+the paper's value, where it is printed, the scenario and metric that reproduce it, how many seeds,
+and every reading of the paper the number depends on (the first is the default, literal one). Each
+(run overrides, seed) is run once however many claims read it; runs go to ``--jobs`` worker
+processes. A rate (a boolean metric) gets its 95 % Wilson interval, any other number the mean's
+95 % Student-t interval; a claim whose runs are identical over seeds is marked deterministic.
+
+Verdicts: a claim "=" holds when ``|mean - paper| <= tolerance``; a bound ("<=", ">=") when the
+worst seed is within ``tolerance`` of it (a paper bound holds "throughout", so every seed must
+meet it). Separately the table says whether our interval contains the paper's value, and the
+report lists every claim where it does not, with the claim's note on why.
+
+``tests/test_reproduction.py`` (marked slow) re-runs the default reading of each claim and asserts
+its verdict.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from swarmscene.sweep import mean_ci, wilson
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+CLAIMS_DIR = HERE / "claims"
+PAPERS = {
+    "cem": "Romano et al., fluid-flow CEM navigation (../shared/papers/cem-fluid-flow-navigation.md)",
+    "vrb": "Zhou and Schwager, Virtual Rigid Bodies (../shared/papers/virtual-rigid-bodies.md)",
+    "thesis": "Karydes (2020), quadrotor swarms thesis (../shared/papers/quadrotor-swarms-thesis.md)",
+}
+QUIET = ["output.trajectory=false", "output.summary=false", "output.progress=off"]
+
+
+class Claim(BaseModel):
+    """One number printed in a paper and the runs that reproduce it (see claims/README.md)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    id: str
+    paper: Literal["cem", "vrb", "thesis"]
+    where: str
+    quantity: str
+    paper_value: float
+    relation: Literal["=", "<=", ">="] = "="
+    tolerance: float = Field(0.0, ge=0)
+    unit: str = ""
+    overrides: list[str] = Field(default_factory=list)
+    metric: str | None = None
+    function: str | None = None
+    seeds: int = Field(1, ge=1)
+    readings: dict[str, list[str]] = Field(default_factory=lambda: {"as printed": []})
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "Claim":
+        if (self.metric is None) == (self.function is None):
+            raise ValueError(f"{self.id}: give either metric (with overrides) or function")
+        if not self.readings:
+            raise ValueError(f"{self.id}: readings: at least one (the default reading first)")
+        return self
+
+    @property
+    def default_reading(self) -> str:
+        return next(iter(self.readings))
+
+    def jobs(self, reading: str) -> list["Job"]:
+        """The runs this claim needs for one reading: one per seed."""
+        extra = tuple(self.readings[reading])
+        if self.function is not None:
+            return [Job(function=self.function, args=extra, seed=s) for s in range(self.seeds)]
+        return [Job(overrides=(*self.overrides, *extra), seed=s) for s in range(self.seeds)]
+
+    def command(self, reading: str) -> str:
+        """The command line that reproduces one run of this claim in this reading."""
+        if self.function is not None:
+            module, name = self.function.split(":")
+            args = " ".join(self.readings[reading])
+            return f"python -c 'from {module} import {name}; print({name}(0{', ' + repr(args) if args else ''}))'"
+        words = [*self.overrides, *self.readings[reading]]
+        seeds = f"seed='range(0,{self.seeds})' --multirun" if self.seeds > 1 else "seed=0"
+        return " ".join(["swarmscene", *words, seeds])
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run: a scenario's overrides and seed, or a function called with the seed."""
+
+    overrides: tuple[str, ...] = ()
+    function: str | None = None
+    args: tuple[str, ...] = ()
+    seed: int = 0
+
+    @property
+    def key(self) -> str:
+        text = json.dumps([self.overrides, self.function, self.args, self.seed])
+        return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def load_claims(directory: Path = CLAIMS_DIR) -> list[Claim]:
+    """Every claim of every ``*.yaml`` in ``directory``, in file then list order."""
+    claims: list[Claim] = []
+    for path in sorted(directory.glob("*.yaml")):
+        for entry in yaml.safe_load(path.read_text()) or []:
+            claims.append(Claim.model_validate(entry))
+    ids = [c.id for c in claims]
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise ValueError(f"claim ids declared twice: {twice}")
+    return claims
+
+
+# -- running ------------------------------------------------------------------------------------
+def run_job(job: Job) -> dict[str, Any]:
+    """The metrics of one run (or ``{"value": f(seed)}`` for a function claim)."""
+    if job.function is not None:
+        if str(HERE) not in sys.path:
+            sys.path.insert(0, str(HERE))
+        module, name = job.function.split(":")
+        func: Callable[..., float] = getattr(__import__(module, fromlist=[name]), name)
+        return {"value": float(func(job.seed, *job.args))}
+    from swarmscene import api
+
+    result = api.run([*job.overrides, f"seed={job.seed}", *QUIET])
+    return json.loads(json.dumps(result.metrics, default=str))
+
+
+def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, cache: Path | None = None,
+             progress: bool = True) -> dict[str, dict[str, Any]]:
+    """Metrics of every distinct job, by :attr:`Job.key`; ``cache`` keeps each finished run as a
+    JSON file so an interrupted report resumes (valid for one version of the code only)."""
+    todo: dict[str, Job] = {job.key: job for job in jobs}
+    done: dict[str, dict[str, Any]] = {}
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        for key in list(todo):
+            path = cache / f"{key}.json"
+            if path.exists():
+                done[key] = json.loads(path.read_text())
+                del todo[key]
+    started, total = time.perf_counter(), len(todo)
+
+    def finished(key: str, metrics: dict[str, Any], count: int) -> None:
+        done[key] = metrics
+        if cache is not None:
+            (cache / f"{key}.json").write_text(json.dumps(metrics))
+        if progress and (count % 10 == 0 or count == total):
+            rate = count / (time.perf_counter() - started)
+            left = (total - count) / rate if rate > 0 else math.nan
+            print(f"\r{count}/{total} runs, {left / 60:.1f} min left ", end="", file=sys.stderr, flush=True)
+
+    if n_jobs <= 1:
+        for count, (key, job) in enumerate(todo.items(), 1):
+            finished(key, run_job(job), count)
+    else:
+        with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+            futures = {pool.submit(run_job, job): key for key, job in todo.items()}
+            for count, future in enumerate(as_completed(futures), 1):
+                finished(futures[future], future.result(), count)
+    if progress and total:
+        print(file=sys.stderr)
+    return done
+
+
+# -- statistics ---------------------------------------------------------------------------------
+@dataclass
+class Outcome:
+    """One claim in one reading: the per-seed values and what they say about the paper's number."""
+
+    claim: Claim
+    reading: str
+    values: list[float]
+    rate: bool = False
+    mean: float = math.nan
+    low: float = math.nan
+    high: float = math.nan
+    worst: float = math.nan
+    deterministic: bool = False
+    holds: bool = False
+    contains_paper: bool = False
+    missing: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.claim.id, "reading": self.reading, "n": len(self.values), "rate": self.rate,
+            "mean": self.mean, "ci95": [self.low, self.high], "worst": self.worst,
+            "deterministic": self.deterministic, "holds": self.holds,
+            "interval_contains_paper": self.contains_paper, "missing": self.missing,
+            "values": self.values,
+        }
+
+
+def evaluate(claim: Claim, reading: str, results: dict[str, dict[str, Any]]) -> Outcome:
+    """The outcome of ``claim`` in ``reading`` from the finished runs."""
+    raw = [results[job.key].get(claim.metric or "value") for job in claim.jobs(reading)]
+    rate = all(isinstance(v, bool) for v in raw if v is not None) and any(v is not None for v in raw)
+    values = [float(v) for v in raw if v is not None]
+    out = Outcome(claim, reading, values, rate=rate, missing=len(raw) - len(values))
+    if not values:
+        return out
+    x = np.asarray(values)
+    out.mean = float(x.mean())
+    # A rate of all-successes is not a deterministic scenario: only numbers can tell.
+    out.deterministic = not rate and len(x) > 1 and bool(np.all(x == x[0]))
+    if rate:
+        out.low, out.high = wilson(int(x.sum()), len(x))
+    elif len(x) > 1 and not out.deterministic:
+        _, half, _ = mean_ci(values)
+        out.low, out.high = out.mean - half, out.mean + half
+    else:
+        out.low = out.high = out.mean
+    rel, paper, tol = claim.relation, claim.paper_value, claim.tolerance
+    if rel == "=":
+        out.worst = float(x.max() if abs(x.max() - paper) > abs(x.min() - paper) else x.min())
+        out.holds = abs(out.mean - paper) <= tol + 1e-12 and out.missing == 0
+        out.contains_paper = out.low - 1e-12 <= paper <= out.high + 1e-12
+    elif rel == "<=":
+        out.worst = float(x.max())
+        out.holds = out.worst <= paper + tol + 1e-12 and out.missing == 0
+        out.contains_paper = out.worst <= paper + 1e-12
+    else:
+        out.worst = float(x.min())
+        out.holds = out.worst >= paper - tol - 1e-12 and out.missing == 0
+        out.contains_paper = out.worst >= paper - 1e-12
+    return out
+
+
+# -- the report ---------------------------------------------------------------------------------
+def _num(value: float, rate: bool, unit: str) -> str:
+    if value is None or not math.isfinite(value):
+        return "n/a"
+    if rate:
+        return f"{100 * value:.1f} %"
+    return f"{value:.4g}" + (f" {unit}" if unit else "")
+
+
+def _ours(o: Outcome) -> str:
+    c = o.claim
+    if not o.values:
+        return "no value"
+    if o.deterministic or len(o.values) == 1:
+        return f"{_num(o.mean, o.rate, c.unit)} (det.)" if o.deterministic else _num(o.mean, o.rate, c.unit)
+    if o.rate:
+        return f"{100 * o.mean:.1f} % [{100 * o.low:.1f}, {100 * o.high:.1f}]"
+    return f"{o.mean:.4g} [{o.low:.4g}, {o.high:.4g}]" + (f" {c.unit}" if c.unit else "")
+
+
+def _paper(c: Claim, rate: bool) -> str:
+    rel = {"=": "", "<=": "≤ ", ">=": "≥ "}[c.relation]
+    tol = f" ± {_num(c.tolerance, rate, '').strip()}" if c.relation == "=" and c.tolerance else ""
+    return rel + _num(c.paper_value, rate, c.unit) + tol
+
+
+def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
+    """docs/reproduction.md from the outcomes."""
+    lines = [
+        "# Reproduction report",
+        "",
+        "Generated by `python benchmarks/reproduce.py` from the claims in `benchmarks/claims/`; do not",
+        "edit by hand. Every number a paper prints that a shipped scenario reproduces, for each reading",
+        "of the paper the number depends on (the first reading of a claim is the default, literal one).",
+        "\"ours\" is the mean over seeds with its 95 % interval (Student t; Wilson for rates); \"det.\"",
+        "means every seed gave the same value. \"worst\" is the seed farthest from the paper (the",
+        "maximum for an upper bound, the minimum for a lower bound). \"holds\" applies the claim's",
+        "stated tolerance; \"in interval\" says whether our interval (for bounds: every seed) meets the",
+        "paper's value. The command reproduces the runs of one row.",
+        "",
+        f"Run: {meta['date']}, commit `{meta['commit']}`, {meta['runs']} runs in {meta['minutes']:.1f} min "
+        f"on {meta['jobs']} worker process(es). Numbers: `benchmarks/results/reproduction.json`.",
+        "",
+    ]
+    for paper, title in PAPERS.items():
+        rows = [o for o in outcomes if o.claim.paper == paper]
+        if not rows:
+            continue
+        lines += [f"## {title}", "",
+                  "| claim | where | paper | reading | seeds | ours | worst | holds | in interval |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for o in rows:
+            c = o.claim
+            lines.append(
+                f"| {c.quantity} (`{c.id}`) | {c.where} | {_paper(c, o.rate)} | {o.reading} | "
+                f"{len(o.values)} | {_ours(o)} | {_num(o.worst, o.rate, c.unit)} | "
+                f"{'yes' if o.holds else '**no**'} | {'yes' if o.contains_paper else '**no**'} |"
+            )
+        lines.append("")
+        lines += ["Commands (one run per seed; the last word selects the seeds):", ""]
+        for c in {o.claim.id: o.claim for o in rows}.values():
+            for reading in c.readings:
+                lines.append(f"- `{c.id}`, {reading}: `{c.command(reading)}`")
+        lines.append("")
+    lines += ["## Where our interval does not meet the paper's value", ""]
+    gaps = [o for o in outcomes if o.values and not o.contains_paper]
+    if not gaps:
+        lines.append("None.")
+    for o in gaps:
+        c = o.claim
+        why = c.note.strip() or "no reason recorded in the claim"
+        lines.append(f"- **{c.quantity}** ({c.where}; `{c.id}`, {o.reading}): paper "
+                     f"{_paper(c, o.rate)}, ours {_ours(o)}. {why}")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def git_commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def select(claims: list[Claim], only: list[str]) -> list[Claim]:
+    if not only:
+        return claims
+    return [c for c in claims if any(word in c.id or word == c.paper for word in only)]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--only", nargs="*", default=[], help="claims whose id contains, or paper is, a word")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    parser.add_argument("--cache", type=Path, default=None, help="directory keeping finished runs (resume)")
+    parser.add_argument("--markdown", type=Path, default=ROOT / "docs" / "reproduction.md")
+    parser.add_argument("--json", type=Path, default=HERE / "results" / "reproduction.json")
+    args = parser.parse_args(argv)
+    claims = select(load_claims(), args.only)
+    jobs = [job for c in claims for reading in c.readings for job in c.jobs(reading)]
+    started = time.perf_counter()
+    results = run_jobs(jobs, args.jobs, args.cache)
+    outcomes = [evaluate(c, reading, results) for c in claims for reading in c.readings]
+    meta = {"date": time.strftime("%Y-%m-%d"), "commit": git_commit(), "runs": len({j.key for j in jobs}),
+            "minutes": (time.perf_counter() - started) / 60, "jobs": args.jobs}
+    args.markdown.write_text(markdown(outcomes, meta))
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps({"meta": meta, "outcomes": [o.as_dict() for o in outcomes]}, indent=1))
+    failed = [f"{o.claim.id} ({o.reading})" for o in outcomes if o.reading == o.claim.default_reading and not o.holds]
+    print(f"wrote {args.markdown} and {args.json}; default readings outside tolerance: {failed or 'none'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

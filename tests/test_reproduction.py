@@ -1,0 +1,139 @@
+"""The reproduction report (benchmarks/reproduce.py) and the paper claims it checks.
+
+Fast: every claim in benchmarks/claims/ is well formed and every reading composes into a valid
+scenario; the report's statistics and verdicts are exact on hand-made results. Slow (``pytest -m
+slow tests/test_reproduction.py``): every claim's default reading is re-run on all its seeds and
+must hold within the tolerance the claim states.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+from swarmscene import api
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _load_reproduce():
+    spec = importlib.util.spec_from_file_location("reproduce", ROOT / "benchmarks" / "reproduce.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["reproduce"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+reproduce = _load_reproduce()
+CLAIMS = reproduce.load_claims()
+
+
+def test_claims_exist_for_every_paper():
+    assert {c.paper for c in CLAIMS} == {"cem", "vrb", "thesis"}
+
+
+@pytest.mark.parametrize("claim", CLAIMS, ids=lambda c: c.id)
+def test_every_reading_composes(claim):
+    """A typo in a claim's overrides or reading fails here, not after an hour of runs."""
+    for reading in claim.readings:
+        job = claim.jobs(reading)[0]
+        if job.function is not None:
+            module, name = job.function.split(":")
+            sys.path.insert(0, str(ROOT / "benchmarks"))
+            try:
+                assert callable(getattr(__import__(module, fromlist=[name]), name))
+            finally:
+                sys.path.remove(str(ROOT / "benchmarks"))
+        else:
+            api.load([*job.overrides, f"seed={job.seed}"])
+
+
+def _claim(**kw):
+    base = dict(id="x", paper="cem", where="Fig. 1", quantity="q", paper_value=1.0,
+                overrides=["scenario=default"], metric="m", seeds=4)
+    return reproduce.Claim(**{**base, **kw})
+
+
+def _results(claim, values, reading=None):
+    jobs = claim.jobs(reading or claim.default_reading)
+    return {job.key: {"m": v} for job, v in zip(jobs, values)}
+
+
+def test_rate_gets_wilson_interval_and_tolerance_verdict():
+    claim = _claim(paper_value=1.0, tolerance=0.3)
+    out = reproduce.evaluate(claim, claim.default_reading, _results(claim, [True, True, True, False]))
+    assert out.rate and out.mean == 0.75 and not out.deterministic
+    # Wilson 95 % for 3/4: centre (0.75 + z^2/8) / (1 + z^2/4), half-width by the textbook formula.
+    z = 1.959963984540054
+    centre = (0.75 + z * z / 8) / (1 + z * z / 4)
+    half = z * math.sqrt(0.75 * 0.25 / 4 + z * z / 64) / (1 + z * z / 4)
+    assert out.low == pytest.approx(centre - half, abs=1e-12)
+    assert out.high == pytest.approx(centre + half, abs=1e-12)
+    # Within the stated tolerance (|0.75 - 1| <= 0.3), yet the interval [0.30, 0.95] excludes 1.
+    assert out.holds and not out.contains_paper
+
+
+def test_equal_claim_mean_interval_and_verdicts():
+    claim = _claim(paper_value=2.4, tolerance=0.05)
+    out = reproduce.evaluate(claim, claim.default_reading, _results(claim, [2.0, 2.2, 2.4, 2.6]))
+    assert out.mean == pytest.approx(2.3)
+    sd = math.sqrt(sum((v - 2.3) ** 2 for v in [2.0, 2.2, 2.4, 2.6]) / 3)
+    half = 3.182446305284263 * sd / 2  # t(0.975, 3) * s / sqrt(4)
+    assert (out.low, out.high) == pytest.approx((2.3 - half, 2.3 + half))
+    assert out.worst == 2.0  # farthest from the paper's 2.4
+    assert not out.holds and out.contains_paper  # |2.3 - 2.4| > 0.05, yet 2.4 is inside the interval
+    wider = _claim(paper_value=2.4, tolerance=0.15)
+    assert reproduce.evaluate(wider, wider.default_reading, _results(wider, [2.0, 2.2, 2.4, 2.6])).holds
+
+
+def test_bounds_judge_the_worst_seed():
+    upper = _claim(relation="<=", paper_value=1.6)
+    out = reproduce.evaluate(upper, upper.default_reading, _results(upper, [1.2, 1.5, 1.59, 1.61]))
+    assert out.worst == 1.61 and not out.holds and not out.contains_paper
+    lower = _claim(relation=">=", paper_value=0.3, tolerance=0.05)
+    out = reproduce.evaluate(lower, lower.default_reading, _results(lower, [0.4, 0.31, 0.26, 0.5]))
+    assert out.worst == 0.26 and out.holds and not out.contains_paper
+
+
+def test_identical_seeds_are_marked_deterministic_with_no_interval():
+    claim = _claim(paper_value=2.16, tolerance=0.0)
+    out = reproduce.evaluate(claim, claim.default_reading, _results(claim, [2.16] * 4))
+    assert out.deterministic and out.low == out.high == 2.16 and out.holds
+
+
+def test_a_missing_metric_fails_the_claim():
+    claim = _claim(paper_value=1.0, tolerance=1.0)
+    results = _results(claim, [1.0, 1.0, 1.0, 1.0])
+    del results[next(iter(results))]["m"]
+    out = reproduce.evaluate(claim, claim.default_reading, results)
+    assert out.missing == 1 and not out.holds
+
+
+def test_each_distinct_run_is_run_once():
+    """Claims that read the same runs share them (keys are the overrides and the seed)."""
+    a = _claim(id="a", metric="m")
+    b = _claim(id="b", metric="other")
+    keys = {j.key for c in (a, b) for j in c.jobs(c.default_reading)}
+    assert len(keys) == 4
+
+
+@cache
+def _runs(jobs: tuple) -> dict:
+    return reproduce.run_jobs(jobs, n_jobs=2, progress=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("claim", CLAIMS, ids=lambda c: c.id)
+def test_claim_holds_in_its_default_reading(claim):
+    jobs = tuple(claim.jobs(claim.default_reading))
+    out = reproduce.evaluate(claim, claim.default_reading, _runs(jobs))
+    assert out.holds, (
+        f"{claim.id}: paper {claim.relation} {claim.paper_value} (tolerance {claim.tolerance}), "
+        f"ours mean {out.mean:.4g} [{out.low:.4g}, {out.high:.4g}], worst {out.worst:.4g}, "
+        f"{out.missing} runs without the metric"
+    )
