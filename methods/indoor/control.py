@@ -44,6 +44,8 @@ class IndoorGains:
     d_l: float = 0.05  # LOS clearance distance
     d_n: float = 1.0  # neighbour maximum distance
     phi_d: float = 0.2  # edge deactivation threshold
+    # Reading of the candidates m of eq. 5.15-5.16 (not in Table 5.1; graphs module docstring).
+    deactivation_candidates: str = "neighbours"
     u_sat: float = 0.02  # input saturation level, m per T_s
     K_obs: float = 200.0
     eps_obs: float = 1e-4
@@ -218,7 +220,8 @@ def leader_input(
         u_N: (2,) leader input, m per T_s; m: the new way-point index.
     """
     direction, m = leader_direction(r[leader], waypoints, m)
-    nb = np.concatenate([g_sigma.j[g_sigma.i == leader], g_sigma.i[g_sigma.j == leader]])
+    src, dst = g_sigma.directed()
+    nb = dst[src == leader]  # N_N(G_sigma) as the leader sees it (an ArcList is directed)
     nearest = np.linalg.norm(r[nb] - r[leader], axis=1).min() if nb.size else np.inf
     u_lcon = max(0.0, g.alpha_lcon * g.d_n - nearest)
     magnitude = min(g.alpha_lsat * g.u_sat, u_lcon)
@@ -273,4 +276,5 @@ def sense(
     reach = min(g.l_o, g.d_s)
     o, dist = nearest if nearest is not None else nearest_obstacle(r, obstacles, max_distance=reach)
     g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach), candidates)
-    return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d))
+    g_sigma = sigma_graph(r, g_n, g.phi_d, g.deactivation_candidates)
+    return IndoorSnapshot(r, o, dist, g_n, g_sigma)

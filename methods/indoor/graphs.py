@@ -2,15 +2,28 @@
 
 Karydes (2020), chapter 5. Graphs are simple and undirected over agents 0..N-1; the hot path keeps
 them as an :class:`EdgeList` (arrays of pairs i < j) and uses numpy / scipy.sparse.csgraph;
-:meth:`EdgeList.to_networkx` is for analysis and metrics.
+:meth:`EdgeList.to_networkx` is for analysis and metrics. The one exception is G_sigma under the
+``directed`` reading of eq. 5.15-5.16, an :class:`ArcList`.
 
-Choices where the text is ambiguous (each also stated at the function):
-- Deactivation candidates m (eq. 5.15-5.16) are the *common* neighbours of i and j in G_n. The text
-  takes m in N_i(G_n) only, but then agent j, which cannot see an m hidden from it by a wall, could
-  reach a different verdict, breaking the symmetry the text claims; with common neighbours both
-  agents evaluate the same set (i learns N_j by one-hop communication), and an edge is dropped only
-  when a path i-m-j of strictly shorter G_n edges exists, so G_sigma has exactly the connected
-  components of G_n (induction on edge length).
+Readings where the text is ambiguous (each also stated at the function):
+- Deactivation candidates m (eq. 5.15-5.16), option ``deactivation_candidates``:
+  ``neighbours`` (the default, the literal reading): m in N_i(G_n) other than j; agent i and
+  agent j each evaluate the rules over their own neighbours and the edge is off when either one's
+  rule fires
+  (sigma_ij = sigma_ji, eq. 5.14, so G_sigma stays undirected). The text claims that i and j
+  always agree (after eq. 5.21); they do in open space (an m closer to both ends than ||r_ji|| <=
+  d_n is in range of both) but not when a wall hides m from j, and then the "either" rule can cut
+  G_sigma where G_n is connected (agent j loses its only link while m, its bridge, is invisible
+  to it).
+  ``common``: m in N_i(G_n) ∩ N_j(G_n), the common neighbours (i learns N_j by the one-hop
+  communication of section 5.2.1). Both agents evaluate the same set, so the symmetry the text
+  claims holds by construction, and an edge is dropped only when a path i-m-j of strictly shorter
+  G_n edges exists, so G_sigma has exactly the connected components of G_n (induction on edge
+  length). This was the code's reading before issue 17; it keeps the property the text argues
+  for, at the price of a candidate set the text does not print.
+  ``directed``: each agent drops j from its own N_i(G_sigma) when its own rule fires, and keeps
+  listening to j otherwise: G_sigma becomes a directed graph (sigma_ij != sigma_ji possible),
+  against eq. 5.14's "binary symmetric function"; kept to measure how much the symmetry matters.
 - Surrogate leaders (eq. 5.25) are the neighbours of *minimum* estimated rank. The printed "max"
   would send followers away from the leader, contradicting the text ("driven to the leader by the
   means of its surrogate leader") and property 5.29.
@@ -120,6 +133,52 @@ class EdgeList:
         return set(zip(self.i.tolist(), self.j.tolist()))
 
 
+DEACTIVATION_CANDIDATES = ("neighbours", "common", "directed")
+"""Readings of the candidate set m of eq. 5.15-5.16 (see the module docstring); the first is the
+literal one and the default."""
+
+
+@dataclass(frozen=True)
+class ArcList(EdgeList):
+    """A directed graph on ``n`` agents: arc k means ``j[k]`` is in N_{i[k]} (i listens to j).
+
+    G_sigma under the ``directed`` reading of eq. 5.15-5.16. Arcs are kept sorted by ``i``, so
+    :meth:`directed` is the arc list itself and every per-neighbour reduction of :class:`EdgeList`
+    (:meth:`neighbour_min`, the control sums) runs over N_i as agent i sees it.
+    """
+
+    @classmethod
+    def from_arcs(cls, n: int, src: np.ndarray, dst: np.ndarray) -> "ArcList":
+        """From arcs src -> dst (any order), sorted by (src, dst)."""
+        src, dst = np.asarray(src, dtype=np.intp), np.asarray(dst, dtype=np.intp)
+        order = np.argsort(src * n + dst)
+        return cls(n, src[order], dst[order])
+
+    @cached_property
+    def _directed(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.i, self.j
+
+    def degree(self) -> np.ndarray:
+        """(N,) out-degree |N_i|: the neighbours agent i listens to."""
+        return np.bincount(self.i, minlength=self.n)
+
+    def subgraph(self, keep: np.ndarray) -> "ArcList":
+        return ArcList(self.n, self.i[keep], self.j[keep])
+
+    def to_networkx(self) -> "nx.DiGraph":
+        import networkx as nx
+
+        graph = nx.DiGraph()
+        graph.add_nodes_from(range(self.n))
+        graph.add_edges_from(zip(self.i.tolist(), self.j.tolist()))
+        return graph
+
+
+def mean_degree(graph: EdgeList) -> float:
+    """Mean |N_i| over agents (2 |E| / N undirected, |arcs| / N directed; Fig. 5.17)."""
+    return graph.directed()[0].size / max(graph.n, 1)
+
+
 def sensing_graph(
     r: np.ndarray, obstacles: Obstacles, d_s: float, d_l: float, tree: "cKDTree | None" = None
 ) -> EdgeList:
@@ -159,21 +218,27 @@ def is_connected(graph: EdgeList) -> bool:
     return count == 1
 
 
-def _common_neighbours(graph: EdgeList) -> tuple[np.ndarray, np.ndarray]:
-    """All (edge k, agent m) with m a neighbour of both i[k] and j[k]: the triangles on each edge.
+def _candidates(
+    graph: EdgeList, a: np.ndarray, b: np.ndarray, common: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """All (arc k, agent m) with m in N_a[k](G) other than b[k]; with ``common`` also m in N_b[k].
 
-    Expands N_i for every edge through the CSR layout and keeps the m adjacent to j, looked up in
-    a dense N x N bitmap (a sorted-key search for very large N); no loop over edges. ``edge`` comes
-    out sorted.
+    The candidate sets of eq. 5.15-5.16 for the arcs a -> b (each edge seen from one endpoint).
+    Expands N_a for every arc through the CSR layout, no loop over arcs; ``common`` keeps the m
+    adjacent to b, looked up in a dense N x N bitmap (a sorted-key search for very large N).
+    ``arc`` comes out sorted.
     """
-    n, p = graph.n, len(graph)
+    n = graph.n
     src, dst = graph.directed()
     indptr = graph.indptr
-    deg_i = indptr[graph.i + 1] - indptr[graph.i]
-    edge = np.repeat(np.arange(p), deg_i)
-    shift = np.repeat(indptr[graph.i] - (np.cumsum(deg_i) - deg_i), deg_i)
-    m = dst[np.arange(edge.size) + shift]
-    want = graph.j[edge] * n + m
+    deg = indptr[a + 1] - indptr[a]
+    arc = np.repeat(np.arange(len(a)), deg)
+    shift = np.repeat(indptr[a] - (np.cumsum(deg) - deg), deg)
+    m = dst[np.arange(arc.size) + shift]
+    if not common:
+        keep = m != b[arc]
+        return arc[keep], m[keep]
+    want = b[arc] * n + m  # m = b is never adjacent to b (no self-loops): dropped here too
     if n <= 8192:
         adjacent = np.zeros(n * n, dtype=bool)
         adjacent[src * n + dst] = True
@@ -182,7 +247,7 @@ def _common_neighbours(graph: EdgeList) -> tuple[np.ndarray, np.ndarray]:
         keys = np.sort(src * n + dst)
         pos = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
         found = keys[pos] == want
-    return edge[found], m[found]
+    return arc[found], m[found]
 
 
 def flatness(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -196,43 +261,77 @@ def flatness(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def deactivation_rules(
-    r: np.ndarray, g_n: EdgeList, phi_d: float, perspective: str = "i"
+    r: np.ndarray,
+    g_n: EdgeList,
+    phi_d: float,
+    perspective: str = "i",
+    candidates: str = "neighbours",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The two edge-deactivation rules of the thesis (eq. 5.15-5.21), evaluated per edge of G_n.
+    """The two edge-deactivation rules (thesis eq. 5.15-5.21) per edge of G_n, as one end sees them.
 
-    Rule 1 (eq. 5.18, Fig. 5.3): a common neighbour m closer to both i and j than they are to each
-    other (m in A_ij and B_ij, eq. 5.15-5.16) lies almost on the edge, |phi(r_mi, r_ji)| < phi_d.
+    Rule 1 (eq. 5.18, Fig. 5.3): a candidate m closer to both i and j than they are to each other
+    (m in A_ij and B_ij, eq. 5.15-5.16) lies almost on the edge, |phi(r_mi, r_ji)| < phi_d.
     Rule 2 (eq. 5.19-5.21, Fig. 5.4): such agents m on one side (C_ij, phi < 0) and n on the other
     (D_ij, phi > 0) are closer to each other than i to j: (i, j) is the longer crossing diagonal.
-    Candidates m are common neighbours in G_n (see the module docstring).
 
     Args:
         r: (N, 2) positions, m.
         g_n: the graph G_n.
         phi_d: flatness threshold phi_d, 0 < phi_d < 1/sqrt(2).
-        perspective: ``"i"`` evaluates each edge as agent i does, ``"j"`` as agent j does (with
-            r_ij, r_mj); the two agree (the symmetry claimed after eq. 5.21), which tests check.
+        perspective: ``"i"`` evaluates each edge as agent i does (candidates from N_i, r_ji,
+            r_mi), ``"j"`` as agent j does (N_j, r_ij, r_mj).
+        candidates: the reading of the candidate set (module docstring): ``"neighbours"`` and
+            ``"directed"`` take m in N_i(G_n) (as printed), ``"common"`` m in N_i ∩ N_j, with which
+            the two perspectives always agree.
 
     Returns:
         rule1, rule2: (P,) bool, True where the rule deactivates the edge.
     """
     a, b = (g_n.i, g_n.j) if perspective == "i" else (g_n.j, g_n.i)
-    p = len(g_n)
-    edge, m = _common_neighbours(g_n)
+    return _arc_rules(r, g_n, a, b, phi_d, candidates == "common")
+
+
+def _arc_rules(
+    r: np.ndarray, g_n: EdgeList, a: np.ndarray, b: np.ndarray, phi_d: float, common: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rules 5.18 and 5.21 for the arcs a -> b of G_n, each evaluated by agent a (Q,) bool."""
+    q = len(a)
+    arc, m = _candidates(g_n, a, b, common)
     x, y = r[:, 0], r[:, 1]
-    ex, ey = x[b] - x[a], y[b] - y[a]  # r_ji per edge, from agent i's point of view
+    ex, ey = x[b] - x[a], y[b] - y[a]  # r_ji per arc, from agent a's point of view
     d_sq = ex * ex + ey * ey
-    ax, ay = x[a][edge], y[a][edge]
+    ax, ay = x[a][arc], y[a][arc]
     mx, my = x[m] - ax, y[m] - ay  # r_mi
-    ex, ey, d_sq = ex[edge], ey[edge], d_sq[edge]
+    ex, ey, d_sq = ex[arc], ey[arc], d_sq[arc]
     # m in A_ij and B_ij: closer to both ends than they are to each other (eq. 5.15-5.16).
     closer = np.flatnonzero((mx * mx + my * my < d_sq) & ((mx - ex) ** 2 + (my - ey) ** 2 < d_sq))
-    edge, m, mx, my, ex, ey, d_sq = (v[closer] for v in (edge, m, mx, my, ex, ey, d_sq))
+    arc, m, mx, my, ex, ey, d_sq = (v[closer] for v in (arc, m, mx, my, ex, ey, d_sq))
     phi = (my * ex - mx * ey) / d_sq  # eq. 5.17, phi(r_mi, r_ji)
-    rule1 = np.zeros(p, dtype=bool)
-    rule1[edge[np.abs(phi) < phi_d]] = True
-    rule2 = _crossing_rule(r, edge, m, phi, d_sq, p)
+    rule1 = np.zeros(q, dtype=bool)
+    rule1[arc[np.abs(phi) < phi_d]] = True
+    rule2 = _crossing_rule(r, arc, m, phi, d_sq, q)
     return rule1, rule2
+
+
+def deactivated(
+    r: np.ndarray, g_n: EdgeList, phi_d: float, candidates: str = "neighbours"
+) -> tuple[np.ndarray, np.ndarray]:
+    """(P,) bool twice: where agent i's rules fire on edge (i, j), and where agent j's do.
+
+    Both perspectives are evaluated in one pass over the 2P arcs; under ``"common"`` they are
+    equal by construction and computed once.
+    """
+    if candidates not in DEACTIVATION_CANDIDATES:
+        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
+    p = len(g_n)
+    if candidates == "common":
+        rule1, rule2 = _arc_rules(r, g_n, g_n.i, g_n.j, phi_d, True)
+        off = rule1 | rule2
+        return off, off
+    a, b = np.concatenate([g_n.i, g_n.j]), np.concatenate([g_n.j, g_n.i])
+    rule1, rule2 = _arc_rules(r, g_n, a, b, phi_d, False)
+    off = rule1 | rule2
+    return off[:p], off[p:]
 
 
 def _crossing_rule(
@@ -261,15 +360,34 @@ def _crossing_rule(
     return rule2
 
 
-def edge_activation(r: np.ndarray, g_n: EdgeList, phi_d: float) -> np.ndarray:
-    """sigma_ij per edge of G_n: 0 if rule (5.18) or (5.21) holds, else 1 (thesis eq. 5.22)."""
-    rule1, rule2 = deactivation_rules(r, g_n, phi_d)
-    return ~(rule1 | rule2)
+def edge_activation(
+    r: np.ndarray, g_n: EdgeList, phi_d: float, candidates: str = "neighbours"
+) -> np.ndarray:
+    """sigma_ij per edge of G_n: 0 if rule (5.18) or (5.21) holds, else 1 (thesis eq. 5.22).
+
+    Under ``"neighbours"`` the edge is off when either end's rules fire, so sigma_ij = sigma_ji
+    (eq. 5.14); ``"directed"`` has no single sigma_ij (use :func:`sigma_graph`).
+    """
+    if candidates == "directed":
+        raise ValueError("edge_activation: the directed reading has one sigma per arc, see sigma_graph")
+    off_i, off_j = deactivated(r, g_n, phi_d, candidates)
+    return ~(off_i | off_j)
 
 
-def sigma_graph(r: np.ndarray, g_n: EdgeList, phi_d: float) -> EdgeList:
-    """G_sigma: the edges of G_n with sigma_ij = 1 (thesis eq. 5.13-5.14, 5.22)."""
-    return g_n.subgraph(edge_activation(r, g_n, phi_d))
+def sigma_graph(
+    r: np.ndarray, g_n: EdgeList, phi_d: float, candidates: str = "neighbours"
+) -> EdgeList:
+    """G_sigma: the edges of G_n with sigma_ij = 1 (thesis eq. 5.13-5.14, 5.22).
+
+    Under ``"directed"`` an :class:`ArcList`: arc i -> j kept unless agent i's rules fire on
+    (i, j), arc j -> i unless agent j's do.
+    """
+    off_i, off_j = deactivated(r, g_n, phi_d, candidates)
+    if candidates != "directed":
+        return g_n.subgraph(~(off_i | off_j))
+    src = np.concatenate([g_n.i[~off_i], g_n.j[~off_j]])
+    dst = np.concatenate([g_n.j[~off_i], g_n.i[~off_j]])
+    return ArcList.from_arcs(g_n.n, src, dst)
 
 
 def ranks(graph: EdgeList, leader: int) -> np.ndarray:

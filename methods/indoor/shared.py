@@ -3,7 +3,7 @@ indoor formation and the thesis' avoidance terms so the graphs are built once pe
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -21,7 +21,10 @@ def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     it; if their graph parameters differ the memo refuses (they must describe one graph).
     """
     reach = min(gains.l_o, gains.d_s)
-    params = {"d_n": gains.d_n, "d_l": gains.d_l, "phi_d": gains.phi_d, "reach": reach}
+    params = {
+        "d_n": gains.d_n, "d_l": gains.d_l, "phi_d": gains.phi_d, "reach": reach,
+        "deactivation_candidates": gains.deactivation_candidates,
+    }
     return sensing.shared(
         "thesis.indoor_snapshot", tuple(params.items()), lambda: _snapshot(sensing, gains, reach)
     )
@@ -55,6 +58,14 @@ class GraphParams(PluginParams):
     )
     phi_d: float = Field(
         TABLE_5_1.phi_d, gt=0, lt=0.7072, description="edge deactivation threshold phi_d (< 1/sqrt 2)",
+        json_schema_extra=_GRAPH,
+    )
+    deactivation_candidates: Literal["neighbours", "common", "directed"] = Field(
+        "neighbours",
+        description="edge deactivation candidates m of eq. 5.15-5.16: 'neighbours' m in N_i(G_n) as "
+        "printed, the edge off when either end's rule fires (literal reading); 'common' m in "
+        "N_i and N_j (G_sigma keeps G_n's components, the pre-issue-17 reading); 'directed' each "
+        "agent drops the edge from its own neighbour set only (G_sigma directed)",
         json_schema_extra=_GRAPH,
     )
     l_o: float = Field(

@@ -94,6 +94,7 @@ from swarmscene.methods.indoor.control import (
 )
 from swarmscene.methods.indoor.graphs import initial_rank_estimate, rank_estimate_step, virtual_leader
 from swarmscene.methods.indoor.graphs import max_rank as max_rank_of
+from swarmscene.methods.indoor.graphs import mean_degree
 from swarmscene.methods.indoor.maps import resample_path
 from swarmscene.methods.indoor.sensing import saturate
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
@@ -177,7 +178,7 @@ class IndoorSwarm(Formation):
             self._cut["leader_done"] = self.m == len(self.waypoints) - 1
         self._max_rank = max(self._max_rank, max_rank)
         self._connected &= max_rank < self.ctx.n
-        self._degree_sum += [2 * len(snap.g_n) / self.ctx.n, 2 * len(snap.g_sigma) / self.ctx.n]
+        self._degree_sum += [mean_degree(snap.g_n), mean_degree(snap.g_sigma)]
         self._ticks += 1
         self._prev = snap
 

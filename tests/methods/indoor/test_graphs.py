@@ -4,13 +4,19 @@ import networkx as nx
 import numpy as np
 import pytest
 
+from shapely.geometry import LineString, box
+
 from swarmscene.methods.indoor.graphs import (
+    DEACTIVATION_CANDIDATES,
+    ArcList,
     EdgeList,
+    deactivated,
     deactivation_rules,
     edge_activation,
     flatness,
     initial_rank_estimate,
     is_connected,
+    mean_degree,
     neighbour_graph,
     rank_estimate_step,
     ranks,
@@ -82,17 +88,19 @@ def test_fig_5_4_equal_diagonals_are_both_kept():
     assert edge_activation(r, _complete(r), PHI_D).all()
 
 
-def _rules_by_the_letter(r, g, phi_d):
-    """Eq. 5.15-5.21 written out per edge and per agent, with candidates common G_n neighbours."""
+def _rules_by_the_letter(r, g, phi_d, candidates="neighbours", perspective="i"):
+    """Eq. 5.15-5.21 written out per edge and per agent; candidates N_i (or N_i ∩ N_j) in G_n."""
     nb = {a: set() for a in range(g.n)}
     for a, b in g.edge_set():
         nb[a].add(b)
         nb[b].add(a)
     out = []
     for a, b in zip(g.i.tolist(), g.j.tolist()):
+        if perspective == "j":
+            a, b = b, a
         r_ji = r[b] - r[a]
         d = np.linalg.norm(r_ji)
-        cand = (nb[a] & nb[b]) - {b}
+        cand = (nb[a] & nb[b]) if candidates == "common" else nb[a] - {b}
         A = {m for m in cand if np.linalg.norm(r[m] - r[a]) < d}
         B = {m for m in cand if np.linalg.norm(r[m] - r[b]) < d}
         phi = {m: flatness((r[m] - r[a])[None], r_ji[None])[0] for m in A & B}
@@ -104,38 +112,120 @@ def _rules_by_the_letter(r, g, phi_d):
     return np.array(out, dtype=bool).reshape(-1, 2)
 
 
+def _walled_swarm(seed, n=150):
+    """Agents strewn over the building's halls and rooms: many links pass near a wall."""
+    rng = np.random.default_rng(100 + seed)
+    r = rng.uniform((0, 0), (12, 22), size=(n, 2))
+    return r, neighbour_graph(r, list(building().walls), D_N, D_L)
+
+
+@pytest.mark.parametrize("candidates", ["neighbours", "common"])
 @pytest.mark.parametrize("seed", range(6))
-def test_vectorised_rules_match_the_equations(seed):
-    r, g = _random_swarm(seed, n=35)
-    rule1, rule2 = deactivation_rules(r, g, PHI_D)
-    expect = _rules_by_the_letter(r, g, PHI_D)
-    np.testing.assert_array_equal(rule1, expect[:, 0])
-    np.testing.assert_array_equal(rule2, expect[:, 1])
-    assert rule1.any() and rule2.any()  # the random swarms exercise both rules
+def test_vectorised_rules_match_the_equations(seed, candidates):
+    r, g = _walled_swarm(seed) if seed % 2 else _random_swarm(seed, n=35)
+    for perspective in ("i", "j"):
+        rule1, rule2 = deactivation_rules(r, g, PHI_D, perspective, candidates)
+        expect = _rules_by_the_letter(r, g, PHI_D, candidates, perspective)
+        np.testing.assert_array_equal(rule1, expect[:, 0])
+        np.testing.assert_array_equal(rule2, expect[:, 1])
+        assert rule1.any() and rule2.any()  # the random swarms exercise both rules
 
 
-@pytest.mark.parametrize("seed", range(8))
-def test_deactivation_rules_are_symmetric(seed):
-    walls = building().walls if seed % 2 else ()
-    rng = np.random.default_rng(seed)
-    r = rng.uniform((0, 12), (10, 22), size=(120, 2)) if walls else _random_swarm(seed, 60)[0]
-    g = neighbour_graph(r, list(walls), D_N, D_L)
-    from_i = deactivation_rules(r, g, PHI_D, perspective="i")
-    from_j = deactivation_rules(r, g, PHI_D, perspective="j")
+# Two configurations where a wall hides the candidate m from j (hand-computed, Table 5.1 values).
+# Rule 1: i = 0, j = 1, edge 0.9 m along x; m = 2 at (0.45, 0.1) is 0.461 m from both ends and
+# phi = 0.1 / 0.9 = 0.111 < phi_d; the wall's end (0.6, 0.08) passes 0.013 m from segment 2-1
+# (< d_l: 2 and 1 do not see each other) but 0.08 m from segment 0-1.
+RULE_1 = (np.array([[0.0, 0.0], [0.9, 0.0], [0.45, 0.1]]), [LineString([(0.6, 0.08), (0.6, 0.4)])])
+# Rule 2: the rhombus of Fig. 5.4 (diagonals 0-1 0.9 m, 2-3 0.6 m) with a post on segment 3-1 at
+# (0.675, 0.15): agent 0 sees m = 2 (phi = -1/3, C_01) and n = 3 (phi = +1/3, D_01), 0.6 < 0.9 m;
+# agent 1 sees only 2, so D_10 is empty. |phi| = 1/3 > phi_d: rule 1 does not fire anywhere.
+RULE_2 = (np.array([[0.0, 0.0], [0.9, 0.0], [0.45, -0.3], [0.45, 0.3]]),
+          [box(0.655, 0.13, 0.695, 0.17)])
+
+
+def test_rule_1_with_m_hidden_from_j_separates_the_readings():
+    r, walls = RULE_1
+    g_n = neighbour_graph(r, walls, D_N, D_L)
+    assert g_n.edge_set() == {(0, 1), (0, 2)}
+    # Literal: agent 0 fires rule 1 on (0, 1), agent 1 (N_1 = {0}) does not; either one suffices.
+    assert deactivation_rules(r, g_n, PHI_D, "i", "neighbours")[0].tolist() == [True, False]
+    assert deactivation_rules(r, g_n, PHI_D, "j", "neighbours")[0].tolist() == [False, False]
+    literal = sigma_graph(r, g_n, PHI_D, "neighbours")
+    assert literal.edge_set() == {(0, 2)}
+    # ... so G_sigma loses agent 1 while G_n is connected: the literal reading has no
+    # connectivity guarantee behind walls.
+    assert is_connected(g_n) and not is_connected(literal)
+    # Common neighbours: N_0 ∩ N_1 is empty, nothing fires, G_sigma = G_n.
+    assert sigma_graph(r, g_n, PHI_D, "common").edge_set() == {(0, 1), (0, 2)}
+    # Directed: agent 0 stops listening to 1, agent 1 still follows 0.
+    directed = sigma_graph(r, g_n, PHI_D, "directed")
+    assert isinstance(directed, ArcList)
+    assert directed.edge_set() == {(0, 2), (2, 0), (1, 0)}
+    assert directed.degree().tolist() == [1, 1, 1] and mean_degree(directed) == 1.0
+    assert mean_degree(literal) == pytest.approx(2 / 3)
+
+
+def test_rule_2_with_n_hidden_from_j_separates_the_readings():
+    r, walls = RULE_2
+    g_n = neighbour_graph(r, walls, D_N, D_L)
+    assert g_n.edge_set() == {(0, 1), (0, 2), (0, 3), (1, 2), (2, 3)}
+    rule1, rule2 = deactivation_rules(r, g_n, PHI_D, "i", "neighbours")
+    assert not rule1.any() and rule2.tolist() == [True, False, False, False, False]
+    assert not deactivation_rules(r, g_n, PHI_D, "j", "neighbours")[1].any()
+    assert sigma_graph(r, g_n, PHI_D, "neighbours").edge_set() == {(0, 2), (0, 3), (1, 2), (2, 3)}
+    assert sigma_graph(r, g_n, PHI_D, "common").edge_set() == g_n.edge_set()
+    assert sigma_graph(r, g_n, PHI_D, "directed").edge_set() == {
+        (1, 0), (0, 2), (2, 0), (0, 3), (3, 0), (1, 2), (2, 1), (2, 3), (3, 2)}
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_without_walls_the_three_readings_coincide(seed):
+    # An m closer to both ends than ||r_ji|| <= d_n is within d_n of j, so with nothing hiding it
+    # N_i and N_i ∩ N_j give the same A_ij ∩ B_ij, and i and j agree (the text's symmetry claim).
+    r, g = _random_swarm(seed, 60)
+    off_i, off_j = deactivated(r, g, PHI_D, "neighbours")
+    np.testing.assert_array_equal(off_i, off_j)
+    common = sigma_graph(r, g, PHI_D, "common")
+    assert sigma_graph(r, g, PHI_D, "neighbours").edge_set() == common.edge_set()
+    arcs = sigma_graph(r, g, PHI_D, "directed").edge_set()
+    assert arcs == common.edge_set() | {(b, a) for a, b in common.edge_set()}
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_common_reading_is_symmetric_and_keeps_the_components_of_g_n(seed):
+    r, g_n = _walled_swarm(seed)
+    from_i = deactivation_rules(r, g_n, PHI_D, "i", "common")
+    from_j = deactivation_rules(r, g_n, PHI_D, "j", "common")
     np.testing.assert_array_equal(from_i[0], from_j[0])
     np.testing.assert_array_equal(from_i[1], from_j[1])
-
-
-@pytest.mark.parametrize("seed", range(8))
-def test_sigma_graph_keeps_the_components_of_g_n(seed):
-    walls = list(building().walls) if seed % 2 else []
-    rng = np.random.default_rng(100 + seed)
-    r = rng.uniform((0, 0), (12, 22), size=(150, 2))
-    g_n = neighbour_graph(r, walls, D_N, D_L)
-    g_sigma = sigma_graph(r, g_n, PHI_D)
+    g_sigma = sigma_graph(r, g_n, PHI_D, "common")
     assert len(g_sigma) < len(g_n)
     comps = lambda g: {frozenset(c) for c in nx.connected_components(g.to_networkx())}
     assert comps(g_sigma) == comps(g_n)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_literal_and_directed_readings_against_common(seed):
+    """Candidates N_i contain N_i ∩ N_j, so every rule that fires under "common" fires for agent
+    i under "neighbours" too: literal G_sigma ⊆ common G_sigma. The literal edges are exactly the
+    mutual arcs of the directed G_sigma (where they differ: the two configurations above)."""
+    r, g_n = _walled_swarm(seed)
+    literal = sigma_graph(r, g_n, PHI_D, "neighbours").edge_set()
+    common = sigma_graph(r, g_n, PHI_D, "common").edge_set()
+    arcs = sigma_graph(r, g_n, PHI_D, "directed").edge_set()
+    assert literal <= common
+    assert literal == {(a, b) for a, b in arcs if a < b and (b, a) in arcs}
+    assert literal == set(zip(g_n.i[edge_activation(r, g_n, PHI_D)].tolist(),
+                              g_n.j[edge_activation(r, g_n, PHI_D)].tolist()))
+
+
+def test_unknown_reading_and_edge_activation_of_the_directed_reading_are_refused():
+    r, g = _random_swarm(0, 10)
+    with pytest.raises(ValueError, match="deactivation_candidates: 'both', allowed"):
+        sigma_graph(r, g, PHI_D, "both")
+    with pytest.raises(ValueError, match="the directed reading has one sigma per arc"):
+        edge_activation(r, g, PHI_D, "directed")
+    assert DEACTIVATION_CANDIDATES[0] == "neighbours"  # the literal reading is the default
 
 
 def test_g_n_is_g_s_restricted_to_d_n_eq_5_12():

@@ -13,6 +13,7 @@ from swarmscene import api
 from swarmscene.builtins import BUILTIN_PLUGINS
 from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.config import EnvironmentConfig
+from swarmscene.core.errors import ConfigError
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.simulation import Simulation
 from swarmscene.methods.indoor.maps import building, l_corridor, straight_corridor
@@ -175,3 +176,26 @@ def test_first_split_is_diagnosed_as_a_wall_breaking_line_of_sight():
     assert cut["t"] == 12.5 and cut["lost_agents"] == 1 and cut["links"] == 1
     assert cut["link_clearance"] < 0.05 and cut["link_length"] < 1.0
     np.testing.assert_allclose([cut["link_mid_x"], cut["link_mid_y"]], [4.5, 0.265])
+
+
+@pytest.mark.parametrize("reading", ["neighbours", "common", "directed"])
+def test_deactivation_candidates_reach_the_shared_snapshot(reading):
+    """formation.deactivation_candidates (eq. 5.15-5.16) builds the tick's G_sigma for both plugins."""
+    from swarmscene.methods.indoor.graphs import ArcList, sigma_graph
+
+    sim = build(["scenario=indoor_l_corridor", "seed=4", "clock.duration=0.5",
+                 f"formation.deactivation_candidates={reading}",
+                 f"avoidance.deactivation_candidates={reading}"])
+    sim.formation.setpoints(sim.world, sim.sensing)
+    snap = sim.formation.snapshot
+    assert isinstance(snap.g_sigma, ArcList) == (reading == "directed")
+    assert snap.g_sigma.edge_set() == sigma_graph(snap.r, snap.g_n, 0.2, reading).edge_set()
+
+
+def test_deactivation_candidates_default_and_refusal():
+    assert build(["scenario=indoor_corridor"]).formation.params.deactivation_candidates == "neighbours"
+    with pytest.raises(ConfigError) as err:
+        api.load(["scenario=indoor_corridor", "formation.deactivation_candidates=both"])
+    assert str(err.value).splitlines()[0] == (
+        "formation.deactivation_candidates: must be one of 'neighbours', 'common' or 'directed' "
+        "(got 'both')")
