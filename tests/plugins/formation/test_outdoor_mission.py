@@ -225,8 +225,11 @@ def test_outdoor_square_neighbour_distance_and_tracking_error(square):
     assert m["outdoor.mean_neighbour_distance"] == pytest.approx(5.0, abs=0.2)
     assert m["outdoor.neighbour_distance_min"] >= 4.2
     assert m["outdoor.neighbour_distance_max"] <= 5.8
-    # Fig. 4.24: mean tracking error below 0.8 m
-    assert m["outdoor.tracking_error_mean"] < 0.8
+    # Fig. 4.24 / section 4.5.3: "the average tracking error [the mean over the followers of the
+    # distance to their slot] remains below 0.8 m", a bound throughout the following sequence: the
+    # largest per-tick mean (outdoor.tracking_error_max), not its time average, must stay below it.
+    assert m["outdoor.tracking_error_max"] < 0.8
+    assert m["outdoor.tracking_error_mean"] <= m["outdoor.tracking_error_max"]
 
 
 def test_outdoor_square_no_two_agents_closer_than_d_q_including_forming(square):
