@@ -26,10 +26,19 @@ Choices where the paper is ambiguous (each repeated where it is made):
   of the disk (measured: a 3.4 m/s spike with K = 5).
 * Newton iterations stop early once an update is below 1e-10 m and no noise was drawn in it: the
   remaining iterations would move the point by less than rounding, so the result is unchanged.
-* Saddle noise (eq. 6) is drawn only for an estimate strictly inside a_p whose Newton update is
-  still at least sigma, and never in the last iteration: a converged point (on the ring psi = 0
-  itself, or on a root a few mm inside a_p that other failures' flows create) is not at a saddle,
-  and the commanded point then lies on its streamline to machine precision.
+* Saddle noise (eq. 6), ``noise_rule`` (:data:`NOISE_RULES`). ``"printed"`` (the default) is
+  Algorithm 2 line 7 with eq. 6 as printed: in every one of the n iterations, the last included,
+  an estimate r with ||r - r_f|| <= a_p (evaluated where the Jacobian is, before the update) gets
+  |N(0, sigma)| r_a + N(0, sigma) r_b added to its update. An agent whose streamline touches the
+  ring (Q2 on psi = 0 in section V-A) is kicked by up to a few sigma in the last iteration, so its
+  command leaves its streamline by |f'| |r_noise| (<= 2 |r_noise| for one failure, measured
+  psi drift ~5e-3 over 30 seeds), the commanded speed jitters by ~|r_noise| / dT, and the run
+  depends on the seed. ``"gated"`` (the reading shipped before) draws the noise only for an
+  estimate strictly inside a_p whose Newton update is still at least sigma, and never in the last
+  iteration: a converged point (on the ring itself, or on a root a few mm inside a_p that other
+  failures' flows create) is not at a saddle, so the command lies on its streamline to machine
+  precision (eq. 4 exactly) and the run does not depend on the seed; the noise still fires where
+  it is needed (a start on the rear stagnation point, where Newton alone never leaves the axis).
 * A final branch guard moves a point that converged inside a planned disk out through that circle
   (:meth:`NewtonInverter._guard`): past the front saddle the inside and outside roots are equally
   close, and the paper's claim that commands never enter a_p needs the outside one.
@@ -45,6 +54,11 @@ from swarmscene.core.vectors import min_pair_distance
 
 NEWTON_TOL = 1e-10
 """m; a Newton update below this means the estimate has converged (see module docstring)."""
+
+NOISE_RULES = ("printed", "gated")
+"""When CalcXY draws the saddle noise of eq. 6 (see module docstring): ``"printed"``, every
+iteration whose estimate is within a_p (Algorithm 2 line 7 as printed, the default); ``"gated"``,
+only while the Newton update is at least sigma, strictly inside a_p, never in the last iteration."""
 
 
 def planned_exclusion_radius(a_f: float, delta: float, eps: float) -> float:
@@ -247,10 +261,15 @@ class NewtonInverter:
         n_agents: N. n: Newton iterations per call (paper: 20). sigma: noise deviation, m (1 mm).
         rng: random generator for the noise (the run's generator, so runs are reproducible).
         strengths: (F,) doublet strengths mu_f (default :func:`doublet_strengths`).
+        noise_rule: when eq. 6 draws, one of :data:`NOISE_RULES` (module docstring).
     """
 
     def __init__(self, centres: np.ndarray, a_p: float, n_agents: int, n: int, sigma: float,
-                 rng: np.random.Generator, strengths: np.ndarray | None = None) -> None:
+                 rng: np.random.Generator, strengths: np.ndarray | None = None,
+                 noise_rule: str = "printed") -> None:
+        if noise_rule not in NOISE_RULES:
+            raise ValueError(f"noise_rule: must be one of {', '.join(NOISE_RULES)} (got {noise_rule!r})")
+        self.printed = noise_rule == "printed"
         centres = np.atleast_1d(np.asarray(centres, dtype=complex))
         self.c = centres.reshape(1, -1)
         self.mu = _strengths(centres, a_p, strengths).reshape(1, -1)
@@ -295,7 +314,10 @@ class NewtonInverter:
             np.divide(e, fp, out=e)  # J^{-1} [phi_1 - phi, psi_1 - psi]
             np.subtract(z, e, out=z)
             np.abs(e, out=r)
-            noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, r)
+            if self.printed:  # eq. 6 as printed: every iteration, the last one too
+                noisy = self.sigma > 0 and self._add_noise(U)
+            else:
+                noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, r)
             if not noisy and r.max() < NEWTON_TOL:
                 break
         self.iterations = it + 1
@@ -306,16 +328,22 @@ class NewtonInverter:
         """Eq. 6: |N(0, sigma)| r_a + N(0, sigma) r_b for estimates inside the planned disk.
 
         r_a = (r - r_f) / ||r - r_f|| points away from the failed vehicle, r_b = [[0, 1], [-1, 0]] r_a,
-        which in complex form is -j r_a. The noise is there to escape saddle points, so it is drawn
-        for an estimate within a_p whose Newton update ``step`` is still at least sigma: an estimate
-        that has converged (onto the ring, where psi = 0 wraps the disk, or onto a root that several
-        failures' flows moved a few mm inside a_p) is not at a saddle, and kicking it every iteration
-        would keep it from converging; the guard then places it. ``rows`` forces noise on those
-        agents (nearest disk). Returns whether any noise was drawn.
+        which in complex form is -j r_a; r is the estimate the Jacobian was evaluated at (``U`` =
+        r - r_f). Printed rule (``step`` None): drawn for every estimate with ||r - r_f|| <= a_p.
+        Gated rule: drawn only for an estimate strictly inside a_p whose Newton update ``step`` is
+        still at least sigma: an estimate that has converged (onto the ring, where psi = 0 wraps
+        the disk, or onto a root that several failures' flows moved a few mm inside a_p) is not at
+        a saddle, and kicking it every iteration would keep it from converging; the guard then
+        places it. ``rows`` forces noise on those agents (nearest disk). Returns whether any noise
+        was drawn.
         """
         R = self._R
         np.abs(U, out=R)
-        if rows is None:
+        if rows is None and step is None:
+            if not R.min() <= self.a:
+                return False
+            rows, cols = np.nonzero(R <= self.a)
+        elif rows is None:
             if not R.min() < self.a * (1.0 - 1e-9):
                 return False
             mask = (R < self.a * (1.0 - 1e-9)) & (step >= self.sigma)[:, None]
@@ -363,14 +391,16 @@ class NewtonInverter:
 
 
 def calc_xy(w: np.ndarray, zeta: np.ndarray, centres: np.ndarray, a_p: float, n: int = 20,
-            sigma: float = 1e-3, rng: np.random.Generator | None = None, dT: float | None = None):
+            sigma: float = 1e-3, rng: np.random.Generator | None = None, dT: float | None = None,
+            noise_rule: str = "printed"):
     """Algorithm 2 as a function: positions for targets w from start points zeta (flow frame).
 
     Returns the (N,) complex positions, and with ``dT`` also the first-difference velocity
     (r - r_{-1}) / dT (line 9). Prefer :class:`NewtonInverter` in a loop (it reuses its buffers).
     """
     zeta = np.asarray(zeta, dtype=complex)
-    inv = NewtonInverter(centres, a_p, zeta.size, n, sigma, rng or np.random.default_rng(0))
+    inv = NewtonInverter(centres, a_p, zeta.size, n, sigma, rng or np.random.default_rng(0),
+                         noise_rule=noise_rule)
     inv.z[:] = zeta
     with np.errstate(all="ignore"):
         z = inv.solve(np.asarray(w, dtype=complex)).copy()
@@ -392,12 +422,14 @@ class CEMNavigator:
             runs along it). origin: flow-frame origin (default: the failures' centroid).
         v_des: desired speed of the fastest agent, m/s. dT: guidance period, s.
         K: sliding-step passes per tick. n: Newton iterations. sigma: saddle noise, m.
-        rng: random generator for the saddle noise.
+        rng: random generator for the saddle noise. noise_rule: when eq. 6 draws
+            (:data:`NOISE_RULES`). strengths: doublet strengths (default :func:`doublet_strengths`).
     """
 
     def __init__(self, positions: np.ndarray, failures: np.ndarray, *, a_p: float, theta: float = 0.0,
                  v_des: float = 1.0, dT: float = 0.01, K: int = 2, n: int = 20, sigma: float = 1e-3,
-                 rng: np.random.Generator | None = None, origin: complex | None = None) -> None:
+                 rng: np.random.Generator | None = None, origin: complex | None = None,
+                 noise_rule: str = "printed", strengths: np.ndarray | None = None) -> None:
         failures = np.asarray(failures, dtype=float).reshape(-1, 2)
         self.origin = complex(*failures.mean(0)) if origin is None else complex(origin)
         self.theta, self.a_p = float(theta), float(a_p)
@@ -406,13 +438,13 @@ class CEMNavigator:
         self.centres = to_flow_frame(failures, self.origin, self.theta)
         zeta0 = to_flow_frame(np.asarray(positions, dtype=float).reshape(-1, 2), self.origin, self.theta)
         self.zeta0 = zeta0
-        self.strengths = doublet_strengths(self.centres, a_p)
+        self.strengths = _strengths(self.centres, a_p, strengths)
         self.w0 = complex_potential(zeta0, self.centres, a_p, self.strengths)  # lines 7-10: phi_i0 + j psi_i0
         self.w = self.w0.copy()  # phi_last + j psi_i0
         self.dphi = self.v_des * self.dT  # line 6
         self.dphi_used = 0.0  # the step phi actually advanced by at the last tick (Fig. 8)
         self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng(),
-                                       self.strengths)
+                                       self.strengths, noise_rule)
         self.inverter.z[:] = zeta0  # r_d <- r, line 5
         m = zeta0.size
         self._z_prev, self._dz, self._speed = np.empty(m, complex), np.empty(m, complex), np.empty(m)

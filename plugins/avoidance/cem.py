@@ -20,6 +20,18 @@ Choices (the paper leaves these open):
   theorems are evaluated again for the new configuration. ``comm_loss`` events do not change the
   flow (a vehicle that lost its radio keeps flying, it is not an obstacle of its own).
 * Failed vehicles' centres z_f are where they were when they failed (they hover, Assumption 3).
+* Saddle noise (eq. 6), ``saddle_noise``: ``"printed"`` (default) draws it in every Newton
+  iteration whose estimate is within a_p, as Algorithm 2 line 7 prints it; ``"gated"`` only while
+  the update is still >= sigma and never in the last iteration, which keeps every command on its
+  streamline exactly (eq. 4) at the price of a seed-independent run whose K = 1 peak (2.16 m/s)
+  misses Fig. 10's 2.4 m/s. What each guarantees: see :mod:`swarmscene.methods.cem.flow`.
+* Several failures (eq. 1 prints a sum of full uniform-plus-doublet terms, which no figure of the
+  paper flies), ``multi_failure_flow``: ``"ring_streamlines"`` (default) keeps one uniform term and
+  gives each doublet the strength that keeps its a_p circle a streamline in the others' flow, the
+  reading under which the section III-B claim "commands never come closer than delta + eps" holds;
+  ``"unit_doublets"`` one uniform term and mu_f = a_p^2 per failure; ``"summed"`` eq. 1 as printed
+  (N_f uniform terms: the same streamlines as ``"unit_doublets"`` with mu_f = a_p^2 / N_f, so the
+  dividing rings shrink towards a_p / sqrt(N_f)). With one failure the three are eq. 1 exactly.
 * Hand-back: once every healthy agent's along-track coordinate (flow frame) exceeds that of the most
   downstream failed vehicle by ``handback_distance`` (default 2 a_p, where the doublet's
   distortion |f' - 1| = a_p^2 / r^2 has fallen to 1/4), CEM deactivates and the formation's
@@ -98,6 +110,16 @@ class CEM(Avoidance):
         newton_iterations: int = Field(
             20, ge=1, le=1000, description="Newton iterations n of CalcXY (Alg. 2); at most 1000 (was n)")
         sigma: float = Field(1e-3, ge=0.0, description="saddle noise deviation, m (eq. 6)")
+        saddle_noise: Literal["printed", "gated"] = Field(
+            "printed", description="when CalcXY draws the eq. 6 noise: 'printed' in every Newton iteration whose "
+            "estimate is within a_p (Alg. 2 as printed; the run depends on the seed), 'gated' only while the "
+            "update is >= sigma and never in the last iteration (commands exactly on their streamlines, "
+            "seed-independent)")
+        multi_failure_flow: Literal["ring_streamlines", "unit_doublets", "summed"] = Field(
+            "ring_streamlines", description="eq. 1 with several failures: 'ring_streamlines' one uniform term, "
+            "doublet strengths that keep every a_p circle a streamline; 'unit_doublets' one uniform term, "
+            "mu_f = a_p^2; 'summed' eq. 1's sum as printed (rings shrink towards a_p / sqrt(N_f)); "
+            "identical for one failure")
         v_des: float = Field(1.0, gt=0.0, description="desired speed of the fastest agent, m/s")
         eps: float = Field(0.28, ge=0.0, description="vehicle enclosing radius epsilon, m")
         delta: float = Field(0.40, ge=0.0, description="bound on tracking error delta, m")
@@ -181,12 +203,25 @@ class CEM(Avoidance):
         p = self.params
         self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
                                 dT=self.ctx.guidance_period, K=p.K, n=p.newton_iterations, sigma=p.sigma,
-                                rng=self.ctx.rng, origin=origin)
+                                rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
+                                strengths=self.strengths(len(failed_xy)))
         self.healthy_idx = healthy
         self.active = True
         self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
         self.theorem1.append(self.nav.theorem1(p.delta, p.eps))
         self.theorem2.append(self.nav.theorem2(p.delta, p.eps))
+
+    def strengths(self, n_failures: int) -> np.ndarray | None:
+        """Doublet strengths mu_f for ``multi_failure_flow`` (None: the ring-streamline solve).
+
+        ``"summed"`` is eq. 1 divided by N_f: scaling f by a constant keeps its streamlines, and
+        line 20 of Algorithm 1 rescales the sliding step, so only mu_f = a_p^2 / N_f remains.
+        """
+        rule = self.params.multi_failure_flow
+        if rule == "ring_streamlines":
+            return None
+        a2 = self.a_p**2
+        return np.full(n_failures, a2 if rule == "unit_doublets" else a2 / n_failures, dtype=complex)
 
     @hookimpl
     def swarmscene_event(self, sim: Any, event: Event) -> None:

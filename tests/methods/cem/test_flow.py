@@ -39,11 +39,14 @@ def six_vehicle_formation(d: float = D_MIN) -> tuple[np.ndarray, np.ndarray]:
     return q1, healthy
 
 
-def run_six(K: int = 2, ticks: int = 1300, seed: int = 1):
+SIGMA = 1e-3  # m, eq. 6
+
+
+def run_six(K: int = 2, ticks: int = 1300, seed: int = 1, noise_rule: str = "gated"):
     """Fly Algorithm 1 over the lead's failure; returns (navigator, positions, velocities, dphi, drift)."""
     q1, healthy = six_vehicle_formation()
-    nav = CEMNavigator(healthy, q1, a_p=A_P, v_des=1.0, dT=0.01, K=K, n=20, sigma=1e-3,
-                       rng=np.random.default_rng(seed))
+    nav = CEMNavigator(healthy, q1, a_p=A_P, v_des=1.0, dT=0.01, K=K, n=20, sigma=SIGMA,
+                       rng=np.random.default_rng(seed), noise_rule=noise_rule)
     P, V, dphi, drift, margin = [], [], [], 0.0, np.inf
     for _ in range(ticks):
         p, v = nav.step()
@@ -58,6 +61,12 @@ def run_six(K: int = 2, ticks: int = 1300, seed: int = 1):
 @pytest.fixture(scope="module")
 def six_k2():
     return run_six(K=2)
+
+
+@pytest.fixture(scope="module")
+def six_printed():
+    """Eq. 6 as printed (the default reading), K = 1, 2, 5 on seeds 0-9: {K: [run_six results]}."""
+    return {K: [run_six(K=K, ticks=1100, seed=s, noise_rule="printed") for s in range(10)] for K in (1, 2, 5)}
 
 
 # ---- the field: eq. 1-5 -------------------------------------------------------------------------
@@ -137,7 +146,8 @@ def test_calc_xy_inverts_the_conformal_map_from_a_nearby_start():
     np.testing.assert_allclose(v, (z - start) / 0.01)
 
 
-def test_saddle_noise_eq_6_lets_an_agent_on_the_axis_leave_the_rear_stagnation_point():
+@pytest.mark.parametrize("rule", ["printed", "gated"])
+def test_saddle_noise_eq_6_lets_an_agent_on_the_axis_leave_the_rear_stagnation_point(rule):
     # Q2 sits exactly on psi = 0 behind the failure; phi past -2 a_p has no root on the axis.
     c = np.array([0j])
     start = np.array([-A_P - 1e-3 + 0j])
@@ -145,14 +155,37 @@ def test_saddle_noise_eq_6_lets_an_agent_on_the_axis_leave_the_rear_stagnation_p
     stuck = calc_xy(w, start, c, A_P, n=20, sigma=0.0)
     assert abs(stuck.imag[0]) == 0.0  # without noise Newton never leaves the real axis
     assert abs(complex_potential(stuck, c, A_P) - w)[0] > 1e-3
-    inv = NewtonInverter(c, A_P, 1, 20, 1e-3, np.random.default_rng(0))
+    inv = NewtonInverter(c, A_P, 1, 20, 1e-3, np.random.default_rng(0), noise_rule=rule)
     z = start.copy()
     with np.errstate(all="ignore"):
         for _ in range(3):  # a few ticks at the same target: the noise kicks it onto the ring
             inv.z[:] = z
             z = inv.solve(w).copy()
-    assert abs(z[0]) == pytest.approx(A_P, abs=1e-9)  # on the ring psi = 0 ...
-    assert abs(complex_potential(z, c, A_P) - w)[0] < 1e-9  # ... at the target phi
+    # on the ring psi = 0 at the target phi: exactly when gated; as printed the last iteration's
+    # kick |r_noise| (a few sigma) stays in the command, which moves (phi, psi) by <= 2 |r_noise|
+    tol = 1e-9 if rule == "gated" else 10 * SIGMA
+    assert abs(z[0]) == pytest.approx(A_P, abs=tol)
+    assert abs(complex_potential(z, c, A_P) - w)[0] < tol
+    assert abs(z[0]) >= A_P * (1 - 1e-6)  # outside a_p either way (the guard's tolerance)
+
+
+def test_printed_noise_is_drawn_in_the_last_iteration_gated_noise_is_not():
+    """A converged point on the ring (||r - r_f|| <= a_p to rounding): eq. 6 as printed kicks it in
+    every iteration, the last one included, so the command leaves the target by ~sigma; the gated
+    rule draws nothing (the update is below sigma) and returns the point unchanged."""
+    c = np.array([0j])
+    ring = A_P * np.exp(1j * np.linspace(0.3, 2.8, 8)) * (1 - 1e-15)  # on the ring, just inside
+    w = complex_potential(ring, c, A_P)
+    moved = {}
+    for rule in ("printed", "gated"):
+        z = calc_xy(w, ring, c, A_P, n=20, sigma=SIGMA, rng=np.random.default_rng(7), noise_rule=rule)
+        moved[rule] = np.abs(complex_potential(z, c, A_P) - w)
+    assert moved["gated"].max() < 1e-12
+    # printed: a kick stays in every command whose last estimate was <= a_p, which on the ring is
+    # rounding's coin toss (an estimate a hair outside converges undisturbed): here 4 of 8 points
+    assert (moved["printed"] > 1e-4).sum() >= 3 and moved["printed"].max() < 10 * SIGMA
+    with pytest.raises(ValueError, match="noise_rule: must be one of printed, gated"):
+        NewtonInverter(c, A_P, 1, 20, SIGMA, np.random.default_rng(0), noise_rule="always")
 
 
 def test_exact_stagnation_point_start_stays_finite_and_outside():
@@ -221,14 +254,49 @@ def test_theorem1_holds_for_a_spread_formation():
 # ---- Algorithm 1 and section V-A -----------------------------------------------------------------
 
 
+def min_pair(P: np.ndarray) -> float:
+    d = np.linalg.norm(P[:, :, None] - P[:, None, :], axis=3)
+    d[:, np.arange(P.shape[1]), np.arange(P.shape[1])] = np.inf
+    return float(d.min())
+
+
 def test_six_vehicles_keep_the_papers_invariants(six_k2):
+    """Gated noise: eq. 4 and the section III-B claim hold to rounding, and the seed only picks the
+    side on which Q2 leaves the rear stagnation point (where the noise is drawn): the run is the
+    same or its mirror image."""
     nav, P, V, dphi, drift, margin = six_k2
     assert drift < 1e-9  # eq. 4: psi constant along every path
     assert margin >= -1e-12  # commands never inside a_p
-    d = np.linalg.norm(P[:, :, None] - P[:, None, :], axis=3)
-    d[:, np.arange(5), np.arange(5)] = np.inf
-    assert d.min() >= PAIR_BOUND  # Fig. 9: every pair keeps 2 (delta + eps)
+    assert min_pair(P) >= PAIR_BOUND  # Fig. 9: every pair keeps 2 (delta + eps)
     assert (P[-1, :, 0] > A_P).all()  # everyone has passed the failed lead
+    _, P2, V2, *_ = run_six(K=2, seed=12345)
+    np.testing.assert_allclose(np.linalg.norm(V2, axis=2).max(1), np.linalg.norm(V, axis=2).max(1), atol=1e-6)
+    np.testing.assert_allclose(P2[:, 0, 0], P[:, 0, 0], atol=1e-6)  # Q2 along track, ...
+    np.testing.assert_allclose(np.abs(P2[:, 0, 1]), np.abs(P[:, 0, 1]), atol=1e-6)  # ... either side
+
+
+def test_printed_noise_keeps_theorem_2_and_bounds_its_departures(six_printed):
+    """Eq. 6 as printed, K = 1, 2, 5 x 10 seeds. What it guarantees, and the measured bounds:
+
+    * Theorem 2's conclusion (every pair >= 2 (delta + eps), Fig. 9) holds on every run: the
+      formation's margin (1.42 m vs 1.36 m) dwarfs the noise.
+    * Eq. 4 holds only up to the last iteration's kick: |psi - psi_0| <= |f'| |r_noise| <=
+      sqrt(lambda_max) |r_noise| = 2 |r_noise|, |r_noise| = sigma sqrt(g_a^2 + g_b^2) with g
+      standard normal. Measured over 30 seeds x K = 1, 2, 5 (full scenario): 2.3e-3 ... 5.8e-3, i.e.
+      |r_noise| up to ~2.9 sigma; we assert 2 x 5 sigma = 0.01 (5 sigma: ~4e-6 per draw).
+    * Commands stay outside a_p only to the branch guard's tolerance 1e-6 a_p (1.36 um): the Newton
+      update after an outward kick can end a hair inside the ring, and the guard moves only deeper
+      points. Measured: -1.36e-6 m (without the guard: -6.8e-5 m on 10 seeds, the issue's ~0.2 mm).
+    * The seed matters.
+    """
+    for K, runs in six_printed.items():
+        for nav, P, V, dphi, drift, margin in runs:
+            assert min_pair(P) >= PAIR_BOUND
+            assert 1e-4 < drift <= 2 * 5 * SIGMA
+            assert margin >= -1e-6 * A_P
+            assert (P[-1, :, 0] > A_P).all()
+        peaks = [np.linalg.norm(r[2], axis=2).max() for r in runs]
+        assert len(set(np.round(peaks, 9))) > 5  # different seeds, different runs
 
 
 def test_fastest_agent_flies_at_v_des_away_from_the_saddles(six_k2):
@@ -254,18 +322,31 @@ def test_sliding_step_collapses_at_both_saddle_points(six_k2):
     assert P[runs[0], 0, 0] < 0 < P[runs[1], 0, 0]  # rear saddle first, then the front one
 
 
-def test_k_sweep_reproduces_fig_10():
+def test_k_sweep_reproduces_fig_10_gated():
+    """Gated noise: one run for every seed, 2.162 / 1.293 / 1.077 m/s; K = 1 misses Fig. 10's 2.4."""
     peaks = {K: np.linalg.norm(run_six(K=K, ticks=1100)[2], axis=2).max() for K in (1, 2, 5)}
-    assert peaks[1] > 2.0  # the paper: 2.4 m/s at v_des = 1.0
-    assert peaks[2] < 1.4  # much lower
-    assert peaks[5] < peaks[2] and peaks[5] < 1.15  # a bit better again
+    assert peaks[1] == pytest.approx(2.162, abs=0.002)  # the paper: 2.4 m/s at v_des = 1.0
+    assert peaks[2] == pytest.approx(1.293, abs=0.002)  # much lower
+    assert peaks[5] == pytest.approx(1.077, abs=0.002)  # a bit better again
+
+
+def test_k_sweep_reproduces_fig_10_printed(six_printed):
+    """Eq. 6 as printed: the K = 1 peak varies with the seed (30 seeds of the full scenario: mean
+    2.19, range 2.06-2.56 m/s, so a single run, as Fig. 10 is, lands on 2.4 m/s for some seeds);
+    K = 2 is much lower on every seed, K = 5 lower again on average (28 of 30 seeds; the noise's
+    speed jitter ~|r_noise| / dT blurs the gap, which three seeds can hide)."""
+    peaks = {K: np.array([np.linalg.norm(r[2], axis=2).max() for r in runs]) for K, runs in six_printed.items()}
+    assert (peaks[1] > 2.0).all() and peaks[1].max() > 2.3
+    assert (peaks[2] < peaks[1]).all() and (peaks[2] < 1.45).all()
+    assert peaks[5].mean() < peaks[2].mean() and (peaks[5] < 1.35).all()
 
 
 def test_rotating_the_flow_rotates_the_paths():
     q1, healthy = six_vehicle_formation()
     th = np.deg2rad(37.0)
     R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-    kw = dict(a_p=A_P, K=2, n=20, sigma=1e-3)
+    # gated: the printed rule's draws hinge on ||r - r_f|| <= a_p to rounding, which a rotation changes
+    kw = dict(a_p=A_P, K=2, n=20, sigma=1e-3, noise_rule="gated")
     ref = CEMNavigator(healthy, q1, rng=np.random.default_rng(5), **kw)
     rot = CEMNavigator(healthy @ R.T + [3.0, -2.0], q1 @ R.T + [3.0, -2.0], theta=th,
                        rng=np.random.default_rng(5), **kw)

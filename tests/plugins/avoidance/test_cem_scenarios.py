@@ -18,6 +18,12 @@ from swarmscene.core.simulation import Simulation
 
 CEM_MODULE = "swarmscene.plugins.avoidance.cem"
 PAIR_BOUND = 2 * (0.40 + 0.28)  # 2 (delta + eps) = 1.36 m
+SIGMA, A_P = 1e-3, 1.36
+# What each reading of eq. 6 guarantees (measured on 30 seeds; tests/methods/cem/test_flow.py):
+# gated, commands on their streamlines and outside a_p to rounding; printed, psi within
+# 2 |r_noise| <= 10 sigma (measured max 5.9e-3) and commands outside a_p to the guard's 1e-6 a_p.
+DRIFT = {"gated": 1e-9, "printed": 2 * 5 * SIGMA}
+MARGIN = {"gated": -1e-12, "printed": -1e-6 * A_P}
 
 
 def simulate(overrides: list[str]) -> tuple[Simulation, object]:
@@ -28,13 +34,13 @@ def simulate(overrides: list[str]) -> tuple[Simulation, object]:
     return sim, sim.run()
 
 
-def check_six_vehicle(m: dict) -> None:
+def check_six_vehicle(m: dict, reading: str = "printed") -> None:
     assert m["cem.activations"] == 1
     assert m["cem.theorem2_holds"] and m["cem.theorem2_d_min0"] == pytest.approx(2.72)
     assert not m["cem.theorem1_holds"]  # conservative for this formation (1.04 < 1.85 m^2)
     assert m["cem.min_pair_distance"] >= PAIR_BOUND and m["cem.separation_holds"]  # Fig. 9
-    assert m["cem.min_exclusion_margin"] >= -1e-12  # no command inside a_p
-    assert m["cem.psi_drift_max"] < 1e-9  # psi constant along each path
+    assert m["cem.min_exclusion_margin"] >= MARGIN[reading]  # no command inside a_p
+    assert m["cem.psi_drift_max"] <= DRIFT[reading]  # psi constant along each path
     assert m["cem.dphi_min"] < 0.05 * 1.0 * 0.01  # Fig. 8: the sliding step collapses
     assert m["collisions"] == 0 and m["min_separation"] >= 0.56
 
@@ -43,7 +49,7 @@ def test_six_vehicle_section_v_a():
     _, result = simulate(["scenario=cem_six_vehicle", "clock.duration=13.0"])  # both saddles + hand-back
     m = result.metrics
     check_six_vehicle(m)
-    assert 1.0 < m["cem.max_speed"] < 1.4  # K = 2
+    assert 1.0 < m["cem.max_speed"] < 1.45  # K = 2 (printed, 30 seeds: 1.26-1.43 m/s)
     assert m["cem.handback_time"] == pytest.approx(12.8, abs=0.3)
 
 
@@ -52,7 +58,7 @@ def test_two_vehicle_section_v_b_tracking_error_within_delta(tmp_path):
     m = result.metrics
     assert 0.05 < m["cem.tracking_error_max"] <= 0.40  # a real tracking error, bounded by delta
     assert m["cem.min_actual_clearance"] >= 0.0  # the actual path stays clear of a_f
-    assert m["cem.min_exclusion_margin"] >= -1e-12 and m["cem.psi_drift_max"] < 1e-9
+    assert m["cem.min_exclusion_margin"] >= MARGIN["printed"] and m["cem.psi_drift_max"] <= DRIFT["printed"]
     assert m["cem.theorem2_holds"] and m["cem.handback_time"] is not None
     assert m["success"] and m["collisions"] == 0
     api.write_outputs(sim, result, tmp_path / "run")
@@ -69,22 +75,27 @@ def test_multi_failure_theorem_1_both_activations():
     assert m["cem.theorem1_holds"] and m["cem.theorem1_lhs"] > m["cem.theorem1_rhs"]
     assert not m["cem.theorem2_applicable"] and not m["cem.theorem2_holds"]
     assert m["cem.min_pair_distance"] >= PAIR_BOUND and m["cem.separation_holds"]
-    assert m["cem.min_exclusion_margin"] >= -1e-9
+    assert m["cem.min_exclusion_margin"] >= MARGIN["printed"]
     assert m["collisions"] == 0
 
 
 @pytest.mark.slow
-def test_k_sweep_fig_10_11_full_runs():
+@pytest.mark.parametrize("reading", ["printed", "gated"])
+def test_k_sweep_fig_10_11_full_runs(reading):
+    """Fig. 10 on seed 0. Gated: the same on every seed, 2.162 / 1.293 / 1.077 m/s (K = 1 misses
+    2.4). Printed, 30 seeds: K = 1 2.06-2.56 (mean 2.19), K = 2 1.26-1.43, K = 5 1.08-1.31 m/s."""
     peaks = {}
     for K in (1, 2, 5):
-        _, result = simulate(["scenario=cem_six_vehicle", f"avoidance.K={K}"])
+        _, result = simulate(["scenario=cem_six_vehicle", f"avoidance.K={K}", f"avoidance.saddle_noise={reading}"])
         m = result.metrics
-        check_six_vehicle(m)
+        check_six_vehicle(m, reading)
         assert m["success"]  # the formation resumes after hand-back and completes its mission
         peaks[K] = m["cem.max_speed"]
-    assert peaks[1] > 2.0  # the paper: 2.4 m/s
-    assert peaks[2] < 1.4
-    assert peaks[5] < peaks[2] and peaks[5] < 1.15
+    if reading == "gated":
+        assert peaks == pytest.approx({1: 2.162, 2: 1.293, 5: 1.077}, abs=0.002)
+    else:
+        assert 2.0 < peaks[1] < 2.7 and 1.2 < peaks[2] < 1.45 and 1.05 < peaks[5] < 1.35
+        assert peaks[5] < peaks[2] < peaks[1]
 
 
 @pytest.mark.slow
