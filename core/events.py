@@ -1,96 +1,293 @@
-"""Scheduled events: failures and communication losses applied by the kernel.
+"""Events: failures, faults and communication losses applied by the kernel, scheduled or random.
 
 In config (``events`` list)::
 
     events:
-      - {at: 5.0, agents: [0], kind: hover}       # agent 0 stops where it is and stays (CEM paper)
-      - {at: 9.0, agents: [3, 4], kind: comm_loss} # agents 3 and 4 drop out of the comm graph
+      - {at: 5.0, agents: [0], kind: hover}        # agent 0 stops where it is and stays (CEM paper)
+      - {at: 9.0, agents: [3, 4], kind: comm_loss}  # agents 3 and 4 drop out of the comm graph
+      - {at: 4.0, agents: [1], kind: stuck}         # agent 1 flies on at its last velocity
+      - {at: 4.0, agents: [2], kind: drift, velocity: [0.2, 0.0, 0.0]}  # drifts at 0.2 m/s east
+      - {at: 3.0, agents: [5], kind: motor_failure, rotor: 0, fraction: 0.0}  # rotor 0 dead
+      - {at: {uniform: [2, 20]}, agents: {sample: 1}, kind: hover}  # a random agent, a random time
 
-The kernel applies an event at the first guidance tick whose time reaches ``at``, changes the world
-state, then calls the ``swarmscene_event`` hook so plugins (e.g. CEM) can react.
+The kernel applies an event at the first guidance tick whose time reaches ``at`` (the events phase),
+changes the world state, then calls the ``swarmscene_event`` hook so plugins can react; after the
+physics sub-steps it calls :meth:`EventQueue.hold`, which moves the vehicles whose fault dictates
+their motion (``hover``, ``stuck``, ``drift``) by that rule, whatever the dynamics model did.
+
+Random events: ``at`` may be a distribution (:mod:`swarmscene.core.distributions`) and ``agents``
+may be ``{sample: k}`` (k distinct agents, uniformly, optionally ``among`` a list). Each event
+draws from its own stream derived from the run's ``seed`` and the event's index, never from the run's
+generator: a scenario without random events draws exactly what it drew before, and the same seed
+draws the same events. The drawn values are reported as metrics ``events.<k>.at`` and
+``events.<k>.agents`` so a run can be written back as fixed events.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
-from typing import Literal
+from enum import Enum, IntEnum
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, TypeAdapter, field_validator, model_serializer, model_validator
 
-from .fields import MAX_DURATION, StrictModel
+from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
+from .fields import MAX_DURATION, Point3, StrictModel, key_error
 from .state import WorldState
+
+_EVENT_TIME = number_adapter(0.0, MAX_DURATION)
+_AGENT_LIST = TypeAdapter(Annotated[list[int], Field(min_length=1)])
+
+
+class AgentSample(StrictModel):
+    """``agents: {sample: k}``: k distinct agents drawn uniformly (without replacement)."""
+
+    sample: int = Field(ge=1, description="how many agents the event hits")
+    among: list[int] | None = Field(
+        None, min_length=1, description="the agents to draw from (null: every agent 0..N-1)"
+    )
+
+    @model_serializer(mode="wrap")
+    def _without_null_pool(self, handler: Any) -> dict[str, Any]:
+        return {k: v for k, v in handler(self).items() if v is not None}
+
+
+_KIND_FIELDS = ("velocity", "rotor", "fraction")
 
 
 class EventConfig(StrictModel):
-    """One scheduled event (see :mod:`swarmscene.core.events`)."""
+    """One event, scheduled or random (see :mod:`swarmscene.core.events`)."""
 
-    at: float = Field(ge=0, le=MAX_DURATION, description="time, s")
-    agents: list[int] = Field(min_length=1, description="indices of the agents hit")
-    kind: Literal["hover", "comm_loss"] = Field(description="hover: failure, holds position")
+    at: Draw | float = Field(
+        description="time, s: a number, or a distribution drawn from the run's seed "
+        "({uniform: [a, b]}, {normal: [mean, std]}, {exponential: mean}, {choice: [...]}...; "
+        "a draw below 0 is 0)"
+    )
+    agents: AgentSample | list[int] = Field(
+        description="indices of the agents hit, or {sample: k, among: [...]} (k drawn at random)"
+    )
+    kind: Literal["hover", "comm_loss", "stuck", "drift", "motor_failure"] = Field(
+        description="hover: failure, holds position | comm_loss: radio lost | stuck: failure, keeps "
+        "its last velocity | drift: failure, drifts at `velocity` | motor_failure: one rotor's "
+        "thrust cut to `fraction` (quadrotor dynamics)"
+    )
+    velocity: Point3 | None = Field(None, description="drift only: drift velocity [vx, vy, vz], m/s")
+    rotor: int | None = Field(None, ge=0, description="motor_failure only: index of the failed rotor")
+    fraction: float | None = Field(
+        None, ge=0, le=1, description="motor_failure only: thrust the rotor keeps, 0..1 (null: 0)"
+    )
+
+    @field_validator("at", mode="wrap")
+    @classmethod
+    def _number_or_distribution(cls, value: Any, handler: Any) -> Any:
+        return parse_draw(value, _EVENT_TIME)
+
+    @field_validator("agents", mode="wrap")
+    @classmethod
+    def _list_or_sample(cls, value: Any, handler: Any) -> Any:
+        if isinstance(value, dict):
+            return AgentSample.model_validate(value)
+        if isinstance(value, list) and any(isinstance(a, bool) for a in value):
+            raise ValueError("must be agent indices, not true/false")
+        return _AGENT_LIST.validate_python(value)
+
+    @model_serializer(mode="wrap")
+    def _without_unused_keys(self, handler: Any) -> dict[str, Any]:
+        """Recorded as written: a hover event has no ``velocity: null``."""
+        data = handler(self)
+        return {k: v for k, v in data.items() if v is not None or k not in _KIND_FIELDS}
+
+    @model_validator(mode="after")
+    def _fields_of_the_kind(self) -> "EventConfig":
+        own = {"drift": ("velocity",), "motor_failure": ("rotor", "fraction")}.get(self.kind, ())
+        for key in _KIND_FIELDS:
+            value = getattr(self, key)
+            if value is not None and key not in own:
+                users = "drift" if key == "velocity" else "motor_failure"
+                raise key_error(key, f"only a {users} event takes it (this event is {self.kind})", value)
+        if self.kind == "drift" and self.velocity is None:
+            raise key_error("velocity", "a drift event needs its drift velocity [vx, vy, vz], m/s", None)
+        if self.kind == "motor_failure" and self.rotor is None:
+            raise key_error("rotor", "a motor_failure event needs the index of the failed rotor", None)
+        return self
+
+    @property
+    def random(self) -> bool:
+        """Whether its time or its agents are drawn."""
+        return isinstance(self.at, Draw) or isinstance(self.agents, AgentSample)
 
 
 def check_events(events: list[EventConfig], n: int) -> list[str]:
-    """One error line per event naming an agent outside 0..n-1 (checks across config sections)."""
+    """One error line per event naming an agent outside 0..n-1 or sampling more agents than it may
+    draw from (checks across config sections)."""
     errors = []
     for k, event in enumerate(events):
-        bad = [a for a in event.agents if not 0 <= a < n]
+        key, listed = f"events.{k}.agents", event.agents
+        if isinstance(listed, AgentSample):
+            key, listed = f"{key}.among", listed.among or []
+        bad = [a for a in listed if not 0 <= a < n]
         if bad:
-            errors.append(f"events.{k}.agents: agents are 0..{n - 1} (got {bad})")
+            errors.append(f"{key}: agents are 0..{n - 1} (got {bad})")
+        elif isinstance(event.agents, AgentSample):
+            pool = len(set(event.agents.among)) if event.agents.among else n
+            if event.agents.sample > pool:
+                errors.append(f"events.{k}.agents.sample: at most {pool} distinct agents to draw "
+                              f"from (got {event.agents.sample})")
     return errors
 
 
 class EventKind(str, Enum):
-    """What happens to the event's agents.
+    """What happens to the event's agents. Every kind but ``comm_loss`` is a failure: the agent's
+    ``healthy`` flag drops, so formations and avoidance treat it as failed from that tick on.
 
     HOVER: abrupt failure; the vehicle stops where it is (velocity zero) and stays there for the
-        rest of the run (``healthy`` False). It remains a physical obstacle.
+        rest of the run. It remains a physical obstacle (the CEM paper's failure model).
     COMM_LOSS: the agent's radio fails (``comm_ok`` False): it leaves the communication graph but
         keeps flying on its last information.
+    STUCK: the vehicle no longer responds to commands and keeps the velocity it had at the event:
+        p(t) = p(t_f) + v(t_f) (t - t_f), a fly-away (the "stuck-at" / lock-in-place fault of the
+        fault-tolerant-control taxonomy applied to the velocity command).
+    DRIFT: the vehicle no longer responds and moves at the event's constant ``velocity`` v_d:
+        p(t) = p(t_f) + v_d (t - t_f). Source: the drift fault of the sensor-fault taxonomy, an
+        additive error growing linearly in time, y(t) = x(t) + r (t - t_f) (Balaban et al., IEEE
+        Sensors Journal 9(12), 2009; Sharma et al., ACM TOSN 6(3), 2010): a position estimate
+        drifting at rate r makes a vehicle that holds its estimate move physically at v_d = -r.
+    MOTOR_FAILURE: one rotor (``rotor``) keeps ``fraction`` of its thrust. The engine only marks
+        the vehicle failed; the dynamics model applies the loss through the ``swarmscene_event``
+        hook and the vehicle then moves as its physics says (it is not held).
     """
 
     HOVER = "hover"
     COMM_LOSS = "comm_loss"
+    STUCK = "stuck"
+    DRIFT = "drift"
+    MOTOR_FAILURE = "motor_failure"
+
+
+class Motion(IntEnum):
+    """How :meth:`EventQueue.hold` moves an agent after the dynamics (the last event decides)."""
+
+    DYNAMICS = 0  # the dynamics model moves it (healthy, comm_loss, motor_failure)
+    HOLD = 1  # hover: stays where it failed, at rest
+    COAST = 2  # stuck, drift: constant velocity from where it failed
 
 
 @dataclass(frozen=True)
 class Event:
-    """One scheduled event.
+    """One event, as applied (random parts drawn).
 
     Attributes:
         at: time at which it happens, s (applied at the first guidance tick with t >= at).
         agents: indices of the agents it hits.
         kind: :class:`EventKind`.
+        velocity: drift velocity (3,), m/s, world frame (``drift`` only).
+        rotor: index of the failed rotor (``motor_failure`` only).
+        fraction: thrust the failed rotor keeps, 0..1 (``motor_failure`` only).
     """
 
     at: float
     agents: tuple[int, ...]
     kind: EventKind
+    velocity: tuple[float, float, float] | None = None
+    rotor: int | None = None
+    fraction: float | None = None
+
+    @property
+    def failure(self) -> bool:
+        """Whether it fails its agents (every kind but ``comm_loss``)."""
+        return self.kind is not EventKind.COMM_LOSS
 
     def apply(self, world: WorldState) -> None:
-        """Change ``world`` as this event says."""
+        """Change ``world`` as this event says (its flags and, for hover and drift, velocities)."""
         idx = np.asarray(self.agents, dtype=int)
-        if self.kind is EventKind.HOVER:
-            world.healthy[idx] = False
-            world.vel[idx] = 0.0
-        elif self.kind is EventKind.COMM_LOSS:
+        if self.kind is EventKind.COMM_LOSS:
             world.comm_ok[idx] = False
+            return
+        world.healthy[idx] = False
+        if self.kind is EventKind.HOVER:
+            world.vel[idx] = 0.0
+        elif self.kind is EventKind.DRIFT:
+            world.vel[idx] = self.velocity
+
+
+_MOTION = {EventKind.HOVER: Motion.HOLD, EventKind.STUCK: Motion.COAST, EventKind.DRIFT: Motion.COAST,
+           EventKind.MOTOR_FAILURE: Motion.DYNAMICS}
+
+
+def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
+    """The :class:`Event` of ``config`` (the ``index``-th of the scenario), its random parts drawn
+    from stream ``(seed, EVENTS_STREAM, index)``: first the time, then the agents."""
+    at, agents = config.at, config.agents
+    if config.random:
+        rng = stream(seed, EVENTS_STREAM, index)
+        if isinstance(at, Draw):
+            at = max(0.0, float(at.sample(rng)))
+        if isinstance(agents, AgentSample):
+            pool = np.unique(agents.among) if agents.among else np.arange(n)
+            agents = np.sort(rng.choice(pool, size=agents.sample, replace=False)).tolist()
+    fraction = config.fraction
+    if config.kind == "motor_failure" and fraction is None:
+        fraction = 0.0  # the rotor is dead
+    return Event(float(at), tuple(int(a) for a in agents), EventKind(config.kind),
+                 velocity=config.velocity, rotor=config.rotor, fraction=fraction)
 
 
 class EventQueue:
     """Events sorted by time; the kernel applies them (:meth:`apply_due`) in the events phase of
-    a tick and enforces what they leave behind (:meth:`hold`) after the dynamics."""
+    a tick and moves the vehicles their faults dictate (:meth:`hold`) after the dynamics.
 
-    def __init__(self, events: list[Event]) -> None:
+    Args:
+        events: the events, random parts already drawn.
+        guidance_period: T_s, s: :meth:`hold` runs once per tick before the clock advances, so a
+            coasting vehicle is placed where it is at the end of the tick, t + T_s (needed only
+            when a ``stuck`` or ``drift`` event is queued).
+        drawn: ``(index in the config list, event)`` of the events whose parts were drawn.
+    """
+
+    def __init__(
+        self, events: list[Event], guidance_period: float | None = None,
+        drawn: list[tuple[int, Event]] | None = None,
+    ) -> None:
         self._events = sorted(events, key=lambda e: e.at)
         self._next = 0
-        self._hover_pos: np.ndarray | None = None
+        self.guidance_period = guidance_period
+        self.drawn = list(drawn or [])
+        coasting = any(_MOTION.get(e.kind) is Motion.COAST for e in events)
+        if coasting and guidance_period is None:
+            raise ValueError("EventQueue: stuck and drift events need the guidance period "
+                             "(build the queue with EventQueue.from_scenario)")
+        self._motion: np.ndarray | None = None  # (N,) Motion, allocated at the first failure
+        self._anchor: np.ndarray | None = None  # (N, 3) m: where each vehicle failed
+        self._anchor_t: np.ndarray | None = None  # (N,) s: when
+        self._coast_vel: np.ndarray | None = None  # (N, 3) m/s: its constant velocity
 
     @classmethod
-    def from_config(cls, events: list[EventConfig]) -> "EventQueue":
-        """The queue of a scenario's ``events`` list."""
-        return cls([Event(e.at, tuple(e.agents), EventKind(e.kind)) for e in events])
+    def from_config(cls, events: list[EventConfig], n: int | None = None, seed: int = 0,
+                    guidance_period: float | None = None) -> "EventQueue":
+        """The queue of a scenario's ``events`` list; random parts drawn with ``seed`` for ``n``
+        agents (both needed only when an event is random)."""
+        if n is None and any(e.random for e in events):
+            raise ValueError("EventQueue: random events need the number of agents and the seed "
+                             "(build the queue with EventQueue.from_scenario)")
+        built = [draw_event(e, k, n or 0, seed) for k, e in enumerate(events)]
+        drawn = [(k, built[k]) for k, e in enumerate(events) if e.random]
+        return cls(built, guidance_period, drawn)
+
+    @classmethod
+    def from_scenario(cls, config: Any) -> "EventQueue":
+        """The queue of a validated ``ScenarioConfig``: its events, random parts drawn for its
+        ``swarm.n`` agents from its ``seed``, holding at its guidance period."""
+        return cls.from_config(config.events, config.swarm.n, config.seed, config.clock.guidance_period)
+
+    def metrics(self) -> dict[str, Any]:
+        """The drawn events, ``events.<k>.at`` (s) and ``events.<k>.agents`` (k: index in the
+        config list): writing them as fixed events reproduces the run. Empty without random events."""
+        out: dict[str, Any] = {}
+        for k, event in self.drawn:
+            out[f"events.{k}.at"] = event.at
+            out[f"events.{k}.agents"] = list(event.agents)
+        return out
 
     def due(self, t: float, tol: float = 1e-9) -> list[Event]:
         """Events with ``at <= t`` (within ``tol``) not yet returned, in time order."""
@@ -104,16 +301,35 @@ class EventQueue:
         applied = self.due(world.t)
         for event in applied:
             event.apply(world)
-            if event.kind is EventKind.HOVER:
-                if self._hover_pos is None:
-                    self._hover_pos = world.pos.copy()
-                idx = list(event.agents)
-                self._hover_pos[idx] = world.pos[idx]
+            if event.failure:
+                self._set_motion(world, event)
         return applied
 
+    def _set_motion(self, world: WorldState, event: Event) -> None:
+        """Record how :meth:`hold` moves the event's agents from now on (the last event decides)."""
+        if self._motion is None:
+            n = world.n
+            self._motion = np.full(n, Motion.DYNAMICS, dtype=np.int8)
+            self._anchor, self._anchor_t = np.zeros((n, 3)), np.zeros(n)
+            self._coast_vel = np.zeros((n, 3))
+        idx = np.asarray(event.agents, dtype=int)
+        self._motion[idx] = _MOTION[event.kind]
+        self._anchor[idx] = world.pos[idx]
+        self._anchor_t[idx] = world.t
+        self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply
+
     def hold(self, world: WorldState) -> None:
-        """Failed vehicles hover where they failed, whatever the dynamics model did."""
-        failed = ~world.healthy
-        if failed.any() and self._hover_pos is not None:
-            world.pos[failed] = self._hover_pos[failed]
-            world.vel[failed] = 0.0
+        """After the physics sub-steps of the tick starting at ``world.t``: hovering vehicles stay
+        where they failed, at rest; stuck and drifting ones are where their constant velocity has
+        taken them at the tick's end, p_f + v (t + T_s - t_f). Others keep what the dynamics did."""
+        if self._motion is None:
+            return
+        held = self._motion == Motion.HOLD
+        if held.any():
+            world.pos[held] = self._anchor[held]
+            world.vel[held] = 0.0
+        coast = self._motion == Motion.COAST
+        if coast.any():
+            elapsed = world.t + self.guidance_period - self._anchor_t[coast]
+            world.pos[coast] = self._anchor[coast] + self._coast_vel[coast] * elapsed[:, None]
+            world.vel[coast] = self._coast_vel[coast]

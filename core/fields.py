@@ -34,3 +34,13 @@ MAX_DURATION = 1e9
 Coordinate = Annotated[float, Field(ge=-MAX_LENGTH, le=MAX_LENGTH)]
 Point2 = tuple[Coordinate, Coordinate]
 Point3 = tuple[Coordinate, Coordinate, Coordinate]
+
+
+def key_error(key: str, message: str, value: Any) -> Exception:
+    """A pydantic error at ``key`` of the model being validated, for checks across its fields:
+    raised from a model validator it is reported at that key (``events.0.velocity: ...``), where a
+    plain ValueError would be reported at the model (``events.0: ...``)."""
+    from pydantic_core import InitErrorDetails, ValidationError
+
+    detail = InitErrorDetails(type="value_error", loc=(key,), input=value, ctx={"error": ValueError(message)})
+    return ValidationError.from_exception_data("scenario", [detail])
