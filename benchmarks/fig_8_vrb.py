@@ -77,6 +77,16 @@ def fig8_distance(seed: int, which: str = "field_on", setting: str = "calibrated
     return min_distance(side, law, which == "field_on")
 
 
+def formation_min_distance(seed: int) -> float:
+    """Smallest distance (m) between two robots inside any of the show's six formations (the paper:
+    "a minimum relative distance of 0.7 m is set in our formations")."""
+    from scipy.spatial.distance import pdist
+
+    from swarmscene.methods.vrb.airshow import airshow_formations
+
+    return float(min(pdist(f).min() for f in airshow_formations()))
+
+
 def table() -> list[tuple[str, float, float, float, float]]:
     """(setting, side, B, field-off d, field-on d) for every setting."""
     return [(name, side, float(np.max(law.gain)), min_distance(side, law, False), min_distance(side, law, True))
