@@ -31,9 +31,9 @@ Choices where the paper is ambiguous (each repeated where it is made):
   an estimate r with ||r - r_f|| <= a_p (evaluated where the Jacobian is, before the update) gets
   |N(0, sigma)| r_a + N(0, sigma) r_b added to its update. An agent whose streamline touches the
   ring (Q2 on psi = 0 in section V-A) is kicked by up to a few sigma in the last iteration, so its
-  command leaves its streamline by |f'| |r_noise| (<= 2 |r_noise| for one failure, measured
-  psi drift ~5e-3 over 30 seeds), the commanded speed jitters by ~|r_noise| / dT, and the run
-  depends on the seed. ``"gated"`` (the reading shipped before) draws the noise only for an
+  command leaves its streamline by |f'| |r_noise| (<= 2 |r_noise| for one failure; measured psi
+  drift 0.9e-3 to 5.9e-3 over 30 seeds of sections V-A and V-B), the commanded speed jitters by
+  ~|r_noise| / dT, and the run depends on the seed. ``"gated"`` (the reading shipped before) draws the noise only for an
   estimate strictly inside a_p whose Newton update is still at least sigma, and never in the last
   iteration: a converged point (on the ring itself, or on a root a few mm inside a_p that other
   failures' flows create) is not at a saddle, so the command lies on its streamline to machine
