@@ -94,6 +94,12 @@ class Draw(StrictModel):
             return float(value[0]), float(value[0])
         return (0.0 if kind in ("lognormal", "exponential") else -np.inf), np.inf
 
+    def positive(self) -> bool:
+        """Whether every draw is > 0 (sizes)."""
+        if self.kind in ("lognormal", "exponential"):
+            return True
+        return self.kind != "normal" and self.support()[0] > 0
+
     def sample(self, rng: np.random.Generator, size: int | None = None) -> Any:
         """One value (``size`` None) or an array of ``size`` values drawn with ``rng``."""
         kind = self.kind
@@ -113,7 +119,7 @@ class Draw(StrictModel):
 def parse_draw(value: Any, number: TypeAdapter) -> "float | Draw":
     """A field that is a number or a :class:`Draw`: a mapping is validated as a Draw (its errors
     name their key below the field: ``events.0.at.uniform: ...``), anything else by ``number``."""
-    if isinstance(value, dict):
+    if isinstance(value, (dict, Draw)):
         return Draw.model_validate(value)
     if isinstance(value, bool):  # pydantic's lax mode would read 1 or 0
         raise ValueError("must be a number, not true/false")

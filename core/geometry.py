@@ -1,6 +1,6 @@
 """Turning validated config into geometry: obstacle footprints and initial positions.
 
-This module knows the config only by the attributes it reads (``env.obstacles``,
+This module knows the config only by the attributes it reads (``env.obstacles``, ``env.generator``,
 ``config.swarm``, ``config.comm.range``): it does not import :mod:`swarmscene.core.config`, which
 calls it during validation (:func:`swarmscene.core.config.validate` builds the obstacles and the
 start positions once and hands them to the simulation).
@@ -17,9 +17,18 @@ from shapely.geometry import LineString, Point, Polygon
 
 
 def build_obstacles(env: Any) -> tuple[list, list[str]]:
-    """Shapely polygons for ``env.obstacles`` (an ``EnvironmentConfig``), and one error line per
-    malformed one."""
+    """Shapely polygons for an ``EnvironmentConfig``: its generator's (if it has one, see
+    :mod:`swarmscene.core.generators`), then its listed ``obstacles``; and one error line per
+    malformed obstacle or unbuildable map."""
     polygons, errors = [], []
+    params = env.generator_params() if getattr(env, "generator", None) else None
+    if params is not None:
+        from .generators import GENERATORS
+
+        try:
+            polygons += GENERATORS[env.generator][1](params)
+        except ValueError as exc:  # one line naming its key (e.g. environment.density)
+            errors.append(str(exc))
     for k, obstacle in enumerate(env.obstacles):
         key = f"environment.obstacles.{k}"
         if obstacle.type == "circle":
