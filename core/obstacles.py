@@ -114,16 +114,16 @@ def _generator_fields() -> dict[str, Any]:
     """The generators' parameters as optional fields of the environment section (one flat
     namespace, so ``environment.width=0.5`` overrides a corridor's width); a name shared by two
     generators means the same thing in both. Their own models hold the defaults and constraints."""
-    fields: dict[str, Any] = {}
     owners: dict[str, list[str]] = {}
     for name, (model, _) in GENERATORS.items():
-        for key, info in model.model_fields.items():
+        for key in model.model_fields:
             owners.setdefault(key, []).append(name)
-            default = "required" if info.is_required() else f"default {info.get_default(call_default_factory=True)!r}"
-            fields[key] = (info.annotation | None, Field(None, description=f"{info.description} ({default})"))
+    fields: dict[str, Any] = {}
     for key, names in owners.items():
-        annotation, info = fields[key]
-        info.description = f"{', '.join(names)}: {info.description}"
+        info = GENERATORS[names[0]][0].model_fields[key]
+        default = "required" if info.is_required() else f"default {info.get_default(call_default_factory=True)!r}"
+        description = f"{', '.join(names)}: {info.description} ({default})"
+        fields[key] = (info.annotation | None, Field(None, description=description))
     return fields
 
 
