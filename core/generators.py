@@ -46,9 +46,6 @@ SEPARATION = 2.0
 DOOR_OVERLAP = 0.1
 """How far a door opening reaches past each face of the wall it cuts, m (a clean cut)."""
 
-Length = Field(gt=0, le=MAX_LENGTH)
-
-
 class CorridorParams(StrictModel):
     """``generator: corridor``: thesis section 5.4 (10 m corridors; 6 m rooms are this engine's choice)."""
 
@@ -72,7 +69,9 @@ class BuildingParams(StrictModel):
         (7.2, 7.7), description="[along the rows (east), across (north)] of each room, m"
     )
     corridor_width: float = Field(3.0, gt=0, le=MAX_LENGTH, description="ring corridor width, m")
-    hall: float = Field(10.0, gt=0, le=MAX_LENGTH, description="east-west depth of the start and end halls, m")
+    hall: float = Field(
+        10.0, gt=0, le=MAX_LENGTH, description="east-west depth of the start and end halls, m"
+    )
     wall_thickness: float = Field(0.1, gt=0, le=MAX_LENGTH, description="wall rectangles' thickness, m")
 
     @field_validator("rooms")
@@ -92,7 +91,8 @@ class BuildingParams(StrictModel):
     @model_validator(mode="after")
     def _door_fits(self) -> "BuildingParams":
         if self.door_width >= self.room_size[0]:
-            raise key_error("door_width", f"must be < the room's width {self.room_size[0]} m", self.door_width)
+            width = self.room_size[0]
+            raise key_error("door_width", f"must be < the room's width {width} m", self.door_width)
         return self
 
 

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_serializer, model_validator
+from pydantic import (
+    BaseModel, ConfigDict, Field, create_model, field_validator, model_serializer, model_validator,
+)
 
 from .fields import MAX_LENGTH, Point2, StrictModel, key_error
 from .generators import GENERATORS, GeneratorName
@@ -60,7 +62,8 @@ class _EnvironmentBase(StrictModel):
 
     name: str = Field("open", description="label of the map")
     generator: GeneratorName | None = Field(
-        None, description="map generator: corridor | building | obstacle_field (null: only the listed obstacles)"
+        None,
+        description="map generator: corridor | building | obstacle_field (null: only the listed obstacles)",
     )
     obstacles: list[Obstacle] = Field(
         default_factory=list, description="obstacle footprints (added to the generator's)"
@@ -121,7 +124,8 @@ def _generator_fields() -> dict[str, Any]:
     fields: dict[str, Any] = {}
     for key, names in owners.items():
         info = GENERATORS[names[0]][0].model_fields[key]
-        default = "required" if info.is_required() else f"default {info.get_default(call_default_factory=True)!r}"
+        default = info.get_default(call_default_factory=True)
+        default = "required" if info.is_required() else f"default {default!r}"
         description = f"{', '.join(names)}: {info.description} ({default})"
         fields[key] = (info.annotation | None, Field(None, description=description))
     return fields

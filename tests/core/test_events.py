@@ -94,7 +94,8 @@ def test_hover_holds_only_its_agents_and_motor_failure_is_left_to_the_dynamics(d
 
 def test_motor_failure_without_fraction_kills_the_rotor():
     config = EventConfig(at=2.0, agents=[1], kind="motor_failure", rotor=0)
-    assert draw_event(config, 0, 4, seed=0) == Event(2.0, (1,), EventKind.MOTOR_FAILURE, rotor=0, fraction=0.0)
+    expected = Event(2.0, (1,), EventKind.MOTOR_FAILURE, rotor=0, fraction=0.0)
+    assert draw_event(config, 0, 4, seed=0) == expected
 
 
 def test_the_last_fault_of_an_agent_decides_its_motion():
@@ -227,7 +228,8 @@ def test_event_records_keep_only_the_keys_written(data):
     ({"at": {"exponential": 0}, "agents": [0], "kind": "hover"},
      "events.0.at.exponential: must be > 0.0 (got 0)"),
     ({"at": -1.0, "agents": [0], "kind": "hover"}, "events.0.at: must be >= 0.0 (got -1.0)"),
-    ({"at": True, "agents": [0], "kind": "hover"}, "events.0.at: must be a number, not true/false (got True)"),
+    ({"at": True, "agents": [0], "kind": "hover"},
+     "events.0.at: must be a number, not true/false (got True)"),
     ({"at": 1.0, "agents": {"sample": 0}, "kind": "hover"}, "events.0.agents.sample: must be >= 1 (got 0)"),
     ({"at": 1.0, "agents": {"sample": 7}, "kind": "hover"},
      "events.0.agents.sample: at most 5 distinct agents to draw from (got 7)"),
@@ -253,6 +255,7 @@ def test_bad_events_give_one_line_naming_the_key(data, event, line):
 
 
 def test_check_events_accepts_a_pool_with_repeats():
-    config = EventConfig.model_validate({"at": 1, "agents": {"sample": 2, "among": [1, 1, 2]}, "kind": "hover"})
+    pool = {"sample": 2, "among": [1, 1, 2]}
+    config = EventConfig.model_validate({"at": 1, "agents": pool, "kind": "hover"})
     assert check_events([config], 3) == []
     assert draw_event(config, 0, 3, 0).agents == (1, 2)
