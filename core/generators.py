@@ -22,6 +22,7 @@ are rounded to :data:`DECIMALS` places, so a generated map equals its listed-obs
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Literal
 
@@ -307,6 +308,21 @@ def obstacle_field(params: ObstacleFieldParams) -> list[Polygon]:
     """The field's discs as polygons (the same 16-segment quarter circles as a listed circle)."""
     centres, radii = obstacle_field_discs(params)
     return [Point(c).buffer(r, quad_segs=16) for c, r in zip(centres, radii)]
+
+
+@functools.lru_cache(maxsize=8)
+def generate(generator: str, params_json: str) -> tuple[tuple[Polygon, ...], tuple[str, ...]]:
+    """The obstacle polygons of ``generator`` with its parameters (as JSON) and its error lines.
+
+    Cached by value: validation asks twice (to check the map, then the start positions), and a
+    sweep's jobs in one process share a map; shapely geometries are immutable and the result is
+    tuples, so no caller can change what the next one gets.
+    """
+    model, build = GENERATORS[generator]
+    try:
+        return tuple(build(model.model_validate_json(params_json))), ()
+    except ValueError as exc:  # one line naming its key (e.g. environment.density)
+        return (), (str(exc),)
 
 
 GeneratorName = Literal["corridor", "building", "obstacle_field"]

@@ -20,15 +20,7 @@ def build_obstacles(env: Any) -> tuple[list, list[str]]:
     """Shapely polygons for an ``EnvironmentConfig``: its generator's (if it has one, see
     :mod:`swarmscene.core.generators`), then its listed ``obstacles``; and one error line per
     malformed obstacle or unbuildable map."""
-    polygons, errors = [], []
-    params = env.generator_params() if getattr(env, "generator", None) else None
-    if params is not None:
-        from .generators import GENERATORS
-
-        try:
-            polygons += GENERATORS[env.generator][1](params)
-        except ValueError as exc:  # one line naming its key (e.g. environment.density)
-            errors.append(str(exc))
+    polygons, errors = env.generated() if hasattr(env, "generated") else ([], [])
     for k, obstacle in enumerate(env.obstacles):
         key = f"environment.obstacles.{k}"
         if obstacle.type == "circle":

@@ -14,7 +14,7 @@ from pydantic import (
 )
 
 from .fields import MAX_LENGTH, Point2, StrictModel, key_error
-from .generators import GENERATORS, GeneratorName
+from .generators import GENERATORS, GeneratorName, generate
 from .plugin import reject_bool_as_number
 
 
@@ -96,6 +96,13 @@ class _EnvironmentBase(StrictModel):
         own = GENERATORS[self.generator][0].model_fields if self.generator else {}
         return {k: v for k, v in handler(self).items()
                 if (k not in GENERATOR_KEYS and (k != "generator" or v is not None)) or k in own}
+
+    def generated(self) -> tuple[list, list[str]]:
+        """The generator's obstacle polygons and its error lines (none without a generator)."""
+        if self.generator is None:
+            return [], []
+        polygons, errors = generate(self.generator, self.generator_params().model_dump_json())
+        return list(polygons), list(errors)  # new lists: the cached ones are shared
 
     def generator_params(self) -> StrictModel | None:
         """The chosen generator's validated parameters (None without a generator)."""

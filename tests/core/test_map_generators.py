@@ -263,3 +263,12 @@ def test_shipped_environment_files_validate():
     for path in sorted((SCENARIOS / "environment").glob("*.yaml")):
         scenario = api.load([f"environment={path.stem}"])
         assert scenario.config.environment.name == path.stem
+
+
+def test_a_cached_map_is_not_changed_by_its_users():
+    env = EnvironmentConfig.model_validate({
+        "name": "c", "generator": "corridor", "width": 0.7,
+        "obstacles": [{"type": "circle", "center": [-3.0, 2.0], "radius": 0.5}]})
+    first, _ = build_obstacles(env)
+    second, _ = build_obstacles(env)  # the listed circle is added once, not to the cached walls
+    assert len(first) == len(second) == 13
