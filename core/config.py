@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from .errors import ConfigError, format_validation_error
+from .disturbances import validate_disturbances
 from .events import EventConfig, check_events
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
@@ -208,6 +209,13 @@ class ScenarioConfig(_Strict):
     avoidance: PluginChoice
     dynamics: PluginChoice
     events: list[EventConfig] = Field(default_factory=list)
+    disturbances: dict[str, Any] = Field(
+        default_factory=dict,
+        exclude=True,  # dumped validated, by effective_config (from Scenario.disturbances)
+        description="disturbance models by name (wind, sensing noise, communication; "
+        "docs/disturbances.md), chosen with disturbances=[dryden,gps]; each validated by its kind's "
+        "Params (swarmscene.core.disturbances)",
+    )
     safety: SafetyConfig = Field(default_factory=SafetyConfig)
     comm: CommConfig = Field(default_factory=CommConfig)
     termination: TerminationConfig = Field(default_factory=TerminationConfig)
@@ -248,6 +256,8 @@ class Scenario(BaseModel):
         initial_positions: positions at t = 0, (N, 3), m, read-only.
         rng_state: the state of ``numpy.random.default_rng(seed)`` after drawing the start, so the
             run continues the same random stream as if it had drawn the start itself.
+        disturbances: each declared disturbance's model class and validated Params, by name
+            (sorted; empty when none is declared).
     """
 
     model_config = ConfigDict(arbitrary_types_allowed=True, frozen=True)
@@ -259,15 +269,23 @@ class Scenario(BaseModel):
     obstacles: list[Any] = Field(default_factory=list)
     initial_positions: np.ndarray
     rng_state: dict[str, Any]
+    disturbances: dict[str, Any] = Field(default_factory=dict)
 
 
-def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: dict[str, PluginParams]) -> dict[str, Any]:
+def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: dict[str, PluginParams],
+                     disturbances: dict[str, Any] | None = None) -> dict[str, Any]:
     """The configuration a run uses, every default resolved, as plain data (JSON types) in the
     nested shape of the composed config: the engine schema's fields, then for each plugin kind its
-    ``name`` and every field of its Params."""
+    ``name`` and every field of its Params, then each declared disturbance with every option.
+    ``disturbances`` is left out when none is declared, so the record (and its hash) of such a run
+    is the one it had before disturbances existed."""
+    from .disturbances import effective
+
     data = config.model_dump(mode="json")
     for kind in PLUGIN_KINDS:
         data[kind] = {"name": classes[kind].name, **params[kind].model_dump(mode="json")}
+    if disturbances:
+        data["disturbances"] = effective(disturbances)
     return data
 
 
@@ -287,6 +305,7 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
         errors += format_validation_error(exc, ScenarioConfig, data)
         config = None
     classes, params = _validate_plugins(data, registry, errors)
+    disturbances = validate_disturbances(data.get("disturbances"), errors)
     errors += shared_option_conflicts(params)  # e.g. the thesis' graph parameters, declared twice
     world = None
     if config is not None:
@@ -309,11 +328,12 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
         config=config,
         plugin_classes=classes,
         plugin_params=params,
-        data=effective_config(config, classes, params),
+        data=effective_config(config, classes, params, disturbances),
         composed=data,
         obstacles=obstacles,
         initial_positions=positions,
         rng_state=rng_state,
+        disturbances=disturbances,
     )
 
 

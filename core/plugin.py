@@ -20,7 +20,8 @@ from __future__ import annotations
 import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, field_validator
@@ -83,6 +84,9 @@ class BuildContext:
         environment: the obstacle map and its geometric queries.
         rng: the run's one random generator (draws from it are part of the seeded run).
         initial: the world state at t = 0 (read it, do not keep mutating it).
+        link_delay: the declared per-link delay model (``disturbances`` of kind ``comm_delay``):
+            ``link_delay(hops) -> ticks`` (N, N) int, -1 where unreachable; ``None`` when none is
+            declared. For plugins that keep per-link maps (:attr:`Formation.models_communication`).
     """
 
     n: int
@@ -95,6 +99,7 @@ class BuildContext:
     environment: "Environment"
     rng: np.random.Generator
     initial: WorldState
+    link_delay: Callable[[np.ndarray], np.ndarray] | None = None
 
     @property
     def min_separation(self) -> float:
@@ -131,6 +136,10 @@ class Formation(Plugin):
 
     requires_leader: ClassVar[bool] = False
     """True when the method needs ``swarm.leader``: a scenario without one is refused at validation."""
+    models_communication: ClassVar[bool] = False
+    """True when the method keeps per-link maps with its own delays (the thesis' swarm map): it then
+    reads the agents' own estimates, not the disturbances' shared broadcast picture, and builds its
+    delays from ``BuildContext.link_delay`` when one is declared."""
 
     @abstractmethod
     def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
@@ -167,6 +176,24 @@ class Dynamics(Plugin):
 
     has_attitude: ClassVar[bool] = False
     """True when the model fills ``WorldState.quat`` and ``WorldState.omega``."""
+    wind_coupling: ClassVar[Literal["force", "carried", "integrated"]] = "force"
+    """How a declared wind acts on the model (``disturbances``, wind phase):
+
+    * ``force``: the kernel adds a = :meth:`wind_acceleration` after each ``step`` (v += a dt,
+      p += a dt^2 / 2: exact for a point mass whose input is held over the step);
+    * ``carried``: a kinematic model flies relative to the air: the kernel adds p += w dt, v += w;
+    * ``integrated``: ``step`` reads ``world.wind`` and integrates the force itself.
+    """
+    drag_coefficient: ClassVar[float] = 0.21
+    """D, 1/s: linear drag per unit mass, a = D (w - v) (rotor drag, linear in airspeed: Martin and
+    Salaun 2010). The models carry no still-air drag (their controllers' tuning absorbs it), so the
+    wind adds the change the moving air makes, D (w - v) - D (0 - v) = D w: zero wind is exactly the
+    model without wind. Default 0.21 1/s: the Crazyflie 2.0's identified K_aero (Foerster 2015,
+    9.1785e-7 kg/rad x 4 rotors x 1516 rad/s at hover / 0.027 kg)."""
+
+    def wind_acceleration(self, world: WorldState) -> np.ndarray:
+        """The wind's acceleration on each agent, (N, 3) m/s^2: ``drag_coefficient * world.wind``."""
+        return self.drag_coefficient * world.wind
 
     def initialize(self, world: WorldState) -> None:
         """Add the model's own state (attitude, integrators) to ``world`` at t = 0."""

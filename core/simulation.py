@@ -2,8 +2,15 @@
 
 Each guidance tick (period T_s = ``clock.guidance_period``)::
 
-    events -> sense/communicate -> formation -> avoidance -> dynamics (physics sub-steps)
-        -> hold failed -> wrap (periodic space) -> observers
+    events -> sense -> communicate -> formation -> avoidance -> dynamics.control
+        -> physics sub-steps (wind -> dynamics.step) -> hold failed -> wrap (periodic space)
+        -> finite check -> observers
+
+sense and communicate (the ``disturbances`` group, :mod:`swarmscene.core.disturbances`) turn the
+true state into what the plugins read: formation and avoidance get the swarm's picture (each agent's
+estimate of itself as the others received it), the controller the agent's own estimate; the wind
+acts on the plant each physics step. Without declared disturbances these phases pass the truth
+through and draw nothing. Events, hold, the finite check and every observer read the truth.
 
 The physics step divides T_s; the dynamics model's controller runs once per tick (zero-order hold)
 and its plant ``T_s / physics_step`` times. Observers (monitors, metrics, recorders, and any chosen
@@ -20,6 +27,7 @@ import numpy as np
 import pluggy
 
 from .config import Scenario
+from .disturbances import Disturbances
 from .environment import Environment
 from .errors import ConfigError
 from .events import EventQueue
@@ -76,6 +84,7 @@ class Simulation:
             environment=self.environment,
             rng=self.rng,
             initial=WorldState.at_rest(self.world.pos, leader=cfg.swarm.leader),
+            link_delay=self._link_delay(),
         )
         self.formation: Formation = self._build("formation", ctx)
         self.avoidance: Avoidance = self._build("avoidance", ctx)
@@ -85,10 +94,30 @@ class Simulation:
         self._refuse_start_outside_periodic_box()
         self._wrap_periodic()
         self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
+        self.disturbances = Disturbances(
+            scenario.disturbances, cfg.seed, cfg.swarm.n, self.guidance_period, self.physics_step,
+            cfg.comm.range, self.dynamics,
+            lambda world, previous: Sensing(world, self.environment, cfg.comm.range, previous),
+            self.formation,
+        )
+        if self.disturbances.active:
+            self.pm.register(self.disturbances, name="disturbances")
         self.step_seconds = np.zeros(self.total_steps)
         self.observers = [cls(self) for cls in observers]
         for obj in self.observers:
             self.pm.register(obj)
+
+    def _link_delay(self) -> Any:
+        """The declared per-link delay model (``comm_delay`` disturbances), or None."""
+        from .disturbances.comm import CommDelay
+
+        delays = [(k, p) for k, (cls, p) in self.scenario.disturbances.items() if cls is CommDelay]
+        if not delays:
+            return None
+        from .disturbances.comm import numerics
+
+        tau = sum(p.tau for _, p in delays)  # delays add along a link
+        return lambda hops: numerics.hop_delay_ticks(hops, tau, self.guidance_period)
 
     def _build(self, kind: str, ctx: BuildContext) -> Any:
         try:
@@ -109,12 +138,14 @@ class Simulation:
     def step(self) -> None:
         """One guidance tick, phases in order."""
         self._apply_due_events()
-        sensing = self.sensing
-        setpoints = self.formation.setpoints(self.world, sensing)
-        setpoints = self.avoidance.adjust(self.world, sensing, setpoints)
-        self.dynamics.control(self.world, setpoints)
-        for _ in range(self.substeps):
+        seen = self.disturbances.perceive(self.world, self.sensing)  # sense, communicate
+        setpoints = self.formation.setpoints(seen.formation_world, seen.formation_sensing)
+        setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
+        self.dynamics.control(seen.own, setpoints)
+        for j in range(self.substeps):
+            self.disturbances.blow(self.world, self.world.t + j * self.physics_step)  # wind
             self.dynamics.step(self.world, self.physics_step)
+            self.disturbances.push(self.world, self.physics_step)
         self.events.hold(self.world)
         self._wrap_periodic()
         self._check_finite()

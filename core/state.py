@@ -44,6 +44,11 @@ class WorldState:
         acc: (N, 3) m/s^2, world frame: the acceleration input the dynamics model applied this
             tick (thesis u, eq. 3.21), for models with one; ``None`` otherwise. Formations use it
             as the leader's feed-forward (thesis eq. 4.11).
+        wind: (N, 3) m/s, world frame: the air's velocity at each agent during the current physics
+            step (the ``disturbances`` wind phase sets it before ``dynamics.step``); ``None`` when
+            no wind model is declared. A model with ``wind_coupling = "integrated"`` reads it.
+        wind_moment_arm: height of the centre of pressure above the centre of gravity, m (the
+            wind models' ``moment_arm``): models with attitude take the wind force's moment there.
     """
 
     t: float
@@ -56,6 +61,8 @@ class WorldState:
     omega: np.ndarray | None = None
     rotor_speed: np.ndarray | None = None
     acc: np.ndarray | None = None
+    wind: np.ndarray | None = None
+    wind_moment_arm: float = 0.0
 
     @classmethod
     def at_rest(cls, pos: np.ndarray, leader: int | None = None) -> "WorldState":

@@ -51,6 +51,9 @@ class Airframe:
         k_D: drag-torque coefficient k_D, N m / (rad/s)^2 (eq. 3.11).
         rotor_speed_min, rotor_speed_max: limits on ϖ_i, rad/s.
         source: where the numbers come from.
+        drag: linear drag per unit mass along the body axes (x, y, z), 1/s: F = m R diag(drag)
+            R^T (w - v) (rotor drag, linear in airspeed). Only the wind's part m R D R^T w is
+            applied (the model has no still-air drag), by the ``disturbances`` wind phase.
     """
 
     name: str
@@ -62,6 +65,7 @@ class Airframe:
     rotor_speed_min: float
     rotor_speed_max: float
     source: str = ""
+    drag: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @cached_property
     def J(self) -> np.ndarray:
@@ -105,7 +109,10 @@ CRAZYFLIE = Airframe(
     rotor_speed_max=float(np.sqrt(2.25 * 0.027 * GRAVITY / (4.0 * 3.16e-10 * _RPM2))),
     source="Crazyflie 2.x as identified by Foerster (ETH 2015) and shipped in gym-pybullet-drones "
     "cf2x.urdf: m = 27 g, arm 39.7 mm, kf = 3.16e-10 N/rpm^2, km = 7.94e-12 N m/rpm^2, "
-    "thrust-to-weight 2.25 (sets rotor_speed_max ~ 2.27e3 rad/s).",
+    "thrust-to-weight 2.25 (sets rotor_speed_max ~ 2.27e3 rad/s). Drag: Foerster's K_aero = "
+    "(9.1785e-7, 9.1785e-7, 10.311e-7) kg/rad (as in gym-pybullet-drones' DRAG_COEFF) times the sum "
+    "of the four hover rotor speeds (4 x 1516 rad/s), per kg: (0.206, 0.206, 0.232) 1/s.",
+    drag=(0.206, 0.206, 0.232),
 )
 
 M330 = Airframe(
@@ -120,7 +127,10 @@ M330 = Airframe(
     source="~1 kg quad of the class flown in the CEM paper (M330, enclosing radius 0.28 m). The paper "
     "gives no inertial data, so these are assumptions: 330 mm motor-to-motor frame (arm 0.165 m), "
     "1.0 kg, inertia from 4 x 60 g motors on the arms plus a 0.5 kg central body, 8-inch propellers "
-    "(k_T = 6e-6 N/(rad/s)^2, k_D/k_T = 1.7 cm), 1000 rad/s top speed (thrust-to-weight 2.4).",
+    "(k_T = 6e-6 N/(rad/s)^2, k_D/k_T = 1.7 cm), 1000 rad/s top speed (thrust-to-weight 2.4). "
+    "Drag per kg taken equal to the Crazyflie's (an assumption: rotor drag scales with thrust, i.e. "
+    "with mass, to first order).",
+    drag=(0.206, 0.206, 0.232),
 )
 
 AIRFRAMES: dict[str, Airframe] = {a.name: a for a in (CRAZYFLIE, M330)}
@@ -279,7 +289,7 @@ def state_derivative(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray,
 
 
 def _rhs(x: np.ndarray, thrust_per_mass: np.ndarray, torque_per_inertia: np.ndarray,
-         gyro: np.ndarray) -> np.ndarray:
+         gyro: np.ndarray, ext_acc: np.ndarray | None = None) -> np.ndarray:
     """:func:`state_derivative` with the held inputs already divided by m and J (RK4 reuses them)."""
     q = x[:, 6:10]
     w = x[:, 10:13]
@@ -287,6 +297,8 @@ def _rhs(x: np.ndarray, thrust_per_mass: np.ndarray, torque_per_inertia: np.ndar
     out[:, 0:3] = x[:, 3:6]
     out[:, 3:6] = (_outer(q) @ _Z_BASIS) * thrust_per_mass
     out[:, 5] -= GRAVITY
+    if ext_acc is not None:
+        out[:, 3:6] += ext_acc
     out[:, 6:10] = ((q[:, _G_IDX] * _G_SIGN) @ w[:, :, None])[:, :, 0]
     out[:, 10:13] = torque_per_inertia - w[:, _P1] * w[:, _P2] * gyro
     return out
@@ -298,17 +310,18 @@ def pack(p, v, q, omega) -> np.ndarray:
 
 
 def rk4(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray, airframe: Airframe,
-        dt: float) -> np.ndarray:
-    """One classical RK4 step of the packed state with thrust (N,) and torque (N, 3) held;
-    the quaternion is renormalised."""
+        dt: float, ext_acc: np.ndarray | None = None) -> np.ndarray:
+    """One classical RK4 step of the packed state with thrust (N,) and torque (N, 3) held, and
+    optionally an external acceleration ``ext_acc`` (N, 3) m/s^2 (world; e.g. the wind's force per
+    mass) held too; the quaternion is renormalised."""
     h = 0.5 * dt
     c = (thrust / airframe.mass)[:, None]
     a = torque / airframe.J
     gyro = airframe.gyro
-    k1 = _rhs(x, c, a, gyro)
-    k2 = _rhs(x + h * k1, c, a, gyro)
-    k3 = _rhs(x + h * k2, c, a, gyro)
-    k4 = _rhs(x + dt * k3, c, a, gyro)
+    k1 = _rhs(x, c, a, gyro, ext_acc)
+    k2 = _rhs(x + h * k1, c, a, gyro, ext_acc)
+    k3 = _rhs(x + h * k2, c, a, gyro, ext_acc)
+    k4 = _rhs(x + dt * k3, c, a, gyro, ext_acc)
     x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
     x[:, 6:10] /= np.sqrt((x[:, 6:10] ** 2).sum(axis=1, keepdims=True))
     return x

@@ -24,6 +24,11 @@ Frames: the laws commute with the thesis' NED -> world change of axes (see thesi
 so they run on world arrays directly. Failed agents are switched to HOLD where they are.
 Fills ``world.acc`` (N, 3) m/s^2, the input applied this tick (the ū another
 agent's tracker can use as feed-forward).
+
+Wind (``disturbances``): a force per mass D w on the point mass (``wind_coupling = "force"``,
+the kernel adds it after each step, exactly), D = ``drag_coefficient`` = 0.21 1/s, the Dynamics
+default (the thesis gives no drag identification; the Crazyflie's rotor drag per kg is taken).
+The position and velocity laws' integral states cancel a steady wind: u -> -D w.
 """
 
 from __future__ import annotations

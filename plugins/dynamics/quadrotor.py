@@ -19,6 +19,11 @@ The yaw rate and acceleration are taken as zero (the setpoint record carries yaw
 
 Added to the world: ``quat`` (N, 4) (w, x, y, z) body to world, ``omega`` (N, 3) body rates rad/s,
 ``rotor_speed`` (N, 4) rad/s.
+
+Wind (``disturbances``): the model integrates it (``wind_coupling = "integrated"``): at each
+internal step the force per mass R diag(D) R^T w (the airframe's rotor-drag coefficients D, see
+quadrotor_model.py) joins the RK4 right-hand side, and with ``moment_arm`` h the moment
+(0, 0, h) x F_body joins the rotors' torque.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ class Quadrotor(Dynamics):
 
     name = "quadrotor"
     has_attitude = True
+    wind_coupling = "integrated"
 
     class Params(PluginParams):
         airframe: Literal["crazyflie", "m330"] = Field(
@@ -136,13 +142,30 @@ class Quadrotor(Dynamics):
                 self.max_tilt, self._heading)
             rotor_speed = allocate(thrust, torque, af)
             thrust, torque = wrench(rotor_speed, af)   # what the limited rotors really give
-            x = rk4(x, thrust, torque, af, h)
+            ext_acc = None
+            if world.wind is not None:
+                ext_acc, moment = self._wind(x, world.wind, world.wind_moment_arm)
+                torque = torque + moment
+            x = rk4(x, thrust, torque, af, h, ext_acc)
             self._tau += h
         world.pos[...] = x[:, 0:3]
         world.vel[...] = x[:, 3:6]
         world.quat[...] = x[:, 6:10]
         world.omega[...] = x[:, 10:13]
         world.rotor_speed[...] = rotor_speed
+
+    def _wind(self, x: np.ndarray, wind: np.ndarray, arm: float) -> tuple[np.ndarray, np.ndarray]:
+        """The wind's acceleration (N, 3) world and moment (N, 3) N m body: a = R D R^T w and
+        M = (0, 0, h) x m D R^T w (the drag force acting at the centre of pressure)."""
+        R = quat_to_rotmat(x[:, 6:10])
+        f_body = np.einsum("nji,nj->ni", R, wind) * np.asarray(self.airframe.drag)  # per mass
+        acc = np.einsum("nij,nj->ni", R, f_body)
+        m = self.airframe.mass
+        moment = np.column_stack([-arm * m * f_body[:, 1], arm * m * f_body[:, 0], np.zeros(len(x))])
+        return acc, moment
+
+    def wind_acceleration(self, world: WorldState) -> np.ndarray:
+        return self._wind(pack(world.pos, world.vel, world.quat, world.omega), world.wind, 0.0)[0]
 
     def _reference(self, tau: float):
         """(p_d, v_d, a_d) at ``tau`` s after the tick (Taylor polynomial on TRACK rows)."""

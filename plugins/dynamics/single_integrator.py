@@ -6,6 +6,11 @@ The control u is a velocity, held for the guidance period (zero-order hold). Set
 VELOCITY flies ``sp.vel``; POSITION and TRACK fly ``sp.vel + gain * (sp.pos - r)`` (feed-forward
 plus proportional correction); HOLD flies ``gain * (sp.pos - r)``. Every command is clipped to
 ``u_max`` in magnitude.
+
+Wind (``disturbances``): the point flies relative to the air (``wind_coupling = "carried"``): its
+ground velocity is u + w (the kinematic model of a vehicle in wind, e.g. Beard and McLain,
+Small Unmanned Aircraft, 2012, eq. 2.9), so holding a position at gain k it settles at
+p + w / k.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ class SingleIntegrator(Dynamics):
     """Kinematic point: the velocity command is the velocity (thesis eq. 5.1)."""
 
     name = "single_integrator"
+    wind_coupling = "carried"
 
     class Params(PluginParams):
         u_max: float = Field(1.0, gt=0, description="speed limit |u| <= u_max, m/s")

@@ -1,0 +1,226 @@
+"""The ``disturbances`` config group: models the kernel applies in named phases (issue #18).
+
+Every formation, avoidance and dynamics plugin, built-in or third-party, meets them without knowing
+they exist; the safety monitors, the events' hold and the recorder keep reading the true state.
+
+Where in the tick (``Simulation.step``)::
+
+    events
+    -> sense        each agent's estimate of its own position and velocity (truth + noise):
+                    sensing_noise
+    -> communicate  the swarm's picture of every agent: the last estimate of it the others received
+                    (delay, loss): comm_delay, packet_loss
+    -> formation, avoidance      read the picture (``world`` and a ``Sensing`` over it)
+    -> dynamics.control          reads the agent's own estimate (its controller's feedback)
+    -> per physics step: wind    the air's velocity at each agent (constant_wind, gust, dryden),
+                    summed, acts as a force on the plant: dynamics.step integrates it
+    -> hold, wrap, finite check, observers   on the truth
+
+Composition: ``swarmscene disturbances=[dryden,gps]`` (Hydra's list selection of one group);
+options ``disturbances.dryden.speed=8``. With none declared the kernel takes none of these phases'
+paths (:class:`Disturbances` is inactive) and draws nothing: results are bit-identical to a run
+of the engine before disturbances existed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from ..errors import format_validation_error
+from ..hookspecs import hookimpl
+from ..state import WorldState
+from .base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams, model_rng
+from .comm import MODELS as _COMM
+from .comm import ChannelModels, CommDelay, PacketLoss
+from .noise import MODELS as _NOISE
+from .wind import MODELS as _WIND
+
+__all__ = ["DISTURBANCE_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
+           "PHASES", "validate_disturbances"]
+
+DISTURBANCE_MODELS: dict[str, type[Disturbance]] = {m.kind: m for m in (*_WIND, *_NOISE, *_COMM)}
+"""Every disturbance model by ``kind``."""
+
+
+def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
+    """Validate the ``disturbances`` mapping; append one line per problem to ``errors``.
+
+    Returns:
+        each key's model class and validated Params (keys sorted: the order of application).
+    """
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        errors.append(f"disturbances: must be a mapping of name to model (got {data!r})")
+        return {}
+    out: dict[str, tuple[type[Disturbance], DisturbanceParams]] = {}
+    for key in sorted(data):
+        node = data[key]
+        if not isinstance(node, dict):
+            errors.append(f"disturbances.{key}: must be a mapping of options (got {node!r})")
+            continue
+        kind = node.get("kind", key)
+        cls = DISTURBANCE_MODELS.get(kind) if isinstance(kind, str) else None
+        if cls is None:
+            where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
+            errors.append(f"{where}: unknown disturbance model {kind!r} "
+                          f"(valid: {', '.join(sorted(DISTURBANCE_MODELS))})")
+            continue
+        options = {k: v for k, v in node.items() if k != "kind"}
+        try:
+            out[key] = (cls, cls.Params.model_validate(options))
+        except ValidationError as exc:
+            errors += format_validation_error(exc, cls.Params, options, prefix=f"disturbances.{key}")
+    return out
+
+
+def effective(models: dict[str, tuple[type[Disturbance], DisturbanceParams]]) -> dict[str, Any]:
+    """The declared models with every option resolved, as plain data (the run record)."""
+    return {key: {"kind": cls.kind, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
+
+
+class Perceived:
+    """What the plugins read this tick.
+
+    Attributes:
+        world: the swarm's picture (formation and avoidance): every agent's row is what the others
+            received of it; masks, roles and attitude are the truth's.
+        sensing: a :class:`~swarmscene.core.sensing.Sensing` over ``world``.
+        own: each agent's own estimate (the controller's feedback, ``dynamics.control``).
+        formation_world, formation_sensing: what the formation reads: the picture, or the agents'
+            own estimates when the formation models communication itself
+            (``Formation.models_communication``, e.g. the thesis' swarm map).
+    """
+
+    __slots__ = ("world", "sensing", "own", "formation_world", "formation_sensing")
+
+    def __init__(self, world: WorldState, sensing: Any, own: WorldState,
+                 formation_world: WorldState | None = None, formation_sensing: Any = None) -> None:
+        self.world, self.sensing, self.own = world, sensing, own
+        self.formation_world = world if formation_world is None else formation_world
+        self.formation_sensing = sensing if formation_sensing is None else formation_sensing
+
+
+class Disturbances:
+    """The declared models of one run, by phase, and the kernel's calls into them.
+
+    Args:
+        models: from :func:`validate_disturbances`.
+        seed: the run's seed (each model draws from its own stream, :func:`~.base.model_rng`).
+        n, guidance_period, physics_step, comm_range: the scenario's.
+        dynamics: the chosen dynamics instance (its ``wind_coupling`` and drag, see
+            :class:`~swarmscene.core.plugin.Dynamics`).
+        make_sensing: builds a Sensing over a world, given the previous one (the kernel's).
+    """
+
+    def __init__(self, models: dict[str, tuple[type[Disturbance], DisturbanceParams]], seed: int, n: int,
+                 guidance_period: float, physics_step: float, comm_range: float, dynamics: Any,
+                 make_sensing: Any, formation: Any = None) -> None:
+        self.models: dict[str, Disturbance] = {}
+        for key, (cls, params) in models.items():
+            ctx = DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))
+            self.models[key] = cls(params, ctx)
+        self.by_phase = {phase: [m for m in self.models.values() if m.phase == phase] for phase in PHASES}
+        self.active = bool(self.models)
+        self.dynamics = dynamics
+        self.make_sensing = make_sensing
+        self._sensing = self._own_sensing = None
+        # one vehicle property declared on each wind model: the one of largest magnitude holds
+        arms = [m.params.moment_arm for m in self.by_phase["wind"]]
+        self.moment_arm = max(arms, key=abs, default=0.0)
+        self.channel = ChannelModels([m for m in self.by_phase["communicate"] if isinstance(m, CommDelay)],
+                                     [m for m in self.by_phase["communicate"] if isinstance(m, PacketLoss)])
+        self.shared_picture = not getattr(formation, "models_communication", False)
+        self._acc: np.ndarray | None = None
+        self.wind_peak = 0.0
+        self.wind_sum = 0.0
+        self.wind_steps = 0
+        self.sense_sq = 0.0
+        self.sense_count = 0
+
+    # -- sense and communicate ------------------------------------------------------------
+    def perceive(self, world: WorldState, sensing: Any) -> Perceived:
+        """The sense and communicate phases: the views of this tick (the truth when inactive)."""
+        if not (self.by_phase["sense"] or self.by_phase["communicate"]):
+            return Perceived(world, sensing, world)
+        pos, vel = world.pos, world.vel
+        for model in self.by_phase["sense"]:
+            pos, vel = model.sense(world, pos, vel)
+        if self.by_phase["sense"]:
+            err = pos - world.pos
+            self.sense_sq += float(np.einsum("ij,ij->", err, err))
+            self.sense_count += world.n
+        own = _view(world, pos, vel)
+        if self.by_phase["communicate"]:
+            pos, vel = self.channel.communicate(world, sensing, pos, vel)
+        picture = own if pos is own.pos else _view(world, pos, vel)
+        self._sensing = self.make_sensing(picture, self._sensing)
+        if self.shared_picture or picture is own:
+            return Perceived(picture, self._sensing, own)
+        self._own_sensing = self.make_sensing(own, self._own_sensing)
+        return Perceived(picture, self._sensing, own, own, self._own_sensing)
+
+    # -- wind -----------------------------------------------------------------------------
+    def blow(self, world: WorldState, t: float) -> None:
+        """The wind phase, before a physics step starting at ``t``: ``world.wind``, the air's
+        velocity at each agent (N, 3) m/s, summed over the wind models."""
+        if not self.by_phase["wind"]:
+            return
+        air = self.by_phase["wind"][0].air(world, t)
+        for model in self.by_phase["wind"][1:]:
+            air = air + model.air(world, t)
+        world.wind = np.array(air, dtype=float)
+        world.wind_moment_arm = self.moment_arm
+        speed = np.sqrt(np.einsum("ij,ij->i", world.wind, world.wind))
+        self.wind_peak = max(self.wind_peak, float(speed.max(initial=0.0)))
+        self.wind_sum += float(speed.mean()) if speed.size else 0.0
+        self.wind_steps += 1
+        if self.dynamics.wind_coupling == "force":
+            self._acc = self.dynamics.wind_acceleration(world)
+
+    def push(self, world: WorldState, dt: float) -> None:
+        """After a physics step: the wind's effect on models that do not integrate it themselves.
+
+        force:   v += a dt, p += a dt^2 / 2 with a = D w (held over the step; exact for a point mass
+                 whose own input is held too, by superposition);
+        carried: p += w dt, v += w (a kinematic model flies relative to the air);
+        integrated: nothing (the model read ``world.wind`` in its step).
+        """
+        if not self.by_phase["wind"]:
+            return
+        coupling = self.dynamics.wind_coupling
+        if coupling == "force":
+            a = self._acc
+            world.pos += 0.5 * dt * dt * a
+            world.vel += dt * a
+        elif coupling == "carried":
+            world.pos += dt * world.wind
+            world.vel += world.wind
+
+    # -- records ----------------------------------------------------------------------------
+    def metrics(self) -> dict[str, Any]:
+        """``disturbances.*`` metrics: what was applied (flat keys, SI units)."""
+        out: dict[str, Any] = {"disturbances.models": sorted(self.models)}
+        if self.by_phase["wind"]:
+            out["disturbances.wind.peak_speed"] = self.wind_peak
+            out["disturbances.wind.mean_speed"] = self.wind_sum / self.wind_steps if self.wind_steps else 0.0
+        if self.sense_count:
+            out["disturbances.sense.pos_error_rms"] = float(np.sqrt(self.sense_sq / self.sense_count))
+        out.update(self.channel.metrics())
+        for key, model in self.models.items():
+            out.update({f"disturbances.{key}.{k}": v for k, v in model.metrics().items()})
+        return out
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        metrics.update(self.metrics())
+
+
+def _view(world: WorldState, pos: np.ndarray, vel: np.ndarray) -> WorldState:
+    """A world with estimated ``pos``/``vel`` and the truth's other fields (shared, not copied)."""
+    return WorldState(t=world.t, pos=pos, vel=vel, healthy=world.healthy, comm_ok=world.comm_ok,
+                      role=world.role, quat=world.quat, omega=world.omega,
+                      rotor_speed=world.rotor_speed, acc=world.acc)

@@ -1,0 +1,88 @@
+"""The contract of a disturbance model: its ``kind``, its phase, its ``Params``, its random stream.
+
+A scenario declares models under ``disturbances``, each under a key of its choice (the key is its
+name in errors and metrics; ``kind`` defaults to the key)::
+
+    disturbances:
+      dryden: {speed: 5.0}                   # kind: dryden
+      gps: {kind: sensing_noise, pos_std: [2.1, 2.1, 4.2]}
+
+Each model acts in one phase of the tick (:data:`PHASES`); the kernel calls the models of a phase
+in the order of their keys (sorted), so a composition does not depend on how Hydra merged it.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..fields import StrictModel
+
+PHASES = ("sense", "communicate", "wind")
+"""sense: what each agent measures of itself; communicate: what the others receive of it;
+wind: the air's force on every vehicle, each physics step."""
+
+STREAM = 0x18D15
+"""Spawn key of the disturbances' random streams: model ``key`` draws from
+``SeedSequence(seed, spawn_key=(STREAM, crc32(key)))``, never from the run's generator, so a
+scenario without disturbances keeps its random stream and adding one model leaves the others'
+draws unchanged."""
+
+
+class DisturbanceParams(StrictModel):
+    """Base of every disturbance model's options (unknown keys, NaN, booleans for numbers refused)."""
+
+
+@dataclass(frozen=True)
+class DisturbanceContext:
+    """What a disturbance model may know when it is built.
+
+    Attributes:
+        key: its key under ``disturbances``.
+        n: number of agents.
+        guidance_period: T_s, s.
+        physics_step: s.
+        comm_range: m.
+        rng: the model's own generator (see :data:`STREAM`).
+    """
+
+    key: str
+    n: int
+    guidance_period: float
+    physics_step: float
+    comm_range: float
+    rng: np.random.Generator
+
+
+def model_rng(seed: int, key: str) -> np.random.Generator:
+    """The generator of model ``key`` in a run seeded ``seed`` (independent of the run's)."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM, zlib.crc32(key.encode()))))
+
+
+class Disturbance:
+    """A disturbance model: subclasses set ``kind``, ``phase``, ``Params`` and their phase's method.
+
+    sense:        ``sense(world, pos, vel) -> (pos, vel)``: each agent's estimate of its own state,
+                  from the truth (``world``) and the estimate of the models before it.
+    communicate:  ``communicate(world, pos, vel) -> (pos, vel)``: the swarm's picture of every agent
+                  (what the others received of it), from the agents' own estimates.
+    wind:         ``air(world, t) -> (N, 3)``: the air's velocity at each agent at time ``t``, m/s,
+                  for the physics step starting then (summed over the wind models).
+    Every model may add metrics (``metrics() -> dict``, keys without prefix; the engine prefixes
+    ``disturbances.<key>.``).
+    """
+
+    kind: ClassVar[str]
+    phase: ClassVar[str]
+    Params: ClassVar[type[DisturbanceParams]] = DisturbanceParams
+
+    def __init__(self, params: DisturbanceParams, ctx: DisturbanceContext) -> None:
+        self.params = params
+        self.ctx = ctx
+        self.rng = ctx.rng
+
+    def metrics(self) -> dict[str, Any]:
+        return {}

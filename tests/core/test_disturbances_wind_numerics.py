@@ -1,0 +1,96 @@
+"""Wind numerics against independent references: the Dryden spectra (MIL-F-8785C) by Welch's
+method, the filters' variances, the exact 1-cosine gust shape, and the scale formulas."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.signal import welch
+
+from swarmscene.core.disturbances.atmosphere import (
+    FT, DrydenFilters, dryden_psd, dryden_scales, log_profile, one_minus_cosine)
+
+FS = 20.0          # Hz, sampling of the generated series
+AGENTS = 64        # independent realisations averaged
+STEPS = 2**15      # samples per realisation (1638 s)
+NPERSEG = 2048     # Welch segment (102 s; 31 segments per realisation, 1984 in all)
+
+
+@pytest.fixture(scope="module")
+def series():
+    h = 10.0  # m
+    L, sigma = dryden_scales(np.full(AGENTS, h), w20=8.0)
+    V = np.full(AGENTS, 5.0)
+    rng = np.random.default_rng(12)
+    filters = DrydenFilters(AGENTS, rng, L, sigma, V)
+    out = np.empty((STEPS, AGENTS, 3))
+    for k in range(STEPS):
+        out[k] = filters.step(1.0 / FS, L, sigma, V)
+    return out, L[0], sigma[0], 5.0
+
+
+def test_scales_are_the_standard_formulas():
+    L, sigma = dryden_scales(np.array([100 * FT]), w20=15 * 0.514444)
+    base = 0.177 + 0.000823 * 100
+    assert L[0, 0] == pytest.approx(100 / base**1.2 * FT, rel=1e-12)
+    assert L[0, 2] == pytest.approx(100 * FT, rel=1e-12)
+    assert sigma[0, 2] == pytest.approx(0.1 * 15 * 0.514444, rel=1e-12)
+    assert sigma[0, 0] == pytest.approx(sigma[0, 2] / base**0.4, rel=1e-12)
+    # the mean-wind profile equals W20 at 20 ft
+    assert log_profile(np.array([20 * FT]), 7.0)[0] == pytest.approx(7.0, rel=1e-12)
+
+
+def test_variances_match_the_intensities(series):
+    # each sample is exactly N(0, sigma^2) (stationary start, exact discretisation); 2.1e6
+    # correlated samples: the relative standard error of the variance is ~ sqrt(2 T fs / n) < 2 %
+    out, _, sigma, _ = series
+    var = out.reshape(-1, 3).var(axis=0)
+    np.testing.assert_allclose(var, sigma**2, rtol=0.05)
+
+
+@pytest.mark.parametrize("axis, component", [(0, "u"), (1, "v"), (2, "w")])
+def test_dryden_spectra_match_the_analytic_ones(series, axis, component):
+    """Welch estimate (Hann, 50 % overlap, 1984 segments) against S(f) = 2 pi Phi(2 pi f / V) / V.
+
+    Tolerance: each Welch bin averages ~1984 segments (relative standard deviation ~2.4 %); the
+    ratio is pooled over seven log-spaced bands of >= 3 bins (0.05 to 2 Hz), so a band's statistical error is ~1-2 %;
+    Welch's leakage on the f^-2 slope and aliasing from above fs/2 stay below ~1 % up to
+    fs / 10 = 2 Hz. A band may therefore deviate by 6 % (3-4 standard errors plus bias), and
+    the mean over all bands by 3 %.
+    """
+    out, L, sigma, V = series
+    f, pxx = welch(out[:, :, axis], fs=FS, nperseg=NPERSEG, axis=0)
+    pxx = pxx.mean(axis=1)
+    expected = dryden_psd(f, L[axis], sigma[axis], V, component)
+    edges = np.geomspace(0.05, 2.0, 8)
+    ratios = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        band = (f >= lo) & (f < hi)
+        assert band.sum() >= 3
+        ratios.append(pxx[band].sum() / expected[band].sum())
+    ratios = np.array(ratios)
+    assert np.all(np.abs(ratios - 1.0) < 0.06), ratios
+    assert abs(ratios.mean() - 1.0) < 0.03
+
+
+def test_spectra_integrate_to_the_variance():
+    f = np.linspace(0.0, 2000.0, 2_000_001)
+    for c in "uvw":
+        s = dryden_psd(f, 30.0, 1.2, 4.0, c)
+        assert np.trapezoid(s, f) == pytest.approx(1.44, rel=2e-3)
+
+
+def test_one_minus_cosine_gust_is_exact():
+    t = np.linspace(0.0, 10.0, 1001)
+    start, rise = 2.0, 1.5
+    shape = one_minus_cosine(t, start, rise, None)
+    tau = t - start
+    ref = np.where(tau < 0, 0.0, np.where(tau <= rise, 0.5 * (1 - np.cos(np.pi * tau / rise)), 1.0))
+    np.testing.assert_array_equal(shape, ref)
+    # hold = 0: the CS-25 pulse U/2 (1 - cos(pi s / H)) over 0 <= s <= 2H, zero after
+    pulse = one_minus_cosine(t, start, rise, 0.0)
+    ref = np.where((tau >= 0) & (tau <= 2 * rise), 0.5 * (1 - np.cos(np.pi * tau / rise)), 0.0)
+    np.testing.assert_allclose(pulse, ref, atol=1e-15)
+    assert one_minus_cosine(start + rise, start, rise, 0.0) == 1.0
+    held = one_minus_cosine(np.array([start + rise + 3.0, start + 2 * rise + 3.0]), start, rise, 3.0)
+    np.testing.assert_allclose(held, [1.0, 0.0], atol=1e-15)
