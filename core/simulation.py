@@ -73,6 +73,11 @@ class Simulation:
         self.environment = Environment(scenario.obstacles, name=cfg.environment.name)
         self.world = WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader)
         self.events = EventQueue.from_config(cfg.events)
+        self.disturbances = Disturbances(
+            scenario.disturbances, cfg.seed, cfg.swarm.n, self.guidance_period, self.physics_step,
+            cfg.comm.range,
+            lambda world, previous: Sensing(world, self.environment, cfg.comm.range, previous),
+        )
         ctx = BuildContext(
             n=cfg.swarm.n,
             guidance_period=self.guidance_period,
@@ -84,7 +89,7 @@ class Simulation:
             environment=self.environment,
             rng=self.rng,
             initial=WorldState.at_rest(self.world.pos, leader=cfg.swarm.leader),
-            link_delay=self._link_delay(),
+            link_delay=self.disturbances.link_delay(),
         )
         self.formation: Formation = self._build("formation", ctx)
         self.avoidance: Avoidance = self._build("avoidance", ctx)
@@ -94,30 +99,13 @@ class Simulation:
         self._refuse_start_outside_periodic_box()
         self._wrap_periodic()
         self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
-        self.disturbances = Disturbances(
-            scenario.disturbances, cfg.seed, cfg.swarm.n, self.guidance_period, self.physics_step,
-            cfg.comm.range, self.dynamics,
-            lambda world, previous: Sensing(world, self.environment, cfg.comm.range, previous),
-            self.formation,
-        )
+        self.disturbances.attach(self.formation, self.dynamics)
         if self.disturbances.active:
             self.pm.register(self.disturbances, name="disturbances")
         self.step_seconds = np.zeros(self.total_steps)
         self.observers = [cls(self) for cls in observers]
         for obj in self.observers:
             self.pm.register(obj)
-
-    def _link_delay(self) -> Any:
-        """The declared per-link delay model (``comm_delay`` disturbances), or None."""
-        from .disturbances.comm import CommDelay
-
-        delays = [(k, p) for k, (cls, p) in self.scenario.disturbances.items() if cls is CommDelay]
-        if not delays:
-            return None
-        from .disturbances.comm import numerics
-
-        tau = sum(p.tau for _, p in delays)  # delays add along a link
-        return lambda hops: numerics.hop_delay_ticks(hops, tau, self.guidance_period)
 
     def _build(self, kind: str, ctx: BuildContext) -> Any:
         try:

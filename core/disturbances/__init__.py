@@ -111,21 +111,22 @@ class Disturbances:
         models: from :func:`validate_disturbances`.
         seed: the run's seed (each model draws from its own stream, :func:`~.base.model_rng`).
         n, guidance_period, physics_step, comm_range: the scenario's.
-        dynamics: the chosen dynamics instance (its ``wind_coupling`` and drag, see
-            :class:`~swarmscene.core.plugin.Dynamics`).
         make_sensing: builds a Sensing over a world, given the previous one (the kernel's).
     """
 
     def __init__(self, models: dict[str, tuple[type[Disturbance], DisturbanceParams]], seed: int, n: int,
-                 guidance_period: float, physics_step: float, comm_range: float, dynamics: Any,
-                 make_sensing: Any, formation: Any = None) -> None:
+                 guidance_period: float, physics_step: float, comm_range: float,
+                 make_sensing: Any) -> None:
         self.models: dict[str, Disturbance] = {}
         for key, (cls, params) in models.items():
             ctx = DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))
             self.models[key] = cls(params, ctx)
         self.by_phase = {phase: [m for m in self.models.values() if m.phase == phase] for phase in PHASES}
         self.active = bool(self.models)
-        self.dynamics = dynamics
+        self.has_wind = bool(self.by_phase["wind"])
+        self.perceives = bool(self.by_phase["sense"] or self.by_phase["communicate"])
+        self.dynamics: Any = None
+        self.shared_picture = True
         self.make_sensing = make_sensing
         self._sensing = self._own_sensing = None
         # one vehicle property declared on each wind model: the one of largest magnitude holds
@@ -133,7 +134,6 @@ class Disturbances:
         self.moment_arm = max(arms, key=abs, default=0.0)
         self.channel = ChannelModels([m for m in self.by_phase["communicate"] if isinstance(m, CommDelay)],
                                      [m for m in self.by_phase["communicate"] if isinstance(m, PacketLoss)])
-        self.shared_picture = not getattr(formation, "models_communication", False)
         self._acc: np.ndarray | None = None
         self.wind_peak = 0.0
         self.wind_sum = 0.0
@@ -141,10 +141,30 @@ class Disturbances:
         self.sense_sq = 0.0
         self.sense_count = 0
 
+    def attach(self, formation: Any, dynamics: Any) -> None:
+        """The run's chosen plugins: the dynamics' ``wind_coupling`` and drag
+        (:class:`~swarmscene.core.plugin.Dynamics`), and whether the formation models its links."""
+        self.dynamics = dynamics
+        self.shared_picture = not getattr(formation, "models_communication", False)
+
+    def link_delay(self) -> Any:
+        """``hops (N, N) -> ticks (N, N)``: the declared delay models per link, summed (-1 where
+        unreachable); ``None`` when no ``comm_delay`` is declared (``BuildContext.link_delay``)."""
+        models = [m for m in self.by_phase["communicate"] if isinstance(m, CommDelay)]
+        if not models:
+            return None
+
+        def delay(hops: np.ndarray) -> np.ndarray:
+            ticks = [m.link_delay(hops) for m in models]
+            total = np.sum(ticks, axis=0)
+            return np.where(np.isfinite(hops), total, -1).astype(np.int64)
+
+        return delay
+
     # -- sense and communicate ------------------------------------------------------------
     def perceive(self, world: WorldState, sensing: Any) -> Perceived:
         """The sense and communicate phases: the views of this tick (the truth when inactive)."""
-        if not (self.by_phase["sense"] or self.by_phase["communicate"]):
+        if not self.perceives:
             return Perceived(world, sensing, world)
         pos, vel = world.pos, world.vel
         for model in self.by_phase["sense"]:
@@ -167,7 +187,7 @@ class Disturbances:
     def blow(self, world: WorldState, t: float) -> None:
         """The wind phase, before a physics step starting at ``t``: ``world.wind``, the air's
         velocity at each agent (N, 3) m/s, summed over the wind models."""
-        if not self.by_phase["wind"]:
+        if not self.has_wind:
             return
         air = self.by_phase["wind"][0].air(world, t)
         for model in self.by_phase["wind"][1:]:
@@ -189,7 +209,7 @@ class Disturbances:
         carried: p += w dt, v += w (a kinematic model flies relative to the air);
         integrated: nothing (the model read ``world.wind`` in its step).
         """
-        if not self.by_phase["wind"]:
+        if not self.has_wind:
             return
         coupling = self.dynamics.wind_coupling
         if coupling == "force":

@@ -67,8 +67,18 @@ class CommDelay(Disturbance):
         return np.ceil(np.nan_to_num(mean, nan=0.0) - 1e-9).astype(np.int64)
 
     def link_delay(self, hops: np.ndarray) -> np.ndarray:
-        """Per-link delays, ticks, of hop distances ``hops`` (thesis 4.2)."""
-        return numerics.hop_delay_ticks(hops, self.tau_com, self.T_s)
+        """Per-link delays, ticks, of hop distances ``hops`` (N, N) (inf: unreachable, -1 out):
+        hops: ceil(h tau_com / T_s) (thesis 4.2); fixed: ceil(tau / T_s) on every reachable link;
+        random: a new draw per link at each call (a plugin calls it when its graph changes)."""
+        p = self.params
+        if p.model == "hops":
+            return numerics.hop_delay_ticks(hops, p.tau, self.T_s)
+        reachable = np.isfinite(hops)
+        if p.model == "fixed":
+            ticks = np.full(hops.shape, numerics.fixed_delay_ticks(p.tau, self.T_s))
+        else:
+            ticks = numerics.random_delay_ticks(self.rng, hops.shape, p.tau, p.jitter, self.T_s)
+        return np.where(reachable, ticks, -1).astype(np.int64)
 
 
 class PacketLoss(Disturbance):

@@ -24,17 +24,23 @@ Choices where the text is loose:
   members: healthy agents with a working radio, exactly the engine's ``Sensing.comm_members``):
   a message in flight to an agent that has just been cut off is lost.
 - Expiry: an entry is present while its age k - stamp is at most T_msg / T_s ticks.
+
+The per-link delays are the engine's delay model (:mod:`swarmscene.core.disturbances.links`,
+``hop_delay_ticks``: the same ceil(h tau_com / T_s)), or the scenario's declared ``comm_delay``
+disturbance when the plugin is given one (``link_delay``).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 from scipy.spatial.distance import pdist, squareform
 
+from swarmscene.core.disturbances.links import hop_delay_ticks
 from swarmscene.methods.outdoor.apf_navigation import LEVEL_BAND, collision_gain
 
 NO_ENTRY = -1
@@ -96,11 +102,15 @@ class SwarmMap:
         swarm_id: (N,) swarm identifier of each agent (messages of other swarms are dropped);
             None: all in swarm 0.
         self_hops: hops through which an agent's own message reaches its own map (see module).
+        link_delay: ``hops (N, N) -> ticks (N, N)`` (-1: unreachable), the engine's declared delay
+            model (``BuildContext.link_delay``); None: hop-proportional at ``tau_com``.
     """
 
     def __init__(self, n: int, T_s: float, tau_com: float, T_msg: float,
-                 swarm_id: np.ndarray | None = None, self_hops: int = 1) -> None:
+                 swarm_id: np.ndarray | None = None, self_hops: int = 1,
+                 link_delay: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         self.n, self.T_s, self.tau_com, self.T_msg = n, T_s, tau_com, T_msg
+        self.link_delay = link_delay or (lambda hops: hop_delay_ticks(hops, tau_com, T_s))
         self.msg_ticks = int(math.floor(T_msg / T_s + 1e-9))
         self.depth = self.msg_ticks + 1
         self.swarm_id = np.zeros(n, dtype=int) if swarm_id is None else np.asarray(swarm_id)
@@ -148,11 +158,11 @@ class SwarmMap:
         return self.h_kin[self.row, 6:9]
 
     def delay_ticks(self, hops: np.ndarray) -> np.ndarray:
-        """ceil(hops tau_com / T_s) as int, with -1 where unreachable (inf hops)."""
+        """The link delays, ticks, -1 where unreachable (inf hops): by default ceil(hops tau_com
+        / T_s) (section 4.2), an agent's own message taking ``self_hops`` hops."""
         hops = np.array(hops, dtype=float, copy=True)
         np.fill_diagonal(hops, np.where(np.isfinite(np.diag(hops)), self.self_hops, np.inf))
-        ticks = np.ceil(hops * self.tau_com / self.T_s - 1e-9)
-        return np.where(np.isfinite(ticks), ticks, -1).astype(np.int64)
+        return self.link_delay(hops)
 
     def broadcast(self, k: int, sending: np.ndarray, state: np.ndarray, pos: np.ndarray,
                   vel: np.ndarray, u: np.ndarray) -> None:

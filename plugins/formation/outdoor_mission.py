@@ -211,6 +211,7 @@ class OutdoorMission(Formation):
     name = "outdoor_mission"
     metric_prefix = "outdoor"
     requires_leader = True
+    models_communication = True  # its swarm maps apply per-link delays (ctx.link_delay or tau_com)
 
     class Params(PluginParams):
         d_r: float = Field(5.0, gt=0, description="formation spacing d_r, m (Table 4.3)")
@@ -231,7 +232,9 @@ class OutdoorMission(Formation):
         T_del: float = Field(5.0, ge=0, description="catch-up delay, s")
         T_for: float = Field(40.0, ge=0, description="formation delay (followers to FLOW), s")
         T_end: float = Field(10.0, ge=0, description="end delay (followers to STOP), s")
-        tau_com: float = Field(0.2, ge=0, description="single-hop delay tau_com, s (thesis ~0.2)")
+        tau_com: float = Field(
+            0.2, ge=0, description="single-hop delay tau_com, s (thesis ~0.2), of the engine's hop "
+            "delay model; a declared comm_delay disturbance replaces it")
         self_hops: int = Field(1, ge=0, description="hops of an agent's own message to its own map")
         level_offset: float = Field(1.0, description="navigation flight level above target, in d_c")
         altitude_gain: float = Field(1.0, gt=0, description="vertical speed per m on the flight level, 1/s")
@@ -247,7 +250,8 @@ class OutdoorMission(Formation):
         self.home = ctx.initial.pos.copy()
         self.pattern = hex_pattern(n, p.d_r, np.deg2rad(p.alpha_deg))
         self.edges = np.array(formation_graph(self.pattern).edges(), dtype=int).reshape(-1, 2)
-        self.map = SwarmMap(n, self.T_s, p.tau_com, p.T_msg, self_hops=p.self_hops)
+        self.map = SwarmMap(n, self.T_s, p.tau_com, p.T_msg, self_hops=p.self_hops,
+                            link_delay=ctx.link_delay)
         self.task = np.full(n, Task.INIT, dtype=np.int8)
         self.task[leader] = Task.LEAD
         self.is_follower = np.arange(n) != leader
