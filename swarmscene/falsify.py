@@ -1,0 +1,253 @@
+"""Falsification: search a scenario's disturbance space for the failure that breaks the swarm.
+
+The falsification tools for cyber-physical systems (S-TaLiRo, Breach, VerifAI) turn "find a
+counter-example" into an optimisation: the property's *robustness* rho (a real number, positive
+when the property holds with margin, negative when it is violated, its magnitude how far) is
+minimised over the disturbances, and the first run with rho < 0 is a counter-example. For the
+swarm's separation property, always ||p_i(t) - p_j(t)|| >= d_sep, the robustness of a run is
+
+    rho = min_t min_{i<j} ||p_i(t) - p_j(t)|| - d_sep = min_separation - safety.separation_limit
+
+(the spatial robustness of the signal temporal logic formula G (sep >= d_sep), Fainekos and
+Pappas 2009; S-TaLiRo minimises it). Minimising ``min_separation`` is minimising rho, so
+a violating run ranks below every safe one, the deepest violation first.
+
+``+sweep=falsify`` (scenarios/sweep/falsify.yaml) runs this with Hydra's Optuna sweeper (TPE),
+``+sweep=falsify_random`` the same budget with Optuna's RandomSampler. Two pieces live here:
+
+- :func:`failure_search_space`, the sweeper's ``custom_search_space``: it adds the parts of the
+  search space that depend on the composed scenario (the failure time, 0 ... ``clock.duration``,
+  and the failing agent, 0 ... ``swarm.n`` - 1); the rest (wind, packet loss) is named in the
+  preset's ``hydra.sweeper.params`` by its config key;
+- :class:`WorstCase`, a Hydra callback that at the end of the study ranks the trials by rho and
+  writes the worst one as a runnable scenario file (``worst_case.yaml``: the trial's effective
+  configuration, every default resolved, so it reproduces the run exactly) and its record
+  (``worst_case.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+try:
+    from hydra.experimental.callback import Callback as _Callback
+except ImportError:  # pragma: no cover - hydra-core is a dependency
+    _Callback = object
+
+FAILURE_TIME = "events.0.at"
+"""Override key of the searched failure's time, s."""
+FAILURE_AGENT = "events.0.agents.0"
+"""Override key of the searched failure's agent index."""
+WORST_CASE_FILE = "worst_case.yaml"
+WORST_CASE_RECORD = "worst_case.json"
+
+
+# -- the search space ---------------------------------------------------------------------------
+def failure_search_space(config: Any, trial: Any) -> None:
+    """The scenario-dependent part of the falsifier's search space (``custom_search_space``).
+
+    Called by Hydra's Optuna sweeper for every trial, after the ``hydra.sweeper.params``
+    distributions were drawn. Adds the failure time ``events.0.at`` ~ U[0, ``clock.duration``] s
+    and the failing agent ``events.0.agents.0`` among 0 ... ``swarm.n`` - 1 (categorical: agent
+    indices have no order that a sampler could exploit), each unless the params or the command
+    line already name it.
+
+    Args:
+        config: the study's composed config (the chosen scenario, hydra node included).
+        trial: the Optuna trial being configured; its params become the job's overrides.
+
+    Raises:
+        ConfigError: one line when the config holds no event with a list of agents to search.
+    """
+    # The command line spells a plain value `++key=...` (swarmscene.searchpath.plain_overrides).
+    taken = {name.lstrip("+~") for name in (*trial.params, *trial.user_attrs)}
+    duration, n = failure_bounds(config)
+    if FAILURE_TIME not in taken:
+        trial.suggest_float(FAILURE_TIME, 0.0, duration)
+    if FAILURE_AGENT not in taken:
+        trial.suggest_categorical(FAILURE_AGENT, list(range(n)))
+
+
+def failure_bounds(config: Any) -> tuple[float, int]:
+    """(``clock.duration``, ``swarm.n``) of the composed config, checked to hold a searchable event."""
+    from .core.errors import ConfigError
+
+    events = config.get("events") or []
+    agents = events[0].get("agents") if len(events) else None
+    if agents is None or isinstance(agents, (str, int, float)) or hasattr(agents, "keys") or not len(agents):
+        shown = list(events) if len(events) else "[]"
+        raise ConfigError([
+            f"events: the falsifier searches the first event's time and agent, so it needs one with a "
+            f"list of agents, e.g. {{at: 2.0, agents: [0], kind: hover}} (got {shown})"
+        ])
+    return float(config.clock.duration), int(config.swarm.n)
+
+
+# -- the verdict --------------------------------------------------------------------------------
+def robustness(min_separation: float | None, separation_limit: float) -> float:
+    """rho = min_separation - d_sep, m: negative when the run violated separation (NaN: no value)."""
+    if min_separation is None:
+        return math.nan
+    return float(min_separation) - float(separation_limit)
+
+
+@dataclass
+class Trial:
+    """One trial of the study, read back from its run directory."""
+
+    trial: int
+    """job number in the sweep directory (= Optuna's trial number)"""
+    overrides: list[str]
+    """the trial's overrides: the searched values, and the command line's"""
+    status: str
+    """``complete``, or why not (``failed``: the run blew up, error.json says how)"""
+    min_separation: float | None = None
+    """m, the run's smallest distance between two agents"""
+    separation_limit: float | None = None
+    """m, ``safety.separation_limit``"""
+    robustness: float = math.nan
+    """m, rho = min_separation - separation_limit"""
+    first_violation: float | None = None
+    """s, ``violations.separation.first_time`` (null: separation held)"""
+    violation_agents: list[int] = field(default_factory=list)
+    """the agents involved at that time"""
+
+    @property
+    def rank_key(self) -> tuple[float, float]:
+        """Worst first: the smallest rho, then the earliest violation; trials without a value last."""
+        rho = math.inf if math.isnan(self.robustness) else self.robustness
+        return (rho, math.inf if self.first_violation is None else self.first_violation)
+
+
+def read_trial(run_dir: Path) -> Trial:
+    """The trial of one run directory (its overrides, metrics and limit)."""
+    import yaml
+
+    overrides_file = run_dir / ".hydra" / "overrides.yaml"
+    overrides = yaml.safe_load(overrides_file.read_text()) if overrides_file.is_file() else []
+    metrics = _read_json(run_dir / "metrics.json")
+    manifest = _read_json(run_dir / "manifest.json") or {}
+    config_file = run_dir / "config.yaml"
+    config = yaml.safe_load(config_file.read_text()) if config_file.is_file() else {}
+    status = manifest.get("status") or ("complete" if manifest.get("complete") else "unfinished")
+    trial = Trial(trial=int(run_dir.name), overrides=list(overrides or []), status=status)
+    if metrics is None or status != "complete":
+        return trial
+    trial.min_separation = metrics.get("min_separation")
+    trial.separation_limit = float(config["safety"]["separation_limit"])
+    trial.robustness = robustness(trial.min_separation, trial.separation_limit)
+    trial.first_violation = metrics.get("violations.separation.first_time")
+    trial.violation_agents = list(metrics.get("violations.separation.agents") or [])
+    return trial
+
+
+def read_trials(sweep_dir: Path) -> list[Trial]:
+    """Every trial of a study's sweep directory, in trial order."""
+    from .sweep import job_dirs
+
+    return [read_trial(d) for d in job_dirs(Path(sweep_dir)) if d.name.isdigit()]
+
+
+def worst(trials: list[Trial]) -> Trial | None:
+    """The worst complete trial (smallest rho, then earliest violation; the first of equals)."""
+    done = [t for t in trials if not math.isnan(t.robustness)]
+    return min(done, key=lambda t: (t.rank_key, t.trial)) if done else None
+
+
+def running_worst(trials: list[Trial]) -> list[float | None]:
+    """The smallest min_separation found after each trial (the study's progress curve), m."""
+    out: list[float | None] = []
+    best: float | None = None
+    for t in sorted(trials, key=lambda t: t.trial):
+        if t.min_separation is not None and (best is None or t.min_separation < best):
+            best = float(t.min_separation)
+        out.append(best)
+    return out
+
+
+# -- the worst case as a scenario file ------------------------------------------------------------
+def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmscene") -> dict[str, Any] | None:
+    """Write ``worst_case.yaml`` and ``worst_case.json`` in ``sweep_dir``; return the record.
+
+    ``worst_case.yaml`` is the worst trial's ``config.yaml`` (its effective configuration: the
+    searched values in place, every default resolved) under a comment saying how to run it;
+    ``worst_case.json`` records the trial, its searched values, rho, the first violation, the
+    number of trials and the progress curve. None (nothing written) when no trial completed.
+    """
+    sweep_dir = Path(sweep_dir)
+    trials = read_trials(sweep_dir)
+    found = worst(trials)
+    if found is None:
+        return None
+    run = sweep_dir / str(found.trial)
+    reproduce = f"{command} --config-path {sweep_dir} --config-name {Path(WORST_CASE_FILE).stem}"
+    record = {
+        "trial": found.trial,
+        "run_dir": str(run),
+        "sampler": sampler,
+        "trials": len(trials),
+        "complete": sum(t.status == "complete" for t in trials),
+        "failed": [t.trial for t in trials if t.status == "failed"],
+        "violated": found.robustness < 0,
+        "violating_trials": sum(t.robustness < 0 for t in trials),
+        "first_violating_trial": next((t.trial for t in sorted(trials, key=lambda t: t.trial) if t.robustness < 0), None),
+        **{k: v for k, v in asdict(found).items() if k not in ("trial",)},
+        "running_worst": running_worst(trials),
+        "reproduce": reproduce,
+    }
+    verdict = (
+        f"separation violated at t = {found.first_violation:.2f} s by agents {found.violation_agents}"
+        if found.first_violation is not None else "separation held"
+    )
+    header = [
+        f"# The worst case of the falsification study in {sweep_dir} ({sampler or 'Optuna'}, {len(trials)} trials):",
+        f"# trial {found.trial}: {' '.join(found.overrides)}",
+        f"# min separation {found.min_separation:.6g} m (limit {found.separation_limit:g} m, "
+        f"robustness {found.robustness:+.6g} m); {verdict}.",
+        "# The trial's effective configuration (every default resolved). Run it again:",
+        f"#   {reproduce}",
+    ]
+    body = (run / "config.yaml").read_text().splitlines(keepends=True)
+    while body and body[0].startswith("#"):  # the run's own header names its own directory
+        body.pop(0)
+    (sweep_dir / WORST_CASE_FILE).write_text("\n".join(header) + "\n" + "".join(body))
+    (sweep_dir / WORST_CASE_RECORD).write_text(json.dumps(record, indent=2) + "\n")
+    return record
+
+
+class WorstCase(_Callback):
+    """Hydra callback of ``+sweep=falsify`` (``hydra.callbacks.swarmscene_falsify``).
+
+    At the end of the study it writes the worst case (:func:`write_worst_case`) and prints one
+    line: the trial, its min separation against the limit, the first violation, and the command
+    that runs it again.
+    """
+
+    def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        sweep_dir = Path(config.hydra.sweep.dir)
+        sampler = str(config.hydra.sweeper.sampler.get("_target_", "")).rpartition(".")[2]
+        record = write_worst_case(sweep_dir, sampler)
+        if record is None:
+            print(f"swarmscene: falsify: no trial completed in {sweep_dir}", file=sys.stderr)
+            return
+        when = (f"separation first violated at t = {record['first_violation']:.2f} s by agents "
+                f"{record['violation_agents']}" if record["violated"] else "separation held in every trial")
+        print(
+            f"swarmscene: falsify: worst of {record['trials']} trials is trial {record['trial']} "
+            f"({' '.join(record['overrides'])}): min separation {record['min_separation']:.4g} m, limit "
+            f"{record['separation_limit']:g} m, robustness {record['robustness']:+.4g} m; {when}. "
+            f"Run it: {record['reproduce']}",
+            file=sys.stderr,
+        )
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None

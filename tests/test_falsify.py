@@ -1,0 +1,144 @@
+"""The falsifier (+sweep=falsify): its search space, its ranking, and the worst case it writes.
+
+The end-to-end test searches the CEM six-vehicle case's known counter-example: the lead failing at
+t = 20 s, when the formation is near its goal, is reached by agent 4 (the sink of agent 4's flow
+lies inside the failed vehicle's exclusion zone, which the paper's Theorem 2 assumes away), while
+a failure at t = 10 s keeps the nominal 1.35 m. The worst case must be the violating trial and its
+scenario file must reproduce that run to the bit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from swarmscene import api, falsify
+from swarmscene.core.errors import ConfigError
+
+EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
+TIMING = ("wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median")
+
+
+def composed(*overrides: str):
+    from omegaconf import OmegaConf
+
+    return OmegaConf.create(api.compose(["+sweep=falsify", *overrides]))
+
+
+def hydra_node(*overrides: str):
+    from hydra import compose, initialize_config_module
+
+    from swarmscene.searchpath import register_search_path
+
+    register_search_path()
+    with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides), return_hydra_config=True).hydra
+
+
+def new_trial():
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    return optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0)).ask()
+
+
+@pytest.mark.parametrize("scenario, duration, n", [("cem_six_vehicle", 40.0, 6), ("outdoor_square", 400.0, 8)])
+def test_the_failure_is_searched_over_the_run_and_every_agent_of_the_scenario(scenario, duration, n):
+    config = composed(f"scenario={scenario}")
+    assert [dict(e) for e in config.events] == [{"at": 2.0, "agents": [0], "kind": "hover"}]  # the preset's
+    trial = new_trial()
+    falsify.failure_search_space(config, trial)
+    time, agent = trial.distributions[falsify.FAILURE_TIME], trial.distributions[falsify.FAILURE_AGENT]
+    assert (time.low, time.high) == (0.0, duration)
+    assert tuple(agent.choices) == tuple(range(n))
+    assert 0.0 <= trial.params[falsify.FAILURE_TIME] <= duration and trial.params[falsify.FAILURE_AGENT] in range(n)
+
+
+def test_a_key_the_params_or_command_line_name_is_left_to_them():
+    trial = new_trial()
+    trial.suggest_float("++events.0.at", 20.0, 22.0)  # the command line's spelling of events.0.at
+    trial.set_user_attr("seed", 3)
+    falsify.failure_search_space(composed("scenario=cem_six_vehicle"), trial)
+    assert set(trial.params) == {"++events.0.at", falsify.FAILURE_AGENT}
+
+
+def test_a_scenario_without_a_searchable_event_is_one_line():
+    config = composed("scenario=cem_six_vehicle")
+    config.events = []
+    with pytest.raises(ConfigError) as exc:
+        falsify.failure_search_space(config, new_trial())
+    assert exc.value.lines == [
+        "events: the falsifier searches the first event's time and agent, so it needs one with a list of "
+        "agents, e.g. {at: 2.0, agents: [0], kind: hover} (got [])"
+    ]
+    config.events = [{"at": 2.0, "agents": {"sample": 1}, "kind": "hover"}]
+    with pytest.raises(ConfigError, match=r"\(got \[\{'at': 2.0, 'agents': \{'sample': 1\}, 'kind': 'hover'\}\]\)"):
+        falsify.failure_search_space(config, new_trial())
+
+
+def test_robustness_ranks_a_violation_worst_and_the_deepest_first():
+    def trial(k, sep, first=None):
+        t = falsify.Trial(trial=k, overrides=[], status="complete", min_separation=sep, separation_limit=0.5)
+        t.robustness, t.first_violation = falsify.robustness(sep, 0.5), first
+        return t
+
+    assert falsify.robustness(0.3, 0.5) == pytest.approx(-0.2) and math.isnan(falsify.robustness(None, 0.5))
+    trials = [trial(0, 1.2), trial(1, 0.4, 9.0), trial(2, 0.1, 7.0), trial(3, 0.1, 5.0), trial(4, 0.6),
+              falsify.Trial(trial=5, overrides=[], status="failed")]
+    assert falsify.worst(trials).trial == 3  # rho -0.4 twice: the earlier violation is worse
+    assert falsify.worst(trials[:2] + trials[4:]).trial == 1  # the only violation beats any safe run
+    assert falsify.worst(trials[5:]) is None
+    assert falsify.running_worst(trials) == [1.2, 0.4, 0.1, 0.1, 0.1, 0.1]
+
+
+def test_the_random_baseline_is_the_same_study_with_optunas_random_sampler():
+    tpe, random = hydra_node("+sweep=falsify"), hydra_node("+sweep=falsify_random")
+    assert tpe.sweeper.sampler._target_ == "optuna.samplers.TPESampler"
+    assert random.sweeper.sampler._target_ == "optuna.samplers.RandomSampler"
+    for key in ("n_trials", "direction", "custom_search_space", "params", "n_jobs"):
+        assert tpe.sweeper[key] == random.sweeper[key]
+    assert tpe.sweeper.n_trials == 100 and tpe.callbacks.swarmscene_falsify == random.callbacks.swarmscene_falsify
+
+
+def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_path):
+    study = tmp_path / "study"
+    # Two trials of the random baseline, the agent fixed to the lead; its seed 0 draws both times.
+    proc = subprocess.run(
+        [*EXE, "+sweep=falsify_random", "scenario=cem_six_vehicle", "hydra.sweeper.n_trials=2",
+         '+hydra.sweeper.params={events.0.at: "choice(10.0,20.0)"}', "events.0.agents.0=0",
+         "output.trajectory=false", f"hydra.sweep.dir={study}"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    runs = {float(yaml.safe_load((study / str(k) / "config.yaml").read_text())["events"][0]["at"]): k for k in (0, 1)}
+    assert set(runs) == {10.0, 20.0}, "the sampler's seed 0 no longer draws both candidates: choose another"
+    bad = json.loads((study / str(runs[20.0]) / "metrics.json").read_text())
+    safe = json.loads((study / str(runs[10.0]) / "metrics.json").read_text())
+    assert safe["min_separation"] > 0.56 > bad["min_separation"]
+
+    record = json.loads((study / falsify.WORST_CASE_RECORD).read_text())
+    assert record["trial"] == runs[20.0] and record["trials"] == 2 and record["violated"] is True
+    assert record["min_separation"] == bad["min_separation"]
+    assert record["robustness"] == bad["min_separation"] - 0.56
+    assert record["first_violation"] == bad["violations.separation.first_time"]
+    assert record["violation_agents"] == bad["violations.separation.agents"] == [0, 4]
+    assert record["violating_trials"] == 1 and record["running_worst"][-1] == bad["min_separation"]
+    reproduce = f"swarmscene --config-path {study} --config-name worst_case"
+    assert record["reproduce"] == reproduce
+    assert f"Run it: {reproduce}" in proc.stderr
+
+    scenario = yaml.safe_load((study / falsify.WORST_CASE_FILE).read_text())
+    assert scenario["events"] == [{"at": 20.0, "agents": [0], "kind": "hover"}]
+    rerun = subprocess.run(
+        [*EXE, "--config-path", str(study), "--config-name", "worst_case", f"hydra.run.dir={tmp_path}/rerun"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )
+    assert rerun.returncode == 0, rerun.stderr
+    again = json.loads((tmp_path / "rerun" / "metrics.json").read_text())
+    assert {k: v for k, v in again.items() if k not in TIMING} == {k: v for k, v in bad.items() if k not in TIMING}
