@@ -158,6 +158,15 @@ def run_job(job: Job) -> dict[str, Any]:
     return json.loads(json.dumps(result.metrics, default=str))
 
 
+def _guarded(job: Job) -> dict[str, Any]:
+    """:func:`run_job`, with a failure kept as ``{"error": line}`` (the claim then lacks a value
+    and fails) instead of ending the whole report."""
+    try:
+        return run_job(job)
+    except Exception as exc:  # noqa: BLE001 - any failure of one run is reported, not raised
+        return {"error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+
+
 def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, cache: Path | None = None,
              progress: bool = True) -> dict[str, dict[str, Any]]:
     """Metrics of every distinct job, by :attr:`Job.key`; ``cache`` keeps each finished run as a
@@ -175,7 +184,7 @@ def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, cache: Path | None = None,
 
     def finished(key: str, metrics: dict[str, Any], count: int) -> None:
         done[key] = metrics
-        if cache is not None:
+        if cache is not None and "error" not in metrics:  # a failed run is retried next time
             (cache / f"{key}.json").write_text(json.dumps(metrics))
         if progress and (count % 10 == 0 or count == total):
             rate = count / (time.perf_counter() - started)
@@ -184,10 +193,10 @@ def run_jobs(jobs: Iterable[Job], n_jobs: int = 1, cache: Path | None = None,
 
     if n_jobs <= 1:
         for count, (key, job) in enumerate(todo.items(), 1):
-            finished(key, run_job(job), count)
+            finished(key, _guarded(job), count)
     else:
         with ProcessPoolExecutor(max_workers=n_jobs) as pool:
-            futures = {pool.submit(run_job, job): key for key, job in todo.items()}
+            futures = {pool.submit(_guarded, job): key for key, job in todo.items()}
             for count, future in enumerate(as_completed(futures), 1):
                 finished(futures[future], future.result(), count)
     if progress and total:
