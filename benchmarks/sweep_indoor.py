@@ -68,7 +68,8 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def run_one(overrides: list[str], seed: int) -> dict:
     """Metrics of one run (no files written), plain JSON types."""
-    metrics = api.run([*overrides, f"seed={seed}", "output.trajectory=false", "output.summary=false"]).metrics
+    quiet = ["output.trajectory=false", "output.summary=false", "output.progress=off"]
+    metrics = api.run([*overrides, f"seed={seed}", *quiet]).metrics
     return json.loads(json.dumps(metrics, default=float))
 
 

@@ -220,12 +220,13 @@ def is_connected(graph: EdgeList) -> bool:
 
 def _candidates(
     graph: EdgeList, a: np.ndarray, b: np.ndarray, common: bool
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All (arc k, agent m) with m in N_a[k](G) other than b[k]; with ``common`` also m in N_b[k].
 
     The candidate sets of eq. 5.15-5.16 for the arcs a -> b (each edge seen from one endpoint).
     Expands N_a for every arc through the CSR layout, no loop over arcs; ``common`` keeps the m
     adjacent to b, looked up in a dense N x N bitmap (a sorted-key search for very large N).
+    Returns (arc, m, pos) with ``pos`` the position of a -> m in :meth:`EdgeList.directed`;
     ``arc`` comes out sorted.
     """
     n = graph.n
@@ -233,11 +234,11 @@ def _candidates(
     indptr = graph.indptr
     deg = indptr[a + 1] - indptr[a]
     arc = np.repeat(np.arange(len(a)), deg)
-    shift = np.repeat(indptr[a] - (np.cumsum(deg) - deg), deg)
-    m = dst[np.arange(arc.size) + shift]
+    pos = np.arange(arc.size) + np.repeat(indptr[a] - (np.cumsum(deg) - deg), deg)
+    m = dst[pos]
     if not common:
         keep = m != b[arc]
-        return arc[keep], m[keep]
+        return arc[keep], m[keep], pos[keep]
     want = b[arc] * n + m  # m = b is never adjacent to b (no self-loops): dropped here too
     if n <= 8192:
         adjacent = np.zeros(n * n, dtype=bool)
@@ -245,9 +246,9 @@ def _candidates(
         found = adjacent[want]
     else:
         keys = np.sort(src * n + dst)
-        pos = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
-        found = keys[pos] == want
-    return arc[found], m[found]
+        found_at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+        found = keys[found_at] == want
+    return arc[found], m[found], pos[found]
 
 
 def flatness(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -296,16 +297,21 @@ def _arc_rules(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rules 5.18 and 5.21 for the arcs a -> b of G_n, each evaluated by agent a (Q,) bool."""
     q = len(a)
-    arc, m = _candidates(g_n, a, b, common)
+    arc, m, pos = _candidates(g_n, a, b, common)
     x, y = r[:, 0], r[:, 1]
     ex, ey = x[b] - x[a], y[b] - y[a]  # r_ji per arc, from agent a's point of view
     d_sq = ex * ex + ey * ey
-    ax, ay = x[a][arc], y[a][arc]
-    mx, my = x[m] - ax, y[m] - ay  # r_mi
+    # m in A_ij first (||r_mi|| < ||r_ji||, eq. 5.15), from the lengths of G_n's directed arcs:
+    # it halves the candidates before any per-candidate vector is formed.
+    src, dst = g_n.directed()
+    arc_sq = (x[dst] - x[src]) ** 2 + (y[dst] - y[src]) ** 2
+    in_a = np.flatnonzero(arc_sq[pos] < d_sq[arc])
+    arc, m = arc[in_a], m[in_a]
     ex, ey, d_sq = ex[arc], ey[arc], d_sq[arc]
-    # m in A_ij and B_ij: closer to both ends than they are to each other (eq. 5.15-5.16).
-    closer = np.flatnonzero((mx * mx + my * my < d_sq) & ((mx - ex) ** 2 + (my - ey) ** 2 < d_sq))
-    arc, m, mx, my, ex, ey, d_sq = (v[closer] for v in (arc, m, mx, my, ex, ey, d_sq))
+    mx, my = x[m] - x[a[arc]], y[m] - y[a[arc]]  # r_mi
+    # ... and in B_ij: closer to j too (eq. 5.16).
+    in_b = np.flatnonzero((mx - ex) ** 2 + (my - ey) ** 2 < d_sq)
+    arc, m, mx, my, ex, ey, d_sq = (v[in_b] for v in (arc, m, mx, my, ex, ey, d_sq))
     phi = (my * ex - mx * ey) / d_sq  # eq. 5.17, phi(r_mi, r_ji)
     rule1 = np.zeros(q, dtype=bool)
     rule1[arc[np.abs(phi) < phi_d]] = True
