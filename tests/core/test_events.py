@@ -80,12 +80,13 @@ def test_hover_holds_only_its_agents_and_motor_failure_is_left_to_the_dynamics(d
     failed (hook fired, healthy False) but moves as its dynamics model says (not held)."""
     events = [{"at": 1.0, "agents": [0], "kind": "hover"},
               {"at": 1.0, "agents": [3], "kind": "motor_failure", "rotor": 2, "fraction": 0.5}]
+    data["dynamics"] = {"name": "quadrotor"}  # motor_failure needs a dynamics model with rotors
     sim, result, seen = simulate(scenario(data, events))
     traj = result.trajectory
     k = tick_of(traj, 1.0)
     assert np.all(traj["pos"][k:, 0] == traj["pos"][k, 0]) and np.all(traj["vel"][k + 1:, 0] == 0)
     moved = np.linalg.norm(traj["pos"][k + 1:, 3] - traj["pos"][k, 3], axis=1)
-    assert moved.max() > 1e-3  # the double integrator brakes it: it is not frozen by the queue
+    assert moved.max() > 1e-3  # the quadrotor loses thrust: it is not frozen by the queue
     motor = [e for _, e, h in seen if e.kind is EventKind.MOTOR_FAILURE]
     assert motor == [Event(1.0, (3,), EventKind.MOTOR_FAILURE, rotor=2, fraction=0.5)]
     assert all(not h[3] for _, e, h in seen if e.kind is EventKind.MOTOR_FAILURE)
