@@ -316,6 +316,8 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
                 f"swarm.leader: formation {formation.name!r} needs a leader "
                 f"(an agent index 0..{config.swarm.n - 1})"
             )
+        if "dynamics" in classes:
+            errors += _rotor_checks(config, classes["dynamics"])
         if not errors and len(classes) == len(PLUGIN_KINDS):
             errors += memory_checks(config, classes["dynamics"])
         if not errors:
@@ -369,6 +371,22 @@ def _scenario_checks(config: ScenarioConfig) -> list[str]:
         errors.append(f"swarm.leader: must be < swarm.n = {n} (got {config.swarm.leader})")
     errors += check_events(config.events, n)
     errors += build_obstacles(config.environment)[1]
+    return errors
+
+
+def _rotor_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
+    """``motor_failure`` events need a dynamics model with rotors, and a rotor it has."""
+    errors = []
+    rotors = getattr(dynamics, "rotors", 0)
+    for k, event in enumerate(config.events):
+        if event.kind != "motor_failure":
+            continue
+        if rotors == 0:
+            errors.append(f"events.{k}.kind: motor_failure needs a dynamics model with rotors "
+                          f"(dynamics {dynamics.name!r} has none; e.g. dynamics=quadrotor)")
+        elif event.rotor is not None and event.rotor >= rotors:
+            errors.append(f"events.{k}.rotor: must be < {rotors}, the rotors of dynamics "
+                          f"{dynamics.name!r} (got {event.rotor})")
     return errors
 
 

@@ -176,6 +176,9 @@ class Dynamics(Plugin):
 
     has_attitude: ClassVar[bool] = False
     """True when the model fills ``WorldState.quat`` and ``WorldState.omega``."""
+    rotors: ClassVar[int] = 0
+    """Number of rotors the model simulates (``motor_failure`` events need a model with rotors; it
+    applies them through the ``swarmscene_event`` hook)."""
     wind_coupling: ClassVar[Literal["force", "carried", "integrated"]] = "force"
     """How a declared wind acts on the model (``disturbances``, wind phase):
 

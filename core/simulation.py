@@ -72,7 +72,7 @@ class Simulation:
 
         self.environment = Environment(scenario.obstacles, name=cfg.environment.name)
         self.world = WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader)
-        self.events = EventQueue.from_config(cfg.events)
+        self.events = EventQueue.from_scenario(cfg)  # random parts drawn from their own streams
         self.disturbances = Disturbances(
             scenario.disturbances, cfg.seed, cfg.swarm.n, self.guidance_period, self.physics_step,
             cfg.comm.range,
@@ -216,6 +216,7 @@ class Simulation:
             self.error = str(exc)
         wall = time.perf_counter() - wall_start
         metrics = self._engine_metrics(wall)
+        metrics.update(self.events.metrics())  # the drawn times and agents of random events
         self.hook.swarmscene_run_end(sim=self, metrics=metrics)
         metrics.setdefault("success", self._default_success(metrics))
         if self.error is not None:

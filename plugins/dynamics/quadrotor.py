@@ -20,6 +20,12 @@ The yaw rate and acceleration are taken as zero (the setpoint record carries yaw
 Added to the world: ``quat`` (N, 4) (w, x, y, z) body to world, ``omega`` (N, 3) body rates rad/s,
 ``rotor_speed`` (N, 4) rad/s.
 
+Motor failure (a ``motor_failure`` event, through the ``swarmscene_event`` hook): rotor r of the
+hit vehicles keeps ``fraction`` of its thrust and drag torque from then on (an effective speed
+sqrt(fraction) ϖ_r). The controller does not know: it keeps holding where the vehicle failed
+(a failed agent is put in HOLD) with four rotors in its allocation, so the vehicle falls, tilts and
+spins as the remaining wrench makes it (a dead rotor leaves the yaw drag torques unbalanced).
+
 Wind (``disturbances``): the model integrates it (``wind_coupling = "integrated"``): at each
 internal step the force per mass R diag(D) R^T w (the airframe's rotor-drag coefficients D, see
 quadrotor_model.py) joins the RK4 right-hand side, and with ``moment_arm`` h the moment
@@ -50,6 +56,7 @@ class Quadrotor(Dynamics):
     name = "quadrotor"
     has_attitude = True
     wind_coupling = "integrated"
+    rotors = 4
 
     class Params(PluginParams):
         airframe: Literal["crazyflie", "m330"] = Field(
@@ -98,6 +105,7 @@ class Quadrotor(Dynamics):
         world.quat = yaw_to_quat(np.zeros(n))
         world.omega = np.zeros((n, 3))
         world.rotor_speed = np.full((n, 4), self.airframe.hover_rotor_speed)
+        self.rotor_health: np.ndarray | None = None  # (N, 4) thrust kept, allocated at a failure
         self.control(world, Setpoints.hold(world.pos))
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
@@ -141,7 +149,7 @@ class Quadrotor(Dynamics):
                 self._yaw, self._omega_d, self._alpha_d, self.gains, af, self._position_mask,
                 self.max_tilt, self._heading)
             rotor_speed = allocate(thrust, torque, af)
-            thrust, torque = wrench(rotor_speed, af)   # what the limited rotors really give
+            thrust, torque = wrench(self._effective(rotor_speed), af)   # what the rotors really give
             ext_acc = None
             if world.wind is not None:
                 ext_acc, moment = self._wind(x, world.wind, world.wind_moment_arm)
@@ -153,6 +161,21 @@ class Quadrotor(Dynamics):
         world.quat[...] = x[:, 6:10]
         world.omega[...] = x[:, 10:13]
         world.rotor_speed[...] = rotor_speed
+
+    @hookimpl
+    def swarmscene_event(self, sim, event) -> None:
+        """A ``motor_failure``: rotor ``event.rotor`` of the event's agents keeps ``event.fraction``."""
+        if getattr(event.kind, "value", event.kind) != "motor_failure":
+            return
+        if self.rotor_health is None:
+            self.rotor_health = np.ones((sim.world.n, 4))
+        self.rotor_health[list(event.agents), event.rotor] = event.fraction
+
+    def _effective(self, rotor_speed: np.ndarray) -> np.ndarray:
+        """Rotor speeds giving the thrust the rotors really make: sqrt(kept fraction) ϖ."""
+        if self.rotor_health is None:
+            return rotor_speed
+        return rotor_speed * np.sqrt(self.rotor_health)
 
     def _wind(self, x: np.ndarray, wind: np.ndarray, arm: float) -> tuple[np.ndarray, np.ndarray]:
         """The wind's acceleration (N, 3) world and moment (N, 3) N m body: a = R D R^T w and

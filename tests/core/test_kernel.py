@@ -207,3 +207,15 @@ def test_a_non_finite_state_stops_the_run_naming_the_agent_and_tick():
     assert result.metrics["steps"] == 2
     traj = result.trajectory
     assert traj["pos"].shape[0] == 3 and np.isfinite(traj["pos"]).all() and np.isfinite(traj["vel"]).all()
+
+
+def test_random_events_are_drawn_by_the_kernel_and_reported(data):
+    """The kernel builds its queue from the scenario (EventQueue.from_scenario): a random event's
+    drawn time and agents are applied and reported as events.<k>.* metrics."""
+    data["events"] = [{"at": {"uniform": [0.5, 1.5]}, "agents": {"sample": 2}, "kind": "hover"}]
+    result = api.run(short(data, 2.0))
+    at, agents = result.metrics["events.0.at"], result.metrics["events.0.agents"]
+    assert 0.5 <= at <= 1.5 and len(agents) == 2
+    assert result.metrics["healthy_at_end"] == data["swarm"]["n"] - 2
+    again = api.run(short(data, 2.0))
+    assert (again.metrics["events.0.at"], again.metrics["events.0.agents"]) == (at, agents)
