@@ -1,8 +1,8 @@
 """``cem``: Containment Exclusion Mode, fluid-flow navigation around failed vehicles.
 
 Romano, Uppaluru, Rastgoftar, Atkins (papers/cem-fluid-flow-navigation.md). While no vehicle has
-failed, the formation's setpoints pass through unchanged. A ``hover`` failure event activates CEM:
-every failed vehicle becomes a doublet of planned exclusion radius a_p = a_f + delta + eps in a
+failed, the formation's setpoints pass through unchanged. A ``hover`` (or ``motor_failure``) event
+activates CEM: every failed vehicle becomes a doublet of planned exclusion radius a_p = a_f + delta + eps in a
 uniform flow along the flight direction, each healthy agent's (phi, psi) is fixed from its position,
 and every guidance tick the healthy agents slide along their streamlines (Algorithm 1, CalcXY of
 Algorithm 2) as TRACK setpoints (position and first-difference velocity; altitude from the
@@ -225,8 +225,15 @@ class CEM(Avoidance):
 
     @hookimpl
     def swarmscene_event(self, sim: Any, event: Event) -> None:
-        """A ``hover`` failure adds its vehicles as doublets and (re)activates CEM."""
-        if event.kind is not EventKind.HOVER:
+        """A ``hover`` or ``motor_failure`` adds its vehicles as doublets and (re)activates CEM.
+
+        A vehicle that lost a rotor falls or spins down about the point where it failed, which the
+        containment disk (in the x-y plane, over all altitudes) covers as it covers a hovering
+        one. ``stuck`` and ``drift`` vehicles keep moving: the paper's Assumption 3 (a failed
+        vehicle holds its position) does not hold for them, so CEM does not model them; they are
+        still failed (``healthy`` False) for every other method and for the monitors.
+        """
+        if event.kind not in (EventKind.HOVER, EventKind.MOTOR_FAILURE):
             return
         for a in event.agents:
             self.failed.setdefault(int(a), sim.world.pos[a, :2].copy())

@@ -120,6 +120,31 @@ def test_inactive_passes_setpoints_through_and_comm_loss_does_not_activate():
     assert not plugin.active and plugin.adjust(world, None, sp) is sp
 
 
+def test_motor_failure_activates_like_hover_but_moving_faults_do_not():
+    """A vehicle that lost a rotor is a doublet at the point where it failed, as a hovering one;
+    stuck and drifting vehicles break Assumption 3 (they move), so CEM leaves them out."""
+    for kind, extra in ((EventKind.STUCK, {}), (EventKind.DRIFT, {"velocity": (0.2, 0.0, 0.0)})):
+        plugin, world, sim = build(six_vehicle_positions())
+        ev = Event(at=0.0, agents=(0,), kind=kind, **extra)
+        ev.apply(world)
+        plugin.swarmscene_event(sim=sim, event=ev)
+        assert not plugin.active and plugin.failed == {}
+    plugin, world, sim = build(six_vehicle_positions())
+    ev = Event(at=0.0, agents=(0,), kind=EventKind.MOTOR_FAILURE, rotor=2, fraction=0.0)
+    ev.apply(world)
+    plugin.swarmscene_event(sim=sim, event=ev)
+    assert plugin.active and list(plugin.failed) == [0]
+    np.testing.assert_array_equal(plugin.failed[0], world.pos[0, :2])
+    hovering, hworld, hsim = build(six_vehicle_positions())
+    ev = hover(0, 0)
+    ev.apply(hworld)
+    hovering.swarmscene_event(sim=hsim, event=ev)
+    # the same flow: direction, doublet centres and every agent's (phi, psi)
+    assert plugin.nav.theta == hovering.nav.theta
+    np.testing.assert_array_equal(plugin.nav.centres, hovering.nav.centres)
+    np.testing.assert_array_equal(plugin.nav.w0, hovering.nav.w0)
+
+
 # ---- section V-A through the plugin --------------------------------------------------------------
 
 
