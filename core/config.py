@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from .errors import ConfigError, format_validation_error
 from .disturbances import validate_disturbances
+from .disturbances.comm import channel_errors
 from .events import EventConfig, check_events
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
@@ -318,6 +319,7 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
             )
         if "dynamics" in classes:
             errors += _rotor_checks(config, classes["dynamics"])
+        errors += channel_errors(disturbances, config.swarm.n, config.clock.guidance_period)
         if not errors and len(classes) == len(PLUGIN_KINDS):
             errors += memory_checks(config, classes["dynamics"])
         if not errors:

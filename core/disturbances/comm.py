@@ -22,7 +22,11 @@ from ..state import WorldState
 from .base import Disturbance, DisturbanceContext, DisturbanceParams
 
 MAX_DELAY = 60.0
-"""s: the longest delay a model accepts (the channel keeps that many seconds of messages)."""
+"""s: the longest delay a model accepts, and the most the channel keeps of messages."""
+MAX_CHANNEL_BYTES = 2**30
+"""Most memory the broadcast channel's message ring may take (validation refuses more)."""
+MESSAGE_BYTES = 7 * 8
+"""Per agent and tick kept: position and velocity (6 floats) and the arrival tick."""
 
 
 class CommDelay(Disturbance):
@@ -46,8 +50,7 @@ class CommDelay(Disturbance):
         super().__init__(params, ctx)
         self.T_s = ctx.guidance_period
         self.tau_com = params.tau
-        self.max_ticks = numerics.fixed_delay_ticks(MAX_DELAY + params.tau + 10 * params.jitter, self.T_s)
-        self.channel: Channel | None = None
+        self.max_ticks = max_delay_ticks(params, ctx.n, self.T_s)
 
     def delays(self, world: WorldState, sensing: Any) -> np.ndarray:
         """Ticks each agent's message of this tick takes, (N,) int."""
@@ -79,6 +82,30 @@ class CommDelay(Disturbance):
         else:
             ticks = numerics.random_delay_ticks(self.rng, hops.shape, p.tau, p.jitter, self.T_s)
         return np.where(reachable, ticks, -1).astype(np.int64)
+
+
+def max_delay_ticks(params: "CommDelay.Params", n: int, T_s: float) -> int:
+    """The longest delay the channel must keep, ticks: fixed tau; hops (n - 1) tau (the mean over
+    receivers is at most that); random tau + 10 jitter (P(X > 10 jitter) = e^-10: rarer, longer
+    delays are cut to it); never more than ``MAX_DELAY``."""
+    span = {"fixed": params.tau, "hops": max(n - 1, 1) * params.tau,
+            "random": params.tau + 10.0 * params.jitter}[params.model]
+    return numerics.fixed_delay_ticks(min(span, MAX_DELAY), T_s)
+
+
+def channel_errors(models: dict[str, tuple[type, Any]], n: int, T_s: float) -> list[str]:
+    """One line when the declared delays make the channel's ring exceed ``MAX_CHANNEL_BYTES``."""
+    delays = {k: p for k, (cls, p) in models.items() if cls is CommDelay}
+    if not delays:
+        return []
+    depth = sum(max_delay_ticks(p, n, T_s) for p in delays.values()) + 1
+    need = depth * n * MESSAGE_BYTES
+    if need <= MAX_CHANNEL_BYTES:
+        return []
+    key = max(delays, key=lambda k: max_delay_ticks(delays[k], n, T_s))
+    return [f"disturbances.{key}.tau: the channel would keep {depth} ticks of {n} agents' messages "
+            f"({need / 2**30:.3g} GiB, at most {MAX_CHANNEL_BYTES / 2**30:.3g}); shorten the delay or "
+            f"lengthen clock.guidance_period (got {delays[key].tau})"]
 
 
 class PacketLoss(Disturbance):

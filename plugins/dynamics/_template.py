@@ -20,6 +20,10 @@ class MyDynamics(Dynamics):
     """A kinematic point under a proportional position controller with velocity feed-forward."""
 
     name = "my_dynamics"
+    # How a declared wind acts on it (docs/disturbances.md): "force" (the default: the kernel adds
+    # a = drag_coefficient * w after each step), "carried" (a kinematic point flies relative to the
+    # air, as this one does), or "integrated" (step() reads world.wind itself).
+    wind_coupling = "carried"
 
     class Params(PluginParams):
         gain: float = Field(1.0, gt=0, description="position gain, 1/s")

@@ -146,3 +146,18 @@ def test_outdoor_mission_delays_are_the_declared_comm_delay(tau):
     if tau != 0.2:  # and it matters: the default tau_com gives another run
         pos_c, _ = _outdoor()
         assert not np.array_equal(pos_a, pos_c)
+
+
+def test_a_channel_too_large_for_memory_is_refused(data):
+    data["clock"]["guidance_period"] = 0.0001
+    data["clock"]["physics_step"] = 0.0001
+    data["disturbances"] = {"comm_delay": {"model": "fixed", "tau": 60.0}}
+    data["swarm"]["n"] = 1000
+    data["swarm"]["start"] = {"kind": "grid", "spacing": 2.0}
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as exc:
+        api.load(data)
+    assert exc.value.lines == [
+        "disturbances.comm_delay.tau: the channel would keep 600001 ticks of 1000 agents' messages "
+        "(31.3 GiB, at most 1); shorten the delay or lengthen clock.guidance_period (got 60.0)"]
