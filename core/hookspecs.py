@@ -94,6 +94,8 @@ def swarmscene_event(sim: "Simulation", event: "Event") -> None:
 
     When: during the events phase of the guidance tick at which ``event.at`` is reached, after the
     kernel changed ``sim.world`` (e.g. ``healthy`` mask) and before sensing and formation run.
+    A dynamics model may react here to what only it can apply (the quadrotor cuts the thrust of
+    the rotor a ``motor_failure`` names).
     Args:
         sim: the simulation.
         event: the event applied (time, agents, kind).
