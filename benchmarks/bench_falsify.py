@@ -1,8 +1,9 @@
 """The falsifier against random search with the same budget (issue #18, docs/sweeps.md).
 
-For each scenario and sampler seed, one study of ``+sweep=falsify`` (Optuna's TPE) and one of
-``+sweep=falsify_random`` (Optuna's RandomSampler), each ``--trials`` runs, one after the other in
-this process' child (the machine's cores are shared: no two studies at once). Each study is the
+For each search space (``full``: ``+sweep=falsify``, wind, packet loss and a failure; ``failure``:
+``+sweep=falsify_failure``, the failure alone), scenario and sampler seed, one study with Optuna's
+TPE (the falsifier) and one with Optuna's RandomSampler, each ``--trials`` runs, one after the
+other in a child process (the machine's cores are shared: no two studies at once). Each study is the
 command a user types; its worst case is read back from ``worst_case.json``. Reported per study:
 the worst minimum separation found, its robustness rho = min_separation - separation_limit (m,
 negative: a counter-example), the trial that first violated separation (the budget a sampler
@@ -10,8 +11,8 @@ needed to find a counter-example), how many of its trials violated, and its wall
 scenario and sampler, over the seeds, the median and range of the worst case and how many seeds
 found a violation.
 
-    python benchmarks/bench_falsify.py                          # 2 scenarios x 3 seeds x 100 trials
-    python benchmarks/bench_falsify.py --seeds 0 --trials 20 --scenarios cem_six_vehicle
+    python benchmarks/bench_falsify.py              # 2 spaces x 2 scenarios x 3 seeds x 2 samplers x 100 trials
+    python benchmarks/bench_falsify.py --spaces failure --seeds 0 --trials 20 --scenarios cem_six_vehicle
     python benchmarks/bench_falsify.py --json results.json      # the rows, for docs/benchmarks.md
 
 Studies are written under ``--out`` (default ``multirun/bench_falsify``); running the same command
@@ -30,13 +31,17 @@ import time
 from pathlib import Path
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
-PRESETS = {"tpe": "falsify", "random": "falsify_random"}
+SPACES = {"full": "falsify", "failure": "falsify_failure"}
+"""the search spaces: wind, packet loss and a failure (+sweep=falsify), or the failure alone"""
+SAMPLERS = ("tpe", "random")
+"""hydra/sweeper/sampler=...: the falsifier, and its baseline"""
 
 
-def study(scenario: str, sampler: str, seed: int, trials: int, out: Path, extra: list[str]) -> dict:
+def study(space: str, scenario: str, sampler: str, seed: int, trials: int, out: Path, extra: list[str]) -> dict:
     """Run one study (the command line, in a child process) and return its worst case record."""
-    directory = out / scenario / f"{sampler}_seed{seed}"
-    command = [*EXE, f"+sweep={PRESETS[sampler]}", f"scenario={scenario}", f"hydra.sweeper.n_trials={trials}",
+    directory = out / space / scenario / f"{sampler}_seed{seed}"
+    command = [*EXE, f"+sweep={SPACES[space]}", f"hydra/sweeper/sampler={sampler}", f"scenario={scenario}",
+               f"hydra.sweeper.n_trials={trials}",
                f"hydra.sweeper.sampler.seed={seed}", f"hydra.sweep.dir={directory}", "output.trajectory=false",
                "hydra.callbacks.swarmscene_summary.progress=off", *extra]
     started = time.perf_counter()
@@ -46,7 +51,7 @@ def study(scenario: str, sampler: str, seed: int, trials: int, out: Path, extra:
         raise SystemExit(f"bench_falsify: {' '.join(command[3:])} failed:\n{proc.stderr[-2000:]}")
     record = json.loads((directory / "worst_case.json").read_text())
     return {
-        "scenario": scenario, "sampler": sampler, "seed": seed, "trials": record["trials"],
+        "space": space, "scenario": scenario, "sampler": sampler, "seed": seed, "trials": record["trials"],
         "worst_min_separation": record["min_separation"], "robustness": record["robustness"],
         "violated": record["violated"], "first_violating_trial": record["first_violating_trial"],
         "violating_trials": record["violating_trials"], "first_violation": record["first_violation"],
@@ -58,15 +63,15 @@ def study(scenario: str, sampler: str, seed: int, trials: int, out: Path, extra:
 def summary(rows: list[dict]) -> list[dict]:
     """Per scenario and sampler, over the seeds: the worst case's median and range, violations."""
     out = []
-    for scenario in dict.fromkeys(r["scenario"] for r in rows):
-        for sampler in PRESETS:
-            group = [r for r in rows if r["scenario"] == scenario and r["sampler"] == sampler]
+    for space, scenario in dict.fromkeys((r["space"], r["scenario"]) for r in rows):
+        for sampler in SAMPLERS:
+            group = [r for r in rows if (r["space"], r["scenario"], r["sampler"]) == (space, scenario, sampler)]
             if not group:
                 continue
             worst = [r["worst_min_separation"] for r in group]
             firsts = [r["first_violating_trial"] for r in group if r["first_violating_trial"] is not None]
             out.append({
-                "scenario": scenario, "sampler": sampler, "seeds": len(group),
+                "space": space, "scenario": scenario, "sampler": sampler, "seeds": len(group),
                 "median_worst": statistics.median(worst), "min_worst": min(worst), "max_worst": max(worst),
                 "seeds_violated": sum(r["violated"] for r in group),
                 "median_first_violating_trial": statistics.median(firsts) if firsts else None,
@@ -76,18 +81,19 @@ def summary(rows: list[dict]) -> list[dict]:
 
 
 def markdown(rows: list[dict], groups: list[dict]) -> str:
-    lines = ["| scenario | sampler | seed | worst min separation (m) | robustness (m) | first violating trial "
-             "| violating trials | worst case | wall (s) |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| space | scenario | sampler | seed | worst min separation (m) | robustness (m) | first violating trial "
+             "| violating trials | worst case | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         first = "-" if r["first_violating_trial"] is None else str(r["first_violating_trial"])
-        lines.append(f"| {r['scenario']} | {r['sampler']} | {r['seed']} | {r['worst_min_separation']:.4f} "
+        lines.append(f"| {r['space']} | {r['scenario']} | {r['sampler']} | {r['seed']} | {r['worst_min_separation']:.4f} "
                      f"| {r['robustness']:+.4f} | {first} | {r['violating_trials']}/{r['trials']} "
                      f"| {' '.join(r['worst_overrides'])} | {r['wall_s']:.0f} |")
-    lines += ["", "| scenario | sampler | seeds | worst min separation: median (range), m | seeds with a violation "
-              "| median first violating trial | mean violating trials |", "|---|---|---|---|---|---|---|"]
+    lines += ["", "| space | scenario | sampler | seeds | worst min separation: median (range), m "
+              "| seeds with a violation | median first violating trial | mean violating trials |",
+              "|---|---|---|---|---|---|---|---|"]
     for g in groups:
         first = "-" if g["median_first_violating_trial"] is None else f"{g['median_first_violating_trial']:g}"
-        lines.append(f"| {g['scenario']} | {g['sampler']} | {g['seeds']} | {g['median_worst']:.4f} "
+        lines.append(f"| {g['space']} | {g['scenario']} | {g['sampler']} | {g['seeds']} | {g['median_worst']:.4f} "
                      f"({g['min_worst']:.4f} - {g['max_worst']:.4f}) | {g['seeds_violated']}/{g['seeds']} "
                      f"| {first} | {g['mean_violating_trials']:.1f} |")
     return "\n".join(lines)
@@ -95,20 +101,22 @@ def markdown(rows: list[dict], groups: list[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--spaces", nargs="+", default=list(SPACES), choices=list(SPACES))
     parser.add_argument("--scenarios", nargs="+", default=["cem_six_vehicle", "outdoor_square"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--trials", type=int, default=100, help="budget of every study")
-    parser.add_argument("--samplers", nargs="+", default=list(PRESETS), choices=list(PRESETS))
+    parser.add_argument("--samplers", nargs="+", default=list(SAMPLERS), choices=SAMPLERS)
     parser.add_argument("--out", type=Path, default=Path("multirun/bench_falsify"))
     parser.add_argument("--json", type=Path, help="write the rows and the summary here")
     parser.add_argument("overrides", nargs="*", help="more overrides for every study (e.g. avoidance=orca)")
     args = parser.parse_args(argv)
     rows = []
-    for scenario in args.scenarios:
-        for seed in args.seeds:
-            for sampler in args.samplers:
-                rows.append(study(scenario, sampler, seed, args.trials, args.out, args.overrides))
-                print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    for space in args.spaces:
+        for scenario in args.scenarios:
+            for seed in args.seeds:
+                for sampler in args.samplers:
+                    rows.append(study(space, scenario, sampler, seed, args.trials, args.out, args.overrides))
+                    print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     groups = summary(rows)
     print(markdown(rows, groups))
     if args.json:

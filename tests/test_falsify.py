@@ -25,10 +25,10 @@ EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 TIMING = ("wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median")
 
 
-def composed(*overrides: str):
+def composed(*overrides: str, preset: str = "falsify"):
     from omegaconf import OmegaConf
 
-    return OmegaConf.create(api.compose(["+sweep=falsify", *overrides]))
+    return OmegaConf.create(api.compose([f"+sweep={preset}", *overrides]))
 
 
 def hydra_node(*overrides: str):
@@ -97,6 +97,20 @@ def test_robustness_ranks_a_violation_worst_and_the_deepest_first():
     assert falsify.running_worst(trials) == [1.2, 0.4, 0.1, 0.1, 0.1, 0.1]
 
 
+def test_the_full_space_adds_wind_and_packet_loss_by_their_config_keys():
+    failure, full = hydra_node("+sweep=falsify_failure"), hydra_node("+sweep=falsify")
+    assert dict(failure.sweeper.params) == {}
+    assert dict(full.sweeper.params) == {
+        "++disturbances.constant_wind.speed": "interval(0.0, 8.0)",
+        "++disturbances.constant_wind.heading": "interval(-180.0, 180.0)",
+        "++disturbances.packet_loss.p": "interval(0.0, 0.3)",
+    }
+    assert composed("scenario=cem_six_vehicle")["disturbances"] == {
+        "constant_wind": {"kind": "constant_wind"}, "packet_loss": {"kind": "packet_loss"}}
+    assert full.sweeper.custom_search_space == failure.sweeper.custom_search_space
+    assert full.sweep.dir.startswith("multirun/falsify/") and failure.sweep.dir.startswith("multirun/falsify_failure/")
+
+
 def test_the_random_baseline_is_the_same_study_with_optunas_random_sampler():
     tpe, random = hydra_node("+sweep=falsify"), hydra_node("+sweep=falsify_random")
     assert tpe.sweeper.sampler._target_ == "optuna.samplers.TPESampler"
@@ -108,9 +122,10 @@ def test_the_random_baseline_is_the_same_study_with_optunas_random_sampler():
 
 def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_path):
     study = tmp_path / "study"
-    # Two trials of the random baseline, the agent fixed to the lead; its seed 0 draws both times.
+    # Two trials of the failure alone, random, the agent fixed to the lead; seed 0 draws both times.
     proc = subprocess.run(
-        [*EXE, "+sweep=falsify_random", "scenario=cem_six_vehicle", "hydra.sweeper.n_trials=2",
+        [*EXE, "+sweep=falsify_failure", "hydra/sweeper/sampler=random", "scenario=cem_six_vehicle",
+         "hydra.sweeper.n_trials=2",
          '+hydra.sweeper.params={events.0.at: "choice(10.0,20.0)"}', "events.0.agents.0=0",
          "output.trajectory=false", f"hydra.sweep.dir={study}"],
         cwd=tmp_path, capture_output=True, text=True, timeout=300,
