@@ -24,31 +24,30 @@ passes 0.32 m from the inner corner of the 0.7 m corridor, 0.35 m on the centrel
 does not wait for a swarm stretched behind that neighbour. Collision avoidance between agents
 needs line of sight, as in the thesis: w_col sums over N_i(G_sigma) (eq. 5.35), and G_sigma is in
 G_s, whose edges need the joining segment d_l clear of walls (eq. 5.8).
+Edge deactivation (eq. 5.15-5.16) takes the candidates m in N_i(G_n) as printed, the edge off
+when either end's rule fires (``deactivation_candidates: neighbours``, the default); ``common``
+(N_i ∩ N_j, the reading shipped before issue 17, which keeps G_n's components) and ``directed``
+are the alternatives, with their reasons in methods/indoor/graphs.py.
 What remains is the limitation the thesis states (no LOS maintenance, section 5.3.3); the
 ``indoor.disconnect.*`` metrics classify each split (benchmarks/sweep_indoor.py). Measured with
-30 seeds per width (docs/benchmarks.md): straight 0 / 0 / 90 / 96.7 / 100 % and L 0 / 0 / 86.7 /
-73.3 / 100 % for w = 0.5 ... 0.9 m. In the L the failed runs at 0.7-0.8 m are (a) at 0.7 m, a link
-stretched to 0.87-0.95 m across the inner corner while 7-17 agents are still jammed in the
-entrance room (the leader, whose nearest neighbour is close, keeps going), or (b) at 0.8 m, where
-the file runs two abreast: the last agent, still in the east leg, follows one that has just turned
-the corner on the inner-wall side, and their single 0.74 m link passes 0.038-0.050 m from the
-corner, under d_l; the tail, left without neighbours, stops. (b) happens whether or not the leader
-has stopped: with the path extended a seed splits at the same instant while the leader still
-moves, so the split's ``leader_done`` flag is incidental.
-Six reconstructions of the L scenario that the text allows (path from one extremity to the other,
-path ending deeper in the exit room, a start grown anywhere in the entrance room, way-points
-0.5 m apart, a corridor without rooms) were each measured on seeds 0..29: none reaches 90 % at
-0.7 or 0.8 m (pooled over the room-based ones 84 % and 73 %); each only reshuffles which seeds
-fail (docs/benchmarks.md). Giving the leader the avoidance terms
-(``avoidance.exempt_leader=false``, not in eq. 5.44) is worse: 63 / 50 %.
-A link "stretched past d_n" is a tug of war: the leader pulls the file through the corridor while
-agents jammed at the entrance hold its tail, every link sits near d_n, and with all inputs
-saturated at u_sat both ends of a link can move apart by up to 2 u_sat = 0.04 m in one step, more
-than the width of the barrier of eq. 5.38 (psi_con is 0.04 at 0.9 m and 0.19 at 0.97 m with
-eps_con = 1e-4): a link at 0.972 m went to 1.004 m in one tick (straight and L, 0.7 m, seed 16).
-The straight corridor's failures at 0.7 m are one such split at the entrance and two
-deadlocks (G_n connected, a few agents pinned in the corners beside the corridor mouth by the
-compactness repulsion, K_com = 0.1 m per step being 5 u_sat).
+30 seeds per width, literal reading (docs/indoor_fidelity.md, every reading): straight
+0 / 0 / 93.3 / 100 / 100 % and L 0 / 0 / 90.0 / 83.3 / 100 % for w = 0.5 ... 0.9 m (``common``:
+0.7-0.8 m 90 / 96.7 % and 86.7 / 73.3 %).
+In the L the failures at 0.7 m are a link stretched past d_n at the corridor mouth while the
+entrance jam holds the tail (a tug of war: with all inputs saturated at u_sat both ends of a link
+can move apart by 2 u_sat = 0.04 m in one step, more than the width of the barrier of eq. 5.38);
+at 0.8 m, the width that lets the file run two abreast, they are one configuration: the
+compactness and collision repulsion of an abreast neighbour holds the second-last agent 0.2 m
+from the north leg's inner wall and the tail's single link to it passes the inner corner under
+d_l, after which the tail, without neighbours, stops (docs/indoor_fidelity.md, section 3). Safety
+(eq. 5.2-5.3) breaks only in failed runs at 0.5-0.6 m: the leader, which has no avoidance term
+(eq. 5.44), drives a follower into the pocket beyond the L's turn, too small below w = 0.624 m to
+keep both d_c from the leader's corner way-point and d_o from the walls (section 4 there).
+Giving the leader the avoidance terms (``avoidance.exempt_leader=false``, not in eq. 5.44) made
+the L worse (63 / 50 % at 0.7 / 0.8 m with the ``common`` reading, docs/benchmarks.md).
+The straight corridor's failures at 0.7 m are splits at the entrance and, in the ``common``
+reading, deadlocks (G_n connected, a few agents pinned in the corners beside the corridor mouth
+by the compactness repulsion, K_com = 0.1 m per step being 5 u_sat).
 
 Metrics (``metrics.json``, keys ``indoor.*``):
     indoor.arrived: every agent in the end region at the end of the run.
