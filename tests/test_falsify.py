@@ -1,10 +1,10 @@
 """The falsifier (+sweep=falsify): its search space, its ranking, and the worst case it writes.
 
-The end-to-end test searches the CEM six-vehicle case's known counter-example: the lead failing at
-t = 20 s, when the formation is near its goal, is reached by agent 4 (the sink of agent 4's flow
-lies inside the failed vehicle's exclusion zone, which the paper's Theorem 2 assumes away), while
-a failure at t = 10 s keeps the nominal 1.35 m. The worst case must be the violating trial and its
-scenario file must reproduce that run to the bit.
+The end-to-end test searches a counter-example that holds by construction: the CEM six-vehicle
+case without an avoidance method, where agent 4 flies right behind the lead on its line, so the
+lead hovering from t = 10 s is run into (at 14.16 s), while a failure at t = 30 s comes after the
+mission has completed (24 s) and changes nothing. The worst case must be the violating trial and
+its scenario file must reproduce that run to the bit.
 """
 
 from __future__ import annotations
@@ -125,20 +125,21 @@ def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_pa
     # Two trials of the failure alone, random, the agent fixed to the lead; seed 0 draws both times.
     proc = subprocess.run(
         [*EXE, "+sweep=falsify_failure", "hydra/sweeper/sampler=random", "scenario=cem_six_vehicle",
-         "hydra.sweeper.n_trials=2",
-         '+hydra.sweeper.params={events.0.at: "choice(10.0,20.0)"}', "events.0.agents.0=0",
+         "avoidance=none", "hydra.sweeper.n_trials=2",
+         '+hydra.sweeper.params={events.0.at: "choice(10.0,30.0)"}', "events.0.agents.0=0",
          "output.trajectory=false", f"hydra.sweep.dir={study}"],
         cwd=tmp_path, capture_output=True, text=True, timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
     runs = {float(yaml.safe_load((study / str(k) / "config.yaml").read_text())["events"][0]["at"]): k for k in (0, 1)}
-    assert set(runs) == {10.0, 20.0}, "the sampler's seed 0 no longer draws both candidates: choose another"
-    bad = json.loads((study / str(runs[20.0]) / "metrics.json").read_text())
-    safe = json.loads((study / str(runs[10.0]) / "metrics.json").read_text())
-    assert safe["min_separation"] > 0.56 > bad["min_separation"]
+    assert set(runs) == {10.0, 30.0}, "the sampler's seed 0 no longer draws both candidates: choose another"
+    bad = json.loads((study / str(runs[10.0]) / "metrics.json").read_text())
+    safe = json.loads((study / str(runs[30.0]) / "metrics.json").read_text())
+    assert safe["min_separation"] == pytest.approx(2.72) and safe["duration"] < 30.0  # the triangle's spacing
+    assert bad["min_separation"] < 0.56 and bad["violations.separation.first_time"] == pytest.approx(14.16)
 
     record = json.loads((study / falsify.WORST_CASE_RECORD).read_text())
-    assert record["trial"] == runs[20.0] and record["trials"] == 2 and record["violated"] is True
+    assert record["trial"] == runs[10.0] and record["trials"] == 2 and record["violated"] is True
     assert record["min_separation"] == bad["min_separation"]
     assert record["robustness"] == bad["min_separation"] - 0.56
     assert record["first_violation"] == bad["violations.separation.first_time"]
@@ -149,7 +150,8 @@ def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_pa
     assert f"Run it: {reproduce}" in proc.stderr
 
     scenario = yaml.safe_load((study / falsify.WORST_CASE_FILE).read_text())
-    assert scenario["events"] == [{"at": 20.0, "agents": [0], "kind": "hover"}]
+    assert scenario["events"] == [{"at": 10.0, "agents": [0], "kind": "hover"}]
+    assert scenario["avoidance"]["name"] == "none"
     rerun = subprocess.run(
         [*EXE, "--config-path", str(study), "--config-name", "worst_case", f"hydra.run.dir={tmp_path}/rerun"],
         cwd=tmp_path, capture_output=True, text=True, timeout=300,
