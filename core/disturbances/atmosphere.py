@@ -142,25 +142,37 @@ class DrydenFilters:
         self.x = rng.standard_normal((m, 2)) * np.sqrt(Tvw**3 / 4.0)
         self.xd = rng.standard_normal((m, 2)) * np.sqrt(Tvw / 4.0)
         self.output = self._output(T, sigma)
+        self._key: tuple | None = None
 
     def step(self, dt: float, L: np.ndarray, sigma: np.ndarray, V: np.ndarray) -> np.ndarray:
-        """Advance every filter by ``dt`` s; return the gust velocities (M, 3), m/s."""
-        T = L / V[:, None]
-        a = np.exp(-dt / T[:, 0])
-        self.u = a * self.u + np.sqrt(1.0 - a * a) * self.rng.standard_normal(self.u.shape)
-        self._step_second_order(dt, T[:, 1:])
+        """Advance every filter by ``dt`` s; return the gust velocities (M, 3), m/s.
+
+        The transition and noise factors depend only on (dt, L, V): they are kept while the same
+        arrays are passed again (the wind model holds its conditions over a guidance tick)."""
+        key = (dt, id(L), id(V))
+        if self._key != key:
+            self._key, self._held = key, (L, V)  # held: the ids stay valid while cached
+            self._coefficients(dt, L / V[:, None])
+        T, a, b, (p11, p12, p21, p22), (c11, c21, c22) = self._coef
+        self.u = a * self.u + b * self.rng.standard_normal(self.u.shape)
+        x, xd = self.x, self.xd
+        z1 = self.rng.standard_normal(x.shape)
+        z2 = self.rng.standard_normal(x.shape)
+        self.x = p11 * x + p12 * xd + c11 * z1
+        self.xd = p21 * x + p22 * xd + c21 * z1 + c22 * z2
         self.output = self._output(T, sigma)
         return self.output
 
-    def _step_second_order(self, dt: float, T: np.ndarray) -> None:
-        """Exact step of the critically damped pair: e^{A dt} = e^{-dt/T} [[1 + dt/T, dt],
-        [-dt/T^2, 1 - dt/T]]; Q = P - Phi P Phi^T with P = diag(T^3/4, T/4)."""
-        r = dt / T
+    def _coefficients(self, dt: float, T: np.ndarray) -> None:
+        """u: a = exp(-dt / T_u), b = sqrt(1 - a^2). v, w: the exact step of the critically damped
+        pair, e^{A dt} = e^{-dt/T} [[1 + dt/T, dt], [-dt/T^2, 1 - dt/T]], and the Cholesky factor of
+        Q = P - Phi P Phi^T with P = diag(T^3/4, T/4)."""
+        a = np.exp(-dt / T[:, 0])
+        Tvw = T[:, 1:]
+        r = dt / Tvw
         e = np.exp(-r)
-        p11, p12, p21, p22 = e * (1.0 + r), e * dt, -e * r / T, e * (1.0 - r)
-        x, xd = self.x, self.xd
-        self.x, self.xd = p11 * x + p12 * xd, p21 * x + p22 * xd
-        P1, P2 = T**3 / 4.0, T / 4.0
+        p11, p12, p21, p22 = e * (1.0 + r), e * dt, -e * r / Tvw, e * (1.0 - r)
+        P1, P2 = Tvw**3 / 4.0, Tvw / 4.0
         q11 = P1 - (p11 * p11 * P1 + p12 * p12 * P2)
         q12 = -(p11 * p21 * P1 + p12 * p22 * P2)
         q22 = P2 - (p21 * p21 * P1 + p22 * p22 * P2)
@@ -168,10 +180,7 @@ class DrydenFilters:
         c11 = np.sqrt(np.maximum(q11, 0.0))
         c21 = np.where(c11 > 0.0, q12 / np.where(c11 > 0.0, c11, 1.0), 0.0)
         c22 = np.sqrt(np.maximum(q22 - c21 * c21, 0.0))
-        z1 = self.rng.standard_normal(x.shape)
-        z2 = self.rng.standard_normal(x.shape)
-        self.x += c11 * z1
-        self.xd += c21 * z1 + c22 * z2
+        self._coef = (T, a, np.sqrt(1.0 - a * a), (p11, p12, p21, p22), (c11, c21, c22))
 
     def _output(self, T: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """y_u = sigma_u u (u of unit variance); y = sigma T^-3/2 (x + sqrt(3) T xd) for v, w."""

@@ -119,6 +119,9 @@ class Dryden(Disturbance):
         self.axes = numerics.wind_axes(math.radians(params.heading))
         self.filters: numerics.DrydenFilters | None = None
         self.dt = ctx.physics_step
+        self.per_tick = max(1, round(ctx.guidance_period / ctx.physics_step))
+        self.steps = 0
+        self.conditions: tuple | None = None
 
     def _conditions(self, world: WorldState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(h, L, sigma, V) per realisation; the mean wind (M, 3) at those altitudes."""
@@ -136,8 +139,13 @@ class Dryden(Disturbance):
 
     def air(self, world: WorldState, t: float) -> np.ndarray:
         """Called once per physics step: the first call starts the filters in their stationary
-        state, each later one advances them by the physics step."""
-        L, sigma, V, mean = self._conditions(world)
+        state, each later one advances them by the physics step. The scales, intensities, airspeed
+        and mean wind (which change with altitude and speed over seconds) are evaluated at the
+        first physics step of each guidance tick and held over its others."""
+        if self.steps % self.per_tick == 0:
+            self.conditions = self._conditions(world)
+        self.steps += 1
+        L, sigma, V, mean = self.conditions
         if self.filters is None:
             self.filters = numerics.DrydenFilters(V.size, self.rng, L, sigma, V)
             gust = self.filters.output
