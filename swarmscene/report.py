@@ -1,7 +1,7 @@
 """``swarmscene-report``: rebuild a sweep's (or a run's) tables, plot a metric against a parameter.
 
     swarmscene-report multirun/cem_k                                   # summary.csv/.parquet/.md
-    swarmscene-report multirun/indoor_corridor --plot indoor.success --against environment
+    swarmscene-report multirun/indoor_corridor --plot indoor.success --against environment.width
     swarmscene-report outputs/default/2026-...  --run-plots --rerun    # a run's pictures, replay
     swarmscene-report multirun/methods --methods                       # scenario x method table
 

@@ -488,12 +488,17 @@ def test_methods_preset_is_every_paper_scenario_times_every_method():
 def test_indoor_corridor_preset_is_the_thesis_grid():
     grid = _grid("indoor_corridor")
     assert grid["scenario"] == ["indoor_corridor"]
-    assert grid["environment"] == [f"indoor_corridor_w0{w}0" for w in (5, 6, 7, 8, 9)]
+    assert grid["environment"] == ["indoor_corridor"]
+    assert grid["environment.width"] == ["0.5", "0.6", "0.7", "0.8", "0.9"]
     assert grid["seed"] == [str(s) for s in range(30)]
     from swarmscene import api
 
-    for env in grid["environment"]:
-        api.load(["+sweep=indoor_corridor", "scenario=indoor_corridor", f"environment={env}", "seed=29"])
+    for width in grid["environment.width"]:  # the generator gives the shipped map of that width
+        swept = api.load(["+sweep=indoor_corridor", "scenario=indoor_corridor", "environment=indoor_corridor",
+                          f"environment.width={width}", "seed=29"])
+        shipped = api.load(["scenario=indoor_corridor", f"environment=indoor_corridor_w0{width[-1]}0", "seed=29"])
+        assert [g.wkt for g in swept.obstacles] == [g.wkt for g in shipped.obstacles]
+        assert (swept.initial_positions == shipped.initial_positions).all()
 
 
 def test_metric_against_pools_seeds_skips_failures_and_uses_wilson_for_rates():
