@@ -11,7 +11,7 @@ from swarmscene import api
 
 ROOT = Path(__file__).resolve().parents[1]
 PRESETS = sorted(p.stem for p in (ROOT / "scenarios" / "scenario").glob("*.yaml"))
-ENGINE_PREFIXES = {"violations"}
+ENGINE_PREFIXES = {"violations", "events"}  # events.<k>.*: the draws of random events
 
 
 @pytest.mark.parametrize("preset", PRESETS)
