@@ -3,11 +3,12 @@
 For each search space (``full``: ``+sweep=falsify``, wind, packet loss and a failure; ``failure``:
 ``+sweep=falsify_failure``, the failure alone), scenario and sampler seed, one study with Optuna's
 TPE (the falsifier) and one with Optuna's RandomSampler, each ``--trials`` runs, one after the
-other in a child process (the machine's cores are shared: no two studies at once). Each study is the
-command a user types; its worst case is read back from ``worst_case.json``. Reported per study:
+other in a child process (the machine's cores are shared: no two studies at once). Each study is
+the command a user types; its worst case is read back from ``worst_case.json``. Reported per study:
 the worst minimum separation found, its robustness rho = min_separation - separation_limit (m,
-negative: a counter-example), the trial that first violated separation (the budget a sampler
-needed to find a counter-example), how many of its trials violated, and its wall time; then per
+negative: a counter-example), how many trials it took to the first violation (the budget a sampler
+needed to find a counter-example; TPE's first 10 trials are random, drawn as the RandomSampler of
+the same seed draws them), how many of its trials violated, and its wall time; then per space,
 scenario and sampler, over the seeds, the median and range of the worst case and how many seeds
 found a violation.
 
@@ -69,32 +70,45 @@ def summary(rows: list[dict]) -> list[dict]:
             if not group:
                 continue
             worst = [r["worst_min_separation"] for r in group]
-            firsts = [r["first_violating_trial"] for r in group if r["first_violating_trial"] is not None]
+            firsts = [r["first_violating_trial"] + 1 for r in group if r["first_violating_trial"] is not None]
             out.append({
                 "space": space, "scenario": scenario, "sampler": sampler, "seeds": len(group),
                 "median_worst": statistics.median(worst), "min_worst": min(worst), "max_worst": max(worst),
                 "seeds_violated": sum(r["violated"] for r in group),
-                "median_first_violating_trial": statistics.median(firsts) if firsts else None,
+                "median_trials_to_violation": statistics.median(firsts) if firsts else None,
                 "mean_violating_trials": statistics.fmean(r["violating_trials"] for r in group),
             })
     return out
 
 
+SHORT = {"disturbances.constant_wind.speed": "wind {:.2f} m/s", "disturbances.constant_wind.heading": "toward {:.0f} deg",
+         "disturbances.packet_loss.p": "loss {:.1%}", "events.0.agents.0": "agent {:.0f} fails",
+         "events.0.at": "at {:.2f} s"}
+
+
+def worst_case_text(overrides: list[str]) -> str:
+    """The searched values of a worst case, short: ``wind 3.19 m/s, toward -83 deg, ...``."""
+    values = dict(o.lstrip("+").split("=", 1) for o in overrides)
+    text = ", ".join(SHORT[k].format(float(values[k])) if k in SHORT else f"{k}={values[k]}"
+                     for k in sorted(values, key=lambda k: list(SHORT).index(k) if k in SHORT else len(SHORT)))
+    return text.replace("fails, at", "fails at")
+
+
 def markdown(rows: list[dict], groups: list[dict]) -> str:
-    lines = ["| space | scenario | sampler | seed | worst min separation (m) | robustness (m) | first violating trial "
+    lines = ["| space | scenario | sampler | seed | worst min separation (mm) | robustness (m) | trials to the first violation "
              "| violating trials | worst case | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        first = "-" if r["first_violating_trial"] is None else str(r["first_violating_trial"])
-        lines.append(f"| {r['space']} | {r['scenario']} | {r['sampler']} | {r['seed']} | {r['worst_min_separation']:.4f} "
-                     f"| {r['robustness']:+.4f} | {first} | {r['violating_trials']}/{r['trials']} "
-                     f"| {' '.join(r['worst_overrides'])} | {r['wall_s']:.0f} |")
-    lines += ["", "| space | scenario | sampler | seeds | worst min separation: median (range), m "
-              "| seeds with a violation | median first violating trial | mean violating trials |",
+        first = "-" if r["first_violating_trial"] is None else str(r["first_violating_trial"] + 1)
+        lines.append(f"| {r['space']} | {r['scenario']} | {r['sampler']} | {r['seed']} "
+                     f"| {1e3 * r['worst_min_separation']:.3g} | {r['robustness']:+.4f} | {first} "
+                     f"| {r['violating_trials']}/{r['trials']} | {worst_case_text(r['worst_overrides'])} | {r['wall_s']:.0f} |")
+    lines += ["", "| space | scenario | sampler | seeds | worst min separation: median (range), mm "
+              "| seeds with a violation | median trials to the first violation | mean violating trials |",
               "|---|---|---|---|---|---|---|---|"]
     for g in groups:
-        first = "-" if g["median_first_violating_trial"] is None else f"{g['median_first_violating_trial']:g}"
-        lines.append(f"| {g['space']} | {g['scenario']} | {g['sampler']} | {g['seeds']} | {g['median_worst']:.4f} "
-                     f"({g['min_worst']:.4f} - {g['max_worst']:.4f}) | {g['seeds_violated']}/{g['seeds']} "
+        first = "-" if g["median_trials_to_violation"] is None else f"{g['median_trials_to_violation']:g}"
+        lines.append(f"| {g['space']} | {g['scenario']} | {g['sampler']} | {g['seeds']} | {1e3 * g['median_worst']:.3g} "
+                     f"({1e3 * g['min_worst']:.3g} - {1e3 * g['max_worst']:.3g}) | {g['seeds_violated']}/{g['seeds']} "
                      f"| {first} | {g['mean_violating_trials']:.1f} |")
     return "\n".join(lines)
 
