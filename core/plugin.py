@@ -87,6 +87,9 @@ class BuildContext:
         link_delay: the declared per-link delay model (``disturbances`` of kind ``comm_delay``):
             ``link_delay(hops) -> ticks`` (N, N) int, -1 where unreachable; ``None`` when none is
             declared. For plugins that keep per-link maps (:attr:`Formation.models_communication`).
+        link_loss: the declared per-link packet loss (``packet_loss`` disturbances):
+            ``link_loss(world, sensing) -> lost`` (N, N) bool, the messages (receiver, sender) lost
+            this tick (call it once per tick); ``None`` when none is declared.
     """
 
     n: int
@@ -100,6 +103,7 @@ class BuildContext:
     rng: np.random.Generator
     initial: WorldState
     link_delay: Callable[[np.ndarray], np.ndarray] | None = None
+    link_loss: Callable[[WorldState, Any], np.ndarray] | None = None
 
     @property
     def min_separation(self) -> float:

@@ -90,6 +90,7 @@ class Simulation:
             rng=self.rng,
             initial=WorldState.at_rest(self.world.pos, leader=cfg.swarm.leader),
             link_delay=self.disturbances.link_delay(),
+            link_loss=self.disturbances.link_loss(),
         )
         self.formation: Formation = self._build("formation", ctx)
         self.avoidance: Avoidance = self._build("avoidance", ctx)

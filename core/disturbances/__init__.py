@@ -140,6 +140,7 @@ class Disturbances:
         self.wind_steps = 0
         self.sense_sq = 0.0
         self.sense_count = 0
+        self.link_sent = self.link_lost = 0
 
     def attach(self, formation: Any, dynamics: Any) -> None:
         """The run's chosen plugins: the dynamics' ``wind_coupling`` and drag
@@ -160,6 +161,24 @@ class Disturbances:
             return np.where(np.isfinite(hops), total, -1).astype(np.int64)
 
         return delay
+
+    def link_loss(self) -> Any:
+        """``(world, sensing) -> lost (N, N) bool``: the declared loss models per link and tick
+        (a message lost by any is lost); ``None`` when no ``packet_loss`` is declared
+        (``BuildContext.link_loss``)."""
+        models = [m for m in self.by_phase["communicate"] if isinstance(m, PacketLoss)]
+        if not models:
+            return None
+
+        def lost(world: WorldState, sensing: Any) -> np.ndarray:
+            out = models[0].link_lost(world)
+            for model in models[1:]:
+                out = out | model.link_lost(world)
+            self.link_sent += out.size - world.n
+            self.link_lost += int(out.sum() - np.trace(out))
+            return out
+
+        return lost
 
     # -- sense and communicate ------------------------------------------------------------
     def perceive(self, world: WorldState, sensing: Any) -> Perceived:
@@ -230,6 +249,8 @@ class Disturbances:
         if self.sense_count:
             out["disturbances.sense.pos_error_rms"] = float(np.sqrt(self.sense_sq / self.sense_count))
         out.update(self.channel.metrics())
+        if self.link_sent:
+            out["disturbances.comm.link_loss_rate"] = self.link_lost / self.link_sent
         for key, model in self.models.items():
             out.update({f"disturbances.{key}.{k}": v for k, v in model.metrics().items()})
         return out

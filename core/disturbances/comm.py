@@ -6,8 +6,9 @@ delayed as the models say, and row j of the picture is the newest message of j t
 (the last one is kept while none arrives). Loss and delay are drawn per sender and tick, so every
 receiver sees the same row j: one array serves every plugin unchanged. A plugin that keeps per-link
 maps (the thesis' ``outdoor_mission``) gets the per-link delay model itself
-(``BuildContext.link_delay``, hop-proportional, thesis section 4.2) and reads the estimates without
-the channel's delay (``Formation.models_communication``). Numerics: :mod:`~swarmscene.core.disturbances.links`.
+(``BuildContext.link_delay``, hop-proportional, thesis section 4.2) and loss
+(``BuildContext.link_loss``, per link and tick) and reads the estimates without the channel's
+delay (``Formation.models_communication``). Numerics: :mod:`~swarmscene.core.disturbances.links`.
 """
 
 from __future__ import annotations
@@ -135,6 +136,7 @@ class PacketLoss(Disturbance):
         self.chains = (numerics.GilbertElliott(ctx.n, self.rng, params.p_gb, params.p_bg,
                                                params.loss_good, params.loss_bad)
                        if params.model == "gilbert_elliott" else None)
+        self.link_chains: numerics.GilbertElliott | None = None
 
     def lost(self, world: WorldState, sensing: Any) -> np.ndarray:
         """Which agents' messages of this tick are lost, (N,) bool."""
@@ -146,6 +148,24 @@ class PacketLoss(Disturbance):
         d = sensing.nearest[0] if n > 1 else np.full(n, np.inf)
         prob = numerics.range_loss_probability(d, p.p, p.range_start * self.comm_range, self.comm_range)
         return self.rng.random(n) < prob
+
+
+    def link_lost(self, world: WorldState) -> np.ndarray:
+        """Which messages (receiver i, sender j) of this tick are lost, (N, N) bool, for plugins
+        that keep per-link maps: the same laws per link (Gilbert-Elliott: a chain per link; range:
+        the link's length)."""
+        p, n = self.params, world.n
+        if p.model == "bernoulli":
+            return self.rng.random((n, n)) < p.p
+        if p.model == "gilbert_elliott":
+            if self.link_chains is None:
+                self.link_chains = numerics.GilbertElliott((n, n), self.rng, p.p_gb, p.p_bg,
+                                                           p.loss_good, p.loss_bad)
+            return self.link_chains.step()
+        diff = world.pos[:, None, :] - world.pos[None, :, :]
+        d = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
+        prob = numerics.range_loss_probability(d, p.p, p.range_start * self.comm_range, self.comm_range)
+        return self.rng.random((n, n)) < prob
 
 
 class Channel:

@@ -177,11 +177,14 @@ class SwarmMap:
         rows = self.h_kin[slot * self.n:(slot + 1) * self.n]
         rows[:, 0:3], rows[:, 3:6], rows[:, 6:9] = pos, vel, u
 
-    def deliver(self, hops: np.ndarray) -> np.ndarray:
+    def deliver(self, hops: np.ndarray, lost: np.ndarray | None = None) -> np.ndarray:
         """Update every map with the messages arriving at the current tick; returns ``present``.
 
         Args:
             hops: (N, N) hop distances of this tick (:func:`hop_matrix`), inf: not connected.
+            lost: (N, N) bool, the messages (receiver i, sender j) lost on their way this tick
+                (the engine's declared packet loss, ``BuildContext.link_loss``): the entry keeps
+                the last message that arrived. None: none lost.
         """
         k, cols = self.k, self._cols
         if hops is not self._hops:  # a new graph: new delays (else the last tick's are reused)
@@ -194,6 +197,8 @@ class SwarmMap:
             usable = usable & (sent >= 0)
         if not self.h_sent.all():  # somebody was silent within the last T_msg
             usable = usable & self.h_sent[slot, cols]
+        if lost is not None:
+            usable = usable & ~lost
         update = usable & (sent > self.stamp)
         if update.all():  # the usual case: every entry refreshed
             self.stamp[...] = sent

@@ -211,7 +211,7 @@ class OutdoorMission(Formation):
     name = "outdoor_mission"
     metric_prefix = "outdoor"
     requires_leader = True
-    models_communication = True  # its swarm maps apply per-link delays (ctx.link_delay or tau_com)
+    models_communication = True  # its swarm maps apply per-link delays and losses (ctx.link_*)
 
     class Params(PluginParams):
         d_r: float = Field(5.0, gt=0, description="formation spacing d_r, m (Table 4.3)")
@@ -286,7 +286,8 @@ class OutdoorMission(Formation):
             tree = sensing.tree if sensing is not None else None
             self._hops = hop_matrix(world.pos, members, d_com, tree)
         self._one_hop, self._members = one_hop, members
-        return self.map.deliver(self._hops)
+        lost = self.ctx.link_loss(world, sensing) if self.ctx.link_loss is not None else None
+        return self.map.deliver(self._hops, lost)
 
     # -- assignment (eq. 4.12-4.13) on each agent's map ------------------------------------------
 

@@ -161,3 +161,15 @@ def test_a_channel_too_large_for_memory_is_refused(data):
     assert exc.value.lines == [
         "disturbances.comm_delay.tau: the channel would keep 600001 ticks of 1000 agents' messages "
         "(31.3 GiB, at most 1); shorten the delay or lengthen clock.guidance_period (got 60.0)"]
+
+
+def test_outdoor_mission_maps_lose_the_declared_messages():
+    """packet_loss reaches the swarm maps per link and tick: at p = 0 the run is the one without
+    it (the draws come from the model's own stream), at p = 0.3 the realised rate is 0.3."""
+    pos_a, m_a = _outdoor()
+    pos_b, m_b = _outdoor("disturbances=[packet_loss]", "disturbances.packet_loss.p=0")
+    assert np.array_equal(pos_a, pos_b) and m_a == m_b
+    result = api.run(["scenario=outdoor_square", "output.summary=false", "disturbances=[packet_loss]",
+                      "disturbances.packet_loss.p=0.3"])
+    assert result.metrics["disturbances.comm.link_loss_rate"] == pytest.approx(0.3, abs=0.005)
+    assert not np.array_equal(result.trajectory["pos"][: len(pos_a)], pos_a[: len(result.trajectory["pos"])])

@@ -24,3 +24,21 @@ def test_a_given_link_delay_model_replaces_tau_com():
     m = SwarmMap(2, 0.1, 0.2, 2.0, self_hops=2, link_delay=model)
     np.testing.assert_array_equal(m.delay_ticks(np.array([[0.0, np.inf], [np.inf, 0.0]])), [[7, -1], [-1, 7]])
     np.testing.assert_array_equal(seen[0], [[2.0, np.inf], [np.inf, 2.0]])  # own message: self_hops
+
+
+def test_a_lost_message_leaves_the_entry_as_it_was():
+    """deliver(hops, lost): the (receiver, sender) messages lost this tick do not update the map."""
+    m = SwarmMap(2, 0.1, 0.1, 2.0, self_hops=0)
+    hops = np.array([[0.0, 1.0], [1.0, 0.0]])
+    pos = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    zero = np.zeros((2, 3))
+    m.broadcast(0, np.ones(2, bool), np.zeros(2, np.int8), pos, zero, zero)
+    m.deliver(hops)
+    m.broadcast(1, np.ones(2, bool), np.zeros(2, np.int8), pos + 1.0, zero, zero)
+    m.deliver(hops)  # the one-hop messages of tick 0 arrive at tick 1: 0 holds 1 at x = 5
+    m.broadcast(2, np.ones(2, bool), np.zeros(2, np.int8), pos + 2.0, zero, zero)
+    lost = np.array([[False, True], [False, False]])  # 1's message to 0 is lost
+    m.deliver(hops, lost)
+    assert m.positions(0, 1)[0] == 5.0  # still tick 0's message
+    assert m.positions(1, 0)[0] == 1.0  # 0's message of tick 1 arrived at 1
+    assert m.positions(0, 0)[0] == 2.0  # own message, no hop
