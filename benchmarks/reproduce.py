@@ -311,12 +311,13 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
         "of the paper the number depends on (the first reading of a claim is the default, literal one).",
         "\"ours\" is the mean over seeds with its 95 % interval (Student t; Wilson for rates); \"det.\"",
         "means every seed gave the same value. \"worst\" is the seed farthest from the paper (the",
-        "maximum for an upper bound, the minimum for a lower bound). \"holds\" applies the claim's",
+        "maximum for an upper bound, the minimum for a lower bound; none for a rate). \"holds\" applies the claim's",
         "stated tolerance; \"in interval\" says whether our interval (for bounds: every seed) meets the",
         "paper's value. The command reproduces the runs of one row.",
         "",
-        f"Run: {meta['date']}, commit `{meta['commit']}`, {meta['runs']} runs in {meta['minutes']:.1f} min "
-        f"on {meta['jobs']} worker process(es). Numbers: `benchmarks/results/reproduction.json`.",
+        f"Run: {meta['date']}, commit `{meta['commit']}`, {meta['runs']} runs ({meta['cached']} of them read "
+        f"from `--cache`, run earlier by this command) in {meta['minutes']:.1f} min on {meta['jobs']} worker "
+        "process(es). Numbers: `benchmarks/results/reproduction.json`." + (f" {meta['note']}" if meta.get("note") else ""),
         "",
     ]
     for paper, title in PAPERS.items():
@@ -330,7 +331,7 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
             c = o.claim
             lines.append(
                 f"| {c.quantity} (`{c.id}`) | {c.where} | {_paper(c, o.rate)} | {o.reading} | "
-                f"{len(o.values)} | {_ours(o)} | {_num(o.worst, o.rate, c.unit)} | "
+                f"{len(o.values)} | {_ours(o)} | {'–' if o.rate else _num(o.worst, o.rate, c.unit)} | "
                 f"{_verdict(o)} | {'yes' if o.contains_paper else '**no**'} |"
             )
         lines.append("")
@@ -373,13 +374,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cache", type=Path, default=None, help="directory keeping finished runs (resume)")
     parser.add_argument("--markdown", type=Path, default=ROOT / "docs" / "reproduction.md")
     parser.add_argument("--json", type=Path, default=HERE / "results" / "reproduction.json")
+    parser.add_argument("--note", default="", help="a line for the report on the runs (e.g. where cached runs came from)")
     args = parser.parse_args(argv)
     claims = select(load_claims(), args.only)
     jobs = [job for c in claims for reading in c.readings for job in c.jobs(reading)]
     started = time.perf_counter()
+    keys = {j.key for j in jobs}
+    cached = sum((args.cache / f"{k}.json").exists() for k in keys) if args.cache else 0
     results = run_jobs(jobs, args.jobs, args.cache)
     outcomes = [evaluate(c, reading, results) for c in claims for reading in c.readings]
-    meta = {"date": time.strftime("%Y-%m-%d"), "commit": git_commit(), "runs": len({j.key for j in jobs}),
+    meta = {"date": time.strftime("%Y-%m-%d"), "commit": git_commit(), "runs": len(keys), "cached": cached, "note": args.note,
             "minutes": (time.perf_counter() - started) / 60, "jobs": args.jobs}
     args.markdown.write_text(markdown(outcomes, meta))
     args.json.parent.mkdir(parents=True, exist_ok=True)
