@@ -28,12 +28,11 @@ import hashlib
 import json
 import math
 import os
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -221,7 +220,6 @@ class Outcome:
     holds: bool = False
     contains_paper: bool = False
     missing: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -354,11 +352,14 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
 
 
 def git_commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
+    """The commit the report ran from (the run manifests' own record of it), marked when the
+    checkout had uncommitted changes; "unknown" outside a git checkout."""
+    from swarmscene.core.outputs import source_revision
+
+    rev = source_revision()
+    if rev is None:
         return "unknown"
+    return rev["revision"][:7] + (" with uncommitted changes" if rev["dirty"] else "")
 
 
 def select(claims: list[Claim], only: list[str]) -> list[Claim]:
