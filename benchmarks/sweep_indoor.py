@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -38,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from swarmscene import api
+from swarmscene.sweep import wilson  # the sweeps' 95 % Wilson interval
 
 SHAPES = {"straight": "indoor_corridor", "l": "indoor_l_corridor", "building": "indoor_building"}
 WIDTHS = ("050", "060", "070", "080", "090")
@@ -54,16 +54,6 @@ def cause(m: dict) -> str:
         return "split"
     why = "los" if m["indoor.disconnect.link_clearance"] < D_L else "range"
     return why + ("+done" if m["indoor.disconnect.leader_done"] else "")
-
-
-def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """95 % Wilson score interval of a success rate (fractions)."""
-    if n == 0:
-        return (0.0, 1.0)
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (max(0.0, centre - half), min(1.0, centre + half))
 
 
 def run_one(overrides: list[str], seed: int) -> dict:
