@@ -16,17 +16,19 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
-import networkx as nx
 import numpy as np
-from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import connected_components, minimum_spanning_tree, shortest_path
-from scipy.spatial import cKDTree
+import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a small swarm needs neither
 
 from .environment import Environment
 from .state import WorldState
-from .vectors import min_pair_distance
+from .vectors import DENSE_POINTS, dense_pairs, min_pair_distance
+
+if TYPE_CHECKING:  # pragma: no cover
+    import networkx as nx
+    from scipy.sparse import csr_matrix
+    from scipy.spatial import cKDTree
 
 
 DENSE_LIMIT = 128
@@ -87,8 +89,8 @@ def _renumber(n: int, members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarra
 def _components(m: int, i: np.ndarray, j: np.ndarray) -> int:
     if i.size < m - 1:
         return 2  # a spanning tree needs m - 1 edges
-    graph = coo_matrix((np.ones(i.size, dtype=np.int8), (i, j)), shape=(m, m))
-    return connected_components(graph, directed=False)[0]
+    graph = scipy.sparse.coo_matrix((np.ones(i.size, dtype=np.int8), (i, j)), shape=(m, m))
+    return scipy.sparse.csgraph.connected_components(graph, directed=False)[0]
 
 
 class Sensing:
@@ -150,9 +152,9 @@ class Sensing:
         return value
 
     @cached_property
-    def tree(self) -> cKDTree:
+    def tree(self) -> "cKDTree":
         """k-d tree over all agents' positions (failed ones included: they are still obstacles)."""
-        return cKDTree(self.world.pos)
+        return scipy.spatial.cKDTree(self.world.pos)
 
     def pairs(self, radius: float) -> np.ndarray:
         """Index pairs (i < j) of agents closer than ``radius`` m, shape (M, 2); cached per radius.
@@ -173,9 +175,15 @@ class Sensing:
                 self._pairs[radius] = wide[self._pair_dist2(wide) <= radius * radius]
             else:
                 reach = max(radius, self._hint["pairs"])
-                self._pairs[reach] = self.tree.query_pairs(reach, output_type="ndarray")
+                self._pairs[reach] = self._query_pairs(reach)
                 return self._listed_pairs(radius)
         return self._pairs[radius]
+
+    def _query_pairs(self, radius: float) -> np.ndarray:
+        pos = self.world.pos
+        if len(pos) <= DENSE_POINTS and "tree" not in self.__dict__:
+            return dense_pairs(pos, radius)
+        return self.tree.query_pairs(radius, output_type="ndarray")
 
     def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
         """Squared distances of ``pairs`` (axis by axis: 1-D gathers are several times faster)."""
@@ -205,7 +213,7 @@ class Sensing:
                 return float(np.sqrt(self._pair_dist2(self._pairs[radius]).min()))
         if "knn" in self.__dict__:
             return float(self.knn[0][:, 0].min())
-        return min_pair_distance(self.world.pos, self.tree)
+        return min_pair_distance(self.world.pos, self.__dict__.get("tree"))
 
     @cached_property
     def knn(self) -> tuple[np.ndarray, np.ndarray]:
@@ -290,13 +298,13 @@ class Sensing:
         return pairs[self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]]
 
     @cached_property
-    def comm_adjacency(self) -> csr_matrix:
+    def comm_adjacency(self) -> "csr_matrix":
         """Symmetric sparse adjacency of the communication graph (range ``comm_range``)."""
         n = self.world.n
         edges = self.comm_edges
         i, j = edges[:, 0], edges[:, 1]
         data = np.ones(2 * len(i), dtype=np.int8)
-        return coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
+        return scipy.sparse.coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
 
     @cached_property
     def comm_connected(self) -> bool:
@@ -353,18 +361,21 @@ class Sensing:
         i, j = _renumber(self.world.n, members, edges)
         # csgraph reads a zero weight as a missing link: co-located members weigh a little.
         length = np.maximum(np.sqrt(self._pair_dist2(edges)), 1e-12)
-        tree = minimum_spanning_tree(coo_matrix((length, (i, j)), shape=(m, m))).tocoo()
+        weights = scipy.sparse.coo_matrix((length, (i, j)), shape=(m, m))
+        tree = scipy.sparse.csgraph.minimum_spanning_tree(weights).tocoo()
         if tree.nnz != m - 1:
             return None
         return np.column_stack([members[tree.row], members[tree.col]])
 
     def hop_distances(self, source: int) -> np.ndarray:
         """Hops from ``source`` to every agent over the communication graph (``inf`` if unreachable)."""
-        return shortest_path(self.comm_adjacency, unweighted=True, indices=source)
+        return scipy.sparse.csgraph.shortest_path(self.comm_adjacency, unweighted=True, indices=source)
 
     @cached_property
-    def comm_graph(self) -> nx.Graph:
+    def comm_graph(self) -> "nx.Graph":
         """The communication graph as a networkx graph, for analysis and metrics (not hot loops)."""
+        import networkx as nx  # 0.1 s to import: only the analyses that ask for it pay
+
         graph = nx.Graph()
         graph.add_nodes_from(np.flatnonzero(self.comm_members).tolist())
         rows, cols = self.comm_adjacency.nonzero()

@@ -25,9 +25,7 @@ the rows of each reduced matrix with the fewest zeros first (tie-heavy rows last
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import maximum_bipartite_matching
+import scipy  # scipy.optimize and scipy.sparse load on first use (start-up of unrelated runs)
 
 
 def assignment_duals(
@@ -98,8 +96,8 @@ def _matching_on_reduction_zeros(cost: np.ndarray, cheapest: np.ndarray | None =
     reduced = cost - cost.min(axis=1, keepdims=True)
     reduced -= reduced.min(axis=0)
     rows, cols = np.nonzero(reduced == 0)
-    zeros = csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=cost.shape)
-    match = maximum_bipartite_matching(zeros, perm_type="column")
+    zeros = scipy.sparse.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=cost.shape)
+    match = scipy.sparse.csgraph.maximum_bipartite_matching(zeros, perm_type="column")
     return match if np.all(match >= 0) else None
 
 
@@ -111,7 +109,7 @@ def _solve_with_duals_hint(cost, coarsen, direct_size, row_order=None):
     """
     n = cost.shape[0]
     if n <= direct_size:
-        return linear_sum_assignment(cost)[1], np.zeros(n, dtype=cost.dtype)
+        return scipy.optimize.linear_sum_assignment(cost)[1], np.zeros(n, dtype=cost.dtype)
     sample_cols = np.arange(0, n, coarsen)
     sample = sample_cols if row_order is None else row_order[::coarsen]
     coarse = cost[np.ix_(sample, sample_cols)]
@@ -138,5 +136,5 @@ def _solve_reduced(reduced: np.ndarray) -> np.ndarray:
     """
     order = np.argsort(np.count_nonzero(reduced == 0, axis=1), kind="stable")
     cols = np.empty(reduced.shape[0], dtype=np.intp)
-    cols[order] = linear_sum_assignment(reduced[order])[1]
+    cols[order] = scipy.optimize.linear_sum_assignment(reduced[order])[1]
     return cols

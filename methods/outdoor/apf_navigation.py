@@ -32,11 +32,15 @@ Choices where the text is loose:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
+import scipy  # scipy.spatial loads on first use (start-up of unrelated runs)
 
 from swarmscene.core.vectors import clip_norm
+
+if TYPE_CHECKING:  # pragma: no cover
+    from scipy.spatial import cKDTree
 
 LEVEL_BAND = 2.0 / 3.0
 """Agents with |dz| < LEVEL_BAND * d_c are on the same flight level (F_i of section 4.3.3)."""
@@ -83,7 +87,7 @@ def same_level_pairs(
     """
     pos = np.asarray(pos, dtype=float)
     if tree is None:
-        tree = cKDTree(pos)
+        tree = scipy.spatial.cKDTree(pos)
     if tree.m == 3:
         radius = d_c * np.hypot(2.0, LEVEL_BAND)  # reaches every same-level pair within 2 d_c
     elif tree.m == 2:

@@ -26,13 +26,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
-from scipy.spatial import Voronoi
-from scipy.spatial.distance import cdist
+import scipy  # scipy.spatial loads on first use (start-up of unrelated runs)
 
 from swarmscene.methods.assignment import solve_square
+
+if TYPE_CHECKING:  # pragma: no cover
+    import networkx as nx
 
 # ---------------------------------------------------------------------------------------------
 # Hexagonal axial frame {h} (eq. 4.3-4.7)
@@ -227,7 +229,7 @@ def hex_pattern(n: int, d_r: float, alpha: float = 0.0) -> HexPattern:
     )
 
 
-def formation_graph(pattern: HexPattern) -> nx.Graph:
+def formation_graph(pattern: HexPattern) -> "nx.Graph":
     """G_h: the leader node 0 and offsets 1..M, joined when their Voronoi cells are adjacent.
 
     The cells are those of the lattice (Fig. 4.8): the Voronoi diagram is computed on the kept
@@ -236,12 +238,14 @@ def formation_graph(pattern: HexPattern) -> nx.Graph:
     lattice neighbours, d_r apart. Node attributes: ``axial``, ``xy`` (world frame, m), ``rho``;
     edge attribute ``length`` (m). Offset j of the pattern is node j + 1.
     """
+    import networkx as nx  # 0.1 s to import: only the outdoor mission pays it, once per pattern
+
     kept = np.vstack([np.zeros((1, 2), dtype=int), pattern.axial])
     ring = hex_disk(pattern.rho_max + 1)
     kept_keys = {tuple(a) for a in kept.tolist()}
     padding = np.array([a for a in ring.tolist() if tuple(a) not in kept_keys])
     points_ne = np.vstack([kept, padding]) @ hex_to_ne_matrix(pattern.d_r, pattern.alpha).T
-    ridges = Voronoi(points_ne).ridge_points
+    ridges = scipy.spatial.Voronoi(points_ne).ridge_points
     ridges = ridges[(ridges < kept.shape[0]).all(axis=1)]
 
     xy = ne_to_world_xy(points_ne[: kept.shape[0]])
@@ -266,7 +270,7 @@ DECIMETRE = 0.1
 def _distance_dm(pattern: HexPattern, follower_xy: np.ndarray, leader_xy: np.ndarray) -> np.ndarray:
     """||h_j + r_N - r_i|| in whole decimetres, float64 (exact integers), shape (K, M)."""
     slots = pattern.offsets_xy + np.asarray(leader_xy, dtype=float)[:2]
-    dist = cdist(np.asarray(follower_xy, dtype=float)[:, :2], slots)
+    dist = scipy.spatial.distance.cdist(np.asarray(follower_xy, dtype=float)[:, :2], slots)
     dist *= 1.0 / DECIMETRE
     return np.rint(dist, out=dist)
 

@@ -36,9 +36,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
-from scipy.spatial.distance import pdist, squareform
+import scipy  # scipy.sparse and scipy.spatial load on first use (start-up of unrelated runs)
 
 from swarmscene.core.disturbances.links import hop_delay_ticks
 from swarmscene.methods.outdoor.apf_navigation import LEVEL_BAND, collision_gain
@@ -69,11 +67,11 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
     if m < 2:
         return hops
     if n <= DENSE_HOPS_LIMIT or tree is None:
-        within = pdist(pos[idx]) <= d_com
+        within = scipy.spatial.distance.pdist(pos[idx]) <= d_com
         if within.all():
             adjacent = None
         else:
-            adjacent = squareform(within)
+            adjacent = scipy.spatial.distance.squareform(within)
     else:
         pairs = tree.query_pairs(d_com, output_type="ndarray")
         keep = members[pairs[:, 0]] & members[pairs[:, 1]]
@@ -86,7 +84,7 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
         sub = np.ones((m, m))
         np.fill_diagonal(sub, 0.0)
     else:
-        sub = shortest_path(csr_matrix(adjacent), unweighted=True, directed=False)
+        sub = scipy.sparse.csgraph.shortest_path(scipy.sparse.csr_matrix(adjacent), unweighted=True, directed=False)
     hops[np.ix_(idx, idx)] = sub
     return hops
 

@@ -36,9 +36,7 @@ from functools import lru_cache
 from math import factorial
 
 import numpy as np
-from scipy import sparse
-from scipy.interpolate import PPoly
-from scipy.sparse import linalg as sparse_linalg
+import scipy  # its submodules load on first use: registering the VRB plugin must not import them
 
 DEGREE = 7
 """Polynomial degree of each minimum-snap piece (8 coefficients)."""
@@ -153,23 +151,23 @@ def minimum_snap(t: np.ndarray, values: np.ndarray, fixed: np.ndarray) -> np.nda
     b = np.array(rhs)
     # Cost: sum_j T_j^-7 c_j^T H c_j (int (d^4/dt^4)^2 dt in normalised time); scaled per piece.
     w = seg ** (1 - 2 * ORDER)
-    Q = sparse.kron(sparse.diags(w / w.max()), sparse.csr_matrix(_snap_hessian()))
-    As = sparse.csr_matrix(A)
+    Q = scipy.sparse.kron(scipy.sparse.diags(w / w.max()), scipy.sparse.csr_matrix(_snap_hessian()))
+    As = scipy.sparse.csr_matrix(A)
     nv = m * nc
     # The KKT matrix is banded (pieces couple only at shared keyframes): a sparse LU is fast and
     # avoids dense BLAS, which is slow to share on a loaded machine.
-    kkt = sparse.bmat([[Q, As.T], [As, None]], format="csc")
-    sol = sparse_linalg.spsolve(kkt, np.concatenate([np.zeros(nv), b]))
+    kkt = scipy.sparse.bmat([[Q, As.T], [As, None]], format="csc")
+    sol = scipy.sparse.linalg.spsolve(kkt, np.concatenate([np.zeros(nv), b]))
     return sol[:nv].reshape(m, nc)
 
 
-def _to_ppoly(t: np.ndarray, coeffs: np.ndarray) -> PPoly:
+def _to_ppoly(t: np.ndarray, coeffs: np.ndarray) -> "scipy.interpolate.PPoly":
     """Pieces (C, K-1, DEGREE+1) in normalised s -> one PPoly over (K-1) intervals with C channels."""
     seg = np.diff(t)
     k = np.arange(DEGREE + 1)
     local = coeffs / seg[None, :, None] ** k  # c_k s^k = (c_k / T^k) tau^k
     c = np.transpose(local[:, :, ::-1], (2, 1, 0))  # PPoly: highest power first, (deg+1, m, C)
-    return PPoly(c, t)
+    return scipy.interpolate.PPoly(c, t)
 
 
 @dataclass(frozen=True)

@@ -59,10 +59,7 @@ from functools import lru_cache
 from math import comb
 
 import numpy as np
-from scipy import sparse
-from scipy.interpolate import BSpline
-from scipy.optimize import linear_sum_assignment
-from scipy.spatial.distance import pdist
+import scipy  # its submodules load on first use: registering the VRB plugin must not import them
 
 from .trajectory import ORDER, VRBState, VRBTrajectory
 
@@ -80,7 +77,7 @@ def assign_targets(r_from: np.ndarray, slots: np.ndarray) -> np.ndarray:
         (N,) int, ``perm``; cost is the sum of squared distances (CAPT, ref. [16]).
     """
     cost = np.sum((r_from[:, None, :] - slots[None, :, :]) ** 2, axis=-1)
-    rows, cols = linear_sum_assignment(cost)
+    rows, cols = scipy.optimize.linear_sum_assignment(cost)
     perm = np.empty(len(rows), dtype=int)
     perm[rows] = cols
     return perm
@@ -156,9 +153,9 @@ class _PairField:
             self.incidence_t[p, i], self.incidence_t[p, j] = 1.0, -1.0
         else:
             rows, cols = np.r_[i, j], np.r_[p, p]
-            self.push = sparse.csr_matrix((np.r_[wi, wj], (rows, cols)), (n, i.size))
+            self.push = scipy.sparse.csr_matrix((np.r_[wi, wj], (rows, cols)), (n, i.size))
             ones = np.r_[np.ones(i.size), -np.ones(i.size)]
-            self.incidence_t = sparse.csr_matrix((ones, (cols, rows)), (i.size, n))
+            self.incidence_t = scipy.sparse.csr_matrix((ones, (cols, rows)), (i.size, n))
 
     def velocity(self, diff: np.ndarray, push: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) summed eq. 8 from the (P, 3) pair differences r_i - r_j (``push`` may be scaled)."""
@@ -219,7 +216,7 @@ def _deviation_operator(n_samples: int, intervals: int) -> tuple[np.ndarray, np.
     knots = np.concatenate([np.zeros(k), np.linspace(0.0, 1.0, intervals + 1), np.ones(k)])
     n_coef = intervals + k
     s = np.linspace(0.0, 1.0, n_samples)
-    basis = BSpline.design_matrix(s, knots, k).toarray()  # (S, n_coef)
+    basis = scipy.interpolate.BSpline.design_matrix(s, knots, k).toarray()  # (S, n_coef)
     free = slice(ORDER + 1, n_coef - ORDER - 1)  # first/last five coefficients held at zero
     op = np.zeros((n_coef, n_samples))
     op[free] = np.linalg.pinv(basis[:, free])
@@ -342,7 +339,7 @@ class Transformation:
     t_end: float
     r_from: np.ndarray
     r_to: np.ndarray
-    deviation: BSpline | None = None
+    deviation: "scipy.interpolate.BSpline | None" = None
 
     @property
     def duration(self) -> float:
@@ -372,7 +369,7 @@ def min_pair_distance(r: np.ndarray) -> float:
     """Closest pair over samples: r (T, N, 3) -> m (pdist per sample: no (T, N, N) array)."""
     if r.shape[1] < 2:
         return float("inf")
-    return float(min(pdist(sample).min() for sample in r))
+    return float(min(scipy.spatial.distance.pdist(sample).min() for sample in r))
 
 
 def plan_transformation(
@@ -388,7 +385,7 @@ def plan_transformation(
         return Transformation(t_start, t_end, r_from, r_to)
     knots, fit = _deviation_operator(e.shape[0], law.intervals(t_end - t_start))
     coef = fit @ e.reshape(e.shape[0], -1)
-    spline = BSpline.construct_fast(knots, coef, SPLINE_DEGREE, extrapolate=False)
+    spline = scipy.interpolate.BSpline.construct_fast(knots, coef, SPLINE_DEGREE, extrapolate=False)
     return Transformation(t_start, t_end, r_from, r_to, spline)
 
 

@@ -56,8 +56,8 @@ from __future__ import annotations
 from enum import IntEnum
 
 import numpy as np
+import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import Field
-from scipy.spatial.distance import cdist
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
@@ -325,7 +325,7 @@ class OutdoorMission(Formation):
         out = np.full(self.n, -1)
         flowing = np.flatnonzero(view & flow)
         if flowing.size:
-            rel = cdist(pos[flowing, :2] - leader_pos[:2], self.pattern.offsets_xy)
+            rel = scipy.spatial.distance.cdist(pos[flowing, :2] - leader_pos[:2], self.pattern.offsets_xy)
             out[flowing] = rel.argmin(axis=1)
         free = np.setdiff1d(np.arange(self.pattern.m), out[flowing])
         ids = np.flatnonzero(view & ~flow)  # ascending ids: the thesis' deterministic order

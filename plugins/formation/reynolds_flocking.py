@@ -48,8 +48,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import Field, model_validator
-from scipy.spatial import cKDTree
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
@@ -59,6 +59,8 @@ from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import wrap
 
 if TYPE_CHECKING:  # pragma: no cover
+    from scipy.spatial import cKDTree
+
     from swarmscene.core.simulation import Simulation
 
 Point3 = tuple[float, float, float]
@@ -181,7 +183,7 @@ def seam_pairs(
     if agents_all.size == 0:
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros((axes, 0))
     # One tree over every image, one query against the shared tree.
-    hits = cKDTree(images_all).sparse_distance_matrix(tree, radius, output_type="ndarray")
+    hits = scipy.spatial.cKDTree(images_all).sparse_distance_matrix(tree, radius, output_type="ndarray")
     row, j = hits["i"], hits["j"]
     delta = (pos[j, :axes] - images_all[row, :axes]).T
     return agents_all[row], j, np.ascontiguousarray(delta)

@@ -15,8 +15,8 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
+import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import Field
-from scipy.optimize import linear_sum_assignment
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
@@ -77,7 +77,7 @@ class StaticShape(Formation):
         slots = self.slots(center, self.heading)
         agents = np.flatnonzero(healthy)
         cost = np.linalg.norm(pos[agents, None, :] - slots[None, :, :], axis=2)
-        rows, cols = linear_sum_assignment(cost)
+        rows, cols = scipy.optimize.linear_sum_assignment(cost)
         slot_of = np.full(len(pos), -1)
         slot_of[agents[rows]] = cols
         return slot_of

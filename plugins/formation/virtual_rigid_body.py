@@ -35,8 +35,8 @@ import time
 from typing import Any, Literal
 
 import numpy as np
+import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-from scipy.optimize import linear_sum_assignment
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
@@ -186,7 +186,7 @@ class VirtualRigidBody(Formation):
             return FormationSequence(slots, seq.durations, seq.transitions, seq.t1)
         world_slots = body.p[0, 0] + seq.slots[0] @ body.R[0, 0].T
         cost = np.sum((start[:, None, :] - world_slots[None, :, :]) ** 2, axis=-1)
-        _, cols = linear_sum_assignment(cost)
+        _, cols = scipy.optimize.linear_sum_assignment(cost)
         slots = np.array(seq.slots, copy=True)
         slots[0] = seq.slots[0][cols]
         return FormationSequence(slots, seq.durations, seq.transitions, seq.t1)
