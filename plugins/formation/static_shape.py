@@ -2,9 +2,9 @@
 
 A virtual reference point moves along the waypoint polyline at ``speed``; each slot is the
 reference plus the shape's offset, rotated with the path heading when ``rotate_with_heading``.
-Agents are assigned to slots by minimum total distance (scipy's ``linear_sum_assignment``) at the
-start and, when ``reassign_on_failure``, again among the healthy agents after a failure. Agents get
-TRACK setpoints: slot position, the reference's velocity as feed-forward.
+Agents are assigned to slots by minimum total distance (``methods.assignment.min_cost_assignment``)
+at the start and, when ``reassign_on_failure``, again among the healthy agents after a failure.
+Agents get TRACK setpoints: slot position, the reference's velocity as feed-forward.
 
 The mission is complete when the reference has reached the last waypoint and every healthy agent is
 within ``arrival_tolerance`` of its slot.
@@ -15,13 +15,13 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import Field
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
 
@@ -77,7 +77,7 @@ class StaticShape(Formation):
         slots = self.slots(center, self.heading)
         agents = np.flatnonzero(healthy)
         cost = np.linalg.norm(pos[agents, None, :] - slots[None, :, :], axis=2)
-        rows, cols = scipy.optimize.linear_sum_assignment(cost)
+        rows, cols = min_cost_assignment(cost)
         slot_of = np.full(len(pos), -1)
         slot_of[agents[rows]] = cols
         return slot_of

@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from swarmscene.methods.assignment import assignment_duals, solve_square
+from swarmscene.methods.assignment import assignment_duals, min_cost_assignment, solve_square
 
 
 def _optimum(cost):
@@ -88,3 +88,21 @@ def test_tie_heavy_line_start_is_optimal_and_deterministic():
     reduced = cost - cost.min(axis=1, keepdims=True)
     direct = _solve_reduced(reduced)
     assert reduced[np.arange(n), direct].sum() == _optimum(reduced)
+
+
+@pytest.mark.parametrize("k, m", [(1, 1), (2, 5), (3, 3), (5, 5), (4, 6), (6, 6), (7, 7), (3, 8)])
+@pytest.mark.parametrize("seed", range(3))
+def test_min_cost_assignment_matches_scipys_optimum(k, m, seed):
+    """Small problems are enumerated (no scipy.optimize at start-up), larger go to scipy: either
+    way a valid assignment of scipy's least total cost, also with many tied costs."""
+    rng = np.random.default_rng(seed)
+    for cost in (rng.uniform(0, 10, (k, m)), rng.integers(0, 3, (k, m)).astype(float)):
+        rows, cols = min_cost_assignment(cost)
+        np.testing.assert_array_equal(rows, np.arange(k))
+        assert len(set(cols.tolist())) == k and cols.max() < m
+        assert cost[rows, cols].sum() == pytest.approx(_optimum(cost), abs=1e-12)
+
+
+def test_min_cost_assignment_breaks_ties_by_the_first_choice():
+    rows, cols = min_cost_assignment(np.zeros((3, 3)))
+    np.testing.assert_array_equal(cols, [0, 1, 2])
