@@ -1,0 +1,95 @@
+"""Compiled cell lists: the closest pair of a swarm without a k-d tree (numba, cached on disk).
+
+The safety monitor asks every tick for the smallest distance between two agents. A k-d tree
+answers in O(N log N) but costs its build and a 2-nearest query for every agent: about 50 us at
+N = 100 and 450 us at N = 1,000, more than a compiled rigid-body step of the same swarm. A uniform
+grid of cells, filled by a counting sort and searched cell by cell in compiled code, does the same
+exact job in a few microseconds per hundred agents.
+
+Exactness. With cells of side c, every pair closer than c lies in the same or in adjacent cells,
+so the smallest distance found among those neighbours is the true minimum whenever it is at most
+c. The side is first chosen so that there are about N / 2 cells over the swarm's bounding box
+(pigeonhole: some cell holds two agents, so a pair is found); if the best found is longer than c,
+the search runs once more with c equal to it, which then contains the closest pair. Distances are
+summed axis by axis as the k-d tree sums them, so the result equals the tree's to the bit.
+
+This module imports numba: it is imported by :func:`swarmscene.core.vectors.min_pair_distance`
+only for swarms of more than ``DENSE_POINTS`` agents, so a small run never pays numba's start-up.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def _grid(points: np.ndarray, side: float):
+    """Cell coordinates of every point (N, 3), grid shape (3,), and the points sorted by cell:
+    ``order[start[q]:start[q + 1]]`` are the points of cell q (counting sort, O(N + cells))."""
+    n, dim = points.shape
+    lo = np.zeros(3)
+    shape = np.ones(3, np.int64)
+    for k in range(dim):
+        lo[k] = points[:, k].min()
+        shape[k] = int((points[:, k].max() - lo[k]) / side) + 1
+    coord = np.zeros((n, 3), np.int64)
+    cell = np.empty(n, np.int64)
+    for i in range(n):
+        for k in range(dim):
+            coord[i, k] = int((points[i, k] - lo[k]) / side)
+        cell[i] = (coord[i, 0] * shape[1] + coord[i, 1]) * shape[2] + coord[i, 2]
+    start = np.zeros(shape[0] * shape[1] * shape[2] + 1, np.int64)
+    for i in range(n):
+        start[cell[i] + 1] += 1
+    for q in range(start.size - 1):
+        start[q + 1] += start[q]
+    fill = start[:-1].copy()
+    order = np.empty(n, np.int64)
+    for i in range(n):
+        order[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    return coord, shape, start, order
+
+
+@numba.njit(cache=True)
+def _closest_d2(points: np.ndarray, side: float) -> float:
+    """Smallest squared distance between a point and a later one in its own or an adjacent cell."""
+    n, dim = points.shape
+    coord, shape, start, order = _grid(points, side)
+    best = np.inf
+    for i in range(n):
+        for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
+            for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
+                for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
+                    q = (x * shape[1] + y) * shape[2] + z
+                    for s in range(start[q], start[q + 1]):
+                        j = order[s]
+                        if j <= i:
+                            continue
+                        d2 = 0.0
+                        for k in range(dim):
+                            diff = points[j, k] - points[i, k]
+                            d2 += diff * diff
+                        if d2 < best:
+                            best = d2
+    return best
+
+
+@numba.njit(cache=True)
+def closest_pair_distance(points: np.ndarray) -> float:
+    """Smallest distance between two of ``points`` (N, D), D <= 3, N >= 2; exact (see module)."""
+    n, dim = points.shape
+    volume, spread = 1.0, 0
+    for k in range(dim):
+        extent = points[:, k].max() - points[:, k].min()
+        if extent > 0.0:
+            volume *= extent
+            spread += 1
+    if spread == 0:
+        return 0.0  # every point at one place
+    side = (volume / max(0.5 * n, 1.0)) ** (1.0 / spread)
+    best = _closest_d2(points, side)
+    if best > side * side:  # the closest pair may span two cells: search again with cells that wide
+        best = _closest_d2(points, np.sqrt(best) * (1.0 + 1e-12))
+    return np.sqrt(best)

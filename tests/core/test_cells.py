@@ -1,0 +1,48 @@
+"""The closest pair without a k-d tree: the compiled cell list and the dense pass against scipy's
+cKDTree (the third-party oracle), to the bit, on the layouts swarms take."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from swarmscene.core.cells import closest_pair_distance
+from swarmscene.core.vectors import DENSE_POINTS, dense_pairs, min_pair_distance
+
+
+def _tree_min(points: np.ndarray) -> float:
+    return float(cKDTree(points).query(points, k=2)[0][:, 1].min())
+
+
+def _layouts(rng: np.random.Generator):
+    n = 400
+    side = int(np.ceil(np.sqrt(n)))
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:n] * 3.0
+    yield "jittered grid at one altitude", np.column_stack([grid + rng.normal(0, 0.3, grid.shape), np.full(n, 2.0)])
+    yield "uniform 3-D", rng.uniform(0, 50, (n, 3))
+    yield "planar 2-D", rng.uniform(-5, 5, (n, 2))
+    yield "one line (x only)", np.column_stack([rng.uniform(0, 100, n), np.zeros(n), np.ones(n)])
+    yield "a far outlier", np.vstack([rng.uniform(0, 1, (n - 1, 3)), [[1e4, 0, 0]]])
+    yield "two far clusters", np.vstack([rng.normal(0, 0.1, (n // 2, 3)), rng.normal(500, 0.1, (n // 2, 3))])
+    yield "a pair spanning cells", np.array([[0.0, 0, 0], [10, 0, 0], [20, 0, 0], [20.9, 0.5, 0], [40, 0, 0]] * 1
+                                            + [[100.0 * k, 100, 0] for k in range(40)])
+    yield "coincident agents", np.vstack([rng.uniform(0, 10, (n - 2, 3)), [[5.0, 5, 5], [5.0, 5, 5]]])
+    yield "all at one point", np.zeros((50, 3))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_closest_pair_equals_the_k_d_tree_to_the_bit(seed):
+    for name, points in _layouts(np.random.default_rng(seed)):
+        assert closest_pair_distance(points) == _tree_min(points), name
+        assert min_pair_distance(points) == _tree_min(points), name
+
+
+def test_the_dense_pass_for_few_agents_equals_the_tree():
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 17, DENSE_POINTS):
+        points = rng.uniform(0, 3, (n, 3))
+        assert min_pair_distance(points) == _tree_min(points)
+        expected = {tuple(p) for p in cKDTree(points).query_pairs(1.2, output_type="ndarray").tolist()}
+        got = dense_pairs(points, 1.2)
+        assert {tuple(p) for p in got.tolist()} == expected and (got[:, 0] < got[:, 1]).all()
