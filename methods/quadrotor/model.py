@@ -15,10 +15,13 @@ the J_m ϖ̇ term vanish).
 
 Integration: classical RK4 with the wrench held over the step (the controller's zero-order hold),
 quaternion renormalised after each step. RK4 rather than semi-implicit Euler because it is exact
-for the polynomial motions the tests check (free fall, hover), keeps the rotational energy and
+for the polynomial motions the tests check (free fall, hover) and keeps the rotational energy and
 angular momentum of a free, tumbling body within ~2e-9 (relative) over 10 s at 240 Hz instead of
-the O(dt) drift of a first-order scheme, and costs four vectorised derivative evaluations, which
-over N agents is cheap next to the per-call overhead of numpy.
+the O(dt) drift of a first-order scheme.
+
+This module holds the airframes, the mixer matrix of eq. 3.15 and rotation helpers. The physics
+step (allocation eq. 3.16, wrench eq. 3.15, the right-hand side of eq. 3.4-3.8 and RK4) runs
+compiled per agent in kernels.py; its numpy form is the tests' oracle (tests/oracles/quadrotor.py).
 """
 
 from __future__ import annotations
@@ -177,31 +180,6 @@ THESIS_TO_FLU_WRENCH = np.diag([-1.0, 1.0, -1.0, -1.0])
 """Maps the thesis' [F_z, M_x, M_y, M_z]_FRD to [T, M_x, M_y, M_z]_FLU."""
 
 
-def wrench(rotor_speed: np.ndarray, airframe: Airframe) -> tuple[np.ndarray, np.ndarray]:
-    """Collective thrust T (N,) N and body torque M (N, 3) N m of rotor speeds (N, 4) (eq. 3.15)."""
-    u = (rotor_speed * rotor_speed) @ airframe.mixer.T
-    return u[:, 0], u[:, 1:]
-
-
-def allocate(thrust: np.ndarray, torque: np.ndarray, airframe: Airframe) -> np.ndarray:
-    """Rotor speeds (N, 4) rad/s realising thrust (N,) and torque (N, 3) (eq. 3.16), within limits.
-
-    When the exact solution ϖ^2 = T^-1 ũ leaves [ϖ_min^2, ϖ_max^2], thrust has priority: the
-    collective thrust is clipped to what four rotors can give, then the torque part is scaled by
-    the largest λ in [0, 1] keeping every rotor in range (the torque direction is kept, so the
-    attitude loop still turns the right way rather than flipping under a clipped rotor).
-    """
-    inv = airframe.mixer_inverse
-    lo, hi = airframe.rotor_speed_min**2, airframe.rotor_speed_max**2
-    thrust = np.clip(thrust, 4.0 * airframe.k_T * lo, 4.0 * airframe.k_T * hi)
-    base = thrust[:, None] * inv[:, 0]                  # (N, 4), each within [lo, hi]
-    delta = torque @ inv[:, 1:].T                       # (N, 4)
-    room = np.where(delta > 0.0, hi - base, base - lo) / np.maximum(np.abs(delta), 1e-300)
-    lam = np.minimum(room.min(axis=1), 1.0)
-    w2 = np.clip(base + lam[:, None] * delta, lo, hi)
-    return np.sqrt(w2)
-
-
 # --------------------------------------------------------------------------- rotations
 
 
@@ -228,10 +206,6 @@ def _quadratic_basis() -> np.ndarray:
 
 
 _R_BASIS = _quadratic_basis()
-_Z_BASIS = np.ascontiguousarray(_R_BASIS[:, [2, 5, 8]])  # third column of R: body z in the world
-_G_IDX = np.array([[1, 2, 3], [0, 3, 2], [3, 0, 1], [2, 1, 0]])
-_G_SIGN = 0.5 * np.array([[-1.0, -1, -1], [1, -1, 1], [1, 1, -1], [-1, 1, 1]])
-"""q̇ = (q[:, _G_IDX] * _G_SIGN) @ ω: the matrix form of q̇ = ½ q ⊗ (0, ω)."""
 _P1, _P2 = [1, 2, 0], [2, 0, 1]
 
 
@@ -273,68 +247,3 @@ def euler_zyx(R: np.ndarray) -> np.ndarray:
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise a x b for (N, 3) arrays (fewer numpy calls than np.cross on small N)."""
     return a[:, _P1] * b[:, _P2] - a[:, _P2] * b[:, _P1]
-
-
-# --------------------------------------------------------------------------- rigid body (eq. 3.4-3.8)
-
-
-def state_derivative(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray,
-                     airframe: Airframe) -> np.ndarray:
-    """Right-hand side of eq. 3.4-3.7 (world z up, FLU body) for packed states x = [p v q ω] (N, 13).
-
-    ṗ = v; v̇ = (T / m) R e_3 - g e_3; q̇ = ½ q ⊗ (0, ω) (the quaternion form of Ṙ = R [ω×],
-    eq. 3.6, 3.8); J ω̇ = -ω × J ω + M, with (ω × J ω)_i = ω_j ω_k (J_k - J_j) for diagonal J.
-    """
-    return _rhs(x, (thrust / airframe.mass)[:, None], torque / airframe.J, airframe.gyro)
-
-
-def _rhs(x: np.ndarray, thrust_per_mass: np.ndarray, torque_per_inertia: np.ndarray,
-         gyro: np.ndarray, ext_acc: np.ndarray | None = None) -> np.ndarray:
-    """:func:`state_derivative` with the held inputs already divided by m and J (RK4 reuses them)."""
-    q = x[:, 6:10]
-    w = x[:, 10:13]
-    out = np.empty_like(x)
-    out[:, 0:3] = x[:, 3:6]
-    out[:, 3:6] = (_outer(q) @ _Z_BASIS) * thrust_per_mass
-    out[:, 5] -= GRAVITY
-    if ext_acc is not None:
-        out[:, 3:6] += ext_acc
-    out[:, 6:10] = ((q[:, _G_IDX] * _G_SIGN) @ w[:, :, None])[:, :, 0]
-    out[:, 10:13] = torque_per_inertia - w[:, _P1] * w[:, _P2] * gyro
-    return out
-
-
-def pack(p, v, q, omega) -> np.ndarray:
-    """State arrays -> packed (N, 13) [p v q ω]."""
-    return np.concatenate([p, v, q, omega], axis=1)
-
-
-def rk4(x: np.ndarray, thrust: np.ndarray, torque: np.ndarray, airframe: Airframe,
-        dt: float, ext_acc: np.ndarray | None = None) -> np.ndarray:
-    """One classical RK4 step of the packed state with thrust (N,) and torque (N, 3) held, and
-    optionally an external acceleration ``ext_acc`` (N, 3) m/s^2 (world; e.g. the wind's force per
-    mass) held too; the quaternion is renormalised."""
-    h = 0.5 * dt
-    c = (thrust / airframe.mass)[:, None]
-    a = torque / airframe.J
-    gyro = airframe.gyro
-    k1 = _rhs(x, c, a, gyro, ext_acc)
-    k2 = _rhs(x + h * k1, c, a, gyro, ext_acc)
-    k3 = _rhs(x + h * k2, c, a, gyro, ext_acc)
-    k4 = _rhs(x + dt * k3, c, a, gyro, ext_acc)
-    x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-    x[:, 6:10] /= np.sqrt((x[:, 6:10] ** 2).sum(axis=1, keepdims=True))
-    return x
-
-
-def rk4_step(p, v, q, omega, thrust, torque, airframe: Airframe, dt: float):
-    """:func:`rk4` on unpacked arrays: returns new (p, v, q, omega)."""
-    x = rk4(pack(p, v, q, omega), thrust, torque, airframe, dt)
-    return x[:, 0:3], x[:, 3:6], x[:, 6:10], x[:, 10:13]
-
-
-def step_rotors(p, v, q, omega, rotor_speed, airframe: Airframe, dt: float):
-    """Advance one physics step under rotor speeds (N, 4), clipped to the airframe's limits."""
-    rotor_speed = np.clip(rotor_speed, airframe.rotor_speed_min, airframe.rotor_speed_max)
-    thrust, torque = wrench(rotor_speed, airframe)
-    return rk4_step(p, v, q, omega, thrust, torque, airframe, dt)

@@ -4,8 +4,9 @@ Per guidance tick, :meth:`Quadrotor.control` turns the setpoints into references
 tracking controller of Lee, Leok and McClamroch (2010) with differential-flatness feed-forward
 (Mellinger and Kumar 2011); per physics step, :meth:`Quadrotor.step` runs that controller (thrust and
 torque), the inverse mixer with rotor-speed limits (eq. 3.16) and one RK4 step of the rigid body.
-Everything is vectorised over agents; see quadrotor_model.py for frames (world z up, body
-front-left-up; the thesis' NED/FRD equations are converted there).
+Each is one compiled call over all agents (methods/quadrotor/kernels.py; numba, cached beside the
+module, imported when the plugin is built); see methods/quadrotor/model.py for frames (world z
+up, body front-left-up; the thesis' NED/FRD equations are converted there).
 
 Setpoint modes:
     TRACK     p, v, a, jerk, snap, yaw: the reference moves along its Taylor polynomial between
@@ -45,9 +46,9 @@ from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from swarmscene.methods.quadrotor.flatness import flat_state, heading_vector
-from swarmscene.methods.quadrotor.model import AIRFRAMES, allocate, pack, quat_to_rotmat, rk4, wrench, yaw_to_quat
-from swarmscene.methods.quadrotor.se3_controller import se3_control, se3_gains
+from swarmscene.methods.quadrotor.flatness import heading_vector
+from swarmscene.methods.quadrotor.model import AIRFRAMES, quat_to_rotmat, yaw_to_quat
+from swarmscene.methods.quadrotor.se3_controller import se3_gains
 
 
 class Quadrotor(Dynamics):
@@ -94,10 +95,23 @@ class Quadrotor(Dynamics):
 
     def __init__(self, params: "Quadrotor.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        self.airframe = AIRFRAMES[params.airframe]
-        self.gains = se3_gains(self.airframe, params.position_omega, params.position_xi,
+        # numba is imported here, not at module level: listing plugins must not pay for it
+        from swarmscene.methods.quadrotor import kernels
+
+        self._kernels = kernels
+        af = self.airframe = AIRFRAMES[params.airframe]
+        self.gains = se3_gains(af, params.position_omega, params.position_xi,
                                params.attitude_omega, params.attitude_xi, params.yaw_omega)
         self.max_tilt = math.radians(params.max_tilt)
+        lo, hi = af.rotor_speed_min**2, af.rotor_speed_max**2
+        # the kernels' parameters as plain floats and float64 arrays (one compiled signature)
+        self._constants = dict(
+            mass=af.mass, J=_floats(af.J), gyro=_floats(af.gyro), k_x=float(self.gains.k_x),
+            k_v=float(self.gains.k_v), k_R=_floats(self.gains.k_R), k_Omega=_floats(self.gains.k_Omega),
+            tan_max_tilt=float(np.tan(self.max_tilt)), min_lift=MIN_LIFT, mixer=_floats(af.mixer),
+            mixer_inverse=_floats(af.mixer_inverse), thrust_min=4.0 * af.k_T * lo,
+            thrust_max=4.0 * af.k_T * hi, w2_min=lo, w2_max=hi)
+        self._drag = _floats(af.drag)
 
     # -- lifecycle ---------------------------------------------------------------------------
     def initialize(self, world: WorldState) -> None:
@@ -106,61 +120,42 @@ class Quadrotor(Dynamics):
         world.omega = np.zeros((n, 3))
         world.rotor_speed = np.full((n, 4), self.airframe.hover_rotor_speed)
         self.rotor_health: np.ndarray | None = None  # (N, 4) thrust kept, allocated at a failure
+        self._rotor_gain = np.ones((n, 4))            # sqrt(rotor_health): effective / commanded speed
+        self._zeros = np.zeros((n, 3))
+        # this tick's references (p_d, v_d, a_d), Taylor coefficients and flatness feed-forward
+        self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._omega_d, self._alpha_d = (
+            np.zeros((n, 3)) for _ in range(9))
+        self._position_mask = np.ones(n, dtype=bool)
         self.control(world, Setpoints.hold(world.pos))
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
-        """Latch this tick's references (zero-order hold, or Taylor propagation in TRACK mode)."""
-        n = world.n
-        mode = np.where(world.healthy, sp.mode, Mode.HOLD)
-        hold = (mode == Mode.HOLD)[:, None]
-        zeros = np.zeros((n, 3))
-        jerk = zeros if sp.jerk is None else sp.jerk
-        snap = zeros if sp.snap is None else sp.snap
-        self._p = np.where(world.healthy[:, None], sp.pos, world.pos)
-        self._v = np.where(hold, 0.0, sp.vel)
-        self._a = np.where(hold, 0.0, sp.acc)
+        """Latch this tick's references (zero-order hold, or Taylor propagation in TRACK mode) and
+        their flatness feed-forward, in one compiled call (:func:`kernels.latch_references`)."""
         self._yaw = np.asarray(sp.yaw, dtype=float).copy()
         self._heading = heading_vector(self._yaw)
-        self._position_mask = mode != Mode.VELOCITY
-        track = (mode == Mode.TRACK)[:, None] & self.params.propagate_reference
-        # derivatives used to move the reference during the tick (zero rows: not propagated)
-        self._dv = np.where(track, self._v, 0.0)
-        self._da = np.where(track, self._a, 0.0)
-        self._dj = np.where(track, jerk, 0.0)
-        self._ds = np.where(track, snap, 0.0)
+        # constant acceleration and heading (no jerk, no snap): the flat body rates are zero
+        self._feedforward = sp.jerk is not None or sp.snap is not None
+        self._kernels.latch_references(
+            world.healthy, np.asarray(sp.mode, dtype=np.int8), _floats(sp.pos), _floats(sp.vel),
+            _floats(sp.acc), self._zeros if sp.jerk is None else _floats(sp.jerk),
+            self._zeros if sp.snap is None else _floats(sp.snap), _floats(world.pos), self._heading,
+            self.params.propagate_reference, self._feedforward,
+            self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._position_mask,
+            self._omega_d, self._alpha_d)
         self._tau = 0.0
-        if sp.jerk is None and sp.snap is None:
-            # constant acceleration and heading: the flat body rates are zero
-            self._omega_d = self._alpha_d = None
-        else:
-            ff = flat_state(self._a, np.where(hold, 0.0, jerk), np.where(hold, 0.0, snap), self._yaw)
-            self._omega_d, self._alpha_d = ff.omega, ff.alpha
 
     def step(self, world: WorldState, dt: float) -> None:
-        """Advance the rigid bodies by ``dt`` (in sub-steps of at most ``max_step``)."""
+        """Advance the rigid bodies by ``dt`` (in sub-steps of at most ``max_step``), all agents in
+        one compiled call (:func:`kernels.step_swarm`)."""
         substeps = max(1, math.ceil(dt / self.params.max_step - 1e-9))
-        h = dt / substeps
-        af = self.airframe
-        x = pack(world.pos, world.vel, world.quat, world.omega)
-        for _ in range(substeps):
-            p_d, v_d, a_d = self._reference(self._tau)
-            thrust, torque, _ = se3_control(
-                x[:, 0:3], x[:, 3:6], quat_to_rotmat(x[:, 6:10]), x[:, 10:13], p_d, v_d, a_d,
-                self._yaw, self._omega_d, self._alpha_d, self.gains, af, self._position_mask,
-                self.max_tilt, self._heading)
-            rotor_speed = allocate(thrust, torque, af)
-            thrust, torque = wrench(self._effective(rotor_speed), af)   # what the rotors really give
-            ext_acc = None
-            if world.wind is not None:
-                ext_acc, moment = self._wind(x, world.wind, world.wind_moment_arm)
-                torque = torque + moment
-            x = rk4(x, thrust, torque, af, h, ext_acc)
-            self._tau += h
-        world.pos[...] = x[:, 0:3]
-        world.vel[...] = x[:, 3:6]
-        world.quat[...] = x[:, 6:10]
-        world.omega[...] = x[:, 10:13]
-        world.rotor_speed[...] = rotor_speed
+        wind = world.wind
+        self._tau = self._kernels.step_swarm(
+            world.pos, world.vel, world.quat, world.omega, world.rotor_speed,
+            self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._heading,
+            self._position_mask, self._omega_d, self._alpha_d, self._feedforward,
+            self._tau, dt / substeps, substeps, rotor_gain=self._rotor_gain,
+            wind=self._zeros if wind is None else _floats(wind), has_wind=wind is not None,
+            arm=float(world.wind_moment_arm), drag=self._drag, **self._constants)
 
     @hookimpl
     def swarmscene_event(self, sim, event) -> None:
@@ -170,35 +165,22 @@ class Quadrotor(Dynamics):
         if self.rotor_health is None:
             self.rotor_health = np.ones((sim.world.n, 4))
         self.rotor_health[list(event.agents), event.rotor] = event.fraction
-
-    def _effective(self, rotor_speed: np.ndarray) -> np.ndarray:
-        """Rotor speeds giving the thrust the rotors really make: sqrt(kept fraction) ϖ."""
-        if self.rotor_health is None:
-            return rotor_speed
-        return rotor_speed * np.sqrt(self.rotor_health)
-
-    def _wind(self, x: np.ndarray, wind: np.ndarray, arm: float) -> tuple[np.ndarray, np.ndarray]:
-        """The wind's acceleration (N, 3) world and moment (N, 3) N m body: a = R D R^T w and
-        M = (0, 0, h) x m D R^T w (the drag force acting at the centre of pressure)."""
-        R = quat_to_rotmat(x[:, 6:10])
-        f_body = np.einsum("nji,nj->ni", R, wind) * np.asarray(self.airframe.drag)  # per mass
-        acc = np.einsum("nij,nj->ni", R, f_body)
-        m = self.airframe.mass
-        moment = np.column_stack([-arm * m * f_body[:, 1], arm * m * f_body[:, 0], np.zeros(len(x))])
-        return acc, moment
+        self._rotor_gain = np.sqrt(self.rotor_health)
 
     def wind_acceleration(self, world: WorldState) -> np.ndarray:
-        return self._wind(pack(world.pos, world.vel, world.quat, world.omega), world.wind, 0.0)[0]
+        """The wind's force per mass a = R D R^T w (N, 3) world (``step`` integrates it itself)."""
+        R = quat_to_rotmat(world.quat)
+        f_body = np.einsum("nji,nj->ni", R, world.wind) * self._drag
+        return np.einsum("nij,nj->ni", R, f_body)
 
-    def _reference(self, tau: float):
-        """(p_d, v_d, a_d) at ``tau`` s after the tick (Taylor polynomial on TRACK rows)."""
-        if tau == 0.0:
-            return self._p, self._v, self._a
-        t2, t3, t4 = tau * tau / 2.0, tau**3 / 6.0, tau**4 / 24.0
-        p = self._p + tau * self._dv + t2 * self._da + t3 * self._dj + t4 * self._ds
-        v = self._v + tau * self._da + t2 * self._dj + t3 * self._ds
-        a = self._a + tau * self._dj + t2 * self._ds
-        return p, v, a
+
+MIN_LIFT = 0.2
+"""The desired force keeps at least this fraction of m g upwards (se3_controller.py)."""
+
+
+def _floats(a) -> np.ndarray:
+    """A C-contiguous float64 array (a no-op for the engine's arrays), so the kernels compile once."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 @hookimpl

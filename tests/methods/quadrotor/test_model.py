@@ -1,22 +1,22 @@
-"""Rigid-body quadrotor (thesis eq. 3.4-3.16): mixer, limits and physics with independent answers."""
+"""Rigid-body quadrotor (thesis eq. 3.4-3.16): mixer, limits and physics with independent answers.
+
+The allocation, wrench and RK4 are checked in their numpy form (tests/oracles/quadrotor.py);
+test_quadrotor_kernel.py checks the compiled kernels against it."""
 
 import numpy as np
 import pytest
 
+from oracles.quadrotor import allocate, rk4_step, step_rotors, wrench
 from swarmscene.methods.quadrotor.model import (
     AIRFRAMES,
     CRAZYFLIE,
     GRAVITY,
     M330,
     THESIS_TO_FLU_WRENCH,
-    allocate,
     euler_zyx,
     quat_to_rotmat,
-    rk4_step,
     rotmat_to_quat,
-    step_rotors,
     thesis_mixer_matrix,
-    wrench,
     yaw_to_quat,
 )
 

@@ -1,22 +1,12 @@
-"""Differential flatness and the SE(3) tracking controller on the rigid-body model."""
+"""Differential flatness and the SE(3) tracking controller on the rigid-body model, in their numpy
+form (tests/oracles/quadrotor.py); test_quadrotor_kernel.py checks the compiled kernels against it."""
 
 import numpy as np
 import pytest
 
-from swarmscene.methods.quadrotor.flatness import flat_inputs, flat_state, taylor_propagate
-from swarmscene.methods.quadrotor.model import (
-    CRAZYFLIE,
-    GRAVITY,
-    M330,
-    allocate,
-    euler_zyx,
-    quat_to_rotmat,
-    rk4_step,
-    rotmat_to_quat,
-    step_rotors,
-    yaw_to_quat,
-)
-from swarmscene.methods.quadrotor.se3_controller import se3_control, se3_gains
+from oracles.quadrotor import allocate, flat_inputs, flat_state, rk4_step, se3_control, step_rotors, taylor_propagate
+from swarmscene.methods.quadrotor.model import CRAZYFLIE, GRAVITY, M330, euler_zyx, quat_to_rotmat, rotmat_to_quat, yaw_to_quat
+from swarmscene.methods.quadrotor.se3_controller import se3_gains
 
 DT = 1.0 / 240.0
 
