@@ -18,18 +18,17 @@ text's "psi_con(d_n) = -K_con" contradicts its own formula and purpose).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import cached_property
+from dataclasses import astuple, dataclass
+from functools import cached_property, lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from .graphs import (
-    EdgeList,
-    neighbour_graph,
-    sigma_graph,
-)
+from .graphs import EdgeList, tick_graphs
 from .sensing import Obstacles, nearest_obstacle, saturate
+
+if TYPE_CHECKING:  # pragma: no cover
+    from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True)
@@ -230,6 +229,51 @@ def leader_input(
     return direction * magnitude, m
 
 
+FORMATION_GAINS = ("d_c", "d_n", "l_n", "K_con", "eps_con", "K_com", "alpha_com", "K_led", "u_sat",
+                   "alpha_lsat", "alpha_lcon")
+"""The gains :func:`~.kernels.formation_kernel` reads, in its order."""
+AVOIDANCE_GAINS = ("d_o", "l_o", "K_obs", "eps_obs", "d_c", "l_c", "K_col", "eps_col")
+"""The gains :func:`~.kernels.avoidance_kernel` reads, in its order."""
+
+
+@lru_cache(maxsize=32)
+def _gain_array(g: IndoorGains, names: tuple[str, ...]) -> np.ndarray:
+    """The named gains as the float array a kernel takes (one per gain set, cached)."""
+    values = dict(zip(IndoorGains.__dataclass_fields__, astuple(g)))
+    return np.array([float(values[k]) for k in names])
+
+
+def formation_step(
+    snap: "IndoorSnapshot", rho_bar: np.ndarray, leader: int, waypoints: np.ndarray, m: int,
+    g: IndoorGains = TABLE_5_1,
+) -> tuple[np.ndarray, int, np.ndarray]:
+    """One tick of the formation's part of the method, one compiled call (eq. 5.24-5.26, 5.37-5.44).
+
+    w_i = w_con + w_com + w_led for the followers (the sum over N_i(G_sigma) of
+    :func:`psi_con` + :func:`psi_com`, and :func:`w_led` toward :func:`~.graphs.virtual_leader`),
+    row ``leader`` the leader's input (:func:`leader_input`), with the same arithmetic, bit for bit.
+
+    Returns:
+        w: (N, 2) m per T_s; the new way-point index m; rho_bar(k+1) (:func:`~.graphs.rank_estimate_step`).
+    """
+    from .kernels import formation_kernel  # numba loads at first use, not at registration
+
+    _, dst = snap.g_sigma.directed()
+    w, m, rho_bar = formation_kernel(
+        snap.r, snap.g_sigma.indptr, dst, rho_bar, leader, waypoints, m, _gain_array(g, FORMATION_GAINS)
+    )
+    return w, int(m), rho_bar
+
+
+def avoidance_terms(snap: "IndoorSnapshot", g: IndoorGains = TABLE_5_1) -> np.ndarray:
+    """w_obs + w_col (N, 2), m per T_s (eq. 5.32-5.36): :func:`w_obs` plus :func:`w_col` over
+    G_sigma in one compiled call, bit for bit."""
+    from .kernels import avoidance_kernel  # numba loads at first use, not at registration
+
+    _, dst = snap.g_sigma.directed()
+    return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, _gain_array(g, AVOIDANCE_GAINS))
+
+
 @dataclass(frozen=True)
 class IndoorSnapshot:
     """What the swarm senses at one instant (section 5.2): nearest obstacle points and the graphs.
@@ -258,11 +302,12 @@ def sense(
     r: np.ndarray,
     obstacles: Obstacles,
     g: IndoorGains = TABLE_5_1,
-    tree: cKDTree | None = None,
+    tree: "cKDTree | None" = None,
     nearest: tuple[np.ndarray, np.ndarray] | None = None,
     candidates: np.ndarray | None = None,
 ) -> IndoorSnapshot:
-    """Sensing and graphs of one step: o_i, G_n with LOS, G_sigma (eq. 5.4-5.22).
+    """Sensing and graphs of one step: o_i, G_n with LOS, G_sigma (eq. 5.4-5.22), the graphs in
+    one compiled call (:func:`~.graphs.tick_graphs`).
 
     Obstacles are sensed up to l_o only (l_o < d_s): psi_obs vanishes beyond l_o, so this is exact
     for the control law and cheaper; call :func:`~.indoor_sensing.nearest_obstacle` with d_s for
@@ -275,6 +320,8 @@ def sense(
     """
     reach = min(g.l_o, g.d_s)
     o, dist = nearest if nearest is not None else nearest_obstacle(r, obstacles, max_distance=reach)
-    g_n = neighbour_graph(r, obstacles, g.d_n, g.d_l, tree, np.minimum(dist, reach), candidates)
-    g_sigma = sigma_graph(r, g_n, g.phi_d, g.deactivation_candidates)
+    g_n, g_sigma = tick_graphs(
+        r, obstacles, g.d_n, g.d_l, g.phi_d, g.deactivation_candidates, tree, np.minimum(dist, reach),
+        candidates,
+    )
     return IndoorSnapshot(r, o, dist, g_n, g_sigma)

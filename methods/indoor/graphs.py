@@ -1,7 +1,9 @@
 """Indoor swarming, thesis sections 5.2.5-5.3.2: graphs G_s, G_n, G_sigma, edge deactivation, ranks.
 
 Karydes (2020), chapter 5. Graphs are simple and undirected over agents 0..N-1; the hot path keeps
-them as an :class:`EdgeList` (arrays of pairs i < j) and uses numpy / scipy.sparse.csgraph;
+them as an :class:`EdgeList` (arrays of pairs i < j) and computes them in compiled kernels
+(``kernels.py``: line of sight, deactivation rules, ranks; :func:`tick_graphs` is one tick's
+G_n and G_sigma in one call; the numpy formulation is the tests' oracle, tests/oracles/indoor_graphs.py);
 :meth:`EdgeList.to_networkx` is for analysis and metrics. The one exception is G_sigma under the
 ``directed`` reading of eq. 5.15-5.16, an :class:`ArcList`.
 
@@ -36,13 +38,13 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components
+import scipy  # scipy.sparse loads at first use (start-up: imported at plugin registration)
 
-from .sensing import Obstacles, sensing_pairs
+from .sensing import Obstacles, candidate_pairs, kernel_obstacles, obstacle_tree, sensing_pairs
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
+    from scipy.sparse import csr_matrix
     from scipy.spatial import cKDTree
 
 
@@ -110,14 +112,14 @@ class EdgeList:
         """(N,) number of neighbours |N_i|."""
         return np.bincount(self.i, minlength=self.n) + np.bincount(self.j, minlength=self.n)
 
-    def csgraph(self) -> csr_matrix:
+    def csgraph(self) -> "csr_matrix":
         """Symmetric (N, N) sparse adjacency for scipy.sparse.csgraph.
 
         Built straight from the cached CSR arrays with float data, the layout csgraph works on,
         so no COO conversion or dtype copy happens (3x faster on a 100-agent swarm).
         """
         _, dst = self.directed()
-        return csr_matrix((np.ones(len(dst)), dst, self.indptr), shape=(self.n, self.n))
+        return scipy.sparse.csr_matrix((np.ones(len(dst)), dst, self.indptr), shape=(self.n, self.n))
 
     def to_networkx(self) -> "nx.Graph":
         """The same graph as networkx, for analysis and metrics (not for the per-step path)."""
@@ -214,41 +216,8 @@ def is_connected(graph: EdgeList) -> bool:
     """True when the graph is connected (scipy.sparse.csgraph)."""
     if graph.n <= 1:
         return True
-    count, _ = connected_components(graph.csgraph(), directed=True, connection="weak")
+    count, _ = scipy.sparse.csgraph.connected_components(graph.csgraph(), directed=True, connection="weak")
     return count == 1
-
-
-def _candidates(
-    graph: EdgeList, a: np.ndarray, b: np.ndarray, common: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All (arc k, agent m) with m in N_a[k](G) other than b[k]; with ``common`` also m in N_b[k].
-
-    The candidate sets of eq. 5.15-5.16 for the arcs a -> b (each edge seen from one endpoint).
-    Expands N_a for every arc through the CSR layout, no loop over arcs; ``common`` keeps the m
-    adjacent to b, looked up in a dense N x N bitmap (a sorted-key search for very large N).
-    Returns (arc, m, pos) with ``pos`` the position of a -> m in :meth:`EdgeList.directed`;
-    ``arc`` comes out sorted.
-    """
-    n = graph.n
-    src, dst = graph.directed()
-    indptr = graph.indptr
-    deg = indptr[a + 1] - indptr[a]
-    arc = np.repeat(np.arange(len(a)), deg)
-    pos = np.arange(arc.size) + np.repeat(indptr[a] - (np.cumsum(deg) - deg), deg)
-    m = dst[pos]
-    if not common:
-        keep = m != b[arc]
-        return arc[keep], m[keep], pos[keep]
-    want = b[arc] * n + m  # m = b is never adjacent to b (no self-loops): dropped here too
-    if n <= 8192:
-        adjacent = np.zeros(n * n, dtype=bool)
-        adjacent[src * n + dst] = True
-        found = adjacent[want]
-    else:
-        keys = np.sort(src * n + dst)
-        found_at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
-        found = keys[found_at] == want
-    return arc[found], m[found], pos[found]
 
 
 def flatness(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -288,35 +257,19 @@ def deactivation_rules(
     Returns:
         rule1, rule2: (P,) bool, True where the rule deactivates the edge.
     """
-    a, b = (g_n.i, g_n.j) if perspective == "i" else (g_n.j, g_n.i)
-    return _arc_rules(r, g_n, a, b, phi_d, candidates == "common")
+    rules = _rules(r, g_n, phi_d, candidates, both=True)
+    return (rules[0], rules[1]) if perspective == "i" else (rules[2], rules[3])
 
 
-def _arc_rules(
-    r: np.ndarray, g_n: EdgeList, a: np.ndarray, b: np.ndarray, phi_d: float, common: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """Rules 5.18 and 5.21 for the arcs a -> b of G_n, each evaluated by agent a (Q,) bool."""
-    q = len(a)
-    arc, m, pos = _candidates(g_n, a, b, common)
-    x, y = r[:, 0], r[:, 1]
-    ex, ey = x[b] - x[a], y[b] - y[a]  # r_ji per arc, from agent a's point of view
-    d_sq = ex * ex + ey * ey
-    # m in A_ij first (||r_mi|| < ||r_ji||, eq. 5.15), from the lengths of G_n's directed arcs:
-    # it halves the candidates before any per-candidate vector is formed.
-    src, dst = g_n.directed()
-    arc_sq = (x[dst] - x[src]) ** 2 + (y[dst] - y[src]) ** 2
-    in_a = np.flatnonzero(arc_sq[pos] < d_sq[arc])
-    arc, m = arc[in_a], m[in_a]
-    ex, ey, d_sq = ex[arc], ey[arc], d_sq[arc]
-    mx, my = x[m] - x[a[arc]], y[m] - y[a[arc]]  # r_mi
-    # ... and in B_ij: closer to j too (eq. 5.16).
-    in_b = np.flatnonzero((mx - ex) ** 2 + (my - ey) ** 2 < d_sq)
-    arc, m, mx, my, ex, ey, d_sq = (v[in_b] for v in (arc, m, mx, my, ex, ey, d_sq))
-    phi = (my * ex - mx * ey) / d_sq  # eq. 5.17, phi(r_mi, r_ji)
-    rule1 = np.zeros(q, dtype=bool)
-    rule1[arc[np.abs(phi) < phi_d]] = True
-    rule2 = _crossing_rule(r, arc, m, phi, d_sq, q)
-    return rule1, rule2
+def _rules(r: np.ndarray, g_n: EdgeList, phi_d: float, candidates: str, both: bool) -> np.ndarray:
+    """(4, P) bool: rules 5.18 and 5.21 seen by agent i, then by agent j (one compiled call)."""
+    from .kernels import READINGS, deactivation_kernel  # numba loads at first use
+
+    if candidates not in DEACTIVATION_CANDIDATES:
+        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
+    r = np.ascontiguousarray(r, dtype=float)
+    i, j = np.asarray(g_n.i, dtype=np.intp), np.asarray(g_n.j, dtype=np.intp)
+    return deactivation_kernel(r, i, j, float(phi_d), READINGS[candidates], both)
 
 
 def deactivated(
@@ -324,46 +277,10 @@ def deactivated(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(P,) bool twice: where agent i's rules fire on edge (i, j), and where agent j's do.
 
-    Both perspectives are evaluated in one pass over the 2P arcs; under ``"common"`` they are
-    equal by construction and computed once.
+    Under ``"common"`` the two perspectives are equal by construction (computed once).
     """
-    if candidates not in DEACTIVATION_CANDIDATES:
-        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
-    p = len(g_n)
-    if candidates == "common":
-        rule1, rule2 = _arc_rules(r, g_n, g_n.i, g_n.j, phi_d, True)
-        off = rule1 | rule2
-        return off, off
-    a, b = np.concatenate([g_n.i, g_n.j]), np.concatenate([g_n.j, g_n.i])
-    rule1, rule2 = _arc_rules(r, g_n, a, b, phi_d, False)
-    off = rule1 | rule2
-    return off[:p], off[p:]
-
-
-def _crossing_rule(
-    r: np.ndarray, edge: np.ndarray, m: np.ndarray, phi: np.ndarray, d_sq: np.ndarray, p: int
-) -> np.ndarray:
-    """Eq. 5.21 on the candidates of A_ij & B_ij: exists (m, n) in C_ij x D_ij, ||r_nm|| < ||r_ji||.
-
-    ``edge`` must be sorted; every (m in C_ij, n in D_ij) pair of an edge is enumerated at once.
-    """
-    c, d = phi < 0, phi > 0
-    c_edge, c_m, c_len = edge[c], m[c], d_sq[c]
-    d_m = m[d]
-    d_count = np.bincount(edge[d], minlength=p)
-    d_start = np.cumsum(d_count) - d_count
-    reps = d_count[c_edge]
-    total = int(reps.sum())
-    rule2 = np.zeros(p, dtype=bool)
-    if total == 0:
-        return rule2
-    ci = np.repeat(np.arange(len(c_edge)), reps)
-    offset = np.arange(total) - np.repeat(np.cumsum(reps) - reps, reps)
-    n_of = d_m[d_start[c_edge[ci]] + offset]
-    m_of = c_m[ci]
-    dx, dy = r[n_of, 0] - r[m_of, 0], r[n_of, 1] - r[m_of, 1]
-    rule2[c_edge[ci[dx * dx + dy * dy < c_len[ci]]]] = True
-    return rule2
+    rules = _rules(r, g_n, phi_d, candidates, both=False)
+    return rules[0] | rules[1], rules[2] | rules[3]
 
 
 def edge_activation(
@@ -396,6 +313,52 @@ def sigma_graph(
     return ArcList.from_arcs(g_n.n, src, dst)
 
 
+def tick_graphs(
+    r: np.ndarray,
+    obstacles: Obstacles,
+    d_n: float,
+    d_l: float,
+    phi_d: float,
+    candidates: str = "neighbours",
+    tree: "cKDTree | None" = None,
+    clearance: np.ndarray | None = None,
+    pairs: np.ndarray | None = None,
+) -> tuple[EdgeList, EdgeList]:
+    """G_n and G_sigma of one tick in one compiled call (eq. 5.7-5.22): what
+    :func:`neighbour_graph` then :func:`sigma_graph` give, with their arc layouts filled in.
+
+    ``clearance`` (N,) lower bounds of the obstacle distances (line-of-sight certificates, see
+    ``sensing.sensing_pairs``; ``None``: every pair is tested); ``pairs`` the candidates within
+    d_n if already listed (the engine's ``Sensing.pairs``), else from ``tree`` or a new cKDTree.
+    """
+    from .kernels import READINGS, graphs_kernel  # numba loads at first use
+
+    if candidates not in DEACTIVATION_CANDIDATES:
+        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
+    n = len(r)
+    r = np.ascontiguousarray(r, dtype=float)
+    if pairs is None:
+        pairs = candidate_pairs(r, d_n, tree)
+    if clearance is None:
+        clearance = np.full(n, -np.inf)
+    out = graphs_kernel(
+        r, np.asarray(pairs, dtype=np.intp).reshape(-1, 2), np.asarray(clearance, dtype=float),
+        float(d_l), float(phi_d), READINGS[candidates], *kernel_obstacles(obstacle_tree(obstacles)),
+    )
+    n_i, n_j, n_indptr, n_src, n_dst, s_i, s_j, s_indptr, s_src, s_dst = out
+    g_n = _with_arcs(EdgeList(n, n_i, n_j), n_indptr, n_src, n_dst)
+    kind = ArcList if candidates == "directed" else EdgeList
+    return g_n, _with_arcs(kind(n, s_i, s_j), s_indptr, s_src, s_dst)
+
+
+def _with_arcs(graph: EdgeList, indptr: np.ndarray, src: np.ndarray, dst: np.ndarray) -> EdgeList:
+    """``graph`` with the cached arc layout (:meth:`EdgeList.directed`, ``indptr``) filled in
+    from the kernel, which lists arcs in the same order."""
+    graph.__dict__["_directed"] = (src, dst)
+    graph.__dict__["indptr"] = indptr
+    return graph
+
+
 def ranks(graph: EdgeList, leader: int) -> np.ndarray:
     """rho_i = dist(i, N), hops to the leader (thesis eq. 5.23); agents cut off get rank n.
 
@@ -406,7 +369,9 @@ def ranks(graph: EdgeList, leader: int) -> np.ndarray:
     # A breadth-first tree's depths are the hop distances; scipy's traversal is ~10x cheaper
     # than its shortest_path on a 100-agent G_n, and pointer doubling reads the depths off the
     # predecessor array in O(log depth) vectorised passes.
-    _, pred = breadth_first_order(graph.csgraph(), leader, directed=True, return_predecessors=True)
+    _, pred = scipy.sparse.csgraph.breadth_first_order(
+        graph.csgraph(), leader, directed=True, return_predecessors=True
+    )
     parent = np.where(pred >= 0, pred, np.arange(n))  # the leader and unreached agents: roots
     depth = (parent != np.arange(n)).astype(np.int64)
     while True:
@@ -422,19 +387,13 @@ def ranks(graph: EdgeList, leader: int) -> np.ndarray:
 def max_rank(graph: EdgeList, leader: int) -> tuple[int, np.ndarray]:
     """max_i rho_i (eq. 5.23; N when an agent is cut off) and the (N,) mask of agents reached.
 
-    What the success criterion needs, without every rank: a breadth-first order lists agents by
-    non-decreasing rank, so the largest is the depth of the last one, read by walking its
-    predecessors back to the leader (max rank steps).
+    What the success criterion needs, without every rank: one compiled breadth-first search.
     """
-    order, pred = breadth_first_order(graph.csgraph(), leader, directed=True, return_predecessors=True)
-    reached = np.zeros(graph.n, dtype=bool)
-    reached[order] = True
-    if order.size < graph.n:
-        return graph.n, reached
-    depth, v, pred = 0, int(order[-1]), pred.tolist()
-    while v != leader:
-        v, depth = pred[v], depth + 1
-    return depth, reached
+    from .kernels import max_rank_kernel  # numba loads at first use
+
+    _, dst = graph.directed()
+    rank, reached = max_rank_kernel(graph.indptr, np.asarray(dst, dtype=np.intp), leader)
+    return int(rank), reached
 
 
 def initial_rank_estimate(n: int, leader: int) -> np.ndarray:
@@ -450,10 +409,10 @@ def rank_estimate_step(rho_bar: np.ndarray, g_sigma: EdgeList, leader: int) -> n
     The leader keeps 0. The estimate is capped at N: an agent with no neighbour, or in a component
     without the leader (whose minimum would otherwise grow by one every step), reads N = "lost".
     """
-    n = len(rho_bar)
-    new = np.minimum(g_sigma.neighbour_min(rho_bar, n) + 1, n)
-    new[leader] = 0
-    return new
+    from .kernels import rank_step_kernel  # numba loads at first use
+
+    _, dst = g_sigma.directed()
+    return rank_step_kernel(g_sigma.indptr, np.asarray(dst, dtype=np.intp), rho_bar, leader)
 
 
 def virtual_leader(

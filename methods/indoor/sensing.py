@@ -7,23 +7,28 @@ sequence or as a prebuilt :class:`shapely.STRtree`; ``None`` or an empty sequenc
 
 Every per-step function is vectorised: candidate pairs come from one :class:`scipy.spatial.cKDTree`
 (a prebuilt tree may be passed, e.g. the engine's per-step shared tree over (N, 3) positions of a
-swarm flying at one altitude, whose distances then equal the planar ones), and the geometric tests
-are single shapely calls over arrays of geometries.
+swarm flying at one altitude, whose distances then equal the planar ones), and the per-tick
+geometric tests (line of sight, nearest obstacle points) are one compiled call each
+(``kernels.py``, GEOS' formulas on the walls' segments, so they agree with shapely bit for bit).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy  # submodules load at first use (start-up: this module is imported at registration)
 import shapely
-from scipy.spatial import cKDTree
 from shapely import STRtree
 from shapely.geometry.base import BaseGeometry
 
 from swarmscene.core.environment import nearest_within
 from swarmscene.core.environment import segments_clear as segments_clear_of
 from swarmscene.core.vectors import clip_norm, min_pair_distance
+
+if TYPE_CHECKING:  # pragma: no cover
+    from scipy.spatial import cKDTree
 
 Obstacles = Sequence[BaseGeometry] | STRtree | None
 
@@ -52,12 +57,12 @@ def single_integrator_step(r: np.ndarray, u: np.ndarray, u_max: float) -> np.nda
     return r + saturate(u, u_max)
 
 
-def pairwise_min_distance(r: np.ndarray, tree: cKDTree | None = None) -> float:
+def pairwise_min_distance(r: np.ndarray, tree: "cKDTree | None" = None) -> float:
     """Smallest inter-agent distance ||r_i - r_j||, m (``inf`` for fewer than two agents)."""
     return min_pair_distance(r, tree)
 
 
-def collision_free(r: np.ndarray, d_c: float, tree: cKDTree | None = None) -> bool:
+def collision_free(r: np.ndarray, d_c: float, tree: "cKDTree | None" = None) -> bool:
     """Collision condition ||r_i - r_j|| >= d_c for every pair (thesis eq. 5.2)."""
     return pairwise_min_distance(r, tree) >= d_c
 
@@ -92,13 +97,62 @@ def nearest_obstacle(
 
 def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> np.ndarray:
     """o_i, the point of obstacle ``geometries[index[i]]`` closest to r_i (eq. 5.32), (N, 2);
-    NaN where ``index`` is -1 (nothing detected). One vectorised ``shapely.shortest_line``."""
-    o = np.full((len(r), 2), np.nan)
-    agent = np.flatnonzero(index >= 0)
-    if agent.size:
-        lines = shapely.shortest_line(shapely.points(r[agent]), geometries[index[agent]])
-        o[agent] = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 1]
-    return o
+    NaN where ``index`` is -1 (nothing detected). One compiled call (GEOS' nearest-point formulas,
+    so the points equal ``shapely.shortest_line``'s)."""
+    from .kernels import nearest_points_kernel  # numba loads at first use, not at registration
+
+    seg, geom_start, polygonal, _ = kernel_obstacles(geometries)
+    r = np.ascontiguousarray(r, dtype=float)
+    return nearest_points_kernel(r, np.asarray(index, dtype=np.intp), seg, geom_start, polygonal)
+
+
+def obstacle_arrays(geometries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Obstacle geometries as the compiled kernels' arrays (:func:`kernel_obstacles` caches them).
+
+    Returns:
+        seg: (S, 4) ring or line segments (ax, ay, bx, by), each geometry's rings in GEOS order
+            (exterior, then holes).
+        geom_start: (G + 1,) geometry g owns seg[geom_start[g]:geom_start[g + 1]].
+        polygonal: (G,) bool, geometry g is a polygon (a point inside it is at distance 0).
+        bbox: (G, 4) envelopes (minx, miny, maxx, maxy).
+    """
+    segs, start, polygonal = [], [0], []
+    for geom in geometries:
+        parts = shapely.get_parts(geom)
+        poly = bool(len(parts)) and all(p.geom_type == "Polygon" for p in parts)
+        lines = [ring for p in parts for ring in (shapely.get_rings(p) if poly else [p])]
+        coords = [shapely.get_coordinates(line) for line in lines]
+        own = [np.hstack([c[:-1], c[1:]]) for c in coords if len(c) > 1]
+        segs += own
+        start.append(start[-1] + sum(len(x) for x in own))
+        polygonal.append(poly)
+    seg = np.concatenate(segs) if segs else np.zeros((0, 4))
+    bbox = np.asarray(shapely.bounds(np.asarray(geometries, dtype=object)), dtype=float).reshape(-1, 4)
+    return (np.ascontiguousarray(seg, dtype=float), np.asarray(start, dtype=np.intp),
+            np.asarray(polygonal, dtype=np.bool_), np.ascontiguousarray(bbox))
+
+
+NO_OBSTACLES = (np.zeros((0, 4)), np.zeros(1, dtype=np.intp), np.zeros(0, dtype=np.bool_), np.zeros((0, 4)))
+"""The kernels' obstacle arrays of open space."""
+
+
+
+_KERNEL_OBSTACLES: dict[int, tuple[np.ndarray, tuple[np.ndarray, ...]]] = {}
+
+
+def kernel_obstacles(geometries: np.ndarray | STRtree | None) -> tuple[np.ndarray, ...]:
+    """:func:`obstacle_arrays` of an obstacle set (its STRtree or the tree's ``geometries``),
+    cached per set: a map's walls are converted once, not every tick."""
+    if geometries is None:
+        return NO_OBSTACLES
+    if isinstance(geometries, STRtree):
+        geometries = geometries.geometries
+    key = id(geometries)
+    if key not in _KERNEL_OBSTACLES or _KERNEL_OBSTACLES[key][0] is not geometries:
+        if len(_KERNEL_OBSTACLES) >= 16:  # maps of finished runs
+            _KERNEL_OBSTACLES.clear()
+        _KERNEL_OBSTACLES[key] = (geometries, obstacle_arrays(geometries))
+    return _KERNEL_OBSTACLES[key][1]
 
 
 def obstacle_free(r: np.ndarray, obstacles: Obstacles, d_o: float) -> bool:
@@ -122,9 +176,9 @@ def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: floa
     return segments_clear_of(obstacle_tree(obstacles), a, b, d_l)  # the engine's LOS test
 
 
-def candidate_pairs(r: np.ndarray, radius: float, tree: cKDTree | None = None) -> np.ndarray:
+def candidate_pairs(r: np.ndarray, radius: float, tree: "cKDTree | None" = None) -> np.ndarray:
     """Index pairs (i < j) with ||r_i - r_j|| <= radius, shape (P, 2), from one cKDTree (eq. 5.7)."""
-    tree = cKDTree(r) if tree is None else tree
+    tree = scipy.spatial.cKDTree(r) if tree is None else tree
     pairs = tree.query_pairs(radius, output_type="ndarray")
     return pairs.reshape(-1, 2).astype(np.intp, copy=False)
 
@@ -134,7 +188,7 @@ def sensing_pairs(
     d_range: float,
     obstacles: Obstacles,
     d_l: float,
-    tree: cKDTree | None = None,
+    tree: "cKDTree | None" = None,
     clearance: np.ndarray | None = None,
     candidates: np.ndarray | None = None,
 ) -> np.ndarray:
@@ -161,21 +215,19 @@ def sensing_pairs(
             ``Sensing.pairs``); ``None`` lists them from ``tree``.
 
     Returns:
-        (P, 2) int array of pairs (i < j).
+        (P, 2) int array of pairs (i < j), sorted. One compiled call (the segment test uses
+        GEOS' segment distance, as shapely's ``dwithin`` did).
     """
+    from .kernels import neighbour_edges  # numba loads at first use, not at registration
+
     pairs = candidate_pairs(r, d_range, tree) if candidates is None else candidates
-    tree_o = obstacle_tree(obstacles)
-    if tree_o is None or len(pairs) == 0:
-        return pairs
-    ri, rj = r[pairs[:, 0]], r[pairs[:, 1]]
-    if clearance is None:
-        return pairs[segments_clear(ri, rj, tree_o, d_l)]
-    gap = rj - ri
-    length = np.sqrt(np.einsum("ij,ij->i", gap, gap))
-    unsure = np.flatnonzero(clearance[pairs[:, 0]] + clearance[pairs[:, 1]] < length + 2.0 * d_l)
-    keep = np.ones(len(pairs), dtype=bool)
-    keep[unsure] = segments_clear(ri[unsure], rj[unsure], tree_o, d_l)
-    return pairs[keep]
+    if clearance is None:  # no certificate: every pair gets the segment test
+        clearance = np.full(len(r), -np.inf)
+    i, j = neighbour_edges(
+        np.ascontiguousarray(r, dtype=float), np.asarray(pairs, dtype=np.intp).reshape(-1, 2),
+        np.asarray(clearance, dtype=float), float(d_l), *kernel_obstacles(obstacle_tree(obstacles)),
+    )
+    return np.stack([i, j], axis=1)
 
 
 def obstacle_point_visible(

@@ -35,7 +35,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import Role, WorldState
-from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, w_col, w_obs
+from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, avoidance_terms
 from swarmscene.methods.indoor.sensing import saturate
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
 
@@ -64,11 +64,12 @@ class PotentialBarrier(Avoidance):
         self.gains = replace(
             TABLE_5_1, T_s=ctx.guidance_period, **{k: v for k, v in params if k in fields}
         )
+        # The compiled kernels (numba) load here, not when the plugin registers (start-up).
+        from swarmscene.methods.indoor import kernels  # noqa: F401
 
     def terms(self, sensing: Any) -> np.ndarray:
         """w_obs + w_col (N, 2), m per step, from this tick's shared snapshot."""
-        snap = shared_snapshot(sensing, self.gains)
-        return w_obs(snap.r, snap.o, self.gains) + w_col(snap.r, snap.pair_geometry, self.gains)
+        return avoidance_terms(shared_snapshot(sensing, self.gains), self.gains)
 
     def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
         T = self.gains.T_s

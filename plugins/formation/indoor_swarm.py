@@ -82,16 +82,8 @@ from swarmscene.core.plugin import BuildContext, Formation
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-from swarmscene.methods.indoor.control import (
-    TABLE_5_1,
-    IndoorGains,
-    IndoorSnapshot,
-    leader_input,
-    psi_com,
-    psi_con,
-    w_led,
-)
-from swarmscene.methods.indoor.graphs import initial_rank_estimate, rank_estimate_step, virtual_leader
+from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, IndoorSnapshot, formation_step
+from swarmscene.methods.indoor.graphs import initial_rank_estimate
 from swarmscene.methods.indoor.graphs import max_rank as max_rank_of
 from swarmscene.methods.indoor.graphs import mean_degree
 from swarmscene.methods.indoor.maps import resample_path
@@ -148,18 +140,16 @@ class IndoorSwarm(Formation):
         self._ticks = 0
         self._prev: IndoorSnapshot | None = None
         self._cut: dict[str, Any] = {}
+        # The compiled kernels (numba) load here, not when the plugin registers (start-up).
+        from swarmscene.methods.indoor import kernels  # noqa: F401
 
     def setpoints(self, world: WorldState, sensing: Any) -> Setpoints:
         g, T = self.gains, self.gains.T_s
         snap = self.snapshot = shared_snapshot(sensing, g)
-        r = snap.r
-        l, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
-        pg = snap.pair_geometry
-        w = pg.sum(psi_con(pg.length, g) + psi_com(pg.length, g)) + w_led(r, l, has, g)
-        if self.params.saturate:
+        # w_con + w_com + w_led, the leader's input in its row, and the rank step: one kernel call.
+        w, self.m, self.rho_bar = formation_step(snap, self.rho_bar, self.leader, self.waypoints, self.m, g)
+        if self.params.saturate:  # the leader's row is below u_lsat < u_sat: left unchanged
             w = saturate(w, g.u_sat)
-        w[self.leader], self.m = leader_input(r, self.leader, snap.g_sigma, self.waypoints, self.m, g)
-        self.rho_bar = rank_estimate_step(self.rho_bar, snap.g_sigma, self.leader)
         self._observe(snap, world.t, sensing.environment.tree)
         sp = Setpoints.hold(world.pos)
         moving = world.healthy
