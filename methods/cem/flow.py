@@ -247,19 +247,42 @@ def theorem2(zeta0: np.ndarray, n_failures: int, a_p: float, delta: float, eps: 
     return Theorem2Check(d, bound, applicable, bool(applicable and d >= bound * (1 - REL_TOL)))
 
 
+def pcg64_state(rng: np.random.Generator) -> np.ndarray:
+    """The generator's PCG64 state as a writable (4,) uint64 view [state_lo, state_hi, inc_lo, inc_hi].
+
+    The compiled kernel draws eq. 6's noise by advancing this state in place with NumPy's own
+    algorithm, so the run's generator ends where NumPy's draws would have left it. Only PCG64 (the
+    engine's ``numpy.random.default_rng``) is supported; the view is checked against ``state``.
+    """
+    import ctypes
+
+    bg = rng.bit_generator
+    if not isinstance(bg, np.random.PCG64):
+        raise ValueError(f"rng: CEM draws its saddle noise from a PCG64 generator "
+                         f"(numpy.random.default_rng), got {type(bg).__name__}")
+    ptr = ctypes.cast(bg.ctypes.state_address, ctypes.POINTER(ctypes.c_void_p))[0]  # pcg64_state.pcg_state
+    view = np.ctypeslib.as_array(ctypes.cast(ptr, ctypes.POINTER(ctypes.c_uint64)), shape=(4,))
+    s = bg.state["state"]
+    words = [s["state"] & (2**64 - 1), s["state"] >> 64, s["inc"] & (2**64 - 1), s["inc"] >> 64]
+    if view.tolist() != words:  # another memory layout (a 128-bit emulation build): refuse, never guess
+        raise ValueError("rng: this NumPy build's PCG64 state layout is not the one the CEM kernel reads")
+    return view
+
+
 class NewtonInverter:
     """CalcXY (Algorithm 2): the point z whose (phi, psi) is a target, by Newton's method.
 
     Each iteration solves ``J dz = [phi_1 - phi, psi_1 - psi]`` (eq. 5), i.e. the complex division
     ``dz = (f(z) - w) / f'(z)``, and adds the saddle noise of eq. 6 when the estimate lies within
-    a_p of a failed vehicle. Vectorised over agents (N) and doublets (F); every work array is
-    allocated once here, so a guidance tick allocates (almost) nothing.
+    a_p of a failed vehicle; a branch guard keeps the result finite and outside every planned disk
+    (module docstring). The work runs in one compiled call (:mod:`swarmscene.methods.cem.kernels`)
+    on arrays allocated once here; :class:`CEMNavigator` runs Algorithm 1's K passes in the same call.
 
     Args:
         centres: (F,) complex doublet centres in the flow frame.
         a_p: planned exclusion radius, m.
         n_agents: N. n: Newton iterations per call (paper: 20). sigma: noise deviation, m (1 mm).
-        rng: random generator for the noise (the run's generator, so runs are reproducible).
+        rng: random generator for the noise (the run's PCG64 generator, advanced in place).
         strengths: (F,) doublet strengths mu_f (default :func:`doublet_strengths`).
         noise_rule: when eq. 6 draws, one of :data:`NOISE_RULES` (module docstring).
     """
@@ -269,125 +292,42 @@ class NewtonInverter:
                  noise_rule: str = "printed") -> None:
         if noise_rule not in NOISE_RULES:
             raise ValueError(f"noise_rule: must be one of {', '.join(NOISE_RULES)} (got {noise_rule!r})")
-        self.printed = noise_rule == "printed"
+        # numba loads here, at first use, not when the plugin module is imported (start-up time)
+        from swarmscene.methods.cem import kernels
+
+        self._k = kernels
         centres = np.atleast_1d(np.asarray(centres, dtype=complex))
-        self.c = centres.reshape(1, -1)
-        self.mu = _strengths(centres, a_p, strengths).reshape(1, -1)
-        self.a, self.a2 = float(a_p), float(a_p) ** 2
-        self.offset = complex(self.c.mean())
-        self.n, self.sigma, self.rng = int(n), float(sigma), rng
-        self.iterations = 0  # Newton iterations run by the last call (diagnostic)
-        m, f = n_agents, self.c.shape[1]
-        self.z = np.zeros(m, complex)  # the estimate, updated in place
-        self._zcol = self.z[:, None]
-        self._U, self._V, self._G = (np.empty((m, f), complex) for _ in range(3))
-        self._R = np.empty((m, f))
-        self._e, self._fp, self._r = np.empty(m, complex), np.empty(m, complex), np.empty(m)
-        self._wt, self._z_start = np.empty(m, complex), np.empty(m, complex)
-        self._single = f == 1  # one doublet: views instead of sums over the doublet axis
-        self._gs = self._G[:, 0] if self._single else np.empty(m, complex)
+        m, f = int(n_agents), centres.size
+        self.rng = rng  # keeps the generator (whose memory the state view reads) alive
+        self.state = pcg64_state(rng)
+        self.flow = np.stack([centres, _strengths(centres, a_p, strengths)])  # (2, F): z_f, mu_f
+        self.zz = np.zeros((8, m), complex)  # kernels.Z ... kernels.VEL, one row each
+        self.U = np.empty((m, f), complex)  # r - r_f
+        self.R = np.empty((m, f))  # ||r - r_f||
+        self.fw = np.empty(m + 2 * m * f + 4 * f)  # update sizes, noise draws, per-agent doublet terms
+        self.iw = np.empty((2, m * f), np.int64)  # (agent, doublet) pairs that draw noise
+        offset = complex(centres.mean())
+        self.prm = np.zeros(kernels.N_PRM)
+        self.prm[[kernels.P_A, kernels.P_SIGMA, kernels.P_OFF_R, kernels.P_OFF_I]] = (
+            float(a_p), float(sigma), offset.real, offset.imag)
+        self.iprm = np.zeros(kernels.N_IPRM, np.int64)
+        self.iprm[[kernels.I_N, kernels.I_PRINTED]] = int(n), int(noise_rule == "printed")
+        self.z = self.zz[kernels.Z]  # the estimate, updated in place (a view)
+
+    @property
+    def iterations(self) -> int:
+        """Newton iterations run by the last CalcXY call (diagnostic)."""
+        return int(self.iprm[self._k.I_ITERATIONS])
 
     def solve(self, w: np.ndarray) -> np.ndarray:
         """Run Algorithm 2 from the current estimate ``self.z`` towards targets w = phi + j psi (N,).
 
-        Returns ``self.z`` (updated in place). Call inside ``np.errstate(all="ignore")``: at a
-        stagnation point f' = 0 and the division is guarded afterwards, not before.
+        Returns ``self.z`` (updated in place).
         """
-        U, V, G, e, fp, r, zc = self._U, self._V, self._G, self._e, self._fp, self._r, self._zcol
-        z, c, mu, gs, single = self.z, self.c, self.mu, self._gs, self._single
-        np.add(w, self.offset, out=self._wt)
-        z_start = self._z_start
-        np.copyto(z_start, z)
-        it = 0
-        for it in range(self.n):
-            np.subtract(zc, c, out=U)  # u = z - z_f
-            np.reciprocal(U, out=V)
-            np.multiply(V, mu, out=G)  # mu_f / u
-            if not single:
-                np.sum(G, axis=1, out=gs)
-            np.add(z, gs, out=e)
-            np.subtract(e, self._wt, out=e)  # f(z) - w
-            np.multiply(G, V, out=G)  # mu_f / u^2
-            if not single:
-                np.sum(G, axis=1, out=gs)
-            np.subtract(1.0, gs, out=fp)  # f'(z)
-            np.divide(e, fp, out=e)  # J^{-1} [phi_1 - phi, psi_1 - psi]
-            np.subtract(z, e, out=z)
-            np.abs(e, out=r)
-            if self.printed:  # eq. 6 as printed: every iteration, the last one too
-                noisy = self.sigma > 0 and self._add_noise(U)
-            else:
-                noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, r)
-            if not noisy and r.max() < NEWTON_TOL:
-                break
-        self.iterations = it + 1
-        self._guard(z_start)
-        return z
-
-    def _add_noise(self, U: np.ndarray, step: np.ndarray | None = None, rows: np.ndarray | None = None) -> bool:
-        """Eq. 6: |N(0, sigma)| r_a + N(0, sigma) r_b for estimates inside the planned disk.
-
-        r_a = (r - r_f) / ||r - r_f|| points away from the failed vehicle, r_b = [[0, 1], [-1, 0]] r_a,
-        which in complex form is -j r_a; r is the estimate the Jacobian was evaluated at (``U`` =
-        r - r_f). Printed rule (``step`` None): drawn for every estimate with ||r - r_f|| <= a_p.
-        Gated rule: drawn only for an estimate strictly inside a_p whose Newton update ``step`` is
-        still at least sigma: an estimate that has converged (onto the ring, where psi = 0 wraps
-        the disk, or onto a root that several failures' flows moved a few mm inside a_p) is not at
-        a saddle, and kicking it every iteration would keep it from converging; the guard then
-        places it. ``rows`` forces noise on those agents (nearest disk). Returns whether any noise
-        was drawn.
-        """
-        R = self._R
-        np.abs(U, out=R)
-        if rows is None and step is None:
-            if not R.min() <= self.a:
-                return False
-            rows, cols = np.nonzero(R <= self.a)
-        elif rows is None:
-            if not R.min() < self.a * (1.0 - 1e-9):
-                return False
-            mask = (R < self.a * (1.0 - 1e-9)) & (step >= self.sigma)[:, None]
-            rows, cols = np.nonzero(mask)
-            if rows.size == 0:
-                return False
-        else:
-            cols = R[rows].argmin(axis=1)
-        ra = U[rows, cols] / R[rows, cols]
-        g = self.rng.standard_normal((2, rows.size)) * self.sigma
-        np.add.at(self.z, rows, ra * (np.abs(g[0]) - 1j * g[1]))
-        return True
-
-    def _guard(self, z_start: np.ndarray) -> None:
-        """Keep commands finite and outside every planned disk (see module docstring).
-
-        A non-finite estimate (Newton met f' = 0 exactly, at a stagnation point) restarts from its
-        start point plus the eq. 6 noise, which moves it off the saddle for the next call. An estimate
-        inside a disk, deeper than rounding, is moved out through that circle by whichever of two
-        inversions lands nearer its start point: the mirror u -> mu / (U u) (U the doublet's local
-        flow; for one failure u -> a_p^2 / u, which keeps phi and psi exactly, so it turns the inside
-        root past the front saddle into the outside one) or the radial u -> a_p^2 / conj(u) (keeps the
-        side for a root a few mm inside, where the mirror would jump across the disk).
-        """
-        U, R, z = self._U, self._R, self.z
-        np.subtract(self._zcol, self.c, out=U)
-        np.abs(U, out=R)
-        inner = self.a * (1.0 - 1e-6)  # a point on the ring itself is outside
-        if R.min() >= inner:  # False for NaN too
-            return
-        bad = np.flatnonzero(~np.isfinite(z))
-        if bad.size:
-            z[bad] = z_start[bad]
-            np.subtract(self._zcol, self.c, out=U)
-            self._add_noise(U, rows=bad)
-            np.subtract(self._zcol, self.c, out=U)
-            np.abs(U, out=R)
-        k = R.argmin(axis=1)
-        rows = np.flatnonzero(R[np.arange(z.size), k] < inner)
-        u, cf, mu = U[rows, k[rows]], self.c[0, k[rows]], self.mu[0, k[rows]]
-        mirror = cf + mu * self.a2 / (np.conj(mu) * u)  # local flow U = conj(mu) / a_p^2
-        radial = cf + self.a2 / np.conj(u)
-        near = np.abs(mirror - z_start[rows]) <= np.abs(radial - z_start[rows])
-        z[rows] = np.where(near, mirror, radial)
+        k = self._k
+        self.zz[k.WT] = w
+        k.calc_xy(self.zz, self.flow, self.U, self.R, self.fw, self.iw, self.prm, self.iprm, self.state)
+        return self.z
 
 
 def calc_xy(w: np.ndarray, zeta: np.ndarray, centres: np.ndarray, a_p: float, n: int = 20,
@@ -402,8 +342,7 @@ def calc_xy(w: np.ndarray, zeta: np.ndarray, centres: np.ndarray, a_p: float, n:
     inv = NewtonInverter(centres, a_p, zeta.size, n, sigma, rng or np.random.default_rng(0),
                          noise_rule=noise_rule)
     inv.z[:] = zeta
-    with np.errstate(all="ignore"):
-        z = inv.solve(np.asarray(w, dtype=complex)).copy()
+    z = inv.solve(np.asarray(w, dtype=complex)).copy()
     return z if dT is None else (z, (z - zeta) / dT)
 
 
@@ -440,18 +379,34 @@ class CEMNavigator:
         self.zeta0 = zeta0
         self.strengths = _strengths(self.centres, a_p, strengths)
         self.w0 = complex_potential(zeta0, self.centres, a_p, self.strengths)  # lines 7-10: phi_i0 + j psi_i0
-        self.w = self.w0.copy()  # phi_last + j psi_i0
-        self.dphi = self.v_des * self.dT  # line 6
-        self.dphi_used = 0.0  # the step phi actually advanced by at the last tick (Fig. 8)
+        self.n, self.sigma, self.noise_rule = int(n), float(sigma), noise_rule
         self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng(),
                                        self.strengths, noise_rule)
-        self.inverter.z[:] = zeta0  # r_d <- r, line 5
+        inv, k = self.inverter, self.inverter._k
+        inv.z[:] = zeta0  # r_d <- r, line 5
+        inv.zz[k.W] = self.w0  # phi_last + j psi_i0
+        rot_dt = self.rot / self.dT
+        inv.prm[[k.P_VDES, k.P_DT, k.P_ROT_R, k.P_ROT_I, k.P_ROTDT_R, k.P_ROTDT_I, k.P_ORIG_R, k.P_ORIG_I]] = (
+            self.v_des, self.dT, self.rot.real, self.rot.imag, rot_dt.real, rot_dt.imag,
+            self.origin.real, self.origin.imag)
+        inv.prm[k.P_DPHI] = self.v_des * self.dT  # line 6
+        inv.iprm[k.I_K] = self.K
         m = zeta0.size
-        self._z_prev, self._dz, self._speed = np.empty(m, complex), np.empty(m, complex), np.empty(m)
-        self._wt = np.empty(m, complex)
-        self._pos_c, self._vel_c = np.empty(m, complex), np.empty(m, complex)
-        self.positions = self._pos_c.view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
-        self.velocities = self._vel_c.view(float).reshape(m, 2)  # world x-y, m/s
+        self.w = inv.zz[k.W]  # phi_last + j psi_i0 (a view)
+        self.positions = inv.zz[k.POS].view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
+        self.velocities = inv.zz[k.VEL].view(float).reshape(m, 2)  # world x-y, m/s
+        self._step_args = (inv.zz, inv.flow, inv.U, inv.R, inv.fw, inv.iw, inv.prm, inv.iprm, inv.state)
+        self._step = k.navigator_step
+
+    @property
+    def dphi(self) -> float:
+        """The sliding step for the next tick (line 20), phi units."""
+        return float(self.inverter.prm[self.inverter._k.P_DPHI])
+
+    @property
+    def dphi_used(self) -> float:
+        """The step phi actually advanced by at the last tick (Fig. 8); 0 before the first."""
+        return float(self.inverter.prm[self.inverter._k.P_USED])
 
     @property
     def n_agents(self) -> int:
@@ -467,28 +422,9 @@ class CEMNavigator:
         return self.w.real
 
     def step(self) -> tuple[np.ndarray, np.ndarray]:
-        """One guidance tick: returns world (N, 2) commanded positions and velocities (views).
-
-        The returned arrays are owned by the navigator and overwritten at the next call.
-        """
-        z, dz, speed = self.inverter.z, self._dz, self._speed
-        np.copyto(self._z_prev, z)  # r_{-1}: the previous tick's command
-        with np.errstate(all="ignore"):
-            for _ in range(self.K):
-                used = self.dphi
-                np.add(self.w, used, out=self._wt)  # line 16: phi_last + dphi (psi unchanged)
-                np.copyto(z, self._z_prev)  # every pass starts from the previous tick's command
-                self.inverter.solve(self._wt)  # line 17
-                np.subtract(z, self._z_prev, out=dz)
-                np.abs(dz, out=speed)
-                v_max = speed.max() / self.dT  # line 19
-                if v_max > 0.0:
-                    self.dphi = used * self.v_des / v_max  # line 20
-        self.dphi_used = used
-        np.add(self.w, used, out=self.w)
-        np.multiply(z, self.rot, out=self._pos_c)
-        np.add(self._pos_c, self.origin, out=self._pos_c)
-        np.multiply(dz, self.rot / self.dT, out=self._vel_c)
+        """One guidance tick (Algorithm 1 lines 13-22, one compiled call): returns world (N, 2)
+        commanded positions and velocities (views owned by the navigator, overwritten next call)."""
+        self._step(*self._step_args)
         return self.positions, self.velocities
 
     def stream_drift(self) -> np.ndarray:
