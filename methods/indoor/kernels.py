@@ -233,27 +233,50 @@ def neighbour_edges(r, pairs, clearance, d_l, seg, geom_start, polygonal, bbox):
 
 
 @numba.njit(cache=True)
-def _arc_rules(r, indptr, dst, a, b, phi_d, common, mark, cand, side, both):
+def _by_length(r, indptr, dst):
+    """Each agent's G_n neighbours sorted by the squared length of the arc (near, near_sq).
+
+    The candidates of eq. 5.15 (m in A_ab: ||r_ma|| < ||r_ba||) are then a prefix of agent a's
+    list, so an arc scans only those.
+    """
+    near = dst.copy()
+    near_sq = np.empty(dst.size)
+    for a in range(indptr.size - 1):
+        for k in range(indptr[a], indptr[a + 1]):
+            mx, my = r[dst[k], 0] - r[a, 0], r[dst[k], 1] - r[a, 1]
+            sq, m = mx * mx + my * my, dst[k]
+            q = k
+            while q > indptr[a] and near_sq[q - 1] > sq:  # insertion sort: a handful each
+                near_sq[q], near[q] = near_sq[q - 1], near[q - 1]
+                q -= 1
+            near_sq[q], near[q] = sq, m
+    return near, near_sq
+
+
+@numba.njit(cache=True)
+def _arc_rules(r, indptr, near, near_sq, a, b, phi_d, common, mark, cand, side, both):
     """Rules 5.18 and 5.21 for the arc a -> b of G_n as agent a evaluates them.
 
     Candidates m in N_a(G_n) other than b (``common``: also in N_b, flagged in ``mark``) that lie
     in A_ab and B_ab (eq. 5.15-5.16). Rule 1: |phi(r_ma, r_ba)| < phi_d (eq. 5.17-5.18); rule 2:
     m in C (phi < 0) and n in D (phi > 0) with ||r_nm|| < ||r_ba|| (eq. 5.19-5.21). Without
-    ``both`` rule 2 is skipped once rule 1 fired (only their union is wanted).
+    ``both`` rule 2 is skipped once rule 1 fired (only their union is wanted). ``near``,
+    ``near_sq``: :func:`_by_length`.
     """
     xa, ya = r[a, 0], r[a, 1]
     ex, ey = r[b, 0] - xa, r[b, 1] - ya
-    d_sq = ex * ex + ey * ey
+    d_sq = ex * ex + ey * ey  # the same expression as near_sq: b itself is not a candidate
     rule1 = False
     count = 0
     for k in range(indptr[a], indptr[a + 1]):
-        m = dst[k]
-        if m == b or (common and not mark[m]):
+        if near_sq[k] >= d_sq:  # this m and the rest are not in A_ab
+            break
+        m = near[k]
+        if common and not mark[m]:
             continue
         mx, my = r[m, 0] - xa, r[m, 1] - ya
-        if mx ** 2 + my ** 2 >= d_sq:  # not in A_ab
-            continue
-        if (mx - ex) ** 2 + (my - ey) ** 2 >= d_sq:  # not in B_ab
+        bx, by = mx - ex, my - ey
+        if bx * bx + by * by >= d_sq:  # not in B_ab (numpy's ``** 2`` is this product)
             continue
         phi = (my * ex - mx * ey) / d_sq
         if abs(phi) < phi_d:
@@ -305,19 +328,20 @@ def _rules(r, i, j, indptr, dst, phi_d, reading, both):
     cand = np.empty(degree_max, dtype=np.intp)
     side = np.empty(degree_max, dtype=np.bool_)
     mark = np.zeros(n, dtype=np.bool_)
+    near, near_sq = _by_length(r, indptr, dst)
     common = reading == 1
     for k in range(p):
         a, b = i[k], j[k]
         if common:
             for q in range(indptr[b], indptr[b + 1]):
                 mark[dst[q]] = True
-        rules[0, k], rules[1, k] = _arc_rules(r, indptr, dst, a, b, phi_d, common, mark, cand, side, both)
+        rules[0, k], rules[1, k] = _arc_rules(r, indptr, near, near_sq, a, b, phi_d, common, mark, cand, side, both)
         if common:
             for q in range(indptr[b], indptr[b + 1]):
                 mark[dst[q]] = False
             rules[2, k], rules[3, k] = rules[0, k], rules[1, k]
         else:
-            rules[2, k], rules[3, k] = _arc_rules(r, indptr, dst, b, a, phi_d, False, mark, cand, side, both)
+            rules[2, k], rules[3, k] = _arc_rules(r, indptr, near, near_sq, b, a, phi_d, False, mark, cand, side, both)
     return rules
 
 
