@@ -326,12 +326,25 @@ def rk4(x, thrust, M, ext, mass, J, gyro, dt, work):
 
 
 @numba.njit(cache=True)
-def reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, tau):
-    """(p_d, v_d, a_d) of agent i at ``tau`` s after the tick: the quartic Taylor polynomial
-    p + τ v + τ²/2 a + τ³/6 j + τ⁴/24 s (and its derivatives) on TRACK rows (dv..ds zero elsewhere)."""
+def taylor_weights(tau, h, substeps):
+    """(τ, τ²/2, τ³/6, τ⁴/24) at the start of each sub-step, τ accumulated step by step from
+    ``tau`` (the same for every agent, so computed once per call)."""
+    w = np.empty((substeps + 1, 4))
+    for k in range(substeps + 1):
+        w[k, 0], w[k, 1] = tau, tau * tau / 2.0
+        w[k, 2], w[k, 3] = math.pow(tau, 3.0) / 6.0, math.pow(tau, 4.0) / 24.0
+        tau += h
+    return w
+
+
+@numba.njit(cache=True)
+def reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, weights):
+    """(p_d, v_d, a_d) of agent i at τ s after the tick: the quartic Taylor polynomial
+    p + τ v + τ²/2 a + τ³/6 j + τ⁴/24 s (and its derivatives) on TRACK rows (dv..ds zero
+    elsewhere); ``weights`` = (τ, τ²/2, τ³/6, τ⁴/24)."""
+    tau, t2, t3, t4 = weights[0], weights[1], weights[2], weights[3]
     if tau == 0.0:
         return _row(p_ref, i), _row(v_ref, i), _row(a_ref, i)
-    t2, t3, t4 = tau * tau / 2.0, math.pow(tau, 3.0) / 6.0, math.pow(tau, 4.0) / 24.0
     p = (p_ref[i, 0] + tau * dv[i, 0] + t2 * da[i, 0] + t3 * dj[i, 0] + t4 * ds[i, 0],
          p_ref[i, 1] + tau * dv[i, 1] + t2 * da[i, 1] + t3 * dj[i, 1] + t4 * ds[i, 1],
          p_ref[i, 2] + tau * dv[i, 2] + t2 * da[i, 2] + t3 * dj[i, 2] + t4 * ds[i, 2])
@@ -363,16 +376,15 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
     x = np.empty(13)
     work = np.empty((5, 13))
     no_wind = (0.0, 0.0, 0.0)
-    t = tau
+    weights = taylor_weights(tau, h, substeps)
     for i in range(pos.shape[0]):
         for k in range(3):
             x[k], x[3 + k], x[10 + k] = pos[i, k], vel[i, k], omega[i, k]
         for k in range(4):
             x[6 + k] = quat[i, k]
         y_c, w_d, al_d = _row(heading, i), _row(omega_d, i), _row(alpha_d, i)
-        t = tau
-        for _ in range(substeps):
-            p_d, v_d, a_d = reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, t)
+        for sub in range(substeps):
+            p_d, v_d, a_d = reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, weights[sub])
             R = rotmat(x[6], x[7], x[8], x[9])
             f, M = se3_control((x[0], x[1], x[2]), (x[3], x[4], x[5]), R, (x[10], x[11], x[12]),
                                p_d, v_d, a_d, y_c, w_d, al_d, feedforward, position_mask[i],
@@ -384,9 +396,8 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
                 ext, moment = wind_load(R, _row(wind, i), drag, mass, arm)
                 torque = _add(torque, moment)
             rk4(x, thrust, torque, ext, mass, J, gyro, h, work)
-            t += h
         for k in range(3):
             pos[i, k], vel[i, k], omega[i, k] = x[k], x[3 + k], x[10 + k]
         for k in range(4):
             quat[i, k] = x[6 + k]
-    return t
+    return weights[substeps, 0]

@@ -120,17 +120,25 @@ class Quadrotor(Dynamics):
         world.omega = np.zeros((n, 3))
         world.rotor_speed = np.full((n, 4), self.airframe.hover_rotor_speed)
         self.rotor_health: np.ndarray | None = None  # (N, 4) thrust kept, allocated at a failure
-        self._rotor_gain = np.ones((n, 4))            # sqrt(rotor_health): effective / commanded speed
+        self._allocate(n)
+        self.control(world, Setpoints.hold(world.pos))
+
+    def _allocate(self, n: int) -> None:
+        """The kernels' per-agent arrays (they write in place and do not check sizes)."""
+        self._rotor_gain = np.ones((n, 4)) if self.rotor_health is None else np.sqrt(self.rotor_health)
         self._zeros = np.zeros((n, 3))
         # this tick's references (p_d, v_d, a_d), Taylor coefficients and flatness feed-forward
         self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._omega_d, self._alpha_d = (
             np.zeros((n, 3)) for _ in range(9))
         self._position_mask = np.ones(n, dtype=bool)
-        self.control(world, Setpoints.hold(world.pos))
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
         """Latch this tick's references (zero-order hold, or Taylor propagation in TRACK mode) and
         their flatness feed-forward, in one compiled call (:func:`kernels.latch_references`)."""
+        if self._p.shape[0] != world.n or sp.pos.shape[0] != world.n:
+            if sp.pos.shape[0] != world.n:
+                raise ValueError(f"quadrotor: {sp.pos.shape[0]} setpoints for {world.n} agents")
+            self._allocate(world.n)
         self._yaw = np.asarray(sp.yaw, dtype=float).copy()
         self._heading = heading_vector(self._yaw)
         # constant acceleration and heading (no jerk, no snap): the flat body rates are zero
