@@ -10,7 +10,9 @@ runs keep their metrics:
 
 * Complex products and moduli are computed as NumPy's SIMD loops compute them on x86-64 with FMA:
   ``(a_r b_r - a_i b_i)`` and ``(a_r b_i + a_i b_r)`` each with one fused multiply-add
-  (:func:`cmul`), ``|z| = L sqrt(1 + (S/L)^2)`` with a fused square (:func:`cabs`). Quotients use
+  (:func:`cmul`; NumPy's in-place product of a single element is not fused, :func:`cmul_plain`,
+  which only the one-agent, one-failure case met), ``|z| = L sqrt(1 + (S/L)^2)`` with a fused
+  square (:func:`cabs`). Quotients use
   NumPy's Smith division (:func:`cdiv`, :func:`crecip`), sums over doublets NumPy's pairwise order
   (:func:`doublet_sum`). On a CPU without FMA NumPy rounds differently and the two agree to round-off.
 * The saddle noise (eq. 6) comes from the run's own ``numpy.random.Generator``: the kernel advances
@@ -72,6 +74,12 @@ def fma(typingctx, a, b, c):
 def cmul(ar, ai, br, bi):
     """(a_r + j a_i)(b_r + j b_i), each part with one fused multiply-add (NumPy's SIMD loop)."""
     return fma(ar, br, -(ai * bi)), fma(ar, bi, ai * br)
+
+
+@njit(**JIT)
+def cmul_plain(ar, ai, br, bi):
+    """(a_r + j a_i)(b_r + j b_i) without fusing: NumPy's loop for an in-place product of one element."""
+    return ar * br - ai * bi, ar * bi + ai * br
 
 
 @njit(**JIT)
@@ -419,7 +427,10 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
                 U[i, 0] = complex(ur, ui)
                 vr, vi = crecip(ur, ui)  # 1 / u
                 gr, gi = cmul(vr, vi, mu[0].real, mu[0].imag)  # mu / u
-                hr, hi = cmul(gr, gi, vr, vi)  # mu / u^2
+                if m == 1:  # NumPy's in-place G *= V of a single element did not fuse (bit for bit)
+                    hr, hi = cmul_plain(gr, gi, vr, vi)  # mu / u^2
+                else:
+                    hr, hi = cmul(gr, gi, vr, vi)
             else:
                 for f in range(nf):
                     ur, ui = zr - c[f].real, zi - c[f].imag
