@@ -85,7 +85,7 @@ def tick(dyn, world, centres, substeps: int, k: int, guidance: float) -> float:
 def compare(n: int, seconds: float, guidance: float) -> dict[str, float]:
     """The same flight with the kernel and with the oracle, alternating tick by tick."""
     substeps = int(round(guidance / PHYSICS))
-    runs = {name: build(cls, n, guidance) for name, cls in (("kernel", Quadrotor), ("oracle", QuadrotorOracle))}
+    runs = {"kernel": build(Quadrotor, n, guidance), "oracle": build(QuadrotorOracle, n, guidance)}
     for name, (dyn, world, centres) in runs.items():  # warm-up tick (kernels loaded / compiled)
         tick(dyn, world, centres, substeps, 0, guidance)
     cpu = {"kernel": 0.0, "oracle": 0.0}

@@ -66,9 +66,9 @@ def _div(a, s):
 
 
 @numba.njit(cache=True)
-def _col_dot(A, i, B, j):
-    """(A^T B)_ij of 3x3 row-tuple matrices: Σ_k A_ki B_kj, k in order."""
-    return A[0][i] * B[0][j] + A[1][i] * B[1][j] + A[2][i] * B[2][j]
+def _columns(R):
+    """The columns of a 3x3 matrix held as three row tuples."""
+    return ((R[0][0], R[1][0], R[2][0]), (R[0][1], R[1][1], R[2][1]), (R[0][2], R[1][2], R[2][2]))
 
 
 @numba.njit(cache=True)
@@ -174,7 +174,7 @@ def rotmat(q0, q1, q2, q3):
 
 @numba.njit(cache=True)
 def desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, min_lift):
-    """F = -k_x e_x - k_v e_v + m g e_3 + m a_d (Lee et al. eq. 12 in z-up form), e_x dropped when
+    """F = -k_x e_x - k_v e_v + m g e_3 + m a_d (Lee et al.'s desired force, z up), e_x dropped when
     not ``position``; F_z kept >= ``min_lift`` m g and the tilt of F capped (|F_xy| <= F_z tan)."""
     w = 1.0 if position else 0.0
     F0 = -k_x * ((p[0] - p_d[0]) * w) - k_v * (v[0] - v_d[0]) + mass * a_d[0]
@@ -187,13 +187,15 @@ def desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, m
 
 @numba.njit(cache=True)
 def attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, J):
-    """Lee et al.'s moment (eq. 16 in body FLU), A = R_d^T R:
+    """Lee et al.'s moment (body FLU), A = R_d^T R:
     e_R = ½ (A - A^T)^∨, e_Ω = Ω - A^T Ω_d,
     M = -k_R e_R - k_Ω e_Ω + Ω × J Ω - J (Ω × A^T Ω_d - A^T Ω̇_d) (Ω_d = Ω̇_d = 0 without
     ``feedforward``)."""
-    A = ((_col_dot(R_d, 0, R, 0), _col_dot(R_d, 0, R, 1), _col_dot(R_d, 0, R, 2)),
-         (_col_dot(R_d, 1, R, 0), _col_dot(R_d, 1, R, 1), _col_dot(R_d, 1, R, 2)),
-         (_col_dot(R_d, 2, R, 0), _col_dot(R_d, 2, R, 1), _col_dot(R_d, 2, R, 2)))
+    c0, c1, c2 = _columns(R)
+    d0, d1, d2 = _columns(R_d)
+    A = ((_dot(d0, c0), _dot(d0, c1), _dot(d0, c2)),   # A_ij = Σ_k (R_d)_ki R_kj, k in order
+         (_dot(d1, c0), _dot(d1, c1), _dot(d1, c2)),
+         (_dot(d2, c0), _dot(d2, c1), _dot(d2, c2)))
     e_R = (0.5 * (A[2][1] - A[1][2]), 0.5 * (A[0][2] - A[2][0]), 0.5 * (A[1][0] - A[0][1]))
     gyro = _cross(omega, (omega[0] * J[0], omega[1] * J[1], omega[2] * J[2]))
     M = (-k_R[0] * e_R[0] + gyro[0], -k_R[1] * e_R[1] + gyro[1], -k_R[2] * e_R[2] + gyro[2])
@@ -216,7 +218,7 @@ def se3_control(p, v, R, omega, p_d, v_d, a_d, y_c, omega_d, alpha_d, feedforwar
                 k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift):
     """Collective thrust f = max(F·R e_3, 0) and moment M of Lee et al.'s tracking law, with
     b_3d = F / |F| and the heading axes b_1d = (y_c × b_3d) / |y_c × b_3d|, b_2d = b_3d × b_1d
-    (flatness.heading_axes)."""
+    (the heading convention of flatness.py)."""
     F = desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, min_lift)
     thrust = F[0] * R[0][2] + F[1] * R[1][2] + F[2] * R[2][2]
     b3 = _div(F, math.sqrt(_dot(F, F)))
@@ -237,14 +239,13 @@ def allocate(thrust, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, o
     clipped to [thrust_min, thrust_max] (four rotors' range), ϖ^2 = base + λ δ with base = T^-1 (f,
     0), δ = T^-1 (0, M) and λ the largest value in [0, 1] keeping every ϖ_r^2 in [w2_min, w2_max]."""
     f = min(max(thrust, thrust_min), thrust_max)
-    lam = 1.0
     room_min = np.inf
     for r in range(4):
         base = f * mixer_inverse[r, 0]
         delta = M[0] * mixer_inverse[r, 1] + M[1] * mixer_inverse[r, 2] + M[2] * mixer_inverse[r, 3]
         room = (w2_max - base if delta > 0.0 else base - w2_min) / max(abs(delta), 1e-300)
         room_min = min(room_min, room)
-    lam = min(room_min, lam)
+    lam = min(room_min, 1.0)
     for r in range(4):
         base = f * mixer_inverse[r, 0]
         delta = M[0] * mixer_inverse[r, 1] + M[1] * mixer_inverse[r, 2] + M[2] * mixer_inverse[r, 3]

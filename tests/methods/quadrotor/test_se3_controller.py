@@ -4,8 +4,24 @@ form (tests/oracles/quadrotor.py); test_quadrotor_kernel.py checks the compiled 
 import numpy as np
 import pytest
 
-from oracles.quadrotor import allocate, flat_inputs, flat_state, rk4_step, se3_control, step_rotors, taylor_propagate
-from swarmscene.methods.quadrotor.model import CRAZYFLIE, GRAVITY, M330, euler_zyx, quat_to_rotmat, rotmat_to_quat, yaw_to_quat
+from oracles.quadrotor import (
+    allocate,
+    flat_inputs,
+    flat_state,
+    rk4_step,
+    se3_control,
+    step_rotors,
+    taylor_propagate,
+)
+from swarmscene.methods.quadrotor.model import (
+    CRAZYFLIE,
+    GRAVITY,
+    M330,
+    euler_zyx,
+    quat_to_rotmat,
+    rotmat_to_quat,
+    yaw_to_quat,
+)
 from swarmscene.methods.quadrotor.se3_controller import se3_gains
 
 DT = 1.0 / 240.0
