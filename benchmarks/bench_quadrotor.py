@@ -9,7 +9,7 @@ in one process, alternating tick by tick, and are timed separately in CPU time (
 the machine is shared, and a preempted tick would otherwise be charged to whichever ran). Prints,
 per swarm size and guidance rate: drone-steps per CPU second of each, their ratio, the kernel's
 real-time factor (simulated / CPU seconds) and the largest kernel - oracle position difference at
-the end; then, each in a fresh interpreter, the CPU time of importing the kernels (numba) and of
+the end; then the physics step alone (best of 7 blocks, per CPU second); then, each in a fresh interpreter, the CPU time of importing the kernels (numba) and of
 the first control() + step() with an empty numba cache (compile) and with the cache it wrote
 (load). Single core, single thread:
 
@@ -103,6 +103,24 @@ def compare(n: int, seconds: float, guidance: float) -> dict[str, float]:
     }
 
 
+def step_only(n: int, repeats: int = 7) -> dict[str, float]:
+    """Physics steps alone (control() once before): best-of-``repeats`` CPU time per step of the
+    kernel and the oracle, alternating blocks of steps; returns drone-steps per CPU second."""
+    runs = {"kernel": build(Quadrotor, n, 0.1), "oracle": build(QuadrotorOracle, n, 0.1)}
+    block = max(5, 20_000 // n)
+    best = {}
+    for name, (dyn, world, centres) in runs.items():
+        dyn.control(world, circles(n, 0.0, centres))
+        dyn.step(world, PHYSICS)
+    for _ in range(repeats):
+        for name, (dyn, world, _) in runs.items():
+            start = time.process_time()
+            for _ in range(block):
+                dyn.step(world, PHYSICS)
+            best[name] = min(best.get(name, np.inf), (time.process_time() - start) / block)
+    return {name: n / t for name, t in best.items()}
+
+
 _FIRST_CALL = """
 import time
 t0 = time.process_time()
@@ -150,6 +168,10 @@ def main() -> None:
             r = compare(n, args.seconds, guidance)
             print(f"{n:>6} {1 / guidance:>6.0f}Hz {r['kernel']:>19.3e} {r['oracle']:>19.3e} "
                   f"{r['ratio']:>6.1f}x {r['rtf']:>9.1f}x {r['diff']:>11.1e} {r['track_err']:>11.4f}")
+    print(f"{'N':>6} {'step only, best of 7: kernel':>30} {'oracle drone-steps/s':>21} {'ratio':>7}")
+    for n in args.sizes:
+        r = step_only(n)
+        print(f"{n:>6} {r['kernel']:>30.3e} {r['oracle']:>21.3e} {r['kernel'] / r['oracle']:>6.1f}x")
     fc = first_call()
     print(f"first call (fresh interpreter, N = 4, CPU s): import kernels (numba) {fc['import_cold']:.2f}; "
           f"first control + step {fc['first_cold']:.2f} with an empty cache (compile), "
