@@ -391,12 +391,13 @@ class CEMNavigator:
             self.origin.real, self.origin.imag)
         inv.prm[k.P_DPHI] = self.v_des * self.dT  # line 6
         inv.iprm[k.I_K] = self.K
+        inv.prm[k.P_ALONG_MIN] = zeta0.real.min() if zeta0.size else np.inf
         m = zeta0.size
         self.w = inv.zz[k.W]  # phi_last + j psi_i0 (a view)
         self.positions = inv.zz[k.POS].view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
         self.velocities = inv.zz[k.VEL].view(float).reshape(m, 2)  # world x-y, m/s
         self._step_args = (inv.zz, inv.flow, inv.U, inv.R, inv.fw, inv.iw, inv.prm, inv.iprm, inv.state)
-        self._step = k.navigator_step
+        self._step, self._write = k.navigator_step, k.write_track
 
     @property
     def dphi(self) -> float:
@@ -421,11 +422,22 @@ class CEMNavigator:
     def phi(self) -> np.ndarray:
         return self.w.real
 
+    @property
+    def along_track_min(self) -> float:
+        """min over agents of the commands' along-track coordinate (flow frame, m): Re(zeta).min()."""
+        return float(self.inverter.prm[self.inverter._k.P_ALONG_MIN])
+
     def step(self) -> tuple[np.ndarray, np.ndarray]:
         """One guidance tick (Algorithm 1 lines 13-22, one compiled call): returns world (N, 2)
         commanded positions and velocities (views owned by the navigator, overwritten next call)."""
         self._step(*self._step_args)
         return self.positions, self.velocities
+
+    def write_track(self, idx: np.ndarray, mode: np.ndarray, pos: np.ndarray, vel: np.ndarray,
+                    acc: np.ndarray, track: int) -> None:
+        """Write the last tick's commands for agents ``idx`` (N,) into setpoint arrays in one call:
+        ``mode[idx] = track``, x-y of ``pos``/``vel`` (M, 3) from :meth:`step`, x-y of ``acc`` zero."""
+        self._write(self.inverter.zz, idx, mode, pos, vel, acc, track)
 
     def stream_drift(self) -> np.ndarray:
         """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""

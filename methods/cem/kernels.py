@@ -49,7 +49,7 @@ _ONE, _ZERO = np.uint64(1), np.uint64(0)
 Z, Z_PREV, DZ, W, WT, Z_START, POS, VEL = range(8)
 # Entries of the float parameter vector ``prm``.
 (P_A, P_SIGMA, P_OFF_R, P_OFF_I, P_VDES, P_DT, P_ROT_R, P_ROT_I, P_ROTDT_R, P_ROTDT_I, P_ORIG_R, P_ORIG_I,
- P_DPHI, P_USED, N_PRM) = range(15)
+ P_DPHI, P_USED, P_ALONG_MIN, N_PRM) = range(16)
 # Entries of the integer parameter vector ``iprm``.
 I_N, I_K, I_PRINTED, I_ITERATIONS, N_IPRM = range(5)
 
@@ -477,8 +477,9 @@ def navigator_step(zz, flow, U, R, fw, iw, prm, iprm, state):
     dphi <- dphi v_des / v_max; then r_d and (r_d - r_{-1}) / dT in the world frame.
 
     Every pass starts Newton from the previous tick's command r_{-1} (flow module docstring).
-    Reads and writes prm[P_DPHI]; writes prm[P_USED] (the step phi advanced by), zz[W] (phi_last),
-    zz[Z] (the command, flow frame), zz[DZ], zz[POS], zz[VEL] (world x-y as complex), the iterations.
+    Reads and writes prm[P_DPHI]; writes prm[P_USED] (the step phi advanced by), prm[P_ALONG_MIN]
+    (min along-track coordinate of the commands), zz[W] (phi_last), zz[Z] (the command, flow
+    frame), zz[DZ], zz[POS], zz[VEL] (world x-y as complex), the iterations.
     """
     z, z_prev, dz, w, wt = zz[Z], zz[Z_PREV], zz[DZ], zz[W], zz[WT]
     m = z.size
@@ -501,9 +502,25 @@ def navigator_step(zz, flow, U, R, fw, iw, prm, iprm, state):
             dphi = used * prm[P_VDES] / v_max  # line 20
     prm[P_DPHI], prm[P_USED] = dphi, used
     rot_r, rot_i, rotdt_r, rotdt_i = prm[P_ROT_R], prm[P_ROT_I], prm[P_ROTDT_R], prm[P_ROTDT_I]
+    along = np.inf
     for i in range(m):
+        along = min(along, z[i].real)
         w[i] = complex(w[i].real + used, w[i].imag + 0.0)
         pr, pi = cmul(z[i].real, z[i].imag, rot_r, rot_i)
         zz[POS, i] = complex(pr + prm[P_ORIG_R], pi + prm[P_ORIG_I])
         vr, vi = cmul(dz[i].real, dz[i].imag, rotdt_r, rotdt_i)
         zz[VEL, i] = complex(vr, vi)
+    prm[P_ALONG_MIN] = along  # the hand-back test reads it without another pass
+
+
+@njit(**JIT)
+def write_track(zz, idx, mode, pos, vel, acc, track):
+    """Write the tick's commands into setpoint arrays: agent idx[j] gets mode ``track``, x-y position
+    zz[POS, j], x-y velocity zz[VEL, j] and zero x-y acceleration (first differences only); z and
+    yaw stay as they are (the formation's altitude, Assumption 2)."""
+    for j in range(idx.size):
+        i = idx[j]
+        mode[i] = track
+        pos[i, 0], pos[i, 1] = zz[POS, j].real, zz[POS, j].imag
+        vel[i, 0], vel[i, 1] = zz[VEL, j].real, zz[VEL, j].imag
+        acc[i, 0], acc[i, 1] = 0.0, 0.0

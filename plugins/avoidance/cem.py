@@ -87,6 +87,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from swarmscene.core.sensing import Sensing
 
 
+_TRACK = int(Mode.TRACK)
+
+
 def _min_pair(xy: np.ndarray) -> float:
     """Minimum distance between rows of ``xy`` (M, 2); inf for fewer than two."""
     if xy.shape[0] < 2:
@@ -206,6 +209,7 @@ class CEM(Avoidance):
                                 rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
                                 strengths=self.strengths(len(failed_xy)))
         self.healthy_idx = healthy
+        self._handback_at = float(self.nav.centres.real.max() + self.handback_distance)  # flow frame, m
         self.active = True
         self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
         self.theorem1.append(self.nav.theorem1(p.delta, p.eps))
@@ -243,8 +247,7 @@ class CEM(Avoidance):
 
     def passed(self) -> bool:
         """Hand-back rule: every agent is handback_distance past the most downstream failure."""
-        nav = self.nav
-        return bool(nav.zeta.real.min() >= nav.centres.real.max() + self.handback_distance)
+        return self.nav.along_track_min >= self._handback_at
 
     def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
         """Pass ``sp`` through while inactive; else TRACK setpoints along the streamlines."""
@@ -256,13 +259,11 @@ class CEM(Avoidance):
             self.handback_time = world.t
             return sp
         t0 = time.perf_counter()
-        pos, vel = self.nav.step()
+        self.nav.step()
         out = sp.copy()
-        idx = self.healthy_idx
-        out.mode[idx] = Mode.TRACK
-        out.pos[idx, :2] = pos  # altitude (z) stays the formation's (Assumption 2)
-        out.vel[idx, :2] = vel
-        out.acc[idx, :2] = 0.0  # first differences only: no acceleration feed-forward
+        # TRACK with x-y position and velocity, zero x-y acceleration (first differences only); the
+        # altitude (z) stays the formation's (Assumption 2). One compiled call, no index arithmetic.
+        self.nav.write_track(self.healthy_idx, out.mode, out.pos, out.vel, out.acc, _TRACK)
         self._step_s.append(time.perf_counter() - t0)
         self._iters.append(self.nav.inverter.iterations)
         self._commanded = True
