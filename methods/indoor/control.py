@@ -19,7 +19,7 @@ text's "psi_con(d_n) = -K_con" contradicts its own formula and purpose).
 from __future__ import annotations
 
 from dataclasses import astuple, dataclass
-from functools import cached_property, lru_cache
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -236,11 +236,21 @@ AVOIDANCE_GAINS = ("d_o", "l_o", "K_obs", "eps_obs", "d_c", "l_c", "K_col", "eps
 """The gains :func:`~.kernels.avoidance_kernel` reads, in its order."""
 
 
-@lru_cache(maxsize=32)
+_GAIN_ARRAYS: dict[tuple[int, tuple[str, ...]], tuple[IndoorGains, np.ndarray]] = {}
+
+
 def _gain_array(g: IndoorGains, names: tuple[str, ...]) -> np.ndarray:
-    """The named gains as the float array a kernel takes (one per gain set, cached)."""
-    values = dict(zip(IndoorGains.__dataclass_fields__, astuple(g)))
-    return np.array([float(values[k]) for k in names])
+    """The named gains as the float array a kernel takes, cached per gain set (by identity: a
+    plugin keeps one ``IndoorGains``, and hashing its 26 fields every tick costs more than the
+    lookup it saves)."""
+    key = (id(g), names)
+    known = _GAIN_ARRAYS.get(key)
+    if known is None or known[0] is not g:
+        if len(_GAIN_ARRAYS) >= 64:  # gain sets of finished runs
+            _GAIN_ARRAYS.clear()
+        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(g)))
+        known = _GAIN_ARRAYS[key] = (g, np.array([float(values[k]) for k in names]))
+    return known[1]
 
 
 def formation_step(
@@ -272,6 +282,15 @@ def avoidance_terms(snap: "IndoorSnapshot", g: IndoorGains = TABLE_5_1) -> np.nd
 
     _, dst = snap.g_sigma.directed()
     return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, _gain_array(g, AVOIDANCE_GAINS))
+
+
+def saturate_sum(vel: np.ndarray, w: np.ndarray, rows: np.ndarray, T_s: float, u_sat: float) -> None:
+    """vel[k, :2] = sat(vel[k, :2] T_s + w[k], u_sat) / T_s for the ``rows`` (N,) bool, in place
+    (eq. 5.30 on the formation's command plus the avoidance terms), one compiled call with the
+    arithmetic of ``saturate((vel * T_s + w)[rows], u_sat) / T_s``."""
+    from .kernels import saturate_sum_kernel  # numba loads at first use, not at registration
+
+    saturate_sum_kernel(vel, w, rows, float(T_s), float(u_sat))
 
 
 @dataclass(frozen=True)

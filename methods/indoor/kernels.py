@@ -212,71 +212,61 @@ def neighbour_edges(r, pairs, clearance, d_l, seg, geom_start, polygonal, bbox):
             length = math.sqrt(gx * gx + gy * gy)
             if clearance[a] + clearance[b] < length + 2.0 * d_l:
                 keep[k] = _segment_clear(r[a, 0], r[a, 1], r[b, 0], r[b, 1], seg, geom_start, polygonal, bbox, d_l)
-    count = 0
-    for k in range(p):
+    return _sorted_edges(n, pairs, keep)
+
+
+@numba.njit(cache=True)
+def _sorted_edges(n, pairs, keep):
+    """The kept pairs as edges (i < j) sorted by (i, j): a counting sort by i, then an insertion
+    sort of each agent's handful of j (linear, unlike a sort of all the keys)."""
+    start = np.zeros(n + 1, dtype=np.intp)
+    for k in range(pairs.shape[0]):
         if keep[k]:
-            count += 1
-    key = np.empty(count, dtype=np.int64)
-    count = 0
-    for k in range(p):
+            start[min(pairs[k, 0], pairs[k, 1]) + 1] += 1
+    for a in range(n):
+        start[a + 1] += start[a]
+    fill = start[:-1].copy()
+    i = np.empty(start[n], dtype=np.intp)
+    j = np.empty(start[n], dtype=np.intp)
+    for k in range(pairs.shape[0]):
         if keep[k]:
             lo, hi = min(pairs[k, 0], pairs[k, 1]), max(pairs[k, 0], pairs[k, 1])
-            key[count] = lo * n + hi
-            count += 1
-    key.sort()
-    i = np.empty(count, dtype=np.intp)
-    j = np.empty(count, dtype=np.intp)
-    for k in range(count):
-        i[k] = key[k] // n
-        j[k] = key[k] - i[k] * n
+            q = fill[lo]
+            fill[lo] += 1
+            while q > start[lo] and j[q - 1] > hi:
+                j[q] = j[q - 1]
+                q -= 1
+            j[q] = hi
+    for a in range(n):
+        i[start[a]:start[a + 1]] = a
     return i, j
 
 
 @numba.njit(cache=True)
-def _by_length(r, indptr, dst):
-    """Each agent's G_n neighbours sorted by the squared length of the arc (near, near_sq).
-
-    The candidates of eq. 5.15 (m in A_ab: ||r_ma|| < ||r_ba||) are then a prefix of agent a's
-    list, so an arc scans only those.
-    """
-    near = dst.copy()
-    near_sq = np.empty(dst.size)
-    for a in range(indptr.size - 1):
-        for k in range(indptr[a], indptr[a + 1]):
-            mx, my = r[dst[k], 0] - r[a, 0], r[dst[k], 1] - r[a, 1]
-            sq, m = mx * mx + my * my, dst[k]
-            q = k
-            while q > indptr[a] and near_sq[q - 1] > sq:  # insertion sort: a handful each
-                near_sq[q], near[q] = near_sq[q - 1], near[q - 1]
-                q -= 1
-            near_sq[q], near[q] = sq, m
-    return near, near_sq
-
-
-@numba.njit(cache=True)
-def _arc_rules(r, indptr, near, near_sq, a, b, phi_d, common, mark, cand, side, both):
+def _arc_rules(r, indptr, dst, a, b, phi_d, common, mark, cand, side, both):
     """Rules 5.18 and 5.21 for the arc a -> b of G_n as agent a evaluates them.
 
     Candidates m in N_a(G_n) other than b (``common``: also in N_b, flagged in ``mark``) that lie
     in A_ab and B_ab (eq. 5.15-5.16). Rule 1: |phi(r_ma, r_ba)| < phi_d (eq. 5.17-5.18); rule 2:
     m in C (phi < 0) and n in D (phi > 0) with ||r_nm|| < ||r_ba|| (eq. 5.19-5.21). Without
-    ``both`` rule 2 is skipped once rule 1 fired (only their union is wanted). ``near``,
-    ``near_sq``: :func:`_by_length`.
+    ``both`` rule 2 is skipped once rule 1 fired (only their union is wanted).
     """
     xa, ya = r[a, 0], r[a, 1]
     ex, ey = r[b, 0] - xa, r[b, 1] - ya
-    d_sq = ex * ex + ey * ey  # the same expression as near_sq: b itself is not a candidate
+    d_sq = ex * ex + ey * ey
     rule1 = False
     count = 0
     for k in range(indptr[a], indptr[a + 1]):
-        if near_sq[k] >= d_sq:  # this m and the rest are not in A_ab
-            break
-        m = near[k]
-        if common and not mark[m]:
-            continue
+        m = dst[k]
         mx, my = r[m, 0] - xa, r[m, 1] - ya
         bx, by = mx - ex, my - ey
-        if bx * bx + by * by >= d_sq:  # not in B_ab (numpy's ``** 2`` is this product)
+        # m in A_ab and in B_ab (numpy's ``** 2`` is this product). b itself is not: its squared
+        # distance is d_sq exactly. One branch for both tests (``&``): far cheaper than two
+        # mispredicted ones.
+        inside = (mx * mx + my * my < d_sq) & (bx * bx + by * by < d_sq)
+        if common:
+            inside &= mark[m]
+        if not inside:
             continue
         phi = (my * ex - mx * ey) / d_sq
         if abs(phi) < phi_d:
@@ -304,20 +294,21 @@ def _arc_rules(r, indptr, near, near_sq, a, b, phi_d, common, mark, cand, side, 
 
 
 @numba.njit(cache=True)
-def deactivation_kernel(r, i, j, phi_d, reading, both):
+def deactivation_kernel(r, i, j, phi_d, reading, both, union=False):
     """Rules 5.18 and 5.21 on every edge (i, j) of G_n, from both ends (eq. 5.15-5.21).
 
     ``reading``: :data:`READINGS` code. Returns four (P,) bool arrays: rule 1 and rule 2 as agent
     i sees the edge, then as agent j does; under ``common`` (candidates N_i ∩ N_j) the two views
     are equal by construction and computed once. ``both`` evaluates rule 2 even where rule 1
-    fired (for :func:`graphs.deactivation_rules`).
+    fired (for :func:`graphs.deactivation_rules`). ``union`` (the undirected readings, where only
+    off_i | off_j matters): j's view is skipped where i's rules fired, and left False there.
     """
     indptr, dst, _ = _csr(r.shape[0], i, j)
-    return _rules(r, i, j, indptr, dst, phi_d, reading, both)
+    return _rules(r, i, j, indptr, dst, phi_d, reading, both, union)
 
 
 @numba.njit(cache=True)
-def _rules(r, i, j, indptr, dst, phi_d, reading, both):
+def _rules(r, i, j, indptr, dst, phi_d, reading, both, union):
     """:func:`deactivation_kernel` on G_n given with its arcs (indptr, dst)."""
     n = r.shape[0]
     p = i.size
@@ -328,20 +319,19 @@ def _rules(r, i, j, indptr, dst, phi_d, reading, both):
     cand = np.empty(degree_max, dtype=np.intp)
     side = np.empty(degree_max, dtype=np.bool_)
     mark = np.zeros(n, dtype=np.bool_)
-    near, near_sq = _by_length(r, indptr, dst)
     common = reading == 1
     for k in range(p):
         a, b = i[k], j[k]
         if common:
             for q in range(indptr[b], indptr[b + 1]):
                 mark[dst[q]] = True
-        rules[0, k], rules[1, k] = _arc_rules(r, indptr, near, near_sq, a, b, phi_d, common, mark, cand, side, both)
+        rules[0, k], rules[1, k] = _arc_rules(r, indptr, dst, a, b, phi_d, common, mark, cand, side, both)
         if common:
             for q in range(indptr[b], indptr[b + 1]):
                 mark[dst[q]] = False
             rules[2, k], rules[3, k] = rules[0, k], rules[1, k]
-        else:
-            rules[2, k], rules[3, k] = _arc_rules(r, indptr, near, near_sq, b, a, phi_d, False, mark, cand, side, both)
+        elif not (union and (rules[0, k] or rules[1, k])):
+            rules[2, k], rules[3, k] = _arc_rules(r, indptr, dst, b, a, phi_d, False, mark, cand, side, both)
     return rules
 
 
@@ -385,22 +375,40 @@ def graphs_kernel(r, pairs, clearance, d_l, phi_d, reading, seg, geom_start, pol
     """
     n = r.shape[0]
     n_i, n_j = neighbour_edges(r, pairs, clearance, d_l, seg, geom_start, polygonal, bbox)
-    n_indptr, n_dst, _ = _csr(n, n_i, n_j)
+    n_indptr, n_dst, n_edge = _csr(n, n_i, n_j)
     n_src = np.empty(n_dst.size, dtype=np.intp)
     for a in range(n):
         n_src[n_indptr[a]:n_indptr[a + 1]] = a
-    rules = _rules(r, n_i, n_j, n_indptr, n_dst, phi_d, reading, False)
-    off_i = rules[0] | rules[1]
-    off_j = rules[2] | rules[3]
+    rules = _rules(r, n_i, n_j, n_indptr, n_dst, phi_d, reading, False, reading != 2)
     if reading == 2:
+        off_i = rules[0] | rules[1]
+        off_j = rules[2] | rules[3]
         s_indptr, s_src, s_dst = _sigma_arcs(n, n_i, n_j, off_i, off_j)
         return n_i, n_j, n_indptr, n_src, n_dst, s_src, s_dst, s_indptr, s_src, s_dst
-    keep = ~(off_i | off_j)
-    s_i, s_j = n_i[keep], n_j[keep]
-    s_indptr, s_dst, _ = _csr(n, s_i, s_j)
-    s_src = np.empty(s_dst.size, dtype=np.intp)
+    keep = np.empty(n_i.size, dtype=np.bool_)
+    count = 0
+    for k in range(n_i.size):
+        keep[k] = not (rules[0, k] or rules[1, k] or rules[2, k] or rules[3, k])
+        count += keep[k]
+    s_i = np.empty(count, dtype=np.intp)
+    s_j = np.empty(count, dtype=np.intp)
+    count = 0
+    for k in range(n_i.size):
+        if keep[k]:
+            s_i[count], s_j[count] = n_i[k], n_j[k]
+            count += 1
+    # G_sigma's arcs are G_n's with a kept edge, in the same order (a subset of sorted edges).
+    s_indptr = np.zeros(n + 1, dtype=np.intp)
+    s_src = np.empty(2 * count, dtype=np.intp)
+    s_dst = np.empty(2 * count, dtype=np.intp)
+    count = 0
+    for q in range(n_dst.size):
+        if keep[n_edge[q]]:
+            s_src[count], s_dst[count] = n_src[q], n_dst[q]
+            s_indptr[n_src[q] + 1] += 1
+            count += 1
     for a in range(n):
-        s_src[s_indptr[a]:s_indptr[a + 1]] = a
+        s_indptr[a + 1] += s_indptr[a]
     return n_i, n_j, n_indptr, n_src, n_dst, s_i, s_j, s_indptr, s_src, s_dst
 
 
@@ -599,3 +607,21 @@ def avoidance_kernel(r, o, indptr, dst, gains):
         w[a, 0] = ox + sx
         w[a, 1] = oy + sy
     return w
+
+
+@numba.njit(cache=True)
+def saturate_sum_kernel(vel, w, rows, T_s, u_sat):
+    """vel[k, :2] = sat(vel[k, :2] T_s + w[k], u_sat) / T_s where ``rows`` (eq. 5.30), in place.
+
+    The arithmetic of ``core.vectors.clip_norm``: v min(1, u_sat / max(||v||, 1e-300)).
+    """
+    for a in range(vel.shape[0]):
+        if not rows[a]:
+            continue
+        vx = vel[a, 0] * T_s + w[a, 0]
+        vy = vel[a, 1] * T_s + w[a, 1]
+        norm = math.sqrt(vx * vx + vy * vy)
+        scale = u_sat / (1e-300 if norm < 1e-300 else norm)  # NaN propagates, as in numpy
+        scale = 1.0 if scale > 1.0 else scale
+        vel[a, 0] = vx * scale / T_s
+        vel[a, 1] = vy * scale / T_s

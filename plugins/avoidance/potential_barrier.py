@@ -35,8 +35,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import Role, WorldState
-from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, avoidance_terms
-from swarmscene.methods.indoor.sensing import saturate
+from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, avoidance_terms, saturate_sum
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
 
 
@@ -80,7 +79,7 @@ class PotentialBarrier(Avoidance):
         out = sp.copy()
         velocity = acting & (out.mode == Mode.VELOCITY)
         other = acting & (out.mode != Mode.VELOCITY)
-        out.vel[velocity, :2] = saturate(out.vel[velocity, :2] * T + w[velocity], self.gains.u_sat) / T
+        saturate_sum(out.vel, w, velocity, T, self.gains.u_sat)  # in place, one compiled call
         if other.any():
             out.vel[other, :2] += w[other] / T
             out.pos[other, :2] += w[other]
