@@ -300,17 +300,16 @@ class NewtonInverter:
         m, f = int(n_agents), centres.size
         self.rng = rng  # keeps the generator (whose memory the state view reads) alive
         self.state = pcg64_state(rng)
-        self.flow = np.stack([centres, _strengths(centres, a_p, strengths)])  # (2, F): z_f, mu_f
-        self.zz = np.zeros((8, m), complex)  # kernels.Z ... kernels.VEL, one row each
-        self.U = np.empty((m, f), complex)  # r - r_f
-        self.R = np.empty((m, f))  # ||r - r_f||
-        self.fw = np.empty(m + 2 * m * f + 4 * f)  # update sizes, noise draws, per-agent doublet terms
-        self.iw = np.empty((2, m * f), np.int64)  # (agent, doublet) pairs that draw noise
+        # three packed work arrays, one per dtype (kernels.unpack); the attributes below are views
+        n_c, n_f, n_i = kernels.sizes(m, f)
+        self.cw, self.fw, self.iw = np.zeros(n_c, complex), np.zeros(n_f), np.zeros(n_i, np.int64)
+        self.iw[[kernels.I_M, kernels.I_F]] = m, f
+        views = kernels.unpack.py_func(self.cw, self.fw, self.iw)  # the kernel's own layout, as NumPy views
+        self.zz, self.flow, self.U, self.prm, self.R, self.iprm = (views[i] for i in (0, 1, 2, 3, 4, 8))
+        self.flow[0], self.flow[1] = centres, _strengths(centres, a_p, strengths)  # z_f, mu_f
         offset = complex(centres.mean())
-        self.prm = np.zeros(kernels.N_PRM)
         self.prm[[kernels.P_A, kernels.P_SIGMA, kernels.P_OFF_R, kernels.P_OFF_I]] = (
             float(a_p), float(sigma), offset.real, offset.imag)
-        self.iprm = np.zeros(kernels.N_IPRM, np.int64)
         self.iprm[[kernels.I_N, kernels.I_PRINTED]] = int(n), int(noise_rule == "printed")
         self.z = self.zz[kernels.Z]  # the estimate, updated in place (a view)
 
@@ -326,7 +325,7 @@ class NewtonInverter:
         """
         k = self._k
         self.zz[k.WT] = w
-        k.calc_xy(self.zz, self.flow, self.U, self.R, self.fw, self.iw, self.prm, self.iprm, self.state)
+        k.calc_xy(self.cw, self.fw, self.iw, self.state)
         return self.z
 
 
@@ -396,7 +395,7 @@ class CEMNavigator:
         self.w = inv.zz[k.W]  # phi_last + j psi_i0 (a view)
         self.positions = inv.zz[k.POS].view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
         self.velocities = inv.zz[k.VEL].view(float).reshape(m, 2)  # world x-y, m/s
-        self._step_args = (inv.zz, inv.flow, inv.U, inv.R, inv.fw, inv.iw, inv.prm, inv.iprm, inv.state)
+        self._step_args = (inv.cw, inv.fw, inv.iw, inv.state)
         self._step, self._write = k.navigator_step, k.write_track
 
     @property
@@ -421,6 +420,12 @@ class CEMNavigator:
     @property
     def phi(self) -> np.ndarray:
         return self.w.real
+
+    @property
+    def iterations_total(self) -> tuple[int, int]:
+        """(sum over ticks of the last pass's Newton iterations, ticks stepped), for their mean."""
+        k = self.inverter._k
+        return int(self.inverter.iprm[k.I_ITER_TOTAL]), int(self.inverter.iprm[k.I_TICKS])
 
     @property
     def along_track_min(self) -> float:

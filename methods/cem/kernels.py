@@ -50,8 +50,8 @@ Z, Z_PREV, DZ, W, WT, Z_START, POS, VEL = range(8)
 # Entries of the float parameter vector ``prm``.
 (P_A, P_SIGMA, P_OFF_R, P_OFF_I, P_VDES, P_DT, P_ROT_R, P_ROT_I, P_ROTDT_R, P_ROTDT_I, P_ORIG_R, P_ORIG_I,
  P_DPHI, P_USED, P_ALONG_MIN, N_PRM) = range(16)
-# Entries of the integer parameter vector ``iprm``.
-I_N, I_K, I_PRINTED, I_ITERATIONS, N_IPRM = range(5)
+# Entries of the integer parameter vector ``iprm`` (agents, doublets, n, K, rule, diagnostics).
+I_M, I_F, I_N, I_K, I_PRINTED, I_ITERATIONS, I_ITER_TOTAL, I_TICKS, N_IPRM = range(9)
 
 
 @intrinsic
@@ -454,16 +454,34 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
 
 
 @njit(**JIT)
-def _views(zz, U, fw, iw):
-    """Slices of the packed work arrays: r (N,), g (2 N F,), tmp (4, F), rows, cols (N F,)."""
-    m, nf = U.shape
-    return fw[:m], fw[m:m + 2 * m * nf], fw[m + 2 * m * nf:m + 2 * m * nf + 4 * nf].reshape((4, nf)), iw[0], iw[1]
+def unpack(cw, fw, iw):
+    """Views of the three packed work arrays (one array per dtype keeps the call cheap).
+
+    cw (complex): zz (8, N) rows Z..VEL, flow (2, F) = [z_f; mu_f], U (N, F) = r - r_f.
+    fw (float): prm (N_PRM,), R (N, F) = ||r - r_f||, r (N,) update sizes, g (2 N F,) normals,
+    tmp (4, F) one agent's doublet terms. iw (int): iprm (N_IPRM,), rows, cols (N F,) noisy pairs.
+    """
+    m, nf = iw[I_M], iw[I_F]
+    mf = m * nf
+    zz = cw[:8 * m].reshape((8, m))
+    flow = cw[8 * m:8 * m + 2 * nf].reshape((2, nf))
+    U = cw[8 * m + 2 * nf:8 * m + 2 * nf + mf].reshape((m, nf))
+    prm = fw[:N_PRM]
+    R = fw[N_PRM:N_PRM + mf].reshape((m, nf))
+    r = fw[N_PRM + mf:N_PRM + mf + m]
+    g = fw[N_PRM + mf + m:N_PRM + 3 * mf + m]
+    tmp = fw[N_PRM + 3 * mf + m:N_PRM + 3 * mf + m + 4 * nf].reshape((4, nf))
+    return zz, flow, U, prm, R, r, g, tmp, iw[:N_IPRM], iw[N_IPRM:N_IPRM + mf], iw[N_IPRM + mf:N_IPRM + 2 * mf]
+
+
+def sizes(m: int, nf: int) -> tuple[int, int, int]:
+    """Lengths of (cw, fw, iw) for N = m agents and F = nf doublets (see :func:`unpack`)."""
+    mf = m * nf
+    return 8 * m + 2 * nf + mf, N_PRM + 3 * mf + m + 4 * nf, N_IPRM + 2 * mf
 
 
 @njit(**JIT)
-def calc_xy(zz, flow, U, R, fw, iw, prm, iprm, state):
-    """Algorithm 2 (CalcXY) from zz[Z] towards the targets zz[WT]; zz[Z] is updated in place."""
-    r, g, tmp, rows, cols = _views(zz, U, fw, iw)
+def _calc_xy(zz, flow, U, prm, R, r, g, tmp, iprm, rows, cols, state):
     z, z_start, c, mu = zz[Z], zz[Z_START], flow[0], flow[1]
     a, sigma = prm[P_A], prm[P_SIGMA]
     iprm[I_ITERATIONS] = newton_iterations(z, zz[WT], z_start, c, mu, prm[P_OFF_R], prm[P_OFF_I], a, sigma,
@@ -472,15 +490,23 @@ def calc_xy(zz, flow, U, R, fw, iw, prm, iprm, state):
 
 
 @njit(**JIT)
-def navigator_step(zz, flow, U, R, fw, iw, prm, iprm, state):
+def calc_xy(cw, fw, iw, state):
+    """Algorithm 2 (CalcXY) from zz[Z] towards the targets zz[WT]; zz[Z] is updated in place."""
+    _calc_xy(*unpack(cw, fw, iw), state)
+
+
+@njit(**JIT)
+def navigator_step(cw, fw, iw, state):
     """One guidance tick of Algorithm 1 (lines 13-22): K passes of phi = phi_last + dphi, CalcXY,
     dphi <- dphi v_des / v_max; then r_d and (r_d - r_{-1}) / dT in the world frame.
 
     Every pass starts Newton from the previous tick's command r_{-1} (flow module docstring).
     Reads and writes prm[P_DPHI]; writes prm[P_USED] (the step phi advanced by), prm[P_ALONG_MIN]
     (min along-track coordinate of the commands), zz[W] (phi_last), zz[Z] (the command, flow
-    frame), zz[DZ], zz[POS], zz[VEL] (world x-y as complex), the iterations.
+    frame), zz[DZ], zz[POS], zz[VEL] (world x-y as complex), the last pass's iterations and their
+    running total over ticks (iprm[I_ITER_TOTAL], iprm[I_TICKS]).
     """
+    zz, flow, U, prm, R, r, g, tmp, iprm, rows, cols = unpack(cw, fw, iw)
     z, z_prev, dz, w, wt = zz[Z], zz[Z_PREV], zz[DZ], zz[W], zz[WT]
     m = z.size
     for i in range(m):
@@ -492,8 +518,8 @@ def navigator_step(zz, flow, U, R, fw, iw, prm, iprm, state):
         for i in range(m):
             wt[i] = complex(w[i].real + used, w[i].imag + 0.0)  # line 16 (psi unchanged)
             z[i] = z_prev[i]
-        calc_xy(zz, flow, U, R, fw, iw, prm, iprm, state)  # line 17
-        speed = fw[:m]  # free between CalcXY calls
+        _calc_xy(zz, flow, U, prm, R, r, g, tmp, iprm, rows, cols, state)  # line 17
+        speed = r  # free between CalcXY calls
         for i in range(m):
             dz[i] = z[i] - z_prev[i]
             speed[i] = cabs(dz[i].real, dz[i].imag)
@@ -511,6 +537,8 @@ def navigator_step(zz, flow, U, R, fw, iw, prm, iprm, state):
         vr, vi = cmul(dz[i].real, dz[i].imag, rotdt_r, rotdt_i)
         zz[VEL, i] = complex(vr, vi)
     prm[P_ALONG_MIN] = along  # the hand-back test reads it without another pass
+    iprm[I_ITER_TOTAL] += iprm[I_ITERATIONS]
+    iprm[I_TICKS] += 1
 
 
 @njit(**JIT)

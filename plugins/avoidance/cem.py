@@ -171,7 +171,7 @@ class CEM(Avoidance):
         self._track_err = 0.0
         self._dphi_min = math.inf
         self._step_s: list[float] = []
-        self._iters: list[int] = []
+        self._iters_done = (0, 0)  # (Newton iterations, ticks) of navigators replaced by a re-activation
         self._commanded = False  # CEM produced this tick's commands (measure at step end)
 
     # ---- activation -------------------------------------------------------------------------
@@ -204,6 +204,8 @@ class CEM(Avoidance):
         if theta is None:
             theta = self.flight_direction(world, healthy, failed_xy)
         p = self.params
+        if self.nav is not None:  # keep the replaced navigator's iteration count
+            self._iters_done = tuple(a + b for a, b in zip(self._iters_done, self.nav.iterations_total))
         self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
                                 dT=self.ctx.guidance_period, K=p.K, n=p.newton_iterations, sigma=p.sigma,
                                 rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
@@ -265,7 +267,6 @@ class CEM(Avoidance):
         # altitude (z) stays the formation's (Assumption 2). One compiled call, no index arithmetic.
         self.nav.write_track(self.healthy_idx, out.mode, out.pos, out.vel, out.acc, _TRACK)
         self._step_s.append(time.perf_counter() - t0)
-        self._iters.append(self.nav.inverter.iterations)
         self._commanded = True
         return out
 
@@ -298,6 +299,14 @@ class CEM(Avoidance):
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
         """Add the ``cem.*`` metrics (see module docstring)."""
         metrics.update(self.summary())
+
+    def _iterations_mean(self) -> float | None:
+        """Mean over active ticks of the Newton iterations of the tick's last CalcXY pass."""
+        total, ticks = self._iters_done
+        if self.nav is not None:
+            t, k = self.nav.iterations_total
+            total, ticks = total + t, ticks + k
+        return total / ticks if ticks else None
 
     def summary(self) -> dict[str, Any]:
         """The ``cem.*`` metrics of the run so far (JSON-serialisable, None for undefined)."""
@@ -336,7 +345,7 @@ class CEM(Avoidance):
             "cem.tracking_error_max": float(self._track_err),
             "cem.dphi_min": num(self._dphi_min),
             "cem.step_ms_median": float(np.median(self._step_s) * 1e3) if self._step_s else None,
-            "cem.newton_iterations_mean": float(np.mean(self._iters)) if self._iters else None,
+            "cem.newton_iterations_mean": self._iterations_mean(),
         }
 
 
