@@ -396,7 +396,7 @@ class CEMNavigator:
         self.positions = inv.zz[k.POS].view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
         self.velocities = inv.zz[k.VEL].view(float).reshape(m, 2)  # world x-y, m/s
         self._step_args = (inv.cw, inv.fw, inv.iw, inv.state)
-        self._step, self._write = k.navigator_step, k.write_track
+        self._step, self._step_into = k.navigator_step, k.navigator_step_into
 
     @property
     def dphi(self) -> float:
@@ -438,11 +438,18 @@ class CEMNavigator:
         self._step(*self._step_args)
         return self.positions, self.velocities
 
-    def write_track(self, idx: np.ndarray, mode: np.ndarray, pos: np.ndarray, vel: np.ndarray,
-                    acc: np.ndarray, track: int) -> None:
-        """Write the last tick's commands for agents ``idx`` (N,) into setpoint arrays in one call:
-        ``mode[idx] = track``, x-y of ``pos``/``vel`` (M, 3) from :meth:`step`, x-y of ``acc`` zero."""
-        self._write(self.inverter.zz, idx, mode, pos, vel, acc, track)
+    def track_rows(self, idx: np.ndarray, track: int) -> None:
+        """Set where :meth:`step_into` writes: agent j's commands go to setpoint row idx[j] (N,),
+        whose mode becomes ``track``."""
+        k, iw = self.inverter._k, self.inverter.iw
+        iw[iw.size - self.n_agents:] = idx
+        iw[k.I_TRACK] = track
+
+    def step_into(self, mode: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> None:
+        """:meth:`step` and write the commands into setpoint arrays in the same compiled call:
+        rows :meth:`track_rows` get its mode, x-y of ``pos``/``vel`` (M, 3) the commands, x-y of
+        ``acc`` zero (first differences only); everything else is left as it is."""
+        self._step_into(*self._step_args, mode, pos, vel, acc)
 
     def stream_drift(self) -> np.ndarray:
         """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""

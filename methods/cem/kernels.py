@@ -51,7 +51,7 @@ Z, Z_PREV, DZ, W, WT, Z_START, POS, VEL = range(8)
 (P_A, P_SIGMA, P_OFF_R, P_OFF_I, P_VDES, P_DT, P_ROT_R, P_ROT_I, P_ROTDT_R, P_ROTDT_I, P_ORIG_R, P_ORIG_I,
  P_DPHI, P_USED, P_ALONG_MIN, N_PRM) = range(16)
 # Entries of the integer parameter vector ``iprm`` (agents, doublets, n, K, rule, diagnostics).
-I_M, I_F, I_N, I_K, I_PRINTED, I_ITERATIONS, I_ITER_TOTAL, I_TICKS, N_IPRM = range(9)
+I_M, I_F, I_N, I_K, I_PRINTED, I_ITERATIONS, I_ITER_TOTAL, I_TICKS, I_TRACK, N_IPRM = range(10)
 
 
 @intrinsic
@@ -300,15 +300,13 @@ def _kick(z, U, R, rows, cols, count, sigma, g, state):
 def saddle_noise(z, U, R, step, a, sigma, printed, rows, cols, g, state):
     """Eq. 6 for every estimate within a_p of a doublet; returns whether any noise was drawn.
 
-    ``U`` (N, F) = r - r_f at the estimate the Jacobian was evaluated at. Printed rule: drawn for
-    ||r - r_f|| <= a_p. Gated rule: only strictly inside (a_p (1 - 1e-9)) and while the Newton update
-    ``step`` is at least sigma (the caller skips the last iteration). A NaN anywhere disables the
-    draw for the whole iteration, as NumPy's ``R.min()`` did.
+    ``U`` (N, F) = r - r_f at the estimate the Jacobian was evaluated at and ``R`` = ||U|| (both
+    filled by the caller). Printed rule: drawn for ||r - r_f|| <= a_p. Gated rule: only strictly
+    inside (a_p (1 - 1e-9)) and while the Newton update ``step`` is at least sigma (the caller skips
+    the last iteration). A NaN anywhere disables the draw for the whole iteration, as NumPy's
+    ``R.min()`` did.
     """
     m, nf = U.shape
-    for i in range(m):
-        for f in range(nf):
-            R[i, f] = cabs(U[i, f].real, U[i, f].imag)
     rmin = nan_min(R)
     thr = a if printed else a * (1.0 - 1e-9)
     if printed:
@@ -425,6 +423,7 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
             if single:  # one doublet: no sums (the NumPy code used views)
                 ur, ui = zr - c[0].real, zi - c[0].imag
                 U[i, 0] = complex(ur, ui)
+                R[i, 0] = cabs(ur, ui)  # for eq. 6; here it overlaps the divisions below
                 vr, vi = crecip(ur, ui)  # 1 / u
                 gr, gi = cmul(vr, vi, mu[0].real, mu[0].imag)  # mu / u
                 if m == 1:  # NumPy's in-place G *= V of a single element did not fuse (bit for bit)
@@ -435,6 +434,7 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
                 for f in range(nf):
                     ur, ui = zr - c[f].real, zi - c[f].imag
                     U[i, f] = complex(ur, ui)
+                    R[i, f] = cabs(ur, ui)
                     vr, vi = crecip(ur, ui)
                     tmp[0, f], tmp[1, f] = cmul(vr, vi, mu[f].real, mu[f].imag)
                     tmp[2, f], tmp[3, f] = cmul(tmp[0, f], tmp[1, f], vr, vi)
@@ -459,7 +459,8 @@ def unpack(cw, fw, iw):
 
     cw (complex): zz (8, N) rows Z..VEL, flow (2, F) = [z_f; mu_f], U (N, F) = r - r_f.
     fw (float): prm (N_PRM,), R (N, F) = ||r - r_f||, r (N,) update sizes, g (2 N F,) normals,
-    tmp (4, F) one agent's doublet terms. iw (int): iprm (N_IPRM,), rows, cols (N F,) noisy pairs.
+    tmp (4, F) one agent's doublet terms. iw (int): iprm (N_IPRM,), rows, cols (N F,) noisy pairs,
+    then (read by :func:`write_track` only) the N setpoint rows the commands go to.
     """
     m, nf = iw[I_M], iw[I_F]
     mf = m * nf
@@ -477,7 +478,7 @@ def unpack(cw, fw, iw):
 def sizes(m: int, nf: int) -> tuple[int, int, int]:
     """Lengths of (cw, fw, iw) for N = m agents and F = nf doublets (see :func:`unpack`)."""
     mf = m * nf
-    return 8 * m + 2 * nf + mf, N_PRM + 3 * mf + m + 4 * nf, N_IPRM + 2 * mf
+    return 8 * m + 2 * nf + mf, N_PRM + 3 * mf + m + 4 * nf, N_IPRM + 2 * mf + m
 
 
 @njit(**JIT)
@@ -542,13 +543,24 @@ def navigator_step(cw, fw, iw, state):
 
 
 @njit(**JIT)
-def write_track(zz, idx, mode, pos, vel, acc, track):
-    """Write the tick's commands into setpoint arrays: agent idx[j] gets mode ``track``, x-y position
-    zz[POS, j], x-y velocity zz[VEL, j] and zero x-y acceleration (first differences only); z and
-    yaw stay as they are (the formation's altitude, Assumption 2)."""
-    for j in range(idx.size):
+def write_track(cw, iw, mode, pos, vel, acc):
+    """Write the tick's commands into setpoint arrays: row idx[j] (iw's last N entries) gets mode
+    iprm[I_TRACK], x-y position zz[POS, j], x-y velocity zz[VEL, j] and zero x-y acceleration
+    (first differences only); z and yaw stay as they are (the formation's altitude, Assumption 2)."""
+    m, nf = iw[I_M], iw[I_F]
+    zz = cw[:8 * m].reshape((8, m))
+    idx = iw[N_IPRM + 2 * m * nf:N_IPRM + 2 * m * nf + m]
+    track = iw[I_TRACK]
+    for j in range(m):
         i = idx[j]
         mode[i] = track
         pos[i, 0], pos[i, 1] = zz[POS, j].real, zz[POS, j].imag
         vel[i, 0], vel[i, 1] = zz[VEL, j].real, zz[VEL, j].imag
         acc[i, 0], acc[i, 1] = 0.0, 0.0
+
+
+@njit(**JIT)
+def navigator_step_into(cw, fw, iw, state, mode, pos, vel, acc):
+    """:func:`navigator_step` then :func:`write_track`: the plugin's tick in one call."""
+    navigator_step(cw, fw, iw, state)
+    write_track(cw, iw, mode, pos, vel, acc)

@@ -211,6 +211,7 @@ class CEM(Avoidance):
                                 rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
                                 strengths=self.strengths(len(failed_xy)))
         self.healthy_idx = healthy
+        self.nav.track_rows(healthy, _TRACK)
         self._handback_at = float(self.nav.centres.real.max() + self.handback_distance)  # flow frame, m
         self.active = True
         self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
@@ -261,11 +262,10 @@ class CEM(Avoidance):
             self.handback_time = world.t
             return sp
         t0 = time.perf_counter()
-        self.nav.step()
         out = sp.copy()
         # TRACK with x-y position and velocity, zero x-y acceleration (first differences only); the
-        # altitude (z) stays the formation's (Assumption 2). One compiled call, no index arithmetic.
-        self.nav.write_track(self.healthy_idx, out.mode, out.pos, out.vel, out.acc, _TRACK)
+        # altitude (z) stays the formation's (Assumption 2). One compiled call: step and write-back.
+        self.nav.step_into(out.mode, out.pos, out.vel, out.acc)
         self._step_s.append(time.perf_counter() - t0)
         self._commanded = True
         return out
