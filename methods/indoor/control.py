@@ -24,11 +24,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .graphs import EdgeList, tick_graphs
-from .sensing import Obstacles, nearest_obstacle, saturate
+from swarmscene.core.setpoint import Mode
+from swarmscene.core.state import Role
+
+from .graphs import EdgeList, check_reading, graphs_from_kernel, tick_graphs
+from .sensing import Obstacles, kernel_obstacles, nearest_obstacle, saturate
 
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.spatial import cKDTree
+    from shapely import STRtree
 
 
 @dataclass(frozen=True)
@@ -284,13 +288,23 @@ def avoidance_terms(snap: "IndoorSnapshot", g: IndoorGains = TABLE_5_1) -> np.nd
     return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, _gain_array(g, AVOIDANCE_GAINS))
 
 
-def saturate_sum(vel: np.ndarray, w: np.ndarray, rows: np.ndarray, T_s: float, u_sat: float) -> None:
-    """vel[k, :2] = sat(vel[k, :2] T_s + w[k], u_sat) / T_s for the ``rows`` (N,) bool, in place
-    (eq. 5.30 on the formation's command plus the avoidance terms), one compiled call with the
-    arithmetic of ``saturate((vel * T_s + w)[rows], u_sat) / T_s``."""
-    from .kernels import saturate_sum_kernel  # numba loads at first use, not at registration
+_VELOCITY, _LEADER = int(Mode.VELOCITY), int(Role.LEADER)
 
-    saturate_sum_kernel(vel, w, rows, float(T_s), float(u_sat))
+
+def barrier_command(
+    vel: np.ndarray, mode: np.ndarray, healthy: np.ndarray, role: np.ndarray, w: np.ndarray,
+    T_s: float, u_sat: float, exempt_leader: bool,
+) -> int:
+    """vel[k, :2] = sat(vel[k, :2] T_s + w[k], u_sat) / T_s (eq. 5.30) in place for the healthy
+    agents in VELOCITY mode (not the leader when ``exempt_leader``), one compiled call with the
+    arithmetic of ``saturate(vel * T_s + w, u_sat) / T_s``. Returns how many acting agents are in
+    another mode (left to the caller)."""
+    from .kernels import barrier_kernel  # numba loads at first use, not at registration
+
+    return barrier_kernel(
+        vel, mode, healthy, role, w, float(T_s), float(u_sat), bool(exempt_leader),
+        _VELOCITY, _LEADER,
+    )
 
 
 @dataclass(frozen=True)
@@ -343,4 +357,29 @@ def sense(
         r, obstacles, g.d_n, g.d_l, g.phi_d, g.deactivation_candidates, tree, np.minimum(dist, reach),
         candidates,
     )
+    return IndoorSnapshot(r, o, dist, g_n, g_sigma)
+
+
+def sense_indexed(
+    r: np.ndarray,
+    obstacles: "STRtree",
+    g: IndoorGains,
+    index: np.ndarray,
+    dist: np.ndarray,
+    candidates: np.ndarray,
+) -> IndoorSnapshot:
+    """:func:`sense` when each agent's nearest obstacle within min(l_o, d_s) is already known as
+    its ``index`` in the obstacles' STRtree (-1: none) and its distance ``dist`` (the engine's
+    shared query, ``Sensing.obstacle_nearest``): o_i, G_n and G_sigma in one compiled call.
+    ``candidates``: the pairs within d_n (``Sensing.pairs``)."""
+    from .kernels import READINGS, snapshot_kernel  # numba loads at first use, not at registration
+
+    check_reading(g.deactivation_candidates)
+    r = np.ascontiguousarray(r, dtype=float)
+    o, out = snapshot_kernel(
+        r, np.asarray(index, dtype=np.intp), np.asarray(dist, dtype=float), float(min(g.l_o, g.d_s)),
+        np.asarray(candidates, dtype=np.intp).reshape(-1, 2), float(g.d_l), float(g.phi_d),
+        READINGS[g.deactivation_candidates], *kernel_obstacles(obstacles),
+    )
+    g_n, g_sigma = graphs_from_kernel(out, len(r), g.deactivation_candidates)
     return IndoorSnapshot(r, o, dist, g_n, g_sigma)

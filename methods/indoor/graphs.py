@@ -265,8 +265,7 @@ def _rules(r: np.ndarray, g_n: EdgeList, phi_d: float, candidates: str, both: bo
     """(4, P) bool: rules 5.18 and 5.21 seen by agent i, then by agent j (one compiled call)."""
     from .kernels import READINGS, deactivation_kernel  # numba loads at first use
 
-    if candidates not in DEACTIVATION_CANDIDATES:
-        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
+    check_reading(candidates)
     r = np.ascontiguousarray(r, dtype=float)
     i, j = np.asarray(g_n.i, dtype=np.intp), np.asarray(g_n.j, dtype=np.intp)
     return deactivation_kernel(r, i, j, float(phi_d), READINGS[candidates], both)
@@ -333,8 +332,7 @@ def tick_graphs(
     """
     from .kernels import READINGS, graphs_kernel  # numba loads at first use
 
-    if candidates not in DEACTIVATION_CANDIDATES:
-        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
+    check_reading(candidates)
     n = len(r)
     r = np.ascontiguousarray(r, dtype=float)
     if pairs is None:
@@ -345,7 +343,22 @@ def tick_graphs(
         r, np.asarray(pairs, dtype=np.intp).reshape(-1, 2), np.asarray(clearance, dtype=float),
         float(d_l), float(phi_d), READINGS[candidates], *kernel_obstacles(obstacle_tree(obstacles)),
     )
-    n_i, n_j, n_indptr, n_src, n_dst, s_i, s_j, s_indptr, s_src, s_dst = out
+    return graphs_from_kernel(out, n, candidates)
+
+
+def check_reading(candidates: str) -> None:
+    """Refuse an unknown reading of eq. 5.15-5.16."""
+    if candidates not in DEACTIVATION_CANDIDATES:
+        raise ValueError(f"deactivation_candidates: {candidates!r}, allowed {DEACTIVATION_CANDIDATES}")
+
+
+def graphs_from_kernel(out: np.ndarray, n: int, candidates: str) -> tuple[EdgeList, EdgeList]:
+    """G_n and G_sigma from the packed result of ``kernels.graphs_kernel`` (views, arcs filled in)."""
+    from .kernels import unpack_graphs
+
+    n_i, n_j, n_indptr, n_src, n_dst, s_i, s_j, s_indptr, s_src, s_dst = unpack_graphs(
+        out, n, candidates == "directed"
+    )
     g_n = _with_arcs(EdgeList(n, n_i, n_j), n_indptr, n_src, n_dst)
     kind = ArcList if candidates == "directed" else EdgeList
     return g_n, _with_arcs(kind(n, s_i, s_j), s_indptr, s_src, s_dst)

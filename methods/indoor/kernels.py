@@ -37,14 +37,14 @@ READINGS = {"neighbours": 0, "common": 1, "directed": 2}
 # --- geometry (GEOS' formulas, so line-of-sight and nearest points equal shapely's) -----------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _point_distance(px, py, ax, ay):
     dx = px - ax
     dy = py - ay
     return math.sqrt(dx * dx + dy * dy)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _point_segment_distance(px, py, ax, ay, bx, by):
     """Distance from p to segment AB (GEOS ``Distance::pointToSegment``)."""
     if ax == bx and ay == by:
@@ -59,7 +59,7 @@ def _point_segment_distance(px, py, ax, ay, bx, by):
     return abs(s) * math.sqrt(len2)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _segment_distance(ax, ay, bx, by, cx, cy, dx, dy):
     """Distance between segments AB and CD (GEOS ``Distance::segmentToSegment``): 0 if they meet."""
     if ax == bx and ay == by:
@@ -86,7 +86,7 @@ def _segment_distance(ax, ay, bx, by, cx, cy, dx, dy):
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _inside(px, py, seg, start, stop):
     """Point p inside the polygon whose ring segments are seg[start:stop] (even-odd crossings)."""
     inside = False
@@ -99,7 +99,7 @@ def _inside(px, py, seg, start, stop):
     return inside
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _segment_clear(ax, ay, bx, by, seg, geom_start, polygonal, bbox, d_l):
     """Line of sight of eq. 5.8: segment AB farther than d_l from every obstacle geometry.
 
@@ -123,7 +123,7 @@ def _segment_clear(ax, ay, bx, by, seg, geom_start, polygonal, bbox, d_l):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def nearest_points_kernel(r, index, seg, geom_start, polygonal):
     """o_i, the point of obstacle ``index[i]`` closest to r_i (eq. 5.32), (N, 2); NaN where -1.
 
@@ -151,7 +151,7 @@ def nearest_points_kernel(r, index, seg, geom_start, polygonal):
     return o
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _closest_point(px, py, ax, ay, bx, by):
     """GEOS ``LineSegment::closestPoint``: the projection inside the segment, else the nearer end."""
     if px == ax and py == ay:
@@ -172,7 +172,7 @@ def _closest_point(px, py, ax, ay, bx, by):
 # --- graphs G_n and G_sigma (eq. 5.7-5.22) -----------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _csr(n, i, j):
     """Arc order of an undirected edge list sorted by (i, j): (indptr, dst, edge of each arc)."""
     indptr = np.zeros(n + 1, dtype=np.intp)
@@ -195,7 +195,7 @@ def _csr(n, i, j):
     return indptr, dst, edge
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def neighbour_edges(r, pairs, clearance, d_l, seg, geom_start, polygonal, bbox):
     """E_n (eq. 5.11-5.12): the candidate ``pairs`` within d_n whose segment keeps d_l clearance.
 
@@ -215,7 +215,7 @@ def neighbour_edges(r, pairs, clearance, d_l, seg, geom_start, polygonal, bbox):
     return _sorted_edges(n, pairs, keep)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _sorted_edges(n, pairs, keep):
     """The kept pairs as edges (i < j) sorted by (i, j): a counting sort by i, then an insertion
     sort of each agent's handful of j (linear, unlike a sort of all the keys)."""
@@ -242,7 +242,7 @@ def _sorted_edges(n, pairs, keep):
     return i, j
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _arc_rules(r, indptr, dst, a, b, phi_d, common, mark, cand, side, both):
     """Rules 5.18 and 5.21 for the arc a -> b of G_n as agent a evaluates them.
 
@@ -293,7 +293,7 @@ def _arc_rules(r, indptr, dst, a, b, phi_d, common, mark, cand, side, both):
     return rule1, rule2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def deactivation_kernel(r, i, j, phi_d, reading, both, union=False):
     """Rules 5.18 and 5.21 on every edge (i, j) of G_n, from both ends (eq. 5.15-5.21).
 
@@ -307,7 +307,7 @@ def deactivation_kernel(r, i, j, phi_d, reading, both, union=False):
     return _rules(r, i, j, indptr, dst, phi_d, reading, both, union)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _rules(r, i, j, indptr, dst, phi_d, reading, both, union):
     """:func:`deactivation_kernel` on G_n given with its arcs (indptr, dst)."""
     n = r.shape[0]
@@ -335,7 +335,7 @@ def _rules(r, i, j, indptr, dst, phi_d, reading, both, union):
     return rules
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _sigma_arcs(n, i, j, off_i, off_j):
     """G_sigma of the directed reading: arcs i -> j unless off_i, j -> i unless off_j, sorted by
     (src, dst). Returns (indptr, src, dst)."""
@@ -364,14 +364,15 @@ def _sigma_arcs(n, i, j, off_i, off_j):
     return indptr, src, dst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def graphs_kernel(r, pairs, clearance, d_l, phi_d, reading, seg, geom_start, polygonal, bbox):
     """G_n and G_sigma of one tick (eq. 5.7-5.22) from the candidate pairs within d_n.
 
-    Returns:
-        n_i, n_j: G_n's edges sorted by (i, j); n_indptr, n_src, n_dst: its arcs (arc order).
-        s_i, s_j: G_sigma's edges (undirected readings) or arcs (directed reading, sorted by
-        (src, dst)); s_indptr, s_src, s_dst: its arcs (arc order).
+    Returns one int array, the concatenation of (:func:`unpack_graphs` splits it; one array
+    because each array handed back to Python costs about a microsecond):
+        [|E_n|, |E_sigma|], then n_i, n_j: G_n's edges sorted by (i, j); n_indptr, n_src, n_dst:
+        its arcs (arc order); s_i, s_j: G_sigma's edges (undirected readings) or arcs (directed
+        reading, sorted by (src, dst)); s_indptr, s_src, s_dst: its arcs (arc order).
     """
     n = r.shape[0]
     n_i, n_j = neighbour_edges(r, pairs, clearance, d_l, seg, geom_start, polygonal, bbox)
@@ -384,7 +385,7 @@ def graphs_kernel(r, pairs, clearance, d_l, phi_d, reading, seg, geom_start, pol
         off_i = rules[0] | rules[1]
         off_j = rules[2] | rules[3]
         s_indptr, s_src, s_dst = _sigma_arcs(n, n_i, n_j, off_i, off_j)
-        return n_i, n_j, n_indptr, n_src, n_dst, s_src, s_dst, s_indptr, s_src, s_dst
+        return _pack((n_i, n_j, n_indptr, n_src, n_dst, s_src, s_dst, s_indptr, s_src, s_dst))
     keep = np.empty(n_i.size, dtype=np.bool_)
     count = 0
     for k in range(n_i.size):
@@ -409,13 +410,48 @@ def graphs_kernel(r, pairs, clearance, d_l, phi_d, reading, seg, geom_start, pol
             count += 1
     for a in range(n):
         s_indptr[a + 1] += s_indptr[a]
-    return n_i, n_j, n_indptr, n_src, n_dst, s_i, s_j, s_indptr, s_src, s_dst
+    return _pack((n_i, n_j, n_indptr, n_src, n_dst, s_i, s_j, s_indptr, s_src, s_dst))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def snapshot_kernel(r, index, dist, reach, pairs, d_l, phi_d, reading, seg, geom_start, polygonal, bbox):
+    """One tick's sensing in one call: o_i (:func:`nearest_points_kernel`, eq. 5.32) and the
+    graphs (:func:`graphs_kernel`) with the line-of-sight certificates min(dist_i, reach)."""
+    o = nearest_points_kernel(r, index, seg, geom_start, polygonal)
+    clearance = np.minimum(dist, reach)
+    return o, graphs_kernel(r, pairs, clearance, d_l, phi_d, reading, seg, geom_start, polygonal, bbox)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _pack(parts):
+    """[|E_n|, |E_sigma|] and the ten arrays of :func:`graphs_kernel`, concatenated."""
+    size = 2
+    for part in parts:
+        size += part.size
+    out = np.empty(size, dtype=np.intp)
+    out[0], out[1] = parts[0].size, parts[5].size
+    at = 2
+    for part in parts:
+        out[at:at + part.size] = part
+        at += part.size
+    return out
+
+
+def unpack_graphs(out: np.ndarray, n: int, directed: bool) -> tuple[np.ndarray, ...]:
+    """The ten arrays of :func:`graphs_kernel`'s packed result (views, no copy)."""
+    p, q = int(out[0]), int(out[1])
+    sizes = (p, p, n + 1, 2 * p, 2 * p, q, q, n + 1, q if directed else 2 * q, q if directed else 2 * q)
+    views, at = [], 2
+    for size in sizes:
+        views.append(out[at:at + size])
+        at += size
+    return tuple(views)
 
 
 # --- ranks (eq. 5.23, 5.26) ---------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def max_rank_kernel(indptr, dst, leader):
     """max_i rho_i over a breadth-first search from the leader (eq. 5.23; N when an agent is cut
     off) and the (N,) mask of agents reached."""
@@ -440,7 +476,7 @@ def max_rank_kernel(indptr, dst, leader):
     return depth[queue[n - 1]], reached
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _neighbour_min(indptr, dst, values, a, empty):
     best = empty
     for k in range(indptr[a], indptr[a + 1]):
@@ -448,7 +484,7 @@ def _neighbour_min(indptr, dst, values, a, empty):
     return best
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def rank_step_kernel(indptr, dst, rho_bar, leader):
     """rho_bar_i(k+1) = min over N_i(G_sigma) of rho_bar_j(k) + 1, capped at N; leader 0 (eq. 5.26)."""
     n = rho_bar.size
@@ -462,13 +498,13 @@ def rank_step_kernel(indptr, dst, rho_bar, leader):
 # --- potentials and inputs (eq. 5.24-5.25, 5.30-5.44) --------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _hyperbolic(x, gain, eps):
     """K ((1 + eps) / (x + eps) - 1) eps (shape of eq. 5.34, 5.36, 5.38)."""
     return gain * ((1.0 + eps) / (x + eps) - 1.0) * eps
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _repulsion(z, d_min, l_max, gain, eps):
     """psi_obs / psi_col (eq. 5.34, 5.36): -K at d_min (held below), 0 beyond l_max."""
     x = max((z - d_min) / (l_max - d_min), 0.0)
@@ -477,7 +513,7 @@ def _repulsion(z, d_min, l_max, gain, eps):
     return 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _psi_con(z, d_n, l_n, gain, eps):
     """psi_con (eq. 5.38): 0 below l_n, +K_con at d_n, 0 beyond."""
     x = (z - d_n) / (l_n - d_n)
@@ -486,7 +522,7 @@ def _psi_con(z, d_n, l_n, gain, eps):
     return 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _psi_com(z, d_c, d_n, gain, span):
     """psi_com (eq. 5.40), span = alpha_com (d_n - d_c)."""
     if z >= d_c and z <= d_n:
@@ -494,7 +530,7 @@ def _psi_com(z, d_c, d_n, gain, span):
     return 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _unit(r, a, b):
     """||r_ba|| and e_ab = r_ba / max(||r_ba||, 1e-12) (``control.PairGeometry``)."""
     dx, dy = r[b, 0] - r[a, 0], r[b, 1] - r[a, 1]
@@ -503,7 +539,7 @@ def _unit(r, a, b):
     return length, dx / scale, dy / scale
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _leader_input(r, leader, indptr, dst, waypoints, m, d_n, u_sat, alpha_lsat, alpha_lcon):
     """u_N = w_N min(u_lsat, u_lcon) (eq. 5.43-5.44, Algorithm 1); returns (u_x, u_y, m).
 
@@ -533,7 +569,7 @@ def _leader_input(r, leader, indptr, dst, waypoints, m, d_n, u_sat, alpha_lsat, 
     return wx * magnitude, wy * magnitude, m
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def formation_kernel(r, indptr, dst, rho_bar, leader, waypoints, m, gains):
     """The formation's part of eq. 5.30 for every agent, the leader's input and the rank step.
 
@@ -579,7 +615,7 @@ def formation_kernel(r, indptr, dst, rho_bar, leader, waypoints, m, gains):
     return w, m, rank_step_kernel(indptr, dst, rho_bar, leader)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def avoidance_kernel(r, o, indptr, dst, gains):
     """w_obs + w_col (eq. 5.32-5.36) for every agent, m per T_s.
 
@@ -609,14 +645,20 @@ def avoidance_kernel(r, o, indptr, dst, gains):
     return w
 
 
-@numba.njit(cache=True)
-def saturate_sum_kernel(vel, w, rows, T_s, u_sat):
-    """vel[k, :2] = sat(vel[k, :2] T_s + w[k], u_sat) / T_s where ``rows`` (eq. 5.30), in place.
+@numba.njit(cache=True, error_model="numpy")
+def barrier_kernel(vel, mode, healthy, role, w, T_s, u_sat, exempt_leader, velocity_mode, leader_role):
+    """The avoidance's command (eq. 5.30) in place: vel[k, :2] = sat(vel[k, :2] T_s + w[k], u_sat)
+    / T_s for the acting agents (healthy; not the leader when ``exempt_leader``) in VELOCITY mode.
 
-    The arithmetic of ``core.vectors.clip_norm``: v min(1, u_sat / max(||v||, 1e-300)).
+    The arithmetic of ``core.vectors.clip_norm``: v min(1, u_sat / max(||v||, 1e-300)). Returns
+    how many acting agents are in another mode (the caller gives them the feed-forward).
     """
+    others = 0
     for a in range(vel.shape[0]):
-        if not rows[a]:
+        if not healthy[a] or (exempt_leader and role[a] == leader_role):
+            continue
+        if mode[a] != velocity_mode:
+            others += 1
             continue
         vx = vel[a, 0] * T_s + w[a, 0]
         vy = vel[a, 1] * T_s + w[a, 1]
@@ -625,3 +667,4 @@ def saturate_sum_kernel(vel, w, rows, T_s, u_sat):
         scale = 1.0 if scale > 1.0 else scale
         vel[a, 0] = vx * scale / T_s
         vel[a, 1] = vy * scale / T_s
+    return others

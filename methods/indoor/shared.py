@@ -10,8 +10,7 @@ from pydantic import Field
 
 from swarmscene.core.plugin import SHARED, PluginParams
 
-from .control import TABLE_5_1, IndoorGains, IndoorSnapshot, sense
-from .sensing import nearest_points
+from .control import TABLE_5_1, IndoorGains, IndoorSnapshot, sense, sense_indexed
 
 def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     """The tick's :class:`IndoorSnapshot` (G_s, G_n, G_sigma, obstacle points), built once per tick.
@@ -41,12 +40,13 @@ _KEYS: dict[int, tuple[IndoorGains, tuple, float]] = {}
 def _snapshot(sensing: Any, gains: IndoorGains, reach: float) -> IndoorSnapshot:
     r = np.array(sensing.world.pos[:, :2])  # a copy: the snapshot outlives the tick (diagnostics)
     obstacles = sensing.environment.tree
-    nearest = None
-    if obstacles is not None:  # the engine's obstacle query, shared with the safety monitor
-        index, clearance = sensing.obstacle_nearest(reach)
-        nearest = (nearest_points(r, obstacles.geometries, index), np.maximum(clearance, 0.0))
-    candidates = sensing.pairs(gains.d_n)  # the engine's pair list, shared with the monitor
-    return sense(r, obstacles, gains, sensing.tree, nearest, candidates)
+    if obstacles is None:
+        return sense(r, None, gains, sensing.tree, None, sensing.pairs(gains.d_n))
+    # The engine's obstacle query and pair list, shared with the safety monitor; o_i and the
+    # graphs then come from one compiled call.
+    index, clearance = sensing.obstacle_nearest(reach)
+    candidates = sensing.pairs(gains.d_n)
+    return sense_indexed(r, obstacles, gains, index, np.maximum(clearance, 0.0), candidates)
 
 
 _GRAPH = {SHARED: "the thesis' sensing graphs (G_s, G_n, G_sigma)"}

@@ -35,7 +35,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import Role, WorldState
-from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, avoidance_terms, saturate_sum
+from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, avoidance_terms, barrier_command
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
 
 
@@ -73,14 +73,16 @@ class PotentialBarrier(Avoidance):
     def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
         T = self.gains.T_s
         w = self.terms(sensing)
-        acting = world.healthy.copy()
-        if self.params.exempt_leader:
-            acting &= world.role != Role.LEADER
         out = sp.copy()
-        velocity = acting & (out.mode == Mode.VELOCITY)
-        other = acting & (out.mode != Mode.VELOCITY)
-        saturate_sum(out.vel, w, velocity, T, self.gains.u_sat)  # in place, one compiled call
-        if other.any():
+        # VELOCITY rows: the saturated sum, in place, one compiled call.
+        others = barrier_command(
+            out.vel, out.mode, world.healthy, world.role, w, T, self.gains.u_sat, self.params.exempt_leader
+        )
+        if others:  # other modes: the terms as feed-forward and a shifted reference
+            acting = world.healthy.copy()
+            if self.params.exempt_leader:
+                acting &= world.role != Role.LEADER
+            other = acting & (out.mode != Mode.VELOCITY)
             out.vel[other, :2] += w[other] / T
             out.pos[other, :2] += w[other]
         return out

@@ -91,6 +91,7 @@ from swarmscene.methods.indoor.sensing import saturate
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
 
 Point2 = tuple[float, float]
+_VELOCITY = int(Mode.VELOCITY)
 
 class IndoorSwarm(Formation):
     """Leader-follower swarm with LOS sensing, edge deactivation and ranks (thesis ch. 5)."""
@@ -136,7 +137,7 @@ class IndoorSwarm(Formation):
         self._max_rank = 0
         self._connected = True
         self._initial_connected: bool | None = None
-        self._degree_sum = np.zeros(2)
+        self._degree_sum = [0.0, 0.0]  # sums of mean |N_i(G_n)| and |N_i(G_sigma)| over ticks
         self._ticks = 0
         self._prev: IndoorSnapshot | None = None
         self._cut: dict[str, Any] = {}
@@ -153,8 +154,12 @@ class IndoorSwarm(Formation):
         self._observe(snap, world.t, sensing.environment.tree)
         sp = Setpoints.hold(world.pos)
         moving = world.healthy
-        sp.mode[moving] = Mode.VELOCITY
-        sp.vel[moving, :2] = w[moving] / T
+        if moving.all():  # the usual case: whole slices (masks and enum casts cost more than the step)
+            sp.mode[:] = _VELOCITY
+            sp.vel[:, :2] = w / T
+        else:
+            sp.mode[moving] = _VELOCITY
+            sp.vel[moving, :2] = w[moving] / T
         return sp
 
     def _observe(self, snap: IndoorSnapshot, t: float, obstacles: Any) -> None:
@@ -167,7 +172,8 @@ class IndoorSwarm(Formation):
             self._cut["leader_done"] = self.m == len(self.waypoints) - 1
         self._max_rank = max(self._max_rank, max_rank)
         self._connected &= max_rank < self.ctx.n
-        self._degree_sum += [mean_degree(snap.g_n), mean_degree(snap.g_sigma)]
+        self._degree_sum[0] += mean_degree(snap.g_n)
+        self._degree_sum[1] += mean_degree(snap.g_sigma)
         self._ticks += 1
         self._prev = snap
 

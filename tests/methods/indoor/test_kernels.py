@@ -172,3 +172,25 @@ def test_max_rank_equals_the_scipy_oracle(seed):
         got, want = max_rank(graph, leader), oracle.max_rank(graph, leader)
         assert got[0] == want[0]
         np.testing.assert_array_equal(got[1], want[1])
+
+
+@pytest.mark.parametrize("reading", DEACTIVATION_CANDIDATES)
+def test_engine_snapshot_path_equals_the_oracle(reading):
+    """sense_indexed (the plugins' path: the engine's nearest-obstacle index, o_i and both graphs
+    in one call) gives the oracle's o_i to the bit and its graphs edge for edge."""
+    from swarmscene.core.environment import nearest_within
+    from swarmscene.methods.indoor.control import sense_indexed
+
+    mp = MAPS["l_corridor"]
+    g = replace(G, deactivation_candidates=reading)
+    walls = _obstacles(mp, True)
+    r = _swarm(mp, 9)
+    index, dist = nearest_within(walls, r, g.l_o)
+    pairs = oracle.candidate_pairs(r, g.d_n)
+    snap = sense_indexed(r, walls, g, index, dist, pairs)
+    np.testing.assert_array_equal(snap.o, oracle.nearest_points(r, walls.geometries, index))
+    g_n = oracle.neighbour_graph(r, walls, g.d_n, g.d_l, clearance=np.minimum(dist, g.l_o), candidates=pairs)
+    g_sigma = oracle.sigma_graph(r, g_n, g.phi_d, reading)
+    for got, want in ((snap.g_n, g_n), (snap.g_sigma, g_sigma)):
+        np.testing.assert_array_equal(got.i, want.i)
+        np.testing.assert_array_equal(got.j, want.j)
