@@ -11,6 +11,13 @@ flies along +x only; its future work (rotate the flow to any flight direction) i
 ``theta`` (rad, counter-clockwise from +x), as complex numbers ``zeta = (z - origin) e^{-j theta}``.
 Every function below that takes ``zeta`` works in the flow frame; :class:`CEMNavigator` converts.
 
+Speed. The per-tick path (Algorithm 1's K passes of CalcXY, eq. 6, the branch guard) runs as one
+compiled call in :mod:`swarmscene.methods.cem.kernels` (numba, imported at the first
+:class:`NewtonInverter`, so importing this module stays light); the functions here that run once
+per activation or for analysis (eq. 1-5, the theorems, lambda_max) stay NumPy. The kernel draws
+eq. 6's noise from the run's own PCG64 generator, so seeded runs are those of the NumPy code it
+replaced (kept as the test oracle, tests/oracles/cem.py).
+
 Choices where the paper is ambiguous (each repeated where it is made):
 
 * Eq. 1 sums ``z - z_f`` once per failure, which for N_f > 1 makes the uniform flow N_f times
@@ -360,7 +367,7 @@ class CEMNavigator:
             runs along it). origin: flow-frame origin (default: the failures' centroid).
         v_des: desired speed of the fastest agent, m/s. dT: guidance period, s.
         K: sliding-step passes per tick. n: Newton iterations. sigma: saddle noise, m.
-        rng: random generator for the saddle noise. noise_rule: when eq. 6 draws
+        rng: random generator for the saddle noise (PCG64, :func:`pcg64_state`). noise_rule: when eq. 6 draws
             (:data:`NOISE_RULES`). strengths: doublet strengths (default :func:`doublet_strengths`).
     """
 

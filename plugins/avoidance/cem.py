@@ -6,7 +6,8 @@ activates CEM: every failed vehicle becomes a doublet of planned exclusion radiu
 uniform flow along the flight direction, each healthy agent's (phi, psi) is fixed from its position,
 and every guidance tick the healthy agents slide along their streamlines (Algorithm 1, CalcXY of
 Algorithm 2) as TRACK setpoints (position and first-difference velocity; altitude from the
-formation). The math lives in :mod:`swarmscene.methods.cem.flow`.
+formation). The math lives in :mod:`swarmscene.methods.cem.flow`; each tick is one compiled call
+(:mod:`swarmscene.methods.cem.kernels`, loaded at the first activation, not at import).
 
 Choices (the paper leaves these open):
 
