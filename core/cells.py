@@ -9,7 +9,8 @@ exact job in a few microseconds per hundred agents.
 Exactness. With cells of side c, every pair closer than c lies in the same or in adjacent cells,
 so the smallest distance found among those neighbours is the true minimum whenever it is at most
 c. The side is first chosen so that there are about N / 2 cells over the swarm's bounding box
-(pigeonhole: some cell holds two agents, so a pair is found); if the best found is longer than c,
+(pigeonhole: some cell holds two agents, so a pair is found; axes along which the box is nearly
+flat get one cell); if the best found is longer than c,
 the search runs once more with c equal to it, which then contains the closest pair. Distances are
 summed axis by axis as the k-d tree sums them, so the result equals the tree's to the bit.
 
@@ -77,18 +78,34 @@ def _closest_d2(points: np.ndarray, side: float) -> float:
 
 
 @numba.njit(cache=True)
+def _cell_side(points: np.ndarray) -> float:
+    """Side of cubic cells giving about N / 2 cells over the bounding box (0: a single point).
+
+    The box may be flat along some axes (a swarm at one altitude whose z differs by micrometres):
+    the cells then span the d widest axes, for the largest d whose side is no longer than the
+    d-th widest extent; a 3-D count over a flat box would ask for millions of empty cells.
+    """
+    n, dim = points.shape
+    extent = np.zeros(dim)
+    for k in range(dim):
+        extent[k] = points[:, k].max() - points[:, k].min()
+    extent = np.sort(extent)[::-1]
+    cells = max(0.5 * n, 1.0)
+    for d in range(dim, 0, -1):
+        if extent[d - 1] <= 0.0:
+            continue
+        side = (np.prod(extent[:d]) / cells) ** (1.0 / d)
+        if side <= extent[d - 1]:
+            return side
+    return extent[0]
+
+
+@numba.njit(cache=True)
 def closest_pair_distance(points: np.ndarray) -> float:
     """Smallest distance between two of ``points`` (N, D), D <= 3, N >= 2; exact (see module)."""
-    n, dim = points.shape
-    volume, spread = 1.0, 0
-    for k in range(dim):
-        extent = points[:, k].max() - points[:, k].min()
-        if extent > 0.0:
-            volume *= extent
-            spread += 1
-    if spread == 0:
+    side = _cell_side(points)
+    if side == 0.0:
         return 0.0  # every point at one place
-    side = (volume / max(0.5 * n, 1.0)) ** (1.0 / spread)
     best = _closest_d2(points, side)
     if best > side * side:  # the closest pair may span two cells: search again with cells that wide
         best = _closest_d2(points, np.sqrt(best) * (1.0 + 1e-12))

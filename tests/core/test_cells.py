@@ -46,3 +46,16 @@ def test_the_dense_pass_for_few_agents_equals_the_tree():
         expected = {tuple(p) for p in cKDTree(points).query_pairs(1.2, output_type="ndarray").tolist()}
         got = dense_pairs(points, 1.2)
         assert {tuple(p) for p in got.tolist()} == expected and (got[:, 0] < got[:, 1]).all()
+
+
+def test_a_swarm_flat_to_micrometres_gets_a_planar_grid():
+    """Hovering quadrotors differ in z by micrometres: a 3-D cell count over that box would be
+    millions of empty cells (it once took gigabytes); the side must follow the plane."""
+    from swarmscene.core.cells import _cell_side
+
+    rng = np.random.default_rng(3)
+    side = int(np.sqrt(900))
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2) * 3.0
+    points = np.column_stack([grid, 2.0 + rng.normal(0, 1e-6, len(grid))])
+    assert _cell_side(points) == pytest.approx(87.0 / np.sqrt(450), rel=1e-9)
+    assert closest_pair_distance(points) == _tree_min(points)
