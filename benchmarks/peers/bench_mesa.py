@@ -8,8 +8,8 @@ Mesa runs in its own virtual environment, ``benchmarks/peers/.venv-mesa`` (creat
 script. Both models get Mesa's default parameters (100 x 100 torus, speed 1 per step, vision 10,
 separation 2, cohere 0.03, separate 0.015, match 0.05) and the same initial positions and headings
 (drawn here, written into both models after they are built), then run the same number of steps,
-each timed from the first step to the last in a fresh process pinned to one core (``taskset -c 0``
-when available); the two alternate ``--repeat`` times (default 3) and the fastest run of each counts
+each timed per step (the first ``WARM`` = 3 left out) in a fresh process pinned to one core (``taskset -c 0``
+when available; ``peerlib``); the two alternate ``--repeat`` times (default 3) and the fastest run of each counts
 (the machine is shared: the fastest run is the least disturbed one). One Mesa step is one swarmscene guidance tick of 1 s (``params_from_mesa``).
 
 What differs, on purpose: Mesa moves its boids one at a time in random order, each seeing the ones
@@ -24,16 +24,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
-import venv
 from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-VENV = HERE / ".venv-mesa"
+import peerlib
+from peerlib import child_json, ensure_venv
+
+WARM = 3
+"""steps left out of the rate"""
 MESA_REQUIREMENTS = ["mesa>=3.1,<4", "networkx"]  # mesa.examples imports networkx
 MESA = dict(width=100.0, height=100.0, speed=1.0, vision=10.0, separation=2.0, cohere=0.03,
             separate=0.015, match=0.05)
@@ -49,13 +50,16 @@ model = BoidFlockers(population_size=n, seed=0, **params)
 for agent, p, d in zip(model.agents, start["pos"], start["dir"]):
     agent.position = p.copy()
     agent.direction = d.copy()
+seconds = []
 t0 = time.perf_counter()
 for _ in range(steps):
+    t = time.perf_counter()
     model.step()
+    seconds.append(time.perf_counter() - t)
 wall = time.perf_counter() - t0
 d = np.array([a.direction for a in model.agents])
 u = d / np.linalg.norm(d, axis=1, keepdims=True)
-print(json.dumps({"wall": wall, "polarization": float(np.linalg.norm(u.mean(axis=0))),
+print(json.dumps({"wall": wall, "step_seconds": seconds, "polarization": float(np.linalg.norm(u.mean(axis=0))),
                   "version": mesa.__version__}))
 """
 
@@ -81,32 +85,26 @@ t0 = time.perf_counter()
 result = sim.run()
 wall = time.perf_counter() - t0
 assert result.metrics["steps"] == steps
-print(json.dumps({"wall": wall, "polarization": result.metrics["flocking.polarization"]}))
+print(json.dumps({"wall": wall, "step_seconds": sim.step_seconds.tolist(),
+                  "polarization": result.metrics["flocking.polarization"]}))
 """
 
 
 def mesa_python() -> Path:
     """The Mesa environment's interpreter, creating the environment on first use."""
-    python = VENV / "bin" / "python"
-    if not python.exists():
-        print(f"creating {VENV} and installing {' '.join(MESA_REQUIREMENTS)} (first run only)", flush=True)
-        venv.create(VENV, with_pip=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", *MESA_REQUIREMENTS], check=True)
-    return python
+    return ensure_venv("mesa", MESA_REQUIREMENTS)
 
 
-def pinned(cmd: list[str]) -> list[str]:
-    """``cmd`` on one core (taskset), where the OS has it."""
-    has_taskset = subprocess.run(["which", "taskset"], capture_output=True).returncode == 0
-    return ["taskset", "-c", "0", *cmd] if has_taskset else cmd
+def run_child(python: str | Path, code: str, start: Path, steps: int, params: dict | None = None) -> dict:
+    """One run in a fresh process pinned to one core (``peerlib.CORE``), one thread."""
+    return child_json([str(python), "-c", code, str(start), str(steps), json.dumps(params or MESA)])
 
 
-def run_child(python: str | Path, code: str, start: Path, steps: int) -> dict:
-    out = subprocess.run(
-        pinned([str(python), "-c", code, str(start), str(steps), json.dumps(MESA)]),
-        check=True, capture_output=True, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"},
-    ).stdout
-    return json.loads(out.strip().splitlines()[-1])
+def steady_rate(run: dict, warm: int = WARM) -> float:
+    """Steps per second over the steps after the first ``warm`` (lazy imports, compiled kernels
+    loaded from their cache on first use)."""
+    seconds = run["step_seconds"][warm:]
+    return len(seconds) / sum(seconds)
 
 
 def initial_state(n: int, seed: int) -> dict[str, np.ndarray]:
@@ -125,6 +123,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeat", type=int, default=3, help="runs of each; the fastest counts")
     args = parser.parse_args()
+    peerlib.CORE = 0
     python = mesa_python()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"load average (1 min) at start: {load:.2f}")
@@ -138,9 +137,9 @@ def main() -> None:
             # Alternate the two so a burst of load on this shared machine hits both alike.
             runs = [(run_child(python, MESA_CHILD, start, steps),
                      run_child(sys.executable, SWARMSCENE_CHILD, start, steps)) for _ in range(args.repeat)]
-            mesa = min((m for m, _ in runs), key=lambda r: r["wall"])
-            ours = min((o for _, o in runs), key=lambda r: r["wall"])
-            m_rate, s_rate = steps / mesa["wall"], steps / ours["wall"]
+            mesa = max((m for m, _ in runs), key=steady_rate)
+            ours = max((o for _, o in runs), key=steady_rate)
+            m_rate, s_rate = steady_rate(mesa), steady_rate(ours)
             print(f"{n:6d} {steps:6d} {m_rate:13.1f} {s_rate:19.1f} {s_rate / m_rate:6.1f}x "
                   f"{mesa['polarization']:12.2f} / {ours['polarization']:.2f}", flush=True)
     print(f"Mesa {mesa['version']}; goal (issue 9): >= 20x at N = 1,000")

@@ -5,7 +5,7 @@
 
 VMAS runs in its own virtual environment, ``benchmarks/peers/.venv-vmas`` (created on first use
 with ``pip install torch==2.13.0 vmas==1.5.2``: on this machine pip takes torch 2.13.0's CPU build
-from the local disk; the folder holds a ``.gitignore`` of its own so git ignores it), swarmscene in
+from the local disk; the folder holds a ``.gitignore`` of its own so git ignores it; ``peerlib``), swarmscene in
 the interpreter running this script. Every measurement runs in a fresh process pinned to one core
 (``taskset -c 0`` where available) with one thread (``torch.set_num_threads(1)``, BLAS threads 1),
 and times the same number of steps from the first to the last after a reset; the cases alternate
@@ -32,18 +32,16 @@ the thesis' digital controllers and its safety monitor (min separation, connecti
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
 import sys
-import venv
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent.parent
-VENV = HERE / ".venv-vmas"
+import peerlib
+from peerlib import ROOT, child_json, ensure_venv
+
 VMAS_REQUIREMENTS = ["torch==2.13.0", "vmas==1.5.2"]
-ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"}
+NAMES = {"simple": "VMAS simple", "navigation": "VMAS navigation", "parallel": "ours ParallelEnv",
+         "gym": "ours Gymnasium"}
 
 VMAS_CHILD = r"""
 import json, sys, time
@@ -85,25 +83,28 @@ print(json.dumps({"wall": wall, "steps_per_s": steps / wall, "version": vmas.__v
 
 def vmas_python() -> Path:
     """The VMAS environment's interpreter, creating the environment on first use."""
-    python = VENV / "bin" / "python"
-    if not python.exists():
-        print(f"creating {VENV} and installing {' '.join(VMAS_REQUIREMENTS)} (first run only)", flush=True)
-        venv.create(VENV, with_pip=True)
-        (VENV / ".gitignore").write_text("*\n")
-        subprocess.run([str(python), "-m", "pip", "install", "-q", *VMAS_REQUIREMENTS], check=True)
-    (VENV / ".gitignore").write_text("*\n")
-    return python
+    return ensure_venv("vmas", VMAS_REQUIREMENTS)
 
 
-def pinned(cmd: list[str]) -> list[str]:
-    has_taskset = subprocess.run(["which", "taskset"], capture_output=True).returncode == 0
-    return ["taskset", "-c", "0", *cmd] if has_taskset else cmd
-
-
-def child(cmd: list[str]) -> dict:
-    out = subprocess.run(pinned(cmd), check=True, capture_output=True, text=True,
-                         env={**os.environ, **ONE_THREAD}).stdout
-    return json.loads(out.strip().splitlines()[-1])
+def measure(n: int, steps: int, repeat: int, chosen: set[str]) -> tuple[dict[str, float], str]:
+    """Best steps/s of each chosen case (keys of ``NAMES``) at ``n`` agents, the cases alternating
+    ``repeat`` times, each run a fresh process pinned to one core (``peerlib.CORE``); and VMAS's version."""
+    python = vmas_python()
+    bench_env = str(ROOT / "benchmarks" / "bench_env.py")
+    commands = {
+        "simple": [str(python), "-c", VMAS_CHILD, "simple", str(n), str(steps)],
+        "navigation": [str(python), "-c", VMAS_CHILD, "navigation", str(n), str(steps)],
+        "parallel": [sys.executable, bench_env, "--json", "parallel", str(n), str(steps)],
+        "gym": [sys.executable, bench_env, "--json", "gym", str(n), str(steps)],
+    }
+    best: dict[str, float] = {}
+    version = "?"
+    for _ in range(repeat):  # alternate, so a burst of load hits every case alike
+        for key in (k for k in commands if k in chosen):
+            result = child_json(commands[key])
+            best[key] = max(best.get(key, 0.0), result["steps_per_s"])
+            version = result.get("version", version)
+    return best, version
 
 
 def _rate(value: float) -> str:
@@ -123,31 +124,18 @@ def main() -> None:
     parser.add_argument("--cases", default="simple,navigation,parallel,gym",
                         help="comma-separated subset of: simple, navigation, parallel, gym")
     args = parser.parse_args()
+    peerlib.CORE = 0
     chosen = set(args.cases.split(","))
-    python = vmas_python()
-    bench_env = str(ROOT / "benchmarks" / "bench_env.py")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"load average (1 min) at start: {load:.2f}")
-    names = ("VMAS simple", "VMAS navigation", "ours ParallelEnv", "ours Gymnasium")
+    names = list(NAMES.values())
     print(f"{'N':>6} {'steps':>6} " + " ".join(f"{name + ' steps/s':>24}" for name in names))
     vmas_version = "?"
     for n in args.n:
         steps = args.steps or default_steps(n)
-        cases = {
-            "VMAS simple": [str(python), "-c", VMAS_CHILD, "simple", str(n), str(steps)],
-            "VMAS navigation": [str(python), "-c", VMAS_CHILD, "navigation", str(n), str(steps)],
-            "ours ParallelEnv": [sys.executable, bench_env, "--json", "parallel", str(n), str(steps)],
-            "ours Gymnasium": [sys.executable, bench_env, "--json", "gym", str(n), str(steps)],
-        }
-        keys = dict(zip(names, ("simple", "navigation", "parallel", "gym")))
-        cases = {name: cmd for name, cmd in cases.items() if keys[name] in chosen}
-        best: dict[str, float] = {name: float("nan") for name in names}
-        for _ in range(args.repeat):  # alternate, so a burst of load hits every case alike
-            for name, cmd in cases.items():
-                result = child(cmd)
-                best[name] = max(best[name], result["steps_per_s"]) if best[name] == best[name] else result["steps_per_s"]
-                vmas_version = result.get("version", vmas_version)
-        print(f"{n:6d} {steps:6d} " + " ".join(f"{_rate(best[name]):>24}" for name in names), flush=True)
+        best, vmas_version = measure(n, steps, args.repeat, chosen)
+        print(f"{n:6d} {steps:6d} " + " ".join(f"{_rate(best.get(key, float('nan'))):>24}" for key in NAMES),
+              flush=True)
     print(f"VMAS {vmas_version}, torch {VMAS_REQUIREMENTS[0].split('==')[1]} (CPU), one thread each")
 
 
