@@ -1,4 +1,5 @@
-"""Compiled cell lists: the closest pair of a swarm without a k-d tree (numba, cached on disk).
+"""Compiled cell lists: the closest pair of a swarm and whether its disk graph is connected,
+without a k-d tree (numba, cached on disk).
 
 The safety monitor asks every tick for the smallest distance between two agents. A k-d tree
 answers in O(N log N) but costs its build and a 2-nearest query for every agent: about 50 us at
@@ -14,8 +15,14 @@ flat get one cell); if the best found is longer than c,
 the search runs once more with c equal to it, which then contains the closest pair. Distances are
 summed axis by axis as the k-d tree sums them, so the result equals the tree's to the bit.
 
-This module imports numba: it is imported by :func:`swarmscene.core.vectors.min_pair_distance`
-only for swarms of more than ``DENSE_POINTS`` agents, so a small run never pays numba's start-up.
+Connectivity. :func:`disk_graph_connected` joins every pair of members within the radius by
+union-find while walking the same cells (side at least the radius), and stops at the first union
+that leaves one component: a connected swarm usually answers after a fraction of its pairs, with
+no pair list and no sparse matrix.
+
+This module imports numba: it is imported only for swarms of more than
+``core.vectors.DENSE_POINTS`` agents (closest pair) or ``core.sensing.DENSE_LIMIT`` members
+(connectivity), so a small run never pays numba's start-up.
 """
 
 from __future__ import annotations
@@ -110,3 +117,52 @@ def closest_pair_distance(points: np.ndarray) -> float:
     if best > side * side:  # the closest pair may span two cells: search again with cells that wide
         best = _closest_d2(points, np.sqrt(best) * (1.0 + 1e-12))
     return np.sqrt(best)
+
+
+@numba.njit(cache=True)
+def _root(parent: np.ndarray, i: int) -> int:
+    """Representative of i's component, halving the path on the way (union-find)."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@numba.njit(cache=True)
+def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
+    """True when the graph joining points (N, D) at most ``radius`` apart is connected (N >= 1).
+
+    Exact: distances are compared as squared sums against radius^2, as the dense test does. The
+    cells are at least ``radius`` wide (wider when that would make more than about 2 N cells), so
+    every joined pair lies in the same or adjacent cells.
+    """
+    n, dim = points.shape
+    side = max(radius, _cell_side(points) * 0.25 ** (1.0 / dim))
+    if side <= 0.0:
+        return True  # every point at one place
+    coord, shape, start, order = _grid(points, side)
+    parent = np.arange(n)
+    components = n
+    r2 = radius * radius
+    for i in range(n):
+        for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
+            for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
+                for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
+                    q = (x * shape[1] + y) * shape[2] + z
+                    for s in range(start[q], start[q + 1]):
+                        j = order[s]
+                        if j <= i:
+                            continue
+                        d2 = 0.0
+                        for k in range(dim):
+                            diff = points[j, k] - points[i, k]
+                            d2 += diff * diff
+                        if d2 > r2:
+                            continue
+                        a, b = _root(parent, i), _root(parent, j)
+                        if a != b:
+                            parent[max(a, b)] = min(a, b)
+                            components -= 1
+                            if components == 1:
+                                return True
+    return components == 1

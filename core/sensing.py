@@ -32,14 +32,10 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 DENSE_LIMIT = 128
-"""Up to this many members, connectivity is a dense reachability sweep (no sparse overhead)."""
+"""Up to this many members, connectivity is a dense reachability sweep (no sparse overhead); more
+are joined by union-find over a compiled cell list (:func:`.cells.disk_graph_connected`)."""
 NEAR_K = 4
-"""Nearest neighbours per member in the sparse connectivity test of large swarms."""
-SPARSE_NEIGHBOURS = 128
-"""A comm graph with at most this many neighbours per member (estimated from a sample) is cheap
-enough to list whole: connectivity then goes straight to the exact pair graph."""
-DENSITY_SAMPLE = 16
-"""Members sampled (evenly, deterministic) to estimate the neighbours per member."""
+"""Nearest neighbours per agent in the shared kNN query (:attr:`Sensing.knn`)."""
 T = TypeVar("T")
 
 OBSTACLE_SKIN = 0.25
@@ -84,13 +80,6 @@ def _renumber(n: int, members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarra
     index = np.full(n, -1)
     index[members] = np.arange(members.size)
     return index[edges[:, 0]], index[edges[:, 1]]
-
-
-def _components(m: int, i: np.ndarray, j: np.ndarray) -> int:
-    if i.size < m - 1:
-        return 2  # a spanning tree needs m - 1 edges
-    graph = scipy.sparse.coo_matrix((np.ones(i.size, dtype=np.int8), (i, j)), shape=(m, m))
-    return scipy.sparse.csgraph.connected_components(graph, directed=False)[0]
 
 
 class Sensing:
@@ -310,12 +299,10 @@ class Sensing:
     def comm_connected(self) -> bool:
         """True when the communication graph over its members is connected (one member counts).
 
-        Exact, and cheap in the common case: a small swarm uses a dense reachability sweep; a
-        large sparse one (a few neighbours each, e.g. a flock whose vision is the comm range)
-        lists its pairs within range once, and that list also serves the separation check and any
-        plugin asking for the same radius; a large dense one first tests the sparse subgraph of each
-        member's nearest neighbours within range (connected subgraph => connected graph) and only
-        builds every pair when that test fails.
+        Exact, with no pair list: a small swarm sweeps a dense reachability matrix; a larger one
+        joins its members by union-find over a compiled cell list, which stops at the first link
+        that leaves a single component (1,000 boids in a 20 m range: ~0.2 ms, against ~6 ms for
+        listing the ~60,000 links and labelling the components of a sparse matrix).
         """
         members = np.flatnonzero(self.comm_members)
         m = members.size
@@ -323,27 +310,9 @@ class Sensing:
             return True
         if m <= DENSE_LIMIT:
             return _dense_connected(self.world.pos[members], self.comm_range)
-        if not self._comm_pairs_are_cheap(members):
-            if _components(m, *self._near_member_edges(members)) == 1:
-                return True
-        return _components(m, *_renumber(self.world.n, members, self.comm_edges)) == 1
+        from .cells import disk_graph_connected  # imports numba: only swarms this large pay for it
 
-    def _comm_pairs_are_cheap(self, members: np.ndarray) -> bool:
-        """Already listed, or about ``SPARSE_NEIGHBOURS`` or fewer per member (sampled estimate)."""
-        if self.comm_range in self._pairs:
-            return True
-        sample = members[:: max(1, members.size // DENSITY_SAMPLE)]
-        counts = self.tree.query_ball_point(self.world.pos[sample], self.comm_range, return_length=True)
-        return float(np.mean(counts)) - 1.0 <= SPARSE_NEIGHBOURS
-
-    def _near_member_edges(self, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        dist, idx = self.knn
-        rows = np.repeat(members, dist.shape[1])
-        cols = idx[members].ravel()
-        ok = dist[members].ravel() <= self.comm_range
-        rows, cols = rows[ok], cols[ok]
-        ok = self.comm_members[cols]
-        return _renumber(self.world.n, members, np.column_stack([rows[ok], cols[ok]]))
+        return bool(disk_graph_connected(np.ascontiguousarray(self.world.pos[members]), self.comm_range))
 
     def comm_spanning_tree(self) -> np.ndarray | None:
         """Links (i, j), shape (m - 1, 2), of a minimum spanning tree of the communication graph

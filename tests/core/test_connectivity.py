@@ -84,3 +84,24 @@ def test_spanning_tree_is_a_minimum_spanning_tree_of_the_members():
     assert weight == pytest.approx(nx.minimum_spanning_tree(graph, weight="w").size(weight="w"))
     world.pos[:25, 0] -= 50.0  # two groups out of range of each other
     assert Sensing(world, Environment(), comm_range=2.0).comm_spanning_tree() is None
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_large_swarms_are_judged_by_the_compiled_union_find_exactly(seed):
+    """Above DENSE_LIMIT members the test joins them by union-find over a cell list: against
+    networkx on swarms around the connectivity threshold, flat and 3-D, with radios down."""
+    from swarmscene.core.sensing import DENSE_LIMIT
+
+    rng = np.random.default_rng(seed)
+    verdicts = set()
+    for n, spread, flat in [(300, 18.0, True), (300, 22.0, True), (400, 9.0, False), (DENSE_LIMIT + 1, 12.0, True)]:
+        pos = rng.uniform(0, spread, (n, 3))
+        if flat:
+            pos[:, 2] = 2.0 + rng.normal(0, 1e-6, n)  # hovering: z differs by micrometres
+        world = WorldState.at_rest(pos)
+        world.comm_ok[rng.choice(n, 5, replace=False)] = False
+        for radius in (1.0, 1.6, 2.5):
+            want = nx.is_connected(comm_graph(world, radius))
+            assert Sensing(world, Environment(), comm_range=radius).comm_connected == want
+            verdicts.add(want)
+    assert verdicts == {True, False}
