@@ -125,6 +125,23 @@ def cabs(re, im):
 
 
 @njit(**JIT)
+def size_bound(re, im):
+    """max(|re|, |im|) (NaN if either is): a lower bound of :func:`cabs`, in floating point too
+    (L sqrt(1 + (S/L)^2) >= L), so ``bound >= limit`` proves ``cabs >= limit`` without its
+    division and square root."""
+    x, y = abs(re), abs(im)
+    return x if (x >= y or x != x) else y
+
+
+@njit(**JIT)
+def distance_within(ure, uim, limit):
+    """||u|| exactly (:func:`cabs`) where it may be <= limit, else the bound max(|u_r|, |u_i|) > limit:
+    every test ``<= limit`` (or ``<`` a smaller threshold) then decides as with the exact value."""
+    b = size_bound(ure, uim)
+    return b if b > limit else cabs(ure, uim)  # NaN takes the exact path
+
+
+@njit(**JIT)
 def _block_sum(re, im, lo, n):
     """NumPy's pairwise sum of n <= 64 complex values from index lo (8 partial sums of the parts)."""
     if n < 4:
@@ -404,13 +421,16 @@ def branch_guard(z, z_start, c, mu, a, sigma, U, R, rows, cols, g, state):
 
 
 @njit(**JIT)
-def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed, U, R, r, g, rows, cols, tmp,
+def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed, U, R, r, d, g, rows, cols, tmp,
                       state):
     """Algorithm 2 lines 3-8 for every agent: n Newton steps dz = (f(z) - w) / f'(z) (eq. 5) plus eq. 6.
 
     f(z) = (z - zbar_F) + sum_f mu_f / (z - z_f), f'(z) = 1 - sum_f mu_f / (z - z_f)^2 (eq. 1-2);
     ``wt`` holds the targets w = phi + j psi, ``off`` = zbar_F. Stops early once every update is
     below NEWTON_TOL and no noise was drawn in that iteration. Returns the iterations run.
+    ``R`` gets ||r - r_f|| exactly where it may be <= a_p (elsewhere a bound above a_p, which eq. 6's
+    tests decide alike); with the printed rule ``r`` first gets the bound of each update's size
+    (``d`` keeps the updates) and the exact sizes only when every bound is below NEWTON_TOL.
     """
     m, nf = U.shape
     single = nf == 1
@@ -418,12 +438,14 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
         z_start[i] = z[i]
     it = 0
     for it in range(n):
+        near = False  # some ||r - r_f|| <= a_p, or NaN: only then can eq. 6 draw
         for i in range(m):
             zr, zi = z[i].real, z[i].imag
             if single:  # one doublet: no sums (the NumPy code used views)
                 ur, ui = zr - c[0].real, zi - c[0].imag
                 U[i, 0] = complex(ur, ui)
-                R[i, 0] = cabs(ur, ui)  # for eq. 6; here it overlaps the divisions below
+                R[i, 0] = distance_within(ur, ui, a)  # for eq. 6
+                near |= not R[i, 0] > a
                 vr, vi = crecip(ur, ui)  # 1 / u
                 gr, gi = cmul(vr, vi, mu[0].real, mu[0].imag)  # mu / u
                 if m == 1:  # NumPy's in-place G *= V of a single element did not fuse (bit for bit)
@@ -434,7 +456,8 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
                 for f in range(nf):
                     ur, ui = zr - c[f].real, zi - c[f].imag
                     U[i, f] = complex(ur, ui)
-                    R[i, f] = cabs(ur, ui)
+                    R[i, f] = distance_within(ur, ui, a)
+                    near |= not R[i, f] > a
                     vr, vi = crecip(ur, ui)
                     tmp[0, f], tmp[1, f] = cmul(vr, vi, mu[f].real, mu[f].imag)
                     tmp[2, f], tmp[3, f] = cmul(tmp[0, f], tmp[1, f], vr, vi)
@@ -444,12 +467,18 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
             ei = (zi + gi) - (wt[i].imag + off_i)
             dr, di = cdiv(er, ei, 1.0 - hr, 0.0 - hi)  # J^{-1} e = e / f'
             z[i] = complex(zr - dr, zi - di)
-            r[i] = cabs(dr, di)
+            d[i] = complex(dr, di)
+            r[i] = size_bound(dr, di) if printed else cabs(dr, di)  # gated compares r with sigma
         noisy = False
-        if sigma > 0.0 and (printed or it < n - 1):  # gated: never in the last iteration
+        if near and sigma > 0.0 and (printed or it < n - 1):  # gated: never in the last iteration
             noisy = saddle_noise(z, U, R, r, a, sigma, printed, rows, cols, g, state)
         if not noisy and nan_max(r) < NEWTON_TOL:
-            break
+            if not printed:
+                break
+            for i in range(m):  # every bound is below: the exact sizes decide
+                r[i] = cabs(d[i].real, d[i].imag)
+            if nan_max(r) < NEWTON_TOL:
+                break
     return it + 1
 
 
@@ -482,12 +511,24 @@ def sizes(m: int, nf: int) -> tuple[int, int, int]:
 
 
 @njit(**JIT)
+def _may_need_guard(z, c, inner):
+    """False when every ||r - r_f|| >= inner for sure (then the guard would return at once)."""
+    for i in range(z.size):
+        for f in range(c.size):
+            if not size_bound(z[i].real - c[f].real, z[i].imag - c[f].imag) >= inner:  # NaN too
+                return True
+    return False
+
+
+@njit(**JIT)
 def _calc_xy(zz, flow, U, prm, R, r, g, tmp, iprm, rows, cols, state):
     z, z_start, c, mu = zz[Z], zz[Z_START], flow[0], flow[1]
     a, sigma = prm[P_A], prm[P_SIGMA]
     iprm[I_ITERATIONS] = newton_iterations(z, zz[WT], z_start, c, mu, prm[P_OFF_R], prm[P_OFF_I], a, sigma,
-                                           iprm[I_N], iprm[I_PRINTED] != 0, U, R, r, g, rows, cols, tmp, state)
-    branch_guard(z, z_start, c, mu, a, sigma, U, R, rows, cols, g, state)
+                                           iprm[I_N], iprm[I_PRINTED] != 0, U, R, r, zz[DZ], g, rows, cols, tmp,
+                                           state)  # zz[DZ] is free until the navigator's line 19
+    if _may_need_guard(z, c, a * (1.0 - 1e-6)):  # skip the call (and its exact distances) when clear
+        branch_guard(z, z_start, c, mu, a, sigma, U, R, rows, cols, g, state)
 
 
 @njit(**JIT)
