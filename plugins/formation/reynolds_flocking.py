@@ -189,59 +189,6 @@ def seam_pairs(
     return agents_all[row], j, np.ascontiguousarray(delta)
 
 
-def flocking_steer(
-    i: np.ndarray,
-    j: np.ndarray,
-    delta: np.ndarray,
-    heading: np.ndarray,
-    follow: np.ndarray,
-    p: FlockingParams,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Sum of cohesion, separation and alignment for every boid, and its neighbour count |N_i|.
-
-    Args:
-        i, j: (M,) neighbour pairs, each unordered pair once.
-        delta: (A, M) p_j - p_i along the first A steered axes (minimum image where periodic), m;
-            A = 2 in a planar flock (its z steer stays 0), else 3.
-        heading: (N, 3) d_j of every boid.
-        follow: (N,) bool, boids that count as neighbours for cohesion and alignment.
-        p: the weights and the separation distance.
-    Returns:
-        steer (N, 3) = c_i + s_i + m_i (not yet divided by |N_i|), and |N_i| (N,).
-
-    Each pair is visited once and feeds both ends (delta_ji = -delta_ij): per axis two weighted
-    ``bincount`` over the M pairs, plus two over the few pairs closer than ``separation``. Arrays
-    are axis-major and contiguous: a 1-D gather is several times faster than a row gather.
-    """
-    n = heading.shape[0]
-    steer = np.zeros((n, 3))
-    if len(i) == 0:
-        return steer, np.zeros(n)
-    everyone = bool(follow.all())
-    f_i = None if everyone else follow[i].astype(float)
-    f_j = None if everyone else follow[j].astype(float)
-    close = np.flatnonzero(np.einsum("km,km->m", delta, delta) < p.separation * p.separation)
-    close_i, close_j = i[close], j[close]
-    for k in range(delta.shape[0]):
-        d_k = delta[k]
-        h_k = np.ascontiguousarray(heading[:, k])
-        to_i = p.cohere * d_k + p.match * h_k.take(j)  # what boid i takes from its neighbour j
-        to_j = p.match * h_k.take(i) - p.cohere * d_k  # and j from i
-        if not everyone:
-            to_i *= f_j
-            to_j *= f_i
-        s_k = np.bincount(i, to_i, n) + np.bincount(j, to_j, n)
-        if close.size:  # separation: -separate * sum over close neighbours of delta_ij
-            near = d_k.take(close)
-            s_k -= p.separate * (np.bincount(close_i, near, n) - np.bincount(close_j, near, n))
-        steer[:, k] = s_k
-    if everyone:
-        count = (np.bincount(i, minlength=n) + np.bincount(j, minlength=n)).astype(float)
-    else:
-        count = np.bincount(i, f_j, n) + np.bincount(j, f_i, n)
-    return steer, count
-
-
 class ReynoldsFlocking(Formation):
     """Boids: separation, alignment, cohesion within ``vision``; optional goal; open, bounded or torus."""
 
@@ -251,6 +198,10 @@ class ReynoldsFlocking(Formation):
 
     def __init__(self, params: FlockingParams, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
+        # The compiled steer (numba) is imported when a flock is built, not when it is registered.
+        from swarmscene.methods.flocking.kernels import flocking_steer
+
+        self._steer = flocking_steer
         self.heading = initial_headings(ctx.rng, ctx.n, params.planar)
         self.axes = 2 if params.planar else 3
         self.lo = np.asarray(params.box_min, dtype=float)
@@ -318,7 +269,7 @@ class ReynoldsFlocking(Formation):
         heading = self.current_headings(world)
         healthy = world.healthy
         i, j, delta = self.neighbours(world, sensing)
-        steer, count = flocking_steer(i, j, delta, heading, healthy, p)
+        steer, count = self._steer(i, j, delta, heading, healthy, p.cohere, p.match, p.separate, p.separation)
         # Mesa divides the summed steer by |N_i|; a boid seeing only failed boids still keeps
         # clear of them (their separation term over a count of one).
         turning = (count > 0) | np.any(steer != 0.0, axis=1)
