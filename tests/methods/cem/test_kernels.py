@@ -139,3 +139,21 @@ def test_complex_helpers_follow_numpy_rounding():
         terms = a[:f]
         got = complex(*kernels.doublet_sum(terms.real.copy(), terms.imag.copy()))
         assert got == pytest.approx(complex(np.sum(terms[None, :], axis=1)[0]), rel=1e-15, abs=0)
+
+
+def test_distance_bounds_decide_every_test_as_the_exact_distance():
+    """max(|u_r|, |u_i|) <= ||u|| as computed (so a bound above a limit proves the distance is too),
+    and distance_within is exact wherever the distance may be <= the limit (eq. 6's and the guard's
+    tests then decide as before); NaN takes the exact path."""
+    rng = np.random.default_rng(9)
+    u = (rng.standard_normal(5000) + 1j * rng.standard_normal(5000)) * A_P * rng.uniform(0.5, 1.5, 5000)
+    u = np.concatenate([u, A_P * np.exp(1j * rng.uniform(0, 2 * np.pi, 500)), [0j, A_P + 0j, 1j * A_P]])
+    for x in u:
+        exact = kernels.cabs(x.real, x.imag)
+        assert kernels.size_bound(x.real, x.imag) <= exact
+        d = kernels.distance_within(x.real, x.imag, A_P)
+        assert (d <= A_P) == (exact <= A_P) and (d < A_P * (1 - 1e-9)) == (exact < A_P * (1 - 1e-9))
+        if exact <= A_P:
+            assert d == exact
+    assert np.isnan(kernels.size_bound(np.nan, 1.0)) and np.isnan(kernels.size_bound(1.0, np.nan))
+    assert np.isnan(kernels.distance_within(5.0, np.nan, A_P))  # a NaN still disables eq. 6 that iteration
