@@ -6,7 +6,11 @@ positions are planar (N, 2) arrays in the world x-y plane. Follower input (eq. 5
     w_i = w_obs + w_col + w_con + w_com + w_led,   u_i = sat(w_i, u_sat).
 
 The obstacle and collision terms (:func:`w_obs`, :func:`w_col`) are the avoidance part, the other
-three (:func:`w_con`, :func:`w_com`, :func:`w_led`) the formation part; each is callable alone.
+three (:func:`w_con`, :func:`w_com`, :func:`w_led`) the formation part; each is callable alone
+(analysis, figures). The plugins' per-tick path is :func:`formation_step` (formation part, ranks
+and the leader's Algorithm 1), :func:`avoidance_terms` and :func:`barrier_command`, compiled
+kernels (``kernels.py``) with the same arithmetic; the numpy follower and leader laws they were
+checked against are tests/oracles/indoor.py's.
 
 Sign convention: every pair term is psi(||r_j - r_i||) (r_j - r_i)/||r_j - r_i||, so psi > 0
 attracts agent i toward j (or toward the obstacle point) and psi < 0 repels. Following the notes
@@ -171,68 +175,6 @@ def w_led(
     return np.where(has_neighbour[:, None], g.K_led * (l - r), 0.0)
 
 
-def follower_input(
-    r: np.ndarray,
-    g_sigma: EdgeList,
-    o: np.ndarray,
-    l: np.ndarray,
-    has_neighbour: np.ndarray,
-    g: IndoorGains = TABLE_5_1,
-) -> np.ndarray:
-    """u_i = sat(w_obs + w_col + w_con + w_com + w_led, u_sat) (thesis eq. 5.30-5.31), all agents.
-
-    The caller overwrites the leader's row with :func:`leader_input`.
-    """
-    pg = PairGeometry.of(r, g_sigma)
-    psi = psi_col(pg.length, g) + psi_con(pg.length, g) + psi_com(pg.length, g)
-    w = w_obs(r, o, g) + pg.sum(psi) + w_led(r, l, has_neighbour, g)
-    return saturate(w, g.u_sat)
-
-
-def leader_direction(r_leader: np.ndarray, waypoints: np.ndarray, m: int) -> tuple[np.ndarray, int]:
-    """Algorithm 1 of the thesis: unit direction w_N to the target way-point and its index m.
-
-    Advances m while the leader has passed p_m along the next segment,
-    (p_{m+1} - p_m)^T (r_N - p_m) >= 0 (0-based indices here). Returns a zero direction once the
-    leader sits on the final way-point.
-    """
-    last = len(waypoints) - 1
-    while m < last and np.dot(waypoints[m + 1] - waypoints[m], r_leader - waypoints[m]) >= 0.0:
-        m += 1
-    d = waypoints[m] - r_leader
-    norm = float(np.hypot(d[0], d[1]))
-    return (d / norm if norm > 1e-12 else np.zeros(2)), m
-
-
-def leader_input(
-    r: np.ndarray,
-    leader: int,
-    g_sigma: EdgeList,
-    waypoints: np.ndarray,
-    m: int,
-    g: IndoorGains = TABLE_5_1,
-) -> tuple[np.ndarray, int]:
-    """u_N = w_N min(u_lsat, u_lcon) (thesis eq. 5.43-5.44, Algorithm 1).
-
-    u_lsat = alpha_lsat u_sat; u_lcon = max(0, alpha_lcon d_n - min_j ||r_j - r_N||) over the
-    leader's G_sigma neighbours (0 when it has none: it waits for the swarm). Choice: at the final
-    way-point the step is also capped by the remaining distance, so the leader stops on it instead
-    of chattering around it.
-
-    Returns:
-        u_N: (2,) leader input, m per T_s; m: the new way-point index.
-    """
-    direction, m = leader_direction(r[leader], waypoints, m)
-    src, dst = g_sigma.directed()
-    nb = dst[src == leader]  # N_N(G_sigma) as the leader sees it (an ArcList is directed)
-    nearest = np.linalg.norm(r[nb] - r[leader], axis=1).min() if nb.size else np.inf
-    u_lcon = max(0.0, g.alpha_lcon * g.d_n - nearest)
-    magnitude = min(g.alpha_lsat * g.u_sat, u_lcon)
-    if m == len(waypoints) - 1:
-        magnitude = min(magnitude, float(np.linalg.norm(waypoints[m] - r[leader])))
-    return direction * magnitude, m
-
-
 FORMATION_GAINS = ("d_c", "d_n", "l_n", "K_con", "eps_con", "K_com", "alpha_com", "K_led", "u_sat",
                    "alpha_lsat", "alpha_lcon")
 """The gains :func:`~.kernels.formation_kernel` reads, in its order."""
@@ -265,7 +207,10 @@ def formation_step(
 
     w_i = w_con + w_com + w_led for the followers (the sum over N_i(G_sigma) of
     :func:`psi_con` + :func:`psi_com`, and :func:`w_led` toward :func:`~.graphs.virtual_leader`),
-    row ``leader`` the leader's input (:func:`leader_input`), with the same arithmetic, bit for bit.
+    row ``leader`` the leader's input u_N = w_N min(u_lsat, u_lcon) (Algorithm 1, eq. 5.43-5.44:
+    u_lcon from the nearest G_sigma neighbour, 0 without one; at the final way-point the step is
+    also capped by the remaining distance), with the numpy oracle's arithmetic bit for bit
+    (tests/oracles/indoor.py: ``follower_input``, ``leader_input``).
 
     Returns:
         w: (N, 2) m per T_s; the new way-point index m; rho_bar(k+1) (:func:`~.graphs.rank_estimate_step`).

@@ -1,8 +1,10 @@
 """The thesis' indoor method (ch. 5) as one stand-alone loop, outside the engine.
 
 The engine runs the method through the ``indoor_swarm`` formation and the ``potential_barrier``
-avoidance; these oracles run the same numerics of ``swarmscene.methods.indoor`` directly, so the
-tests can check the plugins against them and check the method without the engine.
+avoidance, whose per-tick inputs are compiled kernels (``swarmscene.methods.indoor.kernels``);
+these oracles are the numpy formulation (the follower law ``follower_input`` and Algorithm 1's
+``leader_input``, moved here from the package in issue 20), so the tests can check the plugins
+and kernels against them and check the method without the engine.
 """
 
 from __future__ import annotations
@@ -16,17 +18,96 @@ from swarmscene.methods.indoor.control import (
     TABLE_5_1,
     IndoorGains,
     IndoorSnapshot,
-    follower_input,
-    leader_input,
-    sense,
+    PairGeometry,
+    psi_col,
+    psi_com,
+    psi_con,
+    w_led,
+    w_obs,
 )
-from swarmscene.methods.indoor.graphs import (
-    EdgeList,
-    initial_rank_estimate,
-    rank_estimate_step,
-    virtual_leader,
-)
-from swarmscene.methods.indoor.sensing import Obstacles, obstacle_tree
+from swarmscene.core.environment import nearest_within
+from swarmscene.methods.indoor.graphs import EdgeList, initial_rank_estimate, virtual_leader
+from swarmscene.methods.indoor.sensing import Obstacles, obstacle_tree, saturate
+
+from oracles.indoor_graphs import nearest_points, neighbour_graph, rank_estimate_step, sigma_graph
+
+
+def sense(
+    r: np.ndarray, obstacles: Obstacles, g: IndoorGains = TABLE_5_1, tree: cKDTree | None = None
+) -> IndoorSnapshot:
+    """The numpy sensing of one step (eq. 5.4-5.22): o_i by shapely, G_n and G_sigma by
+    :mod:`oracles.indoor_graphs` (the package's ``control.sense`` runs the kernels)."""
+    reach = min(g.l_o, g.d_s)
+    tree_o = obstacle_tree(obstacles)
+    if tree_o is None:
+        o, dist = np.full((len(r), 2), np.nan), np.full(len(r), np.inf)
+    else:
+        index, dist = nearest_within(tree_o, r, reach)
+        o = nearest_points(r, tree_o.geometries, index)
+    g_n = neighbour_graph(r, tree_o, g.d_n, g.d_l, tree, np.minimum(dist, reach))
+    return IndoorSnapshot(r, o, dist, g_n, sigma_graph(r, g_n, g.phi_d, g.deactivation_candidates))
+
+
+def follower_input(
+    r: np.ndarray,
+    g_sigma: EdgeList,
+    o: np.ndarray,
+    l: np.ndarray,
+    has_neighbour: np.ndarray,
+    g: IndoorGains = TABLE_5_1,
+) -> np.ndarray:
+    """u_i = sat(w_obs + w_col + w_con + w_com + w_led, u_sat) (thesis eq. 5.30-5.31), all agents.
+
+    The caller overwrites the leader's row with :func:`leader_input`.
+    """
+    pg = PairGeometry.of(r, g_sigma)
+    psi = psi_col(pg.length, g) + psi_con(pg.length, g) + psi_com(pg.length, g)
+    w = w_obs(r, o, g) + pg.sum(psi) + w_led(r, l, has_neighbour, g)
+    return saturate(w, g.u_sat)
+
+
+def leader_direction(r_leader: np.ndarray, waypoints: np.ndarray, m: int) -> tuple[np.ndarray, int]:
+    """Algorithm 1 of the thesis: unit direction w_N to the target way-point and its index m.
+
+    Advances m while the leader has passed p_m along the next segment,
+    (p_{m+1} - p_m)^T (r_N - p_m) >= 0 (0-based indices here). Returns a zero direction once the
+    leader sits on the final way-point.
+    """
+    last = len(waypoints) - 1
+    while m < last and np.dot(waypoints[m + 1] - waypoints[m], r_leader - waypoints[m]) >= 0.0:
+        m += 1
+    d = waypoints[m] - r_leader
+    norm = float(np.hypot(d[0], d[1]))
+    return (d / norm if norm > 1e-12 else np.zeros(2)), m
+
+
+def leader_input(
+    r: np.ndarray,
+    leader: int,
+    g_sigma: EdgeList,
+    waypoints: np.ndarray,
+    m: int,
+    g: IndoorGains = TABLE_5_1,
+) -> tuple[np.ndarray, int]:
+    """u_N = w_N min(u_lsat, u_lcon) (thesis eq. 5.43-5.44, Algorithm 1).
+
+    u_lsat = alpha_lsat u_sat; u_lcon = max(0, alpha_lcon d_n - min_j ||r_j - r_N||) over the
+    leader's G_sigma neighbours (0 when it has none: it waits for the swarm). Choice: at the final
+    way-point the step is also capped by the remaining distance, so the leader stops on it instead
+    of chattering around it.
+
+    Returns:
+        u_N: (2,) leader input, m per T_s; m: the new way-point index.
+    """
+    direction, m = leader_direction(r[leader], waypoints, m)
+    src, dst = g_sigma.directed()
+    nb = dst[src == leader]  # N_N(G_sigma) as the leader sees it (an ArcList is directed)
+    nearest = np.linalg.norm(r[nb] - r[leader], axis=1).min() if nb.size else np.inf
+    u_lcon = max(0.0, g.alpha_lcon * g.d_n - nearest)
+    magnitude = min(g.alpha_lsat * g.u_sat, u_lcon)
+    if m == len(waypoints) - 1:
+        magnitude = min(magnitude, float(np.linalg.norm(waypoints[m] - r[leader])))
+    return direction * magnitude, m
 
 
 class IndoorController:

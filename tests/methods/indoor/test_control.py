@@ -6,9 +6,6 @@ import pytest
 
 from swarmscene.methods.indoor.control import (
     TABLE_5_1,
-    follower_input,
-    leader_direction,
-    leader_input,
     psi_col,
     psi_com,
     psi_con,
@@ -33,7 +30,13 @@ from swarmscene.methods.indoor.sensing import (
     pairwise_min_distance,
     single_integrator_step,
 )
-from oracles.indoor import IndoorController, random_connected_swarm
+from oracles.indoor import (
+    IndoorController,
+    follower_input,
+    leader_direction,
+    leader_input,
+    random_connected_swarm,
+)
 
 G = TABLE_5_1
 

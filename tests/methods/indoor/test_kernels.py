@@ -14,12 +14,12 @@ import shapely
 from shapely import STRtree
 
 from oracles import indoor_graphs as oracle
+from oracles.indoor import leader_input
 from swarmscene.methods.indoor.control import (
     TABLE_5_1,
     IndoorSnapshot,
     avoidance_terms,
     formation_step,
-    leader_input,
     psi_com,
     psi_con,
     w_col,
