@@ -483,9 +483,8 @@ def _build_world(config: ScenarioConfig) -> tuple[tuple | None, list[str]]:
 
 
 def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> list[str]:
-    from scipy.spatial import cKDTree
-
     from .environment import Environment
+    from .vectors import pairs_within
 
     reach = float(np.abs(pos).max(initial=0.0))
     if not reach <= MAX_LENGTH:  # NaN too
@@ -498,7 +497,7 @@ def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> l
         errors.append(f"swarm.start: agents {inside.tolist()} start inside an obstacle")
     d_min = config.safety.separation_limit
     if len(pos) > 1 and d_min > 0:
-        pairs = cKDTree(pos).query_pairs(d_min, output_type="ndarray")
+        pairs = pairs_within(pos, d_min)
         if len(pairs):
             msg = (
                 f"swarm.start: {len(pairs)} pairs of agents start closer than "

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .hookspecs import hookimpl
+from .vectors import DENSE_POINTS
 
 if TYPE_CHECKING:  # pragma: no cover
     from .simulation import Simulation
@@ -41,7 +42,8 @@ class ConnectivityCertificate:
     break) and on the next ticks only check its m - 1 lengths; test exactly again when one broke.
     In the 100-agent building run a tree lasts ~140 ticks. In a graph that changes every tick
     (a fast flock) the trees break at once and would cost more than they save, so each short-lived
-    one doubles a pause (up to ``MAX_PAUSE`` ticks) before the next is built.
+    one doubles a pause (up to ``MAX_PAUSE`` ticks) before the next is built. A swarm of at most
+    ``DENSE_POINTS`` agents is tested exactly every tick: that costs less than a tree.
     """
 
     MIN_LIFE = 4
@@ -56,6 +58,8 @@ class ConnectivityCertificate:
         self.wait = 0
 
     def connected(self, sensing: Any) -> bool:
+        if sensing.world.n <= DENSE_POINTS:  # the dense test is cheaper than keeping a tree
+            return bool(sensing.comm_connected)
         if self.links is not None:
             if self._holds(sensing):
                 self.life += 1

@@ -23,7 +23,7 @@ import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a sm
 
 from .environment import Environment
 from .state import WorldState
-from .vectors import DENSE_POINTS, dense_pairs, min_pair_distance
+from .vectors import DENSE_POINTS, min_pair_distance, pairs_within
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -169,10 +169,9 @@ class Sensing:
         return self._pairs[radius]
 
     def _query_pairs(self, radius: float) -> np.ndarray:
-        pos = self.world.pos
-        if len(pos) <= DENSE_POINTS and "tree" not in self.__dict__:
-            return dense_pairs(pos, radius)
-        return self.tree.query_pairs(radius, output_type="ndarray")
+        if self.world.n <= DENSE_POINTS and "tree" not in self.__dict__:
+            return pairs_within(self.world.pos, radius)
+        return pairs_within(self.world.pos, radius, self.tree)  # the tick's one tree, kept
 
     def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
         """Squared distances of ``pairs`` (axis by axis: 1-D gathers are several times faster)."""

@@ -55,6 +55,19 @@ def dense_pairs(points: np.ndarray, radius: float) -> np.ndarray:
     return np.column_stack([i[near], j[near]])
 
 
+def pairs_within(points: np.ndarray, radius: float, tree: "cKDTree | None" = None) -> np.ndarray:
+    """Index pairs (i < j) of ``points`` (N, D) at most ``radius`` apart, shape (M, 2): one dense
+    pass for at most ``DENSE_POINTS`` points without a tree, else the k-d tree's ``query_pairs``
+    (of ``tree`` when given, which must be over ``points``)."""
+    if tree is None and len(points) <= DENSE_POINTS:
+        return dense_pairs(points, radius)
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(points)
+    return tree.query_pairs(radius, output_type="ndarray")
+
+
 def min_pair_distance(points: np.ndarray, tree: "cKDTree | None" = None) -> float:
     """Smallest distance between two of ``points`` (N, D), m; ``inf`` for fewer than two.
 
