@@ -404,6 +404,8 @@ class CEMNavigator:
         self.velocities = inv.zz[k.VEL].view(float).reshape(m, 2)  # world x-y, m/s
         self._step_args = (inv.cw, inv.fw, inv.iw, inv.state)
         self._step, self._step_into = k.navigator_step, k.navigator_step_into
+        mean = complex(self.centres.mean())  # zbar_F as complex_potential subtracts it
+        self._w0_imag, self._consts = self.w0.imag.copy(), np.array([mean.real, mean.imag, self.a_p])
 
     @property
     def dphi(self) -> float:
@@ -457,6 +459,15 @@ class CEMNavigator:
         rows :meth:`track_rows` get its mode, x-y of ``pos``/``vel`` (M, 3) the commands, x-y of
         ``acc`` zero (first differences only); everything else is left as it is."""
         self._step_into(*self._step_args, mode, pos, vel, acc)
+
+    def measure_tick(self, healthy: np.ndarray, pos: np.ndarray, vel: np.ndarray, failed: np.ndarray,
+                     drift: np.ndarray, out: np.ndarray) -> int:
+        """This tick's safety quantities in one compiled call (:func:`kernels.measure_tick`): raises
+        ``drift`` (world-indexed, (M,)) to each agent's |psi - psi_0| and fills ``out`` (kernels.N_MEAS,)
+        from the world's ``healthy`` (M,), ``pos``/``vel`` (M, 3) and the failures' x-y ``failed``
+        (F, 2). Returns how many agents under CEM are still healthy."""
+        inv = self.inverter
+        return inv._k.measure_tick(inv.cw, inv.iw, self._w0_imag, self._consts, healthy, pos, vel, failed, drift, out)
 
     def stream_drift(self) -> np.ndarray:
         """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""

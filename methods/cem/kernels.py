@@ -605,3 +605,87 @@ def navigator_step_into(cw, fw, iw, state, mode, pos, vel, acc):
     """:func:`navigator_step` then :func:`write_track`: the plugin's tick in one call."""
     navigator_step(cw, fw, iw, state)
     write_track(cw, iw, mode, pos, vel, acc)
+
+
+# ---- the plugin's safety measurements of one tick ---------------------------------------------
+
+DENSE_PAIRS_MAX = 256  # healthy agents up to which the min pair distance is an O(N^2) loop here
+(M_MARGIN, M_CLEAR, M_PAIR, M_PAIR_CMD, M_SPEED, M_SPEED_ACT, M_TRACK_ERR, N_MEAS) = range(8)
+
+
+@njit(**JIT)
+def _nan_better(best, v, lower):
+    """NumPy's min (lower) or max reduction step: a NaN wins and stays."""
+    if best != best or v != v:
+        return np.nan
+    return min(best, v) if lower else max(best, v)
+
+
+@njit(**JIT)
+def _min_pair_2d(x, y, n):
+    """min over i < j < n of sqrt(dx^2 + dy^2) (inf below two points), as cKDTree's k = 2 query."""
+    best = np.inf
+    for i in range(n):
+        for j in range(i + 1, n):
+            dx, dy = x[i] - x[j], y[i] - y[j]
+            d2 = dx * dx + dy * dy
+            if d2 < best:
+                best = d2
+    return np.sqrt(best)  # sqrt is monotone: the min of the roots is the root of the min
+
+
+@njit(**JIT)
+def measure_tick(cw, iw, w0_imag, consts, healthy, pos, vel, failed, drift, out):
+    """The ``cem`` plugin's per-tick safety quantities from the world and this tick's commands.
+
+    drift[idx[j]] = max(drift, |psi(r_d,j) - psi_j0|) (eq. 4, psi from eq. 1-3 as
+    flow.complex_potential computes it); out[M_MARGIN] = min_j (min_f ||r_d,j - z_f|| - a_p);
+    over live agents (healthy now): out[M_CLEAR] = min ||r - z_f|| (world x-y, ``failed`` (F, 2)),
+    out[M_PAIR] / out[M_PAIR_CMD] = min pair distance of actual / commanded x-y (NaN above
+    DENSE_PAIRS_MAX: the caller uses a k-d tree), out[M_SPEED] = max ||v_d|| over all agents under
+    CEM, out[M_SPEED_ACT] = max ||v||, out[M_TRACK_ERR] = max ||r - r_d|| (-inf with no live agent).
+    Reductions propagate NaN as NumPy's do. consts = [Re zbar_F, Im zbar_F, a_p].
+    """
+    m, nf = iw[I_M], iw[I_F]
+    zz = cw[:8 * m].reshape((8, m))
+    flow = cw[8 * m:8 * m + 2 * nf].reshape((2, nf))
+    idx = iw[N_IPRM + 2 * m * nf:N_IPRM + 2 * m * nf + m]
+    z, c, mu = zz[Z], flow[0], flow[1]
+    terms_r, terms_i = np.empty(nf), np.empty(nf)
+    margin, speed = np.inf, -np.inf
+    for j in range(m):
+        for f in range(nf):
+            ur, ui = z[j].real - c[f].real, z[j].imag - c[f].imag
+            terms_r[f], terms_i[f] = cdiv(mu[f].real, mu[f].imag, ur, ui)  # mu_f / (z - z_f)
+        near = cabs(z[j].real - c[0].real, z[j].imag - c[0].imag)
+        for f in range(1, nf):
+            near = _nan_better(near, cabs(z[j].real - c[f].real, z[j].imag - c[f].imag), True)
+        margin = _nan_better(margin, near - consts[2], True)
+        psi = (z[j].imag - consts[1]) + doublet_sum(terms_r, terms_i)[1]
+        i = idx[j]
+        drift[i] = _nan_better(drift[i], abs(psi - w0_imag[j]), False)
+        vr, vi = zz[VEL, j].real, zz[VEL, j].imag
+        speed = _nan_better(speed, np.sqrt(vr * vr + vi * vi), False)
+    out[M_MARGIN], out[M_SPEED] = margin, speed
+    ax, ay, cx, cy = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+    n = 0
+    clear, speed_act, err = np.inf, -np.inf, -np.inf
+    for j in range(m):
+        i = idx[j]
+        if not healthy[i]:  # failed during this tick's events
+            continue
+        ax[n], ay[n] = pos[i, 0], pos[i, 1]
+        cx[n], cy[n] = zz[POS, j].real, zz[POS, j].imag
+        for f in range(failed.shape[0]):
+            dx, dy = ax[n] - failed[f, 0], ay[n] - failed[f, 1]
+            clear = _nan_better(clear, np.sqrt(dx * dx + dy * dy), True)
+        speed_act = _nan_better(speed_act, np.sqrt(vel[i, 0] * vel[i, 0] + vel[i, 1] * vel[i, 1]), False)
+        dx, dy = ax[n] - cx[n], ay[n] - cy[n]
+        err = _nan_better(err, np.sqrt(dx * dx + dy * dy), False)
+        n += 1
+    out[M_CLEAR], out[M_SPEED_ACT], out[M_TRACK_ERR] = clear, speed_act, err
+    if n <= DENSE_PAIRS_MAX:
+        out[M_PAIR], out[M_PAIR_CMD] = _min_pair_2d(ax, ay, n), _min_pair_2d(cx, cy, n)
+    else:
+        out[M_PAIR], out[M_PAIR_CMD] = np.nan, np.nan
+    return n

@@ -213,6 +213,9 @@ class CEM(Avoidance):
                                 strengths=self.strengths(len(failed_xy)))
         self.healthy_idx = healthy
         self.nav.track_rows(healthy, _TRACK)
+        self._k = self.nav.inverter._k  # the compiled kernels module (loaded with the navigator)
+        self._failed_xy = np.ascontiguousarray(failed_xy, dtype=float)  # (F, 2) world x-y z_f
+        self._measured = np.empty(self._k.N_MEAS)
         self._handback_at = float(self.nav.centres.real.max() + self.handback_distance)  # flow frame, m
         self.active = True
         self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
@@ -278,22 +281,22 @@ class CEM(Avoidance):
         """Record the safety quantities of this tick from the world and the commands."""
         if not self._commanded:
             return
-        nav, idx, world = self.nav, self.healthy_idx, sim.world
-        live = world.healthy[idx]  # an agent may have failed during this tick's events
-        np.maximum.at(self._psi_drift, idx, nav.stream_drift())
-        self._margin = min(self._margin, float(nav.exclusion_margin().min()))
-        actual = world.pos[idx[live], :2]
+        nav, world, out, k = self.nav, sim.world, self._measured, self._k
+        # one compiled call; an agent may have failed during this tick's events (counted live no more)
+        live_n = nav.measure_tick(world.healthy, world.pos, world.vel, self._failed_xy, self._psi_drift, out)
+        self._margin = min(self._margin, float(out[k.M_MARGIN]))
         if self.failed:
-            zf = np.array(list(self.failed.values()))
-            d = np.linalg.norm(actual[:, None, :] - zf[None], axis=2).min() if actual.size else math.inf
-            self._clearance = min(self._clearance, float(d) - self.a_f - self.params.eps)
-        self._pair = min(self._pair, _min_pair(actual))
-        self._pair_cmd = min(self._pair_cmd, _min_pair(nav.positions[live]))
-        self._speed = max(self._speed, float(np.linalg.norm(nav.velocities, axis=1).max()))
-        if actual.size:
-            self._speed_actual = max(self._speed_actual, float(np.linalg.norm(world.vel[idx[live], :2], axis=1).max()))
-            err = np.linalg.norm(actual - nav.positions[live], axis=1).max()
-            self._track_err = max(self._track_err, float(err))
+            self._clearance = min(self._clearance, float(out[k.M_CLEAR]) - self.a_f - self.params.eps)
+        pair, pair_cmd = float(out[k.M_PAIR]), float(out[k.M_PAIR_CMD])
+        if live_n > k.DENSE_PAIRS_MAX:  # a large swarm: the k-d tree beats the O(N^2) loop
+            live = world.healthy[self.healthy_idx]
+            pair, pair_cmd = _min_pair(world.pos[self.healthy_idx[live], :2]), _min_pair(nav.positions[live])
+        self._pair = min(self._pair, pair)
+        self._pair_cmd = min(self._pair_cmd, pair_cmd)
+        self._speed = max(self._speed, float(out[k.M_SPEED]))
+        if live_n:
+            self._speed_actual = max(self._speed_actual, float(out[k.M_SPEED_ACT]))
+            self._track_err = max(self._track_err, float(out[k.M_TRACK_ERR]))
         self._dphi_min = min(self._dphi_min, nav.dphi_used)
 
     @hookimpl

@@ -216,3 +216,29 @@ class NumpyNavigator:
         np.add(self._pos_c, self.origin, out=self._pos_c)
         np.multiply(dz, self.rot / self.dT, out=self._vel_c)
         return self.positions, self.velocities
+
+
+def numpy_measure(nav: CEMNavigator, idx: np.ndarray, healthy: np.ndarray, pos: np.ndarray, vel: np.ndarray,
+                  failed_xy: np.ndarray) -> dict:
+    """The ``cem`` plugin's per-tick safety quantities the NumPy way (its step-end hook before the
+    compiled ``kernels.measure_tick``): per-agent |psi - psi_0|, exclusion margin of the commands,
+    and over the agents still healthy the distance to the failures' centres, the min pair
+    distances of actual and commanded x-y (k-d tree), the peak commanded and actual speeds and the
+    tracking error (None where no agent is live)."""
+    from scipy.spatial import cKDTree
+
+    def min_pair(xy):
+        return np.inf if xy.shape[0] < 2 else float(cKDTree(xy).query(xy, k=2)[0][:, 1].min())
+
+    live = healthy[idx]
+    actual = pos[idx[live], :2]
+    return {
+        "drift": nav.stream_drift(),
+        "margin": float(nav.exclusion_margin().min()),
+        "clear": float(np.linalg.norm(actual[:, None, :] - failed_xy[None], axis=2).min()) if actual.size else np.inf,
+        "pair": min_pair(actual),
+        "pair_cmd": min_pair(nav.positions[live]),
+        "speed": float(np.linalg.norm(nav.velocities, axis=1).max()),
+        "speed_act": float(np.linalg.norm(vel[idx[live], :2], axis=1).max()) if actual.size else None,
+        "track_err": float(np.linalg.norm(actual - nav.positions[live], axis=1).max()) if actual.size else None,
+    }
