@@ -208,7 +208,8 @@ def main(argv: list[str] | None = None) -> int:
     cxx = compiler()
     if cxx is None:
         why = "no C++ compiler (g++, c++ or clang++) found; the C++ comparison is skipped"
-        print(json.dumps({"benchmark": "cem_six_vehicle_step", "skipped": why}) if args.json else f"bench_cem_cpp: {why}")
+        skipped = {"benchmark": "cem_six_vehicle_step", "skipped": why}
+        print(json.dumps(skipped) if args.json else f"bench_cem_cpp: {why}")
         return 0
     exe = build(cxx)
     with tempfile.TemporaryDirectory() as d:

@@ -1,4 +1,4 @@
-"""The compiled CEM step (methods/cem/kernels.py) against the NumPy oracle (tests/oracles/cem.py).
+"""The compiled CEM step (methods/cem/kernels.py, numerics.py) against the NumPy oracle (tests/oracles/cem.py).
 
 The kernel replaced the NumPy hot path of Algorithms 1-2 (papers/cem-fluid-flow-navigation.md);
 it must compute the same commands, draw the same eq. 6 noise from the same generator stream and
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from oracles.cem import NumpyNavigator, NumpyNewtonInverter
 
-from swarmscene.methods.cem import kernels
+from swarmscene.methods.cem import numerics
 from swarmscene.methods.cem.flow import CEMNavigator, NewtonInverter, complex_potential, pcg64_state
 
 A_P = 1.36
@@ -109,7 +109,7 @@ def test_calc_xy_kernel_matches_oracle_on_stagnation_and_inside_starts():
 def test_standard_normal_is_numpys_stream_and_advances_the_generator_in_place():
     rng, ref = np.random.default_rng(2024), np.random.default_rng(2024)
     state = pcg64_state(rng)
-    draws = np.array([kernels.standard_normal(state) for _ in range(20000)])  # tails and wedges included
+    draws = np.array([numerics.standard_normal(state) for _ in range(20000)])  # tails and wedges included
     np.testing.assert_array_equal(draws, ref.standard_normal(20000))
     assert rng.standard_normal() == ref.standard_normal()  # the Generator itself moved on
 
@@ -126,18 +126,18 @@ def test_complex_helpers_follow_numpy_rounding():
     rng = np.random.default_rng(5)
     a = rng.standard_normal(400) * 10 ** rng.uniform(-3, 3, 400) + 1j * rng.standard_normal(400)
     b = rng.standard_normal(400) + 1j * rng.standard_normal(400) * 10 ** rng.uniform(-3, 3, 400)
-    pairs = [(np.multiply(a, b), kernels.cmul), (np.divide(a, b), kernels.cdiv)]
+    pairs = [(np.multiply(a, b), numerics.cmul), (np.divide(a, b), numerics.cdiv)]
     for ref, fn in pairs:
         got = np.array([complex(*fn(x.real, x.imag, y.real, y.imag)) for x, y in zip(a, b)])
         np.testing.assert_allclose(got, ref, rtol=4e-16, atol=0)
-    recip = np.array([complex(*kernels.crecip(y.real, y.imag)) for y in b])
+    recip = np.array([complex(*numerics.crecip(y.real, y.imag)) for y in b])
     np.testing.assert_allclose(recip, np.reciprocal(b), rtol=4e-16, atol=0)
-    mod = np.array([kernels.cabs(y.real, y.imag) for y in b])
+    mod = np.array([numerics.cabs(y.real, y.imag) for y in b])
     np.testing.assert_allclose(mod, np.abs(b), rtol=4e-16, atol=0)
-    assert kernels.cabs(np.inf, np.nan) == np.inf and np.isnan(kernels.cabs(1.0, np.nan))
+    assert numerics.cabs(np.inf, np.nan) == np.inf and np.isnan(numerics.cabs(1.0, np.nan))
     for f in (1, 2, 3, 4, 5, 9, 64, 65, 200):
         terms = a[:f]
-        got = complex(*kernels.doublet_sum(terms.real.copy(), terms.imag.copy()))
+        got = complex(*numerics.doublet_sum(terms.real.copy(), terms.imag.copy()))
         assert got == pytest.approx(complex(np.sum(terms[None, :], axis=1)[0]), rel=1e-15, abs=0)
 
 
@@ -149,11 +149,11 @@ def test_distance_bounds_decide_every_test_as_the_exact_distance():
     u = (rng.standard_normal(5000) + 1j * rng.standard_normal(5000)) * A_P * rng.uniform(0.5, 1.5, 5000)
     u = np.concatenate([u, A_P * np.exp(1j * rng.uniform(0, 2 * np.pi, 500)), [0j, A_P + 0j, 1j * A_P]])
     for x in u:
-        exact = kernels.cabs(x.real, x.imag)
-        assert kernels.size_bound(x.real, x.imag) <= exact
-        d = kernels.distance_within(x.real, x.imag, A_P)
+        exact = numerics.cabs(x.real, x.imag)
+        assert numerics.size_bound(x.real, x.imag) <= exact
+        d = numerics.distance_within(x.real, x.imag, A_P)
         assert (d <= A_P) == (exact <= A_P) and (d < A_P * (1 - 1e-9)) == (exact < A_P * (1 - 1e-9))
         if exact <= A_P:
             assert d == exact
-    assert np.isnan(kernels.size_bound(np.nan, 1.0)) and np.isnan(kernels.size_bound(1.0, np.nan))
-    assert np.isnan(kernels.distance_within(5.0, np.nan, A_P))  # a NaN still disables eq. 6 that iteration
+    assert np.isnan(numerics.size_bound(np.nan, 1.0)) and np.isnan(numerics.size_bound(1.0, np.nan))
+    assert np.isnan(numerics.distance_within(5.0, np.nan, A_P))  # a NaN still disables eq. 6 that iteration
