@@ -331,7 +331,7 @@ def navigator_step(cw, fw, iw, state):
     rot_r, rot_i, rotdt_r, rotdt_i = prm[P_ROT_R], prm[P_ROT_I], prm[P_ROTDT_R], prm[P_ROTDT_I]
     along = np.inf
     for i in range(m):
-        along = min(along, z[i].real)
+        along = z[i].real if (z[i].real < along or z[i].real != z[i].real) else along  # NaN sticks, as .min()
         w[i] = complex(w[i].real + used, w[i].imag + 0.0)
         pr, pi = cmul(z[i].real, z[i].imag, rot_r, rot_i)
         zz[POS, i] = complex(pr + prm[P_ORIG_R], pi + prm[P_ORIG_I])
