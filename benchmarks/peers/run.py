@@ -1,6 +1,6 @@
 """Every peer comparison in one command, one core, alternating: figures, ratios, goals.
 
-    python benchmarks/peers/run.py                       # everything (about 15 minutes)
+    python benchmarks/peers/run.py                       # everything (about 25 minutes)
     python benchmarks/peers/run.py --quick               # a short smoke run of everything
     python benchmarks/peers/run.py --only crazyflow,boids
 
@@ -75,7 +75,7 @@ def run_vmas(quick: bool, repeat: int) -> dict:
     import bench_vmas
 
     rows = []
-    sizes = [(10, 100), (100, 40)] if quick else [(10, 500), (100, 200), (1000, 20)]
+    sizes = [(10, 100), (100, 40)] if quick else [(10, 500), (100, 100), (1000, 20)]
     version = "?"
     for n, steps in sizes:
         # VMAS navigation at N = 1,000 takes about a minute per step: left to bench_vmas.py itself.
@@ -211,9 +211,10 @@ def md_crazyflow(sec: dict) -> list[str]:
 
 
 def md_pybullet(sec: dict) -> list[str]:
-    return ["### gym-pybullet-drones", "", sec["line"] + ". Its documented install is a clone of its "
-            "repository and `pip install -e .`; this comparison uses peers from the package index only, so it "
-            "is not built from a fetched source tree.", ""]
+    return ["### gym-pybullet-drones", "", sec["line"] + ". Its README installs it from a clone of its "
+            "repository (`git clone ...` then `pip3 install -e .`, pybullet compiled from source beyond Python "
+            "3.10); these comparisons take peers from the package index only, so it is not built from a "
+            "fetched source tree and has no figures here.", ""]
 
 
 def md_boids(sec: dict) -> list[str]:
@@ -251,8 +252,8 @@ def md_boids(sec: dict) -> list[str]:
             "is the same rule written in plain numpy and scipy (no swarmscene): per step one `cKDTree` and one "
             "`query_pairs` at the comm range, shared by the flock (filtered to vision, the torus' seam pairs from "
             "the images of the boids near a face) and its monitor (smallest distance, colliding pairs, "
-            "`connected_components` of the pairs within comm range), each pair feeding both ends through "
-            "`np.bincount`. Mesa's `BoidFlockers` (bench_mesa.py's child) moves its boids one at a time in random "
+            "`connected_components` of the pairs within comm range, exact every step), each pair feeding both ends "
+            "through `np.bincount`; swarmscene's monitor reaches the same verdicts by its own means. Mesa's `BoidFlockers` (bench_mesa.py's child) moves its boids one at a time in random "
             "order and has no monitor; at N = 10,000 it is not run (its cost grows as N^2).", "",
             "L = 10 sqrt(N) m is the preset's density (100 boids per 100 m x 100 m, as its comment scales "
             "it); the last row keeps Mesa's default 100 m box at N = 1,000 (ten times denser: more "
@@ -320,7 +321,7 @@ MARKDOWN = {"crazyflow": md_crazyflow, "pybullet": md_pybullet, "boids": md_boid
 def markdown(record: dict) -> str:
     prov = record["provenance"]
     lines = ["## Side by side with peer simulators (issue #20)", "",
-             f"`{COMMAND}`{' --quick (a smoke run: short, one pass; not for the record)' if record['quick'] else ''}; "
+             f"`{record.get('command', COMMAND)}`{' (a smoke run: short, one pass; not for the record)' if record['quick'] else ''}; "
              f"measured {prov['date_utc']} UTC at commit {prov['commit']}"
              f"{' with uncommitted changes in the tree' if prov['uncommitted_changes'] else ''}, {prov['cpu']}, "
              f"every process pinned to core {prov['core']} with one thread (BLAS, OpenMP; XLA "
@@ -350,7 +351,8 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--only: unknown section(s) {', '.join(unknown)} (choose from {', '.join(SECTIONS)})")
     peerlib.CORE = args.core
     repeat = 1 if args.quick else args.repeat
-    record = {"quick": args.quick, "repeat": repeat, "load_start": load_average(), "provenance": provenance(),
+    shown = " ".join(sys.argv[1:] if argv is None else argv)
+    record = {"command": f"{COMMAND} {shown}".strip(), "quick": args.quick, "repeat": repeat, "load_start": load_average(), "provenance": provenance(),
               "sections": {}}
     start = time.perf_counter()
     for name in chosen:
