@@ -1,10 +1,11 @@
 """Compiled per-tick kernels of the thesis' indoor swarm (Karydes 2020, chapter 5; issue 20).
 
-One call per tick builds the graphs (:func:`graphs_kernel`: G_n with line of sight, eq. 5.7-5.12,
-and G_sigma by the deactivation rules, eq. 5.13-5.22, under each reading of eq. 5.15-5.16), one
-the formation terms and rank step (:func:`formation_kernel`, eq. 5.24-5.26, 5.37-5.44), one the
-avoidance terms (:func:`avoidance_kernel`, eq. 5.32-5.36), one the maximum rank (:func:`max_rank_kernel`,
-eq. 5.23). They replace dozens of small numpy calls whose fixed overhead dominated the tick; the
+One call per tick senses (:func:`snapshot_kernel`: the nearest obstacle points o_i, eq. 5.32, and
+:func:`graphs_kernel`: G_n with line of sight, eq. 5.7-5.12, and G_sigma by the deactivation rules,
+eq. 5.13-5.22, under each reading of eq. 5.15-5.16), one computes the formation terms, the
+leader's input and the rank step (:func:`formation_kernel`, eq. 5.24-5.26, 5.37-5.44), one the
+avoidance terms (:func:`avoidance_kernel`, eq. 5.32-5.36), one the saturated command
+(:func:`barrier_kernel`, eq. 5.30), one the maximum rank (:func:`max_rank_kernel`, eq. 5.23). They replace dozens of small numpy calls whose fixed overhead dominated the tick; the
 numpy formulation they replace is kept as the test oracle (tests/oracles/indoor_graphs.py).
 
 Arithmetic: every float operation is written in the order of the numpy code it replaces (sums in
@@ -356,21 +357,20 @@ def _edges_off(r, i, j, indptr, dst, phi_d, union):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def deactivation_kernel(r, i, j, phi_d, reading, both, union=False):
+def deactivation_kernel(r, i, j, phi_d, reading, both):
     """Rules 5.18 and 5.21 on every edge (i, j) of G_n, from both ends (eq. 5.15-5.21).
 
     ``reading``: :data:`READINGS` code. Returns four (P,) bool arrays: rule 1 and rule 2 as agent
     i sees the edge, then as agent j does; under ``common`` (candidates N_i ∩ N_j) the two views
     are equal by construction and computed once. ``both`` evaluates rule 2 even where rule 1
-    fired (for :func:`graphs.deactivation_rules`). ``union`` (the undirected readings, where only
-    off_i | off_j matters): j's view is skipped where i's rules fired, and left False there.
+    fired (for :func:`graphs.deactivation_rules`). The per-tick graphs use :func:`_edges_off`.
     """
     indptr, dst, _ = _csr(r.shape[0], i, j)
-    return _rules(r, i, j, indptr, dst, phi_d, reading, both, union)
+    return _rules(r, i, j, indptr, dst, phi_d, reading, both)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _rules(r, i, j, indptr, dst, phi_d, reading, both, union):
+def _rules(r, i, j, indptr, dst, phi_d, reading, both):
     """:func:`deactivation_kernel` on G_n given with its arcs (indptr, dst)."""
     n = r.shape[0]
     p = i.size
@@ -393,7 +393,7 @@ def _rules(r, i, j, indptr, dst, phi_d, reading, both, union):
             for q in range(indptr[b], indptr[b + 1]):
                 mark[dst[q]] = False
             rules[2, k], rules[3, k] = rules[0, k], rules[1, k]
-        elif not (union and (rules[0, k] or rules[1, k])):
+        else:
             rules[2, k], rules[3, k] = _arc_rules(r, nx, ny, indptr, dst, b, a, phi_d, False, mark, cand, side, both)
     return rules
 
@@ -444,7 +444,7 @@ def graphs_kernel(r, pairs, clearance, d_l, phi_d, reading, seg, geom_start, pol
     for a in range(n):
         n_src[n_indptr[a]:n_indptr[a + 1]] = a
     if reading == 1:  # common candidates: both ends see the same set, one view
-        rules = _rules(r, n_i, n_j, n_indptr, n_dst, phi_d, reading, False, True)
+        rules = _rules(r, n_i, n_j, n_indptr, n_dst, phi_d, reading, False)
         off_i = rules[0] | rules[1]
         off_j = off_i
     else:
