@@ -53,6 +53,7 @@ Choices where the paper is ambiguous (each repeated where it is made):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -403,7 +404,12 @@ class CEMNavigator:
         self.positions = inv.zz[k.POS].view(float).reshape(m, 2)  # world x-y, m (a view, no copy)
         self.velocities = inv.zz[k.VEL].view(float).reshape(m, 2)  # world x-y, m/s
         self._step_args = (inv.cw, inv.fw, inv.iw, inv.state)
-        self._step, self._step_into = k.navigator_step, k.navigator_step_into
+        self._step = k.navigator_step
+        # step_into(mode, pos, vel, acc): :meth:`step` and write the commands into setpoint arrays in
+        # the same compiled call: rows set by :meth:`track_rows` get its mode, x-y of ``pos``/``vel``
+        # (M, 3) the commands, x-y of ``acc`` zero (first differences only); the rest is untouched.
+        # A partial of the kernel, not a method: no Python frame on the plugin's per-tick path.
+        self.step_into = functools.partial(k.navigator_step_into, *self._step_args)
         mean = complex(self.centres.mean())  # zbar_F as complex_potential subtracts it
         self._w0_imag, self._consts = self.w0.imag.copy(), np.array([mean.real, mean.imag, self.a_p])
 
@@ -448,17 +454,11 @@ class CEMNavigator:
         return self.positions, self.velocities
 
     def track_rows(self, idx: np.ndarray, track: int) -> None:
-        """Set where :meth:`step_into` writes: agent j's commands go to setpoint row idx[j] (N,),
+        """Set where ``step_into`` writes: agent j's commands go to setpoint row idx[j] (N,),
         whose mode becomes ``track``."""
         k, iw = self.inverter._k, self.inverter.iw
         iw[iw.size - self.n_agents:] = idx
         iw[k.I_TRACK] = track
-
-    def step_into(self, mode: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> None:
-        """:meth:`step` and write the commands into setpoint arrays in the same compiled call:
-        rows :meth:`track_rows` get its mode, x-y of ``pos``/``vel`` (M, 3) the commands, x-y of
-        ``acc`` zero (first differences only); everything else is left as it is."""
-        self._step_into(*self._step_args, mode, pos, vel, acc)
 
     def measure_tick(self, healthy: np.ndarray, pos: np.ndarray, vel: np.ndarray, failed: np.ndarray,
                      drift: np.ndarray, out: np.ndarray) -> int:
