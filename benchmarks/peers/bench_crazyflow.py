@@ -15,8 +15,8 @@ their slots):
 - swarmscene: ``swarmscene.api`` with :func:`hover_overrides` (``dynamics=quadrotor``: 6-DOF rigid
   bodies, SE(3) controller and rotor mixer every physics step, one RK4 step in float64;
   ``formation=static_shape`` holding the grid, ``environment=open``, ``avoidance=none``); the
-  whole tick is timed by the engine (``Simulation.step_seconds``): events, sensing (k-d tree),
-  formation, avoidance, control, physics, the safety monitor (separation, connectivity) and the
+  whole tick is timed by the engine (``Simulation.step_seconds``): events, sensing, formation,
+  avoidance, control, physics, the safety monitor (separation, connectivity) and the
   hooks;
 - Crazyflow: ``Sim(n_worlds=1, n_drones=N, control=Control.state, freq=240, state_freq=240,
   attitude_freq=240)``: its default drone (cf21B_500), first-principles dynamics with rotor
@@ -35,7 +35,8 @@ each counts.
 
 Time from command to first result, N = 1,000: the wall time of a fresh process until it exits
 after its first simulated step. swarmscene: the ``swarmscene`` command with the hover overrides and
-``clock.duration`` = one tick (the run directory written, then exit), with the numba cache warm
+``clock.duration`` = one tick (from ``swarm=grid``, as a user types it; the run directory written,
+then exit), with the numba cache warm
 (as after any earlier run) and cold (``NUMBA_CACHE_DIR`` an empty temporary folder); Crazyflow: a
 ``python -c`` that imports it, builds the ``Sim``, sends the command and runs ``sim.step(1)`` to
 completion (JIT included), with its default settings (no persistent cache) and with its own
