@@ -1,5 +1,5 @@
-"""Compiled cell lists: the closest pair of a swarm and whether its disk graph is connected,
-without a k-d tree (numba, cached on disk).
+"""Compiled cell lists: the closest pair of a swarm, its pairs within a radius and whether its
+disk graph is connected, without a k-d tree (numba, cached on disk).
 
 The safety monitor asks every tick for the smallest distance between two agents. A k-d tree
 answers in O(N log N) but costs its build and a 2-nearest query for every agent: about 50 us at
@@ -20,9 +20,14 @@ union-find while walking the same cells (side at least the radius), and stops at
 that leaves one component: a connected swarm usually answers after a fraction of its pairs, with
 no pair list and no sparse matrix.
 
+Pairs. :func:`pairs_within` lists the pairs within a radius (cells at least that wide) with their
+squared distances, in lexicographic order: the engine's shared pair list
+(:meth:`swarmscene.core.sensing.Sensing.pairs`), ~5x cheaper than a tree's ``query_pairs``, and
+its distances make the monitor's closest pair free.
+
 This module imports numba: it is imported only for swarms of more than
-``core.vectors.DENSE_POINTS`` agents (closest pair) or ``core.sensing.DENSE_LIMIT`` members
-(connectivity), so a small run never pays numba's start-up.
+``core.vectors.DENSE_POINTS`` agents (closest pair, pairs) or ``core.sensing.DENSE_LIMIT``
+members (connectivity), so a small run never pays numba's start-up.
 """
 
 from __future__ import annotations
@@ -166,3 +171,57 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
                             if components == 1:
                                 return True
     return components == 1
+
+
+@numba.njit(cache=True)
+def pairs_within(points: np.ndarray, radius: float):
+    """Every pair (i < j) of points (N, D) at most ``radius`` apart, in lexicographic order, shape
+    (M, 2), and its squared distance (M,) summed axis by axis (as a k-d tree and the dense pass
+    sum it). Two walks over the cells: one counts each point's later neighbours, one fills."""
+    n, dim = points.shape
+    side = max(radius, _cell_side(points) * 0.25 ** (1.0 / dim))
+    if side <= 0.0:
+        side = 1.0  # every point at one place: one cell
+    coord, shape, start, order = _grid(points, side)
+    r2 = radius * radius
+    count = np.zeros(n + 1, np.int64)
+    for sweep in range(2):
+        if sweep == 1:
+            for i in range(n):
+                count[i + 1] += count[i]
+            pairs = np.empty((count[n], 2), np.int64)
+            d2s = np.empty(count[n])
+            fill = count[:-1].copy()
+        for i in range(n):
+            for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
+                for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
+                    for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
+                        q = (x * shape[1] + y) * shape[2] + z
+                        for s in range(start[q], start[q + 1]):
+                            j = order[s]
+                            if j <= i:
+                                continue
+                            d2 = 0.0
+                            for k in range(dim):
+                                diff = points[j, k] - points[i, k]
+                                d2 += diff * diff
+                            if d2 > r2:
+                                continue
+                            if sweep == 0:
+                                count[i + 1] += 1
+                            else:
+                                pairs[fill[i], 0] = i
+                                pairs[fill[i], 1] = j
+                                d2s[fill[i]] = d2
+                                fill[i] += 1
+    for i in range(n):  # each point's later neighbours in increasing order (short runs)
+        for a in range(count[i] + 1, count[i + 1]):
+            j, d2 = pairs[a, 1], d2s[a]
+            b = a - 1
+            while b >= count[i] and pairs[b, 1] > j:
+                pairs[b + 1, 1] = pairs[b, 1]
+                d2s[b + 1] = d2s[b]
+                b -= 1
+            pairs[b + 1, 1] = j
+            d2s[b + 1] = d2
+    return pairs, d2s

@@ -497,7 +497,7 @@ def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> l
         errors.append(f"swarm.start: agents {inside.tolist()} start inside an obstacle")
     d_min = config.safety.separation_limit
     if len(pos) > 1 and d_min > 0:
-        pairs = pairs_within(pos, d_min)
+        pairs, _ = pairs_within(pos, d_min)
         if len(pairs):
             msg = (
                 f"swarm.start: {len(pairs)} pairs of agents start closer than "

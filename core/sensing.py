@@ -1,4 +1,4 @@
-"""The tick's shared spatial queries: one k-d tree per step, shared by every plugin and monitor.
+"""The tick's shared spatial queries: one pair list per step, shared by every plugin and monitor.
 
 Despite its name (kept: every plugin's signature reads ``sensing``), :class:`Sensing` is the
 engine's per-tick query cache (neighbour pairs, nearest obstacles, the communication graph, and
@@ -7,8 +7,10 @@ line-of-sight rules is ``swarmscene.methods.indoor.sensing``.
 
 The kernel builds a :class:`Sensing` snapshot after each physics update; observers read it at the
 end of the tick and the formation/avoidance plugins read the same object at the start of the next
-one, so the tree over the agents' positions is built exactly once per guidance step. Queries are
-lazy and cached: a plugin that never asks for the communication graph does not pay for it.
+one, so the agents' pairs are listed once per guidance step (a dense pass for a few agents, a
+compiled cell list for more: ``core.vectors.pairs_within``); a k-d tree is built only for a plugin
+that asks for :attr:`Sensing.tree`. Queries are lazy and cached: a plugin that never asks for the
+communication graph does not pay for it.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a sm
 
 from .environment import Environment
 from .state import WorldState
-from .vectors import DENSE_POINTS, min_pair_distance, pairs_within
+from .vectors import min_pair_distance, pairs_within
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -107,6 +109,7 @@ class Sensing:
         self.environment = environment
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
+        self._pair_d2: dict[float, np.ndarray] = {}  # the listed pairs' squared lengths
         self._nearest: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         # Widest range asked of this snapshot ("asked") and of the previous one ("hint"), m.
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
@@ -146,11 +149,12 @@ class Sensing:
         return scipy.spatial.cKDTree(self.world.pos)
 
     def pairs(self, radius: float) -> np.ndarray:
-        """Index pairs (i < j) of agents closer than ``radius`` m, shape (M, 2); cached per radius.
+        """Index pairs (i < j, lexicographic) of agents at most ``radius`` m apart, shape (M, 2);
+        cached per radius, with their squared lengths.
 
         Filtered from the list of a larger cached radius when there is one (exact, and cheaper than
-        walking the tree again: the separation check reuses the connectivity or flocking pairs);
-        the first query walks the tree at the widest radius the previous tick was asked for.
+        listing again: the separation check reuses the connectivity or flocking pairs); the first
+        query lists the pairs at the widest radius the previous tick was asked for.
         """
         self.asked["pairs"] = max(self.asked["pairs"], radius)
         return self._listed_pairs(radius)
@@ -160,18 +164,14 @@ class Sensing:
         if radius not in self._pairs:
             larger = [r for r in self._pairs if r >= radius]
             if larger:
-                wide = self._pairs[min(larger)]
-                self._pairs[radius] = wide[self._pair_dist2(wide) <= radius * radius]
+                wide = min(larger)
+                keep = self._pair_d2[wide] <= radius * radius
+                self._pairs[radius], self._pair_d2[radius] = self._pairs[wide][keep], self._pair_d2[wide][keep]
             else:
                 reach = max(radius, self._hint["pairs"])
-                self._pairs[reach] = self._query_pairs(reach)
+                self._pairs[reach], self._pair_d2[reach] = pairs_within(self.world.pos, reach)
                 return self._listed_pairs(radius)
         return self._pairs[radius]
-
-    def _query_pairs(self, radius: float) -> np.ndarray:
-        if self.world.n <= DENSE_POINTS and "tree" not in self.__dict__:
-            return pairs_within(self.world.pos, radius)
-        return pairs_within(self.world.pos, radius, self.tree)  # the tick's one tree, kept
 
     def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
         """Squared distances of ``pairs`` (axis by axis: 1-D gathers are several times faster)."""
@@ -198,7 +198,7 @@ class Sensing:
             self._listed_pairs(self._hint["pairs"])
         for radius in sorted(self._pairs):
             if len(self._pairs[radius]):
-                return float(np.sqrt(self._pair_dist2(self._pairs[radius]).min()))
+                return float(np.sqrt(self._pair_d2[radius].min()))
         if "knn" in self.__dict__:
             return float(self.knn[0][:, 0].min())
         return min_pair_distance(self.world.pos, self.__dict__.get("tree"))

@@ -7,7 +7,7 @@ are in the world frame (see :mod:`swarmscene.core.state`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
@@ -56,7 +56,7 @@ class Setpoints:
         """Every agent holds ``pos`` (N, 3) with zero feed-forward."""
         n = pos.shape[0]
         return cls(
-            mode=np.full(n, Mode.HOLD, dtype=np.int8),
+            mode=np.full(n, int(Mode.HOLD), dtype=np.int8),  # an int: numpy converts an enum slowly
             pos=np.array(pos, dtype=float, copy=True),
             vel=np.zeros((n, 3)),
             acc=np.zeros((n, 3)),
@@ -65,15 +65,11 @@ class Setpoints:
 
     def copy(self) -> "Setpoints":
         """A deep copy, so an avoidance method can edit without touching the formation's arrays."""
-        return replace(
-            self,
-            mode=self.mode.copy(),
-            pos=self.pos.copy(),
-            vel=self.vel.copy(),
-            acc=self.acc.copy(),
-            yaw=self.yaw.copy(),
-            jerk=None if self.jerk is None else self.jerk.copy(),
-            snap=None if self.snap is None else self.snap.copy(),
+        # The constructor, not dataclasses.replace (twice its cost, on every avoidance's tick).
+        return type(self)(
+            self.mode.copy(), self.pos.copy(), self.vel.copy(), self.acc.copy(), self.yaw.copy(),
+            None if self.jerk is None else self.jerk.copy(),
+            None if self.snap is None else self.snap.copy(),
         )
 
     @property

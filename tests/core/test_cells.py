@@ -8,7 +8,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from swarmscene.core.cells import closest_pair_distance
-from swarmscene.core.vectors import DENSE_POINTS, dense_pairs, min_pair_distance
+from swarmscene.core.cells import pairs_within as compiled_pairs
+from swarmscene.core.vectors import DENSE_POINTS, min_pair_distance, pairs_within
 
 
 def _tree_min(points: np.ndarray) -> float:
@@ -43,9 +44,27 @@ def test_the_dense_pass_for_few_agents_equals_the_tree():
     for n in (2, 3, 17, DENSE_POINTS):
         points = rng.uniform(0, 3, (n, 3))
         assert min_pair_distance(points) == _tree_min(points)
-        expected = {tuple(p) for p in cKDTree(points).query_pairs(1.2, output_type="ndarray").tolist()}
-        got = dense_pairs(points, 1.2)
-        assert {tuple(p) for p in got.tolist()} == expected and (got[:, 0] < got[:, 1]).all()
+        _assert_tree_pairs(points, 1.2, *pairs_within(points, 1.2))
+
+
+def _assert_tree_pairs(points, radius, pairs, d2):
+    """The k-d tree's pairs, in lexicographic order, with the tree's distances to the bit."""
+    tree = cKDTree(points)
+    want = tree.query_pairs(radius, output_type="ndarray")
+    want = want[np.lexsort((want[:, 1], want[:, 0]))]
+    np.testing.assert_array_equal(pairs, want)
+    if len(want):
+        dist = tree.sparse_distance_matrix(tree, radius, output_type="dict")
+        assert np.array_equal(np.sqrt(d2), [dist[(i, j)] for i, j in want.tolist()])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_pairs_equal_the_k_d_tree(seed):
+    rng = np.random.default_rng(seed)
+    for name, points in _layouts(rng):
+        for radius in (0.0, 0.05, 1.0, 3.0, 25.0):
+            pairs, d2 = compiled_pairs(np.ascontiguousarray(points, dtype=float), radius)
+            _assert_tree_pairs(points, radius, pairs, d2)
 
 
 def test_a_swarm_flat_to_micrometres_gets_a_planar_grid():

@@ -133,7 +133,9 @@ def test_one_obstacle_query_per_tick_serves_every_range(env, monkeypatch):
     assert np.array_equal(again[2], np.where(narrow[1] <= 0.3, narrow[1], np.inf))
 
 
-def test_pairs_of_the_previous_ticks_range_are_listed_once_and_give_the_separation():
+def test_pairs_of_the_previous_ticks_range_are_listed_once_and_give_the_separation(monkeypatch):
+    import swarmscene.core.sensing as sensing_module
+
     rng = np.random.default_rng(8)
     world = WorldState.at_rest(rng.uniform(0, 10, size=(150, 3)))
     d = np.linalg.norm(world.pos[:, None] - world.pos[None], axis=2)
@@ -141,10 +143,8 @@ def test_pairs_of_the_previous_ticks_range_are_listed_once_and_give_the_separati
     first.pairs(1.5)
     second = Sensing(world, Environment(), comm_range=3.0, previous=first)
     walks = []
-    tree = second.tree
-    second.__dict__["tree"] = type("Counting", (), {
-        "query_pairs": lambda self, r, output_type: walks.append(r) or tree.query_pairs(r, output_type=output_type),
-    })()
+    listed = sensing_module.pairs_within
+    monkeypatch.setattr(sensing_module, "pairs_within", lambda pos, r: walks.append(r) or listed(pos, r))
     np.fill_diagonal(d, np.inf)
     assert second.min_separation == pytest.approx(d.min())  # listed at 1.5 m for the caller to come
     for radius in (1.5, 0.7):
