@@ -1,4 +1,4 @@
-"""Quadrotor swarms hovering at 240 Hz: swarmscene's whole engine tick against Crazyflow (JAX, CPU).
+"""Quadrotor swarms hovering, physics at 240 Hz: swarmscene's whole engine tick against Crazyflow (JAX, CPU).
 
     python benchmarks/peers/bench_crazyflow.py            # N = 1, 100, 1,000 and the start-up times
     python benchmarks/peers/bench_crazyflow.py --quick    # fewer steps, one pass
@@ -6,7 +6,9 @@
 Crazyflow runs in its own virtual environment, ``benchmarks/peers/.venv-crazyflow`` (created on
 first use with ``pip install crazyflow==0.4.0 "jax[cpu]"`` from PyPI; git ignores it), swarmscene in
 the interpreter running this script. Both sides fly N drones from the same points, each holding
-its own point under state control, guidance and physics at 240 Hz: the slots of ``static_shape``'s
+its own point under state control, physics at 240 Hz and the position command at 10 Hz (the
+engine's default guidance period, T_s = 0.1 s, and Crazyflow stepping 24 physics steps per
+command) and at 240 Hz (a command every physics step): the slots of ``static_shape``'s
 grid, 2 m apart at 2 m altitude (:func:`hover_points`; for N = 1 and 100 the points of
 ``swarm=grid``, at N = 1,000 its 32-column grid with the short row on the other side, so the start
 is given explicitly: from ``swarm=grid`` the agents of the short row would cross the swarm to
@@ -18,17 +20,18 @@ their slots):
   whole tick is timed by the engine (``Simulation.step_seconds``): events, sensing, formation,
   avoidance, control, physics, the safety monitor (separation, connectivity) and the
   hooks;
-- Crazyflow: ``Sim(n_worlds=1, n_drones=N, control=Control.state, freq=240, state_freq=240,
-  attitude_freq=240)``: its default drone (cf21B_500), first-principles dynamics with rotor
-  dynamics, Mellinger state and attitude controllers; ``default`` keeps its Euler integrator and
-  float32, ``rk4_f64`` sets ``integrator=Integrator.rk4`` and ``jax_enable_x64`` (the numerics
-  swarmscene uses). Per tick, as a user's control loop at 240 Hz: ``sim.state_control(cmd)`` then
-  ``sim.step(1)`` (Crazyflow's own ``sim.step(sim.freq // sim.control_freq)``), the command re-sent
-  every tick, nothing read back; ``fused`` is the same simulation advanced K steps in one jitted
-  ``sim.step(K)`` with the command held (Crazyflow at its fastest, no per-tick guidance).
+- Crazyflow: ``Sim(n_worlds=1, n_drones=N, control=Control.state, freq=240, state_freq=R,
+  attitude_freq=240)`` for a command rate R of 10 or 240 Hz: its default drone (cf21B_500),
+  first-principles dynamics with rotor dynamics, Mellinger state and attitude controllers;
+  ``default`` keeps its Euler integrator and float32, ``rk4_f64`` sets ``integrator=Integrator.rk4``
+  and ``jax_enable_x64`` (the numerics swarmscene uses). Per tick, as a user's control loop:
+  ``sim.state_control(cmd)`` then ``sim.step(240 // R)`` (Crazyflow's own
+  ``sim.step(sim.freq // sim.control_freq)``), the command re-sent every tick, nothing read back;
+  ``fused`` is the same simulation advanced K physics steps in one jitted ``sim.step(K)`` with the
+  command held (Crazyflow at its fastest, no per-tick guidance).
 
 Steady state: each side runs ``warm`` ticks first (JIT compilation, caches, the drones settling),
-then ``steps`` timed ticks; drone-steps/s = N x steps / s. Every measurement is a fresh process
+then ``steps`` timed physics steps; drone-steps/s = N x physics steps / s. Every measurement is a fresh process
 pinned to one core with one thread (BLAS, OpenMP; XLA: ``--xla_cpu_multi_thread_eigen=false
 intra_op_parallelism_threads=1``); the sides alternate ``repeat`` times and the fastest run of
 each counts.
@@ -57,20 +60,23 @@ from peerlib import alternate, ensure_venv, timed_process
 
 REQUIREMENTS = ["crazyflow==0.4.0", "jax[cpu]"]
 HZ = 240
-PERIOD = 1.0 / HZ  # 0.004166666666666667 s
+PERIOD = 1.0 / HZ  # 0.004166666666666667 s: the physics step
+COMMAND_HZ = (10, 240)
+"""Command (guidance) rates compared: the engine's default T_s = 0.1 s, and every physics step."""
 SIZES = [1, 100, 1000]
 FIRST_N = 1000
 VARIANTS = ("default", "rk4_f64")
 
 
-def hover_overrides(n: int) -> list[str]:
-    """The swarmscene scenario: N quadrotors holding the grid they start on, 240 Hz, no trajectory."""
+def hover_overrides(n: int, command_hz: int = HZ) -> list[str]:
+    """The swarmscene scenario: N quadrotors holding the grid they start on, physics at 240 Hz,
+    guidance at ``command_hz``, no trajectory."""
     return [
         "dynamics=quadrotor", "environment=open", "swarm=grid", f"swarm.n={n}",
         "formation=static_shape", "formation.shape=grid", "formation.spacing=2.0",
         "formation.waypoints=[[0.0,0.0,2.0]]", "formation.rotate_with_heading=false",
         "avoidance=none", "events=none",
-        f"clock.guidance_period={PERIOD!r}", "clock.physics_step=null",
+        f"clock.guidance_period={1.0 / command_hz!r}", f"clock.physics_step={PERIOD!r}",
         "output.trajectory=false", "termination.on_complete=false",
     ]
 
@@ -80,13 +86,18 @@ import json, sys
 import numpy as np
 from swarmscene import api
 overrides, warm, steps, period = json.loads(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4])
-data = api.compose(overrides + [f"clock.duration={(warm + steps) * period!r}", "output.summary=false"])
+data = api.compose(overrides)
+ticks = lambda physics_steps: physics_steps * period / data["clock"]["guidance_period"]
+warm, steps = int(round(ticks(warm))), int(round(ticks(steps)))  # guidance ticks
+data = api.compose(overrides + [f"clock.duration={(warm + steps) * data['clock']['guidance_period']!r}",
+                                "output.summary=false"])
 data["swarm"]["start"] = {"kind": "explicit", "positions": np.load(sys.argv[5]).tolist()}
 sim = api.build(data)
 result = sim.run()
 assert result.metrics["steps"] == warm + steps, result.metrics
 seconds = float(sim.step_seconds[warm:].sum())
 n = sim.world.n
+steps *= sim.substeps  # physics steps
 slots = sim.formation._last_slots
 print(json.dumps({"n": n, "steps": steps, "seconds": seconds, "steps_per_s": steps / seconds,
                   "drone_steps_per_s": n * steps / seconds, "first_tick_s": float(sim.step_seconds[0]),
@@ -97,6 +108,8 @@ print(json.dumps({"n": n, "steps": steps, "seconds": seconds, "steps_per_s": ste
 CRAZYFLOW_CHILD = r"""
 import json, sys, time
 mode, variant, positions, warm, steps, cache = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
+command_hz = int(sys.argv[7]) if len(sys.argv) > 7 else 240
+k = 240 // command_hz  # physics steps per command
 t_start = time.perf_counter()
 import jax
 if variant == "rk4_f64":
@@ -113,7 +126,7 @@ if cache:
 t_import = time.perf_counter()
 grid = np.load(positions)  # (N, 3) the hover points, m: swarmscene's grid slots
 n = len(grid)
-sim = Sim(n_worlds=1, n_drones=n, control=Control.state, freq=240, state_freq=240, attitude_freq=240,
+sim = Sim(n_worlds=1, n_drones=n, control=Control.state, freq=240, state_freq=command_hz, attitude_freq=240,
           integrator=Integrator.rk4 if variant == "rk4_f64" else Integrator.euler)
 dtype = np.dtype(sim.data.states.pos.dtype)
 sim.data = sim.data.replace(states=sim.data.states.replace(pos=jnp.asarray(grid[None], dtype=dtype)))
@@ -129,14 +142,14 @@ out = {"import_s": t_import - t_start, "build_s": t_built - t_import, "first_ste
        "version": crazyflow.__version__ if hasattr(crazyflow, "__version__") else None,
        "jax": jax.__version__, "dtype": str(dtype), "integrator": str(sim.integrator)}
 if mode == "steady":
-    for _ in range(warm):
+    for _ in range(warm // k):
         sim.state_control(cmd)
-        sim.step(1)
+        sim.step(k)
     jax.block_until_ready(sim.data.states.pos)
     t0 = time.perf_counter()
-    for _ in range(steps):
+    for _ in range(steps // k):
         sim.state_control(cmd)
-        sim.step(1)
+        sim.step(k)
     jax.block_until_ready(sim.data.states.pos)
     loop = time.perf_counter() - t0
     err = float(np.abs(np.asarray(sim.data.states.pos)[0] - grid).max())
@@ -172,36 +185,38 @@ def hover_points(n: int, folder: str) -> str:
     return path
 
 
-def steady(quick: bool = False, repeat: int = 3, sizes: list[int] = SIZES, log=print) -> dict:
-    """Steady-state drone-steps/s of swarmscene and both Crazyflow variants, alternating."""
+def steady(quick: bool = False, repeat: int = 3, sizes: list[int] = SIZES, log=print,
+           rates: tuple[int, ...] = COMMAND_HZ) -> dict:
+    """Steady-state drone-steps/s of swarmscene and both Crazyflow variants, alternating, at each
+    command rate."""
     cf = str(crazyflow_python())
     python = peerlib.swarmscene_python()
     warm = 48 if quick else 240
     steps = 240 if quick else 960
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for n in sizes:
+        for n, hz in [(n, hz) for hz in rates for n in sizes]:
             points = hover_points(n, tmp)
-            sides = {"swarmscene": ([python, "-c", SWARMSCENE_CHILD, json.dumps(hover_overrides(n)), str(warm),
+            sides = {"swarmscene": ([python, "-c", SWARMSCENE_CHILD, json.dumps(hover_overrides(n, hz)), str(warm),
                                      str(steps), repr(PERIOD), points], None)}
             for variant in VARIANTS:  # in the temporary folder: MuJoCo may write its MUJOCO_LOG.TXT
                 sides[f"crazyflow_{variant}"] = ([cf, "-c", CRAZYFLOW_CHILD, "steady", variant, points, str(warm),
-                                                  str(steps), ""], tmp)
+                                                  str(steps), "", str(hz)], tmp)
             best = alternate(sides, repeat, "drone_steps_per_s")
-            row = {"n": n, "warm": warm, "steps": steps, **best}
+            row = {"n": n, "command_hz": hz, "warm": warm, "steps": steps, **best}
             ours = best["swarmscene"].get("drone_steps_per_s")
             for variant in VARIANTS:
                 peer = best[f"crazyflow_{variant}"]
                 if ours and "drone_steps_per_s" in peer:
                     row[f"ratio_{variant}"] = ours / peer["drone_steps_per_s"]
                     row[f"ratio_{variant}_fused"] = ours / peer["fused_drone_steps_per_s"]
-            log(f"  hover N = {n:,}: " + "; ".join(
+            log(f"  hover N = {n:,}, command {hz} Hz: " + "; ".join(
                 f"{side} {r['drone_steps_per_s']:.3g} drone-steps/s"
                 + (f" (fused {r['fused_drone_steps_per_s']:.3g})" if "fused_drone_steps_per_s" in r else "")
                 + f", hover error {r['hover_error_m']:.2g} m" if "error" not in r else f"{side} FAILED: {r['error']}"
                 for side, r in best.items()))
             rows.append(row)
-    return {"rows": rows, "repeat": repeat, "hz": HZ}
+    return {"rows": rows, "repeat": repeat, "hz": HZ, "command_hz": list(rates)}
 
 
 def swarmscene_command(n: int, run_dir: str) -> list[str]:
