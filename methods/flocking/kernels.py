@@ -82,3 +82,72 @@ def flocking_steer(i, j, delta, heading, follow, cohere, match, separate, separa
     for a in range(n):
         count[a] = to_i_sum[a] + to_j_sum[a]
     return steer, count
+
+
+@numba.njit(cache=True)
+def seam_pairs(pos, lo, hi, radius, shifts):
+    """Pairs within ``radius`` through the seams of a periodic box (the ones a Euclidean search misses).
+
+    Args:
+        pos: (N, 3) positions inside the box on its periodic axes (the first A = ``len(lo)``).
+        lo, hi: (A,) corners of the box on the periodic axes; ``radius`` < half its smallest side.
+        shifts: (K, A) the images to try, in box units (``periodic_shifts``: half of the 3^A - 1).
+    Returns:
+        i, j (M,) and p_j - (p_i + shift) on the periodic axes, (A, M): the minimum-image vectors.
+
+    For shift s, only an agent within ``radius`` of the face s carries it across can meet anyone,
+    and only agents within ``radius`` of the opposite face can be met: each band is listed, and
+    every image p_i + s is tested against the other band (3-D distance, so non-periodic axes count
+    as usual). Exact; a few bands of a few agents, so no tree is needed.
+    """
+    n = pos.shape[0]
+    axes = lo.shape[0]
+    size = hi - lo
+    r2 = radius * radius
+    out_i, out_j = [0][:0], [0][:0]
+    out_d = [0.0][:0]
+    source = np.empty(n, np.int64)
+    target = np.empty(n, np.int64)
+    image = np.empty(3)
+    for s in range(shifts.shape[0]):
+        ns = nt = 0
+        for a in range(n):
+            near_from = near_to = True
+            for k in range(axes):
+                if shifts[s, k] > 0:
+                    near_from = near_from and pos[a, k] <= lo[k] + radius
+                    near_to = near_to and pos[a, k] >= hi[k] - radius
+                elif shifts[s, k] < 0:
+                    near_from = near_from and pos[a, k] >= hi[k] - radius
+                    near_to = near_to and pos[a, k] <= lo[k] + radius
+            if near_from:
+                source[ns] = a
+                ns += 1
+            if near_to:
+                target[nt] = a
+                nt += 1
+        for u in range(ns):
+            a = source[u]
+            for k in range(3):
+                image[k] = pos[a, k] + shifts[s, k] * size[k] if k < axes else pos[a, k]
+            for v in range(nt):
+                b = target[v]
+                d2 = 0.0
+                for k in range(3):
+                    diff = pos[b, k] - image[k]
+                    d2 += diff * diff
+                if d2 <= r2:
+                    out_i.append(a)
+                    out_j.append(b)
+                    for k in range(axes):
+                        out_d.append(pos[b, k] - image[k])
+    m = len(out_i)
+    i = np.empty(m, np.int64)
+    j = np.empty(m, np.int64)
+    delta = np.empty((axes, m))
+    for p in range(m):
+        i[p] = out_i[p]
+        j[p] = out_j[p]
+        for k in range(axes):
+            delta[k, p] = out_d[p * axes + k]
+    return i, j, delta

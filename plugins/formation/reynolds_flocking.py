@@ -31,10 +31,10 @@ Choices, and why:
 
 Space (``space``): ``open`` (no walls), ``bounded`` (steered back into the box ``box_min``..
 ``box_max``), ``toroidal`` (periodic box on the x-y axes, or x-y-z when not planar, as Mesa's
-``ContinuousSpace(torus=True)``). Neighbours always come from the tick's shared k-d tree,
-``sensing.pairs(vision)``; in a torus the pairs through the seams are added by querying the images
-of the agents near a face against the same tree (:func:`seam_pairs`, exact minimum image while
-``vision`` < half the box). The plugin declares the box (:meth:`periodic_box`) and the kernel folds
+``ContinuousSpace(torus=True)``). Neighbours always come from the tick's shared pair list,
+``sensing.pairs(vision)``; in a torus the pairs through the seams are added by testing the images
+of the agents near a face against the agents near the opposite one (compiled:
+``methods.flocking.kernels.seam_pairs``, exact minimum image while ``vision`` < half the box). The plugin declares the box (:meth:`periodic_box`) and the kernel folds
 positions back into it in its ``wrap`` phase, after every physics update and before any observer
 reads them, so monitors, recorders and the next tick see positions in the box, as in Mesa. Note the engine's safety monitor
 measures Euclidean distance in the box: pairs close across a seam are not seen by it. Distances are
@@ -48,7 +48,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import Field, model_validator
 
 from swarmscene.core.hookspecs import hookimpl
@@ -59,8 +58,6 @@ from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import wrap
 
 if TYPE_CHECKING:  # pragma: no cover
-    from scipy.spatial import cKDTree
-
     from swarmscene.core.simulation import Simulation
 
 Point3 = tuple[float, float, float]
@@ -152,43 +149,6 @@ def periodic_shifts(axes: int) -> np.ndarray:
     return grid[first > 0]
 
 
-def seam_pairs(
-    pos: np.ndarray, tree: cKDTree, lo: np.ndarray, hi: np.ndarray, radius: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pairs within ``radius`` through the seams of a periodic box (the ones a Euclidean tree misses).
-
-    Args:
-        pos: (N, 3) positions inside the box on its periodic axes (the first A = ``len(lo)``).
-        tree: the k-d tree over ``pos`` (the tick's shared one).
-        lo, hi: (A,) corners of the box on the periodic axes; ``radius`` < half its smallest side.
-    Returns:
-        i, j (M,) and p_j - (p_i + shift) on the periodic axes, (A, M): the minimum-image vectors.
-
-    For each shift s, only agents within ``radius`` of the face that s carries them across can meet
-    anyone: their images p_i + s are queried against the tree (3-D distance, so non-periodic axes
-    count as usual).
-    """
-    axes, size = len(lo), hi - lo
-    agents, images = [], []
-    for shift in periodic_shifts(axes):
-        near = np.ones(len(pos), dtype=bool)
-        for k in np.flatnonzero(shift):
-            near &= pos[:, k] <= lo[k] + radius if shift[k] > 0 else pos[:, k] >= hi[k] - radius
-        idx = np.flatnonzero(near)
-        image = pos[idx].copy()
-        image[:, :axes] += shift * size
-        agents.append(idx)
-        images.append(image)
-    agents_all, images_all = np.concatenate(agents), np.concatenate(images)
-    if agents_all.size == 0:
-        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros((axes, 0))
-    # One tree over every image, one query against the shared tree.
-    hits = scipy.spatial.cKDTree(images_all).sparse_distance_matrix(tree, radius, output_type="ndarray")
-    row, j = hits["i"], hits["j"]
-    delta = (pos[j, :axes] - images_all[row, :axes]).T
-    return agents_all[row], j, np.ascontiguousarray(delta)
-
-
 class ReynoldsFlocking(Formation):
     """Boids: separation, alignment, cohesion within ``vision``; optional goal; open, bounded or torus."""
 
@@ -199,14 +159,15 @@ class ReynoldsFlocking(Formation):
     def __init__(self, params: FlockingParams, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         # The compiled steer (numba) is imported when a flock is built, not when it is registered.
-        from swarmscene.methods.flocking.kernels import flocking_steer
+        from swarmscene.methods.flocking.kernels import flocking_steer, seam_pairs
 
-        self._steer = flocking_steer
+        self._steer, self._seam_pairs = flocking_steer, seam_pairs
         self.heading = initial_headings(ctx.rng, ctx.n, params.planar)
         self.axes = 2 if params.planar else 3
         self.lo = np.asarray(params.box_min, dtype=float)
         self.hi = np.asarray(params.box_max, dtype=float)
         self.size = self.hi - self.lo
+        self._shifts = periodic_shifts(self.axes).astype(float)
         self.neighbour_count = np.zeros(ctx.n)
         self._centroid_error = np.inf
         obstacles = len(ctx.environment.obstacles)
@@ -220,7 +181,7 @@ class ReynoldsFlocking(Formation):
     def neighbours(self, world: WorldState, sensing: "Sensing") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs within ``vision`` as index arrays i, j (M,) and p_j - p_i on the steered axes (A, M)."""
         a = self.axes
-        pairs = sensing.pairs(self.params.vision)  # the tick's shared tree (in a torus: the interior)
+        pairs = sensing.pairs(self.params.vision)  # the tick's shared pair list (in a torus: the interior)
         i, j = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
         coords = np.ascontiguousarray(world.pos[:, :a].T)  # axis-major: fast 1-D gathers
         delta = np.empty((a, len(i)))
@@ -232,7 +193,7 @@ class ReynoldsFlocking(Formation):
                 pos[:, :a] = wrap(pos[:, :a], self.lo[:a], self.size[:a])
                 wrapped = WorldState.at_rest(pos)
                 return self.neighbours(wrapped, Sensing(wrapped, sensing.environment, sensing.comm_range))
-            si, sj, sdelta = seam_pairs(world.pos, sensing.tree, self.lo[:a], self.hi[:a], self.params.vision)
+            si, sj, sdelta = self._seam_pairs(world.pos, self.lo[:a], self.hi[:a], self.params.vision, self._shifts)
             return np.concatenate([i, si]), np.concatenate([j, sj]), np.concatenate([delta, sdelta], axis=1)
         return i, j, delta
 

@@ -1,9 +1,13 @@
-"""The NumPy form of the boids' steer: the oracle of the compiled one
-(``swarmscene.methods.flocking.kernels.flocking_steer``), which must equal it bit for bit."""
+"""The NumPy forms of the boids' steer and seam pairs: the oracles of the compiled ones
+(``swarmscene.methods.flocking.kernels``), which must equal them (the steer bit for bit, the seam
+pairs as a set with the same minimum-image vectors)."""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
+
+from swarmscene.plugins.formation.reynolds_flocking import periodic_shifts
 
 
 def flocking_steer(
@@ -57,3 +61,40 @@ def flocking_steer(
     else:
         count = np.bincount(i, f_j, n) + np.bincount(j, f_i, n)
     return steer, count
+
+
+def seam_pairs(
+    pos: np.ndarray, tree: cKDTree, lo: np.ndarray, hi: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs within ``radius`` through the seams of a periodic box (the ones a Euclidean tree misses).
+
+    Args:
+        pos: (N, 3) positions inside the box on its periodic axes (the first A = ``len(lo)``).
+        tree: the k-d tree over ``pos`` (the tick's shared one).
+        lo, hi: (A,) corners of the box on the periodic axes; ``radius`` < half its smallest side.
+    Returns:
+        i, j (M,) and p_j - (p_i + shift) on the periodic axes, (A, M): the minimum-image vectors.
+
+    For each shift s, only agents within ``radius`` of the face that s carries them across can meet
+    anyone: their images p_i + s are queried against the tree (3-D distance, so non-periodic axes
+    count as usual).
+    """
+    axes, size = len(lo), hi - lo
+    agents, images = [], []
+    for shift in periodic_shifts(axes):
+        near = np.ones(len(pos), dtype=bool)
+        for k in np.flatnonzero(shift):
+            near &= pos[:, k] <= lo[k] + radius if shift[k] > 0 else pos[:, k] >= hi[k] - radius
+        idx = np.flatnonzero(near)
+        image = pos[idx].copy()
+        image[:, :axes] += shift * size
+        agents.append(idx)
+        images.append(image)
+    agents_all, images_all = np.concatenate(agents), np.concatenate(images)
+    if agents_all.size == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros((axes, 0))
+    # One tree over every image, one query against the shared tree.
+    hits = cKDTree(images_all).sparse_distance_matrix(tree, radius, output_type="ndarray")
+    row, j = hits["i"], hits["j"]
+    delta = (pos[j, :axes] - images_all[row, :axes]).T
+    return agents_all[row], j, np.ascontiguousarray(delta)

@@ -37,3 +37,23 @@ def test_no_pairs_no_steer():
     empty = np.zeros(0, dtype=np.intp)
     steer, count = flocking_steer(empty, empty, np.zeros((2, 0)), np.ones((5, 3)), np.ones(5, bool), 1.0, 1.0, 1.0, 1.0)
     assert not steer.any() and not count.any()
+
+
+@pytest.mark.parametrize("axes", [2, 3])
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_seam_pairs_equal_the_tree_form(axes, seed):
+    """The same seam-crossing pairs as the NumPy + k-d tree form, each with the same minimum-image
+    vector to the bit (the order may differ: the compiled one lists shift by shift, i, then j)."""
+    from oracles.flocking import seam_pairs as tree_seam_pairs
+
+    from swarmscene.methods.flocking.kernels import seam_pairs
+    from swarmscene.plugins.formation.reynolds_flocking import periodic_shifts
+
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array([-5.0, 0.0, 1.0]), np.array([15.0, 30.0, 21.0])
+    pos = rng.uniform(lo, hi, size=(500, 3))
+    want = tree_seam_pairs(pos, cKDTree(pos), lo[:axes], hi[:axes], 3.0)
+    got = seam_pairs(pos, lo[:axes], hi[:axes], 3.0, periodic_shifts(axes).astype(float))
+    as_dict = lambda i, j, d: {(a, b): tuple(v) for a, b, v in zip(i.tolist(), j.tolist(), d.T.tolist())}
+    assert len(got[0]) == len(want[0]) > 0
+    assert as_dict(*got) == as_dict(*want)

@@ -17,8 +17,8 @@ from swarmscene.plugins.formation.reynolds_flocking import (
     minimum_image,
     params_from_mesa,
     periodic_shifts,
-    seam_pairs,
 )
+from swarmscene.methods.flocking.kernels import seam_pairs
 from swarmscene.core.vectors import wrap
 from scipy.spatial import cKDTree
 
@@ -194,7 +194,7 @@ def test_shared_tree_plus_seam_pairs_equal_the_periodic_neighbours(axes):
     pos = rng.uniform(lo, hi, size=(400, 3))
     radius = 3.0
     inner = cKDTree(pos).query_pairs(radius, output_type="ndarray")
-    si, sj, sdelta = seam_pairs(pos, cKDTree(pos), lo[:axes], hi[:axes], radius)
+    si, sj, sdelta = seam_pairs(pos, lo[:axes], hi[:axes], radius, periodic_shifts(axes).astype(float))
     found = {tuple(sorted(p)) for p in inner.tolist()} | {tuple(sorted(p)) for p in zip(si.tolist(), sj.tolist())}
     assert len(found) == len(inner) + len(si)  # no pair twice
     size = hi[:axes] - lo[:axes]
