@@ -177,51 +177,56 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
 def pairs_within(points: np.ndarray, radius: float):
     """Every pair (i < j) of points (N, D) at most ``radius`` apart, in lexicographic order, shape
     (M, 2), and its squared distance (M,) summed axis by axis (as a k-d tree and the dense pass
-    sum it). Two walks over the cells: one counts each point's later neighbours, one fills."""
+    sum it). One walk over the cells, point by point, into arrays that double when full; each
+    point's later neighbours are then put in order (short runs)."""
     n, dim = points.shape
     side = max(radius, _cell_side(points) * 0.25 ** (1.0 / dim))
     if side <= 0.0:
         side = 1.0  # every point at one place: one cell
     coord, shape, start, order = _grid(points, side)
     r2 = radius * radius
-    count = np.zeros(n + 1, np.int64)
-    for sweep in range(2):
-        if sweep == 1:
-            for i in range(n):
-                count[i + 1] += count[i]
-            pairs = np.empty((count[n], 2), np.int64)
-            d2s = np.empty(count[n])
-            fill = count[:-1].copy()
-        for i in range(n):
-            for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
-                for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
-                    for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
-                        q = (x * shape[1] + y) * shape[2] + z
-                        for s in range(start[q], start[q + 1]):
-                            j = order[s]
-                            if j <= i:
-                                continue
-                            d2 = 0.0
-                            for k in range(dim):
-                                diff = points[j, k] - points[i, k]
-                                d2 += diff * diff
-                            if d2 > r2:
-                                continue
-                            if sweep == 0:
-                                count[i + 1] += 1
-                            else:
-                                pairs[fill[i], 0] = i
-                                pairs[fill[i], 1] = j
-                                d2s[fill[i]] = d2
-                                fill[i] += 1
-    for i in range(n):  # each point's later neighbours in increasing order (short runs)
-        for a in range(count[i] + 1, count[i + 1]):
+    pairs = np.empty((4 * n + 16, 2), np.int64)
+    d2s = np.empty(4 * n + 16)
+    m = 0
+    for i in range(n):
+        first = m
+        for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
+            for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
+                for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
+                    q = (x * shape[1] + y) * shape[2] + z
+                    for s in range(start[q], start[q + 1]):
+                        j = order[s]
+                        if j <= i:
+                            continue
+                        d2 = 0.0
+                        for k in range(dim):
+                            diff = points[j, k] - points[i, k]
+                            d2 += diff * diff
+                        if d2 > r2:
+                            continue
+                        if m == len(d2s):
+                            pairs, d2s = _grown(pairs, d2s)
+                        pairs[m, 0] = i
+                        pairs[m, 1] = j
+                        d2s[m] = d2
+                        m += 1
+        for a in range(first + 1, m):  # i's neighbours in increasing order (insertion sort)
             j, d2 = pairs[a, 1], d2s[a]
             b = a - 1
-            while b >= count[i] and pairs[b, 1] > j:
+            while b >= first and pairs[b, 1] > j:
                 pairs[b + 1, 1] = pairs[b, 1]
                 d2s[b + 1] = d2s[b]
                 b -= 1
             pairs[b + 1, 1] = j
             d2s[b + 1] = d2
-    return pairs, d2s
+    return pairs[:m].copy(), d2s[:m].copy()
+
+
+@numba.njit(cache=True)
+def _grown(pairs: np.ndarray, d2s: np.ndarray):
+    """The arrays at twice their length, contents kept."""
+    bigger = np.empty((2 * len(d2s), 2), np.int64)
+    bigger_d2 = np.empty(2 * len(d2s))
+    bigger[: len(d2s)] = pairs
+    bigger_d2[: len(d2s)] = d2s
+    return bigger, bigger_d2
