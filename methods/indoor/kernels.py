@@ -14,7 +14,8 @@ FMA), so the results are bit-identical. Two numpy operations use BLAS, whose dot
 multiply-add: Algorithm 1's ``np.dot`` and the 1-D ``np.linalg.norm``; the kernel calls ``np.dot``
 for those too (numba reaches the same BLAS kernel). The line-of-sight and nearest-point geometry
 follows GEOS' formulas (``Distance::pointToSegment``, ``segmentToSegment``,
-``LineSegment::closestPoint``), which shapely computed before.
+``LineSegment::closestPoint``, compiled once for the engine in ``core/footprints.py``), which
+shapely computed before.
 
 Arc order of a graph (what :meth:`EdgeList.directed` returns and what the sums follow): for an
 undirected graph with edges sorted by (i, j), agent s lists first its neighbours above s, then
@@ -31,73 +32,16 @@ import math
 import numba
 import numpy as np
 
+from swarmscene.core.footprints import closest_point as _closest_point
+from swarmscene.core.footprints import inside as _inside
+from swarmscene.core.footprints import point_segment_distance as _point_segment_distance
+from swarmscene.core.footprints import segment_distance as _segment_distance
+
 READINGS = {"neighbours": 0, "common": 1, "directed": 2}
 """Codes of the ``deactivation_candidates`` readings of eq. 5.15-5.16 passed to the kernels."""
 
 
-# --- geometry (GEOS' formulas, so line-of-sight and nearest points equal shapely's) -----------
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _point_distance(px, py, ax, ay):
-    dx = px - ax
-    dy = py - ay
-    return math.sqrt(dx * dx + dy * dy)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _point_segment_distance(px, py, ax, ay, bx, by):
-    """Distance from p to segment AB (GEOS ``Distance::pointToSegment``)."""
-    if ax == bx and ay == by:
-        return _point_distance(px, py, ax, ay)
-    len2 = (bx - ax) * (bx - ax) + (by - ay) * (by - ay)
-    r = ((px - ax) * (bx - ax) + (py - ay) * (by - ay)) / len2
-    if r <= 0.0:
-        return _point_distance(px, py, ax, ay)
-    if r >= 1.0:
-        return _point_distance(px, py, bx, by)
-    s = ((ay - py) * (bx - ax) - (ax - px) * (by - ay)) / len2
-    return abs(s) * math.sqrt(len2)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _segment_distance(ax, ay, bx, by, cx, cy, dx, dy):
-    """Distance between segments AB and CD (GEOS ``Distance::segmentToSegment``): 0 if they meet."""
-    if ax == bx and ay == by:
-        return _point_segment_distance(ax, ay, cx, cy, dx, dy)
-    if cx == dx and cy == dy:
-        return _point_segment_distance(dx, dy, ax, ay, bx, by)
-    crossing = (
-        min(cx, dx) <= max(ax, bx) and max(cx, dx) >= min(ax, bx)
-        and min(cy, dy) <= max(ay, by) and max(cy, dy) >= min(ay, by)
-    )
-    if crossing:
-        denom = (bx - ax) * (dy - cy) - (by - ay) * (dx - cx)
-        if denom == 0.0:
-            crossing = False
-        else:
-            r = ((ay - cy) * (dx - cx) - (ax - cx) * (dy - cy)) / denom
-            s = ((ay - cy) * (bx - ax) - (ax - cx) * (by - ay)) / denom
-            crossing = not (r < 0.0 or r > 1.0 or s < 0.0 or s > 1.0)
-    if crossing:
-        return 0.0
-    return min(
-        min(_point_segment_distance(ax, ay, cx, cy, dx, dy), _point_segment_distance(bx, by, cx, cy, dx, dy)),
-        min(_point_segment_distance(cx, cy, ax, ay, bx, by), _point_segment_distance(dx, dy, ax, ay, bx, by)),
-    )
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _inside(px, py, seg, start, stop):
-    """Point p inside the polygon whose ring segments are seg[start:stop] (even-odd crossings)."""
-    inside = False
-    for k in range(start, stop):
-        ax, ay, bx, by = seg[k, 0], seg[k, 1], seg[k, 2], seg[k, 3]
-        if (ay > py) != (by > py):
-            x = ax + (py - ay) * (bx - ax) / (by - ay)
-            if px < x:
-                inside = not inside
-    return inside
+# --- geometry (on core/footprints.py's GEOS formulas: line of sight and nearest points equal shapely's)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -150,24 +94,6 @@ def nearest_points_kernel(r, index, seg, geom_start, polygonal):
                 best = dist
                 o[i, 0], o[i, 1] = _closest_point(px, py, ax, ay, bx, by)
     return o
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _closest_point(px, py, ax, ay, bx, by):
-    """GEOS ``LineSegment::closestPoint``: the projection inside the segment, else the nearer end."""
-    if px == ax and py == ay:
-        factor = 0.0
-    elif px == bx and py == by:
-        factor = 1.0
-    else:
-        dx, dy = bx - ax, by - ay
-        len2 = dx * dx + dy * dy
-        factor = ((px - ax) * dx + (py - ay) * dy) / len2
-    if factor > 0.0 and factor < 1.0:
-        return ax + factor * (bx - ax), ay + factor * (by - ay)
-    if _point_distance(ax, ay, px, py) < _point_distance(bx, by, px, py):
-        return ax, ay
-    return bx, by
 
 
 # --- graphs G_n and G_sigma (eq. 5.7-5.22) -----------------------------------------------------

@@ -23,7 +23,7 @@ import shapely
 from shapely import STRtree
 from shapely.geometry.base import BaseGeometry
 
-from swarmscene.core.environment import nearest_within
+from swarmscene.core.environment import NO_FOOTPRINTS, footprint_arrays, nearest_within
 from swarmscene.core.environment import segments_clear as segments_clear_of
 from swarmscene.core.vectors import clip_norm, min_pair_distance
 
@@ -106,52 +106,22 @@ def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> 
     return nearest_points_kernel(r, np.asarray(index, dtype=np.intp), seg, geom_start, polygonal)
 
 
-def obstacle_arrays(geometries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Obstacle geometries as the compiled kernels' arrays (:func:`kernel_obstacles` caches them).
-
-    Returns:
-        seg: (S, 4) ring or line segments (ax, ay, bx, by), each geometry's rings in GEOS order
-            (exterior, then holes).
-        geom_start: (G + 1,) geometry g owns seg[geom_start[g]:geom_start[g + 1]].
-        polygonal: (G,) bool, geometry g is a polygon (a point inside it is at distance 0).
-        bbox: (G, 4) envelopes (minx, miny, maxx, maxy).
-    """
-    segs, start, polygonal = [], [0], []
-    for geom in geometries:
-        parts = shapely.get_parts(geom)
-        poly = bool(len(parts)) and all(p.geom_type == "Polygon" for p in parts)
-        lines = [ring for p in parts for ring in (shapely.get_rings(p) if poly else [p])]
-        coords = [shapely.get_coordinates(line) for line in lines]
-        own = [np.hstack([c[:-1], c[1:]]) for c in coords if len(c) > 1]
-        segs += own
-        start.append(start[-1] + sum(len(x) for x in own))
-        polygonal.append(poly)
-    seg = np.concatenate(segs) if segs else np.zeros((0, 4))
-    bbox = np.asarray(shapely.bounds(np.asarray(geometries, dtype=object)), dtype=float).reshape(-1, 4)
-    return (np.ascontiguousarray(seg, dtype=float), np.asarray(start, dtype=np.intp),
-            np.asarray(polygonal, dtype=np.bool_), np.ascontiguousarray(bbox))
-
-
-NO_OBSTACLES = (np.zeros((0, 4)), np.zeros(1, dtype=np.intp), np.zeros(0, dtype=np.bool_), np.zeros((0, 4)))
-"""The kernels' obstacle arrays of open space."""
-
-
-
 _KERNEL_OBSTACLES: dict[int, tuple[np.ndarray, tuple[np.ndarray, ...]]] = {}
 
 
 def kernel_obstacles(geometries: np.ndarray | STRtree | None) -> tuple[np.ndarray, ...]:
-    """:func:`obstacle_arrays` of an obstacle set (its STRtree or the tree's ``geometries``),
+    """The engine's :func:`~swarmscene.core.environment.footprint_arrays` of an obstacle set (its
+    STRtree or the tree's ``geometries``),
     cached per set: a map's walls are converted once, not every tick."""
     if geometries is None:
-        return NO_OBSTACLES
+        return NO_FOOTPRINTS
     if isinstance(geometries, STRtree):
         geometries = geometries.geometries
     key = id(geometries)
     if key not in _KERNEL_OBSTACLES or _KERNEL_OBSTACLES[key][0] is not geometries:
         if len(_KERNEL_OBSTACLES) >= 16:  # maps of finished runs
             _KERNEL_OBSTACLES.clear()
-        _KERNEL_OBSTACLES[key] = (geometries, obstacle_arrays(geometries))
+        _KERNEL_OBSTACLES[key] = (geometries, footprint_arrays(geometries))
     return _KERNEL_OBSTACLES[key][1]
 
 

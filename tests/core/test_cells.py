@@ -78,3 +78,28 @@ def test_a_swarm_flat_to_micrometres_gets_a_planar_grid():
     points = np.column_stack([grid, 2.0 + rng.normal(0, 1e-6, len(grid))])
     assert _cell_side(points) == pytest.approx(87.0 / np.sqrt(450), rel=1e-9)
     assert closest_pair_distance(points) == _tree_min(points)
+
+
+def test_compiled_nearest_obstacle_equals_shapelys_to_the_bit():
+    """core/footprints.py on the building's walls and on polygons with holes: the nearest of
+    each point's candidates and its distance, against the engine's shapely search."""
+    import shapely
+    from shapely.geometry import Point, Polygon
+
+    from swarmscene.core.environment import Environment, nearest_within
+    from swarmscene.core.footprints import nearest_of_candidates
+    from swarmscene.core.generators import BuildingParams, building
+
+    rng = np.random.default_rng(5)
+    ring = Polygon([(0, 0), (6, 0), (6, 6), (0, 6)], [[(2, 2), (4, 2), (4, 4), (2, 4)]])
+    for obstacles in (building(BuildingParams()), [ring, Point(8, 8).buffer(0.7)]):
+        env = Environment(obstacles)
+        lo, hi = shapely.total_bounds(env._geoms).reshape(2, 2)
+        xy = rng.uniform(lo - 1.0, hi + 1.0, (3000, 2))
+        candidates = env.near_pairs(xy, 1.2)
+        want = nearest_within(env.tree, xy, 0.9, candidates)
+        seg, start, polygonal, _ = env.footprints
+        got = nearest_of_candidates(xy, candidates[0].astype(np.int64), candidates[1].astype(np.int64),
+                                    seg, start, polygonal, 0.9)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        assert (want[0] >= 0).sum() > 100 and (want[1] == 0).any()  # near walls, some inside
