@@ -44,8 +44,11 @@ def _grid(points: np.ndarray, side: float):
     lo = np.zeros(3)
     shape = np.ones(3, np.int64)
     for k in range(dim):
-        lo[k] = points[:, k].min()
-        shape[k] = int((points[:, k].max() - lo[k]) / side) + 1
+        lo[k] = hi = points[0, k]
+        for i in range(n):
+            lo[k] = min(lo[k], points[i, k])
+            hi = max(hi, points[i, k])
+        shape[k] = int((hi - lo[k]) / side) + 1
     coord = np.zeros((n, 3), np.int64)
     cell = np.empty(n, np.int64)
     for i in range(n):
@@ -100,13 +103,24 @@ def _cell_side(points: np.ndarray) -> float:
     n, dim = points.shape
     extent = np.zeros(dim)
     for k in range(dim):
-        extent[k] = points[:, k].max() - points[:, k].min()
-    extent = np.sort(extent)[::-1]
+        lo = hi = points[0, k]
+        for i in range(n):
+            lo = min(lo, points[i, k])
+            hi = max(hi, points[i, k])
+        extent[k] = hi - lo
+    for a in range(1, dim):  # widest first (plain loops: np.sort costs seconds of compile time)
+        b = a
+        while b > 0 and extent[b - 1] < extent[b]:
+            extent[b - 1], extent[b] = extent[b], extent[b - 1]
+            b -= 1
     cells = max(0.5 * n, 1.0)
     for d in range(dim, 0, -1):
         if extent[d - 1] <= 0.0:
             continue
-        side = (np.prod(extent[:d]) / cells) ** (1.0 / d)
+        volume = 1.0
+        for k in range(d):
+            volume *= extent[k]
+        side = (volume / cells) ** (1.0 / d)
         if side <= extent[d - 1]:
             return side
     return extent[0]
@@ -227,6 +241,8 @@ def _grown(pairs: np.ndarray, d2s: np.ndarray):
     """The arrays at twice their length, contents kept."""
     bigger = np.empty((2 * len(d2s), 2), np.int64)
     bigger_d2 = np.empty(2 * len(d2s))
-    bigger[: len(d2s)] = pairs
-    bigger_d2[: len(d2s)] = d2s
+    for a in range(len(d2s)):  # loops: a 2-D slice assignment costs seconds of compile time
+        bigger[a, 0] = pairs[a, 0]
+        bigger[a, 1] = pairs[a, 1]
+        bigger_d2[a] = d2s[a]
     return bigger, bigger_d2
