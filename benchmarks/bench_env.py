@@ -31,30 +31,36 @@ def overrides(n: int, steps: int) -> list[str]:
             "formation.shape=grid", f"clock.duration={(steps + 1) * 0.1:.1f}"]
 
 
+WARM = 5
+"""untimed steps after reset: the first ticks load the compiled kernels (numba) once per process"""
+
+
 def measure(kind: str, n: int, steps: int) -> dict:
-    """Wall time of ``steps`` environment steps of ``kind`` at ``n`` agents (after reset)."""
+    """Wall time of ``steps`` environment steps of ``kind`` at ``n`` agents (after reset and
+    ``WARM`` untimed steps)."""
     import numpy as np
 
     from swarmscene.env import make_env, make_gym_env
 
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1.0, 1.0, size=(steps, n, 3)).astype(np.float32)
+    actions = rng.uniform(-1.0, 1.0, size=(WARM + steps, n, 3)).astype(np.float32)
     if kind == "parallel":
-        env = make_env(overrides(n, steps))
+        env = make_env(overrides(n, WARM + steps))
         env.reset(seed=0)
         names = list(env.possible_agents)
         batches = [dict(zip(names, a)) for a in actions]
-        t0 = time.perf_counter()
-        for batch in batches:
-            env.step(batch)
-        wall = time.perf_counter() - t0
+        step = env.step
     else:
-        env = make_gym_env(overrides(n, steps))
+        env = make_gym_env(overrides(n, WARM + steps))
         env.reset(seed=0)
-        t0 = time.perf_counter()
-        for a in actions:
-            env.step(a)
-        wall = time.perf_counter() - t0
+        batches = list(actions)
+        step = env.step
+    for batch in batches[:WARM]:
+        step(batch)
+    t0 = time.perf_counter()
+    for batch in batches[WARM:]:
+        step(batch)
+    wall = time.perf_counter() - t0
     return {"kind": kind, "n": n, "steps": steps, "wall": wall, "steps_per_s": steps / wall}
 
 
