@@ -33,3 +33,20 @@ def test_ci_runs_the_readme_test_command():
     ci = (ROOT / ".ci" / "run").read_text()
     command = re.search(r'^TEST_COMMAND="(.+)"$', ci, re.M).group(1)
     assert command in readme
+
+
+def test_every_benchmark_command_on_the_page_is_run_by_benchmarks_all():
+    """docs/benchmarks.md's figures regenerate from one command (benchmarks/all.py): each
+    benchmark script invocation on the page (in backticks or a code block) is one of its entries."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_all", ROOT / "benchmarks" / "all.py")
+    bench_all = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_all)
+    listed = {command for _, command, _ in bench_all.ENTRIES} | set(bench_all.EXAMPLES)
+    page = (ROOT / "docs" / "benchmarks.md").read_text()
+    pattern = r"((?:[A-Z_]+=\S+ |taskset -c \d )*python benchmarks/[\w/]+\.py(?: --?[\w-]+| [\w.]+)*)"
+    shown = {m.strip() for m in re.findall(r"`" + pattern + r"`", page)}
+    shown |= {m.strip() for block in re.findall(r"```\w*\n(.*?)```", page, re.S)
+              for line in block.splitlines() for m in re.findall(r"^" + pattern, line.split("#")[0].strip())}
+    assert shown and shown <= listed, sorted(shown - listed)
