@@ -22,8 +22,8 @@ no pair list and no sparse matrix.
 
 Pairs. :func:`pairs_within` lists the pairs within a radius (cells at least that wide) with their
 squared distances, in lexicographic order: the engine's shared pair list
-(:meth:`swarmscene.core.sensing.Sensing.pairs`), ~5x cheaper than a tree's ``query_pairs``, and
-its distances make the monitor's closest pair free.
+(:meth:`swarmscene.core.sensing.Sensing.pairs`), with no tree to build (1,000 boids in flocks: 192
+against 245 us), and its distances make the monitor's closest pair free.
 
 This module imports numba: it is imported only for swarms of more than
 ``core.vectors.DENSE_POINTS`` agents (closest pair, pairs) or ``core.sensing.DENSE_LIMIT``

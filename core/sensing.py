@@ -166,7 +166,8 @@ class Sensing:
             if larger:
                 wide = min(larger)
                 keep = self._pair_d2[wide] <= radius * radius
-                self._pairs[radius], self._pair_d2[radius] = self._pairs[wide][keep], self._pair_d2[wide][keep]
+                self._pairs[radius] = self._pairs[wide][keep]
+                self._pair_d2[radius] = self._pair_d2[wide][keep]
             else:
                 reach = max(radius, self._hint["pairs"])
                 self._pairs[reach], self._pair_d2[reach] = pairs_within(self.world.pos, reach)
@@ -207,8 +208,9 @@ class Sensing:
     def knn(self) -> tuple[np.ndarray, np.ndarray]:
         """Distances and indices of each agent's ``NEAR_K`` nearest others, shape (N, <= NEAR_K).
 
-        One query shared by the separation monitor (column 0 is the nearest other agent) and the
-        connectivity test; ``inf`` / N mark missing neighbours in tiny swarms.
+        One query shared by :attr:`nearest`, the policy observations and, when it ran, the
+        separation monitor (column 0 is the nearest other agent); ``inf`` / N mark missing
+        neighbours in tiny swarms.
         """
         n = self.world.n
         k = min(n, NEAR_K + 1)

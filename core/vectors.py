@@ -50,8 +50,9 @@ def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
 def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Every pair (i < j, in lexicographic order) of ``points`` (N, D) at most ``radius`` apart,
     shape (M, 2), and its squared distance (M,): one dense pass for at most ``DENSE_POINTS``
-    points, a compiled cell list for more (:func:`.cells.pairs_within`, ~5x cheaper than a k-d
-    tree's ``query_pairs``). Both sum distances as the tree does, so they agree with it to the bit.
+    points, a compiled cell list for more (:func:`.cells.pairs_within`; no tree to build: 1,000
+    boids in flocks, 192 us against 245 us for a k-d tree's build and ``query_pairs``). Both sum
+    distances as the tree does, so they agree with it to the bit.
     """
     if len(points) <= DENSE_POINTS:
         i, j, d2 = dense_pair_dist2(points)
