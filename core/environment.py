@@ -3,6 +3,8 @@
 Obstacles are footprints in the world x-y plane (walls, pillars, buildings that are taller than any
 flight level); every query takes agent positions ``(N, 2)`` or ``(N, 3)`` (z is ignored) and answers
 for all agents in one vectorised shapely call, using an STRtree to pick the candidate obstacles.
+The per-tick nearest-obstacle search of a swarm over ``DENSE_POINTS`` agents runs compiled instead
+(``core/footprints.py``, GEOS' formulas over :attr:`Environment.footprints`: the same distances).
 """
 
 from __future__ import annotations

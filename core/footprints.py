@@ -23,6 +23,7 @@ import numpy as np
 
 @numba.njit(cache=True, error_model="numpy")
 def point_distance(px, py, ax, ay):
+    """Distance between the points p and a."""
     dx = px - ax
     dy = py - ay
     return math.sqrt(dx * dx + dy * dy)
