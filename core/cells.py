@@ -32,6 +32,8 @@ members (connectivity), so a small run never pays numba's start-up.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -151,14 +153,76 @@ def _root(parent: np.ndarray, i: int) -> int:
 def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
     """True when the graph joining points (N, D) at most ``radius`` apart is connected (N >= 1).
 
-    Exact: distances are compared as squared sums against radius^2, as the dense test does. The
-    cells are at least ``radius`` wide (wider when that would make more than about 2 N cells), so
-    every joined pair lies in the same or adjacent cells.
+    Exact: distances are compared as squared sums against radius^2, as the dense test does. With
+    cells narrower than radius / sqrt(3), the points of a cell are all joined to each other, so a
+    cell is joined whole, and two cells (at most two apart on each axis) are joined by the first
+    pair found within the radius, skipped when union-find already has them in one component: a
+    dense flock costs about one test per pair of neighbouring cells, not one per pair of agents.
+    A sparse swarm (cells that narrow would outnumber the agents by far) is tested pair by pair.
     """
     n, dim = points.shape
-    side = max(radius, _cell_side(points) * 0.25 ** (1.0 / dim))
-    if side <= 0.0:
+    fine = radius / math.sqrt(3.0) * (1.0 - 1e-9)  # margin: a cell's diagonal stays below radius
+    coarse = _cell_side(points) * 0.25 ** (1.0 / dim)  # about 2 N cells
+    if coarse <= 0.0:
         return True  # every point at one place
+    if fine < coarse:
+        return _connected_by_pairs(points, radius, max(radius, coarse))
+    coord, shape, start, order = _grid(points, fine)
+    parent = np.arange(n)
+    components = n
+    for q in range(start.size - 1):  # every cell is a clique
+        for s in range(start[q] + 1, start[q + 1]):
+            a, b = _root(parent, order[start[q]]), _root(parent, order[s])
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+                components -= 1
+    if components == 1:
+        return True
+    r2 = radius * radius
+    for q in range(start.size - 1):
+        if start[q] == start[q + 1]:
+            continue
+        cz = q % shape[2]
+        cy = (q // shape[2]) % shape[1]
+        cx = q // (shape[1] * shape[2])
+        for x in range(max(cx - 2, 0), min(cx + 3, shape[0])):
+            for y in range(max(cy - 2, 0), min(cy + 3, shape[1])):
+                for z in range(max(cz - 2, 0), min(cz + 3, shape[2])):
+                    q2 = (x * shape[1] + y) * shape[2] + z
+                    if q2 <= q or start[q2] == start[q2 + 1]:
+                        continue
+                    a, b = _root(parent, order[start[q]]), _root(parent, order[start[q2]])
+                    if a == b or not _cells_meet(points, order, start, q, q2, r2):
+                        continue
+                    parent[max(a, b)] = min(a, b)
+                    components -= 1
+                    if components == 1:
+                        return True
+    return components == 1
+
+
+@numba.njit(cache=True)
+def _cells_meet(points, order, start, q, q2, r2) -> bool:
+    """Some point of cell q and some point of cell q2 are at most sqrt(r2) apart."""
+    dim = points.shape[1]
+    for s in range(start[q], start[q + 1]):
+        i = order[s]
+        for t in range(start[q2], start[q2 + 1]):
+            j = order[t]
+            d2 = 0.0
+            for k in range(dim):
+                diff = points[j, k] - points[i, k]
+                d2 += diff * diff
+            if d2 <= r2:
+                return True
+    return False
+
+
+@numba.njit(cache=True)
+def _connected_by_pairs(points: np.ndarray, radius: float, side: float) -> bool:
+    """:func:`disk_graph_connected` pair by pair, over cells at least ``radius`` wide (``side``),
+    so that every joined pair lies in the same or adjacent cells."""
+    n, dim = points.shape
     coord, shape, start, order = _grid(points, side)
     parent = np.arange(n)
     components = n

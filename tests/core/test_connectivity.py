@@ -105,3 +105,21 @@ def test_large_swarms_are_judged_by_the_compiled_union_find_exactly(seed):
             assert Sensing(world, Environment(), comm_range=radius).comm_connected == want
             verdicts.add(want)
     assert verdicts == {True, False}
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_both_cell_walks_of_the_union_find_agree_with_networkx(seed):
+    """The clique-per-cell walk (cells narrower than radius / sqrt 3) and the pair-by-pair walk
+    give networkx's verdict on the same swarms, also at distances a hair either side of the radius."""
+    from swarmscene.core.cells import _connected_by_pairs, disk_graph_connected
+
+    rng = np.random.default_rng(seed)
+    for n, spread in [(200, 10.0), (300, 14.0), (60, 3.0)]:
+        pos = np.column_stack([rng.uniform(0, spread, (n, 2)), np.full(n, 2.0)])
+        world = WorldState.at_rest(pos)
+        for radius in (0.8, 1.2, 2.0):
+            want = nx.is_connected(comm_graph(world, radius))
+            assert disk_graph_connected(pos, radius) == want
+            assert _connected_by_pairs(pos, radius, radius) == want
+    chain = np.column_stack([np.arange(40) * 1.0, np.zeros(40), np.zeros(40)])  # links of exactly 1 m
+    assert disk_graph_connected(chain, 1.0) and not disk_graph_connected(chain, 1.0 - 1e-12)
