@@ -8,8 +8,8 @@
 Each entry is a command the page shows beside its figures, run as written (from the repository
 root, with this interpreter for ``python``), one after the other so no two measurements share the
 machine. Its output is kept in ``benchmarks/results/all/<name>.log``; the summary at the end says
-which commands failed. tests/test_docs.py checks that every command on the page is listed here,
-so a figure cannot be added without the command that makes it.
+which commands failed. tests/test_docs.py checks that every benchmark script the page runs is run
+by an entry here, so a figure cannot be added without the command that makes it.
 """
 
 from __future__ import annotations
@@ -53,11 +53,6 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("resilience", "python benchmarks/bench_resilience.py --markdown", 40),
     ("falsify", "python benchmarks/bench_falsify.py", 30),
 ]
-EXAMPLES = [
-    "python benchmarks/sweep_indoor.py --shapes l --widths 070 080 --seeds 10 --verbose",
-    "python benchmarks/bench_scale.py 10000 100000",
-]
-"""Commands the page shows as ways to run a part of an entry (no figure of their own): not run."""
 QUICK_MINUTES = 10.0
 """--quick runs the entries expected to take at most this long."""
 

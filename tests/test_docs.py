@@ -35,18 +35,17 @@ def test_ci_runs_the_readme_test_command():
     assert command in readme
 
 
-def test_every_benchmark_command_on_the_page_is_run_by_benchmarks_all():
-    """docs/benchmarks.md's figures regenerate from one command (benchmarks/all.py): each
-    benchmark script invocation on the page (in backticks or a code block) is one of its entries."""
+def test_every_benchmark_script_on_the_page_is_run_by_benchmarks_all():
+    """docs/benchmarks.md's figures regenerate from one command (benchmarks/all.py): every
+    benchmark script the page runs (in backticks or a code block) is run by one of its entries."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("bench_all", ROOT / "benchmarks" / "all.py")
     bench_all = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench_all)
-    listed = {command for _, command, _ in bench_all.ENTRIES} | set(bench_all.EXAMPLES)
+    script = r"python (benchmarks/[\w/]+\.py)"
+    run = {m for _, command, _ in bench_all.ENTRIES for m in re.findall(script, command)}
     page = (ROOT / "docs" / "benchmarks.md").read_text()
-    pattern = r"((?:[A-Z_]+=\S+ |taskset -c \d )*python benchmarks/[\w/]+\.py(?: --?[\w-]+| [\w.]+)*)"
-    shown = {m.strip() for m in re.findall(r"`" + pattern + r"`", page)}
-    shown |= {m.strip() for block in re.findall(r"```\w*\n(.*?)```", page, re.S)
-              for line in block.splitlines() for m in re.findall(r"^" + pattern, line.split("#")[0].strip())}
-    assert shown and shown <= listed, sorted(shown - listed)
+    code = re.findall(r"`([^`]+)`", page) + re.findall(r"```\w*\n(.*?)```", page, re.S)
+    shown = {m for text in code for m in re.findall(script, text)}
+    assert len(shown) > 10 and shown - {"benchmarks/all.py"} <= run, sorted(shown - run)
