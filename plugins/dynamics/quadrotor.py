@@ -29,7 +29,7 @@ spins as the remaining wrench makes it (a dead rotor leaves the yaw drag torques
 
 Wind (``disturbances``): the model integrates it (``wind_coupling = "integrated"``): at each
 internal step the force per mass R diag(D) R^T w (the airframe's rotor-drag coefficients D, see
-quadrotor_model.py) joins the RK4 right-hand side, and with ``moment_arm`` h the moment
+methods/quadrotor/model.py) joins the RK4 right-hand side, and with ``moment_arm`` h the moment
 (0, 0, h) x F_body joins the rotors' torque.
 """
 
@@ -63,7 +63,7 @@ class Quadrotor(Dynamics):
         airframe: Literal["crazyflie", "m330"] = Field(
             "crazyflie",
             description="crazyflie: 27 g nano quad (Foerster 2015 identification); m330: ~1 kg, "
-            "330 mm quad of the CEM paper's class (assumed parameters, see quadrotor_model.py)",
+            "330 mm quad of the CEM paper's class (assumed parameters, see methods/quadrotor/model.py)",
         )
         position_omega: float = Field(
             4.0, gt=0, description="natural frequency of the position loop, rad/s")
