@@ -39,6 +39,36 @@ import numpy as np
 
 
 @numba.njit(cache=True)
+def _extent(points: np.ndarray, k: int):
+    """Smallest and largest coordinate along axis k (loops: axis reductions cost compile time)."""
+    lo = hi = points[0, k]
+    for i in range(points.shape[0]):
+        lo = min(lo, points[i, k])
+        hi = max(hi, points[i, k])
+    return lo, hi
+
+
+@numba.njit(cache=True, inline="always")  # a call per pair costs more than the sum itself
+def _dist2(points: np.ndarray, i: int, j: int) -> float:
+    """Squared distance of points i and j, summed axis by axis as a k-d tree sums it."""
+    d2 = 0.0
+    for k in range(points.shape[1]):
+        diff = points[j, k] - points[i, k]
+        d2 += diff * diff
+    return d2
+
+
+@numba.njit(cache=True)
+def _join(parent: np.ndarray, a: int, b: int) -> bool:
+    """Union of the components of a and b (union-find, smaller index as root); True if they were two."""
+    a, b = _root(parent, a), _root(parent, b)
+    if a == b:
+        return False
+    parent[max(a, b)] = min(a, b)
+    return True
+
+
+@numba.njit(cache=True)
 def _grid(points: np.ndarray, side: float):
     """Cell coordinates of every point (N, 3), grid shape (3,), and the points sorted by cell:
     ``order[start[q]:start[q + 1]]`` are the points of cell q (counting sort, O(N + cells))."""
@@ -46,10 +76,7 @@ def _grid(points: np.ndarray, side: float):
     lo = np.zeros(3)
     shape = np.ones(3, np.int64)
     for k in range(dim):
-        lo[k] = hi = points[0, k]
-        for i in range(n):
-            lo[k] = min(lo[k], points[i, k])
-            hi = max(hi, points[i, k])
+        lo[k], hi = _extent(points, k)
         shape[k] = int((hi - lo[k]) / side) + 1
     coord = np.zeros((n, 3), np.int64)
     cell = np.empty(n, np.int64)
@@ -73,10 +100,11 @@ def _grid(points: np.ndarray, side: float):
 @numba.njit(cache=True)
 def _closest_d2(points: np.ndarray, side: float) -> float:
     """Smallest squared distance between a point and a later one in its own or an adjacent cell."""
-    n, dim = points.shape
+    n = points.shape[0]
     coord, shape, start, order = _grid(points, side)
     best = np.inf
-    for i in range(n):
+    for i in range(n):  # the cell walk is written out in each walker: a shared one (a buffer of
+        # candidates) measured 1.2-2x slower
         for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
             for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
                 for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
@@ -85,12 +113,7 @@ def _closest_d2(points: np.ndarray, side: float) -> float:
                         j = order[s]
                         if j <= i:
                             continue
-                        d2 = 0.0
-                        for k in range(dim):
-                            diff = points[j, k] - points[i, k]
-                            d2 += diff * diff
-                        if d2 < best:
-                            best = d2
+                        best = min(best, _dist2(points, i, j))
     return best
 
 
@@ -105,10 +128,7 @@ def _cell_side(points: np.ndarray) -> float:
     n, dim = points.shape
     extent = np.zeros(dim)
     for k in range(dim):
-        lo = hi = points[0, k]
-        for i in range(n):
-            lo = min(lo, points[i, k])
-            hi = max(hi, points[i, k])
+        lo, hi = _extent(points, k)
         extent[k] = hi - lo
     for a in range(1, dim):  # widest first (plain loops: np.sort costs seconds of compile time)
         b = a
@@ -126,6 +146,13 @@ def _cell_side(points: np.ndarray) -> float:
         if side <= extent[d - 1]:
             return side
     return extent[0]
+
+
+@numba.njit(cache=True)
+def _wide_side(points: np.ndarray, radius: float) -> float:
+    """Cells at least ``radius`` wide, and no fewer than about 2 N over the bounding box (0: a
+    single point): every pair within the radius lies in the same or adjacent cells."""
+    return max(radius, _cell_side(points) * 0.25 ** (1.0 / points.shape[1]))
 
 
 @numba.njit(cache=True)
@@ -160,9 +187,9 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
     dense flock costs about one test per pair of neighbouring cells, not one per pair of agents.
     A sparse swarm (cells that narrow would outnumber the agents by far) is tested pair by pair.
     """
-    n, dim = points.shape
+    n = points.shape[0]
     fine = radius / math.sqrt(3.0) * (1.0 - 1e-9)  # margin: a cell's diagonal stays below radius
-    coarse = _cell_side(points) * 0.25 ** (1.0 / dim)  # about 2 N cells
+    coarse = _wide_side(points, 0.0)  # about 2 N cells
     if coarse <= 0.0:
         return True  # every point at one place
     if fine < coarse:
@@ -172,9 +199,7 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
     components = n
     for q in range(start.size - 1):  # every cell is a clique
         for s in range(start[q] + 1, start[q + 1]):
-            a, b = _root(parent, order[start[q]]), _root(parent, order[s])
-            if a != b:
-                parent[max(a, b)] = min(a, b)
+            if _join(parent, order[start[q]], order[s]):
                 components -= 1
     if components == 1:
         return True
@@ -191,10 +216,10 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
                     q2 = (x * shape[1] + y) * shape[2] + z
                     if q2 <= q or start[q2] == start[q2 + 1]:
                         continue
-                    a, b = _root(parent, order[start[q]]), _root(parent, order[start[q2]])
-                    if a == b or not _cells_meet(points, order, start, q, q2, r2):
+                    a, b = order[start[q]], order[start[q2]]
+                    if _root(parent, a) == _root(parent, b) or not _cells_meet(points, order, start, q, q2, r2):
                         continue
-                    parent[max(a, b)] = min(a, b)
+                    _join(parent, a, b)
                     components -= 1
                     if components == 1:
                         return True
@@ -204,16 +229,9 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
 @numba.njit(cache=True)
 def _cells_meet(points, order, start, q, q2, r2) -> bool:
     """Some point of cell q and some point of cell q2 are at most sqrt(r2) apart."""
-    dim = points.shape[1]
     for s in range(start[q], start[q + 1]):
-        i = order[s]
         for t in range(start[q2], start[q2 + 1]):
-            j = order[t]
-            d2 = 0.0
-            for k in range(dim):
-                diff = points[j, k] - points[i, k]
-                d2 += diff * diff
-            if d2 <= r2:
+            if _dist2(points, order[s], order[t]) <= r2:
                 return True
     return False
 
@@ -222,7 +240,7 @@ def _cells_meet(points, order, start, q, q2, r2) -> bool:
 def _connected_by_pairs(points: np.ndarray, radius: float, side: float) -> bool:
     """:func:`disk_graph_connected` pair by pair, over cells at least ``radius`` wide (``side``),
     so that every joined pair lies in the same or adjacent cells."""
-    n, dim = points.shape
+    n = points.shape[0]
     coord, shape, start, order = _grid(points, side)
     parent = np.arange(n)
     components = n
@@ -236,15 +254,7 @@ def _connected_by_pairs(points: np.ndarray, radius: float, side: float) -> bool:
                         j = order[s]
                         if j <= i:
                             continue
-                        d2 = 0.0
-                        for k in range(dim):
-                            diff = points[j, k] - points[i, k]
-                            d2 += diff * diff
-                        if d2 > r2:
-                            continue
-                        a, b = _root(parent, i), _root(parent, j)
-                        if a != b:
-                            parent[max(a, b)] = min(a, b)
+                        if _dist2(points, i, j) <= r2 and _join(parent, i, j):
                             components -= 1
                             if components == 1:
                                 return True
@@ -257,8 +267,8 @@ def pairs_within(points: np.ndarray, radius: float):
     (M, 2), and its squared distance (M,) summed axis by axis (as a k-d tree and the dense pass
     sum it). One walk over the cells, point by point, into arrays that double when full; each
     point's later neighbours are then put in order (short runs)."""
-    n, dim = points.shape
-    side = max(radius, _cell_side(points) * 0.25 ** (1.0 / dim))
+    n = points.shape[0]
+    side = _wide_side(points, radius)
     if side <= 0.0:
         side = 1.0  # every point at one place: one cell
     coord, shape, start, order = _grid(points, side)
@@ -276,10 +286,7 @@ def pairs_within(points: np.ndarray, radius: float):
                         j = order[s]
                         if j <= i:
                             continue
-                        d2 = 0.0
-                        for k in range(dim):
-                            diff = points[j, k] - points[i, k]
-                            d2 += diff * diff
+                        d2 = _dist2(points, i, j)
                         if d2 > r2:
                             continue
                         if m == len(d2s):
