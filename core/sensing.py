@@ -174,16 +174,6 @@ class Sensing:
                 return self._listed_pairs(radius)
         return self._pairs[radius]
 
-    def _pair_dist2(self, pairs: np.ndarray) -> np.ndarray:
-        """Squared distances of ``pairs`` (axis by axis: 1-D gathers are several times faster)."""
-        i, j = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
-        d2 = np.zeros(len(pairs))
-        for k in range(self.world.pos.shape[1]):
-            col = np.ascontiguousarray(self.world.pos[:, k])
-            diff = col.take(j) - col.take(i)
-            d2 += diff * diff
-        return d2
-
     @cached_property
     def min_separation(self) -> float:
         """Smallest distance between two agents, m (``inf`` with fewer than two).
@@ -284,8 +274,14 @@ class Sensing:
     @cached_property
     def comm_edges(self) -> np.ndarray:
         """Links (i < j) of the communication graph: pairs within range, both ends members."""
+        return self._comm_links[0]
+
+    @cached_property
+    def _comm_links(self) -> tuple[np.ndarray, np.ndarray]:
+        """:attr:`comm_edges` and their squared lengths (from the pair list's own)."""
         pairs = self.pairs(self.comm_range)
-        return pairs[self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]]
+        links = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
+        return pairs[links], self._pair_d2[self.comm_range][links]
 
     @cached_property
     def comm_adjacency(self) -> "csr_matrix":
@@ -330,7 +326,7 @@ class Sensing:
         edges = self.comm_edges
         i, j = _renumber(self.world.n, members, edges)
         # csgraph reads a zero weight as a missing link: co-located members weigh a little.
-        length = np.maximum(np.sqrt(self._pair_dist2(edges)), 1e-12)
+        length = np.maximum(np.sqrt(self._comm_links[1]), 1e-12)
         weights = scipy.sparse.coo_matrix((length, (i, j)), shape=(m, m))
         tree = scipy.sparse.csgraph.minimum_spanning_tree(weights).tocoo()
         if tree.nnz != m - 1:
