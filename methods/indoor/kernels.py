@@ -204,7 +204,13 @@ def _arc_rules(r, nx, ny, indptr, dst, a, b, phi_d, common, mark, cand, side, bo
             cand[count] = k  # the arc a -> m: its coordinates are nx[k], ny[k]
             side[count] = phi > 0.0
             count += 1
-    rule2 = False
+    return rule1, _crossing(nx, ny, cand, side, count, d_sq)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _crossing(nx, ny, cand, side, count, d_sq):
+    """Rule 5.21: two of the ``count`` candidates, one on each side of the edge (``side``), are
+    closer to each other than the edge is long (squared length ``d_sq``)."""
     for u in range(count):
         if side[u]:
             continue
@@ -213,11 +219,8 @@ def _arc_rules(r, nx, ny, indptr, dst, a, b, phi_d, common, mark, cand, side, bo
             if side[v]:
                 dx, dy = nx[cand[v]] - cx, ny[cand[v]] - cy
                 if dx * dx + dy * dy < d_sq:
-                    rule2 = True
-                    break
-        if rule2:
-            break
-    return rule1, rule2
+                    return True
+    return False
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -243,16 +246,7 @@ def _arc_off(r, nx, ny, indptr, a, b, phi_d, cand, side):
             cand[count] = k
             side[count] = phi > 0.0
             count += 1
-    for u in range(count):
-        if side[u]:
-            continue
-        cx, cy = nx[cand[u]], ny[cand[u]]
-        for v in range(count):
-            if side[v]:
-                dx, dy = nx[cand[v]] - cx, ny[cand[v]] - cy
-                if dx * dx + dy * dy < d_sq:
-                    return True
-    return False
+    return _crossing(nx, ny, cand, side, count, d_sq)
 
 
 @numba.njit(cache=True, error_model="numpy")
