@@ -32,11 +32,10 @@ from swarmscene.core.setpoint import Mode
 from swarmscene.core.state import Role
 
 from .graphs import EdgeList, check_reading, graphs_from_kernel, tick_graphs
-from .sensing import Obstacles, kernel_obstacles, nearest_obstacle, saturate
+from .sensing import Obstacles, nearest_obstacle, saturate
 
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.spatial import cKDTree
-    from shapely import STRtree
 
 
 @dataclass(frozen=True)
@@ -307,16 +306,18 @@ def sense(
 
 def sense_indexed(
     r: np.ndarray,
-    obstacles: "STRtree",
+    footprints: tuple[np.ndarray, ...],
     g: IndoorGains,
     index: np.ndarray,
     dist: np.ndarray,
     candidates: np.ndarray,
 ) -> IndoorSnapshot:
     """:func:`sense` when each agent's nearest obstacle within min(l_o, d_s) is already known as
-    its ``index`` in the obstacles' STRtree (-1: none) and its distance ``dist`` (the engine's
-    shared query, ``Sensing.obstacle_nearest``): o_i, G_n and G_sigma in one compiled call.
-    ``candidates``: the pairs within d_n (``Sensing.pairs``)."""
+    its ``index`` among the obstacles (-1: none) and its distance ``dist`` (the engine's shared
+    query, ``Sensing.obstacle_nearest``): o_i, G_n and G_sigma in one compiled call.
+    ``footprints``: the obstacles as segment arrays (``Environment.footprints``, or
+    ``sensing.kernel_obstacles`` of their geometries); ``candidates``: the pairs within d_n
+    (``Sensing.pairs``)."""
     from .kernels import READINGS, snapshot_kernel  # numba loads at first use, not at registration
 
     check_reading(g.deactivation_candidates)
@@ -324,7 +325,7 @@ def sense_indexed(
     o, out = snapshot_kernel(
         r, np.asarray(index, dtype=np.intp), np.asarray(dist, dtype=float), float(min(g.l_o, g.d_s)),
         np.asarray(candidates, dtype=np.intp).reshape(-1, 2), float(g.d_l), float(g.phi_d),
-        READINGS[g.deactivation_candidates], *kernel_obstacles(obstacles),
+        READINGS[g.deactivation_candidates], *footprints,
     )
     g_n, g_sigma = graphs_from_kernel(out, len(r), g.deactivation_candidates)
     return IndoorSnapshot(r, o, dist, g_n, g_sigma)

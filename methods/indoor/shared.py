@@ -39,14 +39,14 @@ _KEYS: dict[int, tuple[IndoorGains, tuple, float]] = {}
 
 def _snapshot(sensing: Any, gains: IndoorGains, reach: float) -> IndoorSnapshot:
     r = np.array(sensing.world.pos[:, :2])  # a copy: the snapshot outlives the tick (diagnostics)
-    obstacles = sensing.environment.tree
-    if obstacles is None:
-        return sense(r, None, gains, sensing.tree, None, sensing.pairs(gains.d_n))
-    # The engine's obstacle query and pair list, shared with the safety monitor; o_i and the
-    # graphs then come from one compiled call.
+    if sensing.environment.empty:  # the engine's pair list: no k-d tree is needed
+        return sense(r, None, gains, None, None, sensing.pairs(gains.d_n))
+    # The engine's obstacle query, footprint arrays and pair list, shared with the safety
+    # monitor; o_i and the graphs then come from one compiled call.
     index, clearance = sensing.obstacle_nearest(reach)
     candidates = sensing.pairs(gains.d_n)
-    return sense_indexed(r, obstacles, gains, index, np.maximum(clearance, 0.0), candidates)
+    footprints = sensing.environment.footprints
+    return sense_indexed(r, footprints, gains, index, np.maximum(clearance, 0.0), candidates)
 
 
 _GRAPH = {SHARED: "the thesis' sensing graphs (G_s, G_n, G_sigma)"}

@@ -180,6 +180,7 @@ def test_engine_snapshot_path_equals_the_oracle(reading):
     in one call) gives the oracle's o_i to the bit and its graphs edge for edge."""
     from swarmscene.core.environment import nearest_within
     from swarmscene.methods.indoor.control import sense_indexed
+    from swarmscene.methods.indoor.sensing import kernel_obstacles
 
     mp = MAPS["l_corridor"]
     g = replace(G, deactivation_candidates=reading)
@@ -187,7 +188,7 @@ def test_engine_snapshot_path_equals_the_oracle(reading):
     r = _swarm(mp, 9)
     index, dist = nearest_within(walls, r, g.l_o)
     pairs = oracle.candidate_pairs(r, g.d_n)
-    snap = sense_indexed(r, walls, g, index, dist, pairs)
+    snap = sense_indexed(r, kernel_obstacles(walls), g, index, dist, pairs)
     np.testing.assert_array_equal(snap.o, oracle.nearest_points(r, walls.geometries, index))
     g_n = oracle.neighbour_graph(r, walls, g.d_n, g.d_l, clearance=np.minimum(dist, g.l_o), candidates=pairs)
     g_sigma = oracle.sigma_graph(r, g_n, g.phi_d, reading)
