@@ -69,10 +69,16 @@ def build(cxx: str) -> Path:
 
 
 def six_vehicle() -> tuple[np.ndarray, np.ndarray]:
-    """(failed lead (1, 2), healthy (5, 2)) of section V-A, nearest spacing 2.72 m, flying +x."""
-    d, s3 = 2.72, np.sqrt(3.0)
-    healthy = np.array([[-s3 * d, 0], [-s3 / 2 * d, d / 2], [-s3 / 2 * d, -d / 2], [-s3 * d, d], [-s3 * d, -d]])
-    return np.zeros((1, 2)), healthy
+    """(failed lead, healthy) of section V-A: benchmarks/bench_cem.py's layout, the one both time."""
+    return _bench_cem().six_vehicle()
+
+
+def _bench_cem():
+    """benchmarks/bench_cem.py, whose six-vehicle layout and plugin path this comparison reuses."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_cem
+
+    return bench_cem
 
 
 def navigator(seed: int = SEED, sigma: float = 1e-3):
@@ -170,27 +176,9 @@ def time_navigator(step_source) -> tuple[float, float]:
 
 
 def plugin_stepper():
-    """The plugin's per-step path: CEM.adjust on the six-vehicle world (perfect tracking)."""
-    from swarmscene.core.events import Event, EventKind
-    from swarmscene.core.plugin import BuildContext
-    from swarmscene.core.setpoint import Mode, Setpoints
-    from swarmscene.core.state import WorldState
-    from swarmscene.plugins.avoidance.cem import CEM
-
-    failed, healthy = six_vehicle()
-    pos = np.column_stack([np.vstack([failed, healthy]), np.full(6, 2.0)])
-    world = WorldState.at_rest(pos)
-    ctx = BuildContext(n=6, guidance_period=DT, physics_step=DT, duration=TICKS * DT, separation_limit=1.36,
-                       clearance_limit=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(SEED),
-                       initial=world)
-    # hand-back tested every tick (as in the presets) but never reached, so every tick runs CEM
-    plugin = CEM(CEM.Params(handback_distance=1e6, direction=0.0), ctx)
-    ev = Event(at=0.0, agents=(0,), kind=EventKind.HOVER)
-    ev.apply(world)
-    plugin.swarmscene_event(sim=type("Sim", (), {"world": world})(), event=ev)
-    sp = Setpoints.hold(world.pos)
-    sp.mode[1:] = Mode.TRACK
-    return lambda: plugin.adjust(world, None, sp)
+    """The plugin's per-step path: CEM.adjust on the six-vehicle world (perfect tracking; the
+    hand-back tested every tick but never reached), as bench_cem.py times it."""
+    return _bench_cem().plugin_step(TICKS)
 
 
 def numpy_stepper():
