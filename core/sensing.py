@@ -179,7 +179,7 @@ class Sensing:
         """Smallest distance between two agents, m (``inf`` with fewer than two).
 
         Free when any pair list is cached and not empty (its closest pair is the closest overall:
-        a closer pair would be in it); else from the kNN query if it ran; else one 2-nearest query.
+        a closer pair would be in it); else from the kNN query if it ran; else ``min_pair_distance``.
         When the previous tick was asked for pairs, they are listed now (the same caller will
         ask again), which makes this free.
         """
@@ -192,7 +192,7 @@ class Sensing:
                 return float(np.sqrt(self._pair_d2[radius].min()))
         if "knn" in self.__dict__:
             return float(self.knn[0][:, 0].min())
-        return min_pair_distance(self.world.pos, self.__dict__.get("tree"))
+        return min_pair_distance(self.world.pos)
 
     @cached_property
     def knn(self) -> tuple[np.ndarray, np.ndarray]:

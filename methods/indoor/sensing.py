@@ -57,14 +57,14 @@ def single_integrator_step(r: np.ndarray, u: np.ndarray, u_max: float) -> np.nda
     return r + saturate(u, u_max)
 
 
-def pairwise_min_distance(r: np.ndarray, tree: "cKDTree | None" = None) -> float:
+def pairwise_min_distance(r: np.ndarray) -> float:
     """Smallest inter-agent distance ||r_i - r_j||, m (``inf`` for fewer than two agents)."""
-    return min_pair_distance(r, tree)
+    return min_pair_distance(r)
 
 
-def collision_free(r: np.ndarray, d_c: float, tree: "cKDTree | None" = None) -> bool:
+def collision_free(r: np.ndarray, d_c: float) -> bool:
     """Collision condition ||r_i - r_j|| >= d_c for every pair (thesis eq. 5.2)."""
-    return pairwise_min_distance(r, tree) >= d_c
+    return pairwise_min_distance(r) >= d_c
 
 
 def nearest_obstacle(
