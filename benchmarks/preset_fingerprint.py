@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-WALL_CLOCK = {"wall_time", "realtime_factor", "step_ms_median"}
+WALL_CLOCK = {"wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median", "vrb.planning_ms"}
 
 
 def presets() -> list[str]:
