@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from .sweeps.stats import mean_ci, wilson  # noqa: F401  (re-exported: tables and reports use them)
 from .core.outputs import atomic_write_bytes, atomic_write_json, config_hash, package_versions
 
 ERROR_FILE = "error.json"
@@ -337,32 +338,7 @@ def parquet_bytes(rows: list[dict[str, Any]]) -> bytes | None:
     return buffer.getvalue()
 
 
-# -- statistics ---------------------------------------------------------------------------------
-def mean_ci(values: Iterable[float], level: float = 0.95) -> tuple[float, float, int]:
-    """Mean and half-width of its Student-t confidence interval (NaN half-width for n < 2)."""
-    # The t quantile from scipy.special: importing scipy.stats costs ~0.5 s, serial at a sweep's end.
-    from scipy.special import stdtrit
-
-    x = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
-    n = len(x)
-    if n == 0:
-        return math.nan, math.nan, 0
-    if n == 1:
-        return float(x[0]), math.nan, 1
-    half = stdtrit(n - 1, 0.5 + level / 2) * x.std(ddof=1) / math.sqrt(n)
-    return float(x.mean()), float(half), n
-
-
-def wilson(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """95 % Wilson score interval of a success rate (well behaved at 0 and 1, unlike Wald)."""
-    if n == 0:
-        return math.nan, math.nan
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    lower = 0.0 if successes == 0 else max(0.0, centre - half)  # exact at the ends (no rounding)
-    upper = 1.0 if successes == n else min(1.0, centre + half)
-    return lower, upper
+# -- statistics: swarmscene.sweeps.stats ---------------------------------------------------------
 
 
 def _key(value: Any) -> Any:
