@@ -29,11 +29,19 @@ CORE_OBSERVERS = ("swarmscene.core.monitors", "swarmscene.core.recorder")
 
 
 class Registry:
-    """Plugin classes by kind (``formation``, ``avoidance``, ``dynamics``) and name, and observers."""
+    """Plugin classes by kind (``formation``, ``avoidance``, ``dynamics``) and name, and observers.
+
+    ``sources`` names the plugin module that registered each class (``(kind, name)`` -> the
+    manager's plugin name: a built-in module, or ``dist:entry-point`` for a third-party one), and
+    ``distributions`` the distribution and version behind each third-party plugin name, so
+    ``swarmscene plugins`` and the manifest can say which package provides what.
+    """
 
     def __init__(self) -> None:
         self.classes: dict[str, dict[str, type[Plugin]]] = {kind: {} for kind in PLUGIN_KINDS}
         self.observers: list[type[Any]] = []
+        self.sources: dict[tuple[str, str], str] = {}
+        self.distributions: dict[str, tuple[str, str]] = {}
 
     def register(self, kind: str, cls: type[Plugin]) -> None:
         """Add ``cls`` under its declared ``name``; a second class with the same name is an error."""
@@ -82,28 +90,35 @@ def make_plugin_manager(
     pm.add_hookspecs(hookspecs)
     for module_name in (*CORE_OBSERVERS, *builtins):
         pm.register(importlib.import_module(module_name), name=module_name)
-    if load_entry_points:
-        _load_entry_points(pm)
-    pm.check_pending()
     registry = Registry()
+    if load_entry_points:
+        registry.distributions = _load_entry_points(pm)
+    pm.check_pending()
     trusted = {*CORE_OBSERVERS, *builtins}
-    for hook_name, register in (
-        ("swarmscene_register_formations", lambda c: registry.register("formation", c)),
-        ("swarmscene_register_avoidances", lambda c: registry.register("avoidance", c)),
-        ("swarmscene_register_dynamics", lambda c: registry.register("dynamics", c)),
-        ("swarmscene_register_observers", registry.observers.append),
+    for hook_name, kind in (
+        ("swarmscene_register_formations", "formation"),
+        ("swarmscene_register_avoidances", "avoidance"),
+        ("swarmscene_register_dynamics", "dynamics"),
+        ("swarmscene_register_observers", None),
     ):
-        _call_registration(getattr(pm.hook, hook_name), register, trusted)
+        _call_registration(getattr(pm.hook, hook_name), registry, kind, trusted)
     return pm, registry
 
 
-def _call_registration(hook: Any, register: Any, trusted: set[str]) -> None:
+def _call_registration(hook: Any, registry: Registry, kind: str | None, trusted: set[str]) -> None:
     """Call one registration hook plugin by plugin, so a failure names its plugin.
 
     A built-in that fails is a bug and raises; a third-party plugin that fails is skipped with a
-    warning naming it.
+    warning naming it. ``kind`` None is the observers' hook.
     """
     for impl in hook.get_hookimpls():
+        def register(cls: Any, source: str = impl.plugin_name) -> None:
+            if kind is None:
+                registry.observers.append(cls)
+                return
+            registry.register(kind, cls)
+            registry.sources[(kind, cls.name)] = source
+
         try:
             impl.function(register=register)
         except Exception as exc:
@@ -116,16 +131,22 @@ def _call_registration(hook: Any, register: Any, trusted: set[str]) -> None:
             )
 
 
-def _load_entry_points(pm: pluggy.PluginManager) -> None:
+def _load_entry_points(pm: pluggy.PluginManager) -> dict[str, tuple[str, str]]:
+    """Register every ``swarmscene`` entry point not blocked by :data:`DISABLE_ENV`; return the
+    distribution and version behind each registered plugin name."""
     blocked = {b.strip() for b in os.environ.get(DISABLE_ENV, "").split(",") if b.strip()}
+    provided: dict[str, tuple[str, str]] = {}
+    seen: set[str] = set()
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         dist = ep.dist.name if ep.dist is not None else "unknown"
         # Named by distribution, so two packages using the same entry-point name cannot shadow.
         plugin_name = f"{dist}:{ep.name}"
+        seen.update((ep.name, plugin_name))
         if ep.name in blocked or plugin_name in blocked or pm.has_plugin(plugin_name):
             continue
         try:
             pm.register(ep.load(), name=plugin_name)
+            provided[plugin_name] = (dist, ep.dist.version if ep.dist is not None else "unknown")
         except Exception as exc:  # a broken third-party plugin must not take the engine down
             warnings.warn(
                 f"swarmscene: skipping plugin {plugin_name!r} ({ep.value}): "
@@ -133,3 +154,11 @@ def _load_entry_points(pm: pluggy.PluginManager) -> None:
                 RuntimeWarning,
                 stacklevel=2,
             )
+    for name in sorted(blocked - seen):  # a misspelt name would otherwise block nothing, silently
+        warnings.warn(
+            f"swarmscene: {DISABLE_ENV} names {name!r}, which no installed plugin is "
+            f"(installed: {', '.join(sorted(n for n in seen if ':' in n)) or 'none'})",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return provided

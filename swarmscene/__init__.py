@@ -11,4 +11,9 @@ tree in :mod:`swarmscene.scenarios`; this package is the thin application layer 
 Python API, the list of built-in plugins).
 """
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("swarmscene")  # one source of truth: pyproject.toml
+except PackageNotFoundError:  # pragma: no cover - running from a source tree that is not installed
+    __version__ = "unknown"

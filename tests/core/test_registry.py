@@ -62,7 +62,7 @@ def test_class_without_params_model_is_refused():
 class FakeEntryPoint:
     def __init__(self, name, target, dist="fakedist"):
         self.name, self._target, self.value = name, target, f"{dist}.module"
-        self.dist = types.SimpleNamespace(name=dist)
+        self.dist = types.SimpleNamespace(name=dist, version="3.1.4")
 
     def load(self):
         if isinstance(self._target, Exception):
@@ -130,3 +130,49 @@ def test_misspelt_hook_fails_loudly(monkeypatch):
     monkeypatch.setattr(registry_module, "entry_points", lambda group: [FakeEntryPoint("typo", typo)])
     with pytest.raises(pluggy.PluginValidationError, match="swarmscene_register_formation"):
         make_plugin_manager(BUILTIN_PLUGINS)
+
+
+def _third_party_avoidance(name="extra"):
+    """A module object registering one avoidance class named ``name``."""
+
+    class Extra(Avoidance):
+        """Extra avoidance: a one-line description.
+
+        More text that the plugin list leaves out.
+        """
+
+        class Params(PluginParams):
+            pass
+
+    Extra.name = name
+    module = types.SimpleNamespace()
+
+    @hookimpl
+    def swarmscene_register_avoidances(register):
+        register(Extra)
+
+    module.swarmscene_register_avoidances = swarmscene_register_avoidances
+    return module
+
+
+def test_each_class_knows_the_distribution_that_registered_it(monkeypatch):
+    eps = [FakeEntryPoint("good", _third_party_avoidance(), dist="gooddist")]
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: eps)
+    _, reg = make_plugin_manager(BUILTIN_PLUGINS)
+    assert reg.sources[("avoidance", "extra")] == "gooddist:good"
+    assert reg.distributions == {"gooddist:good": ("gooddist", "3.1.4")}
+    assert reg.sources[("avoidance", "potential")] == "swarmscene.plugins.avoidance.potential"
+
+
+def test_misspelt_disabled_name_warns_and_lists_the_installed_plugins(monkeypatch):
+    eps = [FakeEntryPoint("good", _third_party_avoidance(), dist="gooddist")]
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: eps)
+    monkeypatch.setenv("SWARMSCENE_DISABLE_PLUGINS", "gooddist:good, goodist:good")
+    with pytest.warns(RuntimeWarning) as caught:
+        _, reg = make_plugin_manager(BUILTIN_PLUGINS)
+    messages = [str(w.message) for w in caught]
+    assert messages == [
+        "swarmscene: SWARMSCENE_DISABLE_PLUGINS names 'goodist:good', which no installed plugin is "
+        "(installed: gooddist:good)"
+    ]
+    assert "extra" not in reg.names("avoidance")  # the correctly spelt entry still blocks

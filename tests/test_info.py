@@ -1,0 +1,72 @@
+"""``swarmscene --version`` and ``swarmscene plugins``: what is installed, and who provides it."""
+
+from __future__ import annotations
+
+import platform
+import types
+from importlib.metadata import version
+
+from swarmscene import info
+from swarmscene.builtins import BUILTIN_PLUGINS
+from swarmscene.core import registry as registry_module
+from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.plugin import Formation, PluginParams
+from swarmscene.core.registry import make_plugin_manager
+
+
+def test_version_line_names_the_package_hydra_and_python():
+    assert info.version_line() == (
+        f"swarmscene {version('swarmscene')} (Hydra {version('hydra-core')}, Python {platform.python_version()})"
+    )
+
+
+def test_package_version_of_an_absent_distribution():
+    assert info.package_version("no-such-distribution-xyz") == "not installed"
+
+
+class _EntryPoint:
+    def __init__(self, module):
+        self.name, self.value, self._module = "shapes", "shapesdist.plugin", module
+        self.dist = types.SimpleNamespace(name="shapesdist", version="2.0.1")
+
+    def load(self):
+        return self._module
+
+
+def test_plugin_table_lists_every_component_with_its_package_and_version(monkeypatch):
+    class Spiral(Formation):
+        """Agents on a spiral.
+
+        Not shown: only the first line is the description.
+        """
+
+        name = "spiral"
+
+        class Params(PluginParams):
+            pass
+
+    module = types.SimpleNamespace()
+
+    @hookimpl
+    def swarmscene_register_formations(register):
+        register(Spiral)
+
+    module.swarmscene_register_formations = swarmscene_register_formations
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: [_EntryPoint(module)])
+    _, reg = make_plugin_manager(BUILTIN_PLUGINS)
+    rows = {(r["kind"], r["name"]): r for r in info.components(reg)}
+    assert rows[("formation", "spiral")] == {
+        "kind": "formation", "name": "spiral", "package": "shapesdist", "version": "2.0.1",
+        "description": "Agents on a spiral.",
+    }
+    own = version("swarmscene")
+    assert rows[("avoidance", "cem")]["package"] == "swarmscene" and rows[("avoidance", "cem")]["version"] == own
+    assert rows[("observer", "SafetyMonitor")]["package"] == "swarmscene"
+    registered = sum(len(reg.names(kind)) for kind in reg.classes) + len(reg.observers)
+    assert len(rows) == registered
+    text = info.plugins_text(reg).splitlines()
+    assert text[0].split() == ["kind", "name", "package", "version", "description"]
+    assert len(text) == registered + 1
+    spiral = next(line for line in text if " spiral " in line)
+    assert spiral.split()[:4] == ["formation", "spiral", "shapesdist", "2.0.1"]
+    assert spiral.endswith("Agents on a spiral.")
