@@ -4,6 +4,7 @@
     swarmscene scenario=cem_six_vehicle avoidance.K=1
     swarmscene --multirun avoidance.K=1,2,5       # a sweep (Hydra launchers)
     swarmscene --help | --cfg job | --info
+    swarmscene --version | plugins                # what is installed (swarmscene.info)
 
 Bad input prints one line per problem (``dotted.key: what is allowed (got value)``) and exits
 with status 2, without a traceback (set ``SWARMSCENE_DEBUG=1`` for one) and without leaving a run
@@ -44,6 +45,10 @@ def _interrupted_status() -> tuple[int, str]:
 
 def main() -> None:
     """Console entry point."""
+    if sys.argv[1:] in (["--version"], ["plugins"]):  # not Hydra overrides: answered without composing
+        from . import info
+
+        sys.exit(info.command(sys.argv[1]))
     import hydra
 
     from .searchpath import plain_command_line, register_search_path

@@ -1,8 +1,11 @@
-"""Generate docs/options.md from the schema and every registered plugin's Params.
+"""Generate the reference text from the code: docs/options.md and the README's table of config
+groups (:mod:`swarmscene.groups`).
 
-    python -m swarmscene.docgen docs/options.md
+    python -m swarmscene.docgen docs/options.md   # every option, from the schema and each Params
+    python -m swarmscene.docgen --groups          # README.md's group table
 
-``tests/test_docs.py`` fails when the file is out of date, so an option cannot go undocumented.
+``tests/test_docs.py`` fails when any of them is out of date, so an option or a config-group
+choice cannot go undocumented.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from pathlib import Path
 from pydantic import BaseModel
 
 from .api import plugins
+from .groups import README_BEGIN, README_END, readme_groups
 from .core import config as schema
 
 
@@ -83,7 +87,20 @@ def render() -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_groups(root: Path) -> Path:
+    """Rewrite the README's group table under ``root``."""
+    readme = root / "README.md"
+    text = readme.read_text()
+    start = text.index(README_BEGIN)
+    stop = text.index(README_END, start) + len(README_END)
+    readme.write_text(text[:start] + readme_groups() + text[stop:])
+    return readme
+
+
 def main() -> None:
+    if sys.argv[1:] == ["--groups"]:
+        print(f"wrote {write_groups(Path.cwd())}")
+        return
     target = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/options.md")
     target.write_text(render())
     print(f"wrote {target}")

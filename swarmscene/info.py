@@ -78,3 +78,15 @@ def plugins_text(registry: Any) -> str:
     for row in [header, *rows]:
         lines.append("  ".join(row[k].ljust(widths[k]) for k in keys) + "  " + row["description"])
     return "\n".join(line.rstrip() for line in lines)
+
+
+def command(name: str) -> int:
+    """``swarmscene --version`` or ``swarmscene plugins``: print, return the exit status."""
+    if name == "--version":
+        print(version_line())
+        return 0
+    from .api import plugins
+
+    _, registry = plugins()
+    print(plugins_text(registry))
+    return 0

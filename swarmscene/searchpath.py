@@ -57,10 +57,13 @@ def register_search_path() -> None:
     (``hydra_plugins.swarmscene_sweeper``); idempotent."""
     from hydra_plugins.swarmscene_sweeper import register as register_sweeper
 
+    from .groups import register_help_resolver
+
     plugins = Plugins.instance()
     if SwarmsceneSearchPathPlugin not in plugins.class_name_to_class.values():
         plugins.register(SwarmsceneSearchPathPlugin)
     register_sweeper()
+    register_help_resolver()  # the --help template's group list
 
 
 def plain_overrides(overrides: Sequence[str]) -> list[str]:

@@ -70,3 +70,25 @@ def test_plugin_table_lists_every_component_with_its_package_and_version(monkeyp
     spiral = next(line for line in text if " spiral " in line)
     assert spiral.split()[:4] == ["formation", "spiral", "shapesdist", "2.0.1"]
     assert spiral.endswith("Agents on a spiral.")
+
+
+def _cli(*args):
+    import subprocess
+    import sys
+
+    code = "from swarmscene.cli import main; main()"
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120)
+
+
+def test_version_command_prints_the_version_line():
+    proc = _cli("--version")
+    assert proc.returncode == 0 and proc.stdout.strip() == info.version_line()
+
+
+def test_plugins_command_lists_the_built_ins():
+    proc = _cli("plugins")
+    assert proc.returncode == 0
+    lines = proc.stdout.splitlines()
+    assert lines[0].split() == ["kind", "name", "package", "version", "description"]
+    cem = next(line for line in lines if line.split()[:2] == ["avoidance", "cem"])
+    assert cem.split()[2:4] == ["swarmscene", version("swarmscene")]

@@ -1,0 +1,45 @@
+"""The README's group table (python -m swarmscene.docgen --groups) and ``swarmscene --help``'s
+group list come from the config tree, so no choice goes unlisted."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from swarmscene import groups
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_readme_group_table_is_current():
+    readme = (ROOT / "README.md").read_text()
+    assert groups.readme_groups() in readme, "run: python -m swarmscene.docgen --groups"
+
+
+def test_every_group_of_the_defaults_list_is_documented():
+    from omegaconf import OmegaConf
+
+    primary = OmegaConf.load(ROOT / "scenarios" / "config.yaml")
+    chosen = set()
+    for entry in primary.defaults:
+        if isinstance(entry, str):
+            continue
+        (key,) = entry.keys()
+        if not key.startswith(("optional ", "override ")):
+            chosen.add(key)
+    assert chosen | {"sweep"} == {group for group, _ in groups.GROUPS}
+
+
+def test_group_options_are_the_yaml_files_of_the_folder():
+    assert groups.group_options("dynamics") == ["double_integrator", "quadrotor", "single_integrator"]
+    assert "falsify_failure" in groups.group_options("sweep")
+
+
+def test_help_is_short_and_lists_no_internal_groups():
+    out = subprocess.run([sys.executable, "-c", "from swarmscene.cli import main; main()", "--help"], capture_output=True, text=True,
+                         timeout=120, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert "tuning/" not in out.stdout
+    assert groups.help_groups(groups.group_options) in out.stdout  # built-ins, no third party here
+    assert len(out.stdout.splitlines()) < 40
