@@ -17,24 +17,35 @@ the last one failed), runs the class through the contract of its kind for a few 
   returns True, False or None;
 - avoidance: ``adjust`` returns one finite row per agent, and a failed agent's row exactly as it
   came in (failed vehicles are the kernel's business);
+- every kind: two instances do not share state (one flown beside another with other inputs
+  gives what it gives alone); options that must be refused (``refused={"key": {...}}``) are refused
+  with a one-line error naming ``<kind>.key`` (a cross-field check raises ``ValueError("key: ...")``);
 - dynamics: shapes of the state kept; HOLD keeps agents within 1 cm; a POSITION setpoint 1 m away
-  is approached; a model with attitude keeps unit quaternions.
+  is approached; a VELOCITY setpoint is flown (0.5 m/s held within 20 %, ``pos`` ignored); TRACK
+  uses its feed-forward (a moving target is followed more closely with ``vel``/``acc`` than from
+  ``pos`` alone); the declared ``wind_coupling`` is honoured (``integrated``: ``step`` reacts to
+  ``world.wind``; ``force``/``carried``: the kernel applies the wind, so ``step`` must not read it
+  as well); a model with attitude keeps unit quaternions.
 
 The built-in plugins pass these checks in the test suite (tests/test_contract.py).
 """
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import numpy as np
 import yaml
+from pydantic import ValidationError
 
 from .core.environment import Environment
-from .core.plugin import Avoidance, BuildContext, Dynamics, Formation, PluginParams
+from .core.errors import format_validation_error
+from .core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
+from .plugin import build_context
 
 __all__ = ["check_avoidance", "check_dynamics", "check_formation", "check_params", "example_world"]
 
@@ -54,8 +65,14 @@ def example_world(n: int = N_AGENTS, failed: bool = True) -> WorldState:
     return world
 
 
-def check_params(cls: type, options: dict[str, Any] | None = None) -> PluginParams:
-    """``name`` and ``Params`` as the engine needs them; returns the validated options."""
+def check_params(cls: type, options: dict[str, Any] | None = None,
+                 refused: dict[str, dict[str, Any]] | None = None) -> PluginParams:
+    """``name`` and ``Params`` as the engine needs them; returns the validated options.
+
+    Args:
+        refused: option name -> options that ``Params`` must refuse with a line naming that option
+            (for cross-field checks: a model validator names its key, ``ValueError("vision: ...")``).
+    """
     assert isinstance(getattr(cls, "name", None), str) and cls.name, f"{cls.__name__}: set a `name`"
     assert issubclass(cls.Params, PluginParams), f"{cls.name}: Params must derive from PluginParams"
     assert cls.Params.model_config.get("extra") == "forbid", f"{cls.name}: Params must refuse unknown keys"
@@ -65,14 +82,32 @@ def check_params(cls: type, options: dict[str, Any] | None = None) -> PluginPara
     text = yaml.safe_dump(params.model_dump(mode="json"))
     again = cls.Params.model_validate(yaml.safe_load(text))
     assert again == params, f"{cls.name}: Params do not round-trip through YAML ({text!r})"
+    for key, bad in (refused or {}).items():
+        _assert_refused(cls, key, bad)
     return params
 
 
+def _assert_refused(cls: type, key: str, options: dict[str, Any]) -> None:
+    kind = next((k for k, base in PLUGIN_KINDS.items() if issubclass(cls, base)), "plugin")
+    try:
+        cls.Params.model_validate(options)
+    except ValidationError as exc:
+        lines = format_validation_error(exc, cls.Params, options, prefix=kind)
+    else:
+        raise AssertionError(f"{cls.name}: Params accepted {options!r}, which must be refused naming {key!r}")
+    assert any(line.startswith(f"{kind}.{key}: ") for line in lines), (
+        f"{cls.name}: refusing {options!r} must name {kind}.{key} (got {lines}); a cross-field check "
+        f"raises ValueError(\"{key}: ...\")"
+    )
+
+
 def check_formation(cls: type[Formation], options: dict[str, Any] | None = None,
-                    environment: Environment | None = None) -> None:
+                    environment: Environment | None = None,
+                    refused: dict[str, dict[str, Any]] | None = None) -> None:
     """Run ``cls`` through the formation contract (see the module docstring)."""
     assert issubclass(cls, Formation), f"{cls.__name__} is not a Formation"
-    params = check_params(cls, options)
+    params = check_params(cls, options, refused)
+    state = _class_state(cls)
     first, second = (_build(cls, params, environment) for _ in range(2))
     world = example_world()
     for _ in range(TICKS):
@@ -84,13 +119,16 @@ def check_formation(cls: type[Formation], options: dict[str, Any] | None = None,
         done = first.complete(world)
         assert done is None or isinstance(done, (bool, np.bool_)), f"{cls.name}: complete() returned {done!r}"
         _fly(world, sp)
+    _assert_class_untouched(cls, state)
 
 
 def check_avoidance(cls: type[Avoidance], options: dict[str, Any] | None = None,
-                    environment: Environment | None = None) -> None:
+                    environment: Environment | None = None,
+                    refused: dict[str, dict[str, Any]] | None = None) -> None:
     """Run ``cls`` through the avoidance contract (see the module docstring)."""
     assert issubclass(cls, Avoidance), f"{cls.__name__} is not an Avoidance"
-    params = check_params(cls, options)
+    params = check_params(cls, options, refused)
+    state = _class_state(cls)
     first, second = (_build(cls, params, environment) for _ in range(2))
     world = example_world()
     failed = ~world.healthy
@@ -109,12 +147,15 @@ def check_avoidance(cls: type[Avoidance], options: dict[str, Any] | None = None,
             )
         _assert_same(cls.name, out, second.adjust(world, _sensing(world, environment), sp.copy()))
         _fly(world, out)
+    _assert_class_untouched(cls, state)
 
 
-def check_dynamics(cls: type[Dynamics], options: dict[str, Any] | None = None) -> None:
+def check_dynamics(cls: type[Dynamics], options: dict[str, Any] | None = None,
+                   refused: dict[str, dict[str, Any]] | None = None) -> None:
     """Run ``cls`` through the dynamics contract (see the module docstring)."""
     assert issubclass(cls, Dynamics), f"{cls.__name__} is not a Dynamics"
-    params = check_params(cls, options)
+    params = check_params(cls, options, refused)
+    state = _class_state(cls)
     world = example_world(failed=False)
     start = world.pos.copy()
     model = _build(cls, params, None, world)
@@ -144,19 +185,174 @@ def check_dynamics(cls: type[Dynamics], options: dict[str, Any] | None = None) -
     assert np.array_equal(positions[0], positions[1]), f"{cls.name}: not deterministic under a seed"
     gap = np.linalg.norm(positions[0] - target.pos, axis=1)
     assert np.all(gap < 0.5), f"{cls.name}: a POSITION setpoint 1 m away was not approached (gap {gap.max():.2f} m)"
+    _check_velocity_mode(cls, params)
+    _check_track_feed_forward(cls, params)
+    _check_wind_coupling(cls, params)
+    _check_dynamics_instances_apart(cls, params)
+    _assert_class_untouched(cls, state)
+
+
+VELOCITY_COMMAND = 0.5
+"""m/s along +x: the VELOCITY check's command."""
+
+
+def _check_velocity_mode(cls: type[Dynamics], params: PluginParams) -> None:
+    """A VELOCITY setpoint is flown: over the last 5 s of 20 s the mean velocity is the command
+    within 20 % (and ``sp.pos``, left at the start, is ignored)."""
+    world, model = _fresh(cls, params)
+    sp = Setpoints.hold(world.pos)
+    sp.mode[:] = Mode.VELOCITY
+    sp.vel[:] = [VELOCITY_COMMAND, 0.0, 0.0]
+    _flight(model, world, sp, seconds=15.0)
+    before = world.pos.copy()
+    _flight(model, world, sp, seconds=5.0)
+    mean = (world.pos - before) / 5.0
+    error = np.linalg.norm(mean - sp.vel, axis=1).max()
+    assert error < 0.2 * VELOCITY_COMMAND, (
+        f"{cls.name}: a VELOCITY setpoint of {VELOCITY_COMMAND} m/s along x was not flown (mean velocity "
+        f"{mean[np.argmax(np.linalg.norm(mean - sp.vel, axis=1))].round(3).tolist()} m/s): honour Mode.VELOCITY"
+    )
+
+
+def _moving_target(start: np.ndarray, t: float, feed_forward: bool) -> Setpoints:
+    """TRACK setpoints on x(t) = start + A sin(w t) e_x (A = 1 m, w = 0.5 rad/s), with the target's
+    velocity and acceleration as feed-forward, or without them (zeros)."""
+    amplitude, omega = 1.0, 0.5
+    sp = Setpoints.hold(start + [amplitude * np.sin(omega * t), 0.0, 0.0])
+    sp.mode[:] = Mode.TRACK
+    if feed_forward:
+        sp.vel[:] = [amplitude * omega * np.cos(omega * t), 0.0, 0.0]
+        sp.acc[:] = [-amplitude * omega**2 * np.sin(omega * t), 0.0, 0.0]
+    return sp
+
+
+def _track_error(cls: type[Dynamics], params: PluginParams, feed_forward: bool) -> float:
+    """RMS distance to the moving target over 20 s of TRACK."""
+    world, model = _fresh(cls, params)
+    start = world.pos.copy()
+    squares = []
+    for _ in range(int(round(20.0 / GUIDANCE_PERIOD))):
+        sp = _moving_target(start, world.t, feed_forward)
+        _flight(model, world, sp, seconds=GUIDANCE_PERIOD)
+        squares.append(np.sum((world.pos - _moving_target(start, world.t, False).pos) ** 2, axis=1).mean())
+    return float(np.sqrt(np.mean(squares)))
+
+
+def _check_track_feed_forward(cls: type[Dynamics], params: PluginParams) -> None:
+    """TRACK uses ``sp.vel`` and ``sp.acc``: a moving target is followed more closely with them."""
+    with_ff, without = _track_error(cls, params, True), _track_error(cls, params, False)
+    assert with_ff < without, (
+        f"{cls.name}: TRACK ignores its feed-forward (RMS error {with_ff:.4f} m with sp.vel/sp.acc, "
+        f"{without:.4f} m without): a moving target's velocity and acceleration must be used"
+    )
+
+
+WIND = np.array([3.0, 0.0, 0.0])
+"""m/s: the wind the coupling check blows."""
+
+
+def _check_wind_coupling(cls: type[Dynamics], params: PluginParams) -> None:
+    """``integrated``: the model's step reacts to ``world.wind``; ``force``/``carried``: the kernel
+    applies the wind (Dynamics.wind_coupling), so a step that read it too would count it twice."""
+    flights = []
+    for wind in (None, WIND):
+        world, model = _fresh(cls, params)
+        hold = Setpoints.hold(world.pos)
+        for _ in range(int(round(2.0 / GUIDANCE_PERIOD))):
+            model.control(world, hold)
+            for _ in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
+                world.wind = None if wind is None else np.tile(wind, (world.n, 1))
+                model.step(world, PHYSICS_STEP)
+            world.t += GUIDANCE_PERIOD
+        flights.append(np.concatenate([world.pos, world.vel]))
+    moved = not np.array_equal(flights[0], flights[1])
+    if cls.wind_coupling == "integrated":
+        assert moved, (f"{cls.name}: declares wind_coupling = 'integrated' but its step ignores world.wind "
+                       f"({WIND.tolist()} m/s changed nothing)")
+    else:
+        assert not moved, (f"{cls.name}: declares wind_coupling = {cls.wind_coupling!r} (the kernel applies "
+                           f"the wind) but its step reads world.wind too: the wind would count twice")
+
+
+def _check_dynamics_instances_apart(cls: type[Dynamics], params: PluginParams) -> None:
+    """A model flown beside another instance flying elsewhere moves as it does alone."""
+    def fly(world, model, target, ticks, other=None):
+        for _ in range(ticks):
+            model.control(world, target)
+            if other is not None:
+                other[1].control(other[0], other[2])
+            for _ in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
+                model.step(world, PHYSICS_STEP)
+                if other is not None:
+                    other[1].step(other[0], PHYSICS_STEP)
+            world.t += GUIDANCE_PERIOD
+            if other is not None:
+                other[0].t += GUIDANCE_PERIOD
+
+    world, model = _fresh(cls, params)
+    target = Setpoints.hold(world.pos + [1.0, 0.0, 0.0])
+    target.mode[:] = Mode.POSITION
+    fly(world, model, target, 20)
+    alone = world.pos.copy()
+    world, model = _fresh(cls, params)
+    other_world, other_model = _fresh(cls, params)
+    other_target = Setpoints.hold(other_world.pos - [0.0, 2.0, 1.0])
+    other_target.mode[:] = Mode.POSITION
+    fly(world, model, target, 20, other=(other_world, other_model, other_target))
+    assert np.array_equal(world.pos, alone), (
+        f"{cls.name}: two instances share state (one flew differently beside another): keep state on the "
+        f"instance, not the class or the module"
+    )
+
+
+def _fresh(cls: type[Dynamics], params: PluginParams) -> tuple[WorldState, Dynamics]:
+    world = example_world(failed=False)
+    model = _build(cls, params, None, world)
+    model.initialize(world)
+    return world, model
 
 
 # -- helpers -------------------------------------------------------------------------------------
 def _build(cls: type, params: PluginParams, environment: Environment | None,
            world: WorldState | None = None) -> Any:
     world = world or example_world()
-    ctx = BuildContext(
-        n=world.n, guidance_period=GUIDANCE_PERIOD, physics_step=PHYSICS_STEP, duration=10.0,
-        separation_limit=0.5, clearance_limit=0.2, comm_range=10.0,
-        environment=environment or Environment(), rng=np.random.default_rng(0),
-        initial=WorldState.at_rest(world.pos, leader=world.leader),
-    )
+    ctx = build_context(positions=world.pos, leader=world.leader, guidance_period=GUIDANCE_PERIOD,
+                        physics_step=PHYSICS_STEP, environment=environment)
     return cls(params, ctx)
+
+
+def _class_state(cls: type) -> dict[str, Any]:
+    """Copies of the plain data attributes of ``cls`` and its bases up to the kind's base class."""
+    state = {}
+    for klass in cls.__mro__:
+        if klass in (Formation, Avoidance, Dynamics) or klass.__module__.startswith("swarmscene.core."):
+            break
+        for attr, value in vars(klass).items():
+            if attr.startswith("__") or callable(value) or isinstance(value, (classmethod, staticmethod, property)):
+                continue
+            try:
+                state[f"{klass.__qualname__}.{attr}"] = copy.deepcopy(value)
+            except Exception:  # an attribute that cannot be copied is not data the check can compare
+                continue
+    return state
+
+
+def _assert_class_untouched(cls: type, before: dict[str, Any]) -> None:
+    """Instances keep their state to themselves: running them changed no class attribute."""
+    after = _class_state(cls)
+    for attr, value in before.items():
+        new = after.get(attr)
+        same = (np.array_equal(value, new) if isinstance(value, np.ndarray) or isinstance(new, np.ndarray)
+                else _equal(value, new))
+        assert same, (f"{cls.name}: running an instance changed the class attribute {attr}: two instances "
+                      f"share state (keep it on the instance, not the class or module)")
+
+
+def _equal(a: Any, b: Any) -> bool:
+    try:
+        return bool(a == b)
+    except Exception:  # containers of arrays compare element-wise: compare their reprs instead
+        return repr(a) == repr(b)
 
 
 def _sensing(world: WorldState, environment: Environment | None) -> Sensing:

@@ -162,6 +162,141 @@ def test_the_contract_checks_catch_a_plugin_that_breaks_the_rules():
             check_avoidance(cls)
 
 
+def _single_integrator():
+    return REGISTRY.get("dynamics", "single_integrator")
+
+
+def test_the_dynamics_checks_catch_a_model_that_breaks_each_rule():
+    """Each promise of docs/plugins.md for dynamics models, broken by one variant of the single
+    integrator (which keeps every other rule), is refused with the rule's words."""
+    from swarmscene.core.setpoint import Mode
+    from swarmscene.testing import check_dynamics
+
+    base = _single_integrator()
+
+    class IgnoresVelocityMode(base):
+        name = "ignores_velocity"
+
+        def control(self, world, sp):
+            as_position = sp.copy()
+            as_position.mode[as_position.mode == Mode.VELOCITY] = Mode.POSITION
+            super().control(world, as_position)
+
+    class IgnoresFeedForward(base):
+        name = "ignores_feed_forward"
+
+        def control(self, world, sp):
+            no_ff = sp.copy()
+            tracking = no_ff.mode == Mode.TRACK
+            no_ff.vel[tracking] = 0.0
+            super().control(world, no_ff)
+
+    class IgnoresIntegratedWind(base):
+        name = "ignores_wind"
+        wind_coupling = "integrated"
+
+    class CountsCarriedWindTwice(base):
+        name = "counts_wind_twice"
+
+        def step(self, world, dt):
+            super().step(world, dt)
+            if world.wind is not None:
+                world.pos += world.wind * dt
+
+    class SharedAcrossInstances(base):
+        name = "shared_state"
+        command = np.zeros((6, 3))  # one array on the class: every instance writes it
+
+        def initialize(self, world):
+            pass
+
+        def control(self, world, sp):
+            super().control(world, sp)
+            SharedAcrossInstances.command[:] = self.u
+
+        def step(self, world, dt):
+            world.pos += SharedAcrossInstances.command * dt
+            world.vel[:] = SharedAcrossInstances.command
+
+    for cls, rule in (
+        (IgnoresVelocityMode, "VELOCITY setpoint"),
+        (IgnoresFeedForward, "TRACK ignores its feed-forward"),
+        (IgnoresIntegratedWind, "ignores world.wind"),
+        (CountsCarriedWindTwice, "count twice"),
+        (SharedAcrossInstances, "share state"),
+    ):
+        with pytest.raises(AssertionError, match=rule):
+            check_dynamics(cls)
+
+
+def test_the_checks_catch_shared_state_in_a_formation_and_an_avoidance():
+    from swarmscene.core.plugin import Avoidance, Formation
+    from swarmscene.testing import check_avoidance, check_formation
+
+    class FirstWorldWins(Formation):
+        """Holds the slots of the first world any instance saw (kept on the class)."""
+
+        name = "first_world_wins"
+        slots = None
+
+        def setpoints(self, world, sensing):
+            if FirstWorldWins.slots is None:
+                FirstWorldWins.slots = world.pos.copy()
+            return Setpoints.hold(FirstWorldWins.slots)
+
+    class RemembersOnTheClass(Avoidance):
+        """Slows agents by the swarm's first spread any instance saw (a cache kept on the class)."""
+
+        name = "remembers"
+        first_spread: dict = {}
+
+        def adjust(self, world, sensing, sp):
+            spread = RemembersOnTheClass.first_spread.setdefault(world.n, float(np.ptp(world.pos[:, 0])))
+            out = sp.copy()
+            out.vel[world.healthy] /= 1.0 + spread
+            return out
+
+    with pytest.raises(AssertionError, match="share state"):
+        check_formation(FirstWorldWins)
+    with pytest.raises(AssertionError, match="share state"):
+        check_avoidance(RemembersOnTheClass)
+
+
+def test_a_cross_field_check_must_name_its_option():
+    """``refused`` options are refused with a line naming ``<kind>.<option>``: a model validator
+    that raises without the option's name fails the check, one that names it passes."""
+    from pydantic import Field, model_validator
+
+    from swarmscene.core.plugin import Avoidance
+    from swarmscene.testing import check_avoidance
+
+    def make(message):
+        class Ranges(Avoidance):
+            name = "ranges"
+
+            class Params(PluginParams):
+                inner: float = Field(1.0, gt=0, description="inner radius, m")
+                outer: float = Field(2.0, gt=0, description="outer radius, m")
+
+                @model_validator(mode="after")
+                def _ordered(self):
+                    if self.outer <= self.inner:
+                        raise ValueError(message)
+                    return self
+
+            def adjust(self, world, sensing, sp):
+                return sp.copy()
+
+        return Ranges
+
+    bad = {"inner": 3.0, "outer": 2.0}
+    check_avoidance(make("outer: must exceed inner"), refused={"outer": bad})
+    with pytest.raises(AssertionError, match="must name avoidance.outer"):
+        check_avoidance(make("outer radius must exceed inner radius"), refused={"outer": bad})
+    with pytest.raises(AssertionError, match="accepted"):
+        check_avoidance(make("outer: must exceed inner"), refused={"outer": {"inner": 1.0, "outer": 5.0}})
+
+
 @pytest.mark.parametrize("kind", ["formation", "avoidance", "dynamics"])
 def test_each_template_is_a_working_plugin(kind):
     """A copy of plugins/<kind>/_template.py runs as is: it registers its class, which passes the

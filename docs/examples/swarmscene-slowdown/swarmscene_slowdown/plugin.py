@@ -9,9 +9,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, PluginParams
-from swarmscene.core.setpoint import Setpoints
+from swarmscene.plugin import Avoidance, PluginParams, Setpoints, hookimpl
 
 
 class Slowdown(Avoidance):

@@ -1,0 +1,84 @@
+"""Everything a plugin author imports, in one public module.
+
+    from swarmscene.plugin import Avoidance, PluginParams, Setpoints, hookimpl
+
+    class Slowdown(Avoidance):
+        name = "slowdown"
+
+        class Params(PluginParams):
+            factor: float = Field(0.5, gt=0, le=1, description="fraction of velocity kept")
+
+        def adjust(self, world, sensing, sp):
+            ...
+
+    @hookimpl
+    def swarmscene_register_avoidances(register):
+        register(Slowdown)
+
+The names here are the plugin interface: they keep their meaning across releases (a change is
+announced in CHANGELOG.md and the old name kept for one release with a warning). The engine's
+internal modules (``swarmscene.core.*``) may move. In a unit test, :func:`build_context` gives the
+``BuildContext`` a plugin is constructed with, without composing a scenario:
+
+    ctx = build_context(n=4)
+    plugin = Slowdown(Slowdown.Params(), ctx)
+
+and :mod:`swarmscene.testing` holds the contract checks every built-in passes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .core.environment import Environment
+from .core.hookspecs import hookimpl
+from .core.plugin import SHARED, Avoidance, BuildContext, Dynamics, Formation, Plugin, PluginParams
+from .core.sensing import Sensing
+from .core.setpoint import Mode, Setpoints
+from .core.state import WorldState
+
+__all__ = [
+    "Avoidance", "BuildContext", "Dynamics", "Environment", "Formation", "Mode", "Plugin", "PluginParams",
+    "SHARED", "Sensing", "Setpoints", "WorldState", "build_context", "hookimpl",
+]
+
+
+def build_context(
+    n: int = 6,
+    *,
+    positions: np.ndarray | None = None,
+    leader: int | None = 0,
+    guidance_period: float = 0.1,
+    physics_step: float = 0.01,
+    seed: int = 0,
+    environment: Environment | None = None,
+    **fields: Any,
+) -> BuildContext:
+    """A :class:`BuildContext` for unit tests of a plugin, as the engine would build it.
+
+    Args:
+        n: number of agents (ignored when ``positions`` is given).
+        positions: (N, 3) m, the agents at t = 0; default ``n`` agents on a 2-row grid 3 m apart at
+            2 m altitude (:func:`swarmscene.testing.example_world`).
+        leader: the leading agent, or None.
+        guidance_period, physics_step: T_s and the plant's step, s.
+        seed: seed of the run's random generator (``ctx.rng``).
+        environment: the obstacle map; default an open one.
+        **fields: any other ``BuildContext`` field (``duration``, ``separation_limit``,
+            ``clearance_limit``, ``comm_range``, ``link_delay``, ``link_loss``).
+    """
+    if positions is None:
+        k = np.arange(n)
+        positions = np.column_stack([3.0 * (k // 2), 3.0 * (k % 2), np.full(n, 2.0)])
+    positions = np.asarray(positions, dtype=float)
+    values: dict[str, Any] = {
+        "duration": 10.0, "separation_limit": 0.5, "clearance_limit": 0.2, "comm_range": 10.0,
+        **fields,
+    }
+    return BuildContext(
+        n=len(positions), guidance_period=guidance_period, physics_step=physics_step,
+        environment=environment or Environment(), rng=np.random.default_rng(seed),
+        initial=WorldState.at_rest(positions, leader=leader), **values,
+    )

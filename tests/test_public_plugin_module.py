@@ -1,0 +1,57 @@
+"""swarmscene.plugin: the one module a plugin author imports, and its BuildContext factory."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarmscene import plugin
+from swarmscene.core import plugin as core_plugin
+from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.state import WorldState
+
+ROOT = Path(__file__).resolve().parents[1]
+AUTHOR_FILES = [
+    *sorted((ROOT / "plugins").glob("*/_template.py")),
+    ROOT / "docs" / "examples" / "swarmscene-slowdown" / "swarmscene_slowdown" / "plugin.py",
+]
+
+
+def test_the_public_module_reexports_the_engine_classes_themselves():
+    assert plugin.Avoidance is core_plugin.Avoidance and plugin.PluginParams is core_plugin.PluginParams
+    assert plugin.Setpoints is Setpoints and plugin.Mode is Mode and plugin.WorldState is WorldState
+    assert set(plugin.__all__) == {name for name in plugin.__all__ if hasattr(plugin, name)}
+
+
+@pytest.mark.parametrize("path", AUTHOR_FILES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_templates_and_the_packaged_example_import_only_the_public_module(path):
+    imported = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            imported.add(node.module)
+        elif isinstance(node, ast.Import):
+            imported.update(alias.name for alias in node.names)
+    ours = {name for name in imported if name.split(".")[0] == "swarmscene"}
+    assert ours == {"swarmscene.plugin"}
+
+
+def test_build_context_is_what_a_small_scenario_gives():
+    ctx = plugin.build_context(n=4, seed=3)
+    assert ctx.n == 4 and ctx.guidance_period == 0.1 and ctx.physics_step == 0.01
+    np.testing.assert_array_equal(ctx.initial.pos, [[0, 0, 2], [0, 3, 2], [3, 0, 2], [3, 3, 2]])
+    assert ctx.initial.leader == 0 and ctx.environment.tree is None
+    assert ctx.rng.random() == np.random.default_rng(3).random()
+    assert (ctx.separation_limit, ctx.clearance_limit, ctx.comm_range, ctx.duration) == (0.5, 0.2, 10.0, 10.0)
+
+
+def test_build_context_takes_positions_and_any_field():
+    pos = np.array([[0.0, 0.0, 1.0], [5.0, 0.0, 1.0]])
+    ctx = plugin.build_context(positions=pos, leader=None, separation_limit=1.5, duration=3.0)
+    assert ctx.n == 2 and ctx.initial.leader is None
+    assert ctx.separation_limit == 1.5 and ctx.duration == 3.0
+    np.testing.assert_array_equal(ctx.initial.pos, pos)
+    with pytest.raises(TypeError):
+        plugin.build_context(n=2, no_such_field=1)
