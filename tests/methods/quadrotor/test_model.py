@@ -1,7 +1,7 @@
 """Rigid-body quadrotor (thesis eq. 3.4-3.16): mixer, limits and physics with independent answers.
 
 The allocation, wrench and RK4 are checked in their numpy form (tests/oracles/quadrotor.py);
-test_quadrotor_kernel.py checks the compiled kernels against it."""
+tests/methods/quadrotor/test_kernels.py checks the compiled kernels against it."""
 
 import numpy as np
 import pytest

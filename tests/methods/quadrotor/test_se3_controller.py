@@ -1,5 +1,5 @@
 """Differential flatness and the SE(3) tracking controller on the rigid-body model, in their numpy
-form (tests/oracles/quadrotor.py); test_quadrotor_kernel.py checks the compiled kernels against it."""
+form (tests/oracles/quadrotor.py); tests/methods/quadrotor/test_kernels.py checks the compiled kernels against it."""
 
 import numpy as np
 import pytest
