@@ -119,6 +119,13 @@ class SafetyMonitor:
                 self._first("separation", t, np.unique(pairs).tolist())
             if self.stop_on_collision:
                 sim.request_stop("collision")
+        if not sensing.environment.empty:  # open space: min_clearance stays inf
+            self._observe_clearance(sensing, t, k)
+        if not self.connected[k]:
+            self._first("connectivity", t, np.flatnonzero(sensing.comm_members).tolist())
+        self.count += 1
+
+    def _observe_clearance(self, sensing: Any, t: float, k: int) -> None:
         clearance = sensing.clearance_within(self.horizon)
         if np.isfinite(clearance).any():
             self.min_clearance[k] = clearance.min()
@@ -128,9 +135,6 @@ class SafetyMonitor:
             agents = np.flatnonzero(clearance < self.d_clear)
             self.clearance_agents.update(agents.tolist())
             self._first("clearance", t, agents.tolist())
-        if not self.connected[k]:
-            self._first("connectivity", t, np.flatnonzero(sensing.comm_members).tolist())
-        self.count += 1
 
     def _add_collisions(self, pairs: np.ndarray) -> None:
         keys = pairs[:, 0].astype(np.int64) * self.n + pairs[:, 1]

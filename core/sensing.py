@@ -25,7 +25,7 @@ import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a sm
 
 from .environment import Environment
 from .state import WorldState
-from .vectors import min_pair_distance, pairs_within
+from .vectors import DENSE_POINTS, dense_pair_dist2, min_pair_distance, pairs_within
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -75,6 +75,20 @@ def _dense_connected(pos: np.ndarray, radius: float) -> bool:
         count = new
         reached = adjacent[reached].any(axis=0)
     return count == len(pos)
+
+
+def _linked_by_sweeps(n: int, i: np.ndarray, j: np.ndarray, start: int) -> np.ndarray:
+    """(n,) bool: the agents reached from ``start`` over the links (i[k], j[k])."""
+    adjacent = np.zeros((n, n), dtype=bool)
+    adjacent[i, j] = True
+    adjacent[j, i] = True
+    reached = adjacent[start].copy()
+    reached[start] = True
+    count = 0
+    while (new := int(reached.sum())) != count:
+        count = new
+        reached |= adjacent[reached].any(axis=0)
+    return reached
 
 
 def _renumber(n: int, members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -161,6 +175,10 @@ class Sensing:
 
     def _listed_pairs(self, radius: float) -> np.ndarray:
         """:meth:`pairs` without recording the request (a prefetch must not feed its own hint)."""
+        if radius not in self._pairs and self._every_pair is not None:
+            i, j, d2 = self._every_pair  # a few agents: filtered from every pair, as pairs_within does
+            near = d2 <= radius * radius
+            self._pairs[radius], self._pair_d2[radius] = np.column_stack([i[near], j[near]]), d2[near]
         if radius not in self._pairs:
             larger = [r for r in self._pairs if r >= radius]
             if larger:
@@ -175,6 +193,16 @@ class Sensing:
         return self._pairs[radius]
 
     @cached_property
+    def _every_pair(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Every pair (i < j) and its squared length, listed once per snapshot of at most
+        ``DENSE_POINTS`` agents (``None`` for more): the pairs at any radius, the closest pair and
+        the communication graph are all read from this one pass (a pass per query cost ~5 us each,
+        most of a small swarm's tick)."""
+        if self.world.n > DENSE_POINTS:
+            return None
+        return dense_pair_dist2(self.world.pos)
+
+    @cached_property
     def min_separation(self) -> float:
         """Smallest distance between two agents, m (``inf`` with fewer than two).
 
@@ -185,6 +213,8 @@ class Sensing:
         """
         if self.world.n < 2:
             return float("inf")
+        if self._every_pair is not None:  # the closest of every pair: the same sum, so the same bits
+            return float(np.sqrt(self._every_pair[2].min()))
         if not self._pairs and self._hint["pairs"] > 0:
             self._listed_pairs(self._hint["pairs"])
         for radius in sorted(self._pairs):
@@ -250,9 +280,12 @@ class Sensing:
                 self._nearest[radius] = (np.where(beyond, -1, index), np.where(beyond, np.inf, clearance))
             else:
                 reach = max(radius, self._hint["obstacles"])
-                self._nearest[reach] = self.environment.nearest_obstacle(
-                    self.world.pos, reach, self._obstacle_candidates(reach)
-                )
+                candidates = self._obstacle_candidates(reach)
+                if candidates is None or candidates[0].size == 0:  # open space, or none in reach
+                    n = self.world.n
+                    self._nearest[reach] = (np.full(n, -1), np.full(n, np.inf))
+                else:
+                    self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach, candidates)
                 return self.obstacle_nearest(radius)
         return self._nearest[radius]
 
@@ -305,11 +338,27 @@ class Sensing:
         m = members.size
         if m <= 1:
             return True
+        if self._every_pair is not None:
+            return self._few_connected(m)
         if m <= DENSE_LIMIT:
             return _dense_connected(self.world.pos[members], self.comm_range)
         from .cells import disk_graph_connected  # imports numba: only swarms this large pay for it
 
         return bool(disk_graph_connected(np.ascontiguousarray(self.world.pos[members]), self.comm_range))
+
+    def _few_connected(self, m: int) -> bool:
+        """:attr:`comm_connected` of a few agents, from :attr:`_every_pair`: a complete graph at once
+        (every member within range of every other, the usual case), else by reachability sweeps."""
+        i, j, d2 = self._every_pair
+        link = d2 <= self.comm_range * self.comm_range
+        if m < self.world.n:
+            members = self.comm_members
+            link &= members[i] & members[j]
+        if int(np.count_nonzero(link)) == m * (m - 1) // 2:
+            return True
+        first = int(np.argmax(self.comm_members))
+        reached = _linked_by_sweeps(self.world.n, i[link], j[link], first)
+        return int(reached.sum()) == m
 
     def comm_spanning_tree(self) -> np.ndarray | None:
         """Links (i, j), shape (m - 1, 2), of a minimum spanning tree of the communication graph

@@ -36,10 +36,12 @@ def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     """Every pair (i < j, in lexicographic order) of ``points`` (N, D) and its squared distance,
     summed axis by axis as a k-d tree sums it (so distances agree with the tree's to the bit)."""
     i, j = _upper_pairs(len(points))
-    d2 = np.zeros(i.size)
-    for k in range(points.shape[1]):
-        diff = points[j, k] - points[i, k]
-        d2 += diff * diff
+    diff = points[j] - points[i]
+    diff *= diff
+    # ((dx^2 + dy^2) + dz^2), left to right: the tree's order (one pass per axis cost 3x more calls)
+    d2 = diff[:, 0].copy()
+    for k in range(1, points.shape[1]):
+        d2 += diff[:, k]
     return i, j, d2
 
 
