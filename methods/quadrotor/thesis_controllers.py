@@ -132,7 +132,8 @@ def tracker_gains(omega_t: float, xi_t: float, T_s: float, K_Wt: float = 5.0) ->
 
 def sat(a: np.ndarray, u_sat: float | np.ndarray) -> np.ndarray:
     """Symmetric saturation (eq. 3.26): clip each component to [-u_sat, u_sat]."""
-    return np.clip(a, -u_sat, u_sat)
+    # minimum(maximum()) is np.clip's result (NaN included) at half the call's fixed cost
+    return np.minimum(np.maximum(a, -u_sat), u_sat)
 
 
 def velocity_limiter(
@@ -156,13 +157,16 @@ def velocity_limiter(
         (N, 3) u_lim, to be saturated by :func:`sat`. Applied per axis as in the thesis, so the
         speed bound of the vector is sqrt(3) v̄_lim on a diagonal.
     """
-    v_lim = np.asarray(v_lim, dtype=float)
-    if v_lim.ndim == 1:
-        v_lim = v_lim[:, None]
+    if not isinstance(v_lim, float):
+        v_lim = np.asarray(v_lim, dtype=float)
+        if v_lim.ndim == 1:
+            v_lim = v_lim[:, None]
+    elif not v_lim > eps_lim:  # one scalar limit at or below the threshold: brake everywhere
+        return -K_lim * v
     u_plus = -K_lim * (v - v_lim)
     u_minus = -K_lim * (v + v_lim)
     u_lim = np.where(v > 0.0, np.minimum(u_inf, u_plus), np.maximum(u_inf, u_minus))
-    return np.where(v_lim > eps_lim, u_lim, -K_lim * v)
+    return u_lim if isinstance(v_lim, float) else np.where(v_lim > eps_lim, u_lim, -K_lim * v)
 
 
 # --------------------------------------------------------------------------- dynamic laws
@@ -318,6 +322,8 @@ class ThesisController:
         """
         family = _FAMILY[mode]
         self._restart(family, r, v)
+        if (family == family[0]).all():  # one law for every agent (the usual case): only it runs
+            return self._step_one(int(family[0]), r, v, r_ref, v_ref, u_ref, v_lim)
         is_vel = family == _VELOCITY
         is_pos = family == _POSITION
         u_inf = np.where(
@@ -334,6 +340,23 @@ class ThesisController:
         self.velocity.integrate(v, v_ref, u_inf, u, is_vel)
         self.position.integrate(r, r_ref, u_inf, u, is_pos)
         self.tracker.integrate(r, r_ref, u_inf, u, family == _TRACKER)
+        return u
+
+    def _step_one(self, family: int, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray,
+                  v_ref: np.ndarray, u_ref: np.ndarray, v_lim: np.ndarray | float | None) -> np.ndarray:
+        """:meth:`step` when every agent uses law ``family``: the same operations on the same
+        values (so the same bits), without the two laws whose results the selection drops. The
+        idle laws' integrals are left as they are: an agent entering a law restarts its integral."""
+        if family == _VELOCITY:
+            u_inf = self.velocity.unbounded(v, v_ref)
+            u = sat(u_inf, self.u_sat)
+            self.velocity.integrate(v, v_ref, u_inf, u)
+            return u
+        law = self.position if family == _POSITION else self.tracker
+        u_inf = law.unbounded(r, v, r_ref) if family == _POSITION else law.unbounded(r, v, r_ref, v_ref, u_ref)
+        u_cmd = u_inf if v_lim is None else velocity_limiter(u_inf, v, v_lim, self.K_lim, self.eps_lim)
+        u = sat(u_cmd, self.u_sat)
+        law.integrate(r, r_ref, u_inf, u)
         return u
 
     def _restart(self, family: np.ndarray, r: np.ndarray, v: np.ndarray) -> None:

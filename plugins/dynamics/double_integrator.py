@@ -101,19 +101,30 @@ class DoubleIntegrator(Dynamics):
                                            p.u_sat, self.K_lim, p.eps_lim)
         self.u = np.zeros_like(world.pos)
         world.acc = self.u
+        self._held: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
         healthy = world.healthy
-        mode = np.where(healthy, sp.mode, Mode.HOLD)
-        r_ref = np.where(healthy[:, None], sp.pos, world.pos)
-        v_ref = sp.vel if self.params.v_max is None else np.clip(sp.vel, -self.params.v_max,
-                                                                   self.params.v_max)
-        self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc,
-                                           self.params.v_max)
+        if healthy.all():  # nobody to switch to HOLD (the selections below would copy sp as is)
+            mode, r_ref = sp.mode, sp.pos
+        else:
+            mode = np.where(healthy, sp.mode, Mode.HOLD)
+            r_ref = np.where(healthy[:, None], sp.pos, world.pos)
+        v_max = self.params.v_max
+        v_ref = sp.vel if v_max is None else np.minimum(np.maximum(sp.vel, -v_max), v_max)  # np.clip
+        self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc, v_max)
+        self._held = None
 
     def step(self, world: WorldState, dt: float) -> None:
-        world.pos += world.vel * dt + 0.5 * self.u * dt * dt
-        world.vel += self.u * dt
+        # r += T v + T^2/2 u, v += T u. u is held over the tick's sub-steps, so its two terms are
+        # computed once per tick and dt (the same products, in the same order: the same bits).
+        if self._held is None or self._held[0] != dt:
+            self._held = (dt, 0.5 * self.u * dt * dt, self.u * dt)
+        _, du_pos, du_vel = self._held
+        move = world.vel * dt
+        move += du_pos
+        world.pos += move
+        world.vel += du_vel
 
 
 @hookimpl
