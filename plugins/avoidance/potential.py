@@ -30,6 +30,18 @@ def barrier(d: np.ndarray, d_safe: float, d_range: float) -> np.ndarray:
     return x * x
 
 
+def _sum_at(rows: np.ndarray, values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Zeros of ``shape`` with ``values[k]`` added to row ``rows[k]``, k in order: ``np.add.at``'s
+    sums to the bit (one bincount over the flat index, a few times cheaper for a few agents)."""
+    n, width = shape
+    flat = (rows[:, None] * width + np.arange(width)).ravel()
+    return np.bincount(flat, weights=values.ravel(), minlength=n * width).reshape(shape)
+
+
+_VELOCITY = int(Mode.VELOCITY)
+"""As an int: numpy compares an array with an enum member several times slower."""
+
+
 class Potential(Avoidance):
     """Pairwise and obstacle repulsion added to the formation's setpoints."""
 
@@ -58,10 +70,9 @@ class Potential(Avoidance):
         if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]
             delta = world.pos[i] - world.pos[j]
-            d = np.linalg.norm(delta, axis=1)
+            d = np.sqrt(np.add.reduce(delta * delta, axis=1))  # np.linalg.norm(axis=1), its own ops
             push = (p.v_max * barrier(d, d_s, d_range) / np.maximum(d, 1e-9))[:, None] * delta
-            np.add.at(v, i, push)
-            np.add.at(v, j, -push)
+            v = _sum_at(np.concatenate([i, j]), np.concatenate([push, -push]), v.shape)
         if not sensing.environment.empty:
             v += self._obstacle_repulsion(world, sensing)
         return clip_norm(v, p.v_max)
@@ -85,11 +96,15 @@ class Potential(Avoidance):
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
         v_rep = self.repulsion(world, sensing)
-        v_rep[~world.healthy] = 0.0
+        if not world.healthy.all():
+            v_rep[~world.healthy] = 0.0
         out = sp.copy()
         out.vel += v_rep
-        moving = out.mode != Mode.VELOCITY
-        out.pos[moving] += self.params.lookahead * v_rep[moving]
+        moving = out.mode != _VELOCITY
+        if moving.all():  # the same sums without two gathers and a scatter
+            out.pos += self.params.lookahead * v_rep
+        else:
+            out.pos[moving] += self.params.lookahead * v_rep[moving]
         return out
 
 
