@@ -32,15 +32,25 @@ def _upper_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.triu_indices(n, 1)
 
 
+@lru_cache(maxsize=DENSE_POINTS + 1)
+def upper_pair_array(n: int) -> np.ndarray:
+    """Every index pair (i < j, lexicographic) of ``n`` points, shape (M, 2); made once per ``n``
+    (read-only: select from it, never write)."""
+    pairs = np.column_stack(_upper_pairs(n))
+    pairs.flags.writeable = False
+    return pairs
+
+
 def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair (i < j, in lexicographic order) of ``points`` (N, D) and its squared distance,
     summed axis by axis as a k-d tree sums it (so distances agree with the tree's to the bit)."""
     i, j = _upper_pairs(len(points))
-    diff = points[j] - points[i]
+    diff = points.take(j, axis=0)
+    diff -= points.take(i, axis=0)
     diff *= diff
     # ((dx^2 + dy^2) + dz^2), left to right: the tree's order (one pass per axis cost 3x more calls)
-    d2 = diff[:, 0].copy()
-    for k in range(1, points.shape[1]):
+    d2 = diff[:, 0] + diff[:, 1] if points.shape[1] > 1 else diff[:, 0].copy()
+    for k in range(2, points.shape[1]):
         d2 += diff[:, k]
     return i, j, d2
 
@@ -53,9 +63,9 @@ def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndar
     distances as the tree does, so they agree with it to the bit.
     """
     if len(points) <= DENSE_POINTS:
-        i, j, d2 = dense_pair_dist2(points)
+        d2 = dense_pair_dist2(points)[2]
         near = d2 <= radius * radius
-        return np.column_stack([i[near], j[near]]), d2[near]
+        return upper_pair_array(len(points))[near], d2[near]
     from .cells import pairs_within as listed  # imports numba: only swarms this large pay for it
 
     return listed(np.ascontiguousarray(points, dtype=float), float(radius))
