@@ -317,6 +317,9 @@ class EventQueue:
         self._anchor[idx] = world.pos[idx]
         self._anchor_t[idx] = world.t
         self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply
+        # hold() runs every tick and the motions change only here: its agents, listed once.
+        self._held = np.flatnonzero(self._motion == int(Motion.HOLD))
+        self._coasting = np.flatnonzero(self._motion == int(Motion.COAST))
 
     def hold(self, world: WorldState) -> None:
         """After the physics sub-steps of the tick starting at ``world.t``: hovering vehicles stay
@@ -324,12 +327,12 @@ class EventQueue:
         taken them at the tick's end, p_f + v (t + T_s - t_f). Others keep what the dynamics did."""
         if self._motion is None:
             return
-        held = self._motion == Motion.HOLD
-        if held.any():
+        held = self._held
+        if held.size:
             world.pos[held] = self._anchor[held]
             world.vel[held] = 0.0
-        coast = self._motion == Motion.COAST
-        if coast.any():
+        coast = self._coasting
+        if coast.size:
             elapsed = world.t + self.guidance_period - self._anchor_t[coast]
             world.pos[coast] = self._anchor[coast] + self._coast_vel[coast] * elapsed[:, None]
             world.vel[coast] = self._coast_vel[coast]
