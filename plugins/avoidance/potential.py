@@ -67,24 +67,30 @@ class Potential(Avoidance):
         v = np.zeros_like(world.pos)
         d_range = p.influence * max(d_s, 1e-3)
         pairs = sensing.pairs(d_range)
-        if len(pairs):
+        pushed = len(pairs) > 0
+        if pushed:
             i, j = pairs[:, 0], pairs[:, 1]
             delta = world.pos[i] - world.pos[j]
             d = np.sqrt(np.add.reduce(delta * delta, axis=1))  # np.linalg.norm(axis=1), its own ops
             push = (p.v_max * barrier(d, d_s, d_range) / np.maximum(d, 1e-9))[:, None] * delta
             v = _sum_at(np.concatenate([i, j]), np.concatenate([push, -push]), v.shape)
         if not sensing.environment.empty:
-            v += self._obstacle_repulsion(world, sensing)
-        return clip_norm(v, p.v_max)
+            obstacle = self._obstacle_repulsion(world, sensing)
+            if obstacle is not None:
+                v += obstacle
+                pushed = True
+        # Nothing in range: v is +0.0 throughout, which the clip would return as it is.
+        return clip_norm(v, p.v_max) if pushed else v
 
-    def _obstacle_repulsion(self, world, sensing) -> np.ndarray:
+    def _obstacle_repulsion(self, world, sensing) -> np.ndarray | None:
+        """Repulsive velocity (N, 3) from the nearest obstacles; ``None`` when none is in range."""
         p, c_s = self.params, self.ctx.clearance_limit
-        v = np.zeros_like(world.pos)
         d_range = c_s + p.obstacle_influence
         clearance = sensing.clearance_within(d_range)
         near = np.flatnonzero(clearance < d_range)
         if near.size == 0:
-            return v
+            return None
+        v = np.zeros_like(world.pos)
         point = sensing.environment.nearest_point(world.pos[near])
         away = world.pos[near, :2] - point
         d = np.maximum(clearance[near], 1e-9)

@@ -47,8 +47,11 @@ class SingleIntegrator(Dynamics):
     def control(self, world: WorldState, sp: Setpoints) -> None:
         p = self.params
         correction = p.gain * (sp.pos - world.pos)
-        u = np.where((sp.mode == _VELOCITY)[:, None], sp.vel, sp.vel + correction)
-        u = np.where((sp.mode == _HOLD)[:, None], correction, u)
+        u = sp.vel + correction
+        velocity, hold = sp.mode == _VELOCITY, sp.mode == _HOLD
+        if velocity.any() or hold.any():  # else both selections below would return u as it is
+            u = np.where(velocity[:, None], sp.vel, u)
+            u = np.where(hold[:, None], correction, u)
         self.u = clip_norm(u, p.u_max)
 
     def step(self, world: WorldState, dt: float) -> None:
