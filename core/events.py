@@ -319,6 +319,7 @@ class EventQueue:
         self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply
         # hold() runs every tick and the motions change only here: its agents, listed once.
         self._held = np.flatnonzero(self._motion == int(Motion.HOLD))
+        self._held_at = self._anchor[self._held]
         self._coasting = np.flatnonzero(self._motion == int(Motion.COAST))
 
     def hold(self, world: WorldState) -> None:
@@ -329,7 +330,7 @@ class EventQueue:
             return
         held = self._held
         if held.size:
-            world.pos[held] = self._anchor[held]
+            world.pos[held] = self._held_at
             world.vel[held] = 0.0
         coast = self._coasting
         if coast.size:

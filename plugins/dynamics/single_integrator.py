@@ -49,7 +49,7 @@ class SingleIntegrator(Dynamics):
         correction = p.gain * (sp.pos - world.pos)
         u = sp.vel + correction
         velocity, hold = sp.mode == _VELOCITY, sp.mode == _HOLD
-        if velocity.any() or hold.any():  # else both selections below would return u as it is
+        if np.count_nonzero(velocity) or np.count_nonzero(hold):  # else both selections return u
             u = np.where(velocity[:, None], sp.vel, u)
             u = np.where(hold[:, None], correction, u)
         self.u = clip_norm(u, p.u_max)

@@ -12,6 +12,7 @@ within ``arrival_tolerance`` of its slot.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -26,7 +27,7 @@ from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
 
 
-_TRACK = int(Mode.TRACK)
+_TRACK, _HOLD = int(Mode.TRACK), int(Mode.HOLD)
 
 
 class StaticShape(Formation):
@@ -64,7 +65,7 @@ class StaticShape(Formation):
         self.slot_of = self.assign(ctx.initial.pos, np.ones(ctx.n, dtype=bool), start)
         self._healthy_count = ctx.n
         self._end_reached = False
-        self._turned: tuple[float, np.ndarray, bool] | None = None  # heading, agents' offsets, all in slots
+        self._placed: _Placement | None = None
 
     def _heading(self, leg: int) -> float:
         if not self.params.rotate_with_heading or len(self.path.directions) == 0:
@@ -99,27 +100,21 @@ class StaticShape(Formation):
         if self.params.reassign_on_failure and healthy_count != self._healthy_count:
             self.slot_of = self.assign(world.pos, world.healthy, center)
             self._healthy_count = healthy_count
-            self._turned = None
-        if self._turned is None or self._turned[0] != self.heading:
-            every = bool((self.slot_of >= 0).all())
-            self._turned = (self.heading, self._turned_offsets(self.heading)[self.slot_of], every)
-        if self._turned[2]:
-            return self._track_all(world.n, center + self._turned[1], velocity)
-        slots = self.slots(center, self.heading)
-        sp = Setpoints.hold(world.pos)
-        active = self.slot_of >= 0
-        sp.mode[active] = Mode.TRACK
-        sp.pos[active] = slots[self.slot_of[active]]
-        sp.vel[active] = velocity
-        sp.yaw[:] = self.heading
-        self._last_slots = sp.pos
-        return sp
-
-    def _track_all(self, n: int, pos: np.ndarray, velocity: np.ndarray) -> Setpoints:
-        """Every agent in a slot: the setpoints below, built directly (a third of the calls)."""
-        vel = np.empty((n, 3))
-        vel[:] = velocity
-        sp = Setpoints(np.full(n, _TRACK, dtype=np.int8), pos, vel, np.zeros((n, 3)), np.full(n, self.heading))
+            self._placed = None
+        placed = self._placed
+        if placed is None or placed.heading != self.heading:
+            placed = self._placed = _Placement.of(self.heading, self._turned_offsets(self.heading), self.slot_of)
+        n = world.n
+        # TRACK the slot (reference + offset) at the reference's velocity; an agent without a
+        # slot holds where it is (HOLD, zero feed-forward). Built directly: a few calls a tick.
+        if placed.every:
+            pos = center + placed.offset
+            vel = np.empty((n, 3))
+            vel[:] = velocity
+        else:
+            pos = np.where(placed.slotted, center + placed.offset, world.pos)
+            vel = np.where(placed.slotted, velocity, 0.0)
+        sp = Setpoints(placed.mode.copy(), pos, vel, np.zeros((n, 3)), np.full(n, self.heading))
         self._last_slots = sp.pos
         return sp
 
@@ -129,6 +124,28 @@ class StaticShape(Formation):
         active = world.healthy & (self.slot_of >= 0)
         error = np.linalg.norm(world.pos[active] - self._last_slots[active], axis=1)
         return bool(np.all(error <= self.params.arrival_tolerance))
+
+
+@dataclass(frozen=True)
+class _Placement:
+    """Where each agent's slot sits around the reference for one heading: its slot's offset turned
+    by the heading (slot = reference + offset, the same sum as ``slots()[slot_of]``), the agents
+    with a slot and their setpoint modes. Kept until the heading or the assignment changes."""
+
+    heading: float
+    offset: np.ndarray
+    """(N, 3) m; rows of agents without a slot are unused"""
+    slotted: np.ndarray
+    """(N, 1) bool"""
+    every: bool
+    mode: np.ndarray
+    """(N,) int8: TRACK with a slot, HOLD without"""
+
+    @classmethod
+    def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> "_Placement":
+        slotted = slot_of >= 0
+        mode = np.where(slotted, _TRACK, _HOLD).astype(np.int8)
+        return cls(heading, turned[np.maximum(slot_of, 0)], slotted[:, None], bool(slotted.all()), mode)
 
 
 @hookimpl
