@@ -35,7 +35,8 @@ def _sum_at(rows: np.ndarray, values: np.ndarray, shape: tuple[int, int]) -> np.
     sums to the bit (one bincount over the flat index, a few times cheaper for a few agents)."""
     n, width = shape
     flat = (rows[:, None] * width + np.arange(width)).ravel()
-    return np.bincount(flat, weights=values.ravel(), minlength=n * width).reshape(shape)
+    summed = np.bincount(flat, weights=values.ravel(), minlength=n * width)
+    return summed.astype(float, copy=False).reshape(shape)  # (no rows: bincount's zeros are ints)
 
 
 _VELOCITY = int(Mode.VELOCITY)
