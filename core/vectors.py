@@ -10,8 +10,11 @@ import numpy as np
 def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     """Scale each row of ``v`` (N, k) down so that none is longer than ``limit``; shorter rows
     (and zero rows) are returned unchanged. The saturation of thesis eq. 4.21 and 5.30."""
-    norm = np.sqrt(np.einsum("...i,...i->...", v, v))[..., None]  # one C call per step (hot path)
-    return v * np.minimum(1.0, limit / np.maximum(norm, 1e-300))
+    norm = np.sqrt(np.einsum("...i,...i->...", v, v))  # one C call per step (hot path)
+    # No row too long (and a limit the 1e-300 floor cannot undercut): every factor below is 1.0.
+    if isinstance(limit, (int, float)) and 1e-300 <= limit >= norm.max(initial=0.0):
+        return v.astype(np.result_type(v, 1.0))  # v * 1.0, a copy
+    return v * np.minimum(1.0, limit / np.maximum(norm[..., None], 1e-300))
 
 
 def wrap(pos: np.ndarray, lo: np.ndarray | float, size: np.ndarray) -> np.ndarray:

@@ -310,6 +310,8 @@ class ThesisController:
         self.eps_lim = eps_lim
         self.family = np.full(n, -1, dtype=np.int8)
         """(N,) law each agent used at the previous tick (-1 before the first)."""
+        self._one_law: int | None = None
+        """The law every agent used at the previous tick, if they all used one."""
 
     def step(self, mode: np.ndarray, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray,
              v_ref: np.ndarray, u_ref: np.ndarray,
@@ -321,9 +323,14 @@ class ThesisController:
             references r̄, v̄, ū. v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
         """
         family = _FAMILY[mode]
+        first = int(family[0]) if family.size else _VELOCITY
+        if (family == first).all():  # one law for every agent (the usual case): only it runs
+            if self._one_law != first:  # else every agent used it last tick: nothing restarts
+                self._restart(family, r, v)
+                self._one_law = first
+            return self._step_one(first, r, v, r_ref, v_ref, u_ref, v_lim)
+        self._one_law = None
         self._restart(family, r, v)
-        if (family == family[0]).all():  # one law for every agent (the usual case): only it runs
-            return self._step_one(int(family[0]), r, v, r_ref, v_ref, u_ref, v_lim)
         is_vel = family == _VELOCITY
         is_pos = family == _POSITION
         u_inf = np.where(
@@ -352,8 +359,10 @@ class ThesisController:
             u = sat(u_inf, self.u_sat)
             self.velocity.integrate(v, v_ref, u_inf, u)
             return u
-        law = self.position if family == _POSITION else self.tracker
-        u_inf = law.unbounded(r, v, r_ref) if family == _POSITION else law.unbounded(r, v, r_ref, v_ref, u_ref)
+        if family == _POSITION:
+            law, u_inf = self.position, self.position.unbounded(r, v, r_ref)
+        else:
+            law, u_inf = self.tracker, self.tracker.unbounded(r, v, r_ref, v_ref, u_ref)
         u_cmd = u_inf if v_lim is None else velocity_limiter(u_inf, v, v_lim, self.K_lim, self.eps_lim)
         u = sat(u_cmd, self.u_sat)
         law.integrate(r, r_ref, u_inf, u)

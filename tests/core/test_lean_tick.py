@@ -19,7 +19,7 @@ from swarmscene.core.sensing import Sensing
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.simulation import NonFiniteState
 from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import DENSE_POINTS, dense_pair_dist2, pairs_within
+from swarmscene.core.vectors import DENSE_POINTS, clip_norm, dense_pair_dist2, pairs_within
 from swarmscene.methods.quadrotor.thesis_controllers import (
     ThesisController,
     position_gains,
@@ -248,6 +248,18 @@ def test_potential_repulsion_is_the_old_sum(data):
         assert not np.array_equal(new.vel, sp.vel)  # something pushed
 
 
+def test_clip_norm_is_the_old_scaling():
+    rng = np.random.default_rng(6)
+    v = rng.standard_normal((40, 3)) * 2.0
+    v[0] = [3.0, 4.0, 0.0]  # exactly at the limit 5
+    v[1] = [-0.0, 0.0, -0.0]
+    v[2] = [np.nan, 1.0, 0.0]
+    for limit in (5.0, 100.0, 0.5, 0.0, 1e-301, np.float64(2.0), 3):
+        for rows in (v, v[3:], v[:0], v[3:].astype(np.float32), v[:2]):
+            same_bits(clip_norm(rows, limit), old.clip_norm(rows, limit))
+    same_bits(clip_norm(np.arange(6).reshape(2, 3), 100.0), old.clip_norm(np.arange(6).reshape(2, 3), 100.0))
+
+
 def test_sum_at_is_add_at():
     rng = np.random.default_rng(5)
     for n, m in ((1, 0), (5, 10), (32, 200)):
@@ -262,8 +274,9 @@ def test_sum_at_is_add_at():
 
 def test_finite_check_tolerates_an_overflowing_sum_and_names_a_non_finite_agent():
     sim = api.build(["clock.duration=1"])
-    sim.world.pos[:] = 1e308  # finite, though their sum overflows
-    sim._check_finite()
+    sim.world.pos[:] = 1e308  # finite, though their sum overflows (numpy warns of that overflow)
+    with np.errstate(over="ignore"):
+        sim._check_finite()
     for bad in (np.nan, np.inf, -np.inf):
         sim.world.pos[:] = 0.0
         sim.world.vel[3, 1] = bad

@@ -23,6 +23,11 @@ def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return i, j, d2
 
 
+def clip_norm(v: np.ndarray, limit) -> np.ndarray:
+    norm = np.sqrt(np.einsum("...i,...i->...", v, v))[..., None]
+    return v * np.minimum(1.0, limit / np.maximum(norm, 1e-300))
+
+
 def sat(a: np.ndarray, u_sat) -> np.ndarray:
     return np.clip(a, -u_sat, u_sat)
 
@@ -75,8 +80,6 @@ def double_integrator_step(pos, vel, u, dt) -> None:
 
 
 def single_integrator_u(params, world, sp: Setpoints) -> np.ndarray:
-    from swarmscene.core.vectors import clip_norm
-
     correction = params.gain * (sp.pos - world.pos)
     u = np.where((sp.mode == Mode.VELOCITY)[:, None], sp.vel, sp.vel + correction)
     u = np.where((sp.mode == Mode.HOLD)[:, None], correction, u)
@@ -102,7 +105,6 @@ def static_shape_setpoints(formation, world) -> Setpoints:
 
 def potential_adjust(potential, world, sensing, sp: Setpoints) -> Setpoints:
     """Potential.adjust before #25 (pairs and obstacles from the same sensing)."""
-    from swarmscene.core.vectors import clip_norm
     from swarmscene.plugins.avoidance.potential import barrier
 
     p, d_s = potential.params, potential.ctx.separation_limit
