@@ -11,8 +11,9 @@ Cases (each round builds each afresh, in its own process):
     swap              ``scenario=swap swarm.n=16 swarm.start.radius=8``: 16 agents, ORCA
 
 A case runs as ``Simulation.run`` does (run-start hooks, then ticks until the duration, a stop or
-the mission's completion) for at most ``--ticks`` ticks; each ``step()`` is timed with
-``perf_counter``, the first ``WARMUP`` untimed. A round's figure is the median tick of each case;
+the mission's completion: the whole run unless ``--ticks`` stops it earlier); each ``step()`` is
+timed with ``perf_counter``, the first ``WARMUP`` untimed, so a case's median is the run's
+``step_ms_median`` without the first ticks. A round's figure is the median tick of each case;
 the table shows the median over rounds, its spread and, with ``--baseline``, the baseline's
 figures measured in the same rounds (the two trees alternate, so a noisy neighbour hits both) and
 the ratio of the medians. ``--baseline REV`` exports that commit (``git archive``) into a temporary
@@ -153,7 +154,8 @@ def table(rows: dict[str, dict[str, list[float]]], baseline: str | None) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5, help="rounds (fresh processes) per tree")
-    ap.add_argument("--ticks", type=int, default=600, help="at most this many timed ticks per case")
+    ap.add_argument("--ticks", type=int, default=1_000_000, help="at most this many timed ticks per case "
+                    "(default: the whole run)")
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of " + ", ".join(CASES))
     ap.add_argument("--baseline", metavar="REV", help="also measure this git revision, round by round")
     ap.add_argument("--profile", metavar="CASE", help="print a cProfile of one case instead")

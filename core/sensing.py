@@ -131,6 +131,8 @@ class Sensing:
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
         self._candidates = previous._candidates if previous is not None else None
+        # (comm_members as bytes, their count, the pairs of two members or None when all are)
+        self._members_memo = previous._members_memo if previous is not None else None
         self._shared: dict[str, tuple[Hashable, Any]] = {}
 
     def shared(self, name: str, params: Hashable, compute: Callable[[], T]) -> T:
@@ -354,17 +356,21 @@ class Sensing:
     def _few_connected(self) -> bool:
         """:attr:`comm_connected` of a few agents, from :attr:`_every_pair`: a complete graph at once
         (every member within range of every other, the usual case), else by reachability sweeps."""
-        members, n = self.comm_members, self.world.n
-        m = int(np.count_nonzero(members))
+        members = self.comm_members
+        i, j, d2 = self._every_pair
+        key = members.tobytes()  # the members change only with events: their pairs are kept
+        if self._members_memo is None or self._members_memo[0] != key:
+            m = int(np.count_nonzero(members))
+            self._members_memo = (key, m, None if m == members.size else members[i] & members[j])
+        _, m, member_pairs = self._members_memo
         if m <= 1:
             return True
-        i, j, d2 = self._every_pair
         r2 = self.comm_range * self.comm_range
-        if m == n and d2.max() <= r2:
+        if member_pairs is None and d2.max() <= r2:
             return True
         link = d2 <= r2
-        if m < n:
-            link &= members[i] & members[j]
+        if member_pairs is not None:
+            link &= member_pairs
             if int(np.count_nonzero(link)) == m * (m - 1) // 2:
                 return True
         first = int(np.argmax(members))

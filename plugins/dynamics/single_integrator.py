@@ -27,6 +27,7 @@ from swarmscene.core.vectors import clip_norm
 
 _VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
 """As ints: numpy compares an array with an enum member several times slower."""
+assert _VELOCITY & 1 and _HOLD & 1 and not int(Mode.POSITION) & 1 and not int(Mode.TRACK) & 1
 
 
 class SingleIntegrator(Dynamics):
@@ -48,10 +49,9 @@ class SingleIntegrator(Dynamics):
         p = self.params
         correction = p.gain * (sp.pos - world.pos)
         u = sp.vel + correction
-        velocity, hold = sp.mode == _VELOCITY, sp.mode == _HOLD
-        if np.count_nonzero(velocity) or np.count_nonzero(hold):  # else both selections return u
-            u = np.where(velocity[:, None], sp.vel, u)
-            u = np.where(hold[:, None], correction, u)
+        if np.count_nonzero(sp.mode & 1):  # VELOCITY (1) or HOLD (3) somewhere: else u as it is
+            u = np.where((sp.mode == _VELOCITY)[:, None], sp.vel, u)
+            u = np.where((sp.mode == _HOLD)[:, None], correction, u)
         self.u = clip_norm(u, p.u_max)
 
     def step(self, world: WorldState, dt: float) -> None:

@@ -91,6 +91,29 @@ def test_few_agents_pairs_separation_and_connectivity_match_the_old_queries():
     assert outcomes == {True, False}
 
 
+def test_connectivity_follows_the_members_from_snapshot_to_snapshot():
+    """The members' pairs are kept from tick to tick: a failure or a lost radio in place (as events
+    do it) must still be seen at the next snapshot."""
+    rng = np.random.default_rng(7)
+    env = Environment()
+    world = WorldState.at_rest(rng.uniform(0.0, 12.0, (8, 3)))
+    s = None
+    seen = set()
+    for tick in range(300):
+        world.pos[:] = rng.uniform(0.0, 10.0 if tick % 3 else 30.0, world.pos.shape)
+        if tick % 20 == 0:  # in place, as events change them
+            world.healthy[:] = True
+            world.comm_ok[:] = True
+            if tick % 40:
+                world.healthy[rng.integers(8)] = False
+                world.comm_ok[rng.integers(8)] = False
+        s = Sensing(world, env, 6.0, s)
+        expected = _graph_connected(world.pos, world.healthy & world.comm_ok, 6.0)
+        assert s.comm_connected == expected
+        seen.add((expected, bool((world.healthy & world.comm_ok).all())))
+    assert len(seen) == 4  # connected or not, with all or some members
+
+
 def test_no_obstacle_in_reach_answers_without_a_geometry_query():
     env = Environment([__import__("shapely").Point(100.0, 0.0).buffer(1.0)])
     world = WorldState.at_rest(np.array([[0.0, 0.0, 2.0], [3.0, 1.0, 2.0]]))
