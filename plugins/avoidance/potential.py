@@ -64,24 +64,27 @@ class Potential(Avoidance):
 
     def repulsion(self, world, sensing) -> np.ndarray:
         """Repulsive velocity (N, 3) from neighbours and obstacles (failed agents included)."""
+        v = self._repulsion(world, sensing)
+        return np.zeros_like(world.pos) if v is None else v
+
+    def _repulsion(self, world, sensing) -> np.ndarray | None:
+        """:meth:`repulsion`, or ``None`` when no agent and no obstacle is in range (zero)."""
         p, d_s = self.params, self.ctx.separation_limit
-        v = np.zeros_like(world.pos)
+        v = None
         d_range = p.influence * max(d_s, 1e-3)
         pairs = sensing.pairs(d_range)
-        pushed = len(pairs) > 0
-        if pushed:
+        if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]
             delta = world.pos[i] - world.pos[j]
             d = np.sqrt(np.add.reduce(delta * delta, axis=1))  # np.linalg.norm(axis=1), its own ops
             push = (p.v_max * barrier(d, d_s, d_range) / np.maximum(d, 1e-9))[:, None] * delta
-            v = _sum_at(np.concatenate([i, j]), np.concatenate([push, -push]), v.shape)
+            v = _sum_at(np.concatenate([i, j]), np.concatenate([push, -push]), world.pos.shape)
         if not sensing.environment.empty:
             obstacle = self._obstacle_repulsion(world, sensing)
             if obstacle is not None:
+                v = np.zeros_like(world.pos) if v is None else v
                 v += obstacle
-                pushed = True
-        # Nothing in range: v is +0.0 throughout, which the clip would return as it is.
-        return clip_norm(v, p.v_max) if pushed else v
+        return None if v is None else clip_norm(v, p.v_max)
 
     def _obstacle_repulsion(self, world, sensing) -> np.ndarray | None:
         """Repulsive velocity (N, 3) from the nearest obstacles; ``None`` when none is in range."""
@@ -102,17 +105,21 @@ class Potential(Avoidance):
         return v
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
-        v_rep = self.repulsion(world, sensing)
-        if not world.healthy.all():
+        v_rep = self._repulsion(world, sensing)
+        if v_rep is None:  # added as a scalar 0.0: the same sums as with an array of zeros
+            v_rep = 0.0
+        elif not world.healthy.all():
             v_rep[~world.healthy] = 0.0
-        out = sp.copy()
-        out.vel += v_rep
-        moving = out.mode != _VELOCITY
-        if moving.all():  # the same sums without two gathers and a scatter
-            out.pos += self.params.lookahead * v_rep
+        shift = self.params.lookahead * v_rep
+        moving = sp.mode != _VELOCITY
+        if moving.all():  # pos + shift, without two gathers and a scatter
+            pos = sp.pos + shift
         else:
-            out.pos[moving] += self.params.lookahead * v_rep[moving]
-        return out
+            pos = sp.pos.copy()
+            pos[moving] += shift if np.isscalar(shift) else shift[moving]
+        return Setpoints(sp.mode.copy(), pos, sp.vel + v_rep, sp.acc.copy(), sp.yaw.copy(),
+                         None if sp.jerk is None else sp.jerk.copy(),
+                         None if sp.snap is None else sp.snap.copy())
 
 
 @hookimpl

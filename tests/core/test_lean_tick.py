@@ -283,6 +283,24 @@ def test_clip_norm_is_the_old_scaling():
     same_bits(clip_norm(np.arange(6).reshape(2, 3), 100.0), old.clip_norm(np.arange(6).reshape(2, 3), 100.0))
 
 
+@pytest.mark.parametrize("velocity_mode", [False, True])
+def test_potential_without_anything_in_range_is_the_old_zero_sum(data, velocity_mode):
+    """Nothing in range: sp + 0.0 as the old sums gave it (a -0.0 reference turns +0.0)."""
+    sim = api.build(data)
+    world, potential = sim.world, sim.avoidance
+    world.pos[:] = [[-40.0 - 5.0 * k, 30.0, 2.0] for k in range(world.n)]  # apart, far from the pillar
+    sp = Setpoints.hold(world.pos)
+    sp.pos[0] = [-0.0, 0.0, -0.0]
+    sp.vel[:] = -0.0
+    sp.vel[1] = [1.0, -2.0, 0.0]
+    if velocity_mode:
+        sp.mode[1::2] = Mode.VELOCITY
+    new = potential.adjust(world, Sensing(world, sim.environment, 20.0), sp)
+    ref = old.potential_adjust(potential, world, Sensing(world, sim.environment, 20.0), sp)
+    same_setpoints(new, ref)
+    assert np.signbit(ref.vel).sum() == 1 and not np.signbit(ref.pos[0]).any()  # only the -2.0 left
+
+
 def test_sum_at_is_add_at():
     rng = np.random.default_rng(5)
     for n, m in ((1, 0), (5, 10), (32, 200)):
