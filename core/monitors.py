@@ -135,8 +135,9 @@ class SafetyMonitor:
 
     def _observe_clearance(self, sensing: Any, t: float, k: int) -> None:
         clearance = sensing.clearance_within(self.horizon)
-        if np.isfinite(clearance).any():
-            self.min_clearance[k] = clearance.min()
+        nearest = clearance.min(initial=np.inf)
+        if nearest < np.inf:  # some agent within the horizon
+            self.min_clearance[k] = nearest
         else:  # every agent is beyond the horizon: only the swarm's distance to the obstacles,
             # farther than the horizon > d_clear, so no violation: its value can wait for a batch.
             self._far_ticks.append(k)

@@ -101,7 +101,8 @@ class DoubleIntegrator(Dynamics):
                                            p.u_sat, self.K_lim, p.eps_lim)
         self.u = np.zeros_like(world.pos)
         world.acc = self.u
-        self._held: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._held: tuple[float, np.ndarray, np.ndarray] | None = None  # dt, T^2/2 u, T u
+        self._move = np.empty_like(self.u)  # step()'s work array
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
         healthy = world.healthy
@@ -121,7 +122,7 @@ class DoubleIntegrator(Dynamics):
         if self._held is None or self._held[0] != dt:
             self._held = (dt, 0.5 * self.u * dt * dt, self.u * dt)
         _, du_pos, du_vel = self._held
-        move = world.vel * dt
+        move = np.multiply(world.vel, dt, out=self._move)
         move += du_pos
         world.pos += move
         world.vel += du_vel
