@@ -18,8 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
-from functools import cached_property
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
 import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a small swarm needs neither
@@ -64,6 +63,26 @@ class ObstacleCandidates:
             return False
         moved = xy - self.xy
         return float(np.einsum("ij,ij->i", moved, moved).max(initial=0.0)) <= (self.radius - reach) ** 2
+
+
+class per_tick(Generic[T]):
+    """``functools.cached_property`` without its lock: computed at the first read, then a plain
+    attribute of this snapshot. A snapshot lives within one tick of one thread, and Python 3.11's
+    cached_property takes a class-wide lock on every first read (a few reads a tick, ~0.2 us each
+    of a small swarm's tick budget)."""
+
+    def __init__(self, func: Callable[[Any], T]) -> None:
+        self.func = func
+        self.__doc__ = func.__doc__
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, cls: type | None = None) -> T:
+        if obj is None:
+            return self  # type: ignore[return-value]
+        value = obj.__dict__[self.name] = self.func(obj)
+        return value
 
 
 def _dense_connected(pos: np.ndarray, radius: float) -> bool:
@@ -161,7 +180,7 @@ class Sensing:
         self._shared[name] = (params, value)
         return value
 
-    @cached_property
+    @per_tick
     def tree(self) -> "cKDTree":
         """k-d tree over all agents' positions (failed ones included: they are still obstacles)."""
         return scipy.spatial.cKDTree(self.world.pos)
@@ -196,7 +215,7 @@ class Sensing:
                 return self._listed_pairs(radius)
         return self._pairs[radius]
 
-    @cached_property
+    @per_tick
     def _every_pair(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Every pair (i < j) and its squared length, listed once per snapshot of at most
         ``DENSE_POINTS`` agents (``None`` for more): the pairs at any radius, the closest pair and
@@ -206,7 +225,7 @@ class Sensing:
             return None
         return dense_pair_dist2(self.world.pos)
 
-    @cached_property
+    @per_tick
     def min_separation(self) -> float:
         """Smallest distance between two agents, m (``inf`` with fewer than two).
 
@@ -228,7 +247,7 @@ class Sensing:
             return float(self.knn[0][:, 0].min())
         return min_pair_distance(self.world.pos)
 
-    @cached_property
+    @per_tick
     def knn(self) -> tuple[np.ndarray, np.ndarray]:
         """Distances and indices of each agent's ``NEAR_K`` nearest others, shape (N, <= NEAR_K).
 
@@ -242,7 +261,7 @@ class Sensing:
         dist, idx = dist.reshape(n, k)[:, 1:], idx.reshape(n, k)[:, 1:]  # drop each agent itself
         return dist, idx
 
-    @cached_property
+    @per_tick
     def nearest(self) -> tuple[np.ndarray, np.ndarray]:
         """For each agent: distance to its nearest other agent (m, ``inf`` if alone) and its index."""
         n = self.world.n
@@ -251,7 +270,7 @@ class Sensing:
         dist, idx = self.knn
         return dist[:, 0], idx[:, 0]
 
-    @cached_property
+    @per_tick
     def clearance(self) -> np.ndarray:
         """Signed distance from each agent to the nearest obstacle, m (``inf`` in open space)."""
         return self.environment.clearance(self.world.pos)
@@ -306,24 +325,24 @@ class Sensing:
             self._candidates = ObstacleCandidates(xy.copy(), radius, *self.environment.near_pairs(xy, radius))
         return self._candidates.point, self._candidates.geom
 
-    @cached_property
+    @per_tick
     def comm_members(self) -> np.ndarray:
         """Agents taking part in communication: healthy and with a working radio."""
         return self.world.healthy & self.world.comm_ok
 
-    @cached_property
+    @per_tick
     def comm_edges(self) -> np.ndarray:
         """Links (i < j) of the communication graph: pairs within range, both ends members."""
         return self._comm_links[0]
 
-    @cached_property
+    @per_tick
     def _comm_links(self) -> tuple[np.ndarray, np.ndarray]:
         """:attr:`comm_edges` and their squared lengths (from the pair list's own)."""
         pairs = self.pairs(self.comm_range)
         links = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
         return pairs[links], self._pair_d2[self.comm_range][links]
 
-    @cached_property
+    @per_tick
     def comm_adjacency(self) -> "csr_matrix":
         """Symmetric sparse adjacency of the communication graph (range ``comm_range``)."""
         n = self.world.n
@@ -332,7 +351,7 @@ class Sensing:
         data = np.ones(2 * len(i), dtype=np.int8)
         return scipy.sparse.coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
 
-    @cached_property
+    @per_tick
     def comm_connected(self) -> bool:
         """True when the communication graph over its members is connected (one member counts).
 
@@ -403,7 +422,7 @@ class Sensing:
         """Hops from ``source`` to every agent over the communication graph (``inf`` if unreachable)."""
         return scipy.sparse.csgraph.shortest_path(self.comm_adjacency, unweighted=True, indices=source)
 
-    @cached_property
+    @per_tick
     def comm_graph(self) -> "nx.Graph":
         """The communication graph as a networkx graph, for analysis and metrics (not hot loops)."""
         import networkx as nx  # 0.1 s to import: only the analyses that ask for it pay
