@@ -135,7 +135,7 @@ class SafetyMonitor:
 
     def _observe_clearance(self, sensing: Any, t: float, k: int) -> None:
         clearance = sensing.clearance_within(self.horizon)
-        nearest = clearance.min(initial=np.inf)
+        nearest = np.minimum.reduce(clearance, initial=np.inf)
         if nearest < np.inf:  # some agent within the horizon
             self.min_clearance[k] = nearest
         else:  # every agent is beyond the horizon: only the swarm's distance to the obstacles,

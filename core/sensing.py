@@ -237,7 +237,7 @@ class Sensing:
         if self.world.n < 2:
             return float("inf")
         if self._every_pair is not None:  # the closest of every pair: the same sum, so the same bits
-            return math.sqrt(self._every_pair[2].min())
+            return math.sqrt(np.minimum.reduce(self._every_pair[2]))
         if not self._pairs and self._hint["pairs"] > 0:
             self._listed_pairs(self._hint["pairs"])
         for radius in sorted(self._pairs):
@@ -307,8 +307,10 @@ class Sensing:
                 reach = max(radius, self._hint["obstacles"])
                 candidates = self._obstacle_candidates(reach)
                 if candidates is None or candidates[0].size == 0:  # open space, or none in reach
-                    n = self.world.n
-                    self._nearest[reach] = (np.full(n, -1), np.full(n, np.inf))
+                    index, clearance = np.empty(self.world.n, dtype=int), np.empty(self.world.n)
+                    index.fill(-1)  # np.full's values, without its Python-level wrapper
+                    clearance.fill(np.inf)
+                    self._nearest[reach] = (index, clearance)
                     self._none_within = reach
                 else:
                     self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach, candidates)
@@ -385,7 +387,7 @@ class Sensing:
         if m <= 1:
             return True
         r2 = self.comm_range * self.comm_range
-        if member_pairs is None and d2.max() <= r2:
+        if member_pairs is None and np.maximum.reduce(d2) <= r2:
             return True
         link = d2 <= r2
         if member_pairs is not None:

@@ -7,12 +7,17 @@ from functools import lru_cache
 import numpy as np
 
 
+def every(mask: np.ndarray) -> bool:
+    """``mask.all()`` of a bool array without ndarray.all's Python-level wrapper (a per-tick test)."""
+    return np.count_nonzero(mask) == mask.size
+
+
 def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     """Scale each row of ``v`` (N, k) down so that none is longer than ``limit``; shorter rows
     (and zero rows) are returned unchanged. The saturation of thesis eq. 4.21 and 5.30."""
     norm = np.sqrt(np.einsum("...i,...i->...", v, v))  # one C call per step (hot path)
     # No row too long (and a limit the 1e-300 floor cannot undercut): every factor below is 1.0.
-    if isinstance(limit, (int, float)) and 1e-300 <= limit >= norm.max(initial=0.0):
+    if isinstance(limit, (int, float)) and 1e-300 <= limit >= np.maximum.reduce(norm, None, initial=0.0):
         return v.astype(np.result_type(v, 1.0))  # v * 1.0, a copy
     return v * np.minimum(1.0, limit / np.maximum(norm[..., None], 1e-300))
 

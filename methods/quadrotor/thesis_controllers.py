@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmscene.core.setpoint import Mode
+from swarmscene.core.vectors import every
 
 # --------------------------------------------------------------------------- gain synthesis
 
@@ -324,7 +325,7 @@ class ThesisController:
         """
         family = _FAMILY[mode]
         first = int(family[0]) if family.size else _VELOCITY
-        if (family == first).all():  # one law for every agent (the usual case): only it runs
+        if every(family == first):  # one law for every agent (the usual case): only it runs
             if self._one_law != first:  # else every agent used it last tick: nothing restarts
                 self._restart(family, r, v)
                 self._one_law = first

@@ -21,7 +21,7 @@ from pydantic import Field
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.vectors import clip_norm
+from swarmscene.core.vectors import clip_norm, every
 
 
 def barrier(d: np.ndarray, d_safe: float, d_range: float) -> np.ndarray:
@@ -91,9 +91,10 @@ class Potential(Avoidance):
         p, c_s = self.params, self.ctx.clearance_limit
         d_range = c_s + p.obstacle_influence
         clearance = sensing.clearance_within(d_range)
-        near = np.flatnonzero(clearance < d_range)
-        if near.size == 0:
+        below = clearance < d_range
+        if not np.count_nonzero(below):
             return None
+        near = np.flatnonzero(below)
         v = np.zeros_like(world.pos)
         point = sensing.environment.nearest_point(world.pos[near])
         away = world.pos[near, :2] - point
@@ -108,11 +109,11 @@ class Potential(Avoidance):
         v_rep = self._repulsion(world, sensing)
         if v_rep is None:  # added as a scalar 0.0: the same sums as with an array of zeros
             v_rep = 0.0
-        elif not world.healthy.all():
+        elif not every(world.healthy):
             v_rep[~world.healthy] = 0.0
         shift = self.params.lookahead * v_rep
         moving = sp.mode != _VELOCITY
-        if moving.all():  # pos + shift, without two gathers and a scatter
+        if every(moving):  # pos + shift, without two gathers and a scatter
             pos = sp.pos + shift
         else:
             pos = sp.pos.copy()

@@ -42,6 +42,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import every
 
 from swarmscene.methods.quadrotor.thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
 
@@ -106,7 +107,7 @@ class DoubleIntegrator(Dynamics):
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
         healthy = world.healthy
-        if healthy.all():  # nobody to switch to HOLD (the selections below would copy sp as is)
+        if every(healthy):  # nobody to switch to HOLD (the selections below would copy sp as is)
             mode, r_ref = sp.mode, sp.pos
         else:
             mode = np.where(healthy, sp.mode, Mode.HOLD)

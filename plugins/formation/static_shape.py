@@ -114,7 +114,9 @@ class StaticShape(Formation):
         else:
             pos = np.where(placed.slotted, center + placed.offset, world.pos)
             vel = np.where(placed.slotted, velocity, 0.0)
-        sp = Setpoints(placed.mode.copy(), pos, vel, np.zeros((n, 3)), np.full(n, self.heading))
+        yaw = np.empty(n)
+        yaw.fill(self.heading)
+        sp = Setpoints(placed.mode.copy(), pos, vel, np.zeros((n, 3)), yaw)
         self._last_slots = sp.pos
         return sp
 
