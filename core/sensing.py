@@ -140,6 +140,7 @@ class Sensing:
         previous: "Sensing | None" = None,
     ) -> None:
         self.world = world
+        self._n = world.n  # agents (read a few times a tick; a property of the world)
         self.environment = environment
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
@@ -201,7 +202,7 @@ class Sensing:
         if radius not in self._pairs and self._every_pair is not None:
             d2 = self._every_pair[2]  # a few agents: filtered from every pair, as pairs_within does
             near = d2 <= radius * radius
-            self._pairs[radius], self._pair_d2[radius] = upper_pair_array(self.world.n)[near], d2[near]
+            self._pairs[radius], self._pair_d2[radius] = upper_pair_array(self._n)[near], d2[near]
         if radius not in self._pairs:
             larger = [r for r in self._pairs if r >= radius]
             if larger:
@@ -221,7 +222,7 @@ class Sensing:
         ``DENSE_POINTS`` agents (``None`` for more): the pairs at any radius, the closest pair and
         the communication graph are all read from this one pass (a pass per query cost ~5 us each,
         most of a small swarm's tick)."""
-        if self.world.n > DENSE_POINTS:
+        if self._n > DENSE_POINTS:
             return None
         return dense_pair_dist2(self.world.pos)
 
@@ -234,7 +235,7 @@ class Sensing:
         When the previous tick was asked for pairs, they are listed now (the same caller will
         ask again), which makes this free.
         """
-        if self.world.n < 2:
+        if self._n < 2:
             return float("inf")
         if self._every_pair is not None:  # the closest of every pair: the same sum, so the same bits
             return math.sqrt(np.minimum.reduce(self._every_pair[2]))
@@ -307,7 +308,7 @@ class Sensing:
                 reach = max(radius, self._hint["obstacles"])
                 candidates = self._obstacle_candidates(reach)
                 if candidates is None or candidates[0].size == 0:  # open space, or none in reach
-                    index, clearance = np.empty(self.world.n, dtype=int), np.empty(self.world.n)
+                    index, clearance = np.empty(self._n, dtype=int), np.empty(self._n)
                     index.fill(-1)  # np.full's values, without its Python-level wrapper
                     clearance.fill(np.inf)
                     self._nearest[reach] = (index, clearance)

@@ -118,9 +118,9 @@ class Potential(Avoidance):
         else:
             pos = sp.pos.copy()
             pos[moving] += shift if np.isscalar(shift) else shift[moving]
-        return Setpoints(sp.mode.copy(), pos, sp.vel + v_rep, sp.acc.copy(), sp.yaw.copy(),
-                         None if sp.jerk is None else sp.jerk.copy(),
-                         None if sp.snap is None else sp.snap.copy())
+        # New pos and vel; the fields it does not change are handed on, not copied (nothing
+        # after avoidance writes to setpoints: the dynamics' contract forbids it).
+        return Setpoints(sp.mode, pos, sp.vel + v_rep, sp.acc, sp.yaw, sp.jerk, sp.snap)
 
 
 @hookimpl
