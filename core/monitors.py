@@ -118,9 +118,9 @@ class SafetyMonitor:
         sensing, t, k = sim.sensing, sim.world.t, self.count
         self.t[k] = t
         # Connectivity first: the pair list it may build makes the separation free.
-        self.connected[k] = self.certificate.connected(sensing)
-        self.min_separation[k] = sensing.min_separation
-        if self.min_separation[k] < self.d_sep:
+        connected = self.connected[k] = self.certificate.connected(sensing)
+        separation = self.min_separation[k] = sensing.min_separation
+        if separation < self.d_sep:
             pairs = sensing.pairs(self.d_sep)
             self._add_collisions(pairs)
             if "separation" not in self.first:
@@ -129,7 +129,7 @@ class SafetyMonitor:
                 sim.request_stop("collision")
         if not sensing.environment.empty:  # open space: min_clearance stays inf
             self._observe_clearance(sensing, t, k)
-        if not self.connected[k]:
+        if not connected:
             self._first("connectivity", t, np.flatnonzero(sensing.comm_members).tolist())
         self.count += 1
 

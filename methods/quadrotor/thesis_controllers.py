@@ -134,7 +134,8 @@ def tracker_gains(omega_t: float, xi_t: float, T_s: float, K_Wt: float = 5.0) ->
 def sat(a: np.ndarray, u_sat: float | np.ndarray) -> np.ndarray:
     """Symmetric saturation (eq. 3.26): clip each component to [-u_sat, u_sat]."""
     # minimum(maximum()) is np.clip's result (NaN included) at half the call's fixed cost
-    return np.minimum(np.maximum(a, -u_sat), u_sat)
+    out = np.maximum(a, -u_sat)
+    return np.minimum(out, u_sat, out=out)
 
 
 def velocity_limiter(
@@ -164,9 +165,12 @@ def velocity_limiter(
             v_lim = v_lim[:, None]
     elif not v_lim > eps_lim:  # one scalar limit at or below the threshold: brake everywhere
         return -K_lim * v
-    u_plus = -K_lim * (v - v_lim)
-    u_minus = -K_lim * (v + v_lim)
-    u_lim = np.where(v > 0.0, np.minimum(u_inf, u_plus), np.maximum(u_inf, u_minus))
+    # -K_lim (v -+ v_lim), then the bound on u_inf, in place (the same products and bounds)
+    u_plus = v - v_lim
+    u_plus *= -K_lim
+    u_minus = v + v_lim
+    u_minus *= -K_lim
+    u_lim = np.where(v > 0.0, np.minimum(u_inf, u_plus, out=u_plus), np.maximum(u_inf, u_minus, out=u_minus))
     return u_lim if isinstance(v_lim, float) else np.where(v_lim > eps_lim, u_lim, -K_lim * v)
 
 
@@ -186,7 +190,9 @@ class _IntegralLaw:
 
     def _advance(self, error: np.ndarray, u_inf: np.ndarray, u: np.ndarray, K_W: float,
                  active: np.ndarray | None) -> None:
-        step = error + K_W * (u_inf - u)
+        step = u_inf - u  # error + K_W (u_inf - u), in place: the same product and sum
+        step *= K_W
+        step += error
         if active is None:
             self.x_I += step
         else:
