@@ -2,6 +2,7 @@
 
     python benchmarks/bench_tick.py                        # this checkout, --repeat 5 rounds
     python benchmarks/bench_tick.py --baseline af87771     # and that commit, round by round
+    python benchmarks/bench_tick.py --phases default       # each phase's median share of the tick
     python benchmarks/bench_tick.py --profile default      # where one case's tick goes (cProfile)
     python benchmarks/bench_tick.py --json
 
@@ -129,6 +130,79 @@ def profile(case: str, ticks: int, top: int = 25) -> None:
     pstats.Stats(prof).strip_dirs().sort_stats("tottime").print_stats(top)
 
 
+PHASES = ("events", "sense", "formation", "avoidance", "control", "physics", "hold", "finite",
+          "snapshot", "observers")
+
+
+def phases(case: str, ticks: int) -> dict[str, float]:
+    """Median microseconds of each phase of one case's ticks, and of the whole tick ("tick").
+
+    The kernel's collaborators are wrapped in timers on this one simulation (its step() runs as
+    written): formation.setpoints, avoidance.adjust, dynamics.control, the physics sub-steps
+    (dynamics.step and the wind calls around it), events.hold, the finite check, the Sensing
+    snapshot and the step-end hooks (every observer, through pluggy; then each observer's own call,
+    indented). Each timer adds ~0.1 us.
+    """
+    from swarmscene import api
+    from swarmscene.core import simulation
+
+    tick_times(CASES[case], ticks)  # imports and compiled-kernel loads paid first
+    sim = api.build(CASES[case])
+    spent = dict.fromkeys(PHASES, 0.0)
+
+    def timed(phase: str, func):
+        def call(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return func(*args, **kwargs)
+            finally:
+                spent[phase] += time.perf_counter() - start
+        return call
+
+    sim._apply_due_events = timed("events", sim._apply_due_events)
+    sim.disturbances.perceive = timed("sense", sim.disturbances.perceive)
+    sim.formation.setpoints = timed("formation", sim.formation.setpoints)
+    sim.avoidance.adjust = timed("avoidance", sim.avoidance.adjust)
+    sim.dynamics.control = timed("control", sim.dynamics.control)
+    for name in ("blow", "push"):
+        setattr(sim.disturbances, name, timed("physics", getattr(sim.disturbances, name)))
+    sim.dynamics.step = timed("physics", sim.dynamics.step)
+    sim.events.hold = timed("hold", sim.events.hold)
+    sim._check_finite = timed("finite", sim._check_finite)
+    relay = sim.hook
+
+    class Hooks:  # the kernel's hook relay, its step-end call timed
+        def __getattr__(self, name):
+            return getattr(relay, name)
+
+        swarmscene_step_end = staticmethod(timed("observers", relay.swarmscene_step_end))
+
+    sim.hook = Hooks()
+    for impl in relay.swarmscene_step_end.get_hookimpls():  # each observer's own share
+        name = f"  {type(impl.plugin).__name__}"
+        spent[name] = 0.0
+        impl.function = timed(name, impl.function)
+    snapshot, simulation.Sensing = simulation.Sensing, timed("snapshot", simulation.Sensing)
+    rows: dict[str, list[float]] = {name: [] for name in (*spent, "tick")}
+    try:
+        sim.hook.swarmscene_run_start(sim=sim)
+        done = 0
+        while sim.step_count < sim.total_steps and sim.stop_reason is None and done < ticks:
+            for name in spent:
+                spent[name] = 0.0
+            start = time.perf_counter()
+            sim.step()
+            rows["tick"].append(time.perf_counter() - start)
+            for name, seconds in spent.items():
+                rows[name].append(seconds)
+            done += 1
+            if sim.config.termination.on_complete and sim.formation.complete(sim.world):
+                break
+    finally:
+        simulation.Sensing = snapshot
+    return {name: statistics.median(v[WARMUP:]) * 1e6 for name, v in rows.items()}
+
+
 def table(rows: dict[str, dict[str, list[float]]], baseline: str | None) -> str:
     head = "| case | ticks | median tick, us (min-max over rounds) |"
     rule = "|---|---|---|"
@@ -158,12 +232,13 @@ def main() -> None:
                     "(default: the whole run)")
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of " + ", ".join(CASES))
     ap.add_argument("--baseline", metavar="REV", help="also measure this git revision, round by round")
+    ap.add_argument("--phases", metavar="CASE", help="print each phase's median tick time of one case")
     ap.add_argument("--profile", metavar="CASE", help="print a cProfile of one case instead")
     ap.add_argument("--json", action="store_true", help="print the figures as JSON")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     cases = [c for c in args.cases.split(",") if c]
-    unknown = [c for c in cases + ([args.profile] if args.profile else []) if c not in CASES]
+    unknown = [c for c in [*cases, args.profile, args.phases] if c and c not in CASES]
     if unknown:
         raise SystemExit(f"bench_tick: unknown case {unknown[0]!r} (cases: {', '.join(CASES)})")
     if args.repeat < 1 or args.ticks < 1:
@@ -173,6 +248,14 @@ def main() -> None:
         return
     if args.profile:
         profile(args.profile, args.ticks)
+        return
+    if args.phases:
+        medians = phases(args.phases, args.ticks)
+        rest = medians["tick"] - sum(medians[name] for name in PHASES)
+        print(f"| {args.phases}: phase | median, us |\n|---|---|")
+        for name, us in medians.items():
+            print(f"| {name} | {us:.1f} |")
+        print(f"| (tick less the phases' medians: the kernel's own lines, timers) | {rest:.1f} |")
         return
     rows = {c: {"this": [], "base": [], "ticks": []} for c in cases}
     with tempfile.TemporaryDirectory(prefix="bench_tick_") as tmp:

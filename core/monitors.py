@@ -142,7 +142,7 @@ class SafetyMonitor:
             # farther than the horizon > d_clear, so no violation: its value can wait for a batch.
             self._far_ticks.append(k)
             self._far_xy.append(sensing.world.pos[:, :2].copy())
-            if len(self._far_ticks) * sensing.world.n >= FAR_BATCH:
+            if len(self._far_ticks) * self.n >= FAR_BATCH:
                 self._settle_far()
             return
         if self.min_clearance[k] < self.d_clear:

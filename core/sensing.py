@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Hashable
+from functools import lru_cache
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
@@ -109,6 +110,16 @@ def _linked_by_sweeps(n: int, i: np.ndarray, j: np.ndarray, start: int) -> np.nd
         count = new
         reached |= adjacent[reached].any(axis=0)
     return reached
+
+
+@lru_cache(maxsize=8)
+def _nothing_near(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Sensing.obstacle_nearest`'s answer when no obstacle is in range: index -1 and
+    clearance ``inf`` for each of ``n`` agents, read-only templates (each tick hands out copies:
+    two calls instead of np.full's Python-level four)."""
+    index, clearance = np.full(n, -1), np.full(n, np.inf)
+    index.flags.writeable = clearance.flags.writeable = False
+    return index, clearance
 
 
 def _renumber(n: int, members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -308,11 +319,10 @@ class Sensing:
                 reach = max(radius, self._hint["obstacles"])
                 candidates = self._obstacle_candidates(reach)
                 if candidates is None or candidates[0].size == 0:  # open space, or none in reach
-                    index, clearance = np.empty(self._n, dtype=int), np.empty(self._n)
-                    index.fill(-1)  # np.full's values, without its Python-level wrapper
-                    clearance.fill(np.inf)
-                    self._nearest[reach] = (index, clearance)
                     self._none_within = reach
+                    index, clearance = _nothing_near(self._n)
+                    self._nearest[reach] = (index.copy(), clearance.copy())  # callers' own arrays
+                    return self._nearest[reach]
                 else:
                     self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach, candidates)
                 return self.obstacle_nearest(radius)
