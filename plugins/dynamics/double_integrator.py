@@ -102,7 +102,7 @@ class DoubleIntegrator(Dynamics):
                                            p.u_sat, self.K_lim, p.eps_lim)
         self.u = np.zeros_like(world.pos)
         world.acc = self.u
-        self._held: tuple[float, np.ndarray, np.ndarray] | None = None  # dt, T^2/2 u, T u
+        self._held_dt: float | None = None  # the dt of _du_pos = T^2/2 u and _du_vel = T u
         self._move = np.empty_like(self.u)  # step()'s work array
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
@@ -113,20 +113,23 @@ class DoubleIntegrator(Dynamics):
             mode = np.where(healthy, sp.mode, Mode.HOLD)
             r_ref = np.where(healthy[:, None], sp.pos, world.pos)
         v_max = self.params.v_max
-        v_ref = sp.vel if v_max is None else np.minimum(np.maximum(sp.vel, -v_max), v_max)  # np.clip
+        if v_max is None:
+            v_ref = sp.vel
+        else:  # np.clip's values
+            v_ref = np.maximum(sp.vel, -v_max)
+            np.minimum(v_ref, v_max, out=v_ref)
         self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc, v_max)
-        self._held = None
+        self._held_dt = None
 
     def step(self, world: WorldState, dt: float) -> None:
         # r += T v + T^2/2 u, v += T u. u is held over the tick's sub-steps, so its two terms are
         # computed once per tick and dt (the same products, in the same order: the same bits).
-        if self._held is None or self._held[0] != dt:
-            self._held = (dt, 0.5 * self.u * dt * dt, self.u * dt)
-        _, du_pos, du_vel = self._held
+        if self._held_dt != dt:
+            self._held_dt, self._du_pos, self._du_vel = dt, 0.5 * self.u * dt * dt, self.u * dt
         move = np.multiply(world.vel, dt, out=self._move)
-        move += du_pos
+        move += self._du_pos
         world.pos += move
-        world.vel += du_vel
+        world.vel += self._du_vel
 
 
 @hookimpl
