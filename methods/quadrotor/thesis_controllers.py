@@ -329,13 +329,14 @@ class ThesisController:
             mode: (N,) :class:`Mode` values. r, v: (N, 3) state. r_ref, v_ref, u_ref: (N, 3)
             references r̄, v̄, ū. v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
         """
+        first = int(mode[0]) if mode.size else int(Mode.VELOCITY)
+        if every(mode == first):  # one mode, so one law, for every agent (the usual case)
+            law = int(_FAMILY[first])
+            if self._one_law != law:  # else every agent used it last tick: nothing restarts
+                self._restart(_FAMILY[mode], r, v)
+                self._one_law = law
+            return self._step_one(law, r, v, r_ref, v_ref, u_ref, v_lim)
         family = _FAMILY[mode]
-        first = int(family[0]) if family.size else _VELOCITY
-        if every(family == first):  # one law for every agent (the usual case): only it runs
-            if self._one_law != first:  # else every agent used it last tick: nothing restarts
-                self._restart(family, r, v)
-                self._one_law = first
-            return self._step_one(first, r, v, r_ref, v_ref, u_ref, v_lim)
         self._one_law = None
         self._restart(family, r, v)
         is_vel = family == _VELOCITY

@@ -163,7 +163,7 @@ def _controller(n: int, u_sat=3.4, eps_lim=0.0) -> ThesisController:
                             tracker_gains(1.5, 0.71, 0.1), u_sat, 2.5, eps_lim)
 
 
-@pytest.mark.parametrize("modes", ["position", "velocity", "track", "hold", "mixed", "switching"])
+@pytest.mark.parametrize("modes", ["position", "velocity", "track", "hold", "mixed", "switching", "position_hold"])
 @pytest.mark.parametrize("v_lim", [None, 2.0, 0.0])
 def test_controller_running_one_law_gives_the_three_law_selection(modes, v_lim):
     rng = np.random.default_rng(len(modes))
@@ -174,6 +174,10 @@ def test_controller_running_one_law_gives_the_three_law_selection(modes, v_lim):
             mode = np.arange(n, dtype=np.int8) % 4
         elif modes == "switching":  # all in one law, then another: the integrals restart
             mode = np.full(n, [0, 1, 2, 3][tick // 3], dtype=np.int8)
+        elif modes == "position_hold":  # one law under two modes, then a mixed tick of both
+            mode = np.full(n, 0 if tick < 4 else 3, dtype=np.int8)
+            if tick == 7:
+                mode[::2] = 0
         else:
             mode = np.full(n, int(Mode[modes.upper()]), dtype=np.int8)
         r, v, r_ref, v_ref, u_ref = (rng.standard_normal((n, 3)) * 4.0 for _ in range(5))
@@ -315,12 +319,16 @@ def test_sum_at_is_add_at():
 
 def test_finite_check_tolerates_an_overflowing_sum_and_names_a_non_finite_agent():
     sim = api.build(["clock.duration=1"])
-    sim.world.pos[:] = 1e308  # finite, though their sum overflows (numpy warns of that overflow)
+    sim.world.pos[:] = sim.world.vel[:] = 1e200  # finite, though pos . vel overflows (numpy warns)
     with np.errstate(over="ignore"):
         sim._check_finite()
     for bad in (np.nan, np.inf, -np.inf):
-        sim.world.pos[:] = 0.0
-        sim.world.vel[3, 1] = bad
-        with pytest.raises(NonFiniteState, match=r"^non-finite state of agent 3 at tick 1 "):
-            sim._check_finite()
-        sim.world.vel[3, 1] = 0.0
+        for field, other in (("vel", "pos"), ("pos", "vel")):
+            sim.world.pos[:] = sim.world.vel[:] = 0.0  # an infinity times 0 is caught too
+            getattr(sim.world, other)[:] = 1.0 if bad == np.inf else 0.0
+            getattr(sim.world, field)[3, 1] = bad
+            with np.errstate(invalid="ignore"), pytest.raises(
+                    NonFiniteState, match=r"^non-finite state of agent 3 at tick 1 "):
+                sim._check_finite()
+    sim.world.pos[:] = sim.world.vel[:] = 0.0
+    sim._check_finite()
