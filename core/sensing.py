@@ -163,7 +163,8 @@ class Sensing:
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
         self._candidates = previous._candidates if previous is not None else None
-        # (comm_members as bytes, their count, the pairs of two members or None when all are)
+        # comm_members as bytes, their count, which pairs join two members (mask; indices, or
+        # None when every agent is a member)
         self._members_memo = previous._members_memo if previous is not None else None
         self._shared: dict[str, tuple[Hashable, Any]] = {}
 
@@ -393,19 +394,16 @@ class Sensing:
         i, j, d2 = self._every_pair
         key = members.tobytes()  # the members change only with events: their pairs are kept
         if self._members_memo is None or self._members_memo[0] != key:
-            m = int(np.count_nonzero(members))
-            self._members_memo = (key, m, None if m == members.size else members[i] & members[j])
-        _, m, member_pairs = self._members_memo
+            m, both = int(np.count_nonzero(members)), members[i] & members[j]
+            self._members_memo = (key, m, both, None if m == members.size else np.flatnonzero(both))
+        _, m, both, member_pairs = self._members_memo
         if m <= 1:
             return True
         r2 = self.comm_range * self.comm_range
-        if member_pairs is None and np.maximum.reduce(d2) <= r2:
+        among = d2 if member_pairs is None else d2.take(member_pairs)
+        if np.maximum.reduce(among) <= r2:  # every member in range of every other
             return True
-        link = d2 <= r2
-        if member_pairs is not None:
-            link &= member_pairs
-            if int(np.count_nonzero(link)) == m * (m - 1) // 2:
-                return True
+        link = (d2 <= r2) & both
         first = int(np.argmax(members))
         reached = _linked_by_sweeps(self.world.n, i[link], j[link], first)
         return int(reached.sum()) == m

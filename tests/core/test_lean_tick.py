@@ -315,6 +315,23 @@ def test_sum_at_is_add_at():
         same_bits(_sum_at(rows, values, (n, 3)), ref)
 
 
+# -- events --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("agents", [[1, 2], [0, 3], [4]])
+def test_held_agents_stay_where_they_failed_whether_their_rows_are_a_run_or_not(data, agents):
+    data["events"] = [{"at": 1.0, "agents": agents, "kind": "hover"}]
+    data["termination"]["on_complete"] = False
+    data["clock"]["duration"] = 3.0
+    result = api.build(data).run()
+    traj = result.trajectory
+    after = traj["t"] >= 1.0
+    held = traj["pos"][after][:, agents]
+    assert np.array_equal(held, np.broadcast_to(held[0], held.shape))
+    assert not traj["vel"][traj["t"] > 1.0][:, agents].any()
+    others = [k for k in range(5) if k not in agents]
+    assert not np.array_equal(traj["pos"][-1, others], traj["pos"][np.flatnonzero(after)[0], others])
+
+
 # -- the kernel's finite check ------------------------------------------------------------------
 
 def test_finite_check_tolerates_an_overflowing_sum_and_names_a_non_finite_agent():
