@@ -18,7 +18,7 @@ def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     norm = np.sqrt(np.einsum("...i,...i->...", v, v))  # one C call per step (hot path)
     # No row too long (and a limit the 1e-300 floor cannot undercut): every factor below is 1.0.
     if isinstance(limit, (int, float)) and 1e-300 <= limit >= np.maximum.reduce(norm, None, initial=0.0):
-        return v.astype(np.result_type(v, 1.0))  # v * 1.0, a copy
+        return v * 1.0  # the product below with a factor of exactly 1.0: a copy, same dtype
     return v * np.minimum(1.0, limit / np.maximum(norm[..., None], 1e-300))
 
 
