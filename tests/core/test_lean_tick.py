@@ -5,6 +5,8 @@ the per-tick ones. Comparisons are of the bytes, so a -0.0 for a +0.0 fails too.
 from __future__ import annotations
 
 import copy
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -349,3 +351,12 @@ def test_finite_check_tolerates_an_overflowing_sum_and_names_a_non_finite_agent(
                 sim._check_finite()
     sim.world.pos[:] = sim.world.vel[:] = 0.0
     sim._check_finite()
+
+
+def test_the_default_scenario_runs_without_numba_or_scipy_spatial():
+    """The lean tick keeps the command line's start-up light: a small swarm's run imports neither
+    numba (compiled paths are for swarms over DENSE_POINTS agents) nor scipy.spatial."""
+    code = ("import sys; from swarmscene import api; api.run(['clock.duration=2', 'output.summary=false']); "
+            "print(sorted(m for m in ('numba', 'scipy.spatial') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip().splitlines()[-1] == "[]"
