@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import shapely
 
 from .hookspecs import hookimpl
 from .vectors import DENSE_POINTS
@@ -156,8 +157,6 @@ class SafetyMonitor:
         ~1 us a tick instead of ~10 us of per-call overhead for a small swarm)."""
         if not self._far_ticks:
             return
-        import shapely
-
         if self.n:
             points = shapely.multipoints(np.stack(self._far_xy))
             self.min_clearance[self._far_ticks] = shapely.distance(self.environment.union, points)

@@ -53,6 +53,12 @@ def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     """Every pair (i < j, in lexicographic order) of ``points`` (N, D) and its squared distance,
     summed axis by axis as a k-d tree sums it (so distances agree with the tree's to the bit)."""
     i, j = _upper_pairs(len(points))
+    if points.dtype != np.float64:  # each axis's differences in their own type, summed in float64
+        d2 = np.zeros(i.size)
+        for k in range(points.shape[1]):
+            diff = points[j, k] - points[i, k]
+            d2 += diff * diff
+        return i, j, d2
     diff = points.take(j, axis=0)
     diff -= points.take(i, axis=0)
     diff *= diff

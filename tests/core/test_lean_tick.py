@@ -52,8 +52,9 @@ def test_pair_distances_are_the_per_axis_sums(dim):
     for n in (0, 1, 2, 3, 7, DENSE_POINTS):
         for scale, offset in ((1.0, 0.0), (1e-3, 1e6), (50.0, -3.0)):
             pts = offset + scale * rng.standard_normal((n, dim))
-            for new, ref in zip(dense_pair_dist2(pts), old.dense_pair_dist2(pts)):
-                same_bits(new, ref)
+            for points in (pts, pts.astype(np.float32), np.round(pts).astype(int)):
+                for new, ref in zip(dense_pair_dist2(points), old.dense_pair_dist2(points)):
+                    same_bits(new, ref)
 
 
 def _graph_connected(pos, members, radius) -> bool:
