@@ -81,8 +81,11 @@ def baseline_tree(rev: str, into: Path) -> Path:
     """``rev`` exported into ``into``, with a ``swarmscene`` package folder importable from it."""
     src = into / "src"
     src.mkdir()
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev], check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(src)], input=archive, check=True)
+    done = subprocess.run(["git", "-C", str(ROOT), "archive", rev], capture_output=True)
+    if done.returncode != 0:
+        reason = (done.stderr.decode(errors="replace").strip().splitlines() or ["git archive failed"])[-1]
+        raise SystemExit(f"bench_tick: --baseline {rev}: cannot export it ({reason})")
+    subprocess.run(["tar", "-x", "-C", str(src)], input=done.stdout, check=True)
     shim = into / "path"
     package = shim / "swarmscene"
     package.mkdir(parents=True)
