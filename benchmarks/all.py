@@ -52,6 +52,7 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("disturbances", "python benchmarks/bench_disturbances.py", 5),
     ("resilience", "python benchmarks/bench_resilience.py --markdown", 40),
     ("falsify", "python benchmarks/bench_falsify.py", 30),
+    ("tick", "python benchmarks/bench_tick.py --baseline af87771", 2),
 ]
 QUICK_MINUTES = 10.0
 """--quick runs the entries expected to take at most this long."""

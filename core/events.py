@@ -233,6 +233,14 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
                  velocity=config.velocity, rotor=config.rotor, fraction=fraction)
 
 
+def _rows(index: np.ndarray) -> np.ndarray | slice:
+    """``index`` (sorted agent indices) as a slice when it is a run of consecutive agents (one
+    failed vehicle, say): writing rows through a slice costs a third of a fancy index."""
+    if index.size and index[-1] - index[0] == index.size - 1:
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return index
+
+
 class EventQueue:
     """Events sorted by time; the kernel applies them (:meth:`apply_due`) in the events phase of
     a tick and moves the vehicles their faults dictate (:meth:`hold`) after the dynamics.
@@ -317,6 +325,10 @@ class EventQueue:
         self._anchor[idx] = world.pos[idx]
         self._anchor_t[idx] = world.t
         self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply
+        # hold() runs every tick and the motions change only here: its agents, listed once.
+        self._held = _rows(np.flatnonzero(self._motion == int(Motion.HOLD)))
+        self._held_at = self._anchor[self._held]
+        self._coasting = np.flatnonzero(self._motion == int(Motion.COAST))
 
     def hold(self, world: WorldState) -> None:
         """After the physics sub-steps of the tick starting at ``world.t``: hovering vehicles stay
@@ -324,12 +336,12 @@ class EventQueue:
         taken them at the tick's end, p_f + v (t + T_s - t_f). Others keep what the dynamics did."""
         if self._motion is None:
             return
-        held = self._motion == Motion.HOLD
-        if held.any():
-            world.pos[held] = self._anchor[held]
+        held = self._held
+        if self._held_at.size:
+            world.pos[held] = self._held_at
             world.vel[held] = 0.0
-        coast = self._motion == Motion.COAST
-        if coast.any():
+        coast = self._coasting
+        if coast.size:
             elapsed = world.t + self.guidance_period - self._anchor_t[coast]
             world.pos[coast] = self._anchor[coast] + self._coast_vel[coast] * elapsed[:, None]
             world.vel[coast] = self._coast_vel[coast]

@@ -15,17 +15,18 @@ communication graph does not pay for it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
-from functools import cached_property
-from typing import TYPE_CHECKING, Any, TypeVar
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
 import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a small swarm needs neither
 
 from .environment import Environment
 from .state import WorldState
-from .vectors import min_pair_distance, pairs_within
+from .vectors import DENSE_POINTS, dense_pair_dist2, min_pair_distance, pairs_within, upper_pair_array
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -62,7 +63,28 @@ class ObstacleCandidates:
         if xy.shape != self.xy.shape or reach > self.radius:
             return False
         moved = xy - self.xy
-        return float(np.einsum("ij,ij->i", moved, moved).max(initial=0.0)) <= (self.radius - reach) ** 2
+        moved *= moved  # dx^2 + dy^2 as einsum sums it, with fewer Python-level wrappers
+        return bool(np.maximum.reduce(moved[:, 0] + moved[:, 1], initial=0.0) <= (self.radius - reach) ** 2)
+
+
+class per_tick(Generic[T]):
+    """``functools.cached_property`` without its lock: computed at the first read, then a plain
+    attribute of this snapshot. A snapshot lives within one tick of one thread, and Python 3.11's
+    cached_property takes a class-wide lock on every first read (a few reads a tick, ~0.2 us each
+    of a small swarm's tick budget)."""
+
+    def __init__(self, func: Callable[[Any], T]) -> None:
+        self.func = func
+        self.__doc__ = func.__doc__
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, cls: type | None = None) -> T:
+        if obj is None:
+            return self  # type: ignore[return-value]
+        value = obj.__dict__[self.name] = self.func(obj)
+        return value
 
 
 def _dense_connected(pos: np.ndarray, radius: float) -> bool:
@@ -75,6 +97,30 @@ def _dense_connected(pos: np.ndarray, radius: float) -> bool:
         count = new
         reached = adjacent[reached].any(axis=0)
     return count == len(pos)
+
+
+def _linked_by_sweeps(n: int, i: np.ndarray, j: np.ndarray, start: int) -> np.ndarray:
+    """(n,) bool: the agents reached from ``start`` over the links (i[k], j[k])."""
+    adjacent = np.zeros((n, n), dtype=bool)
+    adjacent[i, j] = True
+    adjacent[j, i] = True
+    reached = adjacent[start].copy()
+    reached[start] = True
+    count = 0
+    while (new := int(reached.sum())) != count:
+        count = new
+        reached |= adjacent[reached].any(axis=0)
+    return reached
+
+
+@lru_cache(maxsize=8)
+def _nothing_near(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Sensing.obstacle_nearest`'s answer when no obstacle is in range: index -1 and
+    clearance ``inf`` for each of ``n`` agents, read-only templates (each tick hands out copies:
+    two calls instead of np.full's Python-level four)."""
+    index, clearance = np.full(n, -1), np.full(n, np.inf)
+    index.flags.writeable = clearance.flags.writeable = False
+    return index, clearance
 
 
 def _renumber(n: int, members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -106,15 +152,20 @@ class Sensing:
         previous: "Sensing | None" = None,
     ) -> None:
         self.world = world
+        self._n = world.n  # agents (read a few times a tick; a property of the world)
         self.environment = environment
         self.comm_range = comm_range
         self._pairs: dict[float, np.ndarray] = {}
         self._pair_d2: dict[float, np.ndarray] = {}  # the listed pairs' squared lengths
         self._nearest: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._none_within = -1.0  # m: no obstacle within this range of any agent (-1: not known)
         # Widest range asked of this snapshot ("asked") and of the previous one ("hint"), m.
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
         self._candidates = previous._candidates if previous is not None else None
+        # comm_members as bytes, their count, which pairs join two members (mask; indices, or
+        # None when every agent is a member)
+        self._members_memo = previous._members_memo if previous is not None else None
         self._shared: dict[str, tuple[Hashable, Any]] = {}
 
     def shared(self, name: str, params: Hashable, compute: Callable[[], T]) -> T:
@@ -143,7 +194,7 @@ class Sensing:
         self._shared[name] = (params, value)
         return value
 
-    @cached_property
+    @per_tick
     def tree(self) -> "cKDTree":
         """k-d tree over all agents' positions (failed ones included: they are still obstacles)."""
         return scipy.spatial.cKDTree(self.world.pos)
@@ -161,6 +212,10 @@ class Sensing:
 
     def _listed_pairs(self, radius: float) -> np.ndarray:
         """:meth:`pairs` without recording the request (a prefetch must not feed its own hint)."""
+        if radius not in self._pairs and self._every_pair is not None:
+            d2 = self._every_pair[2]  # a few agents: filtered from every pair, as pairs_within does
+            near = d2 <= radius * radius
+            self._pairs[radius], self._pair_d2[radius] = upper_pair_array(self._n)[near], d2[near]
         if radius not in self._pairs:
             larger = [r for r in self._pairs if r >= radius]
             if larger:
@@ -174,7 +229,17 @@ class Sensing:
                 return self._listed_pairs(radius)
         return self._pairs[radius]
 
-    @cached_property
+    @per_tick
+    def _every_pair(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Every pair (i < j) and its squared length, listed once per snapshot of at most
+        ``DENSE_POINTS`` agents (``None`` for more): the pairs at any radius, the closest pair and
+        the communication graph are all read from this one pass (a pass per query cost ~5 us each,
+        most of a small swarm's tick)."""
+        if self._n > DENSE_POINTS:
+            return None
+        return dense_pair_dist2(self.world.pos)
+
+    @per_tick
     def min_separation(self) -> float:
         """Smallest distance between two agents, m (``inf`` with fewer than two).
 
@@ -183,8 +248,10 @@ class Sensing:
         When the previous tick was asked for pairs, they are listed now (the same caller will
         ask again), which makes this free.
         """
-        if self.world.n < 2:
+        if self._n < 2:
             return float("inf")
+        if self._every_pair is not None:  # the closest of every pair: the same sum, so the same bits
+            return math.sqrt(np.minimum.reduce(self._every_pair[2]))
         if not self._pairs and self._hint["pairs"] > 0:
             self._listed_pairs(self._hint["pairs"])
         for radius in sorted(self._pairs):
@@ -194,7 +261,7 @@ class Sensing:
             return float(self.knn[0][:, 0].min())
         return min_pair_distance(self.world.pos)
 
-    @cached_property
+    @per_tick
     def knn(self) -> tuple[np.ndarray, np.ndarray]:
         """Distances and indices of each agent's ``NEAR_K`` nearest others, shape (N, <= NEAR_K).
 
@@ -208,7 +275,7 @@ class Sensing:
         dist, idx = dist.reshape(n, k)[:, 1:], idx.reshape(n, k)[:, 1:]  # drop each agent itself
         return dist, idx
 
-    @cached_property
+    @per_tick
     def nearest(self) -> tuple[np.ndarray, np.ndarray]:
         """For each agent: distance to its nearest other agent (m, ``inf`` if alone) and its index."""
         n = self.world.n
@@ -217,7 +284,7 @@ class Sensing:
         dist, idx = self.knn
         return dist[:, 0], idx[:, 0]
 
-    @cached_property
+    @per_tick
     def clearance(self) -> np.ndarray:
         """Signed distance from each agent to the nearest obstacle, m (``inf`` in open space)."""
         return self.environment.clearance(self.world.pos)
@@ -242,6 +309,8 @@ class Sensing:
         (:class:`ObstacleCandidates`) instead of walking the obstacle tree.
         """
         self.asked["obstacles"] = max(self.asked["obstacles"], radius)
+        if radius <= self._none_within:  # nothing within a wider range: nothing within this one
+            return self._nearest[self._none_within]
         if radius not in self._nearest:
             wider = [r for r in self._nearest if r >= radius]
             if wider:
@@ -250,9 +319,13 @@ class Sensing:
                 self._nearest[radius] = (np.where(beyond, -1, index), np.where(beyond, np.inf, clearance))
             else:
                 reach = max(radius, self._hint["obstacles"])
-                self._nearest[reach] = self.environment.nearest_obstacle(
-                    self.world.pos, reach, self._obstacle_candidates(reach)
-                )
+                candidates = self._obstacle_candidates(reach)
+                if candidates is None or candidates[0].size == 0:  # open space, or none in reach
+                    self._none_within = reach
+                    index, clearance = _nothing_near(self._n)
+                    self._nearest[reach] = (index.copy(), clearance.copy())  # callers' own arrays
+                    return self._nearest[reach]
+                self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach, candidates)
                 return self.obstacle_nearest(radius)
         return self._nearest[radius]
 
@@ -266,24 +339,24 @@ class Sensing:
             self._candidates = ObstacleCandidates(xy.copy(), radius, *self.environment.near_pairs(xy, radius))
         return self._candidates.point, self._candidates.geom
 
-    @cached_property
+    @per_tick
     def comm_members(self) -> np.ndarray:
         """Agents taking part in communication: healthy and with a working radio."""
         return self.world.healthy & self.world.comm_ok
 
-    @cached_property
+    @per_tick
     def comm_edges(self) -> np.ndarray:
         """Links (i < j) of the communication graph: pairs within range, both ends members."""
         return self._comm_links[0]
 
-    @cached_property
+    @per_tick
     def _comm_links(self) -> tuple[np.ndarray, np.ndarray]:
         """:attr:`comm_edges` and their squared lengths (from the pair list's own)."""
         pairs = self.pairs(self.comm_range)
         links = self.comm_members[pairs[:, 0]] & self.comm_members[pairs[:, 1]]
         return pairs[links], self._pair_d2[self.comm_range][links]
 
-    @cached_property
+    @per_tick
     def comm_adjacency(self) -> "csr_matrix":
         """Symmetric sparse adjacency of the communication graph (range ``comm_range``)."""
         n = self.world.n
@@ -292,15 +365,18 @@ class Sensing:
         data = np.ones(2 * len(i), dtype=np.int8)
         return scipy.sparse.coo_matrix((data, (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
 
-    @cached_property
+    @per_tick
     def comm_connected(self) -> bool:
         """True when the communication graph over its members is connected (one member counts).
 
-        Exact, with no pair list: a small swarm sweeps a dense reachability matrix; a larger one
-        joins its members by union-find over a compiled cell list, which stops at the first link
+        Exact, with no pair list: at most ``DENSE_POINTS`` agents read it from every pair's length
+        (:meth:`_few_connected`); up to ``DENSE_LIMIT`` members sweep a dense reachability matrix;
+        more are joined by union-find over a compiled cell list, which stops at the first link
         that leaves a single component (1,000 boids in a 20 m range: ~0.2 ms, against ~6 ms for
         listing the ~60,000 links and labelling the components of a sparse matrix).
         """
+        if self._every_pair is not None:
+            return self._few_connected()
         members = np.flatnonzero(self.comm_members)
         m = members.size
         if m <= 1:
@@ -310,6 +386,27 @@ class Sensing:
         from .cells import disk_graph_connected  # imports numba: only swarms this large pay for it
 
         return bool(disk_graph_connected(np.ascontiguousarray(self.world.pos[members]), self.comm_range))
+
+    def _few_connected(self) -> bool:
+        """:attr:`comm_connected` of a few agents, from :attr:`_every_pair`: a complete graph at once
+        (every member within range of every other, the usual case), else by reachability sweeps."""
+        members = self.comm_members
+        i, j, d2 = self._every_pair
+        key = members.tobytes()  # the members change only with events: their pairs are kept
+        if self._members_memo is None or self._members_memo[0] != key:
+            m, both = int(np.count_nonzero(members)), members[i] & members[j]
+            self._members_memo = (key, m, both, None if m == members.size else np.flatnonzero(both))
+        _, m, both, member_pairs = self._members_memo
+        if m <= 1:
+            return True
+        r2 = self.comm_range * self.comm_range
+        among = d2 if member_pairs is None else d2.take(member_pairs)
+        if np.maximum.reduce(among) <= r2:  # every member in range of every other
+            return True
+        link = (d2 <= r2) & both
+        first = int(np.argmax(members))
+        reached = _linked_by_sweeps(self.world.n, i[link], j[link], first)
+        return int(reached.sum()) == m
 
     def comm_spanning_tree(self) -> np.ndarray | None:
         """Links (i, j), shape (m - 1, 2), of a minimum spanning tree of the communication graph
@@ -337,7 +434,7 @@ class Sensing:
         """Hops from ``source`` to every agent over the communication graph (``inf`` if unreachable)."""
         return scipy.sparse.csgraph.shortest_path(self.comm_adjacency, unweighted=True, indices=source)
 
-    @cached_property
+    @per_tick
     def comm_graph(self) -> "nx.Graph":
         """The communication graph as a networkx graph, for analysis and metrics (not hot loops)."""
         import networkx as nx  # 0.1 s to import: only the analyses that ask for it pay

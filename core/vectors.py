@@ -7,11 +7,19 @@ from functools import lru_cache
 import numpy as np
 
 
+def every(mask: np.ndarray) -> bool:
+    """``mask.all()`` of a bool array without ndarray.all's Python-level wrapper (a per-tick test)."""
+    return np.count_nonzero(mask) == mask.size
+
+
 def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     """Scale each row of ``v`` (N, k) down so that none is longer than ``limit``; shorter rows
     (and zero rows) are returned unchanged. The saturation of thesis eq. 4.21 and 5.30."""
-    norm = np.sqrt(np.einsum("...i,...i->...", v, v))[..., None]  # one C call per step (hot path)
-    return v * np.minimum(1.0, limit / np.maximum(norm, 1e-300))
+    norm = np.sqrt(np.einsum("...i,...i->...", v, v))  # one C call per step (hot path)
+    # No row too long (and a limit the 1e-300 floor cannot undercut): every factor below is 1.0.
+    if isinstance(limit, (int, float)) and 1e-300 <= limit >= np.maximum.reduce(norm, None, initial=0.0):
+        return v * 1.0  # the product below with a factor of exactly 1.0: a copy, same dtype
+    return v * np.minimum(1.0, limit / np.maximum(norm[..., None], 1e-300))
 
 
 def wrap(pos: np.ndarray, lo: np.ndarray | float, size: np.ndarray) -> np.ndarray:
@@ -32,14 +40,32 @@ def _upper_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.triu_indices(n, 1)
 
 
+@lru_cache(maxsize=DENSE_POINTS + 1)
+def upper_pair_array(n: int) -> np.ndarray:
+    """Every index pair (i < j, lexicographic) of ``n`` points, shape (M, 2); made once per ``n``
+    (read-only: select from it, never write)."""
+    pairs = np.column_stack(_upper_pairs(n))
+    pairs.flags.writeable = False
+    return pairs
+
+
 def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair (i < j, in lexicographic order) of ``points`` (N, D) and its squared distance,
     summed axis by axis as a k-d tree sums it (so distances agree with the tree's to the bit)."""
     i, j = _upper_pairs(len(points))
-    d2 = np.zeros(i.size)
-    for k in range(points.shape[1]):
-        diff = points[j, k] - points[i, k]
-        d2 += diff * diff
+    if points.dtype != np.float64:  # each axis's differences in their own type, summed in float64
+        d2 = np.zeros(i.size)
+        for k in range(points.shape[1]):
+            diff = points[j, k] - points[i, k]
+            d2 += diff * diff
+        return i, j, d2
+    diff = points.take(j, axis=0)
+    diff -= points.take(i, axis=0)
+    diff *= diff
+    # ((dx^2 + dy^2) + dz^2), left to right: the tree's order (one pass per axis cost 3x more calls)
+    d2 = diff[:, 0] + diff[:, 1] if points.shape[1] > 1 else diff[:, 0].copy()
+    for k in range(2, points.shape[1]):
+        d2 += diff[:, k]
     return i, j, d2
 
 
@@ -51,9 +77,9 @@ def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndar
     distances as the tree does, so they agree with it to the bit.
     """
     if len(points) <= DENSE_POINTS:
-        i, j, d2 = dense_pair_dist2(points)
+        d2 = dense_pair_dist2(points)[2]
         near = d2 <= radius * radius
-        return np.column_stack([i[near], j[near]]), d2[near]
+        return upper_pair_array(len(points))[near], d2[near]
     from .cells import pairs_within as listed  # imports numba: only swarms this large pay for it
 
     return listed(np.ascontiguousarray(points, dtype=float), float(radius))

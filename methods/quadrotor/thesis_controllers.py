@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmscene.core.setpoint import Mode
+from swarmscene.core.vectors import every
 
 # --------------------------------------------------------------------------- gain synthesis
 
@@ -132,7 +133,9 @@ def tracker_gains(omega_t: float, xi_t: float, T_s: float, K_Wt: float = 5.0) ->
 
 def sat(a: np.ndarray, u_sat: float | np.ndarray) -> np.ndarray:
     """Symmetric saturation (eq. 3.26): clip each component to [-u_sat, u_sat]."""
-    return np.clip(a, -u_sat, u_sat)
+    # minimum(maximum()) is np.clip's result (NaN included) at half the call's fixed cost
+    out = np.maximum(a, -u_sat)
+    return np.minimum(out, u_sat, out=out)
 
 
 def velocity_limiter(
@@ -156,13 +159,19 @@ def velocity_limiter(
         (N, 3) u_lim, to be saturated by :func:`sat`. Applied per axis as in the thesis, so the
         speed bound of the vector is sqrt(3) v̄_lim on a diagonal.
     """
-    v_lim = np.asarray(v_lim, dtype=float)
-    if v_lim.ndim == 1:
-        v_lim = v_lim[:, None]
-    u_plus = -K_lim * (v - v_lim)
-    u_minus = -K_lim * (v + v_lim)
-    u_lim = np.where(v > 0.0, np.minimum(u_inf, u_plus), np.maximum(u_inf, u_minus))
-    return np.where(v_lim > eps_lim, u_lim, -K_lim * v)
+    if not isinstance(v_lim, float):
+        v_lim = np.asarray(v_lim, dtype=float)
+        if v_lim.ndim == 1:
+            v_lim = v_lim[:, None]
+    elif not v_lim > eps_lim:  # one scalar limit at or below the threshold: brake everywhere
+        return -K_lim * v
+    # -K_lim (v -+ v_lim), then the bound on u_inf, in place (the same products and bounds)
+    u_plus = v - v_lim
+    u_plus *= -K_lim
+    u_minus = v + v_lim
+    u_minus *= -K_lim
+    u_lim = np.where(v > 0.0, np.minimum(u_inf, u_plus, out=u_plus), np.maximum(u_inf, u_minus, out=u_minus))
+    return u_lim if isinstance(v_lim, float) else np.where(v_lim > eps_lim, u_lim, -K_lim * v)
 
 
 # --------------------------------------------------------------------------- dynamic laws
@@ -181,7 +190,9 @@ class _IntegralLaw:
 
     def _advance(self, error: np.ndarray, u_inf: np.ndarray, u: np.ndarray, K_W: float,
                  active: np.ndarray | None) -> None:
-        step = error + K_W * (u_inf - u)
+        step = u_inf - u  # error + K_W (u_inf - u), in place: the same product and sum
+        step *= K_W
+        step += error
         if active is None:
             self.x_I += step
         else:
@@ -306,6 +317,8 @@ class ThesisController:
         self.eps_lim = eps_lim
         self.family = np.full(n, -1, dtype=np.int8)
         """(N,) law each agent used at the previous tick (-1 before the first)."""
+        self._one_law: int | None = None
+        """The law every agent used at the previous tick, if they all used one."""
 
     def step(self, mode: np.ndarray, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray,
              v_ref: np.ndarray, u_ref: np.ndarray,
@@ -316,7 +329,15 @@ class ThesisController:
             mode: (N,) :class:`Mode` values. r, v: (N, 3) state. r_ref, v_ref, u_ref: (N, 3)
             references r̄, v̄, ū. v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
         """
+        first = int(mode[0]) if mode.size else int(Mode.VELOCITY)
+        if every(mode == first):  # one mode, so one law, for every agent (the usual case)
+            law = int(_FAMILY[first])
+            if self._one_law != law:  # else every agent used it last tick: nothing restarts
+                self._restart(_FAMILY[mode], r, v)
+                self._one_law = law
+            return self._step_one(law, r, v, r_ref, v_ref, u_ref, v_lim)
         family = _FAMILY[mode]
+        self._one_law = None
         self._restart(family, r, v)
         is_vel = family == _VELOCITY
         is_pos = family == _POSITION
@@ -334,6 +355,25 @@ class ThesisController:
         self.velocity.integrate(v, v_ref, u_inf, u, is_vel)
         self.position.integrate(r, r_ref, u_inf, u, is_pos)
         self.tracker.integrate(r, r_ref, u_inf, u, family == _TRACKER)
+        return u
+
+    def _step_one(self, family: int, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray,
+                  v_ref: np.ndarray, u_ref: np.ndarray, v_lim: np.ndarray | float | None) -> np.ndarray:
+        """:meth:`step` when every agent uses law ``family``: the same operations on the same
+        values (so the same bits), without the two laws whose results the selection drops. The
+        idle laws' integrals are left as they are: an agent entering a law restarts its integral."""
+        if family == _VELOCITY:
+            u_inf = self.velocity.unbounded(v, v_ref)
+            u = sat(u_inf, self.u_sat)
+            self.velocity.integrate(v, v_ref, u_inf, u)
+            return u
+        if family == _POSITION:
+            law, u_inf = self.position, self.position.unbounded(r, v, r_ref)
+        else:
+            law, u_inf = self.tracker, self.tracker.unbounded(r, v, r_ref, v_ref, u_ref)
+        u_cmd = u_inf if v_lim is None else velocity_limiter(u_inf, v, v_lim, self.K_lim, self.eps_lim)
+        u = sat(u_cmd, self.u_sat)
+        law.integrate(r, r_ref, u_inf, u)
         return u
 
     def _restart(self, family: np.ndarray, r: np.ndarray, v: np.ndarray) -> None:

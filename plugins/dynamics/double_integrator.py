@@ -42,6 +42,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import every
 
 from swarmscene.methods.quadrotor.thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
 
@@ -101,19 +102,34 @@ class DoubleIntegrator(Dynamics):
                                            p.u_sat, self.K_lim, p.eps_lim)
         self.u = np.zeros_like(world.pos)
         world.acc = self.u
+        self._held_dt: float | None = None  # the dt of _du_pos = T^2/2 u and _du_vel = T u
+        self._move = np.empty_like(self.u)  # step()'s work array
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
         healthy = world.healthy
-        mode = np.where(healthy, sp.mode, Mode.HOLD)
-        r_ref = np.where(healthy[:, None], sp.pos, world.pos)
-        v_ref = sp.vel if self.params.v_max is None else np.clip(sp.vel, -self.params.v_max,
-                                                                   self.params.v_max)
-        self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc,
-                                           self.params.v_max)
+        if every(healthy):  # nobody to switch to HOLD (the selections below would copy sp as is)
+            mode, r_ref = sp.mode, sp.pos
+        else:
+            mode = np.where(healthy, sp.mode, Mode.HOLD)
+            r_ref = np.where(healthy[:, None], sp.pos, world.pos)
+        v_max = self.params.v_max
+        if v_max is None:
+            v_ref = sp.vel
+        else:  # np.clip's values
+            v_ref = np.maximum(sp.vel, -v_max)
+            np.minimum(v_ref, v_max, out=v_ref)
+        self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc, v_max)
+        self._held_dt = None
 
     def step(self, world: WorldState, dt: float) -> None:
-        world.pos += world.vel * dt + 0.5 * self.u * dt * dt
-        world.vel += self.u * dt
+        # r += T v + T^2/2 u, v += T u. u is held over the tick's sub-steps, so its two terms are
+        # computed once per tick and dt (the same products, in the same order: the same bits).
+        if self._held_dt != dt:
+            self._held_dt, self._du_pos, self._du_vel = dt, 0.5 * self.u * dt * dt, self.u * dt
+        move = np.multiply(world.vel, dt, out=self._move)
+        move += self._du_pos
+        world.pos += move
+        world.vel += self._du_vel
 
 
 @hookimpl

@@ -27,6 +27,7 @@ from swarmscene.core.vectors import clip_norm
 
 _VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
 """As ints: numpy compares an array with an enum member several times slower."""
+assert _VELOCITY & 1 and _HOLD & 1 and not int(Mode.POSITION) & 1 and not int(Mode.TRACK) & 1
 
 
 class SingleIntegrator(Dynamics):
@@ -47,8 +48,10 @@ class SingleIntegrator(Dynamics):
     def control(self, world: WorldState, sp: Setpoints) -> None:
         p = self.params
         correction = p.gain * (sp.pos - world.pos)
-        u = np.where((sp.mode == _VELOCITY)[:, None], sp.vel, sp.vel + correction)
-        u = np.where((sp.mode == _HOLD)[:, None], correction, u)
+        u = sp.vel + correction
+        if np.count_nonzero(sp.mode & 1):  # VELOCITY (1) or HOLD (3) somewhere: else u as it is
+            u = np.where((sp.mode == _VELOCITY)[:, None], sp.vel, u)
+            u = np.where((sp.mode == _HOLD)[:, None], correction, u)
         self.u = clip_norm(u, p.u_max)
 
     def step(self, world: WorldState, dt: float) -> None:

@@ -12,6 +12,7 @@ within ``arrival_tolerance`` of its slot.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -24,6 +25,9 @@ from swarmscene.core.state import WorldState
 from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
+
+
+_TRACK, _HOLD = int(Mode.TRACK), int(Mode.HOLD)
 
 
 class StaticShape(Formation):
@@ -55,10 +59,13 @@ class StaticShape(Formation):
         start = ctx.initial.pos.mean(axis=0)
         self.path = WaypointPath(np.vstack([start, params.waypoints]), params.speed)
         self.offsets = shape_offsets(params.shape, ctx.n, params.spacing)
-        self.heading = self._heading(0)
+        # The heading changes only from leg to leg: each leg's, and the offsets turned by it, once.
+        self._leg_heading = [self._heading(leg) for leg in range(max(len(self.path.directions), 1))]
+        self.heading = self._leg_heading[0]
         self.slot_of = self.assign(ctx.initial.pos, np.ones(ctx.n, dtype=bool), start)
         self._healthy_count = ctx.n
         self._end_reached = False
+        self._placed: _Placement | None = None
 
     def _heading(self, leg: int) -> float:
         if not self.params.rotate_with_heading or len(self.path.directions) == 0:
@@ -68,9 +75,13 @@ class StaticShape(Formation):
 
     def slots(self, center: np.ndarray, heading: float) -> np.ndarray:
         """World positions (N, 3) of the slots around ``center`` for ``heading``."""
+        return center + self._turned_offsets(heading)
+
+    def _turned_offsets(self, heading: float) -> np.ndarray:
+        """The slot offsets (N, 3) turned by ``heading`` about z."""
         c, s = np.cos(heading), np.sin(heading)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return center + self.offsets @ rot.T
+        return self.offsets @ rot.T
 
     def assign(self, pos: np.ndarray, healthy: np.ndarray, center: np.ndarray) -> np.ndarray:
         """Slot index per agent minimising total distance (healthy agents; others keep -1)."""
@@ -84,18 +95,28 @@ class StaticShape(Formation):
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
         center, velocity, leg, self._end_reached = self.path.at(world.t)
-        self.heading = self._heading(leg)
-        healthy_count = int(world.healthy.sum())
+        self.heading = self._leg_heading[min(leg, len(self._leg_heading) - 1)]
+        healthy_count = int(np.count_nonzero(world.healthy))
         if self.params.reassign_on_failure and healthy_count != self._healthy_count:
             self.slot_of = self.assign(world.pos, world.healthy, center)
             self._healthy_count = healthy_count
-        slots = self.slots(center, self.heading)
-        sp = Setpoints.hold(world.pos)
-        active = self.slot_of >= 0
-        sp.mode[active] = Mode.TRACK
-        sp.pos[active] = slots[self.slot_of[active]]
-        sp.vel[active] = velocity
-        sp.yaw[:] = self.heading
+            self._placed = None
+        placed = self._placed
+        if placed is None or placed.heading != self.heading:
+            placed = self._placed = _Placement.of(self.heading, self._turned_offsets(self.heading), self.slot_of)
+        n = world.n
+        # TRACK the slot (reference + offset) at the reference's velocity; an agent without a
+        # slot holds where it is (HOLD, zero feed-forward). Built directly: a few calls a tick.
+        if placed.every:
+            pos = center + placed.offset
+            vel = np.empty((n, 3))
+            vel[:] = velocity
+        else:
+            pos = np.where(placed.slotted, center + placed.offset, world.pos)
+            vel = np.where(placed.slotted, velocity, 0.0)
+        yaw = np.empty(n)
+        yaw.fill(self.heading)
+        sp = Setpoints(placed.mode.copy(), pos, vel, np.zeros((n, 3)), yaw)
         self._last_slots = sp.pos
         return sp
 
@@ -105,6 +126,28 @@ class StaticShape(Formation):
         active = world.healthy & (self.slot_of >= 0)
         error = np.linalg.norm(world.pos[active] - self._last_slots[active], axis=1)
         return bool(np.all(error <= self.params.arrival_tolerance))
+
+
+@dataclass(frozen=True)
+class _Placement:
+    """Where each agent's slot sits around the reference for one heading: its slot's offset turned
+    by the heading (slot = reference + offset, the same sum as ``slots()[slot_of]``), the agents
+    with a slot and their setpoint modes. Kept until the heading or the assignment changes."""
+
+    heading: float
+    offset: np.ndarray
+    """(N, 3) m; rows of agents without a slot are unused"""
+    slotted: np.ndarray
+    """(N, 1) bool"""
+    every: bool
+    mode: np.ndarray
+    """(N,) int8: TRACK with a slot, HOLD without"""
+
+    @classmethod
+    def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> "_Placement":
+        slotted = slot_of >= 0
+        mode = np.where(slotted, _TRACK, _HOLD).astype(np.int8)
+        return cls(heading, turned[np.maximum(slot_of, 0)], slotted[:, None], bool(slotted.all()), mode)
 
 
 @hookimpl
