@@ -32,6 +32,8 @@ from typing import Any
 
 import numpy as np
 
+from . import interrupts
+
 MANIFEST_PACKAGES = ("swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core")
 COSMETIC_KEYS = (
     ("description",),
@@ -240,7 +242,12 @@ def write_run_dir(
         write_npz(run_dir / "trajectory.npz", trajectory)
     atomic_write_json(run_dir / "metrics.json", metrics)
     for extra in extras:
+        if interrupts.requested() is not None:
+            break  # asked to stop: the plots and replay not yet written are left out
         extra(run_dir)
+    # A stop request during the writes (Ctrl-C, SIGTERM: core/interrupts.py) marks the directory
+    # incomplete: the process ends before its caller would read it back.
+    complete = complete and interrupts.requested() is None
     manifest = {
         "config_hash": config_hash(data),
         "scenario": data.get("name"),

@@ -17,33 +17,40 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
 import sys
 from pathlib import Path
 from typing import Any
+
+from .core import interrupts
 
 EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs say so
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
 DEBUG_ENV = "SWARMSCENE_DEBUG"
-_terminated = False  # set by the SIGTERM handler: the interruption was a SIGTERM, not a Ctrl-C
-
-
-def _on_sigterm(signum: int, frame: Any) -> None:
-    """SIGTERM is handled like Ctrl-C (the run stops after its tick, partial outputs are written,
-    marked incomplete); only the exit status differs."""
-    global _terminated
-    _terminated = True
-    raise KeyboardInterrupt
 
 
 def _interrupted_status() -> tuple[int, str]:
-    return (EXIT_TERMINATED, "terminated") if _terminated else (EXIT_INTERRUPTED, "interrupted")
+    """Exit status and word for the stop request received: SIGTERM (a scheduler's cancel, ``kill``)
+    is handled like Ctrl-C, only the status differs."""
+    import signal
+
+    if interrupts.requested() == signal.SIGTERM:
+        return EXIT_TERMINATED, "terminated"
+    return EXIT_INTERRUPTED, "interrupted"
+
+
+def _exit_interrupted(what: str = "") -> None:
+    status, word = _interrupted_status()
+    print(f"swarmscene: {word} {what}".rstrip(), file=sys.stderr)
+    sys.exit(status)
 
 
 def main() -> None:
     """Console entry point."""
+    # First of all: from here on SIGINT/SIGTERM are recorded, and acted on at the next point
+    # where the run can stop cleanly (core/interrupts.py), never raised inside compiled code.
+    interrupts.install()
     import hydra
 
     from .searchpath import plain_command_line, register_search_path
@@ -61,17 +68,16 @@ def main() -> None:
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
     )
-    signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         app()
-    except KeyboardInterrupt:
-        status, word = _interrupted_status()
-        print(f"swarmscene: {word}", file=sys.stderr)
-        sys.exit(status)
+    except KeyboardInterrupt:  # a sweep's job stopped, or a second Ctrl-C
+        _exit_interrupted()
     except Exception as exc:  # every user-fixable problem becomes one line
         if debug:
             raise
         _report(_error_lines(exc))
+    if interrupts.requested() is not None:  # came after the last job was written
+        _exit_interrupted("after the outputs were written")
 
 
 def _report(lines: list[str]) -> None:
@@ -139,6 +145,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     from . import api
     from .core.errors import ConfigError
 
+    _stop_if_requested(run_dir)  # a signal during start-up or composition
     try:
         sim = api.build(data)
         writers = api.extra_writers(sim)  # a missing optional package fails now, not after the run
@@ -151,6 +158,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     except BaseException:
         _remove_unfinished(run_dir)
         raise
+    _stop_if_requested(run_dir)  # a signal while the plugins were built (and kernels compiled)
     try:
         result = _run_and_write(sim, run_dir, writers, sweep=False)
     except Exception:
@@ -161,6 +169,15 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: {word} at t = {result.metrics['duration']:.2f} s; "
               f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
         sys.exit(status)
+    if interrupts.requested() is not None:  # the run ended; the request came while writing
+        from .rundir import RunDir, RunFileError
+
+        try:
+            complete = RunDir(run_dir).manifest().get("complete") is True
+        except RunFileError:
+            complete = False
+        marked = "complete (the request came after the last file)" if complete else "marked incomplete"
+        _exit_interrupted(f"while the outputs were written; they are {marked} in {run_dir}")
     if result.error is not None:
         from .sweep import record_failure
 
@@ -168,6 +185,13 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: {result.error}; outputs up to then (marked failed) in {run_dir}", file=sys.stderr)
         sys.exit(EXIT_FAILED)
     return _objective(sim, result)
+
+
+def _stop_if_requested(run_dir: Path) -> None:
+    """Act on a stop request that came before the run started: no run directory is left."""
+    if interrupts.requested() is not None:
+        _remove_unfinished(run_dir)
+        _exit_interrupted("before the run started (no run directory written)")
 
 
 class RunFailed(RuntimeError):
