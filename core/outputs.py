@@ -21,12 +21,14 @@ import json
 import math
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
 from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +85,31 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def private_temp_dir(directory: Path, name: str) -> Iterator[Path]:
+    """A path ``<fresh dir>/<name>`` for a writer that opens its file by name (Rerun, matplotlib).
+
+    The fresh directory is made inside ``directory`` by ``mkdtemp`` (mode 0700, a new name):
+    nothing can be planted in it, so the writer cannot be led through a symbolic link; move the
+    file into place with :func:`publish`. The directory and anything left in it are removed
+    afterwards, whether the writer finished or failed.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=directory, prefix=f".{name}.", suffix=".tmp"))
+    try:
+        yield tmp / name
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def publish(tmp_file: Path, path: Path) -> None:
+    """Move a finished temporary file into place atomically (a link at ``path`` is replaced, never
+    followed), with the mode ``open()`` would have given it."""
+    os.chmod(tmp_file, user_file_mode())
+    os.replace(tmp_file, path)
 
 
 COPY_CHUNK = 16 * 1024 * 1024

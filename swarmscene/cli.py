@@ -22,6 +22,11 @@ from pathlib import Path
 from typing import Any
 
 from .core import interrupts
+from .hydra_files import install as _protect_run_dirs
+
+# On import, not only in main(): a launcher's worker process imports this module to run `_task`,
+# and Hydra resolves the job's directory and writes its `.hydra/` files there (hydra_files.py).
+_protect_run_dirs()
 
 EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs say so
 EXIT_CONFIG = 2
@@ -90,12 +95,32 @@ def _error_lines(exc: BaseException) -> list[str]:
     from .core.errors import ConfigError
     from .hydra_errors import hydra_error_line
 
+    from .rundir import RunFileError
+
     if isinstance(exc, ConfigError):
         return exc.lines
+    cause = _cause_of(exc, (ConfigError, RunFileError, OSError))
+    if isinstance(cause, ConfigError):  # raised by a resolver (swarmscene.dir_name) inside Hydra
+        return cause.lines
+    if isinstance(cause, RunFileError):
+        return [str(cause)]
+    if isinstance(cause, OSError):  # a full disk, a read-only directory: name the path
+        where = cause.filename if cause.filename is not None else "the run directory"
+        return [f"{where}: cannot be written ({cause.strerror or cause})"]
     line = hydra_error_line(exc)
     if line is not None:
         return [line]
     return [f"{type(exc).__name__}: {exc}".splitlines()[0] + f" (set {DEBUG_ENV}=1 for a traceback)"]
+
+
+def _cause_of(exc: BaseException | None, kinds: tuple[type, ...]) -> BaseException | None:
+    """The first exception of ``kinds`` in ``exc``'s chain of causes, else None."""
+    seen = 0
+    while exc is not None and seen < 20:
+        if isinstance(exc, kinds):
+            return exc
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return None
 
 
 def _task(cfg: Any) -> Any:

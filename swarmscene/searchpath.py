@@ -54,9 +54,12 @@ class SwarmsceneSearchPathPlugin(SearchPathPlugin):
 
 def register_search_path() -> None:
     """Make Hydra use :class:`SwarmsceneSearchPathPlugin` and know swarmscene's sweeper
-    (``hydra_plugins.swarmscene_sweeper``); idempotent."""
+    (``hydra_plugins.swarmscene_sweeper``) and :mod:`swarmscene.hydra_files`; idempotent."""
     from hydra_plugins.swarmscene_sweeper import register as register_sweeper
 
+    from .hydra_files import install as protect_run_dirs
+
+    protect_run_dirs()  # the name's resolver in the run-dir patterns; .hydra/ written safely
     plugins = Plugins.instance()
     if SwarmsceneSearchPathPlugin not in plugins.class_name_to_class.values():
         plugins.register(SwarmsceneSearchPathPlugin)
