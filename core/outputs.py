@@ -16,6 +16,7 @@ Files are created with the permissions the user's umask gives (``0o666 & ~umask`
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import math
@@ -132,7 +133,7 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     try:
         with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
             for name, array in arrays.items():
-                with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                with zf.open(_member(f"{name}.npy"), "w", force_zip64=True) as member:
                     source = _whole_npy_file(array)
                     if source is None:
                         np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
@@ -144,6 +145,20 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+"""Every archive member's timestamp: the zip format's earliest date, so the same arrays make the
+same bytes (zipfile would stamp the time of writing; the manifest records when the run was)."""
+
+
+def _member(name: str) -> Any:
+    import zipfile
+
+    info = zipfile.ZipInfo(name, date_time=ZIP_EPOCH)
+    info.compress_type = zipfile.ZIP_STORED
+    info.external_attr = 0o600 << 16  # what zipfile (and so numpy.savez) gives a member by name
+    return info
 
 
 def _whole_npy_file(array: np.ndarray) -> str | None:
@@ -263,6 +278,8 @@ def write_run_dir(
     import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
 
     run_dir = Path(run_dir)
+    if run_dir.is_symlink():  # the files would land wherever the link points
+        raise OSError(errno.ELOOP, "is a symbolic link (refused: a run directory is a plain directory)", str(run_dir))
     text = CONFIG_HEADER + yaml.safe_dump(_jsonable(data), sort_keys=False)
     atomic_write_bytes(run_dir / "config.yaml", text.encode())
     if trajectory:
