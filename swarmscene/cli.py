@@ -15,6 +15,7 @@ exits with status 130; SIGTERM (a scheduler's cancel, ``kill``) does the same wi
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import sys
@@ -99,6 +100,8 @@ def _error_lines(exc: BaseException) -> list[str]:
 
     if isinstance(exc, ConfigError):
         return exc.lines
+    if isinstance(exc, RunFailed):  # its message is the engine's own line (the first non-finite state)
+        return [str(exc)]
     cause = _cause_of(exc, (ConfigError, RunFileError, OSError))
     if isinstance(cause, ConfigError):  # raised by a resolver (swarmscene.dir_name) inside Hydra
         return cause.lines
@@ -272,13 +275,20 @@ def _objective(sim: Any, result: Any) -> Any:
 
 
 def _objective_from(names: list[str], metrics: dict[str, Any]) -> Any:
-    """The metrics a sweeper optimises (``output.objective``), or all metrics when none is named."""
+    """The metrics a sweeper optimises (``output.objective``), or all metrics when none is named.
+
+    None when a named metric is missing or not finite (a failed job, a run that blew up): Optuna's
+    sweeper records that trial as failed and the study goes on. (It cannot take NaN: Optuna
+    refuses the value, and the sweeper's second attempt to record the failure ends the study.)
+    """
     if not names:
         return metrics
     values = []
     for name in names:
         value = metrics.get(name)
-        values.append(float("nan") if value is None else float(value))
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            return None
+        values.append(float(value))
     return values[0] if len(values) == 1 else tuple(values)
 
 
