@@ -259,6 +259,10 @@ CONFIG_HEADER = (
 )
 
 
+RUN_FILES = ("config.yaml", "trajectory.npz", "metrics.json", "manifest.json")
+"""The files :func:`write_run_dir` writes itself (the extras add theirs)."""
+
+
 def write_run_dir(
     run_dir: Path,
     data: dict[str, Any],
@@ -274,12 +278,53 @@ def write_run_dir(
     ``data`` is the effective configuration (``Scenario.data``); ``started_at`` the run's start,
     UTC ISO 8601. ``extras`` write further files into the directory (plots, a replay) before the
     manifest, so the manifest lists them and a directory without one was not finished.
-    """
-    import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
 
+    Every file is written through a private temporary file and ``os.replace`` (a planted link
+    is replaced, never followed). A manifest already there (a directory written again) is removed
+    first, so the directory reads as unfinished until the new one lands. When a write fails (a
+    full disk, a read-only directory) the files this call wrote are removed, their temporary
+    files too, and an OSError naming ``run_dir`` is raised: nothing is left that looks complete.
+    """
     run_dir = Path(run_dir)
     if run_dir.is_symlink():  # the files would land wherever the link points
         raise OSError(errno.ELOOP, "is a symbolic link (refused: a run directory is a plain directory)", str(run_dir))
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        before = {p.name for p in run_dir.iterdir()}
+        (run_dir / "manifest.json").unlink(missing_ok=True)
+        _write_run_files(run_dir, data, metrics, trajectory, complete, seed, extras, started_at)
+    except OSError as exc:
+        _remove_written(run_dir, before if "before" in locals() else set())
+        raise OSError(exc.errno, exc.strerror or str(exc), str(run_dir)) from exc
+
+
+def _remove_written(run_dir: Path, before: set[str]) -> None:
+    """After a failed write: remove the run's own files and whatever the extras added."""
+    try:
+        names = {p.name for p in run_dir.iterdir()}
+    except OSError:
+        return
+    for name in names:
+        if name in RUN_FILES or (name not in before and not name.startswith(".hydra")):
+            path = run_dir / name
+            try:
+                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+            except OSError:
+                pass  # a read-only directory: there is nothing of ours to remove either
+
+
+def _write_run_files(
+    run_dir: Path,
+    data: dict[str, Any],
+    metrics: dict[str, Any],
+    trajectory: dict[str, np.ndarray],
+    complete: bool,
+    seed: int,
+    extras: Sequence[Callable[[Path], Any]],
+    started_at: str | None,
+) -> None:
+    import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
+
     text = CONFIG_HEADER + yaml.safe_dump(_jsonable(data), sort_keys=False)
     atomic_write_bytes(run_dir / "config.yaml", text.encode())
     if trajectory:

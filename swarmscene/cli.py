@@ -102,17 +102,18 @@ def _error_lines(exc: BaseException) -> list[str]:
         return exc.lines
     if isinstance(exc, RunFailed):  # its message is the engine's own line (the first non-finite state)
         return [str(exc)]
-    cause = _cause_of(exc, (ConfigError, RunFileError, OSError))
-    if isinstance(cause, ConfigError):  # raised by a resolver (swarmscene.dir_name) inside Hydra
+    cause = _cause_of(exc, (ConfigError, RunFileError))
+    if isinstance(cause, ConfigError):  # raised inside Hydra (swarmscene.dir_name, scenario_files)
         return cause.lines
     if isinstance(cause, RunFileError):
         return [str(cause)]
-    if isinstance(cause, OSError):  # a full disk, a read-only directory: name the path
-        where = cause.filename if cause.filename is not None else "the run directory"
-        return [f"{where}: cannot be written ({cause.strerror or cause})"]
     line = hydra_error_line(exc)
     if line is not None:
         return [line]
+    cause = _cause_of(exc, (OSError,))
+    if isinstance(cause, OSError) and cause.errno is not None:  # a full disk, a read-only directory
+        where = cause.filename if cause.filename is not None else "the run directory"
+        return [f"{where}: cannot be written ({cause.strerror or cause})"]
     return [f"{type(exc).__name__}: {exc}".splitlines()[0] + f" (set {DEBUG_ENV}=1 for a traceback)"]
 
 
@@ -189,6 +190,11 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     _stop_if_requested(run_dir)  # a signal while the plugins were built (and kernels compiled)
     try:
         result = _run_and_write(sim, run_dir, writers, sweep=False)
+    except OSError as exc:  # a full disk, a read-only directory: its files were removed (outputs.py)
+        _remove_unfinished(run_dir)
+        if os.environ.get(DEBUG_ENV):
+            raise
+        _report(_error_lines(exc))
     except Exception:
         _remove_unfinished(run_dir)  # nothing written: no `.hydra/`-only directory left behind
         raise
@@ -294,8 +300,11 @@ def _objective_from(names: list[str], metrics: dict[str, Any]) -> Any:
 
 def _remove_unfinished(run_dir: Path) -> None:
     """Remove the directory Hydra made for a run that never started (it holds only .hydra/)."""
-    if run_dir.is_dir() and all(p.name == ".hydra" for p in run_dir.iterdir()):
-        shutil.rmtree(run_dir)
-        parent = run_dir.parent
-        if parent.is_dir() and not any(parent.iterdir()):
-            parent.rmdir()
+    try:
+        if run_dir.is_dir() and not run_dir.is_symlink() and all(p.name == ".hydra" for p in run_dir.iterdir()):
+            shutil.rmtree(run_dir)
+            parent = run_dir.parent  # outputs/<name>/, made for this run alone
+            if parent.is_dir() and not any(parent.iterdir()):
+                parent.rmdir()
+    except OSError:
+        pass  # a read-only directory, a mount point: what could not be removed stays, unfinished
