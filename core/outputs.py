@@ -290,12 +290,31 @@ def write_run_dir(
         raise OSError(errno.ELOOP, "is a symbolic link (refused: a run directory is a plain directory)", str(run_dir))
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
+        remove_stale_temps(run_dir)
         before = {p.name for p in run_dir.iterdir()}
         (run_dir / "manifest.json").unlink(missing_ok=True)
         _write_run_files(run_dir, data, metrics, trajectory, complete, seed, extras, started_at)
     except OSError as exc:
         _remove_written(run_dir, before if "before" in locals() else set())
         raise OSError(exc.errno, exc.strerror or str(exc), str(run_dir)) from exc
+
+
+def remove_stale_temps(run_dir: Path) -> list[str]:
+    """Remove the temporary files and directories a killed writer left in ``run_dir``
+    (``.<name>.<random>.tmp``, :func:`atomic_write_bytes`, :func:`private_temp_dir`); their names.
+
+    A process killed with SIGKILL (or a machine that lost power) cannot remove its own; the next
+    write into the directory does. Links are removed as links, never followed.
+    """
+    removed = []
+    for path in Path(run_dir).iterdir():
+        if path.name.startswith(".") and path.name.endswith(".tmp") and path.name.count(".") >= 3:
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+            removed.append(path.name)
+    return removed
 
 
 def _remove_written(run_dir: Path, before: set[str]) -> None:

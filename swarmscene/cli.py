@@ -23,11 +23,15 @@ from pathlib import Path
 from typing import Any
 
 from .core import interrupts
-from .hydra_files import install as _protect_run_dirs
 
-# On import, not only in main(): a launcher's worker process imports this module to run `_task`,
-# and Hydra resolves the job's directory and writes its `.hydra/` files there (hydra_files.py).
-_protect_run_dirs()
+# A launcher's worker process (joblib, ray, submitit) imports this module to run `_task`, with
+# Hydra already loaded, and then resolves the job's directory and writes its `.hydra/` files
+# (hydra_files.py): protect them now. The command itself does it in main(), after its signal
+# handler is in place, so that a Ctrl-C during start-up is never a traceback.
+if "hydra.core.utils" in sys.modules:
+    from .hydra_files import install as _protect_run_dirs
+
+    _protect_run_dirs()
 
 EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs say so
 EXIT_CONFIG = 2
