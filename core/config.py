@@ -18,7 +18,7 @@ import warnings
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .errors import ConfigError, format_validation_error
 from .disturbances import validate_disturbances
@@ -197,6 +197,30 @@ class PluginChoice(BaseModel):
     name: str
 
 
+MAX_NAME_LENGTH = 100
+"""Longest scenario ``name``: it becomes one directory name (``outputs/<name>/...``)."""
+
+
+def name_problem(name: Any) -> str | None:
+    """Why ``name`` cannot name an output directory, or None.
+
+    The name is one path component under ``outputs/`` or ``multirun/``, so it stays inside the
+    working directory: no ``/`` or ``\\``, not ``.`` or ``..`` (nor any name starting with a dot,
+    which would hide the directory), no control characters, at most ``MAX_NAME_LENGTH`` characters.
+    """
+    if not isinstance(name, str) or not name.strip():
+        return "must be a non-empty label"
+    if "/" in name or "\\" in name:
+        return "must not contain '/' or '\\' (it names one output directory)"
+    if name.startswith("."):
+        return "must not start with '.' (it names one output directory inside the working directory)"
+    if any(ord(c) < 32 or ord(c) == 127 for c in name):
+        return "must not contain control characters"
+    if len(name) > MAX_NAME_LENGTH:
+        return f"must be at most {MAX_NAME_LENGTH} characters (got {len(name)})"
+    return None
+
+
 class ScenarioConfig(_Strict):
     """A whole scenario as composed by Hydra (the ``hydra`` node left out)."""
 
@@ -221,6 +245,14 @@ class ScenarioConfig(_Strict):
     comm: CommConfig = Field(default_factory=CommConfig)
     termination: TerminationConfig = Field(default_factory=TerminationConfig)
     output: OutputConfig = Field(default_factory=OutputConfig)
+
+    @field_validator("name")
+    @classmethod
+    def _name_is_one_directory(cls, name: str) -> str:
+        problem = name_problem(name)
+        if problem is not None:
+            raise ValueError(problem)
+        return name
 
     @model_validator(mode="after")
     def _explicit_positions_match_n(self) -> "ScenarioConfig":

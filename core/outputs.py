@@ -16,21 +16,26 @@ Files are created with the permissions the user's umask gives (``0o666 & ~umask`
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import math
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
 from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from . import interrupts
 
 MANIFEST_PACKAGES = ("swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core")
 COSMETIC_KEYS = (
@@ -83,6 +88,31 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
+@contextmanager
+def private_temp_dir(directory: Path, name: str) -> Iterator[Path]:
+    """A path ``<fresh dir>/<name>`` for a writer that opens its file by name (Rerun, matplotlib).
+
+    The fresh directory is made inside ``directory`` by ``mkdtemp`` (mode 0700, a new name):
+    nothing can be planted in it, so the writer cannot be led through a symbolic link; move the
+    file into place with :func:`publish`. The directory and anything left in it are removed
+    afterwards, whether the writer finished or failed.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=directory, prefix=f".{name}.", suffix=".tmp"))
+    try:
+        yield tmp / name
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def publish(tmp_file: Path, path: Path) -> None:
+    """Move a finished temporary file into place atomically (a link at ``path`` is replaced, never
+    followed), with the mode ``open()`` would have given it."""
+    os.chmod(tmp_file, user_file_mode())
+    os.replace(tmp_file, path)
+
+
 COPY_CHUNK = 16 * 1024 * 1024
 """Bytes per read when a spilled ``.npy`` file is copied into an archive."""
 
@@ -103,7 +133,7 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     try:
         with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
             for name, array in arrays.items():
-                with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                with zf.open(_member(f"{name}.npy"), "w", force_zip64=True) as member:
                     source = _whole_npy_file(array)
                     if source is None:
                         np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
@@ -115,6 +145,20 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+"""Every archive member's timestamp: the zip format's earliest date, so the same arrays make the
+same bytes (zipfile would stamp the time of writing; the manifest records when the run was)."""
+
+
+def _member(name: str) -> Any:
+    import zipfile
+
+    info = zipfile.ZipInfo(name, date_time=ZIP_EPOCH)
+    info.compress_type = zipfile.ZIP_STORED
+    info.external_attr = 0o600 << 16  # what zipfile (and so numpy.savez) gives a member by name
+    return info
 
 
 def _whole_npy_file(array: np.ndarray) -> str | None:
@@ -215,6 +259,10 @@ CONFIG_HEADER = (
 )
 
 
+RUN_FILES = ("config.yaml", "trajectory.npz", "metrics.json", "manifest.json")
+"""The files :func:`write_run_dir` writes itself (the extras add theirs)."""
+
+
 def write_run_dir(
     run_dir: Path,
     data: dict[str, Any],
@@ -230,17 +278,84 @@ def write_run_dir(
     ``data`` is the effective configuration (``Scenario.data``); ``started_at`` the run's start,
     UTC ISO 8601. ``extras`` write further files into the directory (plots, a replay) before the
     manifest, so the manifest lists them and a directory without one was not finished.
+
+    Every file is written through a private temporary file and ``os.replace`` (a planted link
+    is replaced, never followed). A manifest already there (a directory written again) is removed
+    first, so the directory reads as unfinished until the new one lands. When a write fails (a
+    full disk, a read-only directory) the files this call wrote are removed, their temporary
+    files too, and an OSError naming ``run_dir`` is raised: nothing is left that looks complete.
     """
+    run_dir = Path(run_dir)
+    if run_dir.is_symlink():  # the files would land wherever the link points
+        raise OSError(errno.ELOOP, "is a symbolic link (refused: a run directory is a plain directory)", str(run_dir))
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        remove_stale_temps(run_dir)
+        before = {p.name for p in run_dir.iterdir()}
+        (run_dir / "manifest.json").unlink(missing_ok=True)
+        _write_run_files(run_dir, data, metrics, trajectory, complete, seed, extras, started_at)
+    except OSError as exc:
+        _remove_written(run_dir, before if "before" in locals() else set())
+        raise OSError(exc.errno, exc.strerror or str(exc), str(run_dir)) from exc
+
+
+def remove_stale_temps(run_dir: Path) -> list[str]:
+    """Remove the temporary files and directories a killed writer left in ``run_dir``
+    (``.<name>.<random>.tmp``, :func:`atomic_write_bytes`, :func:`private_temp_dir`); their names.
+
+    A process killed with SIGKILL (or a machine that lost power) cannot remove its own; the next
+    write into the directory does. Links are removed as links, never followed.
+    """
+    removed = []
+    for path in Path(run_dir).iterdir():
+        if path.name.startswith(".") and path.name.endswith(".tmp") and path.name.count(".") >= 3:
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+            removed.append(path.name)
+    return removed
+
+
+def _remove_written(run_dir: Path, before: set[str]) -> None:
+    """After a failed write: remove the run's own files and whatever the extras added."""
+    try:
+        names = {p.name for p in run_dir.iterdir()}
+    except OSError:
+        return
+    for name in names:
+        if name in RUN_FILES or (name not in before and not name.startswith(".hydra")):
+            path = run_dir / name
+            try:
+                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+            except OSError:
+                pass  # a read-only directory: there is nothing of ours to remove either
+
+
+def _write_run_files(
+    run_dir: Path,
+    data: dict[str, Any],
+    metrics: dict[str, Any],
+    trajectory: dict[str, np.ndarray],
+    complete: bool,
+    seed: int,
+    extras: Sequence[Callable[[Path], Any]],
+    started_at: str | None,
+) -> None:
     import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
 
-    run_dir = Path(run_dir)
     text = CONFIG_HEADER + yaml.safe_dump(_jsonable(data), sort_keys=False)
     atomic_write_bytes(run_dir / "config.yaml", text.encode())
     if trajectory:
         write_npz(run_dir / "trajectory.npz", trajectory)
     atomic_write_json(run_dir / "metrics.json", metrics)
     for extra in extras:
+        if interrupts.requested() is not None:
+            break  # asked to stop: the plots and replay not yet written are left out
         extra(run_dir)
+    # A stop request during the writes (Ctrl-C, SIGTERM: core/interrupts.py) marks the directory
+    # incomplete: the process ends before its caller would read it back.
+    complete = complete and interrupts.requested() is None
     manifest = {
         "config_hash": config_hash(data),
         "scenario": data.get("name"),

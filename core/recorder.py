@@ -18,12 +18,14 @@ whole record would not fit in the buffer, ``on`` always, ``off`` never. Either w
 and ``trajectory.npz`` is the same file: it is written from the memory maps 16 MiB at a time, so
 memory stays bounded by the buffer however long the run (100,000 agents x 10,000 frames of
 float32 positions and velocities is 24 GB on disk, twice while the archive is written, and one
-buffer in memory). The spill directory is removed when the recorder is garbage-collected or the
-interpreter exits.
+buffer in memory). The spill directory is a fresh one (``mkdtemp``, mode 0700) and each of its
+files is created exclusively (``O_EXCL | O_NOFOLLOW``), so no planted link is written through; it
+is removed when the recorder is garbage-collected or the interpreter exits.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import weakref
@@ -54,6 +56,13 @@ def npy_header(dtype: np.dtype, shape: tuple[int, ...]) -> bytes:
     return head + len(body).to_bytes(2, "little") + body
 
 
+def create_exclusive(path: Path) -> int:
+    """A new file at ``path`` for writing (mode 0600): refused when anything is there already,
+    a symbolic link included (``O_EXCL``, and ``O_NOFOLLOW`` where the system has it)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    return os.open(path, flags, 0o600)
+
+
 class NpyAppender:
     """One ``.npy`` file grown by appending frames; its header always names the frames written."""
 
@@ -62,7 +71,7 @@ class NpyAppender:
         self.frame_shape = frame_shape
         self.dtype = np.dtype(dtype)
         self.frames = 0
-        self._fh = open(path, "wb")
+        self._fh = os.fdopen(create_exclusive(path), "wb")
         self._fh.write(npy_header(self.dtype, (0, *frame_shape)))
 
     def append(self, block: np.ndarray) -> None:

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pluggy
 
+from . import interrupts
 from .config import Scenario
 from .disturbances import Disturbances
 from .environment import Environment
@@ -200,8 +201,11 @@ class Simulation:
 
         Args:
             progress: called after every tick (e.g. a progress line); must be cheap.
-        A Ctrl-C ends the run cleanly: the result is marked incomplete (``stop_reason``
-        ``"interrupted"``) and holds everything recorded so far. A position or velocity that
+        A Ctrl-C or SIGTERM ends the run cleanly between two ticks: the result is marked
+        incomplete (``stop_reason`` ``"interrupted"``) and holds everything recorded so far. The
+        request is read from :mod:`~swarmscene.core.interrupts` (the command line's handler only
+        records it, so nothing is raised inside compiled code); a ``KeyboardInterrupt`` raised
+        in a tick (Python's own SIGINT handler) ends the run the same way. A position or velocity that
         becomes NaN or infinite stops the run before that tick is observed: ``stop_reason``
         ``"non_finite"``, ``error`` names the first such agent and the tick, ``success`` is False.
         """
@@ -209,6 +213,9 @@ class Simulation:
         wall_start = time.perf_counter()
         try:
             while self.step_count < self.total_steps and self.stop_reason is None:
+                if interrupts.requested() is not None:  # between ticks: nothing half-stepped
+                    self.stop_reason = "interrupted"
+                    break
                 tick_start = time.perf_counter()
                 self.step()
                 self.step_seconds[self.step_count - 1] = time.perf_counter() - tick_start

@@ -16,31 +16,45 @@ exits with status 130; SIGTERM (a scheduler's cancel, ``kill``) does the same wi
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
-import signal
 import sys
 from pathlib import Path
 from typing import Any
+
+from .core import interrupts
+
+# A launcher's worker process (joblib, ray, submitit) imports this module to run `_task`, with
+# Hydra already loaded, and then resolves the job's directory and writes its `.hydra/` files
+# (hydra_files.py): protect them now. The command itself does it in main(), after its signal
+# handler is in place, so that a Ctrl-C during start-up is never a traceback.
+if "hydra.core.utils" in sys.modules:
+    from .hydra_files import install as _protect_run_dirs
+
+    _protect_run_dirs()
 
 EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs say so
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
 DEBUG_ENV = "SWARMSCENE_DEBUG"
-_terminated = False  # set by the SIGTERM handler: the interruption was a SIGTERM, not a Ctrl-C
-
-
-def _on_sigterm(signum: int, frame: Any) -> None:
-    """SIGTERM is handled like Ctrl-C (the run stops after its tick, partial outputs are written,
-    marked incomplete); only the exit status differs."""
-    global _terminated
-    _terminated = True
-    raise KeyboardInterrupt
 
 
 def _interrupted_status() -> tuple[int, str]:
-    return (EXIT_TERMINATED, "terminated") if _terminated else (EXIT_INTERRUPTED, "interrupted")
+    """Exit status and word for the stop request received: SIGTERM (a scheduler's cancel, ``kill``)
+    is handled like Ctrl-C, only the status differs."""
+    import signal
+
+    if interrupts.requested() == signal.SIGTERM:
+        return EXIT_TERMINATED, "terminated"
+    return EXIT_INTERRUPTED, "interrupted"
+
+
+def _exit_interrupted(what: str = "") -> None:
+    status, word = _interrupted_status()
+    print(f"swarmscene: {word} {what}".rstrip(), file=sys.stderr)
+    sys.exit(status)
 
 
 def main() -> None:
@@ -49,6 +63,9 @@ def main() -> None:
         from . import info
 
         sys.exit(info.command(sys.argv[1]))
+    # First of all: from here on SIGINT/SIGTERM are recorded, and acted on at the next point
+    # where the run can stop cleanly (core/interrupts.py), never raised inside compiled code.
+    interrupts.install()
     import hydra
 
     from .searchpath import plain_command_line, register_search_path
@@ -66,17 +83,16 @@ def main() -> None:
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
     )
-    signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         app()
-    except KeyboardInterrupt:
-        status, word = _interrupted_status()
-        print(f"swarmscene: {word}", file=sys.stderr)
-        sys.exit(status)
+    except KeyboardInterrupt:  # a sweep's job stopped, or a second Ctrl-C
+        _exit_interrupted()
     except Exception as exc:  # every user-fixable problem becomes one line
         if debug:
             raise
         _report(_error_lines(exc))
+    if interrupts.requested() is not None:  # came after the last job was written
+        _exit_interrupted("after the outputs were written")
 
 
 def _report(lines: list[str]) -> None:
@@ -89,12 +105,35 @@ def _error_lines(exc: BaseException) -> list[str]:
     from .core.errors import ConfigError
     from .hydra_errors import hydra_error_line
 
+    from .rundir import RunFileError
+
     if isinstance(exc, ConfigError):
         return exc.lines
+    if isinstance(exc, RunFailed):  # its message is the engine's own line (the first non-finite state)
+        return [str(exc)]
+    cause = _cause_of(exc, (ConfigError, RunFileError))
+    if isinstance(cause, ConfigError):  # raised inside Hydra (swarmscene.dir_name, scenario_files)
+        return cause.lines
+    if isinstance(cause, RunFileError):
+        return [str(cause)]
     line = hydra_error_line(exc)
     if line is not None:
         return [line]
+    cause = _cause_of(exc, (OSError,))
+    if isinstance(cause, OSError) and cause.errno is not None:  # a full disk, a read-only directory
+        where = cause.filename if cause.filename is not None else "the run directory"
+        return [f"{where}: cannot be written ({cause.strerror or cause})"]
     return [f"{type(exc).__name__}: {exc}".splitlines()[0] + f" (set {DEBUG_ENV}=1 for a traceback)"]
+
+
+def _cause_of(exc: BaseException | None, kinds: tuple[type, ...]) -> BaseException | None:
+    """The first exception of ``kinds`` in ``exc``'s chain of causes, else None."""
+    seen = 0
+    while exc is not None and seen < 20:
+        if isinstance(exc, kinds):
+            return exc
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return None
 
 
 def _task(cfg: Any) -> Any:
@@ -144,6 +183,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     from . import api
     from .core.errors import ConfigError
 
+    _stop_if_requested(run_dir)  # a signal during start-up or composition
     try:
         sim = api.build(data)
         writers = api.extra_writers(sim)  # a missing optional package fails now, not after the run
@@ -156,8 +196,14 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     except BaseException:
         _remove_unfinished(run_dir)
         raise
+    _stop_if_requested(run_dir)  # a signal while the plugins were built (and kernels compiled)
     try:
         result = _run_and_write(sim, run_dir, writers, sweep=False)
+    except OSError as exc:  # a full disk, a read-only directory: its files were removed (outputs.py)
+        _remove_unfinished(run_dir)
+        if os.environ.get(DEBUG_ENV):
+            raise
+        _report(_error_lines(exc))
     except Exception:
         _remove_unfinished(run_dir)  # nothing written: no `.hydra/`-only directory left behind
         raise
@@ -166,6 +212,15 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: {word} at t = {result.metrics['duration']:.2f} s; "
               f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
         sys.exit(status)
+    if interrupts.requested() is not None:  # the run ended; the request came while writing
+        from .rundir import RunDir, RunFileError
+
+        try:
+            complete = RunDir(run_dir).manifest().get("complete") is True
+        except RunFileError:
+            complete = False
+        marked = "complete (the request came after the last file)" if complete else "marked incomplete"
+        _exit_interrupted(f"while the outputs were written; they are {marked} in {run_dir}")
     if result.error is not None:
         from .sweep import record_failure
 
@@ -173,6 +228,13 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         print(f"swarmscene: {result.error}; outputs up to then (marked failed) in {run_dir}", file=sys.stderr)
         sys.exit(EXIT_FAILED)
     return _objective(sim, result)
+
+
+def _stop_if_requested(run_dir: Path) -> None:
+    """Act on a stop request that came before the run started: no run directory is left."""
+    if interrupts.requested() is not None:
+        _remove_unfinished(run_dir)
+        _exit_interrupted("before the run started (no run directory written)")
 
 
 class RunFailed(RuntimeError):
@@ -228,20 +290,30 @@ def _objective(sim: Any, result: Any) -> Any:
 
 
 def _objective_from(names: list[str], metrics: dict[str, Any]) -> Any:
-    """The metrics a sweeper optimises (``output.objective``), or all metrics when none is named."""
+    """The metrics a sweeper optimises (``output.objective``), or all metrics when none is named.
+
+    None when a named metric is missing or not finite (a failed job, a run that blew up): Optuna's
+    sweeper records that trial as failed and the study goes on. (It cannot take NaN: Optuna
+    refuses the value, and the sweeper's second attempt to record the failure ends the study.)
+    """
     if not names:
         return metrics
     values = []
     for name in names:
         value = metrics.get(name)
-        values.append(float("nan") if value is None else float(value))
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            return None
+        values.append(float(value))
     return values[0] if len(values) == 1 else tuple(values)
 
 
 def _remove_unfinished(run_dir: Path) -> None:
     """Remove the directory Hydra made for a run that never started (it holds only .hydra/)."""
-    if run_dir.is_dir() and all(p.name == ".hydra" for p in run_dir.iterdir()):
-        shutil.rmtree(run_dir)
-        parent = run_dir.parent
-        if parent.is_dir() and not any(parent.iterdir()):
-            parent.rmdir()
+    try:
+        if run_dir.is_dir() and not run_dir.is_symlink() and all(p.name == ".hydra" for p in run_dir.iterdir()):
+            shutil.rmtree(run_dir)
+            parent = run_dir.parent  # outputs/<name>/, made for this run alone
+            if parent.is_dir() and not any(parent.iterdir()):
+                parent.rmdir()
+    except OSError:
+        pass  # a read-only directory, a mount point: what could not be removed stays, unfinished

@@ -189,6 +189,30 @@ def _action_box(shape: tuple[int, ...]) -> gymnasium.spaces.Box:
     return gymnasium.spaces.Box(-1.0, 1.0, shape=shape, dtype=np.float32)
 
 
+def checked_action(value: Any, shape: tuple[int, ...], where: str) -> np.ndarray:
+    """``value`` as a float array of exactly ``shape``, or a ValueError in one line naming ``where``.
+
+    Refused: None, non-numeric dtypes (strings, objects, booleans, complex), any other shape (no
+    broadcasting: a 1-element action for a 3-axis agent is a mistake, not a command) and NaN or
+    infinite entries. Finite values outside [-1, 1] are the policy's to clip, as the space says.
+    """
+    expected = f"an array of shape {shape} of finite numbers in [-1, 1]"
+    if value is None:
+        raise ValueError(f"{where}: got None; expected {expected}")
+    try:
+        array = np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nested lists
+        raise ValueError(f"{where}: not an array ({exc}); expected {expected}") from None
+    if array.dtype.kind not in "iuf":
+        raise ValueError(f"{where}: dtype {array.dtype} is not a real number type; expected {expected}")
+    if array.shape != shape:
+        raise ValueError(f"{where}: shape {array.shape}; expected {expected}")
+    array = array.astype(float)
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{where}: holds NaN or infinite values; expected {expected}")
+    return array
+
+
 class SwarmParallelEnv(ParallelEnv):
     """PettingZoo parallel environment: one agent per vehicle, ``agent_0`` .. ``agent_{N-1}``.
 
@@ -232,11 +256,15 @@ class SwarmParallelEnv(ParallelEnv):
         episode = self.driver.episode
         if episode is None or not self.agents:
             raise RuntimeError("step() called before reset() or after every agent is done")
+        if not isinstance(actions, dict):
+            raise ValueError(f"actions: expected a dict {{agent name: action}}, got {type(actions).__name__}")
         action = np.zeros((self.driver.n, 3))
         given = np.zeros(self.driver.n, dtype=bool)
         for name, value in actions.items():
-            i = self._index[name]
-            action[i], given[i] = value, True
+            i = self._index.get(name)
+            if i is None:
+                raise ValueError(f"actions: unknown agent {name!r} (agents: agent_0 .. agent_{self.driver.n - 1})")
+            action[i], given[i] = checked_action(value, (3,), f"action of {name}"), True
         acting = self.agents
         reward, terminated, truncated = episode.step(action, given & self._active)
         failed = self._active & ~episode.sim.world.healthy
@@ -294,7 +322,10 @@ class SwarmGymEnv(gymnasium.Env):
 
     def step(self, action: np.ndarray):
         episode = self.driver.episode
-        reward, terminated, truncated = episode.step(np.asarray(action, dtype=float), np.ones(self.driver.n, dtype=bool))
+        if episode is None:
+            raise RuntimeError("step() called before reset()")
+        action = checked_action(action, (self.driver.n, 3), "action")
+        reward, terminated, truncated = episode.step(action, np.ones(self.driver.n, dtype=bool))
         healthy = episode.sim.world.healthy
         info: dict[str, Any] = {}
         if terminated or truncated:

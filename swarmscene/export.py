@@ -51,6 +51,8 @@ from __future__ import annotations
 
 import argparse
 import io
+import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -214,7 +216,7 @@ def planned_flat_outputs(config: dict[str, Any], t: np.ndarray) -> np.ndarray | 
     formation flies no open-loop plan (only the VRB formation does)."""
     from . import api
 
-    formation = api.build(config).formation
+    formation = api.build(config).formation  # ConfigError (a ValueError) for a damaged config
     if not (hasattr(formation, "trajectory") and hasattr(formation, "flight")):
         return None
     from .methods.vrb.transform import robot_flat_outputs
@@ -236,13 +238,18 @@ def yaw_from_quat(quat: np.ndarray) -> np.ndarray:
 
 def show_samples(run_dir: Path, source: str = "auto") -> tuple[np.ndarray, np.ndarray, str]:
     """(t (T,), samples (T, N, 4), source used) of a run directory's show (module docstring)."""
+    from .core.errors import ConfigError
     from .plots import load_run
+    from .rundir import CONFIG, RunFileError
 
     run = load_run(run_dir)
     if source in ("auto", "plan"):
         start, end = plan_span(run.config)
         t = np.linspace(start, end, int(round((end - start) * SAMPLE_RATE)) + 1)
-        planned = planned_flat_outputs(run.config, t)
+        try:
+            planned = planned_flat_outputs(run.config, t)
+        except ConfigError as exc:  # the run's config.yaml no longer validates: name the file
+            raise RunFileError(Path(run_dir) / CONFIG, f"does not load as a scenario ({exc.lines[0]})") from None
         if planned is not None:
             return t, planned, "plan"
         if source == "plan":
@@ -367,28 +374,93 @@ def trajectory_csv(source: Any, out_dir: Path) -> list[Path]:
     return written
 
 
+PROG = "python -m swarmscene.export"
+
+
+def run_problem(run_dir: Path) -> str | None:
+    """Why a run directory should not be exported (it failed, collided or did not complete), or
+    None for a complete run without collisions. Reads through :mod:`swarmscene.rundir`."""
+    from .rundir import ERROR, MANIFEST, METRICS, RunDir, finite_or_none
+
+    run = RunDir(run_dir)
+    if not run.has(MANIFEST):
+        return "did not complete (no manifest.json: the run was stopped before its end)"
+    manifest = run.manifest()
+    if run.has(ERROR) or manifest.get("status") == "failed":
+        reason = run.error().get("error") if run.has(ERROR) else manifest.get("error")
+        return f"failed ({reason})" if isinstance(reason, str) else "failed"
+    if manifest.get("complete") is not True:
+        return "did not complete (manifest.json: complete is not true)"
+    metrics = run.metrics() if run.has(METRICS) else {}
+    collisions = finite_or_none(metrics.get("collisions"))
+    if metrics.get("stop_reason") == "collision" or (collisions is not None and collisions > 0):
+        return f"collided (collisions = {metrics.get('collisions')}, stop_reason = {metrics.get('stop_reason')})"
+    if metrics.get("stop_reason") == "non_finite":
+        return "failed (a non-finite state)"
+    return None
+
+
+def _time_scale(text: str) -> float | str:
+    """``--time-scale``: a finite number > 0, or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"--time-scale: must be a number > 0 or 'auto' (got {text!r})")
+    return value
+
+
+def _tolerance(value: float) -> float:
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"--tolerance: must be a finite number of metres > 0 (got {value!r})")
+    return value
+
+
 def main(argv: list[str] | None = None) -> None:
-    """``python -m swarmscene.export RUN_DIR [--csv DIR] [--crazyflie DIR] ...``."""
-    parser = argparse.ArgumentParser(prog="python -m swarmscene.export", description=__doc__.splitlines()[0])
+    """``python -m swarmscene.export RUN_DIR [--csv DIR] [--crazyflie DIR] ...``.
+
+    Every problem is one line on stderr and exit status 2: a bad option (named), a run directory
+    whose files are missing or damaged (the file named), a run that failed, collided or did not
+    complete (unless ``--force``: then a warning, and the export goes on).
+    """
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
     parser.add_argument("--crazyflie", type=Path, metavar="DIR", help="write cf_<i>.csv and crazyflie.json")
     parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
-    parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor, or 'auto'")
-    parser.add_argument("--tolerance", type=float, default=0.005, help="position fit tolerance, m")
+    parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
+    parser.add_argument("--tolerance", type=float, default=0.005, help="position fit tolerance, m (> 0)")
+    parser.add_argument("--force", action="store_true",
+                        help="export a run that failed, collided or did not complete (a warning, not a refusal)")
     args = parser.parse_args(argv)
     if args.csv is None and args.crazyflie is None:
         parser.error("nothing to do: give --csv DIR and/or --crazyflie DIR")
-    if args.csv is not None:
-        print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
-    if args.crazyflie is not None:
-        try:
-            scale = args.time_scale if args.time_scale == "auto" else float(args.time_scale)
-            show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, args.tolerance,
+    from .rundir import RunFileError
+
+    try:
+        scale = _time_scale(args.time_scale)
+        tolerance = _tolerance(args.tolerance)
+        problem = run_problem(args.run_dir)
+        if problem is not None:
+            if not args.force:
+                raise ValueError(f"{args.run_dir}: the run {problem}; refused (--force exports it anyway)")
+            print(f"{PROG}: warning: {args.run_dir}: the run {problem}; exported because of --force",
+                  file=sys.stderr)
+        if args.csv is not None:
+            print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
+        if args.crazyflie is not None:
+            show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, tolerance,
                                           args.source)
-        except ValueError as exc:  # a formation without a plan, a show no time scale rescues
-            parser.exit(2, f"swarmscene.export: {exc}\n")
+    except (RunFileError, ValueError) as exc:  # a damaged file, a bad option, a show no scale rescues
+        parser.exit(2, f"{PROG}: {' '.join(str(exc).split())}\n")
+    except OSError as exc:  # the output directory cannot be written (read-only, full disk)
+        where = exc.filename or args.crazyflie or args.csv
+        parser.exit(2, f"{PROG}: {where}: cannot be written ({exc.strerror or exc})\n")
+    if args.crazyflie is not None:
         origin = {"plan": "plan", "flown": "flown trajectory"}.get(show.source, show.source)
         print(f"crazyflie: {len(show.fits)} vehicles from the {origin}, time scale {show.time_scale:g}, "
               f"controller {show.controller}")

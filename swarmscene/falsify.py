@@ -125,24 +125,36 @@ class Trial:
 
 
 def read_trial(run_dir: Path) -> Trial:
-    """The trial of one run directory (its overrides, metrics and limit)."""
-    import yaml
+    """The trial of one run directory (its overrides, metrics and limit), read through
+    :mod:`swarmscene.rundir`: a trial whose files are missing or damaged is not complete
+    (``status`` ``damaged``), never a crash of the study's end."""
+    from .rundir import CONFIG, MANIFEST, METRICS, OVERRIDES, RunDir, RunFileError, finite_or_none
 
-    overrides_file = run_dir / ".hydra" / "overrides.yaml"
-    overrides = yaml.safe_load(overrides_file.read_text()) if overrides_file.is_file() else []
-    metrics = _read_json(run_dir / "metrics.json")
-    manifest = _read_json(run_dir / "manifest.json") or {}
-    config_file = run_dir / "config.yaml"
-    config = yaml.safe_load(config_file.read_text()) if config_file.is_file() else {}
-    status = manifest.get("status") or ("complete" if manifest.get("complete") else "unfinished")
-    trial = Trial(trial=int(run_dir.name), overrides=list(overrides or []), status=status)
-    if metrics is None or status != "complete":
+    run_dir = Path(run_dir)
+    trial = Trial(trial=int(run_dir.name), overrides=[], status="unfinished")
+    try:
+        run = RunDir(run_dir)
+        trial.overrides = run.overrides() if run.has(OVERRIDES) else []
+        manifest = run.manifest() if run.has(MANIFEST) else {}
+        status = manifest.get("status") or ("complete" if manifest.get("complete") is True else "unfinished")
+        trial.status = str(status)
+        if status != "complete" or not run.has(METRICS):
+            return trial
+        metrics, config = run.metrics(), run.config() if run.has(CONFIG) else {}
+    except RunFileError:
+        trial.status = "damaged"
         return trial
-    trial.min_separation = metrics.get("min_separation")
-    trial.separation_limit = float(config["safety"]["separation_limit"])
+    limit = finite_or_none((config.get("safety") or {}).get("separation_limit")
+                           if isinstance(config.get("safety"), dict) else None)
+    if limit is None:
+        trial.status = "damaged"  # a complete run always records its limit
+        return trial
+    trial.min_separation = finite_or_none(metrics.get("min_separation"))
+    trial.separation_limit = limit
     trial.robustness = robustness(trial.min_separation, trial.separation_limit)
-    trial.first_violation = metrics.get("violations.separation.first_time")
-    trial.violation_agents = list(metrics.get("violations.separation.agents") or [])
+    trial.first_violation = finite_or_none(metrics.get("violations.separation.first_time"))
+    agents = metrics.get("violations.separation.agents")
+    trial.violation_agents = [int(a) for a in agents if isinstance(a, int)] if isinstance(agents, list) else []
     return trial
 
 
@@ -170,6 +182,38 @@ def running_worst(trials: list[Trial]) -> list[float | None]:
     return out
 
 
+# -- the study's options --------------------------------------------------------------------------
+def study_problem(sweeper: Any) -> str | None:
+    """One line naming the first sweeper option the falsifier cannot run with, else None:
+    ``hydra.sweeper.n_trials`` (the budget) must be an integer >= 1, and each searched
+    ``interval(low, high)`` / ``range(start, stop)`` of ``hydra.sweeper.params`` must have low < high
+    (``tag(log, ...)``: low > 0)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import IntervalSweep, RangeSweep
+
+    budget = sweeper.get("n_trials")
+    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
+        return f"hydra.sweeper.n_trials: the falsifier's budget must be an integer >= 1 (got {budget!r})"
+    parser = OverridesParser.create()
+    for key, text in (sweeper.get("params") or {}).items():
+        name = str(key).lstrip("+~")
+        try:
+            value = parser.parse_override(f"{name}={text}").value()
+        except Exception as exc:  # Hydra's grammar: say which parameter does not parse
+            return f"hydra.sweeper.params.{name}: cannot parse {text!r} ({' '.join(str(exc).split())[:120]})"
+        if isinstance(value, IntervalSweep):
+            low, high = value.start, value.end
+        elif isinstance(value, RangeSweep):
+            low, high = value.start, value.stop
+        else:
+            continue
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            return f"hydra.sweeper.params.{name}: the interval must have low < high, both finite (got {text})"
+        if "log" in value.tags and low <= 0:
+            return f"hydra.sweeper.params.{name}: a log-scaled interval needs low > 0 (got {text})"
+    return None
+
+
 # -- the worst case as a scenario file ------------------------------------------------------------
 def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmscene") -> dict[str, Any] | None:
     """Write ``worst_case.yaml`` and ``worst_case.json`` in ``sweep_dir``; return the record.
@@ -179,6 +223,9 @@ def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmsc
     ``worst_case.json`` records the trial, its searched values, rho, the first violation, the
     number of trials and the progress curve. None (nothing written) when no trial completed.
     """
+    from .core.outputs import atomic_write_bytes
+    from .rundir import CONFIG, read_text
+
     sweep_dir = Path(sweep_dir)
     trials = read_trials(sweep_dir)
     found = worst(trials)
@@ -212,11 +259,12 @@ def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmsc
         "# The trial's effective configuration (every default resolved). Run it again:",
         f"#   {reproduce}",
     ]
-    body = (run / "config.yaml").read_text().splitlines(keepends=True)
+    body = read_text(run / CONFIG).splitlines(keepends=True)  # checked: size, a plain file, UTF-8
     while body and body[0].startswith("#"):  # the run's own header names its own directory
         body.pop(0)
-    (sweep_dir / WORST_CASE_FILE).write_text("\n".join(header) + "\n" + "".join(body))
-    (sweep_dir / WORST_CASE_RECORD).write_text(json.dumps(record, indent=2) + "\n")
+    # atomic, through a private temporary file: a link planted at either name is replaced
+    atomic_write_bytes(sweep_dir / WORST_CASE_FILE, ("\n".join(header) + "\n" + "".join(body)).encode())
+    atomic_write_bytes(sweep_dir / WORST_CASE_RECORD, (json.dumps(record, indent=2) + "\n").encode())
     return record
 
 
@@ -227,6 +275,15 @@ class WorstCase(_Callback):
     line: the trial, its min separation against the limit, the first violation, and the command
     that runs it again.
     """
+
+    def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        """Refuse a budget or a search interval Optuna would reject, naming the option, before
+        the first trial. (Hydra turns a callback's exception into a warning, so the refusal is
+        the command line's: one line and exit status 2.)"""
+        problem = study_problem(config.hydra.sweeper)
+        if problem is not None:
+            print(f"swarmscene: {problem}", file=sys.stderr)
+            raise SystemExit(2)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
@@ -244,10 +301,3 @@ class WorstCase(_Callback):
             f"Run it: {record['reproduce']}",
             file=sys.stderr,
         )
-
-
-def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return None

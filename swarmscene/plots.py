@@ -33,16 +33,13 @@ needed).
 from __future__ import annotations
 
 import io
-import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .core.outputs import atomic_write_bytes
+from .core.outputs import atomic_write_bytes, private_temp_dir, publish
 
 FAILED_COLOR = "tab:red"
 LIMIT_COLOR = "tab:red"
@@ -174,26 +171,49 @@ def _obstacles(config: dict[str, Any]) -> list[Any]:
     return obstacles
 
 
-def _read_json(path: Path) -> dict[str, Any]:
-    return json.loads(path.read_text()) if path.is_file() else {}
+CONFIG_SECTIONS = ("clock", "safety", "comm", "environment", "swarm", "formation", "avoidance", "dynamics",
+                   "termination", "output")
+"""Sections of a run's config.yaml the pictures and exports read: each must be a mapping."""
 
 
 def load_run(run_dir: Path) -> RunData:
-    """Read a run directory's config.yaml and trajectory.npz (metrics.json, manifest.json if there)."""
-    import yaml
+    """Read a run directory's config.yaml and trajectory.npz (metrics.json, manifest.json if there).
 
-    run_dir = Path(run_dir)
-    config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
-    path = run_dir / "trajectory.npz"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no trajectory recorded (output.trajectory=false?)")
-    with np.load(path) as traj:
-        arrays = {k: traj[k] for k in ("t", "pos", "vel", "healthy")}
-        quat = traj["quat"] if "quat" in traj.files else None
-    manifest = _read_json(run_dir / "manifest.json")
-    return RunData(config=config, obstacles=_obstacles(config), quat=quat,
-                   metrics=_read_json(run_dir / "metrics.json"),
-                   config_hash=manifest.get("config_hash") or _hash(config), **arrays)
+    Every file goes through :mod:`swarmscene.rundir`: a missing, damaged or planted one raises
+    :class:`~swarmscene.rundir.RunFileError`, one line naming the file and what is wrong.
+    """
+    from .rundir import CONFIG, MANIFEST, METRICS, RunDir, RunFileError
+
+    run = RunDir(run_dir)
+    config = run.config()
+    _check_sections(run.path / CONFIG, config)
+    arrays = run.trajectory()
+    quat = arrays.pop("quat", None)
+    manifest = run.manifest() if run.has(MANIFEST) else {}
+    metrics = run.metrics() if run.has(METRICS) else {}
+    try:
+        obstacles = _obstacles(config)
+    except (ValueError, TypeError) as exc:  # pydantic's ValidationError is a ValueError
+        first = " ".join(str(exc).split())[:200]
+        raise RunFileError(run.path / CONFIG, f"its environment cannot be built ({first})") from None
+    config_hash = manifest.get("config_hash")
+    if not isinstance(config_hash, str):
+        config_hash = _hash(config)
+    return RunData(config=config, obstacles=obstacles, quat=quat, metrics=metrics, config_hash=config_hash,
+                   **arrays)
+
+
+def _check_sections(path: Path, config: dict[str, Any]) -> None:
+    """A config.yaml whose sections are not mappings (or whose events are not a list of them) is
+    damaged: say so here rather than fail deep inside a figure."""
+    from .rundir import RunFileError
+
+    for key in CONFIG_SECTIONS:
+        if config.get(key) is not None and not isinstance(config[key], dict):
+            raise RunFileError(path, f"{key!r} should be a mapping, holds {type(config[key]).__name__}")
+    events = config.get("events")
+    if events is not None and not (isinstance(events, list) and all(isinstance(e, dict) for e in events)):
+        raise RunFileError(path, "'events' should be a list of mappings")
 
 
 def _hash(config: dict[str, Any]) -> str:
@@ -486,17 +506,16 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
     suffix = "mp4" if use_mp4 else "gif"
     writer = animation.FFMpegWriter(fps=15) if use_mp4 else animation.PillowWriter(fps=15)
     target = Path(run_dir) / f"animation.{suffix}"
-    fd, tmp = tempfile.mkstemp(dir=run_dir, prefix=".animation.", suffix=f".{suffix}")
-    os.close(fd)
     report = None
     if progress is not None:
         def report(frame: int, total: int) -> None:
             progress.update(frame + 1, len(keys), f"{target.name}: frame")
     try:
-        anim.save(tmp, writer=writer, dpi=80, progress_callback=report)
-        os.replace(tmp, target)  # atomic, like every other output
+        # matplotlib (and ffmpeg) open the file by name: a private directory, no planted link
+        with private_temp_dir(run_dir, target.name) as tmp:
+            anim.save(tmp, writer=writer, dpi=80, progress_callback=report)
+            publish(tmp, target)  # atomic, like every other output
     finally:
-        Path(tmp).unlink(missing_ok=True)
         if progress is not None:
             progress.close()
     return target

@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from .core.outputs import private_temp_dir, publish
 from .plots import RunData, agent_colors, comm_edges, from_simulation, load_run, safety_limit, safety_series
 
 TIMELINE = "sim_time"
@@ -353,9 +354,10 @@ def export_rerun(run_dir: Path, sim: Any = None, result: Any = None, every: int 
     if every is None:
         every = max(1, len(run.t) // 600)
     target = run_dir / "replay.rrd"
-    tmp = run_dir / ".replay.rrd.tmp"
-    export(run, tmp, every=every, connect=connect)
-    tmp.replace(target)  # atomic, like every other output
+    # Rerun opens its file by name: a private directory, so no planted link is written through
+    with private_temp_dir(run_dir, target.name) as tmp:
+        export(run, tmp, every=every, connect=connect)
+        publish(tmp, target)  # atomic, like every other output
     return target
 
 
@@ -387,8 +389,17 @@ def main(argv: list[str] | None = None) -> None:
                         help="also stream to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy")
     parser.add_argument("--every", type=int, default=None, help="keep every K-th frame (default: <= ~600 frames)")
     args = parser.parse_args(argv)
+    if args.every is not None and args.every < 1:
+        parser.exit(2, f"{parser.prog}: --every: must be an integer >= 1 (got {args.every})\n")
+    from .rundir import RunFileError
+
     for run_dir in args.run_dirs:
-        print(export_rerun(run_dir, every=args.every, connect=args.connect))
+        try:
+            print(export_rerun(run_dir, every=args.every, connect=args.connect))
+        except RunFileError as exc:  # a missing or damaged file of the run: one line naming it
+            parser.exit(2, f"{parser.prog}: {exc}\n")
+        except OSError as exc:  # the directory cannot be written (read-only, full disk)
+            parser.exit(2, f"{parser.prog}: {run_dir}: cannot write replay.rrd ({exc.strerror or exc})\n")
 
 
 if __name__ == "__main__":

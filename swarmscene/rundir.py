@@ -73,6 +73,15 @@ def _read_bytes(path: Path, limit: int) -> bytes:
         raise RunFileError(path, f"cannot be read ({exc.strerror or exc})") from exc
 
 
+def read_text(path: Path | str, limit: int = MAX_YAML_BYTES) -> str:
+    """A plain file's text (UTF-8, at most ``limit`` bytes), checked like every other read."""
+    raw = _read_bytes(Path(path), limit)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise RunFileError(path, "not UTF-8 text") from None
+
+
 def _finite_numbers(value: Any) -> Any:
     """JSON's NaN/Infinity extensions are refused: our writers never produce them."""
     raise ValueError(f"non-standard number {value}")

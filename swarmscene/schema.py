@@ -20,10 +20,13 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import math
 import sys
+import warnings
+from pathlib import Path
 from typing import Any
 
-from pydantic.json_schema import models_json_schema
+from pydantic.json_schema import GenerateJsonSchema, PydanticJsonSchemaWarning, models_json_schema
 
 from .core.config import ScenarioConfig
 from .core.plugin import PLUGIN_KINDS
@@ -44,7 +47,9 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
     models = [(ScenarioConfig, "validation")] + [
         (cls.Params, "validation") for classes in plugins_by_kind.values() for cls in classes
     ]
-    refs, top = models_json_schema(models, ref_template=REF)
+    with warnings.catch_warnings():  # a default JSON cannot hold (a function) is left out: said here
+        warnings.simplefilter("ignore", PydanticJsonSchemaWarning)
+        refs, top = models_json_schema(models, ref_template=REF, schema_generator=_Generator)
     defs = top.pop("$defs")
     root = defs.pop(_name(refs[(ScenarioConfig, "validation")]))
     defs.pop("PluginChoice", None)
@@ -64,8 +69,36 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
         **root,
         "definitions": defs,
     }
-    schema = _draft7(schema)
+    schema = _finite(_draft7(schema))
     return _partial(schema) if partial else schema
+
+
+class _Generator(GenerateJsonSchema):
+    """pydantic's generator, except that a field JSON Schema cannot describe (a callable, a numpy
+    array or another arbitrary type of a third-party plugin's Params) accepts any value, instead
+    of failing the whole schema (the engine still validates it); a default JSON cannot hold (a
+    function) is left out."""
+
+    def handle_invalid_for_json_schema(self, schema: Any, error_info: str) -> dict[str, Any]:
+        return {"description": f"not expressible in JSON Schema ({error_info}); checked by the engine"}
+
+
+def _finite(node: Any) -> Any:
+    """JSON has no Infinity or NaN: a non-finite number is left out (a ``default`` is said in the
+    description instead, e.g. ``... (default: inf)``), so the schema is strict JSON."""
+    if isinstance(node, list):
+        return [_finite(v) for v in node if not _non_finite(v)]
+    if not isinstance(node, dict):
+        return node
+    out = {key: _finite(value) for key, value in node.items() if not _non_finite(value)}
+    if _non_finite(node.get("default")):
+        note = f"default: {node['default']}"
+        out["description"] = f"{out['description']} ({note})" if out.get("description") else note
+    return out
+
+
+def _non_finite(value: Any) -> bool:
+    return isinstance(value, float) and not math.isfinite(value)
 
 
 def _name(ref: dict[str, str]) -> str:
@@ -129,10 +162,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--partial", action="store_true", help="schema of hand-written scenario files")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     args = parser.parse_args(argv)
-    text = json.dumps(scenario_schema(partial=args.partial), indent=2) + "\n"
+    text = json.dumps(scenario_schema(partial=args.partial), indent=2, allow_nan=False) + "\n"
     if args.output:
-        with open(args.output, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        from .core.outputs import atomic_write_bytes
+
+        try:
+            atomic_write_bytes(Path(args.output), text.encode("utf-8"))
+        except OSError as exc:
+            parser.exit(2, f"{parser.prog}: {args.output}: cannot be written ({exc.strerror or exc})\n")
     else:
         sys.stdout.write(text)
 

@@ -54,15 +54,21 @@ class SwarmsceneSearchPathPlugin(SearchPathPlugin):
 
 def register_search_path() -> None:
     """Make Hydra use :class:`SwarmsceneSearchPathPlugin` and know swarmscene's sweeper
-    (``hydra_plugins.swarmscene_sweeper``); idempotent."""
+    (``hydra_plugins.swarmscene_sweeper``), :mod:`swarmscene.hydra_files` and
+    :mod:`swarmscene.scenario_files`; idempotent."""
     from hydra_plugins.swarmscene_sweeper import register as register_sweeper
 
     from .groups import register_help_resolver
+    from .hydra_files import install as protect_run_dirs
+    from .scenario_files import install as check_scenario_files
 
+    protect_run_dirs()  # the name's resolver in the run-dir patterns; .hydra/ written safely
     plugins = Plugins.instance()
     if SwarmsceneSearchPathPlugin not in plugins.class_name_to_class.values():
         plugins.register(SwarmsceneSearchPathPlugin)
     register_sweeper()
+    # After Plugins.instance(): its first scan re-executes the modules of Hydra's config sources
+    check_scenario_files()  # size, depth, alias expansion, UTF-8, no oc.env (scenario_files.py)
     register_help_resolver()  # the --help template's group list
 
 

@@ -200,3 +200,63 @@ def test_neighbours_beyond_the_shared_knn_query_extend_it_in_order():
     assert 0 < small["nbr_mask"].mean() < 1  # some agents have fewer than 4 neighbours within 3 m
     dist = np.linalg.norm(large["nbr_pos"], axis=2)
     assert np.all(np.diff(np.where(large["nbr_mask"] > 0, dist, 1e9), axis=1) >= 0)  # nearest first, padding last
+
+
+# -- what the entry points refuse ------------------------------------------------------------------
+BAD_AGENT_ACTIONS = [
+    (None, "action of agent_0: got None; expected an array of shape (3,) of finite numbers in [-1, 1]"),
+    ([0.5], "action of agent_0: shape (1,); expected an array of shape (3,) of finite numbers in [-1, 1]"),
+    (0.5, "action of agent_0: shape (); expected an array of shape (3,) of finite numbers in [-1, 1]"),
+    ([0.1, np.nan, 0.0], "action of agent_0: holds NaN or infinite values; expected an array of shape (3,)"),
+    ([0.1, np.inf, 0.0], "action of agent_0: holds NaN or infinite values; expected an array of shape (3,)"),
+    (["a", "b", "c"], "action of agent_0: dtype <U1 is not a real number type"),
+    ([True, False, True], "action of agent_0: dtype bool is not a real number type"),
+    ([1j, 0, 0], "action of agent_0: dtype complex128 is not a real number type"),
+]
+
+
+@pytest.mark.parametrize("value, message", BAD_AGENT_ACTIONS)
+def test_the_parallel_env_refuses_a_bad_action_in_one_line(value, message):
+    env = make_env(SHORT)
+    env.reset(seed=0)
+    before = env.sim.world.pos.copy()
+    with pytest.raises(ValueError) as info:
+        env.step({"agent_0": value, **{a: np.zeros(3) for a in env.agents[1:]}})
+    assert str(info.value).startswith(message) and "\n" not in str(info.value)
+    assert env.sim.step_count == 0 and np.array_equal(env.sim.world.pos, before)  # nothing stepped
+
+
+def test_the_parallel_env_names_an_unknown_agent_and_a_non_dict():
+    env = make_env(SHORT)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^actions: unknown agent 'agent_99' \(agents: agent_0 \.\. agent_4\)$"):
+        env.step({"agent_99": np.zeros(3)})
+    with pytest.raises(ValueError, match=r"^actions: expected a dict \{agent name: action\}, got list$"):
+        env.step([np.zeros(3)])
+
+
+@pytest.mark.parametrize("value, message", [
+    (None, "action: got None; expected an array of shape (5, 3)"),
+    (np.zeros(3), "action: shape (3,); expected an array of shape (5, 3)"),
+    (np.zeros((3, 5)), "action: shape (3, 5); expected an array of shape (5, 3)"),
+    (np.zeros((5, 1)), "action: shape (5, 1); expected an array of shape (5, 3)"),
+    (np.full((5, 3), np.nan), "action: holds NaN or infinite values"),
+    (np.zeros((5, 3), dtype=object), "action: dtype object is not a real number type"),
+])
+def test_the_gym_env_refuses_a_bad_action_in_one_line(value, message):
+    env = make_gym_env(SHORT)
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as info:
+        env.step(value)
+    assert str(info.value).startswith(message)
+    assert env.sim.step_count == 0
+
+
+def test_the_gym_env_takes_float32_and_integer_actions_and_refuses_a_step_before_reset():
+    env = make_gym_env(SHORT)
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step(np.zeros((5, 3)))
+    env.reset(seed=0)
+    env.step(env.action_space.sample())  # float32, as the space gives it
+    env.step(np.zeros((5, 3), dtype=int))
+    assert env.sim.step_count == 2

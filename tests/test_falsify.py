@@ -159,3 +159,86 @@ def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_pa
     assert rerun.returncode == 0, rerun.stderr
     again = json.loads((tmp_path / "rerun" / "metrics.json").read_text())
     assert {k: v for k, v in again.items() if k not in TIMING} == {k: v for k, v in bad.items() if k not in TIMING}
+
+
+# -- bad options, failed trials, damaged and planted files ---------------------------------------
+@pytest.mark.parametrize("override, line", [
+    ("hydra.sweeper.n_trials=0",
+     "swarmscene: hydra.sweeper.n_trials: the falsifier's budget must be an integer >= 1 (got 0)"),
+    ("hydra.sweeper.n_trials=-3",
+     "swarmscene: hydra.sweeper.n_trials: the falsifier's budget must be an integer >= 1 (got -3)"),
+    ('+hydra.sweeper.params={++disturbances.packet_loss.p: "interval(0.3, 0.1)"}',
+     "swarmscene: hydra.sweeper.params.disturbances.packet_loss.p: the interval must have low < high, both "
+     "finite (got interval(0.3, 0.1))"),
+])
+def test_a_bad_budget_or_inverted_bounds_is_one_line_naming_the_option(tmp_path, override, line):
+    proc = subprocess.run([*EXE, "+sweep=falsify", "scenario=cem_six_vehicle", override,
+                           f"hydra.sweep.dir={tmp_path}/study"], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [line]
+    assert not (tmp_path / "study").exists()
+
+
+def test_study_problem_accepts_the_presets_and_names_a_log_interval_at_zero():
+    from omegaconf import OmegaConf
+
+    assert falsify.study_problem(hydra_node("+sweep=falsify").sweeper) is None
+    assert falsify.study_problem(hydra_node("+sweep=falsify_failure").sweeper) is None
+    bad = OmegaConf.create({"n_trials": 5, "params": {"++a.b": "tag(log, interval(0.0, 1.0))"}})
+    assert falsify.study_problem(bad) == "hydra.sweeper.params.a.b: a log-scaled interval needs low > 0 " \
+                                         "(got tag(log, interval(0.0, 1.0)))"
+    assert falsify.study_problem(OmegaConf.create({"n_trials": True})).startswith("hydra.sweeper.n_trials:")
+
+
+def test_a_non_finite_trial_is_a_failed_trial_and_the_study_goes_on(tmp_path, monkeypatch, capsys):
+    """The first trial's state becomes non-finite: it is recorded as failed (Optuna: FAIL), the
+    second runs, and the summary and the worst case (the complete trial) are written."""
+    import numpy as np
+
+    from swarmscene import cli
+    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+    step, worlds = DoubleIntegrator.step, []
+
+    def failing_step(self, world, dt):
+        step(self, world, dt)
+        if not worlds or worlds[0] is world:  # the first run only
+            worlds[:1] = [world]
+            if world.t >= 0.5:
+                world.pos[1, 0] = np.nan
+
+    study = tmp_path / "study"
+    monkeypatch.setattr(DoubleIntegrator, "step", failing_step)
+    monkeypatch.setattr(sys, "argv", [
+        "swarmscene", "+sweep=falsify_failure", "hydra/sweeper/sampler=random", "scenario=cem_six_vehicle",
+        "avoidance=none", "dynamics=double_integrator", "hydra.sweeper.n_trials=2", "clock.duration=3",
+        "output.trajectory=false", f"hydra.sweep.dir={study}"])
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    cli.main()
+    err = capsys.readouterr().err
+    assert "swarmscene: job 0 failed: non-finite state of agent 1" in err, err
+    record = json.loads((study / falsify.WORST_CASE_RECORD).read_text())
+    assert record["trials"] == 2 and record["complete"] == 1 and record["failed"] == [0] and record["trial"] == 1
+    assert (study / falsify.WORST_CASE_FILE).is_file() and (study / "summary.csv").is_file()
+
+
+def test_a_damaged_trial_is_not_complete_and_a_planted_link_is_replaced(tmp_path):
+    """read_trial goes through swarmscene.rundir; worst_case.* are written atomically."""
+    study = tmp_path / "study"
+    for k, sep in ((0, 0.4), (1, 0.9)):
+        run = study / str(k)
+        (run / ".hydra").mkdir(parents=True)
+        (run / ".hydra" / "overrides.yaml").write_text(f"- events.0.at={k}\n")
+        (run / "config.yaml").write_text("# header\nsafety:\n  separation_limit: 0.5\n")
+        (run / "metrics.json").write_text(json.dumps({"min_separation": sep}))
+        (run / "manifest.json").write_text(json.dumps({"complete": True}))
+    (study / "0" / "metrics.json").write_text("[1, 2")  # truncated: trial 0 is damaged
+    victim = tmp_path / "victim"
+    victim.write_text("precious")
+    (study / falsify.WORST_CASE_FILE).symlink_to(victim)
+    assert falsify.read_trial(study / "0").status == "damaged"
+    record = falsify.write_worst_case(study)
+    assert record["trial"] == 1 and record["robustness"] == pytest.approx(0.4)
+    assert victim.read_text() == "precious" and not (study / falsify.WORST_CASE_FILE).is_symlink()
+    assert yaml.safe_load((study / falsify.WORST_CASE_FILE).read_text()) == {"safety": {"separation_limit": 0.5}}

@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import copy
 import json
+from collections.abc import Callable
 import subprocess
 import sys
 from pathlib import Path
 
 import jsonschema
+import numpy as np
 import pytest
 import yaml
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
@@ -109,3 +111,36 @@ def test_one_command_writes_the_schema(tmp_path):
     out = tmp_path / "swarmscene.schema.json"
     subprocess.run([sys.executable, "-m", "swarmscene.schema", "-o", str(out)], check=True)
     assert json.loads(out.read_text()) == json.loads(json.dumps(scenario_schema()))
+
+
+def test_a_plugin_with_a_callable_an_array_and_an_infinite_default_gives_strict_json():
+    """Fields JSON Schema cannot describe accept any value (the engine still checks them) and an
+    infinite default is said in words: json.dumps(allow_nan=False) never meets Infinity."""
+    class Odd(Formation):
+        """A plugin with unusual options."""
+
+        name = "odd"
+
+        class Params(PluginParams):
+            model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+            shaper: Callable[[float], float] = Field(abs, description="a function")
+            table: np.ndarray = Field(default_factory=lambda: np.zeros(3), description="an array")
+            reach: float = Field(float("inf"), gt=0, description="how far")
+
+        def setpoints(self, world, sensing):  # pragma: no cover - never flown here
+            raise NotImplementedError
+
+    _, registry = api.plugins()
+    registry.register("formation", Odd)
+    for partial in (False, True):
+        schema = scenario_schema(registry, partial=partial)
+        text = json.dumps(schema, allow_nan=False)  # raises on Infinity/NaN
+        assert "Infinity" not in text and "NaN" not in text
+        jsonschema.Draft7Validator.check_schema(schema)
+    props = scenario_schema(registry)["definitions"]["formation.odd"]["properties"]
+    assert props["reach"]["description"] == "how far (default: inf)" and "default" not in props["reach"]
+    # any value (no "type"): the engine checks what JSON Schema cannot say
+    assert props["shaper"] == {"description": "a function", "title": "Shaper"}  # abs: no JSON default
+    assert props["table"] == {"description": "an array", "title": "Table"}
+    base = {k: v for k, v in api.compose([]).items() if k != "hydra"}
+    assert errors(scenario_schema(registry), {**base, "formation": {"name": "odd", "reach": 3.0}}) == []
