@@ -120,7 +120,7 @@ def _task(cfg: Any) -> Any:
         _report([line])
     if hydra_cfg.mode != RunMode.MULTIRUN:
         return _single(data, run_dir)
-    from .sweep import record_failure
+    from .sweeps.records import record_failure
 
     try:
         return _job(data, run_dir)
@@ -182,7 +182,7 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
     One plugin manager serves the job: it validates the scenario and the simulation owns it.
     """
     from . import api
-    from .sweep import completed_metrics
+    from .sweeps.records import completed_metrics
 
     plugin_set = api.plugins()
     scenario = api.load(data, plugin_set[1])
