@@ -182,8 +182,9 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
     One plugin manager serves the job: it validates the scenario and the simulation owns it.
     """
     from . import api
-    from .sweeps.records import completed_metrics
+    from .sweeps.records import completed_metrics, write_overrides
 
+    write_overrides(run_dir)  # the job's record of what it is, before anything can fail
     plugin_set = api.plugins()
     scenario = api.load(data, plugin_set[1])
     done = completed_metrics(run_dir, scenario.data)  # hashed over the effective configuration

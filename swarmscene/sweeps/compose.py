@@ -31,6 +31,23 @@ CACHED = 32
 """Compositions kept per process (one per distinct set of config-group overrides)."""
 
 _COMPOSED: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_PARSED: dict[str, Any] = {}
+PARSED = 100_000
+"""Overrides kept parsed per process (a grid's distinct overrides: ~1 KiB each)."""
+
+
+def parse(overrides: Sequence[str]) -> list[Any]:
+    """Hydra's parse of each override, each distinct text parsed once per process (the grammar's
+    parser costs ~0.5 ms an override; a 10,000-job grid repeats most of them). The parsed
+    ``Override`` objects are only read, never changed."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    missing = [o for o in dict.fromkeys(overrides) if o not in _PARSED]
+    if missing:
+        if len(_PARSED) + len(missing) > PARSED:
+            _PARSED.clear()
+        _PARSED.update(zip(missing, OverridesParser.create().parse_overrides(missing)))
+    return [_PARSED[o] for o in overrides]
 
 
 class GroupCachingLoader(ConfigLoader):
@@ -41,6 +58,8 @@ class GroupCachingLoader(ConfigLoader):
     """
 
     def __init__(self, inner: ConfigLoader, command: Sequence[str] | None = None) -> None:
+        """``command``: the sweep's command as typed; given, each job's config is set up as a sweep
+        job's (:func:`_as_sweep_job`), else it is exactly Hydra's composition."""
         self.inner = inner
         self.command = None if command is None else list(command)
         self._groups: dict[str, bool] = {}
@@ -53,10 +72,9 @@ class GroupCachingLoader(ConfigLoader):
         return getattr(self.inner, name)
 
     def load_sweep_config(self, master_config: Any, sweep_overrides: list[str]) -> Any:
-        from hydra.core.override_parser.overrides_parser import OverridesParser
         from omegaconf import OmegaConf
 
-        parsed = OverridesParser.create().parse_overrides(list(sweep_overrides))
+        parsed = parse(list(sweep_overrides))
         values = [o for o in parsed if self._is_value(o)]
         if not values or any(o.key_or_group == "hydra.searchpath" for o in parsed):
             cfg = self.inner.load_sweep_config(master_config, list(sweep_overrides))
@@ -67,14 +85,7 @@ class GroupCachingLoader(ConfigLoader):
             _record_overrides(cfg, parsed)
             OmegaConf.copy_cache(from_config=master_config, to_config=cfg)  # as Hydra's own
         if self.command is not None:
-            # Hydra sets hydra.job.env_set in the job's process: the manifest's command as typed
-            # (core.outputs.run_command), wherever the job runs.
-            from omegaconf import open_dict
-
-            from ..core.outputs import COMMAND_ENV
-
-            with open_dict(cfg.hydra.job.env_set):
-                cfg.hydra.job.env_set[COMMAND_ENV] = json.dumps(self.command)
+            _as_sweep_job(cfg, self.command)
         return cfg
 
     def _composed(self, master_config: Any, groups: list[str]) -> Any:
@@ -127,6 +138,25 @@ class GroupCachingLoader(ConfigLoader):
 
     def compute_defaults_list(self, *args: Any, **kwargs: Any) -> Any:
         return self.inner.compute_defaults_list(*args, **kwargs)
+
+
+def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
+    """What a sweep's job records, set in its config (the one place a launcher carries to it):
+
+    - ``hydra.job.env_set``: the command as typed, which Hydra sets in the job's process for the
+      manifest (``core.outputs.run_command``), wherever the job runs;
+    - ``hydra.output_subdir: null``: Hydra does not write ``.hydra/config.yaml`` and ``hydra.yaml``
+      for each job (three YAML dumps, ~15 ms a job); the job writes ``.hydra/overrides.yaml``
+      itself (``cli._job``), its ``config.yaml`` is the effective configuration, and the sweep
+      directory's ``multirun.yaml`` holds Hydra's own settings (docs/outputs.md).
+    """
+    from omegaconf import open_dict
+
+    from ..core.outputs import COMMAND_ENV
+
+    with open_dict(cfg.hydra.job.env_set):
+        cfg.hydra.job.env_set[COMMAND_ENV] = json.dumps(list(command))
+    cfg.hydra.output_subdir = None
 
 
 def _apply_values(values: Sequence[Any], cfg: Any) -> None:

@@ -124,17 +124,23 @@ class JobCheck:
         self.parser = OverridesParser.create(config_loader=config_loader)
         self.registry = api.plugins()[1]
         self.composed: dict[tuple[str, ...], Any] = {}
+        self._groups: dict[str, bool] = {}
 
     def _is_group(self, override: Any) -> bool:
-        return override.package is not None or self.loader.repository.group_exists(override.key_or_group)
+        if override.package is not None:
+            return True
+        name = override.key_or_group
+        if name not in self._groups:
+            self._groups[name] = bool(self.loader.repository.group_exists(name))
+        return self._groups[name]
 
     def data(self, overrides: Sequence[str]) -> dict[str, Any]:
         """The job's composed config as plain data (no ``hydra`` node), as the job will see it."""
         from omegaconf import OmegaConf, open_dict
 
-        from .compose import _apply_values
+        from .compose import _apply_values, parse
 
-        parsed = self.parser.parse_overrides(list(overrides))
+        parsed = parse(list(overrides))
         groups = tuple(o.input_line for o in parsed if self._is_group(o))
         values = [o for o in parsed if not self._is_group(o)]
         cfg, plain = self._compose(groups)

@@ -44,6 +44,7 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
     from ..core.errors import ConfigError
 
     run_dir = Path(run_dir)
+    write_overrides(run_dir)
     lines = exc.lines if isinstance(exc, ConfigError) else [f"{type(exc).__name__}: {exc}"]
     message = "; ".join(line.splitlines()[0] for line in lines if line) or type(exc).__name__
     atomic_write_json(
@@ -69,6 +70,21 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
             "files": sorted(p.name for p in run_dir.iterdir() if not p.name.startswith(".")),
         },
     )
+
+
+def write_overrides(run_dir: Path) -> None:
+    """Write the job's ``.hydra/overrides.yaml`` (Hydra's list of the job's overrides) when Hydra
+    did not (a sweep's jobs run with ``hydra.output_subdir: null``: ``compose._as_sweep_job``)."""
+    import yaml
+    from hydra.core.hydra_config import HydraConfig
+
+    from ..core.outputs import atomic_write_bytes
+
+    path = Path(run_dir) / ".hydra" / "overrides.yaml"
+    if path.exists() or path.is_symlink() or not HydraConfig.initialized():
+        return
+    overrides = [str(o) for o in HydraConfig.get().overrides.task]
+    atomic_write_bytes(path, yaml.safe_dump(overrides, default_flow_style=False, sort_keys=False).encode())
 
 
 def failure_reason(exc: BaseException) -> str:
