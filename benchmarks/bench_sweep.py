@@ -124,11 +124,14 @@ def part_main(root: Path) -> None:
 def part_fixed(root: Path) -> None:
     print("per-job fixed cost")
     jobs = 100
-    empty, _ = run(["scenario=cem_six_vehicle", "clock.duration=0.01", "seed=0"], root / "empty")
+    empty, empty_cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.01", "seed=0"], root / "empty")
     wall, cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.01", f"seed=range(0,{jobs})"], root / "one_tick")
     fixed = (wall - empty) / (jobs - 1)
+    # CPU time per job: what a job costs whatever else the machine runs (wall time is not).
+    fixed_cpu = (cpu - empty_cpu) / (jobs - 1)
     print(f"  {jobs} jobs of one tick, basic launcher: {wall:.1f} s (one job: {empty:.1f} s): "
-          f"{1e3 * fixed:.0f} ms per job (<= 25 ms: {verdict(fixed <= 0.025)}), {cpu / wall:.2f} cores used")
+          f"{1e3 * fixed:.0f} ms per job (<= 25 ms: {verdict(fixed <= 0.025)}), {1e3 * fixed_cpu:.0f} ms of CPU "
+          f"per job, {cpu / wall:.2f} cores used")
     wall, cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.5", "seed=range(0,200)", *joblib(2)], root / "fifty")
     print(f"  200 jobs of 50 ticks, joblib 2 workers: {wall:.1f} s (<= 10 s: {verdict(wall <= 10)}), "
           f"{cpu / wall:.2f} cores used")
