@@ -33,7 +33,7 @@ CACHED = 32
 _COMPOSED: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 _PARSED: dict[str, Any] = {}
 PARSED = 100_000
-"""Overrides kept parsed per process (a grid's distinct overrides: ~1 KiB each)."""
+"""Overrides kept parsed per process (a grid's distinct overrides: ~0.4 KiB each, 36 MiB at most)."""
 
 
 def parse(overrides: Sequence[str]) -> list[Any]:
