@@ -194,3 +194,32 @@ def test_api_sweep_takes_values_as_values_and_paths_as_paths(tmp_path):
     assert result.exit_status == 0 and len(result.rows) == 2  # a comma inside a value: one job, not two
     assert [RunDir(where / str(i)).config()["description"] for i in (0, 1)] == ["one, two", "it's"]
     assert [r["status"] for r in result.rows] == ["complete", "complete"]
+
+
+# -- large grids: checked and launched batch by batch ------------------------------------------------
+def test_batches_start_small_and_double():
+    from swarmscene.sweeps.sweeper import FIRST_BATCH, LAST_BATCH, batches
+
+    assert batches(5, None, True) == [(0, 5)]  # checked whole: one launch (max_batch_size: all)
+    assert batches(5, 2, True) == [(0, 2), (2, 4), (4, 5)]
+    sizes = [stop - start for start, stop in batches(10_000, None, False)]
+    assert sizes[:4] == [FIRST_BATCH, 2 * FIRST_BATCH, 4 * FIRST_BATCH, 8 * FIRST_BATCH]
+    assert max(sizes) == LAST_BATCH and sum(sizes) == 10_000
+    assert {stop - start for start, stop in batches(100, 8, False)} == {8, 4}  # max_batch_size caps them
+
+
+def test_a_grid_checked_batch_by_batch_stops_at_the_batch_with_a_bad_value(tmp_path):
+    """With more distinct overrides than ``upfront``, the first batch starts at once; a bad value
+    in a later batch stops the sweep there with the same one line, the jobs before it complete."""
+    sw = tmp_path / "sw"
+    proc = swarmscene("--multirun", "scenario=cem_six_vehicle", "avoidance.K=1,0", "seed=range(0,20)",
+                      "clock.duration=0.05", "hydra/sweeper=swarmscene", "hydra.sweeper.upfront=2",
+                      f"hydra.sweep.dir={sw}", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert lines(proc.stderr) == ["swarmscene: job 20 (avoidance.K=0): avoidance.K: must be >= 1 (got 0)"]
+    rows = tables.collect_rows(sw)
+    assert [r["job"] for r in rows] == [str(i) for i in range(16)]  # the first batch: 16 jobs
+    assert {r["status"] for r in rows} == {"complete"}
+    proc = swarmscene("--multirun", "seed=0,1", "hydra/sweeper=swarmscene", "hydra.sweeper.upfront=-1",
+                      f"hydra.sweep.dir={tmp_path}/x", cwd=tmp_path)
+    assert proc.returncode == 2 and "hydra.sweeper.upfront: must be an integer >= 0 (got -1)" in proc.stderr

@@ -10,7 +10,7 @@ does no per-job composition in the main process:
    the jobs;
 2. the check: each distinct set of group overrides composed once, each distinct value validated
    once (:mod:`swarmscene.sweeps.grid`), whole before the first job for a grid of up to
-   ``grid.UPFRONT`` distinct overrides, else batch by batch;
+   ``upfront`` distinct overrides (1,000), else batch by batch;
 3. the launch: the launcher gets a :class:`~swarmscene.sweeps.compose.GroupCachingLoader`, so its
    workers compose once per set of group overrides too; and the command as typed
    (``SWARMSCENE_COMMAND`` in ``hydra.job.env_set``) for the jobs' manifests, wherever they run.
@@ -25,6 +25,8 @@ Options (``hydra.sweeper.*``), besides ``params`` and ``max_batch_size``:
   and recorded as failed with its error (``error.json``), for comparisons in which some
   combinations are known not to apply (``+sweep=methods``); a composition error (an unknown option
   or key) still stops the sweep;
+- ``upfront``: the most distinct overrides a grid may hold to be checked whole before its first
+  job (default 1,000: about a second); a larger grid is checked batch by batch;
 - ``cases``: a list of override lists taken together rather than crossed (Hydra's grid is a
   product only): the jobs are every case times the product of ``params``. A key given on the
   command line that a case also sets replaces the cases (the command line picks the grid).
@@ -61,11 +63,14 @@ class SwarmsceneSweeper(Sweeper):
         validate: str = "each_value",
         on_invalid: str = "stop",
         cases: Sequence[Sequence[str]] | None = None,
+        upfront: int = UPFRONT,
     ) -> None:
         if validate not in VALIDATE:
             raise ValueError(f"hydra.sweeper.validate: must be one of {VALIDATE} (got {validate!r})")
         if on_invalid not in ON_INVALID:
             raise ValueError(f"hydra.sweeper.on_invalid: must be one of {ON_INVALID} (got {on_invalid!r})")
+        if isinstance(upfront, bool) or not isinstance(upfront, int) or upfront < 0:
+            raise ValueError(f"hydra.sweeper.upfront: must be an integer >= 0 (got {upfront!r})")
         if max_batch_size is not None and max_batch_size != -1 and max_batch_size < 1:
             raise ValueError(f"hydra.sweeper.max_batch_size: must be >= 1, -1 or null (got {max_batch_size})")
         self.max_batch_size = None if max_batch_size == -1 else max_batch_size
@@ -73,6 +78,7 @@ class SwarmsceneSweeper(Sweeper):
         self.validate = validate
         self.on_invalid = on_invalid
         self.cases = [list(case) for case in (cases or [])]
+        self.upfront = upfront
         self.config: Any = None
         self.hydra_context: Any = None
         self.launcher: Any = None
@@ -105,7 +111,7 @@ class SwarmsceneSweeper(Sweeper):
         try:
             check_grid_owner(sweep_dir, grid, jobs)
             checker = GridCheck(JobCheck(loader, self.config), jobs, self.validate, self.on_invalid)
-            whole = self.validate == "all" or checker.distinct() <= UPFRONT
+            whole = self.validate == "all" or checker.distinct() <= self.upfront
             if whole:
                 checker.check(0, len(jobs))
             record_grid(sweep_dir, grid, jobs)
