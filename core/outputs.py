@@ -46,10 +46,46 @@ COSMETIC_KEYS = (
     ("output", "trajectory_stream"),
     ("output", "trajectory_buffer_mb"),
     ("output", "trajectory_spill_dir"),
+    ("output", "plots"),
+    ("output", "animation"),
+    ("output", "animation_frames"),
+    ("output", "comm_edges"),
+    ("output", "rerun"),
 )
-"""Options left out of the config hash: they change neither the numbers a run computes nor the
-files it writes (a label, what is printed, what a sweeper is handed from metrics.json, how the
-trajectory is buffered on its way to the same trajectory.npz)."""
+"""Options left out of the config hash: they change none of the numbers a run computes nor the
+record files (config, metrics, trajectory) it writes: a label, what is printed, what a sweeper is
+handed from metrics.json, how the trajectory is buffered on its way to the same trajectory.npz, and
+the pictures drawn from the record (plots, animation, replay; ``swarmscene-report --run-plots
+--rerun`` draws them later). A sweep re-run with only these changed resumes (docs/sweeps.md)."""
+
+COMMAND_ENV = "SWARMSCENE_COMMAND"
+"""The command as typed (a JSON list), which a sweep hands to its jobs: a job on a Ray or SLURM
+worker would otherwise record the worker's own argv."""
+
+
+def run_command() -> dict[str, Any]:
+    """The manifest's ``command`` (as typed: :data:`COMMAND_ENV` when a sweep set it, else this
+    process's argv) and ``node`` (``host``; and ``ray_node_id`` inside a Ray task)."""
+    import socket
+
+    command: Any = sys.argv
+    given = os.environ.get(COMMAND_ENV)
+    if given:
+        try:
+            parsed = json.loads(given)
+            if isinstance(parsed, list) and all(isinstance(a, str) for a in parsed):
+                command = parsed
+        except ValueError:
+            pass
+    node: dict[str, Any] = {"host": socket.gethostname()}
+    ray = sys.modules.get("ray")
+    if ray is not None:
+        try:
+            if ray.is_initialized():
+                node["ray_node_id"] = ray.get_runtime_context().get_node_id()
+        except Exception:  # an older Ray without the runtime context: the host alone
+            pass
+    return {"command": list(command), "node": node}
 
 
 def user_file_mode() -> int:
@@ -363,7 +399,7 @@ def _write_run_files(
         "seed": seed,
         "complete": complete,
         "started_at": started_at,
-        "command": sys.argv,
+        **run_command(),
         "versions": package_versions(),
         "files": sorted(p.name for p in run_dir.iterdir() if not p.name.startswith(".")),
     }

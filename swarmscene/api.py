@@ -13,6 +13,7 @@ or a validated :class:`~swarmscene.core.config.Scenario`. Outputs are written on
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -249,14 +250,16 @@ def sweep(
     """Run a sweep exactly as the command line does (``swarmscene -m ...``) and return its table.
 
     Args:
-        grid: swept keys and their values, e.g. ``{"avoidance": ["cem", "orca"], "seed": range(3)}``;
-            a string is Hydra's own sweep syntax (``"range(0,10)"``, ``"1,2,5"``).
+        grid: swept keys and their values, e.g. ``{"avoidance": ["cem", "orca"], "seed": range(3)}``:
+            one job per item, each item taken as a value (a string with a comma is one value, not
+            two); a string instead of a sequence is Hydra's own sweep syntax (``"range(0,10)"``,
+            ``"1,2,5"``).
         overrides: fixed overrides (``["scenario=cem_six_vehicle", "clock.duration=10"]``).
         launcher: ``basic`` (this machine, one job at a time), ``joblib`` (all cores), ``ray``
             (a local Ray, or a cluster with ``hydra.launcher.ray.init.address=...`` in
             ``overrides``: docs/sweeps.md), ``submitit_slurm``.
         sweep_dir: where the jobs go (default ``multirun/api/<UTC time>`` under the working
-            directory). The same grid into the same directory resumes (complete jobs are skipped);
+            directory); any path, spaces and commas included. The same grid into the same directory resumes (complete jobs are skipped);
             another grid there is refused.
         allow_failed: return normally when jobs failed (they are in ``rows`` with their reason).
     Raises:
@@ -268,7 +271,7 @@ def sweep(
     import sys
     from datetime import datetime, timezone
 
-    from .sweep import collect_rows
+    from .sweeps.tables import collect_rows
 
     if launcher not in LAUNCHERS:
         raise ConfigError([f"launcher: must be one of {', '.join(LAUNCHERS)} (got {launcher!r})"])
@@ -277,7 +280,7 @@ def sweep(
     sweep_dir = Path(sweep_dir).resolve()
     swept = [f"{key}={_sweep_values(values)}" for key, values in grid.items()]
     command = [sys.executable, "-c", "from swarmscene.cli import main; main()", "--multirun",
-               *overrides, *swept, f"hydra.sweep.dir={sweep_dir}",
+               *overrides, *swept, f"hydra.sweep.dir={_quoted(str(sweep_dir))}",
                f"hydra.callbacks.swarmscene_summary.allow_failed={str(allow_failed).lower()}"]
     if LAUNCHERS[launcher]:
         command.append(LAUNCHERS[launcher])
@@ -292,7 +295,37 @@ def sweep(
 
 
 def _sweep_values(values: Sequence[Any] | str) -> str:
-    """Hydra's sweep syntax for ``values``: a string as given, a sequence joined with commas."""
+    """Hydra's sweep syntax for ``values``: a string as given (Hydra's own syntax, ``range(0,10)``);
+    a sequence one job per item, each item a value (:func:`_override_value`: a comma inside an
+    item does not split it)."""
     if isinstance(values, str):
         return values
-    return ",".join("null" if v is None else str(v).lower() if isinstance(v, bool) else str(v) for v in values)
+    items = [_override_value(v) for v in values]
+    if len(items) == 1:  # one value: a plain override (a sweep of one job)
+        return items[0]
+    return ",".join(items)
+
+
+_BARE = re.compile(r"[A-Za-z0-9_.+\-/@]+")
+"""Characters a bare value of Hydra's override grammar may hold as they are."""
+
+
+def _override_value(value: Any) -> str:
+    """One value in Hydra's override grammar: null, true/false, a number as Python prints it, a
+    string bare when it holds only plain characters, else quoted (so ``"a,b"`` is one value)."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, (int, float)):
+        return repr(value) if isinstance(value, float) else str(value)
+    text = str(value)
+    return text if _BARE.fullmatch(text) else _quoted(text)
+
+
+def _quoted(text: str) -> str:
+    """``text`` as a quoted string of Hydra's override grammar: a quote escaped, backslashes before
+    a quote (or the closing quote) doubled, an interpolation ``${`` escaped (taken as text)."""
+    text = text.replace("${", "\\${")
+    text = re.sub(r"(\\*)('|$)", lambda m: m.group(1) * 2 + ("\\'" if m.group(2) else ""), text)
+    return "'" + text + "'"

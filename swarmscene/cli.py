@@ -164,7 +164,7 @@ def _task(cfg: Any) -> Any:
         _report([line])
     if hydra_cfg.mode != RunMode.MULTIRUN:
         return _single(data, run_dir)
-    from .sweep import record_failure
+    from .sweeps.records import record_failure
 
     try:
         return _job(data, run_dir)
@@ -249,8 +249,9 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
     One plugin manager serves the job: it validates the scenario and the simulation owns it.
     """
     from . import api
-    from .sweep import completed_metrics
+    from .sweeps.records import completed_metrics, write_overrides
 
+    write_overrides(run_dir)  # the job's record of what it is, before anything can fail
     plugin_set = api.plugins()
     scenario = api.load(data, plugin_set[1])
     done = completed_metrics(run_dir, scenario.data)  # hashed over the effective configuration

@@ -160,7 +160,7 @@ def read_trial(run_dir: Path) -> Trial:
 
 def read_trials(sweep_dir: Path) -> list[Trial]:
     """Every trial of a study's sweep directory, in trial order."""
-    from .sweep import job_dirs
+    from .sweeps.records import job_dirs
 
     return [read_trial(d) for d in job_dirs(Path(sweep_dir)) if d.name.isdigit()]
 

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from swarmscene.mlflow_callback import MAX_PARAM_LENGTH, MlflowLogger, metrics_of, params_of
-from swarmscene.sweep import record_failure
+from swarmscene.sweeps.records import record_failure
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 

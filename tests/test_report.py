@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from swarmscene import report, sweep
+from swarmscene.sweeps import records, report
+from swarmscene.sweeps import tables as sweep
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 
@@ -44,10 +45,12 @@ def test_a_group_whose_seeds_change_nothing_shows_no_interval():
     assert overview["| cem"] == (
         "| cem | 3 | 3 | 0 | 1.00 (deterministic) | 0.7 (identical in 3 runs) | n/a | none in 3 | 24 s (identical in 3 runs) |"
     )
-    mean, half, _ = sweep.mean_ci([0.6, 0.8, 0.7])
     lo, hi = sweep.wilson(2, 3)
+    # A separation cannot be negative: its interval is the percentile bootstrap, inside [0.6, 0.8].
+    _, low, high, _ = sweep.mean_interval([0.6, 0.8, 0.7], bounded=True)
+    assert low == pytest.approx(0.6) and high == pytest.approx(0.8)
     assert overview["| orca"].startswith(
-        f"| orca | 3 | 3 | 0 | 0.67 [{lo:.2f}, {hi:.2f}] | 0.7 [{sweep._fmt(mean - half)}, {sweep._fmt(mean + half)}] |"
+        f"| orca | 3 | 3 | 0 | 0.67 [{lo:.2f}, {hi:.2f}] | 0.7 [{sweep._fmt(low)}, {sweep._fmt(high)}] |"
     )
     section = md.split("## avoidance=cem")[1].split("## ")[0]
     assert "| success (rate) | 1 | none: deterministic | 3 |" in section
@@ -62,10 +65,9 @@ def test_first_violation_and_completion_columns():
     ]
     assert [sweep.first_violation_time(r) for r in runs] == [3.0, 6.0, None]  # the earliest condition
     assert [sweep.completion_time(r) for r in runs] == [None, 31.0, 25.0]
-    mean, half, _ = sweep.mean_ci([3.0, 6.0])
-    assert sweep.violation_cell(runs) == f"2/3: {sweep._fmt(mean)} s [{sweep._fmt(mean - half)}, {sweep._fmt(mean + half)}]"
-    mean, half, _ = sweep.mean_ci([31.0, 25.0])
-    assert sweep.completion_cell(runs) == f"2/3: {sweep._fmt(mean)} s [{sweep._fmt(mean - half)}, {sweep._fmt(mean + half)}]"
+    # Times cannot be negative: bootstrap intervals, whose ends are means of the observed values.
+    assert sweep.violation_cell(runs) == "2/3: 4.5 s [3, 6]"
+    assert sweep.completion_cell(runs) == "2/3: 28 s [25, 31]"
     assert sweep.violation_cell(runs[2:]) == "none in 1"
     assert sweep.completion_cell(runs[:1]) == "not complete in 1"
 
@@ -100,9 +102,9 @@ def test_failure_reason_words():
     class NeedsLeader(RuntimeError):
         reason = "needs-leader"
 
-    assert sweep.failure_reason(ConfigError(["avoidance.K: must be >= 1 (got 0)"])) == "invalid"
-    assert sweep.failure_reason(FloatingPointError("nan")) == "failed"
-    assert sweep.failure_reason(NeedsLeader("cem needs a leader")) == "needs-leader"
+    assert records.failure_reason(ConfigError(["avoidance.K: must be >= 1 (got 0)"])) == "invalid"
+    assert records.failure_reason(FloatingPointError("nan")) == "failed"
+    assert records.failure_reason(NeedsLeader("cem needs a leader")) == "needs-leader"
 
 
 def test_comparing_methods_from_the_command_line(tmp_path):

@@ -23,7 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from swarmscene import cli, report, sweep
+from swarmscene import cli
+from swarmscene.sweeps import records, report, stats, tables
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 # Wall-clock figures differ between any two runs; everything else must match exactly.
@@ -58,21 +59,21 @@ def basic_sweep(tmp_path_factory) -> Path:
 
 # -- statistics ---------------------------------------------------------------------------------
 def test_mean_ci_is_student_t():
-    mean, half, n = sweep.mean_ci([1.0, 2.0, 3.0])
+    mean, half, n = stats.mean_ci([1.0, 2.0, 3.0])
     # t_{0.975, 2} = 4.302653; s = 1; half = t s / sqrt(3)
     assert (mean, n) == (2.0, 3) and half == pytest.approx(4.302653 / math.sqrt(3), rel=1e-6)
-    mean, half, n = sweep.mean_ci([5.0])
+    mean, half, n = stats.mean_ci([5.0])
     assert mean == 5.0 and n == 1 and math.isnan(half)
-    assert sweep.mean_ci([None, float("nan"), 2.0, 4.0])[2] == 2
+    assert stats.mean_ci([None, float("nan"), 2.0, 4.0])[2] == 2
 
 
 def test_wilson_interval_known_values():
     # 0 of n: the upper bound is z^2 / (n + z^2) in closed form; n of n mirrors it; 5 of 10 is
     # symmetric about 0.5 with the tabulated lower bound 0.2366.
     z2 = 1.959963984540054**2
-    assert sweep.wilson(0, 2) == pytest.approx((0.0, z2 / (2 + z2)), abs=1e-12)
-    assert sweep.wilson(2, 2) == pytest.approx((2 / (2 + z2), 1.0), abs=1e-12)
-    lo, hi = sweep.wilson(5, 10)
+    assert stats.wilson(0, 2) == pytest.approx((0.0, z2 / (2 + z2)), abs=1e-12)
+    assert stats.wilson(2, 2) == pytest.approx((2 / (2 + z2), 1.0), abs=1e-12)
+    lo, hi = stats.wilson(5, 10)
     assert lo == pytest.approx(1 - hi) and lo == pytest.approx(0.2366, abs=1e-4)
 
 
@@ -142,7 +143,7 @@ def test_recorded_invalid_jobs_and_failed_jobs_set_the_exit_status(tmp_path):
     assert (error["type"], error["reason"]) == ("ConfigError", "invalid")
     md = (tmp_path / "sw" / "summary.md").read_text()
     assert "## Jobs that did not complete" in md and "avoidance.K: must be >= 1 (got 0)" in md
-    assert sweep.sweep_exit_status(tmp_path / "sw") == 1 and sweep.sweep_exit_status(tmp_path / "sw", allow_failed=True) == 0
+    assert tables.sweep_exit_status(tmp_path / "sw") == 1 and tables.sweep_exit_status(tmp_path / "sw", allow_failed=True) == 0
     # Every job failing is a failure too; allow_failed keeps status 0 and still says how many failed.
     proc = swarmscene(*args[:2], "avoidance.K=0", *args[3:], "seed=0,1", f"hydra.sweep.dir={tmp_path}/all", cwd=tmp_path)
     assert proc.returncode == 1 and proc.stderr.splitlines()[-1].startswith("swarmscene: 2 of 2 jobs failed;")
@@ -242,15 +243,15 @@ def test_a_directory_without_a_grid_record_is_judged_by_its_jobs(tmp_path):
     for index, overrides in enumerate(["- seed=0\n", "- seed=1\n"]):
         (tmp_path / str(index) / ".hydra").mkdir(parents=True)
         (tmp_path / str(index) / ".hydra" / "overrides.yaml").write_text(overrides)
-    sweep.check_grid_owner(tmp_path, ["seed=0,1,2"], [["seed=0"], ["seed=1"], ["seed=2"]])  # a superset: resumes
+    records.check_grid_owner(tmp_path, ["seed=0,1,2"], [["seed=0"], ["seed=1"], ["seed=2"]])  # a superset: resumes
     with pytest.raises(ConfigError) as info:
-        sweep.check_grid_owner(tmp_path, ["avoidance.K=1,2"], [["avoidance.K=1"], ["avoidance.K=2"]])
+        records.check_grid_owner(tmp_path, ["avoidance.K=1,2"], [["avoidance.K=1"], ["avoidance.K=2"]])
     assert info.value.lines == [
         f"hydra.sweep.dir: {tmp_path} holds another sweep (job 0: seed=0; this one: job 0: avoidance.K=1): "
         "choose another hydra.sweep.dir, or delete that directory to start over"
     ]
     with pytest.raises(ConfigError, match=r"\(job 1: seed=1; this one: 1 jobs\)"):
-        sweep.check_grid_owner(tmp_path, ["seed=0"], [["seed=0"]])
+        records.check_grid_owner(tmp_path, ["seed=0"], [["seed=0"]])
 
 
 # -- launchers ----------------------------------------------------------------------------------
@@ -366,7 +367,7 @@ def test_report_rebuilds_tables_and_plots_metric_against_parameter(basic_sweep, 
     assert (copy / "summary.md").read_text() == expected_md.replace(str(basic_sweep), str(copy))
     assert (copy / "summary.parquet").is_file()
     assert (copy / "min_separation_vs_formation.speed.png").stat().st_size > 1000
-    rows = sweep.collect_rows(copy)
+    rows = tables.collect_rows(copy)
     fig = report.plot_metric(rows, "min_separation", "formation.speed")
     ax = fig.axes[0]
     assert ax.get_xlabel() == "formation.speed" and ax.get_ylabel() == "min_separation"
@@ -417,14 +418,14 @@ def test_ctrl_c_writes_outputs_marked_incomplete_and_exits_130(tmp_path):
 
     traj = np.load(run / "trajectory.npz")
     assert traj["t"][-1] == pytest.approx(metrics["duration"], abs=0.11)
-    assert [r["status"] for r in sweep.collect_rows(run)] == ["incomplete"]
+    assert [r["status"] for r in tables.collect_rows(run)] == ["incomplete"]
 
 
 # -- presets ------------------------------------------------------------------------------------
 def _grid(preset: str) -> dict[str, list[str]]:
     import yaml
 
-    data = yaml.safe_load((Path(sweep.__file__).parents[1] / "scenarios" / "sweep" / f"{preset}.yaml").read_text())
+    data = yaml.safe_load((Path(tables.__file__).parents[2] / "scenarios" / "sweep" / f"{preset}.yaml").read_text())
     assert data["hydra"]["mode"] == "MULTIRUN"
     params = data["hydra"]["sweeper"]["params"]
     out = {}
@@ -466,10 +467,10 @@ def test_methods_preset_is_every_paper_scenario_times_every_method():
     import yaml
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from hydra_plugins.swarmscene_sweeper import expand
+    from swarmscene.sweeps.grid import expand
     from swarmscene import api
 
-    data = yaml.safe_load((Path(sweep.__file__).parents[1] / "scenarios" / "sweep" / "methods.yaml").read_text())
+    data = yaml.safe_load((Path(tables.__file__).parents[2] / "scenarios" / "sweep" / "methods.yaml").read_text())
     sweeper = data["hydra"]["sweeper"]
     assert sweeper["on_invalid"] == "record" and data["hydra"]["callbacks"]["swarmscene_summary"]["allow_failed"] is True
     _, jobs = expand(sweeper["params"], ["+sweep=methods"], OverridesParser.create(), sweeper["cases"])
@@ -515,10 +516,12 @@ def test_metric_against_pools_seeds_skips_failures_and_uses_wilson_for_rates():
     assert data["x"] == ["w050", "w070"] and data["rate"] is True
     ((mean, lo, hi),) = data["lines"].values()
     assert list(mean) == [0.0, 0.5]  # the failed job counts in neither numerator nor denominator
-    assert (lo[1], hi[1]) == pytest.approx(sweep.wilson(1, 2))
+    assert (lo[1], hi[1]) == pytest.approx(stats.wilson(1, 2))
     numbers = report.metric_against(rows, "duration", "environment")
     ((mean, lo, hi),) = numbers["lines"].values()
-    assert list(mean) == [20.0, 12.0] and hi[1] - mean[1] == pytest.approx(sweep.mean_ci([10.0, 14.0])[1])
+    # A duration cannot be negative: the bounded interval (percentile bootstrap), not Student t.
+    assert list(mean) == [20.0, 12.0] and (lo[1], hi[1]) == pytest.approx(stats.mean_interval([10.0, 14.0], bounded=True)[1:3])
+    assert (lo[1], hi[1]) == pytest.approx((10.0, 14.0))
     # Rates of exactly 0 and 1 draw (error bars never negative) with the parameter as tick labels.
     rows.append(row("4", "w090", 0, "complete", True, 9.0))
     ax = report.plot_metric(rows, "success", "environment").axes[0]
@@ -528,14 +531,14 @@ def test_metric_against_pools_seeds_skips_failures_and_uses_wilson_for_rates():
 
 def test_summary_callback_is_configured_and_leaves_other_flags_alone(tmp_path):
     proc = swarmscene("--cfg", "hydra", cwd=tmp_path)
-    assert proc.returncode == 0 and "_target_: swarmscene.sweep.SweepSummary" in proc.stdout
+    assert proc.returncode == 0 and "_target_: swarmscene.sweeps.callback.SweepSummary" in proc.stdout
     proc = swarmscene("avoidance=none", "--cfg", "job", "--resolve", cwd=tmp_path)
     assert proc.returncode == 0 and "name: none" in proc.stdout
 
 
 # -- up-front validation ------------------------------------------------------------------------
 def test_sweeper_checks_each_distinct_override_once_numbers_included():
-    from hydra_plugins.swarmscene_sweeper import jobs_to_validate
+    from swarmscene.sweeps.grid import jobs_to_validate
 
     batch = [[f"environment={env}", f"seed={seed}", "avoidance.K=2"] for env in ("a", "b", "c") for seed in range(30)]
     chosen = jobs_to_validate(batch)
@@ -550,7 +553,7 @@ def test_grid_expansion_matches_hydras_basic_sweeper_and_crosses_cases():
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from hydra_plugins.swarmscene_sweeper import expand
+    from swarmscene.sweeps.grid import expand
 
     parser = OverridesParser.create()
     params = {"avoidance": "cem,none", "seed": "range(0,3)"}
@@ -580,7 +583,7 @@ def test_plain_values_are_set_as_hydra_sets_them():
     from hydra import compose, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 
-    from hydra_plugins.swarmscene_sweeper import JobCheck
+    from swarmscene.sweeps.grid import JobCheck
 
     with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
         master = compose("config", overrides=["+sweep=cem_k"], return_hydra_config=True)

@@ -1,4 +1,16 @@
-"""Sweeps: many runs as one object (job records, grids, tables and statistics, report, progress).
+"""Sweeps: many runs as one object.
 
-:mod:`swarmscene.sweeps.stats` holds the intervals every table and report uses.
+    grid.py      the grid (Hydra's product, plus cases) and its one check: every distinct override
+                 validated once before it runs
+    sweeper.py   the sweeper of every multirun: no per-job composition in the main process, jobs
+                 launched in batches (Hydra finds it through hydra_plugins/swarmscene_sweeper)
+    compose.py   the launchers' config loader: one composition per set of group overrides
+    records.py   a sweep directory's records: job outcomes, resume, the grid that owns it, its lock
+    tables.py    summary.csv/.parquet/.md and the sweep's exit status
+    stats.py     intervals (Student t, percentile bootstrap, Wilson)
+    report.py    ``swarmscene-report``
+    progress.py  the progress line of a running sweep
+    callback.py  the Hydra callback (progress while the jobs run, tables at the end)
+
+Imports run one way: ``hydra_plugins.swarmscene_sweeper`` imports this package, never the reverse.
 """

@@ -1,0 +1,94 @@
+"""The Hydra callback of every multirun (``hydra.callbacks.swarmscene_summary``): progress while
+the jobs run, the sweep's tables and its exit status at the end."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+from hydra.experimental.callback import Callback
+
+from .tables import exit_status, outcome_line, write_summary
+
+BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
+SWARMSCENE_SWEEPER = "hydra_plugins.swarmscene_sweeper.SwarmsceneSweeper"
+PROGRESS = ("auto", "on", "off")
+
+_outcome: dict[str, int] = {}
+
+
+def last_exit_status() -> int | None:
+    """The exit status of the last multirun of this process (None: none ended), for the command
+    line to end with."""
+    return _outcome.get("status")
+
+
+class SweepSummary(Callback):
+    """Hydra callback of every multirun.
+
+    While the jobs run it shows their progress (jobs done of the total, failures so far, time left;
+    :class:`~swarmscene.sweeps.progress.SweepProgress`), whatever the launcher. At the end it writes
+    the sweep directory's tables, prints how many jobs did not complete, and sets the exit status:
+    1 when a job did not complete, unless ``allow_failed`` is true.
+
+    At the start it puts swarmscene's sweeper in the place of Hydra's basic sweeper (Hydra's default
+    multirun: same ``params`` and ``max_batch_size``), so every grid sweep has one check path
+    (:mod:`swarmscene.sweeps.sweeper`).
+
+    Args:
+        allow_failed: keep exit status 0 when jobs failed (the summary still counts them).
+        progress: ``auto`` (on a terminal), ``on`` or ``off``: the sweep's progress line.
+    """
+
+    def __init__(self, allow_failed: bool = False, progress: str = "auto") -> None:
+        if progress not in PROGRESS:  # Hydra reports an exception here as the command's one line
+            raise ValueError(f"hydra.callbacks.swarmscene_summary.progress: must be auto, on or off (got {progress!r})")
+        self.allow_failed = bool(allow_failed)
+        self.progress_mode = progress
+        self.progress: Any = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        # Launchers pickle the callbacks with each job; the watcher thread stays in this process.
+        return {**self.__dict__, "progress": None}
+
+    def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        self._replace_basic_sweeper(config)
+        from .progress import SweepProgress
+
+        self.progress = SweepProgress.maybe(Path(config.hydra.sweep.dir), self.progress_mode)
+
+    def _replace_basic_sweeper(self, config: Any) -> None:
+        """Hydra's basic sweeper becomes swarmscene's, with the same ``params`` and
+        ``max_batch_size``: Hydra instantiates the sweeper from this very config right after this
+        callback, and its basic sweeper composes every job in the main process (hydra#1324). Done
+        here because a primary config's ``override hydra/sweeper`` would beat the presets that
+        choose another sweeper (Optuna)."""
+        from omegaconf import open_dict
+
+        sweeper = config.hydra.sweeper
+        if sweeper.get("_target_") != BASIC_SWEEPER:
+            return
+        with open_dict(sweeper):
+            sweeper["_target_"] = SWARMSCENE_SWEEPER
+            for key, value in (("validate", "each_value"), ("on_invalid", "stop"), ("cases", None), ("upfront", 1000)):
+                sweeper.setdefault(key, value)
+
+    def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        if self.progress is not None:
+            self.progress.stop()
+        sweep_dir = Path(config.hydra.sweep.dir)
+        try:
+            rows = write_summary(sweep_dir)
+        except Exception as exc:  # a table problem must not hide the jobs' own outputs
+            print(f"swarmscene: could not write the sweep summary: {exc}", file=sys.stderr)
+            _outcome["status"] = 1
+            return
+        status = exit_status(rows, self.allow_failed)
+        kept = " (allow_failed: exit status 0)" if self.allow_failed and exit_status(rows) else ""
+        print(f"swarmscene: {outcome_line(rows)}{kept}; summary in {sweep_dir / 'summary.md'}", file=sys.stderr)
+        _outcome["status"] = status
+        if status:
+            # A callback's exception is only a warning to Hydra; the command line's main() ends
+            # with last_exit_status() once it reads it (see docs/sweeps.md), until then: here.
+            raise SystemExit(status)

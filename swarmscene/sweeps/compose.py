@@ -1,0 +1,185 @@
+"""A job's config composed once per distinct set of config-group overrides (the workers' lever).
+
+Hydra's launchers (basic, joblib, Ray, submitit) compose every job with
+``hydra_context.config_loader.load_sweep_config(master, overrides)``: ~70 ms of defaults-list
+resolution and YAML merging per job for this config tree, however small the job. Most of a grid's
+jobs differ only in plain values (``seed=17``, ``avoidance.K=2``), which do not change the defaults
+list. :class:`GroupCachingLoader` wraps Hydra's loader and composes each distinct set of
+config-group overrides once per process; a job's plain values are then applied to a copy of that
+composition the way Hydra applies them (``_apply_overrides_to_config``, the step of Hydra's own
+composition that follows the defaults list), and the job's record in the ``hydra`` node
+(``hydra.overrides.task``, ``hydra.job.override_dirname``) is written as Hydra writes it. The
+result equals Hydra's own composition (tests/test_sweep_compose.py compares them for every preset
+and a sample of grids); a job costs a copy of the composed config and its few overrides (~4 ms).
+
+The cache is per process (a launcher pickles the loader with every job; a worker keeps the
+compositions of the earlier jobs it ran), bounded to :data:`CACHED` compositions, least recently
+used first out.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from collections import OrderedDict
+from collections.abc import Sequence
+from typing import Any
+
+from hydra.core.config_loader import ConfigLoader
+
+CACHED = 32
+"""Compositions kept per process (one per distinct set of config-group overrides)."""
+
+_COMPOSED: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_PARSED: dict[str, Any] = {}
+PARSED = 100_000
+"""Overrides kept parsed per process (a grid's distinct overrides: ~0.4 KiB each, 36 MiB at most)."""
+
+
+def parse(overrides: Sequence[str]) -> list[Any]:
+    """Hydra's parse of each override, each distinct text parsed once per process (the grammar's
+    parser costs ~0.5 ms an override; a 10,000-job grid repeats most of them). The parsed
+    ``Override`` objects are only read, never changed."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    missing = [o for o in dict.fromkeys(overrides) if o not in _PARSED]
+    if missing:
+        if len(_PARSED) + len(missing) > PARSED:
+            _PARSED.clear()
+        _PARSED.update(zip(missing, OverridesParser.create().parse_overrides(missing)))
+    return [_PARSED[o] for o in overrides]
+
+
+class GroupCachingLoader(ConfigLoader):
+    """Hydra's config loader, with ``load_sweep_config`` composing once per set of group overrides.
+
+    Every other method is the wrapped loader's. Picklable (the wrapped loader is; the cache is a
+    module global of each process).
+    """
+
+    def __init__(self, inner: ConfigLoader, command: Sequence[str] | None = None) -> None:
+        """``command``: the sweep's command as typed; given, each job's config is set up as a sweep
+        job's (:func:`_as_sweep_job`), else it is exactly Hydra's composition."""
+        self.inner = inner
+        self.command = None if command is None else list(command)
+        self._groups: dict[str, bool] = {}
+        self._where: tuple[tuple[str, str], ...] | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        # Attributes of Hydra's implementation that callers reach past the interface (``repository``).
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def load_sweep_config(self, master_config: Any, sweep_overrides: list[str]) -> Any:
+        from omegaconf import OmegaConf
+
+        parsed = parse(list(sweep_overrides))
+        values = [o for o in parsed if self._is_value(o)]
+        if not values or any(o.key_or_group == "hydra.searchpath" for o in parsed):
+            cfg = self.inner.load_sweep_config(master_config, list(sweep_overrides))
+        else:
+            groups = [o.input_line for o in parsed if not self._is_value(o)]
+            cfg = copy.deepcopy(self._composed(master_config, groups))
+            _apply_values(values, cfg)
+            _record_overrides(cfg, parsed)
+            OmegaConf.copy_cache(from_config=master_config, to_config=cfg)  # as Hydra's own
+        if self.command is not None:
+            _as_sweep_job(cfg, self.command)
+        return cfg
+
+    def _composed(self, master_config: Any, groups: list[str]) -> Any:
+        from omegaconf import OmegaConf
+
+        hydra_overrides = OmegaConf.to_container(master_config.hydra.overrides.hydra)
+        key = (self._search_path(), master_config.hydra.job.config_name, tuple(hydra_overrides), tuple(groups))
+        if key in _COMPOSED:
+            _COMPOSED.move_to_end(key)
+            return _COMPOSED[key]
+        cfg = self.inner.load_sweep_config(master_config, groups)
+        _COMPOSED[key] = cfg
+        while len(_COMPOSED) > CACHED:
+            _COMPOSED.popitem(last=False)
+        return cfg
+
+    def _search_path(self) -> tuple[tuple[str, str], ...]:
+        """Where the wrapped loader finds configs: with the config name and the overrides, what
+        tells one composition from another across the loader's pickled copies."""
+        if self._where is None:
+            self._where = tuple((str(p.provider), str(p.path)) for p in self.inner.get_search_path().get_path())
+        return self._where
+
+    def _is_value(self, override: Any) -> bool:
+        """A plain value override: not Hydra's own, not a config group, not a package override
+        (the overrides Hydra applies after the defaults list, ``Overrides.config_overrides``)."""
+        if override.is_hydra_override() or override.package is not None or override.is_sweep_override():
+            return False
+        name = override.key_or_group
+        if name not in self._groups:
+            repository = getattr(self.inner, "repository", None)
+            self._groups[name] = True if repository is None else bool(repository.group_exists(name))
+        return not self._groups[name]
+
+    # -- the rest of ConfigLoader: the wrapped loader's ------------------------------------------
+    def load_configuration(self, *args: Any, **kwargs: Any) -> Any:
+        return self.inner.load_configuration(*args, **kwargs)
+
+    def get_search_path(self) -> Any:
+        return self.inner.get_search_path()
+
+    def get_sources(self) -> Any:
+        return self.inner.get_sources()
+
+    def list_groups(self, parent_name: str) -> Any:
+        return self.inner.list_groups(parent_name)
+
+    def get_group_options(self, *args: Any, **kwargs: Any) -> Any:
+        return self.inner.get_group_options(*args, **kwargs)
+
+    def compute_defaults_list(self, *args: Any, **kwargs: Any) -> Any:
+        return self.inner.compute_defaults_list(*args, **kwargs)
+
+
+def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
+    """What a sweep's job records, set in its config (the one place a launcher carries to it):
+
+    - ``hydra.job.env_set``: the command as typed, which Hydra sets in the job's process for the
+      manifest (``core.outputs.run_command``), wherever the job runs;
+    - ``hydra.output_subdir: null``: Hydra does not write ``.hydra/config.yaml`` and ``hydra.yaml``
+      for each job (three YAML dumps, ~15 ms a job); the job writes ``.hydra/overrides.yaml``
+      itself (``cli._job``), its ``config.yaml`` is the effective configuration, and the sweep
+      directory's ``multirun.yaml`` holds Hydra's own settings (docs/outputs.md).
+    """
+    from omegaconf import open_dict
+
+    from ..core.outputs import COMMAND_ENV
+
+    with open_dict(cfg.hydra.job.env_set):
+        cfg.hydra.job.env_set[COMMAND_ENV] = json.dumps(list(command))
+    cfg.hydra.output_subdir = None
+
+
+def _apply_values(values: Sequence[Any], cfg: Any) -> None:
+    """Hydra's own step (no public API holds it): the value overrides applied to the composed
+    config, errors wrapped as ``load_configuration`` wraps them."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra.errors import ConfigCompositionException
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        ConfigLoaderImpl._apply_overrides_to_config(list(values), cfg)
+    except OmegaConfBaseException as exc:
+        raise ConfigCompositionException().with_traceback(exc.__traceback__) from exc
+
+
+def _record_overrides(cfg: Any, parsed: Sequence[Any]) -> None:
+    """``hydra.overrides.task`` (every non-Hydra override, in order) and ``hydra.job.override_dirname``
+    of the job, as ``_load_configuration_impl`` writes them."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+
+    task = [o for o in parsed if not o.is_hydra_override()]
+    cfg.hydra.overrides.task = [o.input_line for o in task]
+    dirname = cfg.hydra.job.config.override_dirname
+    cfg.hydra.job.override_dirname = get_overrides_dirname(
+        overrides=task, kv_sep=dirname.kv_sep, item_sep=dirname.item_sep, exclude_keys=dirname.exclude_keys,
+    )
