@@ -484,3 +484,24 @@ class CEMNavigator:
     def theorem2(self, delta: float, eps: float) -> Theorem2Check:
         """Theorem 2's precondition (eq. 16) for this activation."""
         return theorem2(self.zeta0, self.centres.size, self.a_p, delta, eps)
+
+
+def segment_clearance(start: np.ndarray, end: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """(N,) min over failures of the x-y distance from z_f to the segment start_i -> end_i, m.
+
+    ``start``/``end`` (N, 2) and ``centres`` (F, 2) are world x-y (any one frame will do: distances
+    do not depend on it). The hand-back test (plugins/avoidance/cem.py) asks whether the straight
+    path from each healthy agent to its formation setpoint stays at least a_p from every failed
+    vehicle; inf for no failure.
+    """
+    start = np.asarray(start, dtype=float).reshape(-1, 2)
+    end = np.asarray(end, dtype=float).reshape(-1, 2)
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    if centres.shape[0] == 0 or start.shape[0] == 0:
+        return np.full(start.shape[0], np.inf)
+    seg = (end - start)[:, None, :]  # (N, 1, 2)
+    rel = centres[None, :, :] - start[:, None, :]  # (N, F, 2)
+    length2 = (seg**2).sum(-1)
+    # the closest point's parameter along the segment, clipped to [0, 1] (0 for a zero-length path)
+    s = np.clip(np.divide((rel * seg).sum(-1), length2, out=np.zeros(rel.shape[:2]), where=length2 > 0), 0.0, 1.0)
+    return np.linalg.norm(rel - s[..., None] * seg, axis=-1).min(axis=1)

@@ -105,3 +105,32 @@ def test_multi_failure_full_run_hands_back_and_completes():
     assert m["cem.theorem1_holds"] and m["cem.separation_holds"]
     assert m["cem.psi_drift_max"] < 0.02  # several doublets: circles are streamlines to first order
     assert m["cem.handback_time"] is not None and m["success"]
+
+
+# ---- hand-back (issue #26): the formation's slots behind the hovering lead ------------------------
+
+A_F_EPS = 0.68 + 0.28  # the failed vehicle's no-fly radius plus the vehicle's own, m
+LATE_FAILURE = "21.34234639497493"  # the falsifier's case: slots upstream of the lead at hand-back
+
+
+@pytest.mark.parametrize("at", ["19.0", "20.0", LATE_FAILURE, "22.3"])
+def test_late_lead_failure_keeps_cem_while_the_slots_lie_behind_the_failed_lead(at):
+    """The formation stops at x = 24 m with a slot 2 m behind the hovering lead: the along-track test
+    passes, the straight path back to the slots crosses a_p, so CEM keeps control (clear_path)."""
+    _, result = simulate(["scenario=cem_six_vehicle", f"events.0.at={at}"])
+    m = result.metrics
+    assert m["min_separation"] >= A_F_EPS and m["collisions"] == 0
+    assert m["cem.min_actual_clearance"] >= 0.0 and m["cem.clearance_holds"]
+    assert m["cem.handback_time"] is None and m["cem.handback_blocked_time"] is not None
+    assert "cem.violations.clearance.first_time" not in m
+    assert not m["success"]  # the slots are never reached: CEM flies its agents on downstream
+
+
+def test_passed_rule_hands_back_into_the_failed_lead_and_the_whole_run_keys_say_so():
+    _, result = simulate(["scenario=cem_six_vehicle", f"events.0.at={LATE_FAILURE}", "avoidance.hand_back_rule=passed"])
+    m = result.metrics
+    assert m["cem.handback_time"] == pytest.approx(32.15)
+    assert m["collisions"] == 1 and m["min_separation"] < 1e-3  # agent 4 through the hovering lead
+    assert not m["cem.clearance_holds"] and m["cem.min_actual_clearance"] < -A_F_EPS + 1e-3
+    assert m["cem.violations.clearance.agents"] == [4, 0]  # healthy agent, then the failed one
+    assert 32.15 < m["cem.violations.clearance.first_time"] < m["violations.separation.first_time"]
