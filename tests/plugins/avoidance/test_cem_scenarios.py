@@ -36,8 +36,11 @@ def simulate(overrides: list[str]) -> tuple[Simulation, object]:
 
 def check_six_vehicle(m: dict, reading: str = "printed") -> None:
     assert m["cem.activations"] == 1
-    assert m["cem.theorem2_holds"] and m["cem.theorem2_d_min0"] == pytest.approx(2.72)
-    assert not m["cem.theorem1_holds"]  # conservative for this formation (1.04 < 1.85 m^2)
+    assert m["cem.theorem2_precondition_met"] and m["cem.theorem2_d_min0"] == pytest.approx(2.72)
+    assert not m["cem.theorem1_precondition_met"]  # conservative for this formation (1.04 < 1.85 m^2)
+    for old, new in (("cem.theorem1_holds", "cem.theorem1_precondition_met"),
+                     ("cem.theorem2_holds", "cem.theorem2_precondition_met")):
+        assert m[old] == m[new]  # the old names stay in metrics.json for one release
     assert m["cem.min_pair_distance"] >= PAIR_BOUND and m["cem.separation_holds"]  # Fig. 9
     assert m["cem.min_exclusion_margin"] >= MARGIN[reading]  # no command inside a_p
     assert m["cem.psi_drift_max"] <= DRIFT[reading]  # psi constant along each path
