@@ -61,7 +61,7 @@ def test_cem_holding_control_is_the_reason_the_mission_did_not_complete():
 def test_old_hand_back_rule_prints_the_violation_with_its_first_time_and_agents():
     sim, result, v = run(["scenario=cem_six_vehicle", "events.0.at=21.34234639497493", "avoidance.hand_back_rule=passed"])
     assert v["cem.clearance_holds"][0] == FAIL and "; first at 32.61 s (agents 4, 0)" in v["cem.clearance_holds"][1]
-    assert v["separation"][0] == FAIL and "first at 32.76 s (agents 0, 4)" in v["separation"][1]
+    assert v["separation"][0] == FAIL and "first at 32.75 s (agents 0, 4)" in v["separation"][1]
     assert "success False (failed: separation)" in summary_text(sim, result, None) and v["mission"][0] == OK
 
 

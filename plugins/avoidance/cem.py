@@ -26,6 +26,9 @@ Choices (the paper leaves these open):
   the update is still >= sigma and never in the last iteration, which keeps every command on its
   streamline exactly (eq. 4) at the price of a seed-independent run whose K = 1 peak (2.16 m/s)
   misses Fig. 10's 2.4 m/s. What each guarantees: see :mod:`swarmscene.methods.cem.flow`.
+* Newton's loop (``newton_stop``): the paper's fixed n by default; ``"converged"`` the early stop
+  shipped before. The branch guard (``branch_guard``, on): a departure, see
+  :mod:`swarmscene.methods.cem.flow` for both and their measured effects.
 * Several failures (eq. 1 prints a sum of full uniform-plus-doublet terms, which no figure of the
   paper flies), ``multi_failure_flow``: ``"ring_streamlines"`` (default) keeps one uniform term and
   gives each doublet the strength that keeps its a_p circle a streamline in the others' flow, the
@@ -44,9 +47,12 @@ Choices (the paper leaves these open):
   CEM keeps control (its agents keep sliding downstream along their streamlines); after a hand-back
   the same test runs every tick and CEM re-activates (a new activation from the agents' positions)
   the moment a formation setpoint or its path comes within a_p of a failed vehicle. Measured:
-  ``scenario=cem_six_vehicle events.0.at=21.34234639497493`` handed back at 32.15 s under the
-  along-track rule alone, with the formation's slots upstream of the hovering lead, and agent 4 flew
-  through it (0.76 mm); under ``"clear_path"`` CEM keeps control and no agent comes within a_f + eps.
+  ``scenario=cem_six_vehicle events.0.at=21.34234639497493`` hands back at 32.14 s under the
+  along-track rule alone, with the formation's slots upstream of the hovering lead, and agent 4 flies
+  through it (1.4 mm at 32.75 s; 0.76 mm with newton_stop=converged); under ``"clear_path"`` CEM keeps
+  control and no agent comes within a_f + eps (closest 1.35 m). The falsifier's failure-time search
+  (``+sweep=falsify_failure scenario=cem_six_vehicle``, 100 TPE trials over time and agent) finds
+  0.0005 m under ``"passed"`` and nothing closer than 1.35 m under ``"clear_path"``.
   ``"passed"`` is that along-track rule alone (the rule shipped before). ``hand_back: false`` keeps
   CEM on for the rest of the run.
 * Safety is measured from the recorded states every tick (``swarmscene_step_end``) from the first
@@ -172,6 +178,14 @@ class CEM(Avoidance):
             "estimate is within a_p (Alg. 2 as printed; the run depends on the seed), 'gated' only while the "
             "update is >= sigma and never in the last iteration (commands exactly on their streamlines, "
             "seed-independent)")
+        newton_stop: Literal["fixed_n", "converged"] = Field(
+            "fixed_n", description="when CalcXY's Newton loop stops: 'fixed_n' after newton_iterations every call "
+            "(Algorithm 2 as printed); 'converged' once every update is below 1e-10 m with no noise drawn (the rule "
+            "before: it changes the commands under printed noise, K = 1 peak 2.19 against 2.31 m/s)")
+        branch_guard: bool = Field(
+            True, description="move a command that converged inside a planned disk out through its circle, restart a "
+            "non-finite one (a departure: not in the paper; without it 2 of 200 K = 2 runs of section V-A took "
+            "the inner root and flew 8 cm from the failed vehicle)")
         multi_failure_flow: Literal["ring_streamlines", "unit_doublets", "summed"] = Field(
             "ring_streamlines", description="eq. 1 with several failures: 'ring_streamlines' one uniform term, "
             "doublet strengths that keep every a_p circle a streamline; 'unit_doublets' one uniform term, "
@@ -272,7 +286,8 @@ class CEM(Avoidance):
         self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
                                 dT=self.ctx.guidance_period, K=p.K, n=p.newton_iterations, sigma=p.sigma,
                                 rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
-                                strengths=self.strengths(len(failed_xy)))
+                                strengths=self.strengths(len(failed_xy)), newton_stop=p.newton_stop,
+                                branch_guard=p.branch_guard)
         self.healthy_idx = healthy
         self.nav.track_rows(healthy, _TRACK)
         self._k = self.nav.inverter._k  # the compiled kernels module (loaded with the navigator)
