@@ -45,7 +45,8 @@ Choices where the paper is ambiguous (each repeated where it is made):
   |N(0, sigma)| r_a + N(0, sigma) r_b added to its update. An agent whose streamline touches the
   ring (Q2 on psi = 0 in section V-A) is kicked by up to a few sigma in the last iteration, so its
   command leaves its streamline by |f'| |r_noise| (<= 2 |r_noise| for one failure; measured psi
-  drift 0.9e-3 to 5.9e-3 over 30 seeds of sections V-A and V-B), the commanded speed jitters by
+  drift 3.2e-3 to 7.2e-3 over 30 seeds of sections V-A and V-B with Newton's fixed n; 0.9e-3 to
+  5.9e-3 with the early stop), the commanded speed jitters by
   ~|r_noise| / dT, and the run depends on the seed. ``"gated"`` (the reading shipped before) draws the noise only for an
   estimate strictly inside a_p whose Newton update is still at least sigma, and never in the last
   iteration: a converged point (on the ring itself, or on a root a few mm inside a_p that other
@@ -56,8 +57,10 @@ Choices where the paper is ambiguous (each repeated where it is made):
   point that converged inside a planned disk out through that circle, and restarts a non-finite one
   (kernels.branch_guard): past the front saddle the inside and outside roots are equally close, and
   the paper's claim that commands never enter a_p needs the outside one. Without it (Algorithm 2 as
-  printed), 2 of 200 K = 2 runs of section V-A took the inner root at the rear saddle and
-  commanded a vehicle 8 cm from the failed one for the rest of the run (issue #26's measurement).
+  printed, Newton for the fixed n), 2 of 200 K = 2 runs of section V-A (seeds 141 and 173) took the
+  inner root and flew a vehicle 6 cm from the failed one (a collision; commands 1.30 m inside a_p):
+  99.0 % [96.4, 99.7] of runs keep a_f + eps, against 30 of 30 with the guard
+  (docs/reproduction.md, cem_clearance_without_branch_guard).
 """
 
 from __future__ import annotations

@@ -185,7 +185,7 @@ class CEM(Avoidance):
         branch_guard: bool = Field(
             True, description="move a command that converged inside a planned disk out through its circle, restart a "
             "non-finite one (a departure: not in the paper; without it 2 of 200 K = 2 runs of section V-A took "
-            "the inner root and flew 8 cm from the failed vehicle)")
+            "the inner root and flew 6 cm from the failed vehicle)")
         multi_failure_flow: Literal["ring_streamlines", "unit_doublets", "summed"] = Field(
             "ring_streamlines", description="eq. 1 with several failures: 'ring_streamlines' one uniform term, "
             "doublet strengths that keep every a_p circle a streamline; 'unit_doublets' one uniform term, "
@@ -375,6 +375,8 @@ class CEM(Avoidance):
                     or self.formation_clear(world, sp)):
                 return sp
             self.activate(world)  # a setpoint after hand-back leads into a failed vehicle: CEM again
+            if not self.active:  # no healthy agent left to navigate
+                return sp
             self.handback_time = None
         elif self.hands_back(world, sp):
             self.active = False
