@@ -465,6 +465,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None,
                         help="an earlier report's JSON: the claims --only leaves out are taken from it, "
                              "re-evaluated (not re-run), and the report still lists every claim")
+    parser.add_argument("--cache-runs-at", default=None,
+                        help="the commit the --cache runs were made at, for rows whose runs all came from the cache "
+                             "(default: this commit)")
     parser.add_argument("--kept-runs", default=None,
                         help="the commit the kept rows' runs were made at (default: the kept report's commit)")
     args = parser.parse_args(argv)
@@ -473,12 +476,15 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [job for c in claims for reading in c.readings for job in c.jobs(reading)]
     started = time.perf_counter()
     keys = {j.key for j in jobs}
-    cached = sum((args.cache / f"{k}.json").exists() for k in keys) if args.cache else 0
+    from_cache = {k for k in keys if (args.cache / f"{k}.json").exists()} if args.cache else set()
+    cached = len(from_cache)
     results = run_jobs(jobs, args.jobs, args.cache)
     commit = git_commit()
     fresh = {(c.id, reading): evaluate(c, reading, results) for c in claims for reading in c.readings}
-    for outcome in fresh.values():
-        outcome.run = commit
+    for (claim_id, reading), outcome in fresh.items():
+        claim = next(c for c in claims if c.id == claim_id)
+        all_cached = all(job.key in from_cache for job in claim.jobs(reading))
+        outcome.run = (args.cache_runs_at or commit) if all_cached else commit
     kept = kept_outcomes(args.keep, every, args.kept_runs) if args.keep is not None else {}
     rerun = {c.id for c in claims}
     outcomes = [fresh.get((c.id, r)) or kept.get((c.id, r)) or evaluate_values(c, r, [])
