@@ -445,7 +445,21 @@ def git_commit() -> str:
     rev = source_revision()
     if rev is None:
         return "unknown"
-    return rev["revision"][:7] + (" with uncommitted changes" if rev["dirty"] else "")
+    return rev["revision"][:7] + (" with uncommitted changes" if rev["dirty"] and _dirty_beyond_report() else "")
+
+
+def _dirty_beyond_report() -> bool:
+    """Whether tracked files other than the report's own outputs (which a re-run rewrites) differ
+    from the commit; True when git cannot tell."""
+    import subprocess
+
+    outputs = {"docs/reproduction.md", "benchmarks/results/reproduction.json"}
+    try:
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                                capture_output=True, text=True, timeout=30, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return True
+    return any(line[3:].strip() not in outputs for line in status.splitlines() if line.strip())
 
 
 def select(claims: list[Claim], only: list[str]) -> list[Claim]:
