@@ -86,6 +86,17 @@ class Claim(BaseModel):
     decided by the metric's name (swarmscene.sweeps.stats.lower_bound), False for a function claim."""
 
     @model_validator(mode="after")
+    def _renamed_metric(self) -> "Claim":
+        """A metric renamed this release still reads (metrics.json keeps the old key), with a warning."""
+        new = renamed_metrics().get(self.metric or "")
+        if new is not None:
+            import warnings
+
+            warnings.warn(f"{self.id}: metric {self.metric} is renamed {new} (the old key is kept in metrics.json "
+                          "until the next release; docs/outputs.md)", DeprecationWarning, stacklevel=2)
+        return self
+
+    @model_validator(mode="after")
     def _one_source(self) -> "Claim":
         if self.expect == "misses" and not self.note.strip():
             raise ValueError(f"{self.id}: expect: misses needs a note saying why the default reading misses")
@@ -123,6 +134,13 @@ class Claim(BaseModel):
         n = self.n_seeds(reading)
         seeds = f"seed='range(0,{n})' --multirun" if n > 1 else "seed=0"
         return " ".join(["swarmscene", *words, seeds])
+
+
+def renamed_metrics() -> dict[str, str]:
+    """Old metric key -> new key, from the plugins that renamed keys this release (``RENAMED_METRICS``)."""
+    from swarmscene.plugins.avoidance.cem import CEM
+
+    return dict(CEM.RENAMED_METRICS)
 
 
 @dataclass(frozen=True)

@@ -166,6 +166,12 @@ def test_kept_rows_are_re_evaluated_not_re_run(tmp_path):
     assert not out.holds  # a missing run still fails the claim
 
 
+def test_a_renamed_metric_still_reads_with_a_warning():
+    with pytest.warns(DeprecationWarning, match="metric cem.theorem1_holds is renamed cem.theorem1_precondition_met"):
+        claim = _claim(metric="cem.theorem1_holds")
+    assert claim.metric == "cem.theorem1_holds"
+
+
 def test_departures_table_lists_every_entry_with_its_option():
     rows = reproduce.load_departures()
     assert len(rows) >= 10
