@@ -16,44 +16,147 @@ def _fmt(value: Any, unit: str = "") -> str:
     return f"{value}{unit}"
 
 
-def verdicts(sim: Any, metrics: dict[str, Any]) -> list[tuple[str, bool, str]]:
-    """(name, holds, detail) for the engine's safety conditions and every plugin's ``*_holds`` key."""
+OK, FAIL, NA, MET, NOT_MET = "OK", "FAIL", "n/a", "met", "not met"
+"""Verdict statuses: a condition that held or was violated, a check that does not apply to this run,
+and a theorem's precondition (an assumption of a guarantee, not a safety outcome: a precondition
+that is not met means the guarantee is not claimed, never that the run was unsafe)."""
+
+PRECONDITION = "_precondition_met"
+"""Plugin keys ending so are printed as preconditions (``met`` / ``not met``), keys ending in
+``_holds`` as conditions (``OK`` / ``FAIL``). A plugin explains a key's limit and scope with
+``describe_verdict(key, metrics) -> str | None`` (a static method); keys it lists in
+``RENAMED_METRICS`` (old -> new, kept in metrics.json for one release) are not printed."""
+
+
+Verdict = tuple[str, str, str]
+"""(name, status, detail): status one of OK, FAIL, n/a, met, not met."""
+
+
+def _first(metrics: dict[str, Any], condition: str) -> str:
+    """'; first at T s (agents ...)' for an engine condition violated in this run, else ''."""
+    t = metrics.get(f"violations.{condition}.first_time")
+    if t is None:
+        return ""
+    agents = metrics.get(f"violations.{condition}.agents") or []
+    shown = ", ".join(str(a) for a in agents[:8]) + (f", ... ({len(agents)} in all)" if len(agents) > 8 else "")
+    return f"; first at {t:.2f} s (agents {shown})"
+
+
+def _plugins(sim: Any) -> list[Any]:
+    return [p for p in (getattr(sim, "formation", None), getattr(sim, "avoidance", None),
+                        getattr(sim, "dynamics", None)) if p is not None]
+
+
+def _does_not_avoid(sim: Any) -> list[str]:
+    """Names of the run's methods that declare ``avoids_collisions = False`` (boids, by design)."""
+    return [p.name for p in _plugins(sim) if getattr(type(p), "avoids_collisions", True) is False]
+
+
+def engine_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
+    """Separation, clearance and connectivity as core/monitors.py measures them, each line saying its
+    limit and scope (the engine's keys keep their names; their scope is stated here)."""
     safety = sim.config.safety
-    out = [
-        (
-            "separation",
-            metrics.get("collisions", 0) == 0,
-            f"min {_fmt(metrics.get('min_separation'), ' m')} vs {safety.separation_limit} m",
-        ),
-        (
-            "clearance",
-            metrics.get("clearance_violations", 0) == 0,
-            f"min {_fmt(metrics.get('min_clearance'), ' m')} vs {safety.clearance_limit} m",
-        ),
-        ("connectivity", bool(metrics.get("connected")), f"comm range {sim.config.comm.range} m"),
-    ]
-    for key in sorted(metrics):
-        if key.endswith("_holds") and isinstance(metrics[key], bool):
-            out.append((key, metrics[key], ""))
+    collisions = metrics.get("collisions", 0)
+    detail = (f"min {_fmt(metrics.get('min_separation'), ' m')} vs {safety.separation_limit} m, all pairs "
+              f"(failed vehicles included), sampled once per guidance tick; {collisions} pair(s) under the limit")
+    detail += _first(metrics, "separation")
+    for name in _does_not_avoid(sim):
+        detail += f"; {name} does not avoid collisions by design"
+    out = [("separation", OK if collisions == 0 else FAIL, detail)]
+    if metrics.get("min_clearance") is None:
+        out.append(("clearance", NA, "no obstacles in this environment"))
+    else:
+        out.append(("clearance", OK if metrics.get("clearance_violations", 0) == 0 else FAIL,
+                    f"min {_fmt(metrics.get('min_clearance'), ' m')} vs {safety.clearance_limit} m, every agent to "
+                    f"every obstacle, once per guidance tick; {metrics.get('clearance_violations', 0)} agent(s) "
+                    "under the limit" + _first(metrics, "clearance")))
+    out.append(("connectivity", OK if metrics.get("connected") else FAIL,
+                f"communication graph connected, by range {sim.config.comm.range} m (line of sight not "
+                "considered), every tick" + _first(metrics, "connectivity")))
     return out
+
+
+def _describe(sim: Any, key: str, metrics: dict[str, Any]) -> str:
+    """The first plugin detail for ``key`` (``describe_verdict``), or ''."""
+    for plugin in _plugins(sim):
+        describe = getattr(type(plugin), "describe_verdict", None)
+        detail = describe(key, metrics) if describe is not None else None
+        if detail:
+            return detail
+    return ""
+
+
+def mission_verdict(sim: Any, metrics: dict[str, Any]) -> Verdict:
+    """Whether the formation's mission completed (its ``complete``; None: it defines none)."""
+    done = sim.formation.complete(sim.world)
+    stop = metrics.get("stop_reason", "duration")
+    if done is None:
+        return ("mission", NA, f"{sim.formation.name} sets no goal; stopped by {stop}")
+    if done:
+        return ("mission", OK, f"complete at {_fmt(metrics.get('duration'), ' s')} (stopped by {stop})")
+    why = _describe(sim, "mission", metrics)
+    return ("mission", FAIL, f"not complete when the run stopped at {_fmt(metrics.get('duration'), ' s')} "
+            f"(stopped by {stop})" + (f"; {why}" if why else ""))
+
+
+def plugin_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
+    """Every plugin's ``*_holds`` (OK / FAIL) and ``*_precondition_met`` (met / not met, or n/a when
+    the plugin's detail says the theorem does not apply) key, with the plugin's own detail."""
+    renamed: set[str] = set()
+    for plugin in _plugins(sim):
+        renamed.update(getattr(type(plugin), "RENAMED_METRICS", {}))
+    out = []
+    for key in sorted(metrics):
+        value = metrics[key]
+        if key in renamed or not isinstance(value, bool):
+            continue
+        if key.endswith(PRECONDITION):
+            status = MET if value else NOT_MET
+        elif key.endswith("_holds"):
+            status = OK if value else FAIL
+        else:
+            continue
+        detail = _describe(sim, key, metrics)
+        if detail.startswith("n/a: "):  # the plugin says the check does not apply to this run
+            status, detail = NA, detail[len("n/a: "):]
+        out.append((key, status, detail))
+    return out
+
+
+def verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
+    """(name, status, detail) for the engine's safety conditions, the mission and every plugin's
+    conditions and preconditions, in the order the summary prints them."""
+    return [*engine_verdicts(sim, metrics), mission_verdict(sim, metrics), *plugin_verdicts(sim, metrics)]
+
+
+def success_reason(metrics: dict[str, Any], lines: list[Verdict]) -> str:
+    """Why ``success`` is what it is, from the lines that decide it."""
+    if metrics.get("success"):
+        mission = next(status for name, status, _ in lines if name == "mission")
+        return "safe, mission complete" if mission == OK else "safe; no mission to complete"
+    failed = [name for name, status, _ in lines if status == FAIL and name in ("separation", "clearance", "mission")]
+    if metrics.get("stop_reason") in ("interrupted", "non_finite"):
+        failed.append(f"stopped by {metrics['stop_reason']}")
+    return "failed: " + ", ".join(failed) if failed else "failed (see the plugin's metrics)"
 
 
 def summary_text(sim: Any, result: Any, run_dir: Path | None) -> str:
     m = result.metrics
-    lines = [
+    lines = verdicts(sim, m)
+    out = [
         f"swarmscene: scenario {sim.config.name!r} ({sim.formation.name} / {sim.avoidance.name} / "
         f"{sim.dynamics.name})",
         f"  simulated {_fmt(m['duration'], ' s')} in {m['steps']} steps, {m['agents']} agents, "
         f"stopped by {m['stop_reason']}; real-time factor {_fmt(m['realtime_factor'], 'x')}",
         f"  min separation {_fmt(m.get('min_separation'), ' m')}, min clearance "
         f"{_fmt(m.get('min_clearance'), ' m')}, collisions {m.get('collisions', 0)}, "
-        f"success {m.get('success')}",
+        f"success {m.get('success')} ({success_reason(m, lines)})",
     ]
-    for name, holds, detail in verdicts(sim, m):
-        lines.append(f"  {'OK  ' if holds else 'FAIL'} {name}" + (f" ({detail})" if detail else ""))
+    for name, status, detail in lines:
+        out.append(f"  {status:<{len(NOT_MET)}} {name}" + (f": {detail}" if detail else ""))
     if run_dir is not None:
-        lines.append(f"  outputs: {run_dir}")
-    return "\n".join(lines)
+        out.append(f"  outputs: {run_dir}")
+    return "\n".join(out)
 
 
 def format_duration(seconds: float) -> str:

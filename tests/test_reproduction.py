@@ -128,6 +128,62 @@ def test_each_distinct_run_is_run_once():
     assert len(keys) == 4
 
 
+def test_non_negative_quantity_gets_a_bootstrap_interval_that_stays_above_zero():
+    """Issue #26: a smallest separation of 0.00015 m had the t interval [-0.00023, 0.00053]."""
+    values = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0015]
+    signed = _claim(paper_value=0.0, relation=">=", seeds=10)
+    distance = _claim(paper_value=0.0, relation=">=", seeds=10, metric="min_separation")
+    t = reproduce.evaluate(signed, signed.default_reading, _results(signed, values))
+    boot = reproduce.evaluate(distance, distance.default_reading,
+                              {k: {"min_separation": v["m"]} for k, v in _results(signed, values).items()})
+    assert t.low < 0.0 <= boot.low <= boot.mean <= boot.high <= max(values)
+    forced = _claim(paper_value=0.0, relation=">=", seeds=10, bounded=True)
+    assert reproduce.evaluate(forced, forced.default_reading, _results(forced, values)).low >= 0.0
+
+
+def test_one_run_claim_reports_the_share_of_seeds_reaching_the_paper():
+    claim = _claim(paper_value=2.4, tolerance=0.3, one_run=True, seeds=4)
+    out = reproduce.evaluate(claim, claim.default_reading, _results(claim, [2.1, 2.4, 2.5, 2.2]))
+    assert out.reach == 2
+    low, high = reproduce.wilson(2, 4)
+    assert reproduce._ours(out).endswith(f"; ≥ paper in 2 of 4 seeds (50.0 % [{100 * low:.1f}, {100 * high:.1f}])")
+
+
+def test_unprinted_paper_value_is_marked():
+    assert reproduce._paper(_claim(printed=False, tolerance=0.1), rate=True) == "100.0 % ± 10.0 % †"
+    assert reproduce._paper(_claim(tolerance=0.1), rate=True) == "100.0 % ± 10.0 %"
+
+
+def test_kept_rows_are_re_evaluated_not_re_run(tmp_path):
+    """--keep: the rows --only leaves out come from the earlier JSON, with their own run commit."""
+    claim = _claim(paper_value=2.4, tolerance=0.3, one_run=True)
+    stored = {"meta": {"commit": "abc1234"},
+              "outcomes": [{"id": "x", "reading": "as printed", "rate": False, "values": [2.1, 2.4, 2.5], "missing": 1}]}
+    path = tmp_path / "old.json"
+    path.write_text(__import__("json").dumps(stored))
+    out = reproduce.kept_outcomes(path, [claim])[("x", "as printed")]
+    assert out.run == "abc1234" and out.values == [2.1, 2.4, 2.5] and out.missing == 1 and out.reach == 2
+    assert not out.holds  # a missing run still fails the claim
+
+
+def test_a_renamed_metric_still_reads_with_a_warning():
+    with pytest.warns(DeprecationWarning, match="metric cem.theorem1_holds is renamed cem.theorem1_precondition_met"):
+        claim = _claim(metric="cem.theorem1_holds")
+    assert claim.metric == "cem.theorem1_holds"
+
+
+def test_departures_table_lists_every_entry_with_its_option():
+    rows = reproduce.load_departures()
+    assert len(rows) >= 10
+    whats = " ".join(r["what"] for r in rows)
+    for needle in ("hand-back", "branch guard", "eq. 1 with several failures", "psi_obs", "psi_con",
+                   "surrogate leaders", "edge deactivation", "doors", "Fig. 5.17", "settling bands"):
+        assert needle in whats
+    table = reproduce.departures_table(rows)
+    assert table[0] == "## Departures from the papers as printed" and len(table) == len(rows) + 9
+    assert all(line.count(" | ") == 5 for line in table[6:-1] if line.startswith("| "))
+
+
 @cache
 def _runs(jobs: tuple) -> dict:
     return reproduce.run_jobs(jobs, n_jobs=2, progress=False)

@@ -31,24 +31,36 @@ Choices where the paper is ambiguous (each repeated where it is made):
   previous tick's command ("n iterations from the previous position") and differences against it:
   a warm start from a pass that overshot a saddle point would drag the next pass onto the far side
   of the disk (measured: a 3.4 m/s spike with K = 5).
-* Newton iterations stop early once an update is below 1e-10 m and no noise was drawn in it: the
-  remaining iterations would move the point by less than rounding, so the result is unchanged.
+* Newton iterations, ``newton_stop`` (:data:`NEWTON_STOPS`): ``"fixed_n"`` (the default) runs the
+  paper's n iterations every call, as Algorithm 2 prints it. ``"converged"`` (the rule shipped
+  before) stops once every update is below 1e-10 m and no noise was drawn in that iteration. That
+  is not "the result unchanged": under eq. 6 as printed every remaining iteration whose estimate is
+  within a_p draws noise again, so the stop changes the commands near the ring and the seed's
+  stream. Measured (section V-A, K = 1, 30 seeds, printed noise): peak commanded speed mean 2.19 m/s
+  with the early stop (2 of 30 seeds at or above Fig. 10's 2.4), 2.31 m/s without (8 of 30);
+  docs/reproduction.md has the runs.
 * Saddle noise (eq. 6), ``noise_rule`` (:data:`NOISE_RULES`). ``"printed"`` (the default) is
   Algorithm 2 line 7 with eq. 6 as printed: in every one of the n iterations, the last included,
   an estimate r with ||r - r_f|| <= a_p (evaluated where the Jacobian is, before the update) gets
   |N(0, sigma)| r_a + N(0, sigma) r_b added to its update. An agent whose streamline touches the
   ring (Q2 on psi = 0 in section V-A) is kicked by up to a few sigma in the last iteration, so its
   command leaves its streamline by |f'| |r_noise| (<= 2 |r_noise| for one failure; measured psi
-  drift 0.9e-3 to 5.9e-3 over 30 seeds of sections V-A and V-B), the commanded speed jitters by
+  drift 3.2e-3 to 7.2e-3 over 30 seeds of sections V-A and V-B with Newton's fixed n; 0.9e-3 to
+  5.9e-3 with the early stop), the commanded speed jitters by
   ~|r_noise| / dT, and the run depends on the seed. ``"gated"`` (the reading shipped before) draws the noise only for an
   estimate strictly inside a_p whose Newton update is still at least sigma, and never in the last
   iteration: a converged point (on the ring itself, or on a root a few mm inside a_p that other
   failures' flows create) is not at a saddle, so the command lies on its streamline to machine
   precision (eq. 4 exactly) and the run does not depend on the seed; the noise still fires where
   it is needed (a start on the rear stagnation point, where Newton alone never leaves the axis).
-* A final branch guard moves a point that converged inside a planned disk out through that circle
-  (:meth:`NewtonInverter._guard`): past the front saddle the inside and outside roots are equally
-  close, and the paper's claim that commands never enter a_p needs the outside one.
+* A final branch guard (``branch_guard``, on by default: a departure, the paper has none) moves a
+  point that converged inside a planned disk out through that circle, and restarts a non-finite one
+  (kernels.branch_guard): past the front saddle the inside and outside roots are equally close, and
+  the paper's claim that commands never enter a_p needs the outside one. Without it (Algorithm 2 as
+  printed, Newton for the fixed n), 2 of 200 K = 2 runs of section V-A (seeds 141 and 173) took the
+  inner root and flew a vehicle 6 cm from the failed one (a collision; commands 1.30 m inside a_p):
+  99.0 % [96.4, 99.7] of runs keep a_f + eps, against 30 of 30 with the guard
+  (docs/reproduction.md, cem_clearance_without_branch_guard).
 """
 
 from __future__ import annotations
@@ -62,6 +74,10 @@ from swarmscene.core.vectors import min_pair_distance
 
 NEWTON_TOL = 1e-10
 """m; a Newton update below this means the estimate has converged (see module docstring)."""
+
+NEWTON_STOPS = ("fixed_n", "converged")
+"""When CalcXY's Newton loop stops (see module docstring): ``"fixed_n"``, after the paper's n
+iterations (the default); ``"converged"``, once every update is below NEWTON_TOL with no noise drawn."""
 
 NOISE_RULES = ("printed", "gated")
 """When CalcXY draws the saddle noise of eq. 6 (see module docstring): ``"printed"``, every
@@ -293,13 +309,16 @@ class NewtonInverter:
         rng: random generator for the noise (the run's PCG64 generator, advanced in place).
         strengths: (F,) doublet strengths mu_f (default :func:`doublet_strengths`).
         noise_rule: when eq. 6 draws, one of :data:`NOISE_RULES` (module docstring).
+        newton_stop: one of :data:`NEWTON_STOPS`. branch_guard: run the branch guard (module docstring).
     """
 
     def __init__(self, centres: np.ndarray, a_p: float, n_agents: int, n: int, sigma: float,
                  rng: np.random.Generator, strengths: np.ndarray | None = None,
-                 noise_rule: str = "printed") -> None:
+                 noise_rule: str = "printed", newton_stop: str = "fixed_n", branch_guard: bool = True) -> None:
         if noise_rule not in NOISE_RULES:
             raise ValueError(f"noise_rule: must be one of {', '.join(NOISE_RULES)} (got {noise_rule!r})")
+        if newton_stop not in NEWTON_STOPS:
+            raise ValueError(f"newton_stop: must be one of {', '.join(NEWTON_STOPS)} (got {newton_stop!r})")
         # numba loads here, at first use, not when the plugin module is imported (start-up time)
         from swarmscene.methods.cem import kernels
 
@@ -318,7 +337,8 @@ class NewtonInverter:
         offset = complex(centres.mean())
         self.prm[[kernels.P_A, kernels.P_SIGMA, kernels.P_OFF_R, kernels.P_OFF_I]] = (
             float(a_p), float(sigma), offset.real, offset.imag)
-        self.iprm[[kernels.I_N, kernels.I_PRINTED]] = int(n), int(noise_rule == "printed")
+        self.iprm[[kernels.I_N, kernels.I_PRINTED, kernels.I_CONVERGED, kernels.I_GUARD]] = (
+            int(n), int(noise_rule == "printed"), int(newton_stop == "converged"), int(bool(branch_guard)))
         self.z = self.zz[kernels.Z]  # the estimate, updated in place (a view)
 
     @property
@@ -339,7 +359,7 @@ class NewtonInverter:
 
 def calc_xy(w: np.ndarray, zeta: np.ndarray, centres: np.ndarray, a_p: float, n: int = 20,
             sigma: float = 1e-3, rng: np.random.Generator | None = None, dT: float | None = None,
-            noise_rule: str = "printed"):
+            noise_rule: str = "printed", newton_stop: str = "fixed_n", branch_guard: bool = True):
     """Algorithm 2 as a function: positions for targets w from start points zeta (flow frame).
 
     Returns the (N,) complex positions, and with ``dT`` also the first-difference velocity
@@ -347,7 +367,7 @@ def calc_xy(w: np.ndarray, zeta: np.ndarray, centres: np.ndarray, a_p: float, n:
     """
     zeta = np.asarray(zeta, dtype=complex)
     inv = NewtonInverter(centres, a_p, zeta.size, n, sigma, rng or np.random.default_rng(0),
-                         noise_rule=noise_rule)
+                         noise_rule=noise_rule, newton_stop=newton_stop, branch_guard=branch_guard)
     inv.z[:] = zeta
     z = inv.solve(np.asarray(w, dtype=complex)).copy()
     return z if dT is None else (z, (z - zeta) / dT)
@@ -370,12 +390,14 @@ class CEMNavigator:
         K: sliding-step passes per tick. n: Newton iterations. sigma: saddle noise, m.
         rng: random generator for the saddle noise (PCG64, :func:`pcg64_state`). noise_rule: when eq. 6 draws
             (:data:`NOISE_RULES`). strengths: doublet strengths (default :func:`doublet_strengths`).
+        newton_stop: :data:`NEWTON_STOPS`. branch_guard: run the branch guard (module docstring).
     """
 
     def __init__(self, positions: np.ndarray, failures: np.ndarray, *, a_p: float, theta: float = 0.0,
                  v_des: float = 1.0, dT: float = 0.01, K: int = 2, n: int = 20, sigma: float = 1e-3,
                  rng: np.random.Generator | None = None, origin: complex | None = None,
-                 noise_rule: str = "printed", strengths: np.ndarray | None = None) -> None:
+                 noise_rule: str = "printed", strengths: np.ndarray | None = None, newton_stop: str = "fixed_n",
+                 branch_guard: bool = True) -> None:
         failures = np.asarray(failures, dtype=float).reshape(-1, 2)
         self.origin = complex(*failures.mean(0)) if origin is None else complex(origin)
         self.theta, self.a_p = float(theta), float(a_p)
@@ -387,8 +409,9 @@ class CEMNavigator:
         self.strengths = _strengths(self.centres, a_p, strengths)
         self.w0 = complex_potential(zeta0, self.centres, a_p, self.strengths)  # lines 7-10: phi_i0 + j psi_i0
         self.n, self.sigma, self.noise_rule = int(n), float(sigma), noise_rule
+        self.newton_stop, self.branch_guard = newton_stop, bool(branch_guard)
         self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng(),
-                                       self.strengths, noise_rule)
+                                       self.strengths, noise_rule, newton_stop, branch_guard)
         inv, k = self.inverter, self.inverter._k
         inv.z[:] = zeta0  # r_d <- r, line 5
         inv.zz[k.W] = self.w0  # phi_last + j psi_i0
@@ -484,3 +507,24 @@ class CEMNavigator:
     def theorem2(self, delta: float, eps: float) -> Theorem2Check:
         """Theorem 2's precondition (eq. 16) for this activation."""
         return theorem2(self.zeta0, self.centres.size, self.a_p, delta, eps)
+
+
+def segment_clearance(start: np.ndarray, end: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """(N,) min over failures of the x-y distance from z_f to the segment start_i -> end_i, m.
+
+    ``start``/``end`` (N, 2) and ``centres`` (F, 2) are world x-y (any one frame will do: distances
+    do not depend on it). The hand-back test (plugins/avoidance/cem.py) asks whether the straight
+    path from each healthy agent to its formation setpoint stays at least a_p from every failed
+    vehicle; inf for no failure.
+    """
+    start = np.asarray(start, dtype=float).reshape(-1, 2)
+    end = np.asarray(end, dtype=float).reshape(-1, 2)
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    if centres.shape[0] == 0 or start.shape[0] == 0:
+        return np.full(start.shape[0], np.inf)
+    seg = (end - start)[:, None, :]  # (N, 1, 2)
+    rel = centres[None, :, :] - start[:, None, :]  # (N, F, 2)
+    length2 = (seg**2).sum(-1)
+    # the closest point's parameter along the segment, clipped to [0, 1] (0 for a zero-length path)
+    s = np.clip(np.divide((rel * seg).sum(-1), length2, out=np.zeros(rel.shape[:2]), where=length2 > 0), 0.0, 1.0)
+    return np.linalg.norm(rel - s[..., None] * seg, axis=-1).min(axis=1)

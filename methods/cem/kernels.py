@@ -49,7 +49,9 @@ Z, Z_PREV, DZ, W, WT, Z_START, POS, VEL = range(8)
 (P_A, P_SIGMA, P_OFF_R, P_OFF_I, P_VDES, P_DT, P_ROT_R, P_ROT_I, P_ROTDT_R, P_ROTDT_I, P_ORIG_R, P_ORIG_I,
  P_DPHI, P_USED, P_ALONG_MIN, N_PRM) = range(16)
 # Entries of the integer parameter vector ``iprm`` (agents, doublets, n, K, rule, diagnostics).
-I_M, I_F, I_N, I_K, I_PRINTED, I_ITERATIONS, I_ITER_TOTAL, I_TICKS, I_TRACK, N_IPRM = range(10)
+I_M, I_F, I_N, I_K, I_PRINTED, I_ITERATIONS, I_ITER_TOTAL, I_TICKS, I_TRACK, I_CONVERGED, I_GUARD, N_IPRM = range(12)
+# I_CONVERGED: 1 stops Newton once it has converged (newton_stop="converged"), 0 runs the paper's n;
+# I_GUARD: 1 runs the branch guard (a departure, flow module docstring), 0 leaves CalcXY's result as is.
 
 
 # ---- eq. 6: saddle noise ----------------------------------------------------------------------
@@ -180,13 +182,14 @@ def branch_guard(z, z_start, c, mu, a, sigma, U, R, rows, cols, g, state):
 
 
 @njit(**JIT)
-def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed, U, R, r, d, g, rows, cols, tmp,
-                      state):
+def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed, converged, U, R, r, d, g, rows,
+                      cols, tmp, state):
     """Algorithm 2 lines 3-8 for every agent: n Newton steps dz = (f(z) - w) / f'(z) (eq. 5) plus eq. 6.
 
     f(z) = (z - zbar_F) + sum_f mu_f / (z - z_f), f'(z) = 1 - sum_f mu_f / (z - z_f)^2 (eq. 1-2);
-    ``wt`` holds the targets w = phi + j psi, ``off`` = zbar_F. Stops early once every update is
-    below NEWTON_TOL and no noise was drawn in that iteration. Returns the iterations run.
+    ``wt`` holds the targets w = phi + j psi, ``off`` = zbar_F. Runs all n iterations (Algorithm 2 as
+    printed), or with ``converged`` stops early once every update is below NEWTON_TOL and no noise was
+    drawn in that iteration. Returns the iterations run.
     ``R`` gets ||r - r_f|| exactly where it may be <= a_p (elsewhere a bound above a_p, which eq. 6's
     tests decide alike); with the printed rule ``r`` first gets the bound of each update's size
     (``d`` keeps the updates) and the exact sizes only when every bound is below NEWTON_TOL.
@@ -231,7 +234,7 @@ def newton_iterations(z, wt, z_start, c, mu, off_r, off_i, a, sigma, n, printed,
         noisy = False
         if near and sigma > 0.0 and (printed or it < n - 1):  # gated: never in the last iteration
             noisy = saddle_noise(z, U, R, r, a, sigma, printed, rows, cols, g, state)
-        if not noisy and nan_max(r) < NEWTON_TOL:
+        if converged and not noisy and nan_max(r) < NEWTON_TOL:
             if not printed:
                 break
             for i in range(m):  # every bound is below: the exact sizes decide
@@ -284,9 +287,9 @@ def _calc_xy(zz, flow, U, prm, R, r, g, tmp, iprm, rows, cols, state):
     z, z_start, c, mu = zz[Z], zz[Z_START], flow[0], flow[1]
     a, sigma = prm[P_A], prm[P_SIGMA]
     iprm[I_ITERATIONS] = newton_iterations(z, zz[WT], z_start, c, mu, prm[P_OFF_R], prm[P_OFF_I], a, sigma,
-                                           iprm[I_N], iprm[I_PRINTED] != 0, U, R, r, zz[DZ], g, rows, cols, tmp,
-                                           state)  # zz[DZ] is free until the navigator's line 19
-    if _may_need_guard(z, c, a * (1.0 - 1e-6)):  # skip the call (and its exact distances) when clear
+                                           iprm[I_N], iprm[I_PRINTED] != 0, iprm[I_CONVERGED] != 0, U, R, r,
+                                           zz[DZ], g, rows, cols, tmp, state)  # zz[DZ] is free until line 19
+    if iprm[I_GUARD] != 0 and _may_need_guard(z, c, a * (1.0 - 1e-6)):  # skip the call (and its exact distances) when clear
         branch_guard(z, z_start, c, mu, a, sigma, U, R, rows, cols, g, state)
 
 

@@ -153,6 +153,9 @@ class ReynoldsFlocking(Formation):
     """Boids: separation, alignment, cohesion within ``vision``; optional goal; open, bounded or torus."""
 
     name = "reynolds_flocking"
+    avoids_collisions = False
+    """Boids steer apart (separation) but nothing keeps them apart: the run summary says so beside
+    the separation verdict (swarmscene/summary.py)."""
     metric_prefix = "flocking"
     Params = FlockingParams
 

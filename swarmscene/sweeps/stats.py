@@ -23,10 +23,13 @@ BOOTSTRAP_SEED = 0
 
 NON_NEGATIVE = ("collisions", "clearance_violations", "steps", "duration", "agents", "healthy_at_end",
                 "wall_time", "realtime_factor", "step_ms_median", "min_separation", "min_pair_distance",
-                "max_speed", "_time", "_count", "_ms", "_distance")
+                "max_speed", "max_speed_actual", "tracking_error_max", "psi_drift_max", "_time", "_count",
+                "_ms", "_distance", "_rms", "_speed")
 """Metric names (a key's last dotted part, or its ending) of quantities that cannot be negative:
-counts, durations and times, distances between agents, speeds. A signed quantity (a clearance, which
-is negative inside an obstacle; a margin) is not listed, and gets the Student-t interval."""
+counts, durations and times, distances between agents, speeds (``cem.max_speed_actual``,
+``disturbances.wind.peak_speed``), RMS errors, CEM's largest tracking error and streamline drift (an
+absolute value). A signed quantity (a clearance, which is negative inside an obstacle; a margin such
+as ``cem.min_exclusion_margin``) is not listed, and gets the Student-t interval."""
 
 
 def lower_bound(metric: str) -> float | None:

@@ -33,10 +33,11 @@ class NumpyNewtonInverter:
 
     def __init__(self, centres: np.ndarray, a_p: float, n_agents: int, n: int, sigma: float,
                  rng: np.random.Generator, strengths: np.ndarray | None = None,
-                 noise_rule: str = "printed") -> None:
+                 noise_rule: str = "printed", newton_stop: str = "fixed_n", branch_guard: bool = True) -> None:
         if noise_rule not in NOISE_RULES:
             raise ValueError(f"noise_rule: must be one of {', '.join(NOISE_RULES)} (got {noise_rule!r})")
         self.printed = noise_rule == "printed"
+        self.converged, self.branch_guard = newton_stop == "converged", branch_guard
         centres = np.atleast_1d(np.asarray(centres, dtype=complex))
         self.c = centres.reshape(1, -1)
         self.mu = _strengths(centres, a_p, strengths).reshape(1, -1)
@@ -85,10 +86,11 @@ class NumpyNewtonInverter:
                 noisy = self.sigma > 0 and self._add_noise(U)
             else:
                 noisy = it < self.n - 1 and self.sigma > 0 and self._add_noise(U, r)
-            if not noisy and r.max() < NEWTON_TOL:
+            if self.converged and not noisy and r.max() < NEWTON_TOL:
                 break
         self.iterations = it + 1
-        self._guard(z_start)
+        if self.branch_guard:
+            self._guard(z_start)
         return z
 
     def _add_noise(self, U: np.ndarray, step: np.ndarray | None = None, rows: np.ndarray | None = None) -> bool:
@@ -182,7 +184,7 @@ class NumpyNavigator:
         self.dphi = nav.dphi
         self.dphi_used = 0.0
         self.inverter = NumpyNewtonInverter(nav.centres, nav.a_p, nav.n_agents, nav.n, nav.sigma, rng,
-                                            nav.strengths, nav.noise_rule)
+                                            nav.strengths, nav.noise_rule, nav.newton_stop, nav.branch_guard)
         self.inverter.z[:] = nav.zeta
         m = nav.n_agents
         self._z_prev, self._dz, self._speed = np.empty(m, complex), np.empty(m, complex), np.empty(m)

@@ -331,14 +331,15 @@ def test_k_sweep_reproduces_fig_10_gated():
 
 
 def test_k_sweep_reproduces_fig_10_printed(six_printed):
-    """Eq. 6 as printed: the K = 1 peak varies with the seed (30 seeds of the full scenario: mean
-    2.19, range 2.06-2.56 m/s, so a single run, as Fig. 10 is, lands on 2.4 m/s for some seeds);
-    K = 2 is much lower on every seed, K = 5 lower again on average (28 of 30 seeds; the noise's
-    speed jitter ~|r_noise| / dT blurs the gap, which three seeds can hide)."""
+    """Eq. 6 as printed, Newton for the paper's fixed n: the K = 1 peak varies with the seed (these
+    10 seeds: 2.12-2.93 m/s, so a single run, as Fig. 10 is, lands on 2.4 m/s for some seeds; the
+    30-seed share is in docs/reproduction.md); K = 2 is much lower on every seed (1.20-1.454 m/s;
+    1.26-1.43 with the early stop of newton_stop=converged), K = 5 lower again on average (1.18-1.382; the
+    noise's speed jitter ~|r_noise| / dT blurs the gap, which three seeds can hide)."""
     peaks = {K: np.array([np.linalg.norm(r[2], axis=2).max() for r in runs]) for K, runs in six_printed.items()}
     assert (peaks[1] > 2.0).all() and peaks[1].max() > 2.3
-    assert (peaks[2] < peaks[1]).all() and (peaks[2] < 1.45).all()
-    assert peaks[5].mean() < peaks[2].mean() and (peaks[5] < 1.35).all()
+    assert (peaks[2] < peaks[1]).all() and (peaks[2] < 1.5).all()
+    assert peaks[5].mean() < peaks[2].mean() and (peaks[5] < 1.4).all()  # fixed n: 1.18-1.382 m/s
 
 
 def test_rotating_the_flow_rotates_the_paths():

@@ -59,15 +59,17 @@ def fly_both(agents, failed, ticks: int, seed: int, **kw) -> tuple[float, CEMNav
     return worst, nav, ref
 
 
+@pytest.mark.parametrize("stop", ["fixed_n", "converged"])
 @pytest.mark.parametrize("rule", ["printed", "gated"])
 @pytest.mark.parametrize("flow", list(FLOWS))
-def test_kernel_matches_numpy_oracle_over_random_geometries(rule, flow):
-    """Random swarms around 1-4 failures (some agents starting on a ring), K = 1, 2, 3, theta random."""
+def test_kernel_matches_numpy_oracle_over_random_geometries(rule, flow, stop):
+    """Random swarms around 1-4 failures (some agents starting on a ring), K = 1, 2, 3, theta random;
+    Newton for the paper's fixed n (the default) and with the early stop."""
     for seed, (n_agents, n_failures, K) in enumerate([(1, 1, 2), (5, 1, 2), (7, 2, 1), (9, 3, 3), (4, 4, 2)]):
         agents, failed = random_geometry(seed, n_agents, n_failures)
         theta = np.random.default_rng(100 + seed).uniform(-np.pi, np.pi)
         worst, nav, ref = fly_both(agents, failed, 150, seed, theta=theta, K=K, n=20, sigma=1e-3,
-                                   noise_rule=rule, strengths=FLOWS[flow](n_failures))
+                                   noise_rule=rule, strengths=FLOWS[flow](n_failures), newton_stop=stop)
         assert worst <= TOL, (seed, worst)
         np.testing.assert_allclose(nav.w, ref.w, rtol=0, atol=TOL)  # phi_last advanced alike
         # the same draws: the generators end in the same state
@@ -157,3 +159,15 @@ def test_distance_bounds_decide_every_test_as_the_exact_distance():
             assert d == exact
     assert np.isnan(numerics.size_bound(np.nan, 1.0)) and np.isnan(numerics.size_bound(1.0, np.nan))
     assert np.isnan(numerics.distance_within(5.0, np.nan, A_P))  # a NaN still disables eq. 6 that iteration
+
+
+def test_fixed_n_runs_every_iteration_and_converged_stops_early():
+    """Algorithm 2 as printed runs its n iterations on every call; the early stop does fewer away
+    from the ring, and without the guard a command may stay where Newton left it."""
+    agents, failed = random_geometry(3, 6, 1)
+    fixed = CEMNavigator(agents, failed, a_p=A_P, n=20, rng=np.random.default_rng(0))
+    early = CEMNavigator(agents, failed, a_p=A_P, n=20, rng=np.random.default_rng(0), newton_stop="converged")
+    fixed.step(), early.step()
+    assert fixed.inverter.iterations == 20 and early.inverter.iterations < 20
+    with pytest.raises(ValueError, match="newton_stop: must be one of fixed_n, converged"):
+        NewtonInverter(failed[:, 0] + 1j * failed[:, 1], A_P, 3, 20, 1e-3, np.random.default_rng(0), newton_stop="x")

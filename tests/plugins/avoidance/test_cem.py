@@ -342,3 +342,48 @@ def test_multi_failure_flow_readings_are_eq_1_for_one_failure_and_differ_for_sev
         plugin.activate(world)
         expected = doublet_strengths(plugin.nav.centres, A_P) if rule == "ring_streamlines" else plugin.strengths(3)
         np.testing.assert_allclose(plugin.nav.strengths, expected)
+
+
+# ---- hand-back test of the formation's setpoints (issue #26) -------------------------------------
+
+
+def test_segment_clearance_is_the_distance_to_the_closest_point_of_each_path():
+    from swarmscene.methods.cem.flow import segment_clearance
+
+    start = np.array([[-3.0, 1.0], [2.0, 0.0], [0.0, 5.0]])
+    end = np.array([[3.0, 1.0], [4.0, 0.0], [0.0, 5.0]])  # crossing above, pointing away, zero length
+    got = segment_clearance(start, end, np.array([[0.0, 0.0], [10.0, 0.0]]))
+    np.testing.assert_allclose(got, [1.0, 2.0, 5.0])
+    assert segment_clearance(start, end, np.zeros((0, 2))).tolist() == [np.inf] * 3
+
+
+def fly_back(rule: str, ticks: int = 1700):
+    """Section V-A, but after t = 12 s the formation turns round (-x at 1 m/s) into the failed lead."""
+    plugin, world, sim = build(six_vehicle_positions(), seed=1, saddle_noise="gated", hand_back_rule=rule)
+    events, flags, closest = {100: [hover(100, 0)]}, [], math.inf
+    for k in range(ticks):
+        for ev in events.get(k, []):
+            ev.apply(world)
+            plugin.swarmscene_event(sim=sim, event=ev)
+        sp = formation(world, (1.0, 0.0) if k < 1200 else (-1.0, 0.0))
+        out = plugin.adjust(world, None, sp)
+        flags.append(plugin.active)
+        live = world.healthy
+        world.pos[live], world.vel[live] = out.pos[live], out.vel[live]
+        world.t += DT
+        plugin.swarmscene_step_end(sim=sim)
+        closest = min(closest, float(np.linalg.norm(world.pos[1:, :2] - world.pos[0, :2], axis=1).min()))
+    metrics: dict = {}
+    plugin.swarmscene_run_end(sim=sim, metrics=metrics)
+    return metrics, flags, closest
+
+
+def test_clear_path_reactivates_cem_when_a_setpoint_heads_back_into_a_failed_vehicle():
+    m, flags, closest = fly_back("clear_path")
+    off = flags.index(False, 101)  # handed back: every setpoint 1 cm ahead of its agent, clear of a_p
+    assert not all(flags[off:]) and any(flags[off:])  # and activated again once the paths turned back
+    assert m["cem.activations"] == 2
+    assert closest >= A_P - 1e-6 and m["cem.clearance_holds"] and m["cem.min_actual_clearance"] >= DELTA_BOUND - 1e-6
+    old, _, old_closest = fly_back("passed")
+    assert old["cem.activations"] == 1 and old_closest < A_P - DELTA_BOUND  # the old rule flies into it
+    assert not old["cem.clearance_holds"] and old["cem.violations.clearance.agents"][-1] == 0
