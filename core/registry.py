@@ -11,7 +11,8 @@ from __future__ import annotations
 import importlib
 import os
 import warnings
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from functools import lru_cache
 from importlib.metadata import entry_points
 from typing import Any
 
@@ -131,13 +132,21 @@ def _call_registration(hook: Any, registry: Registry, kind: str | None, trusted:
             )
 
 
+@lru_cache(maxsize=4)
+def _installed(lister: Callable[..., Any]) -> tuple[Any, ...]:
+    """The ``swarmscene`` entry points, listed once per process (a scan of every installed
+    distribution's metadata costs a few ms, paid by every plugin manager: every job of a sweep).
+    Keyed by the lister, so a test that replaces ``entry_points`` gets its own list."""
+    return tuple(lister(group=ENTRY_POINT_GROUP))
+
+
 def _load_entry_points(pm: pluggy.PluginManager) -> dict[str, tuple[str, str]]:
     """Register every ``swarmscene`` entry point not blocked by :data:`DISABLE_ENV`; return the
     distribution and version behind each registered plugin name."""
     blocked = {b.strip() for b in os.environ.get(DISABLE_ENV, "").split(",") if b.strip()}
     provided: dict[str, tuple[str, str]] = {}
     seen: set[str] = set()
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
+    for ep in _installed(entry_points):
         dist = ep.dist.name if ep.dist is not None else "unknown"
         # Named by distribution, so two packages using the same entry-point name cannot shadow.
         plugin_name = f"{dist}:{ep.name}"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from bisect import bisect_right
+
 import numpy as np
 
 
@@ -15,16 +17,21 @@ class WaypointPath:
         self.cumulative = np.concatenate([[0.0], np.cumsum(self.lengths)])
         self.directions = legs / np.maximum(self.lengths, 1e-12)[:, None]
         self.speed = speed
+        # Called every tick: the leg search runs on Python floats (bisect), which costs less than
+        # numpy's searchsorted on a few values and finds the same leg from the same doubles.
+        self._starts = self.cumulative.tolist()
+        self._length = self._starts[-1]
+        self._legs = len(self.lengths)
 
     @property
     def length(self) -> float:
-        return float(self.cumulative[-1])
+        return self._length
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """Reference position (3,), velocity (3,), current leg and whether the end is reached."""
-        s = min(self.speed * t, self.length)
-        if len(self.lengths) == 0 or s >= self.length:
-            return self.points[-1].copy(), np.zeros(3), max(len(self.lengths) - 1, 0), True
-        leg = int(np.searchsorted(self.cumulative, s, side="right") - 1)
-        pos = self.points[leg] + self.directions[leg] * (s - self.cumulative[leg])
+        s = min(self.speed * t, self._length)
+        if self._legs == 0 or s >= self._length:
+            return self.points[-1].copy(), np.zeros(3), max(self._legs - 1, 0), True
+        leg = bisect_right(self._starts, s) - 1
+        pos = self.points[leg] + self.directions[leg] * (s - self._starts[leg])
         return pos, self.directions[leg] * self.speed, leg, False
