@@ -35,6 +35,7 @@ from pydantic import Field, TypeAdapter, field_validator, model_serializer, mode
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
 from .fields import MAX_DURATION, Point3, StrictModel, key_error
 from .state import WorldState
+from .vectors import rows_of
 
 _EVENT_TIME = number_adapter(0.0, MAX_DURATION)
 _AGENT_LIST = TypeAdapter(Annotated[list[int], Field(min_length=1)])
@@ -233,14 +234,6 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
                  velocity=config.velocity, rotor=config.rotor, fraction=fraction)
 
 
-def _rows(index: np.ndarray) -> np.ndarray | slice:
-    """``index`` (sorted agent indices) as a slice when it is a run of consecutive agents (one
-    failed vehicle, say): writing rows through a slice costs a third of a fancy index."""
-    if index.size and index[-1] - index[0] == index.size - 1:
-        return slice(int(index[0]), int(index[-1]) + 1)
-    return index
-
-
 class EventQueue:
     """Events sorted by time; the kernel applies them (:meth:`apply_due`) in the events phase of
     a tick and moves the vehicles their faults dictate (:meth:`hold`) after the dynamics.
@@ -326,7 +319,7 @@ class EventQueue:
         self._anchor_t[idx] = world.t
         self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply
         # hold() runs every tick and the motions change only here: its agents, listed once.
-        self._held = _rows(np.flatnonzero(self._motion == int(Motion.HOLD)))
+        self._held = rows_of(np.flatnonzero(self._motion == int(Motion.HOLD)))
         self._held_at = self._anchor[self._held]
         self._coasting = np.flatnonzero(self._motion == int(Motion.COAST))
 

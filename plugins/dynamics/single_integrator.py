@@ -50,7 +50,9 @@ class SingleIntegrator(Dynamics):
         correction = p.gain * (sp.pos - world.pos)
         u = sp.vel + correction
         if np.count_nonzero(sp.mode & 1):  # VELOCITY (1) or HOLD (3) somewhere: else u as it is
-            u = np.where((sp.mode == _VELOCITY)[:, None], sp.vel, u)
+            velocity = sp.mode == _VELOCITY
+            if np.count_nonzero(velocity):
+                u = np.where(velocity[:, None], sp.vel, u)
             u = np.where((sp.mode == _HOLD)[:, None], correction, u)
         self.u = clip_norm(u, p.u_max)
 

@@ -22,6 +22,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import rows_of
 from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
@@ -107,13 +108,12 @@ class StaticShape(Formation):
         n = world.n
         # TRACK the slot (reference + offset) at the reference's velocity; an agent without a
         # slot holds where it is (HOLD, zero feed-forward). Built directly: a few calls a tick.
-        if placed.every:
-            pos = center + placed.offset
-            vel = np.empty((n, 3))
-            vel[:] = velocity
-        else:
-            pos = np.where(placed.slotted, center + placed.offset, world.pos)
-            vel = np.where(placed.slotted, velocity, 0.0)
+        pos = center + placed.offset
+        vel = np.empty((n, 3))
+        vel[:] = velocity
+        if not placed.every:
+            pos[placed.unslotted] = world.pos[placed.unslotted]
+            vel[placed.unslotted] = 0.0
         yaw = np.empty(n)
         yaw.fill(self.heading)
         sp = Setpoints(placed.mode.copy(), pos, vel, np.zeros((n, 3)), yaw)
@@ -137,8 +137,8 @@ class _Placement:
     heading: float
     offset: np.ndarray
     """(N, 3) m; rows of agents without a slot are unused"""
-    slotted: np.ndarray
-    """(N, 1) bool"""
+    unslotted: np.ndarray | slice
+    """the agents without a slot (a slice when consecutive: core.vectors.rows_of)"""
     every: bool
     mode: np.ndarray
     """(N,) int8: TRACK with a slot, HOLD without"""
@@ -147,7 +147,8 @@ class _Placement:
     def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> "_Placement":
         slotted = slot_of >= 0
         mode = np.where(slotted, _TRACK, _HOLD).astype(np.int8)
-        return cls(heading, turned[np.maximum(slot_of, 0)], slotted[:, None], bool(slotted.all()), mode)
+        return cls(heading, turned[np.maximum(slot_of, 0)], rows_of(np.flatnonzero(~slotted)),
+                   bool(slotted.all()), mode)
 
 
 @hookimpl

@@ -251,6 +251,8 @@ def test_static_shape_setpoints_are_the_old_ones_before_and_after_a_failure(data
         world.t = tick * 0.1
         if tick == 140:
             world.healthy[3] = False
+        if tick == 210:  # two agents out of their slots, not consecutive
+            world.healthy[1] = False
         sp = formation.setpoints(world, sim.sensing)
         same_setpoints(sp, old.static_shape_setpoints(formation, world))
         assert formation._last_slots is sp.pos
