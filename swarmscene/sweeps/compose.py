@@ -57,17 +57,38 @@ class GroupCachingLoader(ConfigLoader):
     module global of each process).
     """
 
-    def __init__(self, inner: ConfigLoader, command: Sequence[str] | None = None) -> None:
+    def __init__(self, inner: ConfigLoader | None, command: Sequence[str] | None = None,
+                 search_path: Any = None) -> None:
         """``command``: the sweep's command as typed; given, each job's config is set up as a sweep
-        job's (:func:`_as_sweep_job`), else it is exactly Hydra's composition."""
-        self.inner = inner
+        job's (:func:`_as_sweep_job`), else it is exactly Hydra's composition. ``inner`` None: Hydra's
+        loader for ``search_path``, made on first use (an unpickled copy: Hydra's config sources are
+        registered in a worker only once the launcher has restored Hydra's state)."""
+        self._inner = inner
+        self._search_path_given = search_path
         self.command = None if command is None else list(command)
         self._groups: dict[str, bool] = {}
         self._where: tuple[tuple[str, str], ...] | None = None
 
+    @property
+    def inner(self) -> ConfigLoader:
+        if self._inner is None:
+            self._inner = _loader_for(self._search_path_given)
+        return self._inner
+
+    def __reduce__(self) -> Any:
+        """Pickled as its search path and command (~2 KB instead of Hydra's loader with its
+        repository, ~30 KB): a launcher pickles the loader with every job it sends, in the main
+        process, one job after another. The worker rebuilds Hydra's loader once per process."""
+        from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+        if self._inner is not None and type(self._inner) is not ConfigLoaderImpl:
+            return (GroupCachingLoader, (self._inner, self.command))
+        search_path = self._search_path_given if self._inner is None else self._inner.get_search_path()
+        return (GroupCachingLoader, (None, self.command, search_path))
+
     def __getattr__(self, name: str) -> Any:
         # Attributes of Hydra's implementation that callers reach past the interface (``repository``).
-        if name == "inner":
+        if name.startswith("_") or name in ("inner", "command"):
             raise AttributeError(name)
         return getattr(self.inner, name)
 
@@ -138,6 +159,20 @@ class GroupCachingLoader(ConfigLoader):
 
     def compute_defaults_list(self, *args: Any, **kwargs: Any) -> Any:
         return self.inner.compute_defaults_list(*args, **kwargs)
+
+
+_LOADERS: dict[tuple[tuple[str, str], ...], Any] = {}
+
+
+def _loader_for(search_path: Any) -> Any:
+    """Hydra's loader for this search path, made once per process (it holds only the search path
+    and a repository built from it)."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    key = tuple((str(p.provider), str(p.path)) for p in search_path.get_path())
+    if key not in _LOADERS:
+        _LOADERS[key] = ConfigLoaderImpl(config_search_path=search_path)
+    return _LOADERS[key]
 
 
 def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
