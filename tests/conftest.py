@@ -15,6 +15,31 @@ from swarmscene.searchpath import register_search_path
 
 register_search_path()
 
+END_TO_END = (
+    "test_sweep_launchers.py", "test_sweeps.py", "test_sweep_safety.py", "test_faults.py", "test_mlflow.py",
+    "test_tutorial.py", "test_third_party_plugin.py", "test_reproduction.py", "test_composition.py",
+    "test_inputs_property.py", "test_cli.py", "test_api.py", "test_falsify.py", "test_export.py",
+    "test_replay.py", "test_plots.py", "test_report.py", "test_compile.py", "test_packaging.py",
+)
+"""Test modules that run whole commands, sweeps, clusters or installs: left out by ``--quick``."""
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--quick", action="store_true",
+        help="the quick tier: unit and contract tests, without the end-to-end modules (conftest.END_TO_END)",
+    )
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if not config.getoption("--quick"):
+        return
+    kept = [item for item in items if item.path.name not in END_TO_END]
+    deselected = [item for item in items if item.path.name in END_TO_END]
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+        items[:] = kept
+
 
 @pytest.fixture(scope="session")
 def default_data() -> dict:
