@@ -119,6 +119,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import min_pair_distance
 
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius, segment_clearance
 
@@ -141,20 +142,16 @@ def _first(m: dict[str, Any], condition: str) -> str:
 
 
 def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty."""
+    """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty.
+
+    Squares summed x then y, as ``np.linalg.norm`` and a k-d tree sum them (the same distance to the
+    bit), in a few small array operations: this runs every tick after a hand-back.
+    """
     if a.shape[0] == 0 or b.shape[0] == 0:
         return math.inf
-    return float(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1).min())
-
-
-def _min_pair(xy: np.ndarray) -> float:
-    """Minimum distance between rows of ``xy`` (M, 2); inf for fewer than two."""
-    if xy.shape[0] < 2:
-        return math.inf
-    from scipy.spatial import cKDTree
-
-    d, _ = cKDTree(xy).query(xy, k=2)
-    return float(d[:, 1].min())
+    dx = a[:, 0, None] - b[None, :, 0]
+    dy = a[:, 1, None] - b[None, :, 1]
+    return math.sqrt(float((dx * dx + dy * dy).min()))
 
 
 class CEM(Avoidance):
@@ -339,12 +336,14 @@ class CEM(Avoidance):
         the agent's own position (HOLD), or for VELOCITY the point it reaches flying the commanded
         velocity for handback_distance / v_des seconds (the time CEM takes to clear a failure)."""
         mode = sp.mode[agents]
-        target = sp.pos[agents, :2].copy()
+        target = sp.pos[agents, :2]  # a copy (fancy indexing)
         hold = mode == _HOLD
-        target[hold] = world.pos[agents[hold], :2]
+        if hold.any():  # this runs every tick after a hand-back: skip the empty cases
+            target[hold] = world.pos[agents[hold], :2]
         vel = mode == _VELOCITY
-        lookahead = self.handback_distance / self.params.v_des
-        target[vel] = world.pos[agents[vel], :2] + lookahead * sp.vel[agents[vel], :2]
+        if vel.any():
+            lookahead = self.handback_distance / self.params.v_des
+            target[vel] = world.pos[agents[vel], :2] + lookahead * sp.vel[agents[vel], :2]
         return target
 
     def formation_clear(self, world: WorldState, sp: Setpoints) -> bool:
@@ -414,9 +413,10 @@ class CEM(Avoidance):
         if self.failed:
             self._clearance = min(self._clearance, float(out[k.M_CLEAR]) - self.a_f - self.params.eps)
         pair, pair_cmd = float(out[k.M_PAIR]), float(out[k.M_PAIR_CMD])
-        if live_n > k.DENSE_PAIRS_MAX:  # a large swarm: the k-d tree beats the O(N^2) loop
+        if live_n > k.DENSE_PAIRS_MAX:  # a large swarm: the engine's cell list beats the O(N^2) loop
             live = world.healthy[self.healthy_idx]
-            pair, pair_cmd = _min_pair(world.pos[self.healthy_idx[live], :2]), _min_pair(nav.positions[live])
+            pair = min_pair_distance(world.pos[self.healthy_idx[live], :2])
+            pair_cmd = min_pair_distance(nav.positions[live])
         self._pair = min(self._pair, pair)
         self._pair_cmd = min(self._pair_cmd, pair_cmd)
         self._speed = max(self._speed, float(out[k.M_SPEED]))
@@ -433,24 +433,26 @@ class CEM(Avoidance):
             return
         xy = world.pos[agents, :2]
         self._clearance = min(self._clearance, _min_distance(xy, self._failed_xy) - self.a_f - self.params.eps)
-        self._pair = min(self._pair, _min_pair(xy))
+        self._pair = min(self._pair, min_pair_distance(xy))
         placed = agents[(sp.mode[agents] == _TRACK) | (sp.mode[agents] == int(Mode.POSITION))]
         if placed.size:
             cmd = sp.pos[placed, :2]
             self._margin = min(self._margin, _min_distance(cmd, self._failed_xy) - self.a_p)
-            self._pair_cmd = min(self._pair_cmd, _min_pair(cmd))
+            self._pair_cmd = min(self._pair_cmd, min_pair_distance(cmd))
 
     def _note_violations(self, world: WorldState) -> None:
-        """The first tick of each violated condition, with its agents (the running minima tell when)."""
+        """The first tick of each violated condition, with its agents (the running minima tell when;
+        the agents are looked up only on that tick: this runs every tick)."""
         bound = 2.0 * (self.params.delta + self.params.eps)
-        healthy = np.flatnonzero(world.healthy)
-        if "separation" not in self._first and self._pair < bound:
+        if self._pair < bound and "separation" not in self._first:
+            healthy = np.flatnonzero(world.healthy)
             xy = world.pos[healthy, :2]
             d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
             np.fill_diagonal(d, np.inf)
             i, j = np.nonzero(np.triu(d < bound))
             self._first["separation"] = (float(world.t), sorted({*healthy[i].tolist(), *healthy[j].tolist()}))
-        if "clearance" not in self._first and self._clearance < 0.0:
+        if self._clearance < 0.0 and "clearance" not in self._first:
+            healthy = np.flatnonzero(world.healthy)
             d = np.linalg.norm(world.pos[healthy, None, :2] - self._failed_xy[None], axis=-1)
             near = d < self.a_f + self.params.eps
             failed = np.array(list(self.failed))
