@@ -133,14 +133,6 @@ HANDBACK_RULES = ("clear_path", "passed")
 """``hand_back_rule`` (module docstring): the default first."""
 
 
-def _first(m: dict[str, Any], condition: str) -> str:
-    """'; first at T s (agents ...)' for a violated ``cem.violations.<condition>``, else ''."""
-    t = m.get(f"cem.violations.{condition}.first_time")
-    if t is None:
-        return ""
-    return f"; first at {t:.2f} s (agents {', '.join(str(a) for a in m[f'cem.violations.{condition}.agents'])})"
-
-
 def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
     """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty.
 
@@ -481,6 +473,7 @@ class CEM(Avoidance):
         t1, t2 = self.theorem1, self.theorem2
         bound = 2.0 * (self.params.delta + self.params.eps)
         last1, last2 = (t1[-1] if t1 else None), (t2[-1] if t2 else None)
+        met1, met2 = bool(t1) and all(c.holds for c in t1), bool(t2) and all(c.holds for c in t2)
         return {
             "cem.a_f": float(self.a_f),
             "cem.a_p": float(self.a_p),
@@ -488,10 +481,10 @@ class CEM(Avoidance):
             "cem.handback_time": self.handback_time,
             "cem.handback_blocked_time": self.handback_blocked_time,
             "cem.start_inside_exclusion": self.start_inside,
-            "cem.theorem1_precondition_met": bool(t1) and all(c.holds for c in t1),
-            "cem.theorem2_precondition_met": bool(t2) and all(c.holds for c in t2),
-            "cem.theorem1_holds": bool(t1) and all(c.holds for c in t1),  # old name, until the next release
-            "cem.theorem2_holds": bool(t2) and all(c.holds for c in t2),  # old name, until the next release
+            "cem.theorem1_precondition_met": met1,
+            "cem.theorem2_precondition_met": met2,
+            "cem.theorem1_holds": met1,  # old name (RENAMED_METRICS), until the next release
+            "cem.theorem2_holds": met2,
             "cem.theorem2_applicable": bool(t2) and all(c.applicable for c in t2),
             "cem.theorem1_p_min0": num(last1.p_min0) if last1 else None,
             "cem.theorem1_lambda_max": num(last1.lambda_max) if last1 else None,
@@ -522,29 +515,37 @@ class CEM(Avoidance):
 
     @staticmethod
     def describe_verdict(key: str, m: dict[str, Any]) -> str | None:
-        """The limit and scope of a ``cem.*`` verdict for the run summary (swarmscene/summary.py)."""
+        """The limit and scope of a ``cem.*`` verdict for the run summary (swarmscene/summary.py, which
+        appends the first violation); ``"n/a: ..."`` where the run gives the check nothing to check."""
         def f(x: Any) -> str:
             return "n/a" if x is None else f"{x:.3g}"
 
+        if key.startswith("cem.") and not m.get("cem.activations"):
+            return "n/a: CEM never activated (no vehicle failed)"
         if key == "cem.separation_holds":
+            if m["cem.min_pair_distance"] is None:
+                return "n/a: fewer than two healthy agents, no pair to measure"
             text = (f"healthy pairs min {f(m['cem.min_pair_distance'])} m vs 2 (delta + eps) = "
-                    f"{f(m['cem.pair_bound'])} m, x-y, from the first activation to the end of the run"
-                    + _first(m, "separation"))
-            claimed = m["cem.theorem1_precondition_met"] or m["cem.theorem2_precondition_met"]
-            if m["cem.separation_holds"] or claimed:
-                return text
-            # the theorems' conclusion, not claimed when neither precondition held: the scenario's own
-            # limit (the separation line) is the run's safety verdict
-            return f"n/a: {text}; not guaranteed here (no theorem's precondition met)"
+                    f"{f(m['cem.pair_bound'])} m, x-y, from the first activation to the end of the run")
+            if m["cem.theorem1_precondition_met"] or m["cem.theorem2_precondition_met"]:
+                return text + " (the theorems' conclusion)"
+            # measured all the same (FAIL when it was not kept), but no theorem promised it in this run
+            return text + ("; the theorems' bound, not claimed here (no theorem's precondition met); the "
+                           "separation line above is the scenario's own limit")
         if key == "cem.clearance_holds":
             gap = m["cem.min_actual_clearance"]
-            return (f"healthy to failed vehicles min {f(None if gap is None else gap + m['cem.clearance_bound'])} m "
+            if gap is None:
+                return "n/a: no healthy agent measured against a failed vehicle"
+            return (f"healthy to failed vehicles min {f(gap + m['cem.clearance_bound'])} m "
                     f"vs a_f + eps = {f(m['cem.clearance_bound'])} m, x-y, from the first activation to the end "
-                    "of the run" + _first(m, "clearance"))
+                    "of the run")
         if key == "mission" and m.get("cem.handback_time") is None and m.get("cem.handback_blocked_time") is not None:
             return (f"CEM kept control from {f(m['cem.handback_blocked_time'])} s: a formation setpoint, or the "
-                    "path to it, lay within a_p of a failed vehicle (hand_back_rule=clear_path)")
+                    "path to it, lay within a_p of a failed vehicle (hand_back_rule=clear_path: the agents "
+                    "stay safe but do not return to the formation)")
         if key == "cem.theorem1_precondition_met":
+            if m["cem.theorem1_lhs"] is None:
+                return "n/a: Theorem 1 (eq. 7-8) bounds pairs of healthy agents: fewer than two"
             return (f"Theorem 1 (eq. 7-8), p_min0^2 / lambda_max {f(m['cem.theorem1_lhs'])} vs 4 (delta + eps)^2 = "
                     f"{f(m['cem.theorem1_rhs'])} m^2 at every activation"
                     + ("" if m["cem.theorem1_precondition_met"] else
@@ -552,6 +553,8 @@ class CEM(Avoidance):
         if key == "cem.theorem2_precondition_met":
             if not m.get("cem.theorem2_applicable"):
                 return "n/a: Theorem 2 covers one failed vehicle at every activation"
+            if m["cem.theorem2_d_min0"] is None:
+                return "n/a: Theorem 2 (eq. 16) bounds pairs of healthy agents: fewer than two"
             return (f"Theorem 2 (eq. 16), d_min0 {f(m['cem.theorem2_d_min0'])} m vs 2 (delta + eps) + a_p = "
                     f"{f(m['cem.theorem2_bound'])} m at every activation"
                     + ("" if m["cem.theorem2_precondition_met"] else
