@@ -49,8 +49,9 @@ Choices (the paper leaves these open):
   the moment a formation setpoint or its path comes within a_p of a failed vehicle. Measured:
   ``scenario=cem_six_vehicle events.0.at=21.34234639497493`` hands back at 32.14 s under the
   along-track rule alone, with the formation's slots upstream of the hovering lead, and agent 4 flies
-  through it (1.4 mm at 32.75 s; 0.76 mm with newton_stop=converged); under ``"clear_path"`` CEM keeps
-  control and no agent comes within a_f + eps (closest 1.35 m). The falsifier's failure-time search
+  through it (1.45 mm at 32.98 s, under 2 eps = 0.56 m from 32.75 s; 0.76 mm at 32.99 s with
+  newton_stop=converged); under ``"clear_path"`` CEM keeps control and no agent comes within
+  a_f + eps (closest 1.35 m). The falsifier's failure-time search
   (``+sweep=falsify_failure scenario=cem_six_vehicle``, 100 TPE trials over time and agent) finds
   0.35 mm under ``"passed"`` (the lead failing at 19.94 s) and nothing closer than 1.35 m under
   ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s).

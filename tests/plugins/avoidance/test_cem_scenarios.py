@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from swarmscene import api
@@ -135,6 +136,11 @@ def test_late_lead_failure_keeps_cem_while_the_slots_lie_behind_the_failed_lead(
 def test_passed_rule_hands_back_into_the_failed_lead_and_the_whole_run_keys_say_so():
     _, result = simulate(["scenario=cem_six_vehicle", f"events.0.at={LATE_FAILURE}", "avoidance.hand_back_rule=passed"])
     m = result.metrics
+    traj = result.recorder.arrays()
+    gap = np.linalg.norm(traj["pos"][:, 4] - traj["pos"][:, 0], axis=-1)  # agent 4 to the hovering lead
+    # the module docstring's numbers: 1.45 mm at 32.98 s, under 2 eps = 0.56 m from 32.75 s
+    assert gap.min() == pytest.approx(1.447e-3, abs=1e-6) and traj["t"][gap.argmin()] == pytest.approx(32.98)
+    assert traj["t"][np.argmax(gap < 0.56)] == pytest.approx(32.75)
     assert m["cem.handback_time"] == pytest.approx(32.14)
     assert m["collisions"] == 1 and m["min_separation"] < 2e-3  # agent 4 through the hovering lead (1.4 mm)
     assert not m["cem.clearance_holds"] and m["cem.min_actual_clearance"] < -A_F_EPS + 2e-3
