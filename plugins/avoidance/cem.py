@@ -54,7 +54,13 @@ Choices (the paper leaves these open):
   a_f + eps (closest 1.35 m). The falsifier's failure-time search
   (``+sweep=falsify_failure scenario=cem_six_vehicle``, 100 TPE trials over time and agent) finds
   0.35 mm under ``"passed"`` (the lead failing at 19.94 s) and nothing closer than 1.35 m under
-  ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s).
+  ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s). The cost, stated plainly:
+  where a slot is clear of the failed vehicle but the straight path back to it crosses a_p, CEM
+  never hands back and the mission never completes. In ``cem_six_vehicle`` every failure of the
+  lead from 19.0 to 22.3 s ends so: ``success False`` at 40 s, the healthy agents at x = 35-37 m
+  (CEM flies them on downstream), the hovering lead at 22-25 m beside its formation's slots; the
+  summary's ``mission`` line says why. No option routes the agents back around the failed vehicle
+  yet (``"passed"`` completes those missions by flying through it).
   ``"passed"`` is that along-track rule alone (the rule shipped before). ``hand_back: false`` keeps
   CEM on for the rest of the run.
 * Safety is measured from the recorded states every tick (``swarmscene_step_end``) from the first
