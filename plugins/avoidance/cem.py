@@ -99,7 +99,10 @@ Metrics added at run end (SI units; distances in m, speeds in m/s):
         cem.clearance_bound = a_f + eps, m).
     cem.min_pair_distance / cem.min_pair_distance_commanded: min healthy pairwise x-y distance of
         actual / commanded positions; cem.pair_bound = 2 (delta + eps);
-        cem.separation_holds: min_pair_distance >= pair_bound (the theorems' conclusion).
+        cem.separation_holds: min_pair_distance >= pair_bound (the theorems' conclusion; measured,
+        so the summary prints FAIL when it was not kept even where no precondition claimed it).
+        With fewer than two healthy agents there is no pair: the min is None, the key True, and the
+        summary prints n/a (as for the theorems' preconditions then).
     cem.violations.separation.first_time / .agents, cem.violations.clearance.first_time / .agents:
         the first tick a healthy pair came closer than pair_bound (the pair), or a healthy agent came
         within a_f + eps of a failed vehicle (the healthy agents, then the failed ones); absent when
