@@ -23,21 +23,28 @@ that is not met means the guarantee is not claimed, never that the run was unsaf
 
 PRECONDITION = "_precondition_met"
 """Plugin keys ending so are printed as preconditions (``met`` / ``not met``), keys ending in
-``_holds`` as conditions (``OK`` / ``FAIL``). A plugin explains a key's limit and scope with
-``describe_verdict(key, metrics) -> str | None`` (a static method); keys it lists in
-``RENAMED_METRICS`` (old -> new, kept in metrics.json for one release) are not printed."""
+``_holds`` as conditions (``OK`` / ``FAIL``: what was measured, never hidden). A plugin explains a
+key's limit and scope with ``describe_verdict(key, metrics) -> str | None`` (a static method); a
+detail starting ``n/a: `` prints the line as n/a (nothing to check in this run). The first
+violation of ``<plugin>.<condition>_holds``, ``<plugin>.violations.<condition>.first_time`` /
+``.agents``, is appended to its line. Keys a plugin lists in ``RENAMED_METRICS`` (old -> new, kept
+in metrics.json for one release) are not printed."""
+
+ENGINE_LIMITS = ("separation", "clearance")
+"""The lines ``success`` counts, with the mission (core.simulation's default success)."""
 
 
 Verdict = tuple[str, str, str]
 """(name, status, detail): status one of OK, FAIL, n/a, met, not met."""
 
 
-def _first(metrics: dict[str, Any], condition: str) -> str:
-    """'; first at T s (agents ...)' for an engine condition violated in this run, else ''."""
-    t = metrics.get(f"violations.{condition}.first_time")
+def _first(metrics: dict[str, Any], prefix: str) -> str:
+    """'; first at T s (agents ...)' for a condition violated in this run, from ``<prefix>.first_time``
+    and ``<prefix>.agents`` (``violations.separation``, ``cem.violations.clearance``), else ''."""
+    t = metrics.get(f"{prefix}.first_time")
     if t is None:
         return ""
-    agents = metrics.get(f"violations.{condition}.agents") or []
+    agents = metrics.get(f"{prefix}.agents") or []
     shown = ", ".join(str(a) for a in agents[:8]) + (f", ... ({len(agents)} in all)" if len(agents) > 8 else "")
     return f"; first at {t:.2f} s (agents {shown})"
 
@@ -59,7 +66,7 @@ def engine_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
     collisions = metrics.get("collisions", 0)
     detail = (f"min {_fmt(metrics.get('min_separation'), ' m')} vs {safety.separation_limit} m, all pairs "
               f"(failed vehicles included), sampled once per guidance tick; {collisions} pair(s) under the limit")
-    detail += _first(metrics, "separation")
+    detail += _first(metrics, "violations.separation")
     for name in _does_not_avoid(sim):
         detail += f"; {name} does not avoid collisions by design"
     out = [("separation", OK if collisions == 0 else FAIL, detail)]
@@ -69,10 +76,10 @@ def engine_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
         out.append(("clearance", OK if metrics.get("clearance_violations", 0) == 0 else FAIL,
                     f"min {_fmt(metrics.get('min_clearance'), ' m')} vs {safety.clearance_limit} m, every agent to "
                     f"every obstacle, once per guidance tick; {metrics.get('clearance_violations', 0)} agent(s) "
-                    "under the limit" + _first(metrics, "clearance")))
+                    "under the limit" + _first(metrics, "violations.clearance")))
     out.append(("connectivity", OK if metrics.get("connected") else FAIL,
                 f"communication graph connected, by range {sim.config.comm.range} m (line of sight not "
-                "considered), every tick" + _first(metrics, "connectivity")))
+                "considered), every tick" + _first(metrics, "violations.connectivity")))
     return out
 
 
@@ -117,8 +124,11 @@ def plugin_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
         else:
             continue
         detail = _describe(sim, key, metrics)
-        if detail.startswith("n/a: "):  # the plugin says the check does not apply to this run
+        if detail.startswith("n/a: "):  # the plugin says there is nothing to check in this run
             status, detail = NA, detail[len("n/a: "):]
+        elif key.endswith("_holds"):
+            plugin, condition = key[: -len("_holds")].rsplit(".", 1)
+            detail += _first(metrics, f"{plugin}.violations.{condition}")
         out.append((key, status, detail))
     return out
 
@@ -130,14 +140,19 @@ def verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
 
 
 def success_reason(metrics: dict[str, Any], lines: list[Verdict]) -> str:
-    """Why ``success`` is what it is, from the lines that decide it."""
+    """What ``success`` measured (no engine limit violated, the mission complete) and why it is what
+    it is; FAIL lines that ``success`` does not count (connectivity, a plugin's ``*_holds``) are named
+    beside it, so that ``success True`` never reads as "every check passed"."""
     if metrics.get("success"):
         mission = next(status for name, status, _ in lines if name == "mission")
-        return "safe, mission complete" if mission == OK else "safe; no mission to complete"
-    failed = [name for name, status, _ in lines if status == FAIL and name in ("separation", "clearance", "mission")]
-    if metrics.get("stop_reason") in ("interrupted", "non_finite"):
-        failed.append(f"stopped by {metrics['stop_reason']}")
-    return "failed: " + ", ".join(failed) if failed else "failed (see the plugin's metrics)"
+        reason = "no engine limit violated, " + ("mission complete" if mission == OK else "no mission to complete")
+    else:
+        failed = [name for name, status, _ in lines if status == FAIL and name in (*ENGINE_LIMITS, "mission")]
+        if metrics.get("stop_reason") in ("interrupted", "non_finite"):
+            failed.append(f"stopped by {metrics['stop_reason']}")
+        reason = "failed: " + ", ".join(failed) if failed else "failed (see the plugin's metrics)"
+    uncounted = [name for name, status, _ in lines if status == FAIL and name not in (*ENGINE_LIMITS, "mission")]
+    return reason + ("; not counted by success: FAIL " + ", ".join(uncounted) if uncounted else "")
 
 
 def summary_text(sim: Any, result: Any, run_dir: Path | None) -> str:

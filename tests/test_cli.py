@@ -24,7 +24,7 @@ def test_default_scenario_writes_run_directory(tmp_path):
     assert proc.returncode == 0, proc.stderr
     out = proc.stdout
     for needle in ("simulated", "agents", "min separation", "min clearance", "real-time factor", "outputs:",
-                   "success True (safe, mission complete)", "\n  OK      separation: min ", "\n  OK      mission: complete at "):
+                   "success True (no engine limit violated, mission complete)\n", "\n  OK      separation: min ", "\n  OK      mission: complete at "):
         assert needle in out
     run = tmp_path / "run"
     assert {p.name for p in run.iterdir()} >= {"config.yaml", "metrics.json", "trajectory.npz", "manifest.json"}

@@ -404,8 +404,9 @@ def measure_tick(cw, iw, w0_imag, consts, healthy, pos, vel, failed, drift, out)
     flow.complex_potential computes it); out[M_MARGIN] = min_j (min_f ||r_d,j - z_f|| - a_p);
     over live agents (healthy now): out[M_CLEAR] = min ||r - z_f|| (world x-y, ``failed`` (F, 2)),
     out[M_PAIR] / out[M_PAIR_CMD] = min pair distance of actual / commanded x-y (NaN above
-    DENSE_PAIRS_MAX: the caller uses a k-d tree), out[M_SPEED] = max ||v_d|| over all agents under
-    CEM, out[M_SPEED_ACT] = max ||v||, out[M_TRACK_ERR] = max ||r - r_d|| (-inf with no live agent).
+    DENSE_PAIRS_MAX: the caller uses core.vectors.min_pair_distance, a compiled cell list),
+    out[M_SPEED] = max ||v_d|| over all agents under CEM, out[M_SPEED_ACT] = max ||v||,
+    out[M_TRACK_ERR] = max ||r - r_d|| (-inf with no live agent).
     Reductions propagate NaN as NumPy's do. consts = [Re zbar_F, Im zbar_F, a_p].
     """
     m, nf = iw[I_M], iw[I_F]

@@ -49,11 +49,18 @@ Choices (the paper leaves these open):
   the moment a formation setpoint or its path comes within a_p of a failed vehicle. Measured:
   ``scenario=cem_six_vehicle events.0.at=21.34234639497493`` hands back at 32.14 s under the
   along-track rule alone, with the formation's slots upstream of the hovering lead, and agent 4 flies
-  through it (1.4 mm at 32.75 s; 0.76 mm with newton_stop=converged); under ``"clear_path"`` CEM keeps
-  control and no agent comes within a_f + eps (closest 1.35 m). The falsifier's failure-time search
+  through it (1.45 mm at 32.98 s, under 2 eps = 0.56 m from 32.75 s; 0.76 mm at 32.99 s with
+  newton_stop=converged); under ``"clear_path"`` CEM keeps control and no agent comes within
+  a_f + eps (closest 1.35 m). The falsifier's failure-time search
   (``+sweep=falsify_failure scenario=cem_six_vehicle``, 100 TPE trials over time and agent) finds
   0.35 mm under ``"passed"`` (the lead failing at 19.94 s) and nothing closer than 1.35 m under
-  ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s).
+  ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s). The cost, stated plainly:
+  where a slot is clear of the failed vehicle but the straight path back to it crosses a_p, CEM
+  never hands back and the mission never completes. In ``cem_six_vehicle`` every failure of the
+  lead from 19.0 to 22.3 s ends so: ``success False`` at 40 s, the healthy agents at x = 35-37 m
+  (CEM flies them on downstream), the hovering lead at 22-25 m beside its formation's slots; the
+  summary's ``mission`` line says why. No option routes the agents back around the failed vehicle
+  yet (``"passed"`` completes those missions by flying through it).
   ``"passed"`` is that along-track rule alone (the rule shipped before). ``hand_back: false`` keeps
   CEM on for the rest of the run.
 * Safety is measured from the recorded states every tick (``swarmscene_step_end``) from the first
@@ -92,7 +99,10 @@ Metrics added at run end (SI units; distances in m, speeds in m/s):
         cem.clearance_bound = a_f + eps, m).
     cem.min_pair_distance / cem.min_pair_distance_commanded: min healthy pairwise x-y distance of
         actual / commanded positions; cem.pair_bound = 2 (delta + eps);
-        cem.separation_holds: min_pair_distance >= pair_bound (the theorems' conclusion).
+        cem.separation_holds: min_pair_distance >= pair_bound (the theorems' conclusion; measured,
+        so the summary prints FAIL when it was not kept even where no precondition claimed it).
+        With fewer than two healthy agents there is no pair: the min is None, the key True, and the
+        summary prints n/a (as for the theorems' preconditions then).
     cem.violations.separation.first_time / .agents, cem.violations.clearance.first_time / .agents:
         the first tick a healthy pair came closer than pair_bound (the pair), or a healthy agent came
         within a_f + eps of a failed vehicle (the healthy agents, then the failed ones); absent when
@@ -119,6 +129,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import min_pair_distance
 
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius, segment_clearance
 
@@ -132,29 +143,17 @@ HANDBACK_RULES = ("clear_path", "passed")
 """``hand_back_rule`` (module docstring): the default first."""
 
 
-def _first(m: dict[str, Any], condition: str) -> str:
-    """'; first at T s (agents ...)' for a violated ``cem.violations.<condition>``, else ''."""
-    t = m.get(f"cem.violations.{condition}.first_time")
-    if t is None:
-        return ""
-    return f"; first at {t:.2f} s (agents {', '.join(str(a) for a in m[f'cem.violations.{condition}.agents'])})"
-
-
 def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty."""
+    """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty.
+
+    Squares summed x then y, as ``np.linalg.norm`` and a k-d tree sum them (the same distance to the
+    bit), in a few small array operations: this runs every tick after a hand-back.
+    """
     if a.shape[0] == 0 or b.shape[0] == 0:
         return math.inf
-    return float(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1).min())
-
-
-def _min_pair(xy: np.ndarray) -> float:
-    """Minimum distance between rows of ``xy`` (M, 2); inf for fewer than two."""
-    if xy.shape[0] < 2:
-        return math.inf
-    from scipy.spatial import cKDTree
-
-    d, _ = cKDTree(xy).query(xy, k=2)
-    return float(d[:, 1].min())
+    dx = a[:, 0, None] - b[None, :, 0]
+    dy = a[:, 1, None] - b[None, :, 1]
+    return math.sqrt(float((dx * dx + dy * dy).min()))
 
 
 class CEM(Avoidance):
@@ -339,12 +338,14 @@ class CEM(Avoidance):
         the agent's own position (HOLD), or for VELOCITY the point it reaches flying the commanded
         velocity for handback_distance / v_des seconds (the time CEM takes to clear a failure)."""
         mode = sp.mode[agents]
-        target = sp.pos[agents, :2].copy()
+        target = sp.pos[agents, :2]  # a copy (fancy indexing)
         hold = mode == _HOLD
-        target[hold] = world.pos[agents[hold], :2]
+        if hold.any():  # this runs every tick after a hand-back: skip the empty cases
+            target[hold] = world.pos[agents[hold], :2]
         vel = mode == _VELOCITY
-        lookahead = self.handback_distance / self.params.v_des
-        target[vel] = world.pos[agents[vel], :2] + lookahead * sp.vel[agents[vel], :2]
+        if vel.any():
+            lookahead = self.handback_distance / self.params.v_des
+            target[vel] = world.pos[agents[vel], :2] + lookahead * sp.vel[agents[vel], :2]
         return target
 
     def formation_clear(self, world: WorldState, sp: Setpoints) -> bool:
@@ -414,9 +415,10 @@ class CEM(Avoidance):
         if self.failed:
             self._clearance = min(self._clearance, float(out[k.M_CLEAR]) - self.a_f - self.params.eps)
         pair, pair_cmd = float(out[k.M_PAIR]), float(out[k.M_PAIR_CMD])
-        if live_n > k.DENSE_PAIRS_MAX:  # a large swarm: the k-d tree beats the O(N^2) loop
+        if live_n > k.DENSE_PAIRS_MAX:  # a large swarm: the engine's cell list beats the O(N^2) loop
             live = world.healthy[self.healthy_idx]
-            pair, pair_cmd = _min_pair(world.pos[self.healthy_idx[live], :2]), _min_pair(nav.positions[live])
+            pair = min_pair_distance(world.pos[self.healthy_idx[live], :2])
+            pair_cmd = min_pair_distance(nav.positions[live])
         self._pair = min(self._pair, pair)
         self._pair_cmd = min(self._pair_cmd, pair_cmd)
         self._speed = max(self._speed, float(out[k.M_SPEED]))
@@ -433,24 +435,26 @@ class CEM(Avoidance):
             return
         xy = world.pos[agents, :2]
         self._clearance = min(self._clearance, _min_distance(xy, self._failed_xy) - self.a_f - self.params.eps)
-        self._pair = min(self._pair, _min_pair(xy))
+        self._pair = min(self._pair, min_pair_distance(xy))
         placed = agents[(sp.mode[agents] == _TRACK) | (sp.mode[agents] == int(Mode.POSITION))]
         if placed.size:
             cmd = sp.pos[placed, :2]
             self._margin = min(self._margin, _min_distance(cmd, self._failed_xy) - self.a_p)
-            self._pair_cmd = min(self._pair_cmd, _min_pair(cmd))
+            self._pair_cmd = min(self._pair_cmd, min_pair_distance(cmd))
 
     def _note_violations(self, world: WorldState) -> None:
-        """The first tick of each violated condition, with its agents (the running minima tell when)."""
+        """The first tick of each violated condition, with its agents (the running minima tell when;
+        the agents are looked up only on that tick: this runs every tick)."""
         bound = 2.0 * (self.params.delta + self.params.eps)
-        healthy = np.flatnonzero(world.healthy)
-        if "separation" not in self._first and self._pair < bound:
+        if self._pair < bound and "separation" not in self._first:
+            healthy = np.flatnonzero(world.healthy)
             xy = world.pos[healthy, :2]
             d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
             np.fill_diagonal(d, np.inf)
             i, j = np.nonzero(np.triu(d < bound))
             self._first["separation"] = (float(world.t), sorted({*healthy[i].tolist(), *healthy[j].tolist()}))
-        if "clearance" not in self._first and self._clearance < 0.0:
+        if self._clearance < 0.0 and "clearance" not in self._first:
+            healthy = np.flatnonzero(world.healthy)
             d = np.linalg.norm(world.pos[healthy, None, :2] - self._failed_xy[None], axis=-1)
             near = d < self.a_f + self.params.eps
             failed = np.array(list(self.failed))
@@ -479,6 +483,7 @@ class CEM(Avoidance):
         t1, t2 = self.theorem1, self.theorem2
         bound = 2.0 * (self.params.delta + self.params.eps)
         last1, last2 = (t1[-1] if t1 else None), (t2[-1] if t2 else None)
+        met1, met2 = bool(t1) and all(c.holds for c in t1), bool(t2) and all(c.holds for c in t2)
         return {
             "cem.a_f": float(self.a_f),
             "cem.a_p": float(self.a_p),
@@ -486,10 +491,10 @@ class CEM(Avoidance):
             "cem.handback_time": self.handback_time,
             "cem.handback_blocked_time": self.handback_blocked_time,
             "cem.start_inside_exclusion": self.start_inside,
-            "cem.theorem1_precondition_met": bool(t1) and all(c.holds for c in t1),
-            "cem.theorem2_precondition_met": bool(t2) and all(c.holds for c in t2),
-            "cem.theorem1_holds": bool(t1) and all(c.holds for c in t1),  # old name, until the next release
-            "cem.theorem2_holds": bool(t2) and all(c.holds for c in t2),  # old name, until the next release
+            "cem.theorem1_precondition_met": met1,
+            "cem.theorem2_precondition_met": met2,
+            "cem.theorem1_holds": met1,  # old name (RENAMED_METRICS), until the next release
+            "cem.theorem2_holds": met2,
             "cem.theorem2_applicable": bool(t2) and all(c.applicable for c in t2),
             "cem.theorem1_p_min0": num(last1.p_min0) if last1 else None,
             "cem.theorem1_lambda_max": num(last1.lambda_max) if last1 else None,
@@ -520,29 +525,37 @@ class CEM(Avoidance):
 
     @staticmethod
     def describe_verdict(key: str, m: dict[str, Any]) -> str | None:
-        """The limit and scope of a ``cem.*`` verdict for the run summary (swarmscene/summary.py)."""
+        """The limit and scope of a ``cem.*`` verdict for the run summary (swarmscene/summary.py, which
+        appends the first violation); ``"n/a: ..."`` where the run gives the check nothing to check."""
         def f(x: Any) -> str:
             return "n/a" if x is None else f"{x:.3g}"
 
+        if key.startswith("cem.") and not m.get("cem.activations"):
+            return "n/a: CEM never activated (no vehicle failed)"
         if key == "cem.separation_holds":
+            if m["cem.min_pair_distance"] is None:
+                return "n/a: fewer than two healthy agents, no pair to measure"
             text = (f"healthy pairs min {f(m['cem.min_pair_distance'])} m vs 2 (delta + eps) = "
-                    f"{f(m['cem.pair_bound'])} m, x-y, from the first activation to the end of the run"
-                    + _first(m, "separation"))
-            claimed = m["cem.theorem1_precondition_met"] or m["cem.theorem2_precondition_met"]
-            if m["cem.separation_holds"] or claimed:
-                return text
-            # the theorems' conclusion, not claimed when neither precondition held: the scenario's own
-            # limit (the separation line) is the run's safety verdict
-            return f"n/a: {text}; not guaranteed here (no theorem's precondition met)"
+                    f"{f(m['cem.pair_bound'])} m, x-y, from the first activation to the end of the run")
+            if m["cem.theorem1_precondition_met"] or m["cem.theorem2_precondition_met"]:
+                return text + " (the theorems' conclusion)"
+            # measured all the same (FAIL when it was not kept), but no theorem promised it in this run
+            return text + ("; the theorems' bound, not claimed here (no theorem's precondition met); the "
+                           "separation line above is the scenario's own limit")
         if key == "cem.clearance_holds":
             gap = m["cem.min_actual_clearance"]
-            return (f"healthy to failed vehicles min {f(None if gap is None else gap + m['cem.clearance_bound'])} m "
+            if gap is None:
+                return "n/a: no healthy agent measured against a failed vehicle"
+            return (f"healthy to failed vehicles min {f(gap + m['cem.clearance_bound'])} m "
                     f"vs a_f + eps = {f(m['cem.clearance_bound'])} m, x-y, from the first activation to the end "
-                    "of the run" + _first(m, "clearance"))
+                    "of the run")
         if key == "mission" and m.get("cem.handback_time") is None and m.get("cem.handback_blocked_time") is not None:
             return (f"CEM kept control from {f(m['cem.handback_blocked_time'])} s: a formation setpoint, or the "
-                    "path to it, lay within a_p of a failed vehicle (hand_back_rule=clear_path)")
+                    "path to it, lay within a_p of a failed vehicle (hand_back_rule=clear_path: the agents "
+                    "stay safe but do not return to the formation)")
         if key == "cem.theorem1_precondition_met":
+            if m["cem.theorem1_lhs"] is None:
+                return "n/a: Theorem 1 (eq. 7-8) bounds pairs of healthy agents: fewer than two"
             return (f"Theorem 1 (eq. 7-8), p_min0^2 / lambda_max {f(m['cem.theorem1_lhs'])} vs 4 (delta + eps)^2 = "
                     f"{f(m['cem.theorem1_rhs'])} m^2 at every activation"
                     + ("" if m["cem.theorem1_precondition_met"] else
@@ -550,6 +563,8 @@ class CEM(Avoidance):
         if key == "cem.theorem2_precondition_met":
             if not m.get("cem.theorem2_applicable"):
                 return "n/a: Theorem 2 covers one failed vehicle at every activation"
+            if m["cem.theorem2_d_min0"] is None:
+                return "n/a: Theorem 2 (eq. 16) bounds pairs of healthy agents: fewer than two"
             return (f"Theorem 2 (eq. 16), d_min0 {f(m['cem.theorem2_d_min0'])} m vs 2 (delta + eps) + a_p = "
                     f"{f(m['cem.theorem2_bound'])} m at every activation"
                     + ("" if m["cem.theorem2_precondition_met"] else

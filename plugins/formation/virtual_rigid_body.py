@@ -222,6 +222,18 @@ class VirtualRigidBody(Formation):
             if nearest.size:
                 self._min_transform_distance = min(self._min_transform_distance, float(nearest.min()))
 
+    @staticmethod
+    def describe_verdict(key: str, m: dict[str, Any]) -> str | None:
+        """The limit and scope of ``vrb.safety_holds`` for the run summary (swarmscene/summary.py)."""
+        if key != "vrb.safety_holds":
+            return None
+        measured = m.get("vrb.min_transformation_distance")
+        if measured is None:
+            return "n/a: no transformation flown, Problem 4's bound has nothing to check"
+        return (f"min {measured:.3g} m vs s_i + s_j = 2 formation.clearance = {m['vrb.safety_distance']:.3g} m (Problem 4), "
+                "nearest pairs in 3-D, every guidance tick during transformations only (formations held "
+                "between them: the separation line)")
+
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
         jumps = switch_jumps(self.trajectory, self.flight)  # (switches, 5)
