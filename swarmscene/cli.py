@@ -60,7 +60,13 @@ def main() -> None:
     """Console entry point."""
     # First of all: from here on SIGINT/SIGTERM are recorded, and acted on at the next point
     # where the run can stop cleanly (core/interrupts.py), never raised inside compiled code.
-    interrupts.install()
+    # The previous handlers come back afterwards (main() called in a process that goes on: tests).
+    interrupts.clear()
+    with interrupts.handle_stop_signals():
+        _main()
+
+
+def _main() -> None:
     import hydra
 
     from .searchpath import plain_command_line, register_search_path
