@@ -121,9 +121,8 @@ def _error_lines(exc: BaseException) -> list[str]:
     if line is not None:
         return [line]
     cause = _cause_of(exc, (OSError,))
-    if isinstance(cause, OSError) and cause.errno is not None:  # a full disk, a read-only directory
-        where = cause.filename if cause.filename is not None else "the run directory"
-        return [f"{where}: cannot be written ({cause.strerror or cause})"]
+    if isinstance(cause, OSError) and cause.errno is not None and cause.filename is not None:
+        return [f"{cause.filename}: cannot be written ({cause.strerror or cause})"]  # a full disk, read-only
     return [f"{type(exc).__name__}: {exc}".splitlines()[0] + f" (set {DEBUG_ENV}=1 for a traceback)"]
 
 
