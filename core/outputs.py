@@ -158,8 +158,10 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
     An array that is a whole ``.npy`` file memory-mapped (a streamed trajectory,
     :mod:`swarmscene.core.recorder`) is copied into the archive file to file, 16 MiB at a time,
-    without mapping its pages; any other array is written by numpy, which also goes in 16 MiB chunks.
-    The archive is what ``numpy.savez`` writes: one ``<name>.npy`` member per array.
+    without mapping its pages, under the header numpy writes; any other array is written by numpy,
+    which also goes in 16 MiB chunks. The archive is what ``numpy.savez`` writes (one
+    ``<name>.npy`` member per array), with every member stamped :data:`ZIP_EPOCH`: the same arrays,
+    streamed or not, give the same bytes.
     """
     import zipfile
 
@@ -173,8 +175,10 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
                     source = _whole_npy_file(array)
                     if source is None:
                         np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
-                    else:
+                    else:  # numpy's own header, then the data: the bytes numpy would write
+                        _write_npy_header(member, array)
                         with open(source, "rb") as src:
+                            src.seek(array.offset)
                             while block := src.read(COPY_CHUNK):
                                 member.write(block)
         os.replace(tmp, path)
@@ -195,6 +199,15 @@ def _member(name: str) -> Any:
     info.compress_type = zipfile.ZIP_STORED
     info.external_attr = 0o600 << 16  # what zipfile (and so numpy.savez) gives a member by name
     return info
+
+
+def _write_npy_header(fh: Any, array: np.ndarray) -> None:
+    """The header ``numpy.lib.format.write_array`` writes for ``array`` (format 1.0, else 2.0)."""
+    header = np.lib.format.header_data_from_array_1_0(array)
+    try:
+        np.lib.format.write_array_header_1_0(fh, header)
+    except ValueError:  # a shape too long for 1.0's 2-byte header length
+        np.lib.format.write_array_header_2_0(fh, header)
 
 
 def _whole_npy_file(array: np.ndarray) -> str | None:

@@ -65,7 +65,13 @@ def main() -> None:
         sys.exit(info.command(sys.argv[1]))
     # First of all: from here on SIGINT/SIGTERM are recorded, and acted on at the next point
     # where the run can stop cleanly (core/interrupts.py), never raised inside compiled code.
-    interrupts.install()
+    # The previous handlers come back afterwards (main() called in a process that goes on: tests).
+    interrupts.clear()
+    with interrupts.handle_stop_signals():
+        _main()
+
+
+def _main() -> None:
     import hydra
 
     from .searchpath import plain_command_line, register_search_path
@@ -120,9 +126,8 @@ def _error_lines(exc: BaseException) -> list[str]:
     if line is not None:
         return [line]
     cause = _cause_of(exc, (OSError,))
-    if isinstance(cause, OSError) and cause.errno is not None:  # a full disk, a read-only directory
-        where = cause.filename if cause.filename is not None else "the run directory"
-        return [f"{where}: cannot be written ({cause.strerror or cause})"]
+    if isinstance(cause, OSError) and cause.errno is not None and cause.filename is not None:
+        return [f"{cause.filename}: cannot be written ({cause.strerror or cause})"]  # a full disk, read-only
     return [f"{type(exc).__name__}: {exc}".splitlines()[0] + f" (set {DEBUG_ENV}=1 for a traceback)"]
 
 

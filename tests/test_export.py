@@ -164,3 +164,70 @@ def test_trajectory_csv_one_file_per_agent(short_show, tmp_path):
     w, x, y, z = run.quat[:, 1].T
     np.testing.assert_allclose(np.cos(table[:, 8]), np.cos(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))),
                                atol=1e-8)
+
+
+# -- what the export refuses ----------------------------------------------------------------------
+def _main(*argv: str, capsys) -> tuple[int, list[str]]:
+    try:
+        export.main(list(argv))
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err.strip().splitlines()
+
+
+@pytest.mark.parametrize("option, value, line", [
+    ("--time-scale", "0", "--time-scale: must be a number > 0 or 'auto' (got '0')"),
+    ("--time-scale", "-2", "--time-scale: must be a number > 0 or 'auto' (got '-2')"),
+    ("--time-scale", "inf", "--time-scale: must be a number > 0 or 'auto' (got 'inf')"),
+    ("--time-scale", "fast", "--time-scale: must be a number > 0 or 'auto' (got 'fast')"),
+    ("--tolerance", "nan", "--tolerance: must be a finite number of metres > 0 (got nan)"),
+    ("--tolerance", "0", "--tolerance: must be a finite number of metres > 0 (got 0.0)"),
+])
+def test_a_bad_option_is_one_line_naming_it_and_writes_nothing(short_show, tmp_path, capsys, option, value, line):
+    code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), option, value, capsys=capsys)
+    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert not (tmp_path / "cf").exists()
+
+
+def _with(run_dir, tmp_path, manifest=None, metrics=None, error=None):
+    import shutil
+
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    if manifest is not None:
+        (copy / "manifest.json").write_text(json.dumps({**json.loads((copy / "manifest.json").read_text()), **manifest}))
+    if metrics is not None:
+        (copy / "metrics.json").write_text(json.dumps({**json.loads((copy / "metrics.json").read_text()), **metrics}))
+    if error is not None:
+        (copy / "error.json").write_text(json.dumps(error))
+    return copy
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"manifest": {"complete": False}}, "did not complete (manifest.json: complete is not true)"),
+    ({"metrics": {"collisions": 2}}, "collided (collisions = 2, stop_reason = duration)"),
+    ({"metrics": {"stop_reason": "collision"}}, "collided (collisions = 0, stop_reason = collision)"),
+    ({"manifest": {"complete": False, "status": "failed"}, "error": {"error": "RunFailed: non-finite state"}},
+     "failed (RunFailed: non-finite state)"),
+])
+def test_a_run_that_failed_collided_or_did_not_complete_is_refused_unless_forced(
+        short_show, tmp_path, capsys, change, words):
+    run = _with(short_show, tmp_path, **change)
+    code, err = _main(str(run), "--csv", str(tmp_path / "csv"), capsys=capsys)
+    assert code == 2
+    assert err == [f"python -m swarmscene.export: {run}: the run {words}; refused (--force exports it anyway)"]
+    assert not (tmp_path / "csv").exists()
+    code, err = _main(str(run), "--csv", str(tmp_path / "csv"), "--force", capsys=capsys)
+    assert code == 0 and err == [f"python -m swarmscene.export: warning: {run}: the run {words}; exported because "
+                                 "of --force"]
+    assert len(list((tmp_path / "csv").glob("agent_*.csv"))) == 3
+
+
+def test_a_run_without_a_manifest_is_unfinished(short_show, tmp_path, capsys):
+    run = _with(short_show, tmp_path)
+    (run / "manifest.json").unlink()
+    code, err = _main(str(run), "--csv", str(tmp_path / "csv"), capsys=capsys)
+    assert code == 2 and err[0].endswith("the run did not complete (no manifest.json: the run was stopped before "
+                                         "its end); refused (--force exports it anyway)")
+    assert export.run_problem(short_show) is None

@@ -260,3 +260,19 @@ def test_missing_extra_is_named_in_one_line():
     with pytest.raises(ConfigError, match=r"output.plots=true needs the 'plots' extra: pip install 'swarmscene\[plots\]'"):
         api._require("no_such_module_for_swarmscene", "output.plots", "plots")
     api._require("matplotlib", "output.plots", "plots")  # installed: no error
+
+
+def test_load_run_names_a_damaged_file(finished, tmp_path):
+    """load_run (pictures, replay, export, report re-runs) reads through swarmscene.rundir."""
+    import shutil
+
+    from swarmscene.rundir import RunFileError
+
+    copy = tmp_path / "run"
+    shutil.copytree(finished[2], copy)
+    (copy / "config.yaml").write_text("environment: {obstacles: [{kind: circle, radius: -1}]}\n")
+    with pytest.raises(RunFileError, match=rf"^{copy}/config.yaml: its environment cannot be built \("):
+        plots.load_run(copy)
+    (copy / "config.yaml").write_text("events: 3\n")
+    with pytest.raises(RunFileError, match=rf"^{copy}/config.yaml: 'events' should be a list of mappings$"):
+        plots.load_run(copy)

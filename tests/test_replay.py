@@ -207,3 +207,34 @@ def test_cli_output_rerun_true_with_cem_does_not_crash(tmp_path):
     _, strips = _column(frame, "/world/exclusion", "LineStrips3D:strips")
     circle = np.array([s for s in strips if s][-1][0])
     assert np.linalg.norm(circle[0] - circle[:-1].mean(axis=0)) == pytest.approx(a_p, rel=1e-3)  # closed ring
+
+
+def test_links_planted_at_the_temporary_or_target_name_are_never_written_through(tmp_path):
+    run_dir = tmp_path / "run"
+    victim = tmp_path / "victim"
+    victim.write_bytes(b"precious")
+    sim = api.build(["clock.duration=1.0"])
+    api.write_outputs(sim, sim.run(), run_dir)
+    (run_dir / ".replay.rrd.tmp").symlink_to(victim)  # the temporary name of former versions
+    (run_dir / "replay.rrd").symlink_to(victim)
+    path = replay.export_rerun(run_dir)
+    assert victim.read_bytes() == b"precious"
+    assert not path.is_symlink() and path.stat().st_size > 1000
+    assert sorted(p.name for p in run_dir.iterdir() if p.name.endswith(".tmp")) == [".replay.rrd.tmp"]  # left alone
+
+
+def test_the_command_names_a_damaged_file_in_one_line(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    sim = api.build(["clock.duration=0.5"])
+    api.write_outputs(sim, sim.run(), run_dir)
+    (run_dir / "trajectory.npz").write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(SystemExit) as exit_:
+        replay.main([str(run_dir)])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.startswith(
+        f"python -m swarmscene.replay: {run_dir}/trajectory.npz: not a readable numpy archive (")
+    assert not (run_dir / "replay.rrd").exists()
+    with pytest.raises(SystemExit) as exit_:
+        replay.main([str(run_dir), "--every", "0"])
+    assert exit_.value.code == 2 and capsys.readouterr().err == \
+        "python -m swarmscene.replay: --every: must be an integer >= 1 (got 0)\n"

@@ -123,3 +123,29 @@ def test_npz_copies_whole_spill_files_and_writes_other_arrays(tmp_path):
     np.testing.assert_array_equal(archive["pos"], frames)
     np.testing.assert_array_equal(archive["tail"], frames[2:])
     np.testing.assert_array_equal(archive["t"], np.arange(6.0))
+
+
+def test_the_same_run_writes_the_same_bytes_streamed_or_not(tmp_path):
+    """Same config, same seed: trajectory.npz is byte-identical run after run (every member has
+    the same fixed timestamp), and the streamed archive equals the in-memory one."""
+    import time
+
+    files = []
+    for k, stream in enumerate(("on", "on", "off")):
+        if k:
+            time.sleep(2.1)  # past the zip format's 2-second timestamp resolution
+        run("clock.duration=4", "output.trajectory_stream=" + stream, f"output.trajectory_buffer_mb={TINY}",
+            output_dir=tmp_path / str(k))
+        files.append((tmp_path / str(k) / "trajectory.npz").read_bytes())
+    assert files[0] == files[1] == files[2]
+
+
+def test_a_planted_link_in_the_spill_directory_is_refused(tmp_path):
+    from swarmscene.core.recorder import create_exclusive
+
+    victim = tmp_path / "victim"
+    victim.write_text("precious")
+    (tmp_path / "pos.npy").symlink_to(victim)
+    with pytest.raises(FileExistsError):
+        create_exclusive(tmp_path / "pos.npy")
+    assert victim.read_text() == "precious"
