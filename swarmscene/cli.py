@@ -99,6 +99,16 @@ def _main() -> None:
         _report(_error_lines(exc))
     if interrupts.requested() is not None:  # came after the last job was written
         _exit_interrupted("after the outputs were written")
+    sweep_status = _multirun_status()
+    if sweep_status:
+        sys.exit(sweep_status)
+
+
+def _multirun_status() -> int | None:
+    """The exit status the sweep callback set at the end of a multirun (1: a job did not
+    complete), None after a single run (the callback's module was never imported)."""
+    callback = sys.modules.get("swarmscene.sweeps.callback")
+    return callback.take_exit_status() if callback is not None else None
 
 
 def _report(lines: list[str]) -> None:
@@ -179,7 +189,7 @@ def _task(cfg: Any) -> Any:
         record_failure(run_dir, exc, data)
         print(f"swarmscene: job {run_dir.name} failed: {_error_lines(exc)[0]}", file=sys.stderr)
         names = (data.get("output") or {}).get("objective") or []
-        if names:  # a sweeper gets NaN (Optuna: a failed trial)
+        if names:  # a sweeper gets None (Optuna: a failed trial)
             return _objective_from(names, {})
         return {"status": "failed", "error": str(exc)}
 

@@ -18,10 +18,11 @@ PROGRESS = ("auto", "on", "off")
 _outcome: dict[str, int] = {}
 
 
-def last_exit_status() -> int | None:
-    """The exit status of the last multirun of this process (None: none ended), for the command
-    line to end with."""
-    return _outcome.get("status")
+def take_exit_status() -> int | None:
+    """The exit status of the multirun that just ended (None: none ended since the last call),
+    for the command line to end with: a callback reports, it does not end the process (a
+    ``SystemExit`` here would skip the callbacks after it, e.g. MLflow's end of run)."""
+    return _outcome.pop("status", None)
 
 
 class SweepSummary(Callback):
@@ -53,6 +54,7 @@ class SweepSummary(Callback):
         return {**self.__dict__, "progress": None}
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        _outcome.pop("status", None)
         self._replace_basic_sweeper(config)
         from .progress import SweepProgress
 
@@ -87,8 +89,4 @@ class SweepSummary(Callback):
         status = exit_status(rows, self.allow_failed)
         kept = " (allow_failed: exit status 0)" if self.allow_failed and exit_status(rows) else ""
         print(f"swarmscene: {outcome_line(rows)}{kept}; summary in {sweep_dir / 'summary.md'}", file=sys.stderr)
-        _outcome["status"] = status
-        if status:
-            # A callback's exception is only a warning to Hydra; the command line's main() ends
-            # with last_exit_status() once it reads it (see docs/sweeps.md), until then: here.
-            raise SystemExit(status)
+        _outcome["status"] = status  # the command line ends with it (take_exit_status)
