@@ -223,3 +223,16 @@ def test_a_grid_checked_batch_by_batch_stops_at_the_batch_with_a_bad_value(tmp_p
     proc = swarmscene("--multirun", "seed=0,1", "hydra/sweeper=swarmscene", "hydra.sweeper.upfront=-1",
                       f"hydra.sweep.dir={tmp_path}/x", cwd=tmp_path)
     assert proc.returncode == 2 and "hydra.sweeper.upfront: must be an integer >= 0 (got -1)" in proc.stderr
+
+
+def test_a_sweep_named_outside_its_directory_is_one_line_and_writes_nothing(tmp_path):
+    """``name=../x`` is refused by the run-dir resolver: the sweep callback must not turn it into a
+    multi-line Hydra warning before the one line (it left the sweep directory unresolved)."""
+    work = tmp_path / "work"
+    work.mkdir()
+    proc = swarmscene("--multirun", "name=../x", "seed=0,1", "clock.duration=0.5", cwd=work)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "swarmscene: name: must not contain '/' or '\\' (it names one output directory) (got '../x')"
+    ]
+    assert list(tmp_path.iterdir()) == [work] and not any(work.iterdir())

@@ -58,7 +58,11 @@ class SweepSummary(Callback):
         self._replace_basic_sweeper(config)
         from .progress import SweepProgress
 
-        self.progress = SweepProgress.maybe(Path(config.hydra.sweep.dir), self.progress_mode)
+        try:
+            sweep_dir = Path(config.hydra.sweep.dir)
+        except Exception:  # e.g. a `name` the run-dir resolver refuses: the sweeper says so in one line
+            return
+        self.progress = SweepProgress.maybe(sweep_dir, self.progress_mode)
 
     def _replace_basic_sweeper(self, config: Any) -> None:
         """Hydra's basic sweeper becomes swarmscene's, with the same ``params`` and
