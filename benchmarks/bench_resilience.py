@@ -30,7 +30,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from reproduce import Job, run_jobs  # noqa: E402  (the report's runner: one process per worker)
-from swarmscene.sweep import mean_ci, wilson  # noqa: E402
+from swarmscene.sweeps.stats import mean_ci, wilson  # noqa: E402
 
 DYNAMICS = ("single_integrator", "quadrotor")
 CEM = ["scenario=cem_six_vehicle"]

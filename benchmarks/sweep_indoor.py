@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from swarmscene import api
-from swarmscene.sweep import wilson  # the sweeps' 95 % Wilson interval
+from swarmscene.sweeps.stats import wilson  # the sweeps' 95 % Wilson interval
 
 SHAPES = {"straight": "indoor_corridor", "l": "indoor_l_corridor", "building": "indoor_building"}
 WIDTHS = ("050", "060", "070", "080", "090")

@@ -186,8 +186,12 @@ def _task(cfg: Any) -> Any:
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # the job failed: record it, let the launcher run the others
-        record_failure(run_dir, exc, data)
-        print(f"swarmscene: job {run_dir.name} failed: {_error_lines(exc)[0]}", file=sys.stderr)
+        line = _error_lines(exc)[0]
+        try:
+            record_failure(run_dir, exc, data)
+        except OSError as write_error:  # a full disk, a read-only directory: say so, go on
+            line += f" (and its error.json could not be written in {run_dir}: {write_error.strerror or write_error})"
+        print(f"swarmscene: job {run_dir.name} failed: {line}", file=sys.stderr)
         names = (data.get("output") or {}).get("objective") or []
         if names:  # a sweeper gets None (Optuna: a failed trial)
             return _objective_from(names, {})
@@ -237,7 +241,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         marked = "complete (the request came after the last file)" if complete else "marked incomplete"
         _exit_interrupted(f"while the outputs were written; they are {marked} in {run_dir}")
     if result.error is not None:
-        from .sweep import record_failure
+        from .sweeps.records import record_failure
 
         record_failure(run_dir, RunFailed(result.error), sim.scenario.data)
         print(f"swarmscene: {result.error}; outputs up to then (marked failed) in {run_dir}", file=sys.stderr)

@@ -236,3 +236,15 @@ def test_a_sweep_named_outside_its_directory_is_one_line_and_writes_nothing(tmp_
         "swarmscene: name: must not contain '/' or '\\' (it names one output directory) (got '../x')"
     ]
     assert list(tmp_path.iterdir()) == [work] and not any(work.iterdir())
+
+
+def test_a_link_planted_at_multirun_yaml_is_replaced_not_written_through(tmp_path):
+    sw = tmp_path / "sw"
+    sw.mkdir()
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me")
+    (sw / "multirun.yaml").symlink_to(target)
+    proc = swarmscene("--multirun", "seed=0", "clock.duration=0.5", f"hydra.sweep.dir={sw}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert target.read_text() == "keep me"
+    assert not (sw / "multirun.yaml").is_symlink() and "sweep:" in (sw / "multirun.yaml").read_text()

@@ -102,6 +102,7 @@ class SwarmsceneSweeper(Sweeper):
         from hydra.core.override_parser.overrides_parser import OverridesParser
         from omegaconf import OmegaConf
 
+        from ..core.outputs import atomic_write_bytes
         from .records import SweepLock, check_grid_owner, record_grid
 
         loader = self.hydra_context.config_loader
@@ -115,7 +116,8 @@ class SwarmsceneSweeper(Sweeper):
             if whole:
                 checker.check(0, len(jobs))
             record_grid(sweep_dir, grid, jobs)
-            OmegaConf.save(self.config, sweep_dir / "multirun.yaml")  # as Hydra's basic sweeper does
+            # Hydra's basic sweeper writes it with OmegaConf.save, which follows a planted link
+            atomic_write_bytes(sweep_dir / "multirun.yaml", OmegaConf.to_yaml(self.config).encode("utf-8"))
             returns = []
             for start, stop in batches(len(jobs), self.max_batch_size, whole):
                 if not whole:
