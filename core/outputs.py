@@ -37,7 +37,9 @@ import numpy as np
 
 from . import interrupts
 
-MANIFEST_PACKAGES = ("swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core")
+MANIFEST_PACKAGES = (
+    "swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core", "numba",
+)
 COSMETIC_KEYS = (
     ("description",),
     ("output", "summary"),
@@ -270,6 +272,16 @@ def _without_cosmetic(data: dict[str, Any]) -> dict[str, Any]:
 
 
 def package_versions() -> dict[str, str]:
+    """Python's version, the engine's packages' (:data:`MANIFEST_PACKAGES`) and every installed
+    plugin distribution's (a ``swarmscene`` entry point): what the numbers depend on."""
+    from .registry import plugin_distributions
+
+    return {**_engine_versions(), **plugin_distributions()}
+
+
+@lru_cache(maxsize=1)
+def _engine_versions() -> dict[str, str]:
+    """Read once per process (each lookup scans the installed metadata: every job paid it)."""
     versions = {"python": platform.python_version()}
     for name in MANIFEST_PACKAGES:
         try:

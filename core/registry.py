@@ -132,6 +132,16 @@ def _call_registration(hook: Any, registry: Registry, kind: str | None, trusted:
             )
 
 
+def installed_plugins() -> tuple[Any, ...]:
+    """The installed ``swarmscene`` entry points (listed once per process)."""
+    return _installed(entry_points)
+
+
+def plugin_distributions() -> dict[str, str]:
+    """Each distribution that provides a ``swarmscene`` entry point, with its version."""
+    return {ep.dist.name: ep.dist.version for ep in installed_plugins() if ep.dist is not None}
+
+
 @lru_cache(maxsize=4)
 def _installed(lister: Callable[..., Any]) -> tuple[Any, ...]:
     """The ``swarmscene`` entry points, listed once per process (a scan of every installed

@@ -176,3 +176,13 @@ def test_misspelt_disabled_name_warns_and_lists_the_installed_plugins(monkeypatc
         "(installed: gooddist:good)"
     ]
     assert "extra" not in reg.names("avoidance")  # the correctly spelt entry still blocks
+
+
+def test_the_manifest_versions_name_every_plugin_distribution(monkeypatch):
+    from swarmscene.core import outputs
+
+    eps = [FakeEntryPoint("good", _third_party_avoidance(), dist="gooddist")]
+    monkeypatch.setattr(registry_module, "entry_points", lambda group: eps)
+    versions = outputs.package_versions()
+    assert versions["gooddist"] == "3.1.4"
+    assert versions["numba"] and versions["swarmscene"] and versions["python"]
