@@ -300,6 +300,17 @@ def _draw_obstacles(ax: Any, obstacles: list[Any]) -> None:
             )
 
 
+def wrap_steps(run: RunData) -> np.ndarray:
+    """(T - 1, N) bool: the frames after which an agent jumped more than half the extent of the
+    whole run along x or y, i.e. was folded back into a periodic space (a torus' seam: the
+    engine's wrap phase, Formation.periodic_box). No agent flies half the map between two frames,
+    so a picture draws no line across these."""
+    xy = run.pos[..., :2]
+    extent = xy.max(axis=(0, 1)) - xy.min(axis=(0, 1))
+    jump = np.abs(np.diff(xy, axis=0))
+    return np.any(jump > 0.5 * extent, axis=2) & np.any(extent > 0)
+
+
 def trajectory_figure(run: RunData) -> Any:
     """Top-down paths in the agents' colours, obstacles, start (circle) and end (square) points,
     failures (red x)."""
@@ -311,8 +322,10 @@ def trajectory_figure(run: RunData) -> Any:
     failed = {agent for agent, _, _ in run.failures()}
     colors = _mpl_colors(run.n)
     xy = run.pos[..., :2]
+    wraps = wrap_steps(run)
     for i in range(run.n):
-        ax.plot(xy[:, i, 0], xy[:, i, 1], color=colors[i], linewidth=0.8, alpha=0.8, gid=f"agent{i}",
+        path = np.insert(xy[:, i], np.flatnonzero(wraps[:, i]) + 1, np.nan, axis=0)  # no line across a wrap
+        ax.plot(path[:, 0], path[:, 1], color=colors[i], linewidth=0.8, alpha=0.8, gid=f"agent{i}",
                 linestyle="--" if i in failed else "-")
     ax.scatter(xy[0, :, 0], xy[0, :, 1], s=12, facecolors="none", edgecolors="k", label="start")
     ax.scatter(xy[-1, :, 0], xy[-1, :, 1], s=12, marker="s", color="k", label="end")

@@ -276,3 +276,22 @@ def test_load_run_names_a_damaged_file(finished, tmp_path):
     (copy / "config.yaml").write_text("events: 3\n")
     with pytest.raises(RunFileError, match=rf"^{copy}/config.yaml: 'events' should be a list of mappings$"):
         plots.load_run(copy)
+
+
+def test_paths_are_not_drawn_across_a_torus_seam():
+    """An agent folded back into a periodic box (the engine's wrap) is not joined across the map:
+    its path is split where it jumped, and a path that never wraps is drawn whole."""
+    from swarmscene.plots import RunData, trajectory_figure, wrap_steps
+
+    t = np.arange(0.0, 30.0, 0.5)
+    x_wrapped = (1.0 * t) % 10.0  # 1 m/s along x in a 10 m torus: folds at t = 10 and 20 s
+    pos = np.zeros((len(t), 2, 3))
+    pos[:, 0, 0] = x_wrapped
+    pos[:, 1, 0] = 0.2 * t  # never wraps
+    pos[:, :, 1] = [2.0, 6.0]
+    run = RunData(config={"name": "torus"}, t=t, pos=pos, vel=np.zeros_like(pos), healthy=np.ones((len(t), 2), bool))
+    steps = wrap_steps(run)
+    assert np.flatnonzero(steps[:, 0]).tolist() == [19, 39] and not steps[:, 1].any()
+    line = [ln for ln in trajectory_figure(run).axes[0].lines if ln.get_gid() == "agent0"][0]
+    xs = np.asarray(line.get_xdata(), dtype=float)
+    assert np.isnan(xs).sum() == 2 and np.nanmax(np.abs(np.diff(xs))) < 1.0
