@@ -57,8 +57,19 @@ def _exit_interrupted(what: str = "") -> None:
     sys.exit(status)
 
 
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a writer whose reader went away
+
+
 def main() -> None:
     """Console entry point."""
+    try:
+        _dispatch()
+    except BrokenPipeError:  # `swarmscene --help | head`: the reader left, nothing went wrong here
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        sys.exit(EXIT_BROKEN_PIPE)
+
+
+def _dispatch() -> None:
     if sys.argv[1:] in (["--version"], ["plugins"]):  # not Hydra overrides: answered without composing
         from . import info
 
@@ -93,6 +104,8 @@ def _main() -> None:
         app()
     except KeyboardInterrupt:  # a sweep's job stopped, or a second Ctrl-C
         _exit_interrupted()
+    except BrokenPipeError:
+        raise
     except Exception as exc:  # every user-fixable problem becomes one line
         if debug:
             raise

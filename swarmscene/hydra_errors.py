@@ -11,6 +11,10 @@ _MERGING = re.compile(r"Error merging override (\S+)")
 _MISSING_GROUP_OPTION = re.compile(r"Could not find '([^'/]+(?:/[^'/]+)*)/([^'/]+)'")
 
 
+ADDED_GROUPS = ("sweep",)
+"""Config groups a command adds (``+sweep=cem_k``) rather than chooses: not in the defaults list."""
+
+
 def hydra_error_line(exc: BaseException) -> str | None:
     """One line ``key: problem (got value)`` for a Hydra composition error, else ``None``."""
     from hydra.errors import (
@@ -44,6 +48,8 @@ def hydra_error_line(exc: BaseException) -> str | None:
             key = match.group(1)
             hint = _APPEND_HINT.search(message)
             value = hint.group(2) if hint else "?"
+            if key in ADDED_GROUPS:  # a group outside the defaults list is added with a plus
+                return f"{key}: not in the defaults list: add it with a plus, +{key}={value} (got {key}={value})"
             return f"{key}: unknown key (got {value!r})"
         merging = _MERGING.search(message)
         if merging and exc.__cause__ is not None:

@@ -183,3 +183,19 @@ def test_a_non_finite_state_ends_the_run_as_failed_in_one_line(tmp_path, monkeyp
     assert json.loads((tmp_path / "run" / "error.json").read_text())["reason"] == "non-finite"
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert metrics["stop_reason"] == "non_finite" and metrics["success"] is False and metrics["steps"] == 5
+
+
+def test_a_sweep_preset_chosen_without_a_plus_gets_the_plus_hint(tmp_path):
+    proc = swarmscene("sweep=fast", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == "swarmscene: sweep: not in the defaults list: add it with a plus, +sweep=fast (got sweep=fast)"
+    assert not any(tmp_path.iterdir())
+
+
+def test_output_piped_into_a_reader_that_leaves_is_not_an_error_line(tmp_path):
+    """`swarmscene --help | head -1`: the reader closes the pipe; the command stops quietly with
+    141 (128 + SIGPIPE, as shells report it) instead of printing a BrokenPipeError line."""
+    proc = subprocess.Popen([*EXE, "--help"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()  # the reader is gone before the help is written (start-up takes far longer)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141 and err == ""
