@@ -29,6 +29,7 @@ from typing import Any
 from pydantic.json_schema import GenerateJsonSchema, PydanticJsonSchemaWarning, models_json_schema
 
 from .core.config import ScenarioConfig
+from .core.disturbances import DISTURBANCE_MODELS
 from .core.plugin import PLUGIN_KINDS
 
 DIALECT = "http://json-schema.org/draft-07/schema#"
@@ -44,9 +45,10 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
 
         _, registry = plugins()
     plugins_by_kind = {kind: [registry.get(kind, n) for n in registry.names(kind)] for kind in PLUGIN_KINDS}
+    disturbance_models = [DISTURBANCE_MODELS[kind] for kind in sorted(DISTURBANCE_MODELS)]
     models = [(ScenarioConfig, "validation")] + [
         (cls.Params, "validation") for classes in plugins_by_kind.values() for cls in classes
-    ]
+    ] + [(cls.Params, "validation") for cls in disturbance_models]
     with warnings.catch_warnings():  # a default JSON cannot hold (a function) is left out: said here
         warnings.simplefilter("ignore", PydanticJsonSchemaWarning)
         refs, top = models_json_schema(models, ref_template=REF, schema_generator=_Generator)
@@ -59,10 +61,15 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
             key = f"{kind}.{cls.name}"
             defs[key] = _variant(kind, cls, defs.pop(_name(refs[(cls.Params, "validation")])))
             variants.append({"$ref": REF.format(model=key)})
-        root["properties"][kind] = {
-            "description": f"the {kind} plugin, chosen by name ({', '.join(c.name for c in classes)}), and its options",
-            "anyOf" if partial else "oneOf": variants,
-        }
+        description = f"the {kind} plugin, chosen by name ({', '.join(c.name for c in classes)}), and its options"
+        if partial:  # the name may come from the defaults list: see _by_name
+            defs[f"{kind}.any"] = _any_method(kind, [defs[f"{kind}.{c.name}"] for c in classes])
+            root["properties"][kind] = {"description": description, **_by_name(kind, [c.name for c in classes])}
+        else:
+            root["properties"][kind] = {"description": description, "oneOf": variants}
+    for cls in disturbance_models:
+        defs[f"disturbances.{cls.kind}"] = _disturbance(cls, defs.pop(_name(refs[(cls.Params, "validation")])))
+    root["properties"]["disturbances"] = _disturbances(root["properties"]["disturbances"], [c.kind for c in disturbance_models])
     schema = {
         "$schema": DIALECT,
         "title": "swarmscene scenario" + (" file" if partial else " (composed)"),
@@ -120,6 +127,73 @@ def _variant(kind: str, cls: Any, params: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def _by_name(kind: str, names: list[str]) -> dict[str, Any]:
+    """A plugin section of a hand-written file: with ``name``, exactly that plugin's options (so an
+    error names the chosen plugin's key, not the closest of all plugins); without it (the method
+    comes from the defaults list, or the file is a tuning file of one method), any option of any
+    registered plugin of the kind (``{kind}.any``)."""
+    chosen = [{"if": {"properties": {"name": {"const": n}}, "required": ["name"]},
+               "then": {"$ref": REF.format(model=f"{kind}.{n}")}} for n in names]
+    return {"type": "object", "allOf": [
+        *chosen,
+        {"if": {"required": ["name"]},
+         "then": {"properties": {"name": {"enum": names, "description": f"registered {kind} name"}}},
+         "else": {"$ref": REF.format(model=f"{kind}.any")}},
+    ]}
+
+
+def _any_method(kind: str, variants: list[dict[str, Any]]) -> dict[str, Any]:
+    """The options of every plugin of ``kind``, each key checked against the plugins that have it
+    (a key two plugins share must fit one of them); an unknown key is refused."""
+    options: dict[str, list[dict[str, Any]]] = {}
+    for variant in variants:
+        for key, prop in variant["properties"].items():
+            if key != "name" and prop not in options.setdefault(key, []):
+                options[key].append(prop)
+    return {
+        "title": f"{kind} options (the method chosen in the defaults list)",
+        "description": f"options of any {kind} plugin; add name: to check them against that plugin's alone",
+        "type": "object",
+        "properties": {k: v[0] if len(v) == 1 else {"anyOf": v} for k, v in sorted(options.items())},
+        "additionalProperties": False,
+    }
+
+
+def _disturbance(cls: Any, params: dict[str, Any]) -> dict[str, Any]:
+    """A disturbance model's Params with its ``kind`` (optional: it defaults to the entry's key)."""
+    doc = (cls.__doc__ or "").strip().splitlines()
+    return {
+        **{k: v for k, v in params.items() if k not in ("properties", "title", "description")},
+        "title": f"disturbances kind={cls.kind}",
+        "description": doc[0] if doc else f"disturbance {cls.kind}",
+        "type": "object",
+        "properties": {"kind": {"const": cls.kind, "description": "disturbance model"},
+                       **params.get("properties", {})},
+        "additionalProperties": False,
+    }
+
+
+def _disturbances(node: dict[str, Any], kinds: list[str]) -> dict[str, Any]:
+    """The ``disturbances`` mapping: each entry is the model its ``kind`` names, or, without
+    ``kind``, the model its key names (``dryden: {}``); an entry of another key needs a kind."""
+    def entry(default: str | None) -> dict[str, Any]:
+        chosen = [{"if": {"properties": {"kind": {"const": k}}, "required": ["kind"]},
+                   "then": {"$ref": REF.format(model=f"disturbances.{k}")}} for k in kinds]
+        missing = ({"$ref": REF.format(model=f"disturbances.{default}")} if default
+                   else {"required": ["kind"]})
+        return {"type": "object", "allOf": [
+            *chosen,
+            {"if": {"required": ["kind"]}, "then": {"properties": {"kind": {"enum": kinds}}}, "else": missing},
+        ]}
+
+    return {
+        **{k: v for k, v in node.items() if k not in ("additionalProperties", "title")},
+        "type": "object",
+        "properties": {k: entry(k) for k in kinds},
+        "additionalProperties": entry(None),
+    }
+
+
 def _draft7(node: Any) -> Any:
     """pydantic writes fixed-length arrays (``tuple[float, float]``) as draft 2020-12's
     ``prefixItems``; draft 7 says the same with an array of ``items``."""
@@ -141,8 +215,9 @@ def _partial(schema: dict[str, Any]) -> dict[str, Any]:
     def relax(node: Any) -> None:
         if isinstance(node, dict):
             node.pop("required", None)
-            for value in node.values():
-                relax(value)
+            for key, value in node.items():
+                if key != "if":  # a condition "name is given" stays one
+                    relax(value)
         elif isinstance(node, list):
             for value in node:
                 relax(value)
@@ -157,21 +232,83 @@ def _partial(schema: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+GLOBAL_GROUPS = ("scenario", "sweep", "events")
+"""Groups whose files are ``# @package _global_``: they hold top-level keys (the partial schema)."""
+SECTION_GROUPS = ("swarm", "environment", "formation", "avoidance", "dynamics", "disturbances")
+"""Groups whose files hold one section's node (``scenarios/config.yaml``'s defaults list)."""
+TUNING_GROUPS = tuple(f"tuning/{kind}" for kind in PLUGIN_KINDS)
+"""A preset's tuning of one method (``tuning/<kind>/<preset>/<method>.yaml``): the kind's node."""
+GROUPS = (*GLOBAL_GROUPS, *SECTION_GROUPS, *TUNING_GROUPS)
+_DEFAULTS = {"description": "Hydra defaults list (e.g. '- /tuning/dynamics/outdoor_square/double_integrator@_here_')",
+             "type": "array", "items": {"type": ["string", "object"]}}
+
+
+def group_schema(group: str, registry: Any | None = None) -> dict[str, Any]:
+    """The JSON Schema of one config group's files (``GROUPS``). A Hydra config-group file holds
+    its group's node: a map file (``environment/*.yaml``) holds the ``environment`` section's
+    fields, a tuning file a plugin's options; a ``# @package _global_`` group (presets, sweeps,
+    events) holds top-level keys. Each may open with a Hydra ``defaults`` list."""
+    if group not in GROUPS:
+        raise ValueError(f"unknown group {group!r} (valid: {', '.join(GROUPS)})")
+    schema = scenario_schema(registry, partial=True)
+    if group in GLOBAL_GROUPS:
+        return {**schema, "title": f"swarmscene {group} file (# @package _global_: top-level keys)"}
+    section = group.rsplit("/", 1)[-1]
+    node, defs = schema["properties"][section], schema["definitions"]
+    _allow_defaults(node, defs, set())
+    return {"$schema": DIALECT, "title": f"swarmscene {group} file (the {section} section's node)",
+            "allOf": [node], "definitions": defs}
+
+
+def _allow_defaults(node: dict[str, Any], defs: dict[str, Any], seen: set[str]) -> None:
+    """Let the group's node (through its ``$ref`` and if/then branches, not its fields) hold a
+    ``defaults`` list. Only ever applied to a group schema's own copy of the definitions."""
+    if "$ref" in node and _name(node) not in seen:
+        seen.add(_name(node))
+        _allow_defaults(defs[_name(node)], defs, seen)
+    if "properties" in node:
+        node["properties"].setdefault("defaults", _DEFAULTS)
+    for sub in (*node.get("allOf", []), *node.get("anyOf", []), *node.get("oneOf", [])):
+        _allow_defaults(sub, defs, seen)
+    for key in ("then", "else"):
+        if isinstance(node.get(key), dict):
+            _allow_defaults(node[key], defs, seen)
+
+
+def schema_file_name(group: str | None) -> str:
+    """``swarmscene.<group>.schema.json`` (``tuning/avoidance`` -> ``tuning.avoidance``)."""
+    return f"swarmscene.{group.replace('/', '.')}.schema.json" if group else "swarmscene.schema.json"
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m swarmscene.schema", description=__doc__.splitlines()[0])
     parser.add_argument("--partial", action="store_true", help="schema of hand-written scenario files")
+    parser.add_argument("--group", choices=GROUPS, metavar="GROUP",
+                        help=f"schema of one config group's files: {', '.join(GROUPS)}")
+    parser.add_argument("--all-groups", metavar="DIR",
+                        help="write every group's schema into DIR (swarmscene.<group>.schema.json, "
+                        "tuning/avoidance as tuning.avoidance)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     args = parser.parse_args(argv)
-    text = json.dumps(scenario_schema(partial=args.partial), indent=2, allow_nan=False) + "\n"
-    if args.output:
-        from .core.outputs import atomic_write_bytes
+    if args.all_groups:
+        for group in GROUPS:
+            _write(parser, str(Path(args.all_groups) / schema_file_name(group)), group_schema(group))
+        return
+    schema = group_schema(args.group) if args.group else scenario_schema(partial=args.partial)
+    _write(parser, args.output, schema)
 
-        try:
-            atomic_write_bytes(Path(args.output), text.encode("utf-8"))
-        except OSError as exc:
-            parser.exit(2, f"{parser.prog}: {args.output}: cannot be written ({exc.strerror or exc})\n")
-    else:
+
+def _write(parser: argparse.ArgumentParser, output: str | None, schema: dict[str, Any]) -> None:
+    text = json.dumps(schema, indent=2, allow_nan=False) + "\n"
+    if not output:
         sys.stdout.write(text)
+        return
+    from .core.outputs import atomic_write_bytes
+
+    try:
+        atomic_write_bytes(Path(output), text.encode("utf-8"))
+    except OSError as exc:
+        parser.exit(2, f"{parser.prog}: {output}: cannot be written ({exc.strerror or exc})\n")
 
 
 if __name__ == "__main__":
