@@ -63,13 +63,22 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
             variants.append({"$ref": REF.format(model=key)})
         description = f"the {kind} plugin, chosen by name ({', '.join(c.name for c in classes)}), and its options"
         if partial:  # the name may come from the defaults list: see _by_name
-            defs[f"{kind}.any"] = _any_method(kind, [defs[f"{kind}.{c.name}"] for c in classes])
+            defs[f"{kind}.any"] = _any_method(
+                f"{kind} options (the method chosen in the defaults list)",
+                f"options of any {kind} plugin; add name: to check them against that plugin's alone",
+                [defs[f"{kind}.{c.name}"] for c in classes], "name")
             root["properties"][kind] = {"description": description, **_by_name(kind, [c.name for c in classes])}
         else:
             root["properties"][kind] = {"description": description, "oneOf": variants}
     for cls in disturbance_models:
         defs[f"disturbances.{cls.kind}"] = _disturbance(cls, defs.pop(_name(refs[(cls.Params, "validation")])))
-    root["properties"]["disturbances"] = _disturbances(root["properties"]["disturbances"], [c.kind for c in disturbance_models])
+    if partial:
+        defs["disturbances.any"] = _any_method(
+            "options of a disturbance chosen elsewhere",
+            "an entry named by another file (disturbances=[gps]): options of any disturbance model",
+            [defs[f"disturbances.{c.kind}"] for c in disturbance_models], "kind")
+    root["properties"]["disturbances"] = _disturbances(
+        root["properties"]["disturbances"], [c.kind for c in disturbance_models], partial)
     schema = {
         "$schema": DIALECT,
         "title": "swarmscene scenario" + (" file" if partial else " (composed)"),
@@ -142,17 +151,18 @@ def _by_name(kind: str, names: list[str]) -> dict[str, Any]:
     ]}
 
 
-def _any_method(kind: str, variants: list[dict[str, Any]]) -> dict[str, Any]:
-    """The options of every plugin of ``kind``, each key checked against the plugins that have it
-    (a key two plugins share must fit one of them); an unknown key is refused."""
+def _any_method(title: str, description: str, variants: list[dict[str, Any]], tag: str) -> dict[str, Any]:
+    """The options of every variant (the plugins of one kind, the disturbance models) but their
+    ``tag``, each key checked against the variants that have it (a key two share must fit one of
+    them); an unknown key is refused."""
     options: dict[str, list[dict[str, Any]]] = {}
     for variant in variants:
         for key, prop in variant["properties"].items():
-            if key != "name" and prop not in options.setdefault(key, []):
+            if key != tag and prop not in options.setdefault(key, []):
                 options[key].append(prop)
     return {
-        "title": f"{kind} options (the method chosen in the defaults list)",
-        "description": f"options of any {kind} plugin; add name: to check them against that plugin's alone",
+        "title": title,
+        "description": description,
         "type": "object",
         "properties": {k: v[0] if len(v) == 1 else {"anyOf": v} for k, v in sorted(options.items())},
         "additionalProperties": False,
@@ -173,14 +183,18 @@ def _disturbance(cls: Any, params: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _disturbances(node: dict[str, Any], kinds: list[str]) -> dict[str, Any]:
+def _disturbances(node: dict[str, Any], kinds: list[str], partial: bool) -> dict[str, Any]:
     """The ``disturbances`` mapping: each entry is the model its ``kind`` names, or, without
-    ``kind``, the model its key names (``dryden: {}``); an entry of another key needs a kind."""
+    ``kind``, the model its key names (``dryden: {}``); an entry of another key needs a kind
+    (in a hand-written file it may be an entry another file declares, ``gps`` from
+    ``disturbances=[gps]``: any model's options)."""
     def entry(default: str | None) -> dict[str, Any]:
         chosen = [{"if": {"properties": {"kind": {"const": k}}, "required": ["kind"]},
                    "then": {"$ref": REF.format(model=f"disturbances.{k}")}} for k in kinds]
-        missing = ({"$ref": REF.format(model=f"disturbances.{default}")} if default
-                   else {"required": ["kind"]})
+        if default:
+            missing = {"$ref": REF.format(model=f"disturbances.{default}")}
+        else:
+            missing = {"$ref": REF.format(model="disturbances.any")} if partial else {"required": ["kind"]}
         return {"type": "object", "allOf": [
             *chosen,
             {"if": {"required": ["kind"]}, "then": {"properties": {"kind": {"enum": kinds}}}, "else": missing},
