@@ -3,6 +3,8 @@ options (third-party plugins included), for editors and other tools.
 
     python -m swarmscene.schema > swarmscene.schema.json            # a composed configuration
     python -m swarmscene.schema --partial > swarmscene.partial.json  # hand-written scenario files
+    python -m swarmscene.schema --group environment                  # one config group's files
+    python -m swarmscene.schema --all-groups schemas/                # every group, one file each
 
 Both come from the same pydantic models the engine validates with (:mod:`swarmscene.core.config`
 and each plugin's ``Params``). ``formation``, ``avoidance`` and ``dynamics`` are each one of the
@@ -11,6 +13,9 @@ checks the options of the plugin chosen. The full schema describes what the engi
 Hydra composition (``swarmscene --cfg job``, ``api.compose``); the partial one describes the files a
 user writes (presets, experiment files): every key optional, a Hydra ``defaults`` list and a
 ``hydra`` node allowed, and a plugin section whose ``name`` comes from the defaults list accepted.
+A config-group file holds its group's node, not a whole scenario (a map file the ``environment``
+section's fields, a tuning file one method's options): :func:`group_schema` roots the partial
+schema at that node (``GROUPS``; docs/editors.md gives each group's editor modeline).
 What a schema cannot say (cross-section checks such as agents starting inside an obstacle) is
 still checked by the engine. docs/editors.md shows the YAML language server using it.
 """
@@ -295,16 +300,24 @@ def schema_file_name(group: str | None) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m swarmscene.schema", description=__doc__.splitlines()[0])
-    parser.add_argument("--partial", action="store_true", help="schema of hand-written scenario files")
-    parser.add_argument("--group", choices=GROUPS, metavar="GROUP",
-                        help=f"schema of one config group's files: {', '.join(GROUPS)}")
-    parser.add_argument("--all-groups", metavar="DIR",
-                        help="write every group's schema into DIR (swarmscene.<group>.schema.json, "
-                        "tuning/avoidance as tuning.avoidance)")
+    parser = argparse.ArgumentParser(prog="python -m swarmscene.schema",
+                                     description=" ".join(__doc__.split("\n\n")[0].split()))
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--partial", action="store_true", help="schema of hand-written scenario files")
+    which.add_argument("--group", choices=GROUPS, metavar="GROUP",
+                       help=f"schema of one config group's files: {', '.join(GROUPS)}")
+    which.add_argument("--all-groups", metavar="DIR",
+                       help="write every group's schema into DIR (swarmscene.<group>.schema.json, "
+                       "tuning/avoidance as tuning.avoidance)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     args = parser.parse_args(argv)
+    if args.all_groups and args.output:
+        parser.error("--output names one file; --all-groups writes one file per group into DIR")
     if args.all_groups:
+        try:
+            Path(args.all_groups).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            parser.exit(2, f"{parser.prog}: {args.all_groups}: cannot be created ({exc.strerror or exc})\n")
         for group in GROUPS:
             _write(parser, str(Path(args.all_groups) / schema_file_name(group)), group_schema(group))
         return

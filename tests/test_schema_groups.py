@@ -193,3 +193,15 @@ def test_a_composed_configuration_with_disturbances_validates_and_a_bad_option_i
     data["disturbances"]["gps"]["pos_std"] = "far"
     assert [e for e in errors(full, data) if e.startswith("disturbances.gps")] == [
         "disturbances.gps.pos_std: 'far' is not of type 'array'"]
+
+
+def test_docs_editors_gives_every_group_its_modeline():
+    """docs/editors.md's table: one modeline per group, naming the file --all-groups writes, its
+    ../ climbing from the group's folder (tuning/<kind>/<preset>/ is two deeper) to its parent."""
+    text = (ROOT / "docs" / "editors.md").read_text()
+    rows = re.findall(r"^\| `([a-z/_]+)/(?:<preset>/)?\*\.yaml`.*\| `# yaml-language-server: \$schema=([^`]+)` \|$",
+                      text, re.M)
+    assert sorted(group for group, _ in rows) == sorted(GROUPS)
+    for group, path in rows:
+        depth = group.count("/") + 2 + (group.startswith("tuning/"))  # + scenarios/ itself
+        assert path == "../" * depth + "schemas/" + schema_file_name(group), group
