@@ -45,6 +45,9 @@ Limits (:data:`CRAZYFLIE`, Crazyflie 2.x, ``platform_defaults_cf2.h`` of the fir
 ``time_scale`` > 1 slows the show down uniformly (same path; velocity / s, acceleration / s^2);
 ``time_scale="auto"`` picks the smallest scale >= 1 (in steps of 0.05) within the chosen
 controller's limits.
+
+The command line refuses a show that exceeds a limit (one line, exit status 1, nothing written);
+``--allow-exceed`` writes it anyway with a warning line.
 """
 
 from __future__ import annotations
@@ -322,6 +325,23 @@ class ShowExport:
             ],
         }
 
+    def exceeded(self) -> list[str]:
+        """One phrase per vehicle that breaks a limit (``cf_<i>: name value > limit``), empty when
+        every limit holds."""
+        phrases = []
+        for i, checks in enumerate(self.checks):
+            bad = [f"{c['name']} {c['value']:.3g} > {c['limit']:.3g}" for c in checks if not c["holds"]]
+            if bad:
+                phrases.append(f"cf_{i}: " + ", ".join(bad))
+        return phrases
+
+    def write(self, out_dir: Path) -> None:
+        """``cf_<i>.csv`` per vehicle and ``crazyflie.json``, each written atomically."""
+        out_dir = Path(out_dir)
+        for i, fit in enumerate(self.fits):
+            fit.poly.to_csv(out_dir / f"cf_{i}.csv")
+        atomic_write_json(out_dir / "crazyflie.json", self.summary())
+
 
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
                            controller: str = "mellinger", time_scale: float | str = 1.0,
@@ -341,10 +361,7 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
     result = ShowExport(fits, used, scale, controller, checks)
     if out_dir is not None:
-        out_dir = Path(out_dir)
-        for i, fit in enumerate(fits):
-            fit.poly.to_csv(out_dir / f"cf_{i}.csv")
-        atomic_write_json(out_dir / "crazyflie.json", result.summary())
+        result.write(out_dir)
     return result
 
 
@@ -419,12 +436,30 @@ def _tolerance(value: float) -> float:
     return value
 
 
+class Unflyable(Exception):
+    """The show cannot be flown as exported (a limit exceeded): exit status 1, nothing written."""
+
+
+def _refuse_or_warn(show: ShowExport, allow_exceed: bool) -> None:
+    """Refuse a show that breaks its controller's limits (one line), or warn under ``--allow-exceed``."""
+    exceeded = show.exceeded()
+    if not exceeded:
+        return
+    what = f"the show exceeds the {show.controller} controller's limits ({'; '.join(exceeded)})"
+    if not allow_exceed:
+        raise Unflyable(f"{what}; refused, nothing written (--time-scale auto slows it down; "
+                        "--allow-exceed writes it anyway)")
+    print(f"{PROG}: warning: {what}; written because of --allow-exceed", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m swarmscene.export RUN_DIR [--csv DIR] [--crazyflie DIR] ...``.
 
     Every problem is one line on stderr and exit status 2: a bad option (named), a run directory
     whose files are missing or damaged (the file named), a run that failed, collided or did not
-    complete (unless ``--force``: then a warning, and the export goes on).
+    complete (unless ``--force``: then a warning, and the export goes on). A show that exceeds its
+    controller's limits is one line and exit status 1, nothing written (unless ``--allow-exceed``:
+    then a warning, the files written and exit status 0).
     """
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
@@ -434,6 +469,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
     parser.add_argument("--tolerance", type=float, default=0.005, help="position fit tolerance, m (> 0)")
+    parser.add_argument("--allow-exceed", action="store_true",
+                        help="write a show that exceeds the controller's limits (a warning, exit 0), "
+                             "instead of refusing it with exit status 1")
     parser.add_argument("--force", action="store_true",
                         help="export a run that failed, collided or did not complete (a warning, not a refusal)")
     args = parser.parse_args(argv)
@@ -453,8 +491,11 @@ def main(argv: list[str] | None = None) -> None:
         if args.csv is not None:
             print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
         if args.crazyflie is not None:
-            show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, tolerance,
-                                          args.source)
+            show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source)
+            _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
+            show.write(args.crazyflie)
+    except Unflyable as exc:  # the show itself: a limit exceeded (status 1, not a bad input's 2)
+        parser.exit(1, f"{PROG}: {exc}\n")
     except (RunFileError, ValueError) as exc:  # a damaged file, a bad option, a show no scale rescues
         parser.exit(2, f"{PROG}: {' '.join(str(exc).split())}\n")
     except OSError as exc:  # the output directory cannot be written (read-only, full disk)

@@ -231,3 +231,35 @@ def test_a_run_without_a_manifest_is_unfinished(short_show, tmp_path, capsys):
     assert code == 2 and err[0].endswith("the run did not complete (no manifest.json: the run was stopped before "
                                          "its end); refused (--force exports it anyway)")
     assert export.run_problem(short_show) is None
+
+
+# -- a show the vehicles cannot fly ---------------------------------------------------------------
+EXCEEDS_LINE = (
+    "the show exceeds the mellinger controller's limits ("
+    "cf_0: collective thrust |a + g e3| (m/s^2) 21.2 > 15.5, downward acceleration -a_z (m/s^2) 10.2 > 9.81; "
+    "cf_1: collective thrust |a + g e3| (m/s^2) 21.2 > 15.5, downward acceleration -a_z (m/s^2) 13.1 > 9.81; "
+    "cf_2: collective thrust |a + g e3| (m/s^2) 21.2 > 15.5, downward acceleration -a_z (m/s^2) 11.7 > 9.81)")
+
+
+def test_a_show_beyond_the_limits_is_refused_with_status_1_and_nothing_written(short_show, tmp_path, capsys):
+    """The take-off played four times faster (--time-scale 0.25: accelerations x 16) needs 21.2
+    m/s^2 of collective thrust per unit mass, beyond 4 THRUST_MAX / CF_MASS = 15.5."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--time-scale", "0.25", capsys=capsys)
+    assert code == 1
+    assert err == [f"python -m swarmscene.export: {EXCEEDS_LINE}; refused, nothing written "
+                   "(--time-scale auto slows it down; --allow-exceed writes it anyway)"]
+    assert not out.exists()
+
+
+def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsys):
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--time-scale", "0.25", "--allow-exceed",
+                      capsys=capsys)
+    assert code == 0
+    assert err == [f"python -m swarmscene.export: warning: {EXCEEDS_LINE}; written because of --allow-exceed"]
+    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json"]
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["time_scale"] == 0.25
+    assert [c["holds"] for c in summary["vehicles"][0]["limits"]] == [False, False]
+    assert export.Poly4D.from_csv(out / "cf_0.csv").duration == pytest.approx(0.75, abs=1e-6)
