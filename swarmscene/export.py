@@ -48,6 +48,13 @@ controller's limits.
 
 The command line refuses a show that exceeds a limit (one line, exit status 1, nothing written);
 ``--allow-exceed`` writes it anyway with a warning line.
+
+Placement in a lab (:class:`Placement`, :class:`Box`): ``--scale S`` and ``--offset X Y Z``
+(p' = S p + offset) or ``--fit-box`` (the largest uniform S <= 1 and the shift that fit the show into
+a box, a margin of twice the tolerance inside each face) act on the samples before the fit, so the
+limits are checked on the placed show. ``--geofence`` (or the fitted box) is checked on the fitted
+polynomials (:func:`geofence_breach`): a show leaving it is refused in one line naming the vehicle,
+the time and the face (exit status 1; ``--allow-exceed`` does not override it).
 """
 
 from __future__ import annotations
@@ -310,12 +317,19 @@ class ShowExport:
     time_scale: float
     controller: str
     checks: list[list[dict[str, Any]]]
+    placement: "Placement | None" = None
+    geofence: "Box | None" = None
+    breach: "dict[str, Any] | None" = None  # the first exit from the geofence, None: inside
 
     def summary(self) -> dict[str, Any]:
         return {
             "format": "poly4d (Crazyflie high-level commander; Crazyswarm2 trajectory CSV)",
             "source": self.source, "time_scale": self.time_scale, "controller": self.controller,
             "memory_bytes": TRAJECTORY_MEMORY_BYTES, "piece_bytes": PIECE_BYTES, "max_pieces": MAX_PIECES,
+            "placement": {"scale": (self.placement or Placement()).scale,
+                          "offset": list((self.placement or Placement()).offset)},
+            "geofence": None if self.geofence is None else {"min": list(self.geofence.lo), "max": list(self.geofence.hi),
+                                                             "breach": self.breach},
             "vehicles": [
                 {"file": f"cf_{i}.csv", "pieces": fit.poly.pieces, "bytes": fit.poly.nbytes,
                  "duration": fit.poly.duration, "start_time": fit.poly.t0,
@@ -343,23 +357,106 @@ class ShowExport:
         atomic_write_json(out_dir / "crazyflie.json", self.summary())
 
 
+# -- placement in a lab volume -------------------------------------------------------------------
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box of the world frame, m: lo = (xmin, ymin, zmin), hi = (xmax, ymax, zmax)."""
+
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+
+    @classmethod
+    def parse(cls, option: str, values: list[str]) -> "Box":
+        """``--fit-box`` / ``--geofence`` XMIN YMIN ZMIN XMAX YMAX ZMAX: finite, each min < max."""
+        numbers = _finite_numbers(option, values)
+        box = cls(tuple(numbers[:3]), tuple(numbers[3:]))
+        for axis, lo, hi in zip("xyz", box.lo, box.hi):
+            if not lo < hi:
+                raise ValueError(f"{option}: {axis}min must be below {axis}max (got {lo:g} and {hi:g})")
+        return box
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The uniform similarity p' = scale p + offset applied to every position sample before the fit
+    (yaw unchanged), so the fitted polynomials, the limits and the geofence are those of the placed
+    show: velocity and acceleration scale by ``scale`` too."""
+
+    scale: float = 1.0
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def apply(self, samples: np.ndarray) -> np.ndarray:
+        placed = np.array(samples, float)
+        placed[..., :3] = self.scale * placed[..., :3] + np.asarray(self.offset)
+        return placed
+
+    @classmethod
+    def into(cls, samples: np.ndarray, box: Box, margin: float) -> "Placement":
+        """The largest uniform scale <= 1 (a show is never enlarged) that fits every position of
+        ``samples`` (T, N, >=3) into ``box`` shrunk by ``margin`` on every face, and the shift that
+        centres the show in x and y and puts its lowest point on the shrunk floor (a show that
+        starts on the ground starts on the lab's floor)."""
+        lo, hi = samples[..., :3].min(axis=(0, 1)), samples[..., :3].max(axis=(0, 1))
+        room_lo, room_hi = np.asarray(box.lo) + margin, np.asarray(box.hi) - margin
+        room, extent = room_hi - room_lo, hi - lo
+        if np.any(room <= 0):
+            raise ValueError(f"--fit-box: the box leaves no room inside its {margin * 100:g} cm margin")
+        ratios = [r / e for r, e in zip(room, extent) if e > 0]
+        scale = float(min([1.0, *ratios]))
+        offset = 0.5 * (room_lo + room_hi) - scale * 0.5 * (lo + hi)
+        offset[2] = room_lo[2] - scale * lo[2]
+        return cls(scale, tuple(float(v) for v in offset))
+
+
+FACES = ("min", "max")
+
+
+def geofence_breach(fits: list[Fit], box: Box, t: np.ndarray) -> dict[str, Any] | None:
+    """The earliest time over ``t`` at which a vehicle's polynomials (float32, as flown) leave ``box``:
+    vehicle, time, face (``x min`` ... ``z max``) and the position there; None when all stay inside."""
+    first = None
+    for i, fit in enumerate(fits):
+        pos = fit.poly.evaluate(t)[:, :3]
+        outside = np.concatenate([pos < np.asarray(box.lo), pos > np.asarray(box.hi)], axis=1)  # (T, 6)
+        rows = np.flatnonzero(outside.any(axis=1))
+        if rows.size and (first is None or t[rows[0]] < first["time"]):
+            k = int(rows[0])
+            face = int(np.flatnonzero(outside[k])[0])
+            axis, side = face % 3, FACES[face // 3]
+            first = {"vehicle": f"cf_{i}", "time": float(t[k]), "face": f"{'xyz'[axis]} {side}",
+                     "value": float(pos[k, axis]), "bound": float((box.lo, box.hi)[face // 3][axis])}
+    return first
+
+
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
                            controller: str = "mellinger", time_scale: float | str = 1.0,
-                           tolerance: float = 0.005, kind: str = "auto") -> ShowExport:
+                           tolerance: float = 0.005, kind: str = "auto", placement: Placement | None = None,
+                           fit_box: Box | None = None, geofence: Box | None = None) -> ShowExport:
     """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
-    ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring)."""
+    ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring).
+
+    ``placement`` scales and shifts the show, or ``fit_box`` computes the placement that fits it
+    into a box (a margin of twice the tolerance on every face, for the fit's error) and is then the
+    geofence unless ``geofence`` is given. The geofence is checked on the fitted polynomials
+    (``breach``); nothing here refuses: the command line does."""
     limits = CRAZYFLIE[controller]
     if isinstance(source, tuple):
         t, samples = (np.asarray(a, float) for a in source)
         used = "samples"
     else:
         t, samples, used = show_samples(Path(source), kind)
+    if fit_box is not None:
+        placement = Placement.into(samples, fit_box, margin=2 * tolerance)
+        geofence = geofence or fit_box
+    if placement is not None:  # before the time scale and the fit: the limits are the placed show's
+        samples = placement.apply(samples)
     scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
     ts = t[0] + (t - t[0]) * scale
     fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance) for i in range(samples.shape[1])]
     dense = np.linspace(ts[0], ts[-1], 4 * len(ts))
     checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
-    result = ShowExport(fits, used, scale, controller, checks)
+    breach = geofence_breach(fits, geofence, dense) if geofence is not None else None
+    result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach)
     if out_dir is not None:
         result.write(out_dir)
     return result
@@ -430,6 +527,42 @@ def _time_scale(text: str) -> float | str:
     return value
 
 
+def _finite_numbers(option: str, values: list[str]) -> list[float]:
+    numbers = []
+    for text in values:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise ValueError(f"{option}: must be finite numbers of metres (got {text!r})")
+        numbers.append(value)
+    return numbers
+
+
+def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, Box | None]:
+    """``--scale`` / ``--offset`` or ``--fit-box``, and ``--geofence``, checked (one line each)."""
+    given = [name for name, value in (("--scale", args.scale), ("--offset", args.offset), ("--fit-box", args.fit_box),
+                                      ("--geofence", args.geofence)) if value is not None]
+    if given and args.crazyflie is None:
+        raise ValueError(f"{given[0]}: places the Crazyflie show: give --crazyflie DIR")
+    if args.fit_box is not None and (args.scale is not None or args.offset is not None):
+        raise ValueError("--fit-box: computes the scale and offset itself: give it without --scale and --offset")
+    placement = None
+    if args.scale is not None or args.offset is not None:
+        try:
+            scale = float(args.scale or "1")
+        except ValueError:
+            scale = math.nan
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"--scale: must be a finite number > 0 (got {args.scale!r})")
+        offset = _finite_numbers("--offset", args.offset or ["0", "0", "0"])
+        placement = Placement(scale, tuple(offset))
+    fit_box = Box.parse("--fit-box", args.fit_box) if args.fit_box is not None else None
+    geofence = Box.parse("--geofence", args.geofence) if args.geofence is not None else None
+    return placement, fit_box, geofence
+
+
 def _tolerance(value: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"--tolerance: must be a finite number of metres > 0 (got {value!r})")
@@ -441,7 +574,14 @@ class Unflyable(Exception):
 
 
 def _refuse_or_warn(show: ShowExport, allow_exceed: bool) -> None:
-    """Refuse a show that breaks its controller's limits (one line), or warn under ``--allow-exceed``."""
+    """Refuse a show that leaves its geofence (always) or breaks its controller's limits (one line),
+    or warn of the limits under ``--allow-exceed``."""
+    b = show.breach
+    if b is not None:
+        sign = "<" if b["face"].endswith("min") else ">"
+        raise Unflyable(f"{b['vehicle']} leaves the geofence at t = {b['time']:.2f} s through the {b['face']} face "
+                        f"({b['face'][0]} = {b['value']:.3f} m {sign} {b['bound']:g} m); refused, nothing written "
+                        "(--fit-box scales the show into a box)")
     exceeded = show.exceeded()
     if not exceeded:
         return
@@ -469,6 +609,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
     parser.add_argument("--tolerance", type=float, default=0.005, help="position fit tolerance, m (> 0)")
+    parser.add_argument("--scale", metavar="S", help="scale the show's positions by S (> 0) about the world origin, "
+                        "before the fit and the limits")
+    parser.add_argument("--offset", nargs=3, metavar=("X", "Y", "Z"), help="then shift them by (X, Y, Z) m")
+    parser.add_argument("--fit-box", nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                        help="scale (never up) and shift the show into this box, m (also the geofence "
+                             "unless --geofence is given)")
+    parser.add_argument("--geofence", nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                        help="refuse (exit status 1) a show whose polynomials leave this box, m")
     parser.add_argument("--allow-exceed", action="store_true",
                         help="write a show that exceeds the controller's limits (a warning, exit 0), "
                              "instead of refusing it with exit status 1")
@@ -482,6 +630,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         scale = _time_scale(args.time_scale)
         tolerance = _tolerance(args.tolerance)
+        placement, fit_box, geofence = _placement(args)
         problem = run_problem(args.run_dir)
         if problem is not None:
             if not args.force:
@@ -491,7 +640,8 @@ def main(argv: list[str] | None = None) -> None:
         if args.csv is not None:
             print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
         if args.crazyflie is not None:
-            show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source)
+            show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source,
+                                          placement, fit_box, geofence)
             _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
             show.write(args.crazyflie)
     except Unflyable as exc:  # the show itself: a limit exceeded (status 1, not a bad input's 2)

@@ -263,3 +263,92 @@ def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsy
     assert summary["time_scale"] == 0.25
     assert [c["holds"] for c in summary["vehicles"][0]["limits"]] == [False, False]
     assert export.Poly4D.from_csv(out / "cf_0.csv").duration == pytest.approx(0.75, abs=1e-6)
+
+
+# -- placing the show in a lab volume, the geofence ------------------------------------------------
+def test_a_show_leaving_the_geofence_is_refused_naming_vehicle_time_and_face(short_show, tmp_path, capsys):
+    """cf_0 climbs out to the left (x from -0.7 to -1.197 m in 3 s): with xmin = -1 it leaves
+    through the x min face between the plan's samples at 2.58 s and 2.59 s."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--geofence", "-1", "-1", "-0.1", "1", "1", "2",
+                      capsys=capsys)
+    assert code == 1
+    assert err == ["python -m swarmscene.export: cf_0 leaves the geofence at t = 2.59 s through the x min face "
+                   "(x = -1.001 m < -1 m); refused, nothing written (--fit-box scales the show into a box)"]
+    assert not out.exists()
+    t, samples, _ = export.show_samples(short_show)
+    crossing = t[np.flatnonzero(samples[:, 0, 0] < -1.0)[0]]
+    assert crossing == pytest.approx(2.59) and samples[:, 1:, 0].min() > -1.0  # only cf_0 leaves
+    # --allow-exceed is for the controller's limits; a geofence is never overridden
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--geofence", "-1", "-1", "-0.1", "1", "1", "2",
+                      "--allow-exceed", capsys=capsys)
+    assert code == 1 and "leaves the geofence" in err[0] and not out.exists()
+
+
+def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, capsys):
+    """Box 1 m x 1 m x 1 m; margin 2 x 5 mm: room 0.98 m per axis. The show spans 1.908 m in x,
+    0.310 m in y, 1.499 m in z, so x sets the scale 0.98 / 1.908; x, y centred, the floor on zmin + 1 cm."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--fit-box", "-0.5", "-0.5", "0", "0.5", "0.5", "1",
+                      capsys=capsys)
+    assert code == 0 and err == []
+    t, samples, _ = export.show_samples(short_show)
+    lo, hi = samples[..., :3].min(axis=(0, 1)), samples[..., :3].max(axis=(0, 1))
+    scale = 0.98 / (hi[0] - lo[0])
+    assert scale == pytest.approx(0.98 / (0.71063275 + 1.19734309), rel=1e-7)
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["placement"]["scale"] == pytest.approx(scale, rel=1e-12)
+    offset = np.array(summary["placement"]["offset"])
+    np.testing.assert_allclose(offset, [-scale * (lo[0] + hi[0]) / 2, -scale * (lo[1] + hi[1]) / 2, 0.01 - scale * lo[2]],
+                               atol=1e-12)
+    assert summary["geofence"] == {"min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 1.0], "breach": None}
+    dense = np.linspace(0.0, 3.0, 3001)
+    for i in range(3):
+        poly = export.Poly4D.from_csv(out / f"cf_{i}.csv")
+        np.testing.assert_allclose(poly.evaluate([0.0])[0, :3], scale * samples[0, i, :3] + offset, atol=0.005)
+        pos = poly.evaluate(dense)[:, :3]
+        assert pos.min(axis=0).min() >= -0.5 and (pos.min(axis=0)[2]) >= 0.0 and pos.max() <= 1.0
+        yaw = poly.evaluate(dense)[:, 3]
+        np.testing.assert_allclose(yaw, np.interp(dense, t, samples[:, i, 3]), atol=0.01)  # yaw is not scaled
+
+
+def test_scaling_applies_before_the_limits(short_show, tmp_path, capsys):
+    """Twice as fast (--time-scale 0.5) the take-off needs 1.67 m/s along an axis, beyond the PID
+    controller's 1.0 m/s cap; the same show at half size needs half: 0.83 m/s, within it."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
+                      capsys=capsys)
+    assert code == 1 and err[0].startswith("python -m swarmscene.export: the show exceeds the pid controller's limits "
+                                           "(cf_0: axis speed max(|vx|, |vy|, |vz|) (m/s) 1.67 > 1")
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
+                      "--scale", "0.5", "--offset", "0", "0", "0.2", capsys=capsys)
+    assert code == 0 and err == []
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["placement"] == {"scale": 0.5, "offset": [0.0, 0.0, 0.2]}
+    speed = [c for c in summary["vehicles"][0]["limits"] if c["name"].startswith("axis speed")][0]
+    assert speed["value"] == pytest.approx(1.6667 / 2, abs=2e-3) and speed["holds"]
+    t, samples, _ = export.show_samples(short_show)
+    poly = export.Poly4D.from_csv(out / "cf_2.csv")
+    np.testing.assert_allclose(poly.evaluate([0.0])[0, :3], 0.5 * samples[0, 2, :3] + [0, 0, 0.2], atol=0.005)
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["--scale", "0"], "--scale: must be a finite number > 0 (got '0')"),
+    (["--scale", "nan"], "--scale: must be a finite number > 0 (got 'nan')"),
+    (["--offset", "0", "x", "0"], "--offset: must be finite numbers of metres (got 'x')"),
+    (["--fit-box", "0", "0", "0", "1", "-1", "1"], "--fit-box: ymin must be below ymax (got 0 and -1)"),
+    (["--geofence", "0", "0", "inf", "1", "1", "1"], "--geofence: must be finite numbers of metres (got 'inf')"),
+    (["--fit-box", "0", "0", "0", "1", "1", "1", "--scale", "2"],
+     "--fit-box: computes the scale and offset itself: give it without --scale and --offset"),
+    (["--fit-box", "0", "0", "0", "0.005", "1", "1"], "--fit-box: the box leaves no room inside its 1 cm margin"),
+])
+def test_a_bad_placement_option_is_one_line_naming_it(short_show, tmp_path, capsys, argv, line):
+    code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
+    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert not (tmp_path / "cf").exists()
+
+
+def test_placement_without_a_crazyflie_export_is_refused(short_show, tmp_path, capsys):
+    code, err = _main(str(short_show), "--csv", str(tmp_path / "csv"), "--scale", "0.5", capsys=capsys)
+    assert code == 2 and err == ["python -m swarmscene.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
+    assert not (tmp_path / "csv").exists()
