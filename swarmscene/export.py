@@ -16,7 +16,8 @@ of the piece, and its float32 duration; 132 bytes), written as the CSV that Craz
     Duration,x^0,...,x^7,y^0,...,y^7,z^0,...,z^7,yaw^0,...,yaw^7
 
 one file ``cf_<i>.csv`` per vehicle, plus ``crazyflie.json`` with the fit's numbers and the
-limits checked. The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
+limits checked, and Crazyswarm2's ``crazyflies.yaml`` (:func:`crazyswarm2_config`: each vehicle's
+``initial_position``, the start of its trajectory). The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
 bytes (``crtp_commander_high_level.h``: "4k allows us to store 31 poly4d pieces"), so a vehicle's
 path has at most 31 pieces.
 
@@ -355,6 +356,7 @@ class ShowExport:
         for i, fit in enumerate(self.fits):
             fit.poly.to_csv(out_dir / f"cf_{i}.csv")
         atomic_write_json(out_dir / "crazyflie.json", self.summary())
+        atomic_write_bytes(out_dir / "crazyflies.yaml", crazyswarm2_config(self).encode())
 
 
 # -- placement in a lab volume -------------------------------------------------------------------
@@ -426,6 +428,37 @@ def geofence_breach(fits: list[Fit], box: Box, t: np.ndarray) -> dict[str, Any] 
             first = {"vehicle": f"cf_{i}", "time": float(t[k]), "face": f"{'xyz'[axis]} {side}",
                      "value": float(pos[k, axis]), "bound": float((box.lo, box.hi)[face // 3][axis])}
     return first
+
+
+CONTROLLER_PARAM = {"pid": 1, "mellinger": 2}
+"""Firmware parameter ``stabilizer.controller`` of each controller."""
+
+
+def crazyswarm2_config(show: ShowExport) -> str:
+    """Crazyswarm2's ``crazyflies.yaml`` for the show: one robot ``cf_<i>`` per ``cf_<i>.csv`` with
+    its ``initial_position`` (the start of its trajectory, float32 as stored, where the vehicle must
+    stand), a placeholder radio address 0xE7E7E7E7<i> (Crazyswarm's convention; edit it to the lab's
+    vehicles), the high-level commander on and the controller the limits were checked for."""
+    import yaml
+
+    robots = {
+        f"cf_{i}": {"enabled": True, "uri": f"radio://0/80/2M/E7E7E7E7{i:02X}",
+                    "initial_position": [float(v) for v in fit.poly.evaluate([fit.poly.t0])[0, :3]],
+                    "type": "cf21"}
+        for i, fit in enumerate(show.fits)
+    }
+    config = {
+        "fileversion": 3,
+        "robots": robots,
+        "robot_types": {"cf21": {"motion_capture": {"enabled": True, "marker": "default_single_marker",
+                                                    "dynamics": "default"},
+                                 "big_quad": False}},
+        "all": {"firmware_params": {"commander": {"enHighLevel": 1},
+                                    "stabilizer": {"estimator": 2, "controller": CONTROLLER_PARAM[show.controller]}}},
+    }
+    header = ("# Crazyswarm2 crazyflies.yaml written by python -m swarmscene.export: one robot per cf_<i>.csv,\n"
+              "# placed at the start of its trajectory. The radio addresses are placeholders: edit them.\n")
+    return header + yaml.safe_dump(config, sort_keys=False)
 
 
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,

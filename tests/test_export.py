@@ -137,7 +137,7 @@ def test_cli_crazyflie_export_from_a_run_directory(short_show, tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0] == "crazyflie: 3 vehicles from the plan, time scale 1, controller mellinger"
-    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml"]
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["source"] == "plan" and summary["max_pieces"] == 31
     for vehicle in summary["vehicles"]:
@@ -258,7 +258,7 @@ def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsy
                       capsys=capsys)
     assert code == 0
     assert err == [f"python -m swarmscene.export: warning: {EXCEEDS_LINE}; written because of --allow-exceed"]
-    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml"]
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["time_scale"] == 0.25
     assert [c["holds"] for c in summary["vehicles"][0]["limits"]] == [False, False]
@@ -352,3 +352,30 @@ def test_placement_without_a_crazyflie_export_is_refused(short_show, tmp_path, c
     code, err = _main(str(short_show), "--csv", str(tmp_path / "csv"), "--scale", "0.5", capsys=capsys)
     assert code == 2 and err == ["python -m swarmscene.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
     assert not (tmp_path / "csv").exists()
+
+
+# -- the Crazyswarm2 bundle ------------------------------------------------------------------------
+@pytest.mark.parametrize("placement, controller", [([], "mellinger"),
+                                                   (["--fit-box", "-1", "-1", "0", "1", "1", "1.5"], "pid")])
+def test_crazyflies_yaml_places_each_vehicle_at_the_start_of_its_trajectory(short_show, tmp_path, capsys,
+                                                                            placement, controller):
+    import yaml
+
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", controller, *placement, capsys=capsys)
+    assert code == 0 and err == []
+    config = yaml.safe_load((out / "crazyflies.yaml").read_text())
+    assert list(config["robots"]) == ["cf_0", "cf_1", "cf_2"]
+    assert config["all"]["firmware_params"]["stabilizer"]["controller"] == {"mellinger": 2, "pid": 1}[controller]
+    assert config["all"]["firmware_params"]["commander"]["enHighLevel"] == 1
+    t, samples, _ = export.show_samples(short_show)
+    scale = json.loads((out / "crazyflie.json").read_text())["placement"]
+    for i in range(3):
+        robot = config["robots"][f"cf_{i}"]
+        assert robot["enabled"] is True and robot["type"] in config["robot_types"]
+        assert robot["uri"] == f"radio://0/80/2M/E7E7E7E70{i}"
+        start = export.Poly4D.from_csv(out / f"cf_{i}.csv").evaluate([0.0])[0, :3]
+        np.testing.assert_array_equal(np.float32(robot["initial_position"]), np.float32(start))
+        # where the vehicle stands in the (placed) scenario, within the fit's 5 mm
+        np.testing.assert_allclose(robot["initial_position"],
+                                   scale["scale"] * samples[0, i, :3] + scale["offset"], atol=0.005)
