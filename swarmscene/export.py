@@ -637,7 +637,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
-    parser.add_argument("--crazyflie", type=Path, metavar="DIR", help="write cf_<i>.csv and crazyflie.json")
+    parser.add_argument("--crazyflie", type=Path, metavar="DIR", help="write cf_<i>.csv, crazyflie.json and crazyflies.yaml")
     parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
