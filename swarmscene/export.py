@@ -56,6 +56,10 @@ a box, a margin of twice the tolerance inside each face) act on the samples befo
 limits are checked on the placed show. ``--geofence`` (or the fitted box) is checked on the fitted
 polynomials (:func:`geofence_breach`): a show leaving it is refused in one line naming the vehicle,
 the time and the face (exit status 1; ``--allow-exceed`` does not override it).
+
+Take-off and landing (:class:`Segments`): ``--takeoff`` / ``--land`` SECONDS add one degree-7
+piece each, from rest on the floor to the show's first state and from its last state to rest,
+matched to jerk (:func:`hermite7`); the limits and the geofence are checked on them too.
 """
 
 from __future__ import annotations
@@ -321,6 +325,7 @@ class ShowExport:
     placement: "Placement | None" = None
     geofence: "Box | None" = None
     breach: "dict[str, Any] | None" = None  # the first exit from the geofence, None: inside
+    segments: "Segments | None" = None
 
     def summary(self) -> dict[str, Any]:
         return {
@@ -329,6 +334,8 @@ class ShowExport:
             "memory_bytes": TRAJECTORY_MEMORY_BYTES, "piece_bytes": PIECE_BYTES, "max_pieces": MAX_PIECES,
             "placement": {"scale": (self.placement or Placement()).scale,
                           "offset": list((self.placement or Placement()).offset)},
+            "segments": None if self.segments is None else {"takeoff": self.segments.takeoff,
+                                                             "land": self.segments.land, "floor": self.segments.floor},
             "geofence": None if self.geofence is None else {"min": list(self.geofence.lo), "max": list(self.geofence.hi),
                                                              "breach": self.breach},
             "vehicles": [
@@ -430,6 +437,58 @@ def geofence_breach(fits: list[Fit], box: Box, t: np.ndarray) -> dict[str, Any] 
     return first
 
 
+# -- take-off and landing -----------------------------------------------------------------------
+def hermite7(start: np.ndarray, end: np.ndarray, duration: float) -> np.ndarray:
+    """(4, 8) coefficients, ascending powers of tau in [0, duration], of the degree-7 polynomial per
+    axis with the given position, velocity, acceleration and jerk at both ends (``start``, ``end``:
+    (4 derivatives, 4 axes)): eight conditions, eight coefficients, so it joins a show C^3 as the
+    fit's own joins are."""
+    from math import factorial
+
+    rows = []
+    for tau in (0.0, duration):
+        for n in range(4):  # d^n/dtau^n tau^k = k! / (k-n)! tau^(k-n)
+            rows.append([factorial(k) / factorial(k - n) * tau ** (k - n) if k >= n else 0.0
+                         for k in range(POLY_DEGREE + 1)])
+    return np.linalg.solve(np.array(rows), np.concatenate([start, end])).T
+
+
+@dataclass(frozen=True)
+class Segments:
+    """A take-off of ``takeoff`` s from rest on the floor (z = ``floor``) below the show's first point
+    to the show's first state, and a landing of ``land`` s from its last state to rest on the floor
+    below its last point (yaw held); each is one poly4d piece (:func:`hermite7`), None: none."""
+
+    takeoff: float | None = None
+    land: float | None = None
+    floor: float | None = None  # m; None: 0, or with a fit box its shrunk floor (crazyflie_trajectories)
+
+    @property
+    def pieces(self) -> int:
+        return (self.takeoff is not None) + (self.land is not None)
+
+    def _rest_below(self, state: np.ndarray) -> np.ndarray:
+        rest = np.zeros((4, len(AXES)))
+        rest[0] = state[0]
+        rest[0, 2] = self.floor
+        return rest
+
+    def around(self, poly: Poly4D) -> Poly4D:
+        """``poly`` with the take-off before it (its t0 moves ``takeoff`` s earlier) and the landing after."""
+        end = poly.t0 + poly.duration
+        first = np.stack([poly.evaluate([poly.t0], n)[0] for n in range(4)])  # (4 derivatives, 4 axes)
+        last = np.stack([poly.evaluate([end], n)[0] for n in range(4)])
+        durations, coeffs, t0 = [poly.durations], [poly.coeffs], poly.t0
+        if self.takeoff is not None:
+            durations.insert(0, [self.takeoff])
+            coeffs.insert(0, hermite7(self._rest_below(first), first, self.takeoff)[None])
+            t0 -= self.takeoff
+        if self.land is not None:
+            durations.append([self.land])
+            coeffs.append(hermite7(last, self._rest_below(last), self.land)[None])
+        return Poly4D(np.concatenate(durations), np.concatenate(coeffs), t0).as_float32()
+
+
 CONTROLLER_PARAM = {"pid": 1, "mellinger": 2}
 """Firmware parameter ``stabilizer.controller`` of each controller."""
 
@@ -464,14 +523,16 @@ def crazyswarm2_config(show: ShowExport) -> str:
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
                            controller: str = "mellinger", time_scale: float | str = 1.0,
                            tolerance: float = 0.005, kind: str = "auto", placement: Placement | None = None,
-                           fit_box: Box | None = None, geofence: Box | None = None) -> ShowExport:
+                           fit_box: Box | None = None, geofence: Box | None = None,
+                           segments: "Segments | None" = None) -> ShowExport:
     """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
     ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring).
 
     ``placement`` scales and shifts the show, or ``fit_box`` computes the placement that fits it
     into a box (a margin of twice the tolerance on every face, for the fit's error) and is then the
     geofence unless ``geofence`` is given. The geofence is checked on the fitted polynomials
-    (``breach``); nothing here refuses: the command line does."""
+    (``breach``); nothing here refuses: the command line does. ``segments`` adds a take-off before
+    and a landing after each path (:class:`Segments`); the limits and the geofence cover them."""
     limits = CRAZYFLIE[controller]
     if isinstance(source, tuple):
         t, samples = (np.asarray(a, float) for a in source)
@@ -481,15 +542,23 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     if fit_box is not None:
         placement = Placement.into(samples, fit_box, margin=2 * tolerance)
         geofence = geofence or fit_box
+        if segments is not None and segments.floor is None:  # land where the placed show's lowest point is
+            segments = Segments(segments.takeoff, segments.land, fit_box.lo[2] + 2 * tolerance)
+    if segments is not None and segments.floor is None:
+        segments = Segments(segments.takeoff, segments.land, 0.0)
     if placement is not None:  # before the time scale and the fit: the limits are the placed show's
         samples = placement.apply(samples)
     scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
     ts = t[0] + (t - t[0]) * scale
-    fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance) for i in range(samples.shape[1])]
-    dense = np.linspace(ts[0], ts[-1], 4 * len(ts))
+    room = MAX_PIECES - (segments.pieces if segments is not None else 0)  # the segments' pieces are memory too
+    fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance, max_pieces=room) for i in range(samples.shape[1])]
+    if segments is not None:
+        fits = [Fit(segments.around(fit.poly), fit.max_position_error, fit.max_yaw_error) for fit in fits]
+    start, end = fits[0].poly.t0, fits[0].poly.t0 + fits[0].poly.duration
+    dense = np.linspace(start, end, 4 * int(round((end - start) / (ts[-1] - ts[0]) * len(ts))))
     checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
     breach = geofence_breach(fits, geofence, dense) if geofence is not None else None
-    result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach)
+    result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach, segments)
     if out_dir is not None:
         result.write(out_dir)
     return result
@@ -576,7 +645,8 @@ def _finite_numbers(option: str, values: list[str]) -> list[float]:
 def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, Box | None]:
     """``--scale`` / ``--offset`` or ``--fit-box``, and ``--geofence``, checked (one line each)."""
     given = [name for name, value in (("--scale", args.scale), ("--offset", args.offset), ("--fit-box", args.fit_box),
-                                      ("--geofence", args.geofence)) if value is not None]
+                                      ("--geofence", args.geofence), ("--takeoff", args.takeoff),
+                                      ("--land", args.land), ("--floor", args.floor)) if value is not None]
     if given and args.crazyflie is None:
         raise ValueError(f"{given[0]}: places the Crazyflie show: give --crazyflie DIR")
     if args.fit_box is not None and (args.scale is not None or args.offset is not None):
@@ -594,6 +664,27 @@ def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, 
     fit_box = Box.parse("--fit-box", args.fit_box) if args.fit_box is not None else None
     geofence = Box.parse("--geofence", args.geofence) if args.geofence is not None else None
     return placement, fit_box, geofence
+
+
+def _segments(args: argparse.Namespace) -> "Segments | None":
+    """``--takeoff`` / ``--land`` SECONDS (finite, > 0) and ``--floor`` Z (finite, with one of them)."""
+    seconds = {}
+    for option, text in (("--takeoff", args.takeoff), ("--land", args.land)):
+        if text is None:
+            continue
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{option}: must be a finite number of seconds > 0 (got {text!r})")
+        seconds[option] = value
+    if args.floor is not None and not seconds:
+        raise ValueError("--floor: is where --takeoff starts and --land ends: give one of them")
+    if not seconds:
+        return None
+    floor = _finite_numbers("--floor", [args.floor])[0] if args.floor is not None else None
+    return Segments(seconds.get("--takeoff"), seconds.get("--land"), floor)
 
 
 def _tolerance(value: float) -> float:
@@ -620,7 +711,8 @@ def _refuse_or_warn(show: ShowExport, allow_exceed: bool) -> None:
         return
     what = f"the show exceeds the {show.controller} controller's limits ({'; '.join(exceeded)})"
     if not allow_exceed:
-        raise Unflyable(f"{what}; refused, nothing written (--time-scale auto slows it down; "
+        slower = "--time-scale auto or a longer --takeoff/--land" if show.segments else "--time-scale auto"
+        raise Unflyable(f"{what}; refused, nothing written ({slower} slows it down; "
                         "--allow-exceed writes it anyway)")
     print(f"{PROG}: warning: {what}; written because of --allow-exceed", file=sys.stderr)
 
@@ -650,6 +742,12 @@ def main(argv: list[str] | None = None) -> None:
                              "unless --geofence is given)")
     parser.add_argument("--geofence", nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
                         help="refuse (exit status 1) a show whose polynomials leave this box, m")
+    parser.add_argument("--takeoff", metavar="SECONDS", help="add a take-off: from rest on the floor below each "
+                        "vehicle's first point to its first state, in SECONDS before the show")
+    parser.add_argument("--land", metavar="SECONDS", help="add a landing: from each vehicle's last state to rest on "
+                        "the floor below its last point, in SECONDS")
+    parser.add_argument("--floor", metavar="Z", help="the floor's height, m (default 0; with --fit-box its "
+                        "zmin + 2 x --tolerance)")
     parser.add_argument("--allow-exceed", action="store_true",
                         help="write a show that exceeds the controller's limits (a warning, exit 0), "
                              "instead of refusing it with exit status 1")
@@ -664,6 +762,7 @@ def main(argv: list[str] | None = None) -> None:
         scale = _time_scale(args.time_scale)
         tolerance = _tolerance(args.tolerance)
         placement, fit_box, geofence = _placement(args)
+        segments = _segments(args)
         problem = run_problem(args.run_dir)
         if problem is not None:
             if not args.force:
@@ -674,7 +773,7 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
         if args.crazyflie is not None:
             show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source,
-                                          placement, fit_box, geofence)
+                                          placement, fit_box, geofence, segments)
             _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
             show.write(args.crazyflie)
     except Unflyable as exc:  # the show itself: a limit exceeded (status 1, not a bad input's 2)

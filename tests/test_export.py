@@ -379,3 +379,81 @@ def test_crazyflies_yaml_places_each_vehicle_at_the_start_of_its_trajectory(shor
         # where the vehicle stands in the (placed) scenario, within the fit's 5 mm
         np.testing.assert_allclose(robot["initial_position"],
                                    scale["scale"] * samples[0, i, :3] + scale["offset"], atol=0.005)
+
+
+# -- take-off and landing --------------------------------------------------------------------------
+def test_takeoff_and_landing_join_a_show_that_starts_in_the_air(short_show, tmp_path, capsys):
+    """The take-off raised 0.5 m (--offset 0 0 0.5: the show now starts in the air): a 2 s piece
+    from rest on the floor below the first point, a 3 s piece to rest on the floor below the last;
+    both join the show with position to jerk continuous, as the fit's own joins."""
+    import yaml
+
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--offset", "0", "0", "0.5", "--takeoff", "2",
+                      "--land", "3", "--geofence", "-2", "-2", "-0.05", "2", "2", "3", capsys=capsys)
+    assert code == 0 and err == []
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["segments"] == {"takeoff": 2.0, "land": 3.0, "floor": 0.0}
+    t, samples, _ = export.show_samples(short_show)
+    config = yaml.safe_load((out / "crazyflies.yaml").read_text())
+    for i, vehicle in enumerate(summary["vehicles"]):
+        assert vehicle["start_time"] == -2.0 and vehicle["duration"] == pytest.approx(8.0, abs=1e-5)
+        poly = export.Poly4D.from_csv(out / f"cf_{i}.csv", t0=-2.0)
+        assert poly.pieces == vehicle["pieces"] and poly.durations[0] == 2.0 and poly.durations[-1] == 3.0
+        first, last = samples[0, i, :3] + [0, 0, 0.5], samples[-1, i, :3] + [0, 0, 0.5]
+        start, end = poly.evaluate([0.0, 3.0])[:, :3]  # the fitted show's first and last points
+        np.testing.assert_allclose(start, first, atol=0.005)  # the show starts on time
+        np.testing.assert_allclose(end, last, atol=0.005)
+        np.testing.assert_allclose(poly.evaluate([-2.0])[0, :3], [start[0], start[1], 0.0], atol=1e-5)
+        np.testing.assert_allclose(poly.evaluate([6.0])[0, :3], [end[0], end[1], 0.0], atol=1e-5)
+        for n in (1, 2, 3):  # at rest on the floor at both ends
+            assert np.abs(poly.evaluate([-2.0, 6.0], n)).max() < 1e-4, n
+        for join, n, tol in [(j, n, tol) for j in (0.0, 3.0) for n, tol in ((0, 1e-5), (1, 1e-4), (2, 1e-3), (3, 1e-2))]:
+            jump = np.abs(poly.evaluate([join - 1e-9], n) - poly.evaluate([join + 1e-9], n))
+            assert jump.max() < tol, (join, n, jump.max())
+        np.testing.assert_allclose(config["robots"][f"cf_{i}"]["initial_position"], [start[0], start[1], 0.0],
+                                   atol=1e-5)
+
+
+def test_a_takeoff_too_short_for_the_vehicle_is_refused(short_show, tmp_path, capsys):
+    """1.5 m in 0.3 s: the 7th-degree rise needs 51.4 m/s^2 of collective thrust."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--offset", "0", "0", "0.5", "--takeoff", "0.3",
+                      capsys=capsys)
+    assert code == 1 and "cf_0: collective thrust |a + g e3| (m/s^2) 51.4 > 15.5" in err[0]
+    assert err[0].endswith("(--time-scale auto or a longer --takeoff/--land slows it down; --allow-exceed writes "
+                           "it anyway)") and len(err) == 1
+    assert not out.exists()
+
+
+def test_with_a_fit_box_the_floor_is_the_placed_shows_floor(short_show, tmp_path, capsys):
+    """The take-off ends 1.5 m up, still climbing; placed in the box (scale 1: it fits) its landing ends
+    on zmin + 2 x 5 mm, where the
+    placed show started. A take-off into a show that starts on that floor already climbing has to
+    dip below it first (rest to upward speed at one height): the geofence refuses it."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--fit-box", "-2", "-2", "0", "2", "2", "2.5",
+                      "--land", "4", capsys=capsys)
+    assert code == 0 and err == []
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["segments"] == {"takeoff": None, "land": 4.0, "floor": pytest.approx(0.01)}
+    assert summary["geofence"]["breach"] is None
+    poly = export.Poly4D.from_csv(out / "cf_1.csv")
+    assert poly.evaluate([7.0])[0, 2] == pytest.approx(0.01, abs=1e-5)  # landed on the floor
+    assert poly.evaluate([0.0])[0, 2] == pytest.approx(0.01, abs=0.005)  # the placed show's start, within the fit
+    code, err = _main(str(short_show), "--crazyflie", str(out / "up"), "--fit-box", "-2", "-2", "0", "2", "2", "2.5",
+                      "--takeoff", "3", capsys=capsys)
+    assert code == 1 and err[0].startswith("python -m swarmscene.export: cf_0 leaves the geofence at t = -")
+    assert "through the z min face" in err[0] and not (out / "up").exists()
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["--takeoff", "0"], "--takeoff: must be a finite number of seconds > 0 (got '0')"),
+    (["--land", "soon"], "--land: must be a finite number of seconds > 0 (got 'soon')"),
+    (["--floor", "0.1"], "--floor: is where --takeoff starts and --land ends: give one of them"),
+    (["--land", "2", "--floor", "nan"], "--floor: must be finite numbers of metres (got 'nan')"),
+])
+def test_a_bad_segment_option_is_one_line_naming_it(short_show, tmp_path, capsys, argv, line):
+    code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
+    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert not (tmp_path / "cf").exists()
