@@ -336,8 +336,8 @@ class ShowExport:
                           "offset": list((self.placement or Placement()).offset)},
             "segments": None if self.segments is None else {"takeoff": self.segments.takeoff,
                                                              "land": self.segments.land, "floor": self.segments.floor},
-            "geofence": None if self.geofence is None else {"min": list(self.geofence.lo), "max": list(self.geofence.hi),
-                                                             "breach": self.breach},
+            "geofence": None if self.geofence is None else {
+                "min": list(self.geofence.lo), "max": list(self.geofence.hi), "breach": self.breach},
             "vehicles": [
                 {"file": f"cf_{i}.csv", "pieces": fit.poly.pieces, "bytes": fit.poly.nbytes,
                  "duration": fit.poly.duration, "start_time": fit.poly.t0,
@@ -729,7 +729,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
-    parser.add_argument("--crazyflie", type=Path, metavar="DIR", help="write cf_<i>.csv, crazyflie.json and crazyflies.yaml")
+    parser.add_argument("--crazyflie", type=Path, metavar="DIR",
+                        help="write cf_<i>.csv, crazyflie.json and crazyflies.yaml")
     parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")

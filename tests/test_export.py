@@ -15,6 +15,7 @@ from swarmscene import api, export, plots
 from swarmscene.methods.vrb.transform import robot_flat_outputs
 
 SHOW = ["scenario=vrb_airshow"]
+BUNDLE = ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml"]
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +138,7 @@ def test_cli_crazyflie_export_from_a_run_directory(short_show, tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0] == "crazyflie: 3 vehicles from the plan, time scale 1, controller mellinger"
-    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml"]
+    assert sorted(p.name for p in out.iterdir()) == BUNDLE
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["source"] == "plan" and summary["max_pieces"] == 31
     for vehicle in summary["vehicles"]:
@@ -258,7 +259,7 @@ def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsy
                       capsys=capsys)
     assert code == 0
     assert err == [f"python -m swarmscene.export: warning: {EXCEEDS_LINE}; written because of --allow-exceed"]
-    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml"]
+    assert sorted(p.name for p in out.iterdir()) == BUNDLE
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["time_scale"] == 0.25
     assert [c["holds"] for c in summary["vehicles"][0]["limits"]] == [False, False]
@@ -299,7 +300,8 @@ def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, c
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["placement"]["scale"] == pytest.approx(scale, rel=1e-12)
     offset = np.array(summary["placement"]["offset"])
-    np.testing.assert_allclose(offset, [-scale * (lo[0] + hi[0]) / 2, -scale * (lo[1] + hi[1]) / 2, 0.01 - scale * lo[2]],
+    np.testing.assert_allclose(offset, [-scale * (lo[0] + hi[0]) / 2, -scale * (lo[1] + hi[1]) / 2,
+                                        0.01 - scale * lo[2]],
                                atol=1e-12)
     assert summary["geofence"] == {"min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 1.0], "breach": None}
     dense = np.linspace(0.0, 3.0, 3001)
@@ -350,7 +352,8 @@ def test_a_bad_placement_option_is_one_line_naming_it(short_show, tmp_path, caps
 
 def test_placement_without_a_crazyflie_export_is_refused(short_show, tmp_path, capsys):
     code, err = _main(str(short_show), "--csv", str(tmp_path / "csv"), "--scale", "0.5", capsys=capsys)
-    assert code == 2 and err == ["python -m swarmscene.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
+    assert code == 2
+    assert err == ["python -m swarmscene.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
     assert not (tmp_path / "csv").exists()
 
 
@@ -408,7 +411,8 @@ def test_takeoff_and_landing_join_a_show_that_starts_in_the_air(short_show, tmp_
         np.testing.assert_allclose(poly.evaluate([6.0])[0, :3], [end[0], end[1], 0.0], atol=1e-5)
         for n in (1, 2, 3):  # at rest on the floor at both ends
             assert np.abs(poly.evaluate([-2.0, 6.0], n)).max() < 1e-4, n
-        for join, n, tol in [(j, n, tol) for j in (0.0, 3.0) for n, tol in ((0, 1e-5), (1, 1e-4), (2, 1e-3), (3, 1e-2))]:
+        joins = [(j, n, tol) for j in (0.0, 3.0) for n, tol in ((0, 1e-5), (1, 1e-4), (2, 1e-3), (3, 1e-2))]
+        for join, n, tol in joins:
             jump = np.abs(poly.evaluate([join - 1e-9], n) - poly.evaluate([join + 1e-9], n))
             assert jump.max() < tol, (join, n, jump.max())
         np.testing.assert_allclose(config["robots"][f"cf_{i}"]["initial_position"], [start[0], start[1], 0.0],
