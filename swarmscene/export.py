@@ -16,7 +16,8 @@ of the piece, and its float32 duration; 132 bytes), written as the CSV that Craz
     Duration,x^0,...,x^7,y^0,...,y^7,z^0,...,z^7,yaw^0,...,yaw^7
 
 one file ``cf_<i>.csv`` per vehicle, plus ``crazyflie.json`` with the fit's numbers and the
-limits checked. The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
+limits checked, and Crazyswarm2's ``crazyflies.yaml`` (:func:`crazyswarm2_config`: each vehicle's
+``initial_position``, the start of its trajectory). The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
 bytes (``crtp_commander_high_level.h``: "4k allows us to store 31 poly4d pieces"), so a vehicle's
 path has at most 31 pieces.
 
@@ -45,6 +46,20 @@ Limits (:data:`CRAZYFLIE`, Crazyflie 2.x, ``platform_defaults_cf2.h`` of the fir
 ``time_scale`` > 1 slows the show down uniformly (same path; velocity / s, acceleration / s^2);
 ``time_scale="auto"`` picks the smallest scale >= 1 (in steps of 0.05) within the chosen
 controller's limits.
+
+The command line refuses a show that exceeds a limit (one line, exit status 1, nothing written);
+``--allow-exceed`` writes it anyway with a warning line.
+
+Placement in a lab (:class:`Placement`, :class:`Box`): ``--scale S`` and ``--offset X Y Z``
+(p' = S p + offset) or ``--fit-box`` (the largest uniform S <= 1 and the shift that fit the show into
+a box, a margin of twice the tolerance inside each face) act on the samples before the fit, so the
+limits are checked on the placed show. ``--geofence`` (or the fitted box) is checked on the fitted
+polynomials (:func:`geofence_breach`): a show leaving it is refused in one line naming the vehicle,
+the time and the face (exit status 1; ``--allow-exceed`` does not override it).
+
+Take-off and landing (:class:`Segments`): ``--takeoff`` / ``--land`` SECONDS add one degree-7
+piece each, from rest on the floor to the show's first state and from its last state to rest,
+matched to jerk (:func:`hermite7`); the limits and the geofence are checked on them too.
 """
 
 from __future__ import annotations
@@ -307,12 +322,22 @@ class ShowExport:
     time_scale: float
     controller: str
     checks: list[list[dict[str, Any]]]
+    placement: "Placement | None" = None
+    geofence: "Box | None" = None
+    breach: "dict[str, Any] | None" = None  # the first exit from the geofence, None: inside
+    segments: "Segments | None" = None
 
     def summary(self) -> dict[str, Any]:
         return {
             "format": "poly4d (Crazyflie high-level commander; Crazyswarm2 trajectory CSV)",
             "source": self.source, "time_scale": self.time_scale, "controller": self.controller,
             "memory_bytes": TRAJECTORY_MEMORY_BYTES, "piece_bytes": PIECE_BYTES, "max_pieces": MAX_PIECES,
+            "placement": {"scale": (self.placement or Placement()).scale,
+                          "offset": list((self.placement or Placement()).offset)},
+            "segments": None if self.segments is None else {"takeoff": self.segments.takeoff,
+                                                             "land": self.segments.land, "floor": self.segments.floor},
+            "geofence": None if self.geofence is None else {
+                "min": list(self.geofence.lo), "max": list(self.geofence.hi), "breach": self.breach},
             "vehicles": [
                 {"file": f"cf_{i}.csv", "pieces": fit.poly.pieces, "bytes": fit.poly.nbytes,
                  "duration": fit.poly.duration, "start_time": fit.poly.t0,
@@ -322,29 +347,220 @@ class ShowExport:
             ],
         }
 
+    def exceeded(self) -> list[str]:
+        """One phrase per vehicle that breaks a limit (``cf_<i>: name value > limit``), empty when
+        every limit holds."""
+        phrases = []
+        for i, checks in enumerate(self.checks):
+            bad = [f"{c['name']} {c['value']:.3g} > {c['limit']:.3g}" for c in checks if not c["holds"]]
+            if bad:
+                phrases.append(f"cf_{i}: " + ", ".join(bad))
+        return phrases
+
+    def write(self, out_dir: Path) -> None:
+        """``cf_<i>.csv`` per vehicle and ``crazyflie.json``, each written atomically."""
+        out_dir = Path(out_dir)
+        for i, fit in enumerate(self.fits):
+            fit.poly.to_csv(out_dir / f"cf_{i}.csv")
+        atomic_write_json(out_dir / "crazyflie.json", self.summary())
+        atomic_write_bytes(out_dir / "crazyflies.yaml", crazyswarm2_config(self).encode())
+
+
+# -- placement in a lab volume -------------------------------------------------------------------
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box of the world frame, m: lo = (xmin, ymin, zmin), hi = (xmax, ymax, zmax)."""
+
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+
+    @classmethod
+    def parse(cls, option: str, values: list[str]) -> "Box":
+        """``--fit-box`` / ``--geofence`` XMIN YMIN ZMIN XMAX YMAX ZMAX: finite, each min < max."""
+        numbers = _finite_numbers(option, values)
+        box = cls(tuple(numbers[:3]), tuple(numbers[3:]))
+        for axis, lo, hi in zip("xyz", box.lo, box.hi):
+            if not lo < hi:
+                raise ValueError(f"{option}: {axis}min must be below {axis}max (got {lo:g} and {hi:g})")
+        return box
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The uniform similarity p' = scale p + offset applied to every position sample before the fit
+    (yaw unchanged), so the fitted polynomials, the limits and the geofence are those of the placed
+    show: velocity and acceleration scale by ``scale`` too."""
+
+    scale: float = 1.0
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def apply(self, samples: np.ndarray) -> np.ndarray:
+        placed = np.array(samples, float)
+        placed[..., :3] = self.scale * placed[..., :3] + np.asarray(self.offset)
+        return placed
+
+    @classmethod
+    def into(cls, samples: np.ndarray, box: Box, margin: float) -> "Placement":
+        """The largest uniform scale <= 1 (a show is never enlarged) that fits every position of
+        ``samples`` (T, N, >=3) into ``box`` shrunk by ``margin`` on every face, and the shift that
+        centres the show in x and y and puts its lowest point on the shrunk floor (a show that
+        starts on the ground starts on the lab's floor)."""
+        lo, hi = samples[..., :3].min(axis=(0, 1)), samples[..., :3].max(axis=(0, 1))
+        room_lo, room_hi = np.asarray(box.lo) + margin, np.asarray(box.hi) - margin
+        room, extent = room_hi - room_lo, hi - lo
+        if np.any(room <= 0):
+            raise ValueError(f"--fit-box: the box leaves no room inside its {margin * 100:g} cm margin")
+        ratios = [r / e for r, e in zip(room, extent) if e > 0]
+        scale = float(min([1.0, *ratios]))
+        offset = 0.5 * (room_lo + room_hi) - scale * 0.5 * (lo + hi)
+        offset[2] = room_lo[2] - scale * lo[2]
+        return cls(scale, tuple(float(v) for v in offset))
+
+
+FACES = ("min", "max")
+
+
+def geofence_breach(fits: list[Fit], box: Box, t: np.ndarray) -> dict[str, Any] | None:
+    """The earliest time over ``t`` at which a vehicle's polynomials (float32, as flown) leave ``box``:
+    vehicle, time, face (``x min`` ... ``z max``) and the position there; None when all stay inside."""
+    first = None
+    for i, fit in enumerate(fits):
+        pos = fit.poly.evaluate(t)[:, :3]
+        outside = np.concatenate([pos < np.asarray(box.lo), pos > np.asarray(box.hi)], axis=1)  # (T, 6)
+        rows = np.flatnonzero(outside.any(axis=1))
+        if rows.size and (first is None or t[rows[0]] < first["time"]):
+            k = int(rows[0])
+            face = int(np.flatnonzero(outside[k])[0])
+            axis, side = face % 3, FACES[face // 3]
+            first = {"vehicle": f"cf_{i}", "time": float(t[k]), "face": f"{'xyz'[axis]} {side}",
+                     "value": float(pos[k, axis]), "bound": float((box.lo, box.hi)[face // 3][axis])}
+    return first
+
+
+# -- take-off and landing -----------------------------------------------------------------------
+def hermite7(start: np.ndarray, end: np.ndarray, duration: float) -> np.ndarray:
+    """(4, 8) coefficients, ascending powers of tau in [0, duration], of the degree-7 polynomial per
+    axis with the given position, velocity, acceleration and jerk at both ends (``start``, ``end``:
+    (4 derivatives, 4 axes)): eight conditions, eight coefficients, so it joins a show C^3 as the
+    fit's own joins are."""
+    from math import factorial
+
+    rows = []
+    for tau in (0.0, duration):
+        for n in range(4):  # d^n/dtau^n tau^k = k! / (k-n)! tau^(k-n)
+            rows.append([factorial(k) / factorial(k - n) * tau ** (k - n) if k >= n else 0.0
+                         for k in range(POLY_DEGREE + 1)])
+    return np.linalg.solve(np.array(rows), np.concatenate([start, end])).T
+
+
+@dataclass(frozen=True)
+class Segments:
+    """A take-off of ``takeoff`` s from rest on the floor (z = ``floor``) below the show's first point
+    to the show's first state, and a landing of ``land`` s from its last state to rest on the floor
+    below its last point (yaw held); each is one poly4d piece (:func:`hermite7`), None: none."""
+
+    takeoff: float | None = None
+    land: float | None = None
+    floor: float | None = None  # m; None: 0, or with a fit box its shrunk floor (crazyflie_trajectories)
+
+    @property
+    def pieces(self) -> int:
+        return (self.takeoff is not None) + (self.land is not None)
+
+    def _rest_below(self, state: np.ndarray) -> np.ndarray:
+        rest = np.zeros((4, len(AXES)))
+        rest[0] = state[0]
+        rest[0, 2] = self.floor
+        return rest
+
+    def around(self, poly: Poly4D) -> Poly4D:
+        """``poly`` with the take-off before it (its t0 moves ``takeoff`` s earlier) and the landing after."""
+        end = poly.t0 + poly.duration
+        first = np.stack([poly.evaluate([poly.t0], n)[0] for n in range(4)])  # (4 derivatives, 4 axes)
+        last = np.stack([poly.evaluate([end], n)[0] for n in range(4)])
+        durations, coeffs, t0 = [poly.durations], [poly.coeffs], poly.t0
+        if self.takeoff is not None:
+            durations.insert(0, [self.takeoff])
+            coeffs.insert(0, hermite7(self._rest_below(first), first, self.takeoff)[None])
+            t0 -= self.takeoff
+        if self.land is not None:
+            durations.append([self.land])
+            coeffs.append(hermite7(last, self._rest_below(last), self.land)[None])
+        return Poly4D(np.concatenate(durations), np.concatenate(coeffs), t0).as_float32()
+
+
+CONTROLLER_PARAM = {"pid": 1, "mellinger": 2}
+"""Firmware parameter ``stabilizer.controller`` of each controller."""
+
+
+def crazyswarm2_config(show: ShowExport) -> str:
+    """Crazyswarm2's ``crazyflies.yaml`` for the show: one robot ``cf_<i>`` per ``cf_<i>.csv`` with
+    its ``initial_position`` (the start of its trajectory, float32 as stored, where the vehicle must
+    stand), a placeholder radio address 0xE7E7E7E7<i> (Crazyswarm's convention; edit it to the lab's
+    vehicles), the high-level commander on and the controller the limits were checked for."""
+    import yaml
+
+    robots = {
+        f"cf_{i}": {"enabled": True, "uri": f"radio://0/80/2M/E7E7E7E7{i:02X}",
+                    "initial_position": [float(v) for v in fit.poly.evaluate([fit.poly.t0])[0, :3]],
+                    "type": "cf21"}
+        for i, fit in enumerate(show.fits)
+    }
+    config = {
+        "fileversion": 3,
+        "robots": robots,
+        "robot_types": {"cf21": {"motion_capture": {"enabled": True, "marker": "default_single_marker",
+                                                    "dynamics": "default"},
+                                 "big_quad": False}},
+        "all": {"firmware_params": {"commander": {"enHighLevel": 1},
+                                    "stabilizer": {"estimator": 2, "controller": CONTROLLER_PARAM[show.controller]}}},
+    }
+    header = ("# Crazyswarm2 crazyflies.yaml written by python -m swarmscene.export: one robot per cf_<i>.csv,\n"
+              "# placed at the start of its trajectory. The radio addresses are placeholders: edit them.\n")
+    return header + yaml.safe_dump(config, sort_keys=False)
+
 
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
                            controller: str = "mellinger", time_scale: float | str = 1.0,
-                           tolerance: float = 0.005, kind: str = "auto") -> ShowExport:
+                           tolerance: float = 0.005, kind: str = "auto", placement: Placement | None = None,
+                           fit_box: Box | None = None, geofence: Box | None = None,
+                           segments: "Segments | None" = None) -> ShowExport:
     """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
-    ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring)."""
+    ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring).
+
+    ``placement`` scales and shifts the show, or ``fit_box`` computes the placement that fits it
+    into a box (a margin of twice the tolerance on every face, for the fit's error) and is then the
+    geofence unless ``geofence`` is given. The geofence is checked on the fitted polynomials
+    (``breach``); nothing here refuses: the command line does. ``segments`` adds a take-off before
+    and a landing after each path (:class:`Segments`); the limits and the geofence cover them."""
     limits = CRAZYFLIE[controller]
     if isinstance(source, tuple):
         t, samples = (np.asarray(a, float) for a in source)
         used = "samples"
     else:
         t, samples, used = show_samples(Path(source), kind)
+    if fit_box is not None:
+        placement = Placement.into(samples, fit_box, margin=2 * tolerance)
+        geofence = geofence or fit_box
+        if segments is not None and segments.floor is None:  # land where the placed show's lowest point is
+            segments = Segments(segments.takeoff, segments.land, fit_box.lo[2] + 2 * tolerance)
+    if segments is not None and segments.floor is None:
+        segments = Segments(segments.takeoff, segments.land, 0.0)
+    if placement is not None:  # before the time scale and the fit: the limits are the placed show's
+        samples = placement.apply(samples)
     scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
     ts = t[0] + (t - t[0]) * scale
-    fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance) for i in range(samples.shape[1])]
-    dense = np.linspace(ts[0], ts[-1], 4 * len(ts))
+    room = MAX_PIECES - (segments.pieces if segments is not None else 0)  # the segments' pieces are memory too
+    fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance, max_pieces=room) for i in range(samples.shape[1])]
+    if segments is not None:
+        fits = [Fit(segments.around(fit.poly), fit.max_position_error, fit.max_yaw_error) for fit in fits]
+    start, end = fits[0].poly.t0, fits[0].poly.t0 + fits[0].poly.duration
+    dense = np.linspace(start, end, 4 * int(round((end - start) / (ts[-1] - ts[0]) * len(ts))))
     checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
-    result = ShowExport(fits, used, scale, controller, checks)
+    breach = geofence_breach(fits, geofence, dense) if geofence is not None else None
+    result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach, segments)
     if out_dir is not None:
-        out_dir = Path(out_dir)
-        for i, fit in enumerate(fits):
-            fit.poly.to_csv(out_dir / f"cf_{i}.csv")
-        atomic_write_json(out_dir / "crazyflie.json", result.summary())
+        result.write(out_dir)
     return result
 
 
@@ -413,10 +629,92 @@ def _time_scale(text: str) -> float | str:
     return value
 
 
+def _finite_numbers(option: str, values: list[str]) -> list[float]:
+    numbers = []
+    for text in values:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise ValueError(f"{option}: must be finite numbers of metres (got {text!r})")
+        numbers.append(value)
+    return numbers
+
+
+def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, Box | None]:
+    """``--scale`` / ``--offset`` or ``--fit-box``, and ``--geofence``, checked (one line each)."""
+    given = [name for name, value in (("--scale", args.scale), ("--offset", args.offset), ("--fit-box", args.fit_box),
+                                      ("--geofence", args.geofence), ("--takeoff", args.takeoff),
+                                      ("--land", args.land), ("--floor", args.floor)) if value is not None]
+    if given and args.crazyflie is None:
+        raise ValueError(f"{given[0]}: places the Crazyflie show: give --crazyflie DIR")
+    if args.fit_box is not None and (args.scale is not None or args.offset is not None):
+        raise ValueError("--fit-box: computes the scale and offset itself: give it without --scale and --offset")
+    placement = None
+    if args.scale is not None or args.offset is not None:
+        try:
+            scale = float(args.scale or "1")
+        except ValueError:
+            scale = math.nan
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"--scale: must be a finite number > 0 (got {args.scale!r})")
+        offset = _finite_numbers("--offset", args.offset or ["0", "0", "0"])
+        placement = Placement(scale, tuple(offset))
+    fit_box = Box.parse("--fit-box", args.fit_box) if args.fit_box is not None else None
+    geofence = Box.parse("--geofence", args.geofence) if args.geofence is not None else None
+    return placement, fit_box, geofence
+
+
+def _segments(args: argparse.Namespace) -> "Segments | None":
+    """``--takeoff`` / ``--land`` SECONDS (finite, > 0) and ``--floor`` Z (finite, with one of them)."""
+    seconds = {}
+    for option, text in (("--takeoff", args.takeoff), ("--land", args.land)):
+        if text is None:
+            continue
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{option}: must be a finite number of seconds > 0 (got {text!r})")
+        seconds[option] = value
+    if args.floor is not None and not seconds:
+        raise ValueError("--floor: is where --takeoff starts and --land ends: give one of them")
+    if not seconds:
+        return None
+    floor = _finite_numbers("--floor", [args.floor])[0] if args.floor is not None else None
+    return Segments(seconds.get("--takeoff"), seconds.get("--land"), floor)
+
+
 def _tolerance(value: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"--tolerance: must be a finite number of metres > 0 (got {value!r})")
     return value
+
+
+class Unflyable(Exception):
+    """The show cannot be flown as exported (a limit exceeded): exit status 1, nothing written."""
+
+
+def _refuse_or_warn(show: ShowExport, allow_exceed: bool) -> None:
+    """Refuse a show that leaves its geofence (always) or breaks its controller's limits (one line),
+    or warn of the limits under ``--allow-exceed``."""
+    b = show.breach
+    if b is not None:
+        sign = "<" if b["face"].endswith("min") else ">"
+        raise Unflyable(f"{b['vehicle']} leaves the geofence at t = {b['time']:.2f} s through the {b['face']} face "
+                        f"({b['face'][0]} = {b['value']:.3f} m {sign} {b['bound']:g} m); refused, nothing written "
+                        "(--fit-box scales the show into a box)")
+    exceeded = show.exceeded()
+    if not exceeded:
+        return
+    what = f"the show exceeds the {show.controller} controller's limits ({'; '.join(exceeded)})"
+    if not allow_exceed:
+        slower = "--time-scale auto or a longer --takeoff/--land" if show.segments else "--time-scale auto"
+        raise Unflyable(f"{what}; refused, nothing written ({slower} slows it down; "
+                        "--allow-exceed writes it anyway)")
+    print(f"{PROG}: warning: {what}; written because of --allow-exceed", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -424,16 +722,36 @@ def main(argv: list[str] | None = None) -> None:
 
     Every problem is one line on stderr and exit status 2: a bad option (named), a run directory
     whose files are missing or damaged (the file named), a run that failed, collided or did not
-    complete (unless ``--force``: then a warning, and the export goes on).
+    complete (unless ``--force``: then a warning, and the export goes on). A show that exceeds its
+    controller's limits is one line and exit status 1, nothing written (unless ``--allow-exceed``:
+    then a warning, the files written and exit status 0).
     """
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
-    parser.add_argument("--crazyflie", type=Path, metavar="DIR", help="write cf_<i>.csv and crazyflie.json")
+    parser.add_argument("--crazyflie", type=Path, metavar="DIR",
+                        help="write cf_<i>.csv, crazyflie.json and crazyflies.yaml")
     parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
     parser.add_argument("--tolerance", type=float, default=0.005, help="position fit tolerance, m (> 0)")
+    parser.add_argument("--scale", metavar="S", help="scale the show's positions by S (> 0) about the world origin, "
+                        "before the fit and the limits")
+    parser.add_argument("--offset", nargs=3, metavar=("X", "Y", "Z"), help="then shift them by (X, Y, Z) m")
+    parser.add_argument("--fit-box", nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                        help="scale (never up) and shift the show into this box, m (also the geofence "
+                             "unless --geofence is given)")
+    parser.add_argument("--geofence", nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                        help="refuse (exit status 1) a show whose polynomials leave this box, m")
+    parser.add_argument("--takeoff", metavar="SECONDS", help="add a take-off: from rest on the floor below each "
+                        "vehicle's first point to its first state, in SECONDS before the show")
+    parser.add_argument("--land", metavar="SECONDS", help="add a landing: from each vehicle's last state to rest on "
+                        "the floor below its last point, in SECONDS")
+    parser.add_argument("--floor", metavar="Z", help="the floor's height, m (default 0; with --fit-box its "
+                        "zmin + 2 x --tolerance)")
+    parser.add_argument("--allow-exceed", action="store_true",
+                        help="write a show that exceeds the controller's limits (a warning, exit 0), "
+                             "instead of refusing it with exit status 1")
     parser.add_argument("--force", action="store_true",
                         help="export a run that failed, collided or did not complete (a warning, not a refusal)")
     args = parser.parse_args(argv)
@@ -444,6 +762,8 @@ def main(argv: list[str] | None = None) -> None:
     try:
         scale = _time_scale(args.time_scale)
         tolerance = _tolerance(args.tolerance)
+        placement, fit_box, geofence = _placement(args)
+        segments = _segments(args)
         problem = run_problem(args.run_dir)
         if problem is not None:
             if not args.force:
@@ -453,8 +773,12 @@ def main(argv: list[str] | None = None) -> None:
         if args.csv is not None:
             print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
         if args.crazyflie is not None:
-            show = crazyflie_trajectories(args.run_dir, args.crazyflie, args.controller, scale, tolerance,
-                                          args.source)
+            show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source,
+                                          placement, fit_box, geofence, segments)
+            _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
+            show.write(args.crazyflie)
+    except Unflyable as exc:  # the show itself: a limit exceeded (status 1, not a bad input's 2)
+        parser.exit(1, f"{PROG}: {exc}\n")
     except (RunFileError, ValueError) as exc:  # a damaged file, a bad option, a show no scale rescues
         parser.exit(2, f"{PROG}: {' '.join(str(exc).split())}\n")
     except OSError as exc:  # the output directory cannot be written (read-only, full disk)

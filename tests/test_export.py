@@ -15,6 +15,7 @@ from swarmscene import api, export, plots
 from swarmscene.methods.vrb.transform import robot_flat_outputs
 
 SHOW = ["scenario=vrb_airshow"]
+BUNDLE = ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml"]
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +138,7 @@ def test_cli_crazyflie_export_from_a_run_directory(short_show, tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0] == "crazyflie: 3 vehicles from the plan, time scale 1, controller mellinger"
-    assert sorted(p.name for p in out.iterdir()) == ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json"]
+    assert sorted(p.name for p in out.iterdir()) == BUNDLE
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["source"] == "plan" and summary["max_pieces"] == 31
     for vehicle in summary["vehicles"]:
@@ -231,3 +232,232 @@ def test_a_run_without_a_manifest_is_unfinished(short_show, tmp_path, capsys):
     assert code == 2 and err[0].endswith("the run did not complete (no manifest.json: the run was stopped before "
                                          "its end); refused (--force exports it anyway)")
     assert export.run_problem(short_show) is None
+
+
+# -- a show the vehicles cannot fly ---------------------------------------------------------------
+EXCEEDS_LINE = (
+    "the show exceeds the mellinger controller's limits ("
+    "cf_0: collective thrust |a + g e3| (m/s^2) 21.2 > 15.5, downward acceleration -a_z (m/s^2) 10.2 > 9.81; "
+    "cf_1: collective thrust |a + g e3| (m/s^2) 21.2 > 15.5, downward acceleration -a_z (m/s^2) 13.1 > 9.81; "
+    "cf_2: collective thrust |a + g e3| (m/s^2) 21.2 > 15.5, downward acceleration -a_z (m/s^2) 11.7 > 9.81)")
+
+
+def test_a_show_beyond_the_limits_is_refused_with_status_1_and_nothing_written(short_show, tmp_path, capsys):
+    """The take-off played four times faster (--time-scale 0.25: accelerations x 16) needs 21.2
+    m/s^2 of collective thrust per unit mass, beyond 4 THRUST_MAX / CF_MASS = 15.5."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--time-scale", "0.25", capsys=capsys)
+    assert code == 1
+    assert err == [f"python -m swarmscene.export: {EXCEEDS_LINE}; refused, nothing written "
+                   "(--time-scale auto slows it down; --allow-exceed writes it anyway)"]
+    assert not out.exists()
+
+
+def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsys):
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--time-scale", "0.25", "--allow-exceed",
+                      capsys=capsys)
+    assert code == 0
+    assert err == [f"python -m swarmscene.export: warning: {EXCEEDS_LINE}; written because of --allow-exceed"]
+    assert sorted(p.name for p in out.iterdir()) == BUNDLE
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["time_scale"] == 0.25
+    assert [c["holds"] for c in summary["vehicles"][0]["limits"]] == [False, False]
+    assert export.Poly4D.from_csv(out / "cf_0.csv").duration == pytest.approx(0.75, abs=1e-6)
+
+
+# -- placing the show in a lab volume, the geofence ------------------------------------------------
+def test_a_show_leaving_the_geofence_is_refused_naming_vehicle_time_and_face(short_show, tmp_path, capsys):
+    """cf_0 climbs out to the left (x from -0.7 to -1.197 m in 3 s): with xmin = -1 it leaves
+    through the x min face between the plan's samples at 2.58 s and 2.59 s."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--geofence", "-1", "-1", "-0.1", "1", "1", "2",
+                      capsys=capsys)
+    assert code == 1
+    assert err == ["python -m swarmscene.export: cf_0 leaves the geofence at t = 2.59 s through the x min face "
+                   "(x = -1.001 m < -1 m); refused, nothing written (--fit-box scales the show into a box)"]
+    assert not out.exists()
+    t, samples, _ = export.show_samples(short_show)
+    crossing = t[np.flatnonzero(samples[:, 0, 0] < -1.0)[0]]
+    assert crossing == pytest.approx(2.59) and samples[:, 1:, 0].min() > -1.0  # only cf_0 leaves
+    # --allow-exceed is for the controller's limits; a geofence is never overridden
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--geofence", "-1", "-1", "-0.1", "1", "1", "2",
+                      "--allow-exceed", capsys=capsys)
+    assert code == 1 and "leaves the geofence" in err[0] and not out.exists()
+
+
+def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, capsys):
+    """Box 1 m x 1 m x 1 m; margin 2 x 5 mm: room 0.98 m per axis. The show spans 1.908 m in x,
+    0.310 m in y, 1.499 m in z, so x sets the scale 0.98 / 1.908; x, y centred, the floor on zmin + 1 cm."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--fit-box", "-0.5", "-0.5", "0", "0.5", "0.5", "1",
+                      capsys=capsys)
+    assert code == 0 and err == []
+    t, samples, _ = export.show_samples(short_show)
+    lo, hi = samples[..., :3].min(axis=(0, 1)), samples[..., :3].max(axis=(0, 1))
+    scale = 0.98 / (hi[0] - lo[0])
+    assert scale == pytest.approx(0.98 / (0.71063275 + 1.19734309), rel=1e-7)
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["placement"]["scale"] == pytest.approx(scale, rel=1e-12)
+    offset = np.array(summary["placement"]["offset"])
+    np.testing.assert_allclose(offset, [-scale * (lo[0] + hi[0]) / 2, -scale * (lo[1] + hi[1]) / 2,
+                                        0.01 - scale * lo[2]],
+                               atol=1e-12)
+    assert summary["geofence"] == {"min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 1.0], "breach": None}
+    dense = np.linspace(0.0, 3.0, 3001)
+    for i in range(3):
+        poly = export.Poly4D.from_csv(out / f"cf_{i}.csv")
+        np.testing.assert_allclose(poly.evaluate([0.0])[0, :3], scale * samples[0, i, :3] + offset, atol=0.005)
+        pos = poly.evaluate(dense)[:, :3]
+        assert pos.min(axis=0).min() >= -0.5 and (pos.min(axis=0)[2]) >= 0.0 and pos.max() <= 1.0
+        yaw = poly.evaluate(dense)[:, 3]
+        np.testing.assert_allclose(yaw, np.interp(dense, t, samples[:, i, 3]), atol=0.01)  # yaw is not scaled
+
+
+def test_scaling_applies_before_the_limits(short_show, tmp_path, capsys):
+    """Twice as fast (--time-scale 0.5) the take-off needs 1.67 m/s along an axis, beyond the PID
+    controller's 1.0 m/s cap; the same show at half size needs half: 0.83 m/s, within it."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
+                      capsys=capsys)
+    assert code == 1 and err[0].startswith("python -m swarmscene.export: the show exceeds the pid controller's limits "
+                                           "(cf_0: axis speed max(|vx|, |vy|, |vz|) (m/s) 1.67 > 1")
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
+                      "--scale", "0.5", "--offset", "0", "0", "0.2", capsys=capsys)
+    assert code == 0 and err == []
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["placement"] == {"scale": 0.5, "offset": [0.0, 0.0, 0.2]}
+    speed = [c for c in summary["vehicles"][0]["limits"] if c["name"].startswith("axis speed")][0]
+    assert speed["value"] == pytest.approx(1.6667 / 2, abs=2e-3) and speed["holds"]
+    t, samples, _ = export.show_samples(short_show)
+    poly = export.Poly4D.from_csv(out / "cf_2.csv")
+    np.testing.assert_allclose(poly.evaluate([0.0])[0, :3], 0.5 * samples[0, 2, :3] + [0, 0, 0.2], atol=0.005)
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["--scale", "0"], "--scale: must be a finite number > 0 (got '0')"),
+    (["--scale", "nan"], "--scale: must be a finite number > 0 (got 'nan')"),
+    (["--offset", "0", "x", "0"], "--offset: must be finite numbers of metres (got 'x')"),
+    (["--fit-box", "0", "0", "0", "1", "-1", "1"], "--fit-box: ymin must be below ymax (got 0 and -1)"),
+    (["--geofence", "0", "0", "inf", "1", "1", "1"], "--geofence: must be finite numbers of metres (got 'inf')"),
+    (["--fit-box", "0", "0", "0", "1", "1", "1", "--scale", "2"],
+     "--fit-box: computes the scale and offset itself: give it without --scale and --offset"),
+    (["--fit-box", "0", "0", "0", "0.005", "1", "1"], "--fit-box: the box leaves no room inside its 1 cm margin"),
+])
+def test_a_bad_placement_option_is_one_line_naming_it(short_show, tmp_path, capsys, argv, line):
+    code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
+    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert not (tmp_path / "cf").exists()
+
+
+def test_placement_without_a_crazyflie_export_is_refused(short_show, tmp_path, capsys):
+    code, err = _main(str(short_show), "--csv", str(tmp_path / "csv"), "--scale", "0.5", capsys=capsys)
+    assert code == 2
+    assert err == ["python -m swarmscene.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
+    assert not (tmp_path / "csv").exists()
+
+
+# -- the Crazyswarm2 bundle ------------------------------------------------------------------------
+@pytest.mark.parametrize("placement, controller", [([], "mellinger"),
+                                                   (["--fit-box", "-1", "-1", "0", "1", "1", "1.5"], "pid")])
+def test_crazyflies_yaml_places_each_vehicle_at_the_start_of_its_trajectory(short_show, tmp_path, capsys,
+                                                                            placement, controller):
+    import yaml
+
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", controller, *placement, capsys=capsys)
+    assert code == 0 and err == []
+    config = yaml.safe_load((out / "crazyflies.yaml").read_text())
+    assert list(config["robots"]) == ["cf_0", "cf_1", "cf_2"]
+    assert config["all"]["firmware_params"]["stabilizer"]["controller"] == {"mellinger": 2, "pid": 1}[controller]
+    assert config["all"]["firmware_params"]["commander"]["enHighLevel"] == 1
+    t, samples, _ = export.show_samples(short_show)
+    scale = json.loads((out / "crazyflie.json").read_text())["placement"]
+    for i in range(3):
+        robot = config["robots"][f"cf_{i}"]
+        assert robot["enabled"] is True and robot["type"] in config["robot_types"]
+        assert robot["uri"] == f"radio://0/80/2M/E7E7E7E70{i}"
+        start = export.Poly4D.from_csv(out / f"cf_{i}.csv").evaluate([0.0])[0, :3]
+        np.testing.assert_array_equal(np.float32(robot["initial_position"]), np.float32(start))
+        # where the vehicle stands in the (placed) scenario, within the fit's 5 mm
+        np.testing.assert_allclose(robot["initial_position"],
+                                   scale["scale"] * samples[0, i, :3] + scale["offset"], atol=0.005)
+
+
+# -- take-off and landing --------------------------------------------------------------------------
+def test_takeoff_and_landing_join_a_show_that_starts_in_the_air(short_show, tmp_path, capsys):
+    """The take-off raised 0.5 m (--offset 0 0 0.5: the show now starts in the air): a 2 s piece
+    from rest on the floor below the first point, a 3 s piece to rest on the floor below the last;
+    both join the show with position to jerk continuous, as the fit's own joins."""
+    import yaml
+
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--offset", "0", "0", "0.5", "--takeoff", "2",
+                      "--land", "3", "--geofence", "-2", "-2", "-0.05", "2", "2", "3", capsys=capsys)
+    assert code == 0 and err == []
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["segments"] == {"takeoff": 2.0, "land": 3.0, "floor": 0.0}
+    t, samples, _ = export.show_samples(short_show)
+    config = yaml.safe_load((out / "crazyflies.yaml").read_text())
+    for i, vehicle in enumerate(summary["vehicles"]):
+        assert vehicle["start_time"] == -2.0 and vehicle["duration"] == pytest.approx(8.0, abs=1e-5)
+        poly = export.Poly4D.from_csv(out / f"cf_{i}.csv", t0=-2.0)
+        assert poly.pieces == vehicle["pieces"] and poly.durations[0] == 2.0 and poly.durations[-1] == 3.0
+        first, last = samples[0, i, :3] + [0, 0, 0.5], samples[-1, i, :3] + [0, 0, 0.5]
+        start, end = poly.evaluate([0.0, 3.0])[:, :3]  # the fitted show's first and last points
+        np.testing.assert_allclose(start, first, atol=0.005)  # the show starts on time
+        np.testing.assert_allclose(end, last, atol=0.005)
+        np.testing.assert_allclose(poly.evaluate([-2.0])[0, :3], [start[0], start[1], 0.0], atol=1e-5)
+        np.testing.assert_allclose(poly.evaluate([6.0])[0, :3], [end[0], end[1], 0.0], atol=1e-5)
+        for n in (1, 2, 3):  # at rest on the floor at both ends
+            assert np.abs(poly.evaluate([-2.0, 6.0], n)).max() < 1e-4, n
+        joins = [(j, n, tol) for j in (0.0, 3.0) for n, tol in ((0, 1e-5), (1, 1e-4), (2, 1e-3), (3, 1e-2))]
+        for join, n, tol in joins:
+            jump = np.abs(poly.evaluate([join - 1e-9], n) - poly.evaluate([join + 1e-9], n))
+            assert jump.max() < tol, (join, n, jump.max())
+        np.testing.assert_allclose(config["robots"][f"cf_{i}"]["initial_position"], [start[0], start[1], 0.0],
+                                   atol=1e-5)
+
+
+def test_a_takeoff_too_short_for_the_vehicle_is_refused(short_show, tmp_path, capsys):
+    """1.5 m in 0.3 s: the 7th-degree rise needs 51.4 m/s^2 of collective thrust."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--offset", "0", "0", "0.5", "--takeoff", "0.3",
+                      capsys=capsys)
+    assert code == 1 and "cf_0: collective thrust |a + g e3| (m/s^2) 51.4 > 15.5" in err[0]
+    assert err[0].endswith("(--time-scale auto or a longer --takeoff/--land slows it down; --allow-exceed writes "
+                           "it anyway)") and len(err) == 1
+    assert not out.exists()
+
+
+def test_with_a_fit_box_the_floor_is_the_placed_shows_floor(short_show, tmp_path, capsys):
+    """The take-off ends 1.5 m up, still climbing; placed in the box (scale 1: it fits) its landing ends
+    on zmin + 2 x 5 mm, where the
+    placed show started. A take-off into a show that starts on that floor already climbing has to
+    dip below it first (rest to upward speed at one height): the geofence refuses it."""
+    out = tmp_path / "cf"
+    code, err = _main(str(short_show), "--crazyflie", str(out), "--fit-box", "-2", "-2", "0", "2", "2", "2.5",
+                      "--land", "4", capsys=capsys)
+    assert code == 0 and err == []
+    summary = json.loads((out / "crazyflie.json").read_text())
+    assert summary["segments"] == {"takeoff": None, "land": 4.0, "floor": pytest.approx(0.01)}
+    assert summary["geofence"]["breach"] is None
+    poly = export.Poly4D.from_csv(out / "cf_1.csv")
+    assert poly.evaluate([7.0])[0, 2] == pytest.approx(0.01, abs=1e-5)  # landed on the floor
+    assert poly.evaluate([0.0])[0, 2] == pytest.approx(0.01, abs=0.005)  # the placed show's start, within the fit
+    code, err = _main(str(short_show), "--crazyflie", str(out / "up"), "--fit-box", "-2", "-2", "0", "2", "2", "2.5",
+                      "--takeoff", "3", capsys=capsys)
+    assert code == 1 and err[0].startswith("python -m swarmscene.export: cf_0 leaves the geofence at t = -")
+    assert "through the z min face" in err[0] and not (out / "up").exists()
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["--takeoff", "0"], "--takeoff: must be a finite number of seconds > 0 (got '0')"),
+    (["--land", "soon"], "--land: must be a finite number of seconds > 0 (got 'soon')"),
+    (["--floor", "0.1"], "--floor: is where --takeoff starts and --land ends: give one of them"),
+    (["--land", "2", "--floor", "nan"], "--floor: must be finite numbers of metres (got 'nan')"),
+])
+def test_a_bad_segment_option_is_one_line_naming_it(short_show, tmp_path, capsys, argv, line):
+    code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
+    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert not (tmp_path / "cf").exists()
