@@ -8,9 +8,10 @@ can stop cleanly ask :func:`requested`: the stepping loop between two ticks
 (:meth:`swarmscene.core.simulation.Simulation.run`), and the command line before and after each
 phase (composition, build, run, writing).
 
-A second signal of the same kind while the first is still pending raises ``KeyboardInterrupt``
+A second stop signal (of either kind) while the first is still pending raises ``KeyboardInterrupt``
 at once: the escape hatch when the first one is not acted on soon enough (a long compile, a
-blocking write).
+blocking write). Where raising is safe at any moment (the main process of a sweep whose jobs run
+in other processes), :func:`raising` makes the first signal raise.
 """
 
 from __future__ import annotations
@@ -45,10 +46,15 @@ def clear() -> None:
 
 
 def _record(signum: int, frame: Any) -> None:
-    """The handler: record the request; only a repeated signal raises (see the module's note)."""
-    if _requested == signum:
+    """The handler: record the request; only a second one raises (see the module's note)."""
+    if _requested is not None:
         raise KeyboardInterrupt
     request(signum)
+
+
+def _record_and_raise(signum: int, frame: Any) -> None:
+    request(signum)
+    raise KeyboardInterrupt
 
 
 def install() -> bool:
@@ -72,6 +78,27 @@ def handle_stop_signals() -> Iterator[bool]:
     install()
     try:
         yield True
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
+        clear()  # the request was acted on: a later run in this process starts unrequested
+
+
+@contextmanager
+def raising() -> Iterator[None]:
+    """Within the block a stop signal is recorded and raises ``KeyboardInterrupt`` at once (for
+    code that only waits on other processes: no compiled kernel, no half-written file here); a
+    request recorded before the block raises on entry. Off the main thread: nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    if _requested is not None:
+        raise KeyboardInterrupt
+    previous = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, _record_and_raise)
+    try:
+        yield
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler if handler is not None else signal.SIG_DFL)

@@ -192,6 +192,7 @@ def _task(cfg: Any) -> Any:
         _report([line])
     if hydra_cfg.mode != RunMode.MULTIRUN:
         return _single(data, run_dir)
+    from .rundir import RunFileError
     from .sweeps.records import record_failure
 
     try:
@@ -202,6 +203,9 @@ def _task(cfg: Any) -> Any:
         line = _error_lines(exc)[0]
         try:
             record_failure(run_dir, exc, data)
+        except RunFileError as refused:  # a planted link: nothing is written through it
+            if str(refused) not in line:
+                line += f" (its error.json not written: {refused})"
         except OSError as write_error:  # a full disk, a read-only directory: say so, go on
             line += f" (and its error.json could not be written in {run_dir}: {write_error.strerror or write_error})"
         print(f"swarmscene: job {run_dir.name} failed: {line}", file=sys.stderr)
@@ -290,10 +294,12 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
     if done is not None:
         print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
         return _objective_from(scenario.config.output.objective, done)
+    if interrupts.requested() is not None:  # came while the job was set up: stop before building
+        raise KeyboardInterrupt
     sim = api.build(scenario, plugin_set)
     result = _run_and_write(sim, run_dir, api.extra_writers(sim), sweep=True)
-    if not result.complete:
-        raise KeyboardInterrupt  # outputs are written and marked incomplete; stop the sweep
+    if not result.complete or interrupts.requested() is not None:
+        raise KeyboardInterrupt  # outputs are written (marked incomplete if the run was cut); stop the sweep
     if result.error is not None:
         raise RunFailed(result.error)  # recorded as a failed job (error.json, manifest), outputs kept
     return _objective(sim, result)

@@ -22,6 +22,7 @@ The check costs one pass of PyYAML's event parser over the file (a few ms for a 
 from __future__ import annotations
 
 import os
+import re
 from typing import Any
 
 from .core.errors import ConfigError
@@ -32,7 +33,8 @@ MAX_NODES = 200_000
 """Most YAML nodes in a file once its aliases are expanded."""
 MAX_DEPTH = 64
 """Deepest nesting of mappings and sequences."""
-_REFUSED_RESOLVERS = ("${oc.env:",)
+_REFUSED_RESOLVER = re.compile(r"\$\{\s*oc\.env\s*:")
+"""``${oc.env:...}``, as OmegaConf's grammar reads it (spaces allowed after ``${`` and before ``:``)."""
 
 
 def check_scenario_file(raw: bytes, where: str) -> None:
@@ -72,7 +74,7 @@ def _check_structure(text: str, where: str) -> None:
                     sizes[-1] += size  # counted in `expanded` already, node by node
                 continue
             if isinstance(event, yaml.ScalarEvent):
-                if any(marker in event.value for marker in _REFUSED_RESOLVERS):
+                if _REFUSED_RESOLVER.search(event.value):
                     _refuse(where, event, "${oc.env:...} is refused in scenario files (its value would be "
                                           "written into the run's config.yaml); give the value on the command line")
                 size = 1

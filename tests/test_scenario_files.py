@@ -110,3 +110,12 @@ def test_install_checks_hydras_readers_once():
     first = FileConfigSource.load_config
     scenario_files.install()
     assert FileConfigSource.load_config is first and first._swarmscene_checked
+
+
+@pytest.mark.parametrize("spelling", ["${ oc.env:SECRET}", "${oc.env :SECRET}", '${oc.decode:"${ oc.env:SECRET}"}'])
+def test_oc_env_is_refused_however_the_grammar_lets_it_be_spelt(spelling):
+    assert refusal(HEADER + f"description: {spelling}\n").startswith("my.yaml:2: ${oc.env:...} is refused")
+
+
+def test_a_resolver_that_only_starts_like_oc_env_is_left_alone():
+    check_scenario_file((HEADER + "description: ${oc.envelope:x}\n").encode(), "my.yaml")

@@ -248,3 +248,57 @@ def test_a_link_planted_at_multirun_yaml_is_replaced_not_written_through(tmp_pat
     assert proc.returncode == 0, proc.stderr
     assert target.read_text() == "keep me"
     assert not (sw / "multirun.yaml").is_symlink() and "sweep:" in (sw / "multirun.yaml").read_text()
+
+
+def test_a_job_directory_planted_as_a_link_is_refused_and_nothing_is_written_through_it(tmp_path):
+    sw, outside = tmp_path / "sw", tmp_path / "outside"
+    sw.mkdir()
+    outside.mkdir()
+    (sw / "0").symlink_to(outside)
+    proc = swarmscene("--multirun", "seed=0,1", "clock.duration=0.5", f"hydra.sweep.dir={sw}", cwd=tmp_path)
+    assert proc.returncode == 1  # job 0 did not complete
+    assert [ln for ln in lines(proc.stderr) if ln.startswith("swarmscene: job 0 failed")] == [
+        f"swarmscene: job 0 failed: {sw / '0'}: is a symbolic link (refused: a job's records are written "
+        "inside the sweep directory)"
+    ]
+    assert list(outside.iterdir()) == []
+    assert (sw / "1" / "manifest.json").is_file()
+    rows = [(row["job"], row["status"]) for row in tables.collect_rows(sw)]
+    assert rows == [("0", "damaged"), ("1", "complete")]  # the link is listed, never read
+
+
+def test_a_sweep_adding_a_config_folder_composes_its_groups(tmp_path):
+    """A group that only ``hydra.searchpath`` brings (``+experiment=fast``) is a group, not a value:
+    such a sweep's jobs are composed by Hydra whole."""
+    extra = tmp_path / "extra" / "experiment"
+    extra.mkdir(parents=True)
+    (extra / "fast.yaml").write_text("# @package _global_\ndescription: from the extra folder\nclock:\n  duration: 0.5\n")
+    sw = tmp_path / "sw"
+    proc = swarmscene("--multirun", f"hydra.searchpath=[file://{tmp_path / 'extra'}]", "+experiment=fast",
+                      "seed=0,1", f"hydra.sweep.dir={sw}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    for job in ("0", "1"):
+        config = (sw / job / "config.yaml").read_text()
+        assert "description: from the extra folder" in config and "duration: 0.5" in config
+
+
+def test_sigterm_to_a_joblib_sweeps_main_process_stops_it_with_143(tmp_path):
+    """The launcher's workers run the jobs; the main process only waits, so a SIGTERM sent to it
+    alone (a scheduler's cancel, `kill PID`) stops the launch at once instead of after every job."""
+    sw = tmp_path / "sw"
+    env = dict(os.environ)
+    env.pop("HYDRA_FULL_ERROR", None)
+    proc = subprocess.Popen(
+        [*EXE, "--multirun", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "seed=range(0,40)",
+         "clock.duration=3000", f"hydra.sweep.dir={sw}"],
+        cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not (sw / "0").exists() and time.monotonic() < deadline:  # the first job has started
+        time.sleep(0.2)
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGTERM)
+    started = time.monotonic()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    assert time.monotonic() - started < 60  # 40 jobs of 3,000 s would take hours

@@ -50,6 +50,17 @@ def parse(overrides: Sequence[str]) -> list[Any]:
     return [_PARSED[o] for o in overrides]
 
 
+def extends_search_path(master_config: Any) -> bool:
+    """Whether the sweep's config adds to Hydra's search path (``hydra.searchpath``, from the
+    command line or the primary config): its folders may hold config groups that the loader's own
+    repository does not know, so a group override would be taken for a value. Such a sweep's jobs
+    are composed by Hydra whole."""
+    try:
+        return bool(master_config.hydra.searchpath)
+    except Exception:  # no hydra node: nothing added
+        return False
+
+
 class GroupCachingLoader(ConfigLoader):
     """Hydra's config loader, with ``load_sweep_config`` composing once per set of group overrides.
 
@@ -97,7 +108,7 @@ class GroupCachingLoader(ConfigLoader):
 
         parsed = parse(list(sweep_overrides))
         values = [o for o in parsed if self._is_value(o)]
-        if not values or any(o.key_or_group == "hydra.searchpath" for o in parsed):
+        if not values or extends_search_path(master_config) or any(o.key_or_group == "hydra.searchpath" for o in parsed):
             cfg = self.inner.load_sweep_config(master_config, list(sweep_overrides))
         else:
             groups = [o.input_line for o in parsed if not self._is_value(o)]

@@ -118,6 +118,7 @@ class JobCheck:
         from hydra.core.override_parser.overrides_parser import OverridesParser
 
         from .. import api
+        from .compose import extends_search_path
 
         self.loader = config_loader
         self.master = master
@@ -125,9 +126,10 @@ class JobCheck:
         self.registry = api.plugins()[1]
         self.composed: dict[tuple[str, ...], Any] = {}
         self._groups: dict[str, bool] = {}
+        self.whole = extends_search_path(master)  # groups the repository cannot tell: Hydra composes
 
     def _is_group(self, override: Any) -> bool:
-        if override.package is not None:
+        if override.package is not None or self.whole:
             return True
         name = override.key_or_group
         if name not in self._groups:

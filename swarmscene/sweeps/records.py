@@ -44,6 +44,7 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
     from ..core.errors import ConfigError
 
     run_dir = Path(run_dir)
+    refuse_linked_job_dir(run_dir)
     write_overrides(run_dir)
     lines = exc.lines if isinstance(exc, ConfigError) else [f"{type(exc).__name__}: {exc}"]
     message = "; ".join(line.splitlines()[0] for line in lines if line) or type(exc).__name__
@@ -72,6 +73,16 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
     )
 
 
+def refuse_linked_job_dir(run_dir: Path) -> None:
+    """A job directory or its ``.hydra/`` planted as a symbolic link is refused (RunFileError, one
+    line): every record of the job is written inside the sweep directory, never through a link."""
+    from ..rundir import RunFileError
+
+    for directory in (Path(run_dir), Path(run_dir) / ".hydra"):
+        if directory.is_symlink():
+            raise RunFileError(directory, "is a symbolic link (refused: a job's records are written inside the sweep directory)")
+
+
 def write_overrides(run_dir: Path) -> None:
     """Write the job's ``.hydra/overrides.yaml`` (Hydra's list of the job's overrides) when Hydra
     did not (a sweep's jobs run with ``hydra.output_subdir: null``: ``compose._as_sweep_job``)."""
@@ -80,6 +91,7 @@ def write_overrides(run_dir: Path) -> None:
 
     from ..core.outputs import atomic_write_bytes
 
+    refuse_linked_job_dir(run_dir)
     path = Path(run_dir) / ".hydra" / "overrides.yaml"
     if path.exists() or path.is_symlink() or not HydraConfig.initialized():
         return
@@ -107,6 +119,7 @@ def completed_metrics(run_dir: Path, data: dict[str, Any]) -> dict[str, Any] | N
     a stale ``error.json`` and its temporary files (``.*.tmp``).
     """
     run_dir = Path(run_dir)
+    refuse_linked_job_dir(run_dir)
     remove_temporaries(run_dir)
     if complete_problem(run_dir, config_hash(data)) is None:
         from ..rundir import RunDir
@@ -215,7 +228,11 @@ class SweepLock:
     def release(self) -> None:
         if self.fd is None:
             return
-        self.path.unlink(missing_ok=True)  # while still held: a waiting opener sees it replaced
+        try:  # while still held: a waiting opener sees it replaced; only our own file, though
+            if os.stat(self.path, follow_symlinks=False).st_ino == os.fstat(self.fd).st_ino:
+                self.path.unlink()
+        except FileNotFoundError:  # removed by hand meanwhile (another sweep may hold a new one)
+            pass
         os.close(self.fd)  # closing drops the flock
         self.fd = None
         if self.made_dir:
@@ -359,13 +376,15 @@ def _first_foreign_job(sweep_dir: Path, jobs: list[list[str]]) -> tuple[str, str
 
 
 def job_dirs(directory: Path) -> list[Path]:
-    """The run directories in ``directory``: itself when it is a run, else its job subfolders
-    (links are not followed: a planted link to another directory is not a job)."""
+    """The run directories in ``directory``: itself when it is a run, else its job subfolders.
+    Links are not followed: a link planted where a job's folder goes (a number) is listed, so the
+    table shows that job as damaged (:func:`swarmscene.sweeps.tables.job_row`), never read."""
     directory = Path(directory)
     if _is_run(directory):
         return [directory]
     found = (
-        [p for p in directory.iterdir() if not p.is_symlink() and p.is_dir() and _is_run(p)]
+        [p for p in directory.iterdir() if (not p.is_symlink() and p.is_dir() and _is_run(p))
+         or (p.is_symlink() and p.name.isdigit())]  # a job's place taken by a link: listed, never read
         if directory.is_dir() else []
     )
     return sorted(found, key=lambda p: (0, int(p.name), "") if p.name.isdigit() else (1, 0, p.name))

@@ -45,6 +45,7 @@ from typing import Any
 
 from hydra.plugins.sweeper import Sweeper
 
+from ..core import interrupts
 from .grid import ON_INVALID, UPFRONT, VALIDATE, GridCheck, JobCheck, expand
 
 FIRST_BATCH = 16
@@ -98,6 +99,15 @@ class SwarmsceneSweeper(Sweeper):
             hydra_context=self.hydra_context, task_function=task_function, config=config
         )
 
+    def _stoppable(self) -> Any:
+        """While other processes run the jobs (joblib, Ray, submitit) this one only waits: a stop
+        signal may raise at once, which stops the launch; jobs in this process stop between ticks."""
+        import contextlib
+
+        if type(self.launcher).__name__ in IN_PROCESS_LAUNCHERS:
+            return contextlib.nullcontext()
+        return interrupts.raising()
+
     def sweep(self, arguments: list[str]) -> Any:
         from hydra.core.override_parser.overrides_parser import OverridesParser
         from omegaconf import OmegaConf
@@ -122,13 +132,20 @@ class SwarmsceneSweeper(Sweeper):
             for start, stop in batches(len(jobs), self.max_batch_size, whole):
                 if not whole:
                     checker.check(start, stop)
-                results = self.launcher.launch(jobs[start:stop], initial_job_idx=start)
+                if interrupts.requested() is not None:  # a stop request between batches
+                    raise KeyboardInterrupt
+                with self._stoppable():
+                    results = self.launcher.launch(jobs[start:stop], initial_job_idx=start)
                 for result in results:
                     _ = result.return_value  # re-raises what ended a job (a Ctrl-C)
                 returns.append(results)
             return returns
         finally:
             lock.release()
+
+
+IN_PROCESS_LAUNCHERS = ("BasicLauncher",)
+"""Launchers that run the jobs in this process: a stop request waits for the tick (see interrupts)."""
 
 
 def command_as_typed() -> list[str]:

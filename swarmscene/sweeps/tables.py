@@ -62,6 +62,10 @@ def job_row(run_dir: Path, root: Path | None = None) -> dict[str, Any]:
     """
     from ..rundir import RunDir, RunFileError
 
+    if Path(run_dir).is_symlink():  # planted where a job's folder goes: reported, never read
+        name = str(Path(run_dir).relative_to(root)) if root is not None else Path(run_dir).name
+        return {"job": name, "status": "damaged", "reason": "damaged", "seed": None, "overrides": "",
+                "config_hash": None, "error": f"{run_dir}: is a symbolic link (refused: not read)"}
     run = RunDir(run_dir)
     damage: list[str] = []
 
