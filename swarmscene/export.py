@@ -620,22 +620,24 @@ def _time_scale(text: str) -> float | str:
     """``--time-scale``: a finite number > 0, or ``auto``."""
     if text == "auto":
         return text
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
+    value = _number(text)
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"--time-scale: must be a number > 0 or 'auto' (got {text!r})")
     return value
 
 
+def _number(text: Any) -> float:
+    """An option's text as a float; NaN when it is not a number (each caller words its own line)."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def _finite_numbers(option: str, values: list[str]) -> list[float]:
     numbers = []
     for text in values:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
+        value = _number(text)
         if not math.isfinite(value):
             raise ValueError(f"{option}: must be finite numbers of metres (got {text!r})")
         numbers.append(value)
@@ -653,10 +655,7 @@ def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, 
         raise ValueError("--fit-box: computes the scale and offset itself: give it without --scale and --offset")
     placement = None
     if args.scale is not None or args.offset is not None:
-        try:
-            scale = float(args.scale or "1")
-        except ValueError:
-            scale = math.nan
+        scale = _number(args.scale or "1")
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"--scale: must be a finite number > 0 (got {args.scale!r})")
         offset = _finite_numbers("--offset", args.offset or ["0", "0", "0"])
@@ -672,10 +671,7 @@ def _segments(args: argparse.Namespace) -> "Segments | None":
     for option, text in (("--takeoff", args.takeoff), ("--land", args.land)):
         if text is None:
             continue
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
+        value = _number(text)
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{option}: must be a finite number of seconds > 0 (got {text!r})")
         seconds[option] = value
