@@ -33,6 +33,10 @@ MAX_NODES = 200_000
 """Most YAML nodes in a file once its aliases are expanded."""
 MAX_DEPTH = 64
 """Deepest nesting of mappings and sequences."""
+MAX_EXPANDED_BYTES = 4 * MAX_FILE_BYTES
+"""Most bytes of scalar values in a file once its aliases are expanded (a long value aliased many
+times stays under the node limit and the file's size, yet fills memory when the run's config.yaml
+is written)."""
 _REFUSED_RESOLVER = re.compile(r"\$\{\s*oc\.env\s*:")
 """``${oc.env:...}``, as OmegaConf's grammar reads it (spaces allowed after ``${`` and before ``:``)."""
 
@@ -49,46 +53,51 @@ def check_scenario_file(raw: bytes, where: str) -> None:
 
 
 def _check_structure(text: str, where: str) -> None:
-    """Depth, expanded size and refused resolvers, from the parser's event stream (no recursion,
-    no expansion: an alias adds the size its anchor was counted with)."""
+    """Depth, expanded size (nodes and scalar bytes) and refused resolvers, from the parser's event
+    stream (no recursion, no expansion: an alias adds the size its anchor was counted with)."""
     import yaml
 
-    sizes: list[int] = []  # nodes in each open collection, its own included (for its anchor)
+    sizes: list[list[int]] = []  # [nodes, scalar bytes] in each open collection, its own included
     anchors_open: list[str | None] = []
-    anchored: dict[str, int] = {}  # anchor -> nodes it stands for, expanded
-    expanded = 0  # nodes of the whole file, every alias expanded
+    anchored: dict[str, tuple[int, int]] = {}  # anchor -> (nodes, scalar bytes) it stands for, expanded
+    nodes = bytes_ = 0  # of the whole file, every alias expanded
     try:
         for event in yaml.parse(text, Loader=yaml.SafeLoader):
             if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
                 if len(sizes) >= MAX_DEPTH:
                     _refuse(where, event, f"nested deeper than {MAX_DEPTH} levels")
-                sizes.append(1)
+                sizes.append([1, 0])
                 anchors_open.append(event.anchor)
-                expanded += 1
+                nodes += 1
                 continue
             if isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-                size, anchor = sizes.pop(), anchors_open.pop()
+                (size, length), anchor = sizes.pop(), anchors_open.pop()
                 if anchor is not None:
-                    anchored[anchor] = size
-                if sizes:
-                    sizes[-1] += size  # counted in `expanded` already, node by node
+                    anchored[anchor] = (size, length)
+                if sizes:  # counted in the file's totals already, node by node
+                    sizes[-1][0] += size
+                    sizes[-1][1] += length
                 continue
             if isinstance(event, yaml.ScalarEvent):
                 if _REFUSED_RESOLVER.search(event.value):
                     _refuse(where, event, "${oc.env:...} is refused in scenario files (its value would be "
                                           "written into the run's config.yaml); give the value on the command line")
-                size = 1
+                size, length = 1, len(event.value)
                 if event.anchor is not None:
-                    anchored[event.anchor] = 1
+                    anchored[event.anchor] = (size, length)
             elif isinstance(event, yaml.AliasEvent):
-                size = anchored.get(event.anchor, 1)
+                size, length = anchored.get(event.anchor, (1, 0))
             else:
                 continue
             if sizes:
-                sizes[-1] += size
-            expanded += size
-            if expanded > MAX_NODES:
+                sizes[-1][0] += size
+                sizes[-1][1] += length
+            nodes += size
+            bytes_ += length
+            if nodes > MAX_NODES:
                 _refuse(where, event, f"expands to more than {MAX_NODES} nodes (YAML aliases of aliases?)")
+            if bytes_ > MAX_EXPANDED_BYTES:
+                _refuse(where, event, f"expands to more than {MAX_EXPANDED_BYTES} bytes of values (YAML aliases of a long value?)")
     except yaml.YAMLError:
         return  # Hydra's own reading reports a syntax error with its file and line (hydra_errors)
 
