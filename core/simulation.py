@@ -232,7 +232,7 @@ class Simulation:
         metrics = self._engine_metrics(wall)
         metrics.update(self.events.metrics())  # the drawn times and agents of random events
         self.hook.swarmscene_run_end(sim=self, metrics=metrics)
-        metrics.setdefault("success", self._default_success(metrics))
+        metrics.setdefault("success", self.default_success(metrics))
         if self.error is not None:
             metrics["success"] = False
         return RunResult(
@@ -263,7 +263,7 @@ class Simulation:
             "healthy_at_end": int(self.world.healthy.sum()),
         }
 
-    def _default_success(self, metrics: dict[str, Any]) -> bool:
+    def default_success(self, metrics: dict[str, Any]) -> bool:
         """Safe throughout, and the mission complete where the formation defines one."""
         safe = metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
         done = self.formation.complete(self.world)

@@ -6,6 +6,7 @@
     obs, rewards, terminations, truncations, infos = env.step(
         {agent: env.action_space(agent).sample() for agent in env.agents})
     central = make_gym_env(["scenario=default"])             # one Gymnasium agent for the swarm
+    gym.make("swarmscene.env:swarmscene/cem_six_vehicle-v0", render_mode="rgb_array")  # every preset has an id
 
 The scenario is composed and validated as for ``swarmscene`` (overrides, presets, plugins by
 name) with its avoidance replaced by the ``policy`` plugin, which takes the agents' actions from
@@ -148,6 +149,7 @@ class _Episode:
             "healthy_at_end": int(sim.world.healthy.sum()),
         }
         sim.hook.swarmscene_run_end(sim=sim, metrics=metrics)
+        metrics.setdefault("success", sim.default_success(metrics))  # as a run's metrics.json
         self.done = True
         return metrics
 
@@ -221,10 +223,11 @@ class SwarmParallelEnv(ParallelEnv):
         options: :class:`EnvOptions` (or its dict).
     """
 
-    metadata = {"name": "swarmscene_v0", "render_modes": [], "is_parallelizable": True}
+    metadata = {"name": "swarmscene_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
 
     def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
                  render_mode: str | None = None) -> None:
+        _check_render_mode(render_mode)
         self.driver = _Driver(config, options)
         self.render_mode = render_mode
         self.possible_agents = [f"agent_{i}" for i in range(self.driver.n)]
@@ -286,8 +289,9 @@ class SwarmParallelEnv(ParallelEnv):
             ends, truncs, infos,
         )
 
-    def render(self) -> None:
-        return None
+    def render(self) -> np.ndarray | None:
+        """``render_mode="rgb_array"``: the current top-down view (:func:`render_frame`)."""
+        return render_frame(self.driver, self.render_mode)
 
     def close(self) -> None:
         self.driver.episode = None
@@ -301,10 +305,11 @@ class SwarmGymEnv(gymnasium.Env):
     terminated and truncated as the parallel environment's episode (failed vehicles hover).
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
                  render_mode: str | None = None) -> None:
+        _check_render_mode(render_mode)
         self.driver = _Driver(config, options)
         self.render_mode = render_mode
         n = self.driver.n
@@ -332,12 +337,84 @@ class SwarmGymEnv(gymnasium.Env):
             info["metrics"] = episode.finish()
         return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
 
+    def render(self) -> np.ndarray | None:
+        """``render_mode="rgb_array"``: the current top-down view (:func:`render_frame`)."""
+        return render_frame(self.driver, self.render_mode)
 
-def make_env(config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None) -> SwarmParallelEnv:
+
+RENDER_MODES = ("rgb_array",)
+"""``render_mode`` values both environments take (None: no rendering). There is no ``human`` mode:
+show the frames with any image viewer, or watch a run live with the Rerun replay (docs/sweeps.md)."""
+FRAME_PIXELS = (480, 480)
+"""Width and height of a rendered frame."""
+
+
+def _check_render_mode(render_mode: str | None) -> None:
+    if render_mode is not None and render_mode not in RENDER_MODES:
+        raise ValueError(f"render_mode: must be one of {', '.join(RENDER_MODES)} or None (got {render_mode!r})")
+
+
+def render_frame(driver: "_Driver", render_mode: str | None) -> np.ndarray | None:
+    """The current top-down view as an (H, W, 3) uint8 array: the obstacles and every agent (failed
+    ones as red crosses), titled with the time; None when ``render_mode`` is None or before
+    ``reset``. Drawn with matplotlib (the plots extra), off screen."""
+    if render_mode is None or driver.episode is None:
+        return None
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .plots import FAILED_COLOR, _draw_obstacles
+
+    sim = driver.episode.sim
+    width, height = FRAME_PIXELS
+    fig = Figure(figsize=(width / 100, height / 100), dpi=100, layout="constrained")
+    canvas = FigureCanvasAgg(fig)  # off screen, whatever matplotlib's default backend
+    ax = fig.add_subplot()
+    _draw_obstacles(ax, sim.environment.obstacles)
+    pos, healthy = sim.world.pos, sim.world.healthy
+    ax.scatter(pos[healthy, 0], pos[healthy, 1], s=14, color="tab:blue")
+    ax.scatter(pos[~healthy, 0], pos[~healthy, 1], s=40, marker="x", color=FAILED_COLOR)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"t = {sim.world.t:.1f} s", fontsize=9)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
+def register_gym_ids() -> list[str]:
+    """Register ``swarmscene/<preset>-v0`` for every shipped preset with Gymnasium (idempotent);
+    return the ids. Importing this module does it, so ``gym.make("swarmscene.env:swarmscene/swap-v0")``
+    works without an import, and ``make_vec`` and RL-zoo configs can name the environments."""
+    from .groups import group_options
+
+    ids = []
+    for preset in group_options("scenario"):
+        ids.append(register_scenario(f"swarmscene/{preset}-v0", [f"scenario={preset}"]))
+    return ids
+
+
+def register_scenario(env_id: str, config: Sequence[str] | dict[str, Any],
+                      options: EnvOptions | dict | None = None, **spec: Any) -> str:
+    """Register any scenario (overrides or a composed dict) as a Gymnasium id for
+    :class:`SwarmGymEnv`; ``spec`` goes to ``gymnasium.register`` (e.g. ``max_episode_steps``).
+    Registering the same id again replaces it."""
+    kwargs: dict[str, Any] = {"config": list(config) if not isinstance(config, dict) else config}
+    if options is not None:
+        kwargs["options"] = options
+    gymnasium.register(id=env_id, entry_point="swarmscene.env:SwarmGymEnv", kwargs=kwargs, **spec)
+    return env_id
+
+
+def make_env(config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
+             render_mode: str | None = None) -> SwarmParallelEnv:
     """A PettingZoo ``ParallelEnv`` over the scenario composed from ``config`` (overrides or dict)."""
-    return SwarmParallelEnv(config, options)
+    return SwarmParallelEnv(config, options, render_mode)
 
 
-def make_gym_env(config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None) -> SwarmGymEnv:
+def make_gym_env(config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
+                 render_mode: str | None = None) -> SwarmGymEnv:
     """A Gymnasium ``Env`` for centralised control of the scenario composed from ``config``."""
-    return SwarmGymEnv(config, options)
+    return SwarmGymEnv(config, options, render_mode)
+
+
+GYM_IDS = register_gym_ids()
+"""The Gymnasium ids of the shipped presets, registered at import."""

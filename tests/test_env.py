@@ -260,3 +260,56 @@ def test_the_gym_env_takes_float32_and_integer_actions_and_refuses_a_step_before
     env.step(env.action_space.sample())  # float32, as the space gives it
     env.step(np.zeros((5, 3), dtype=int))
     assert env.sim.step_count == 2
+
+
+def test_every_preset_has_a_gymnasium_id_and_any_scenario_can_get_one():
+    import gymnasium as gym
+
+    from swarmscene import env as swarm_env
+    from swarmscene.groups import group_options
+
+    assert swarm_env.GYM_IDS == [f"swarmscene/{p}-v0" for p in group_options("scenario")]
+    made = gym.make("swarmscene.env:swarmscene/swap-v0")
+    assert made.unwrapped.driver.scenario.config.name == "swap"
+    swarm_env.register_scenario("swarmscene/tiny-v0", ["scenario=swap", "swarm.n=4"], max_episode_steps=3)
+    tiny = gym.make("swarmscene/tiny-v0")
+    assert tiny.unwrapped.driver.n == 4 and tiny.spec.max_episode_steps == 3
+
+
+def test_the_flatten_wrapper_gives_a_flat_observation_of_the_same_values():
+    import gymnasium as gym
+
+    env = gym.make("swarmscene/swap-v0")
+    flat = gym.wrappers.FlattenObservation(gym.make("swarmscene/swap-v0"))
+    obs, _ = env.reset(seed=2)
+    flat_obs, _ = flat.reset(seed=2)
+    assert flat.observation_space.shape == (int(np.prod(env.observation_space.shape)),)
+    np.testing.assert_array_equal(flat_obs, obs.reshape(-1))
+
+
+def test_the_episode_metrics_hold_success_as_a_run_does():
+    from swarmscene.env import make_gym_env
+
+    env = make_gym_env(["scenario=swap", "swarm.n=4", "clock.duration=0.3"])
+    env.reset(seed=0)
+    done, info = False, {}
+    while not done:
+        _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        done = terminated or truncated
+    metrics = info["metrics"]
+    assert metrics["success"] is False  # 0.3 s of zero actions: the swap is not complete
+    assert metrics["stop_reason"] == "duration" and "min_separation" in metrics
+
+
+def test_rgb_array_frames_and_refused_render_modes():
+    from swarmscene.env import FRAME_PIXELS, make_env, make_gym_env
+
+    env = make_gym_env(["scenario=swap", "swarm.n=4"], render_mode="rgb_array")
+    assert env.render() is None  # before reset: nothing to draw
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (FRAME_PIXELS[1], FRAME_PIXELS[0], 3) and frame.dtype == np.uint8
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 2  # axes, agents: not a blank picture
+    assert make_gym_env(["scenario=swap", "swarm.n=4"]).render() is None  # no render_mode: no frame
+    with pytest.raises(ValueError, match=r"render_mode: must be one of rgb_array or None \(got 'human'\)"):
+        make_env(["scenario=swap", "swarm.n=4"], render_mode="human")
