@@ -271,6 +271,9 @@ def test_every_preset_has_a_gymnasium_id_and_any_scenario_can_get_one():
     assert swarm_env.GYM_IDS == [f"swarmscene/{p}-v0" for p in group_options("scenario")]
     made = gym.make("swarmscene.env:swarmscene/swap-v0")
     assert made.unwrapped.driver.scenario.config.name == "swap"
+    envs = gym.make_vec("swarmscene.env:swarmscene/swap-v0", num_envs=2, vectorization_mode="sync")
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (2, *made.observation_space.shape)
     swarm_env.register_scenario("swarmscene/tiny-v0", ["scenario=swap", "swarm.n=4"], max_episode_steps=3)
     tiny = gym.make("swarmscene/tiny-v0")
     assert tiny.unwrapped.driver.n == 4 and tiny.spec.max_episode_steps == 3
