@@ -28,7 +28,7 @@ import numpy as np
 
 from . import tables
 from .records import job_dirs
-from .stats import lower_bound, mean_interval
+from .stats import lower_bound, mean_interval, wilson
 
 
 def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[str, Any]:
@@ -58,7 +58,7 @@ def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[
             if not sample:
                 continue
             if rate:
-                lo, hi = tables.wilson(sum(sample), len(sample))
+                lo, hi = wilson(sum(sample), len(sample))
                 stats[:, j] = (sum(sample) / len(sample), lo, hi)
             else:
                 mean, low, high, _ = mean_interval([float(v) for v in sample], bounded=bounded)

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..core.outputs import atomic_write_bytes
 from .records import ERROR_FILE, MANIFEST, complete_problem, job_dirs
-from .stats import lower_bound, mean_ci, mean_interval, wilson  # noqa: F401  (mean_ci: re-exported)
+from .stats import lower_bound, mean_interval, wilson
 
 EXIT_FAILED_JOBS = 1
 BASE_COLUMNS = ("job", "status", "error", "reason", "seed")
