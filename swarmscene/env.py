@@ -7,6 +7,7 @@
         {agent: env.action_space(agent).sample() for agent in env.agents})
     central = make_gym_env(["scenario=default"])             # one Gymnasium agent for the swarm
     gym.make("swarmscene.env:swarmscene/cem_six_vehicle-v0", render_mode="rgb_array")  # every preset has an id
+    make_gym_env(["scenario=swap"], render_mode="human")     # a window, where a display exists
 
 The scenario is composed and validated as for ``swarmscene`` (overrides, presets, plugins by
 name) with its avoidance replaced by the ``policy`` plugin, which takes the agents' actions from
@@ -30,6 +31,9 @@ seed from a generator seeded by the last seed given (or the scenario's own).
 
 from __future__ import annotations
 
+import os
+import sys
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -223,11 +227,12 @@ class SwarmParallelEnv(ParallelEnv):
         options: :class:`EnvOptions` (or its dict).
     """
 
-    metadata = {"name": "swarmscene_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
+    metadata = {"name": "swarmscene_v0", "render_modes": ["rgb_array", "human"], "render_fps": 10,
+                "is_parallelizable": True}
 
     def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
                  render_mode: str | None = None) -> None:
-        _check_render_mode(render_mode)
+        self.renderer = _Renderer(render_mode, self.metadata["render_fps"])
         self.driver = _Driver(config, options)
         self.render_mode = render_mode
         self.possible_agents = [f"agent_{i}" for i in range(self.driver.n)]
@@ -253,6 +258,7 @@ class SwarmParallelEnv(ParallelEnv):
         self._active = episode.sim.world.healthy.copy()
         self.agents = [a for a, alive in zip(self.possible_agents, self._active) if alive]
         obs = episode.observe()
+        self.renderer.after_step(self.driver)
         return {a: obs[self._index[a]] for a in self.agents}, {a: {} for a in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]):
@@ -283,6 +289,7 @@ class SwarmParallelEnv(ParallelEnv):
         if terminated or truncated:
             self._active[:] = False
         self.agents = [a for a in acting if not (ends[a] or truncs[a])]
+        self.renderer.after_step(self.driver)
         return (
             {a: obs[self._index[a]] for a in acting},
             {a: float(reward[self._index[a]]) for a in acting},
@@ -290,10 +297,12 @@ class SwarmParallelEnv(ParallelEnv):
         )
 
     def render(self) -> np.ndarray | None:
-        """``render_mode="rgb_array"``: the current top-down view (:func:`render_frame`)."""
-        return render_frame(self.driver, self.render_mode)
+        """The current top-down view (:func:`render_frame`): returned with ``render_mode="rgb_array"``,
+        shown in the window with ``"human"`` (which ``reset`` and ``step`` also do)."""
+        return self.renderer.render(self.driver)
 
     def close(self) -> None:
+        self.renderer.close()
         self.driver.episode = None
 
 
@@ -305,11 +314,11 @@ class SwarmGymEnv(gymnasium.Env):
     terminated and truncated as the parallel environment's episode (failed vehicles hover).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
 
     def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
                  render_mode: str | None = None) -> None:
-        _check_render_mode(render_mode)
+        self.renderer = _Renderer(render_mode, self.metadata["render_fps"])
         self.driver = _Driver(config, options)
         self.render_mode = render_mode
         n = self.driver.n
@@ -323,6 +332,7 @@ class SwarmGymEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         episode = self.driver.reset(seed)
+        self.renderer.after_step(self.driver)
         return episode.observe(), {}
 
     def step(self, action: np.ndarray):
@@ -335,29 +345,123 @@ class SwarmGymEnv(gymnasium.Env):
         info: dict[str, Any] = {}
         if terminated or truncated:
             info["metrics"] = episode.finish()
+        self.renderer.after_step(self.driver)
         return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
 
     def render(self) -> np.ndarray | None:
-        """``render_mode="rgb_array"``: the current top-down view (:func:`render_frame`)."""
-        return render_frame(self.driver, self.render_mode)
+        """The current top-down view (:func:`render_frame`): returned with ``render_mode="rgb_array"``,
+        shown in the window with ``"human"`` (which ``reset`` and ``step`` also do)."""
+        return self.renderer.render(self.driver)
+
+    def close(self) -> None:
+        self.renderer.close()
 
 
-RENDER_MODES = ("rgb_array",)
-"""``render_mode`` values both environments take (None: no rendering). There is no ``human`` mode:
-show the frames with any image viewer, or watch a run live with the Rerun replay (docs/sweeps.md)."""
+RENDER_MODES = ("rgb_array", "human")
+"""``render_mode`` values both environments take (None: no rendering): ``rgb_array`` returns the
+frames; ``human`` shows them in a matplotlib window, where a display exists."""
 FRAME_PIXELS = (480, 480)
 """Width and height of a rendered frame."""
 
 
-def _check_render_mode(render_mode: str | None) -> None:
-    if render_mode is not None and render_mode not in RENDER_MODES:
-        raise ValueError(f"render_mode: must be one of {', '.join(RENDER_MODES)} or None (got {render_mode!r})")
+class _Renderer:
+    """An environment's ``render_mode``: checked when the environment is made, then each frame
+    returned (``rgb_array``) or shown in a :class:`_Window` after every reset and step (``human``,
+    Gymnasium's convention for that mode)."""
+
+    def __init__(self, render_mode: str | None, fps: float) -> None:
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode: must be one of {', '.join(RENDER_MODES)} or None (got {render_mode!r})")
+        if render_mode == "human":
+            why_not = _no_window_because()
+            if why_not:
+                raise ValueError(f"render_mode: 'human' needs a window, and {why_not}; "
+                                 "render_mode='rgb_array' returns the frames instead")
+        self.mode = render_mode
+        self.window = _Window(fps) if render_mode == "human" else None
+
+    def render(self, driver: "_Driver") -> np.ndarray | None:
+        frame = render_frame(driver, self.mode)
+        if self.window is None or frame is None:
+            return frame
+        self.window.show(frame)
+        return None
+
+    def after_step(self, driver: "_Driver") -> None:
+        if self.window is not None:
+            self.render(driver)
+
+    def close(self) -> None:
+        if self.window is not None:
+            self.window.close()
+
+
+def _no_window_because() -> str | None:
+    """Why no window can open here (None when one can): no display on Linux, no matplotlib, or a
+    non-interactive matplotlib backend (Agg, chosen by MPLBACKEND or by matplotlib itself when no
+    GUI toolkit is installed)."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return "there is no display (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+    try:
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return "matplotlib is not installed (the plots extra)"
+    backend = plt.get_backend()  # resolves matplotlib's automatic choice
+    if backend.lower() in _non_interactive_backends():
+        return f"matplotlib's backend {backend!r} is not interactive"
+    return None
+
+
+def _non_interactive_backends() -> set[str]:
+    try:  # matplotlib >= 3.9
+        from matplotlib.backends import BackendFilter, backend_registry
+        return set(backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE))
+    except ImportError:  # pragma: no cover - matplotlib 3.8
+        from matplotlib import rcsetup
+        return {b.lower() for b in rcsetup.non_interactive_bk}
+
+
+class _Window:
+    """``render_mode="human"``: one pyplot figure showing the frames, updated in place and paced at
+    ``fps`` (one frame per guidance tick at the default 10: real time). Closing the window does not
+    stop the episode; the next frame opens a new one."""
+
+    def __init__(self, fps: float) -> None:
+        self.period = 1.0 / fps
+        self.figure = None
+        self.image = None
+        self.shown_at: float | None = None
+
+    def show(self, frame: np.ndarray) -> None:
+        import matplotlib.pyplot as plt
+
+        if self.figure is None or not plt.fignum_exists(self.figure.number):
+            width, height = FRAME_PIXELS
+            self.figure = plt.figure(figsize=(width / 100, height / 100), dpi=100)
+            ax = self.figure.add_axes((0, 0, 1, 1))
+            ax.set_axis_off()
+            self.image = ax.imshow(frame)
+            plt.show(block=False)
+        else:
+            self.image.set_data(frame)
+        self.figure.canvas.draw_idle()
+        # run the GUI's event loop for what is left of the frame period (the window stays live)
+        elapsed = 0.0 if self.shown_at is None else time.monotonic() - self.shown_at
+        self.figure.canvas.start_event_loop(max(self.period - elapsed, 1e-3))
+        self.shown_at = time.monotonic()
+
+    def close(self) -> None:
+        if self.figure is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self.figure)
+            self.figure = self.image = None
 
 
 def render_frame(driver: "_Driver", render_mode: str | None) -> np.ndarray | None:
     """The current top-down view as an (H, W, 3) uint8 array: the obstacles and every agent (failed
     ones as red crosses), titled with the time; None when ``render_mode`` is None or before
-    ``reset``. Drawn with matplotlib (the plots extra), off screen."""
+    ``reset``. Drawn with matplotlib (the plots extra), off screen (``human`` shows this frame)."""
     if render_mode is None or driver.episode is None:
         return None
     from matplotlib.backends.backend_agg import FigureCanvasAgg

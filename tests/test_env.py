@@ -314,5 +314,5 @@ def test_rgb_array_frames_and_refused_render_modes():
     assert frame.shape == (FRAME_PIXELS[1], FRAME_PIXELS[0], 3) and frame.dtype == np.uint8
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 2  # axes, agents: not a blank picture
     assert make_gym_env(["scenario=swap", "swarm.n=4"]).render() is None  # no render_mode: no frame
-    with pytest.raises(ValueError, match=r"render_mode: must be one of rgb_array or None \(got 'human'\)"):
-        make_env(["scenario=swap", "swarm.n=4"], render_mode="human")
+    with pytest.raises(ValueError, match=r"render_mode: must be one of rgb_array, human or None \(got 'video'\)"):
+        make_env(["scenario=swap", "swarm.n=4"], render_mode="video")
