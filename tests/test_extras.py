@@ -33,3 +33,22 @@ def test_the_cloudpickle_conflict_is_pinned_away():
     for extra in ("joblib", "test"):
         joblib = next(r for r in by_extra[extra] if r.name == "joblib")
         assert "1.6.0" not in joblib.specifier and "1.5.3" in joblib.specifier
+
+
+def test_the_train_extra_carries_the_rl_extra_and_the_test_extra_carries_train():
+    """pip install '.[train]' alone gives the environments and the libraries of docs/rl.md's
+    training recipes; the tests run them, so the test extra names the same packages."""
+    by_extra = {extra: {r.name.lower(): str(r.specifier) for r in reqs} for extra, reqs in extras().items()}
+    train, test = by_extra["train"], by_extra["test"]
+    assert by_extra["rl"].items() <= train.items()
+    assert {"stable-baselines3", "supersuit"} <= set(train)
+    assert train.items() <= test.items()
+
+
+def test_torch_is_pinned_to_the_cpu_wheel_in_the_test_extra_only():
+    """Any torch spec but the CPU wheel the CI image carries pulls a multi-GB CUDA build there; a
+    user's train extra takes whatever torch Stable-Baselines3 accepts."""
+    by_extra = extras()
+    torch = [r for r in by_extra["test"] if r.name == "torch"]
+    assert [str(r.specifier) for r in torch] == ["==2.13.0"]
+    assert not any(r.name == "torch" for extra, reqs in by_extra.items() if extra != "test" for r in reqs)
