@@ -27,6 +27,7 @@ from .events import EventConfig, check_events
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
 from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts
+from .registry import validate_choice
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
 
@@ -332,13 +333,15 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
         the :class:`Scenario`, with the obstacles and start positions built while checking it.
     """
     errors: list[str] = []
+    _validate_event_kinds(data.get("events"), registry, errors)
     try:
-        config = ScenarioConfig.model_validate(data)
+        # The registry in the context: each event is checked by its registered kind's rules.
+        config = ScenarioConfig.model_validate(data, context={"registry": registry})
     except ValidationError as exc:
         errors += format_validation_error(exc, ScenarioConfig, data)
         config = None
     classes, params = _validate_plugins(data, registry, errors)
-    disturbances = validate_disturbances(data.get("disturbances"), errors)
+    disturbances = validate_disturbances(data.get("disturbances"), errors, registry)
     errors += shared_option_conflicts(params)  # e.g. the thesis' graph parameters, declared twice
     world = None
     if config is not None:
@@ -373,6 +376,15 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
     )
 
 
+def _validate_event_kinds(events: Any, registry: Any, errors: list[str]) -> None:
+    """Each event's ``kind`` is a registered event kind (the schema checks everything else)."""
+    if not isinstance(events, list):
+        return
+    for k, event in enumerate(events):
+        if isinstance(event, dict) and "kind" in event:
+            validate_choice(registry, "event", event["kind"], f"events.{k}.kind", errors)
+
+
 def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dict, dict]:
     classes: dict[str, Any] = {}
     params: dict[str, PluginParams] = {}
@@ -380,12 +392,9 @@ def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dic
         node = data.get(kind)
         if not isinstance(node, dict) or "name" not in node:
             continue  # ScenarioConfig already reported it
-        name = node["name"]
-        available = registry.names(kind)
-        if name not in available:
-            errors.append(f"{kind}.name: unknown {kind} {name!r} (valid: {', '.join(available)})")
+        cls = validate_choice(registry, kind, node["name"], f"{kind}.name", errors)
+        if cls is None:
             continue
-        cls = registry.get(kind, name)
         options = {k: v for k, v in node.items() if k != "name"}
         try:
             params[kind] = cls.Params.model_validate(options)

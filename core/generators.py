@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import shapely
@@ -323,6 +323,24 @@ def generate(generator: str, params_json: str) -> tuple[tuple[Polygon, ...], tup
         return tuple(build(model.model_validate_json(params_json))), ()
     except ValueError as exc:  # one line naming its key (e.g. environment.density)
         return (), (str(exc),)
+
+
+class MapGenerator:
+    """A map generator: obstacle footprints from a few numeric parameters (``environment.generator``).
+
+    Subclasses declare ``name``, a ``Params`` model (its parameters, which sit beside
+    ``generator`` in the ``environment`` section: ``environment.width=0.5``) and :meth:`build`.
+    Errors a build finds (a density out of reach) are ``ValueError`` whose message starts with
+    the key it names (``environment.density: ...``).
+    """
+
+    name: ClassVar[str]
+    Params: ClassVar[type[StrictModel]] = StrictModel
+
+    @classmethod
+    def build(cls, params: Any) -> list[Polygon]:
+        """The obstacle footprints (shapely polygons, m) of ``params``, a validated ``Params``."""
+        raise NotImplementedError
 
 
 GeneratorName = Literal["corridor", "building", "obstacle_field"]

@@ -217,6 +217,30 @@ class Dynamics(Plugin):
         """
 
 
+class Policy(ABC):
+    """A named policy: maps every agent's observation row to a normalised action in [-1, 1].
+
+    Chosen by ``avoidance.policy=<name>`` (the ``policy`` avoidance, :mod:`swarmscene.env`); built
+    once per run as ``cls(params, layout, spec)`` with its validated ``Params`` (the avoidance's
+    ``policy_options``), the observation layout (which columns hold what,
+    :class:`~swarmscene.methods.policy.observation.ObservationLayout`) and the action spec
+    (velocity or acceleration actions and their scales,
+    :class:`~swarmscene.methods.policy.actions.ActionSpec`); then called once per guidance tick.
+    """
+
+    name: ClassVar[str]
+    """Registered name, the value users write in ``avoidance.policy``."""
+    Params: ClassVar[type[PluginParams]] = PluginParams
+    """Pydantic model of its options (``avoidance.policy_options``)."""
+
+    def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
+        self.params, self.layout, self.spec = params, layout, spec
+
+    @abstractmethod
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions (N, 3) in [-1, 1] from observations (N, D): row i is agent i's."""
+
+
 PLUGIN_KINDS: dict[str, type[Plugin]] = {
     "formation": Formation,
     "avoidance": Avoidance,

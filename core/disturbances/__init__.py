@@ -38,19 +38,30 @@ from .comm import ChannelModels, CommDelay, PacketLoss
 from .noise import MODELS as _NOISE
 from .wind import MODELS as _WIND
 
-__all__ = ["DISTURBANCE_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
+__all__ = ["BUILTIN_MODELS", "DISTURBANCE_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
            "PHASES", "validate_disturbances"]
 
-DISTURBANCE_MODELS: dict[str, type[Disturbance]] = {m.kind: m for m in (*_WIND, *_NOISE, *_COMM)}
-"""Every disturbance model by ``kind``."""
+BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
+"""The built-in models' classes (their numerics live here; ``plugins/disturbance/`` registers each
+through ``swarmscene_register_disturbances``, like a third-party model)."""
+DISTURBANCE_MODELS: dict[str, type[Disturbance]] = {m.name: m for m in BUILTIN_MODELS}
+"""The built-in models by name (kept for one release: validation reads the plugin registry,
+which also holds third-party models)."""
 
 
-def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
+def validate_disturbances(data: Any, errors: list[str], registry: Any) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
     """Validate the ``disturbances`` mapping; append one line per problem to ``errors``.
 
+    Args:
+        data: the composed ``disturbances`` section.
+        errors: the validation's error lines.
+        registry: the plugin :class:`~swarmscene.core.registry.Registry` (kind ``disturbance``).
     Returns:
         each key's model class and validated Params (keys sorted: the order of application).
     """
+    from ..registry import validate_choice  # the registry imports this package's base
+
+
     if data is None:
         return {}
     if not isinstance(data, dict):
@@ -63,11 +74,9 @@ def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[
             errors.append(f"disturbances.{key}: must be a mapping of options (got {node!r})")
             continue
         kind = node.get("kind", key)
-        cls = DISTURBANCE_MODELS.get(kind) if isinstance(kind, str) else None
+        where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
+        cls = validate_choice(registry, "disturbance", kind, where, errors)
         if cls is None:
-            where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
-            errors.append(f"{where}: unknown disturbance model {kind!r} "
-                          f"(valid: {', '.join(sorted(DISTURBANCE_MODELS))})")
             continue
         options = {k: v for k, v in node.items() if k != "kind"}
         try:
@@ -79,7 +88,7 @@ def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[
 
 def effective(models: dict[str, tuple[type[Disturbance], DisturbanceParams]]) -> dict[str, Any]:
     """The declared models with every option resolved, as plain data (the run record)."""
-    return {key: {"kind": cls.kind, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
+    return {key: {"kind": cls.name, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
 
 
 class Perceived:
