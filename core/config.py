@@ -334,6 +334,7 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
     """
     errors: list[str] = []
     _validate_event_kinds(data.get("events"), registry, errors)
+    data = _validate_generator(data, registry, errors)
     try:
         # The registry in the context: each event is checked by its registered kind's rules.
         config = ScenarioConfig.model_validate(data, context={"registry": registry})
@@ -376,6 +377,19 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
     )
 
 
+def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) -> dict[str, Any]:
+    """``environment.generator`` is a registered map generator; an unknown one is reported here
+    once, and the schema then checks the map without it (its parameters unchecked)."""
+    from .obstacles import GENERATOR_KEYS
+
+    env = data.get("environment")
+    name = env.get("generator") if isinstance(env, dict) else None
+    if name is None or validate_choice(registry, "generator", name, "environment.generator", errors):
+        return data
+    env = {k: v for k, v in env.items() if k != "generator" and k not in GENERATOR_KEYS}
+    return {**data, "environment": env}
+
+
 def _validate_event_kinds(events: Any, registry: Any, errors: list[str]) -> None:
     """Each event's ``kind`` is a registered event kind (the schema checks everything else)."""
     if not isinstance(events, list):
@@ -397,7 +411,9 @@ def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dic
             continue
         options = {k: v for k, v in node.items() if k != "name"}
         try:
-            params[kind] = cls.Params.model_validate(options)
+            # The registry as context: an option naming another kind's class (avoidance.policy)
+            # is checked against it (core.plugin.choose).
+            params[kind] = cls.Params.model_validate(options, context={"registry": registry})
             classes[kind] = cls
         except ValidationError as exc:
             errors += format_validation_error(exc, cls.Params, options, prefix=kind)

@@ -249,6 +249,25 @@ PLUGIN_KINDS: dict[str, type[Plugin]] = {
 """The config group of each kind and the base class its plugins derive from."""
 
 
+def choose(info: Any, kind: str, name: str) -> type | None:
+    """In a ``Params`` model validator: the registered class of ``kind`` that an option names (the
+    ``policy`` avoidance's ``policy``), from the registry validating the scenario, which passes
+    itself as the validation context. None when the Params are validated without one (a unit test).
+
+    Raises:
+        ValueError: ``<option>: unknown <kind> 'x' (valid: ...)`` is the caller's to raise from a
+            model validator, so the line names ``<plugin kind>.<option>``; here the message
+            without the option: ``unknown policy 'x' (valid: ...)``.
+    """
+    registry = info.context.get("registry") if isinstance(info.context, dict) else None
+    if registry is None:
+        return None
+    found = registry.classes[kind].get(name)
+    if found is None:
+        raise ValueError(f"unknown {kind} {name!r} (valid: {', '.join(registry.names(kind))})")
+    return found
+
+
 SHARED = "shared"
 """Key of a Params field's ``json_schema_extra`` naming the per-tick quantity the option describes
 (e.g. ``Field(1.0, json_schema_extra={SHARED: "thesis.indoor_snapshot"})``). Chosen plugins whose

@@ -39,4 +39,11 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.event.stuck",
     "swarmscene.plugins.event.drift",
     "swarmscene.plugins.event.motor_failure",
+    # generator: obstacle maps from parameters (geometry in core/generators.py)
+    "swarmscene.plugins.generator.corridor",
+    "swarmscene.plugins.generator.building",
+    "swarmscene.plugins.generator.obstacle_field",
+    # policy: observations to actions (avoidance.policy; numerics in methods/policy/)
+    "swarmscene.plugins.policy.seek_reference",
+    "swarmscene.plugins.policy.entry_point_group",
 )

@@ -141,8 +141,11 @@ class Disturbances:
         # one vehicle property declared on each wind model: the one of largest magnitude holds
         arms = [m.params.moment_arm for m in self.by_phase["wind"]]
         self.moment_arm = max(arms, key=abs, default=0.0)
-        self.channel = ChannelModels([m for m in self.by_phase["communicate"] if isinstance(m, CommDelay)],
-                                     [m for m in self.by_phase["communicate"] if isinstance(m, PacketLoss)])
+        comm = self.by_phase["communicate"]
+        self.channel = ChannelModels([m for m in comm if isinstance(m, CommDelay)],
+                                     [m for m in comm if isinstance(m, PacketLoss)])
+        # A plugin's communicate model (neither built-in channel model) acts after the channel.
+        self.relays = [m for m in comm if not isinstance(m, (CommDelay, PacketLoss))]
         self._acc: np.ndarray | None = None
         self.wind_peak = 0.0
         self.wind_sum = 0.0
@@ -202,8 +205,10 @@ class Disturbances:
             self.sense_sq += float(np.einsum("ij,ij->", err, err))
             self.sense_count += world.n
         own = _view(world, pos, vel)
-        if self.by_phase["communicate"]:
+        if len(self.relays) < len(self.by_phase["communicate"]):
             pos, vel = self.channel.communicate(world, sensing, pos, vel)
+        for model in self.relays:
+            pos, vel = model.communicate(world, pos, vel)
         picture = own if pos is own.pos else _view(world, pos, vel)
         self._sensing = self.make_sensing(picture, self._sensing)
         if self.shared_picture or picture is own:
