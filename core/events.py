@@ -30,7 +30,7 @@ from enum import Enum, IntEnum
 from typing import Annotated, Any, ClassVar
 
 import numpy as np
-from pydantic import Field, PrivateAttr, TypeAdapter, ValidationInfo, field_validator, model_serializer, model_validator
+from pydantic import Field, PrivateAttr, TypeAdapter, ValidationError, ValidationInfo, field_validator, model_serializer, model_validator
 
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
 from .fields import MAX_DURATION, Point3, StrictModel, key_error
@@ -143,13 +143,11 @@ class EventConfig(StrictModel):
         for key, info in takes.items():
             if info.is_required() and key not in given and key not in own:
                 raise key_error(key, f"a {self.kind} event needs {info.description}", None)
+        values = {**given, **own}
         try:
-            self._params = kind_cls.Params.model_validate({**given, **own})
-        except ValueError as exc:  # a pydantic error: reported at its key (events.<k>.<key>)
-            errors = getattr(exc, "errors", lambda: [])()
-            first = errors[0] if errors else {"loc": (), "msg": str(exc), "input": None}
-            key = str(first["loc"][0]) if first["loc"] else "kind"
-            raise key_error(key, first["msg"].removeprefix("Value error, "), first["input"]) from None
+            self._params = kind_cls.Params.model_validate(values)
+        except ValidationError as exc:  # its first problem, at its key (events.<k>.<key>)
+            raise _at_key(exc, kind_cls.Params, values) from None
         self._kind = kind_cls
         return self
 
@@ -167,6 +165,17 @@ class EventConfig(StrictModel):
     def random(self) -> bool:
         """Whether its time or its agents are drawn."""
         return isinstance(self.at, Draw) or isinstance(self.agents, AgentSample)
+
+
+def _at_key(exc: ValidationError, model: type, values: dict[str, Any]) -> Exception:
+    """The first problem of a kind's Params, in the schema's words, as an error at its key."""
+    from .errors import format_validation_error
+
+    err = exc.errors(include_url=False)[0]
+    line = format_validation_error(exc, model, values)[0]
+    key, _, message = line.partition(": ")
+    got = f" (got {err['input']!r})"
+    return key_error(key.split(".")[0], message.removesuffix(got), err["input"])
 
 
 def check_events(events: list[EventConfig], n: int) -> list[str]:

@@ -67,7 +67,7 @@ KINDS: dict[str, Kind] = {
     "disturbance": Kind("swarmscene_register_disturbances", Disturbance, DisturbanceParams,
                         "disturbance model", "disturbances.<key>.kind=<name>"),
     "event": Kind("swarmscene_register_events", EventKindPlugin, EventParams, "event kind",
-                  "events: [{kind: <name>, ...}]"),
+                  "events.<k>.kind=<name>"),
     "generator": Kind("swarmscene_register_generators", MapGenerator, BaseModel, "map generator",
                       "environment.generator=<name>"),
     "policy": Kind("swarmscene_register_policies", Policy, PluginParams, "policy",

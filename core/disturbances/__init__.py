@@ -139,7 +139,8 @@ class Disturbances:
         self.make_sensing = make_sensing
         self._sensing = self._own_sensing = None
         # one vehicle property declared on each wind model: the one of largest magnitude holds
-        arms = [m.params.moment_arm for m in self.by_phase["wind"]]
+        # (a plugin's wind model without the option has none: 0 m)
+        arms = [getattr(m.params, "moment_arm", 0.0) for m in self.by_phase["wind"]]
         self.moment_arm = max(arms, key=abs, default=0.0)
         comm = self.by_phase["communicate"]
         self.channel = ChannelModels([m for m in comm if isinstance(m, CommDelay)],
