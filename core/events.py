@@ -10,6 +10,10 @@ In config (``events`` list)::
       - {at: 3.0, agents: [5], kind: motor_failure, rotor: 0, fraction: 0.0}  # rotor 0 dead
       - {at: {uniform: [2, 20]}, agents: {sample: 1}, kind: hover}  # a random agent, a random time
 
+Each ``kind`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarmscene_register_events``):
+the five above are built in (their classes here, registered by ``plugins/event/``), a package may
+add its own, with its own fields validated by its ``Params``.
+
 The kernel applies an event at the first guidance tick whose time reaches ``at`` (the events phase),
 changes the world state, then calls the ``swarmscene_event`` hook so plugins can react; after the
 physics sub-steps it calls :meth:`EventQueue.hold`, which moves the vehicles whose fault dictates
@@ -198,7 +202,10 @@ def check_events(events: list[EventConfig], n: int) -> list[str]:
 
 
 class EventKind(str, Enum):
-    """What happens to the event's agents. Every kind but ``comm_loss`` is a failure: the agent's
+    """The built-in kinds' names (a plugin's kind is its registered name, a plain string; the
+    behaviour of each is its :class:`EventKindPlugin` below).
+
+    What happens to the event's agents. Every kind but ``comm_loss`` is a failure: the agent's
     ``healthy`` flag drops, so formations and avoidance treat it as failed from that tick on.
 
     HOVER: abrupt failure; the vehicle stops where it is (velocity zero) and stays there for the

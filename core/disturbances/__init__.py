@@ -16,6 +16,10 @@ Where in the tick (``Simulation.step``)::
                     summed, acts as a force on the plant: dynamics.step integrates it
     -> hold, wrap, finite check, observers   on the truth
 
+Models are registered plugins (hook ``swarmscene_register_disturbances``): the built-in classes
+are here and in this package's modules (the phases below call them), registered by
+``plugins/disturbance/``; a package adds its own the same way, and validation reads the registry.
+
 Composition: ``swarmscene disturbances=[dryden,gps]`` (Hydra's list selection of one group);
 options ``disturbances.dryden.speed=8``. With none declared the kernel takes none of these phases'
 paths (:class:`Disturbances` is inactive) and draws nothing: results are bit-identical to a run
