@@ -1,15 +1,14 @@
-"""The scenario schema (pydantic v2) and the one validation pass after Hydra composition.
+"""The scenario schema (pydantic v2): the engine's own sections and the validated :class:`Scenario`.
 
-Hydra composes plain YAML; ``OmegaConf.to_container(resolve=True)`` turns it into plain data;
-:func:`validate` checks it in one pass: the engine's own keys against :class:`ScenarioConfig`, each
-chosen plugin's keys against that plugin's ``Params``, then scenario-level checks (physics step
-divides the guidance period, events name existing agents, agents start clear of obstacles and of
-each other, the run fits the machine). Every problem becomes one line ``dotted.key: what is allowed
-(got value)``, collected in a :class:`ConfigError`.
+Split by concept (each module one thing a reader holds):
 
-Validation builds what it checks (the obstacle footprints, the start positions) once: the returned
-:class:`Scenario` carries them to the simulation, with the effective configuration (every default
-resolved) that the run directory records.
+* here, the schema: what a scenario may say, section by section (the environment's and the
+  events' sections in :mod:`.obstacles` and :mod:`.events`);
+* :mod:`.validation`, the one validation pass after Hydra composition (:func:`validate`);
+* :mod:`.resources`, what a run needs of the machine (the memory estimate, ``/proc/meminfo``).
+
+The names of both are re-exported here, so ``from swarmscene.core.config import validate`` keeps
+working.
 """
 
 from __future__ import annotations
@@ -18,21 +17,22 @@ import warnings
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from .errors import ConfigError, format_validation_error
-from .disturbances import validate_disturbances
-from .disturbances.comm import channel_errors
-from .events import EventConfig, check_events
+from .events import EventConfig
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
-from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts
+from .plugin import PluginParams
+from .resources import (  # the resource checks under their old module name
+    AGENT_WORKING_BYTES, BASE_WORKING_BYTES, estimated_memory, machine_memory, memory_checks,
+)
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
 
-__all__ = ["CircleObstacle", "Coordinate", "EnvironmentConfig", "EventConfig", "MAX_DURATION",
+__all__ = ["AGENT_WORKING_BYTES", "BASE_WORKING_BYTES", "CircleObstacle", "Coordinate", "EnvironmentConfig", "EventConfig", "MAX_DURATION",
            "MAX_LENGTH", "Obstacle", "Point2", "PolygonObstacle", "Scenario", "ScenarioConfig",
-           "WallObstacle", "validate"]
+           "WallObstacle", "effective_config", "estimated_memory", "machine_memory", "memory_checks",
+           "validate"]
 
 MAX_AGENTS = 1_000_000
 """Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
@@ -43,13 +43,6 @@ MAX_TICKS = 10_000_000
 simulated time at T_s = 0.1 s; the kernel keeps 8 bytes of timing per tick."""
 MAX_ANIMATION_FRAMES = 10_000
 """Most frames in the animation (each is drawn by matplotlib)."""
-AGENT_WORKING_BYTES = 16 * 1024
-"""Estimated engine memory per agent besides the trajectory record: state arrays, the tick's
-k-d trees and neighbour lists, plugin arrays (measured peak 15.4 and 16.5 KiB per agent at
-N = 2 x 10^4 and 10^5: reynolds_flocking with ~80 neighbours each and potential avoidance)."""
-BASE_WORKING_BYTES = 256 * 2**20
-"""Estimated memory of the interpreter and the imported packages."""
-
 MAX_PERIOD = 3600.0
 """Longest guidance period, s."""
 
@@ -305,238 +298,11 @@ class Scenario(BaseModel):
     disturbances: dict[str, Any] = Field(default_factory=dict)
 
 
-def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: dict[str, PluginParams],
-                     disturbances: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The configuration a run uses, every default resolved, as plain data (JSON types) in the
-    nested shape of the composed config: the engine schema's fields, then for each plugin kind its
-    ``name`` and every field of its Params, then each declared disturbance with every option.
-    ``disturbances`` is left out when none is declared, so the record (and its hash) of such a run
-    is the one it had before disturbances existed."""
-    from .disturbances import effective
+def __getattr__(name: str) -> Any:
+    """The validation pass under its old module name (``from swarmscene.core.config import
+    validate``), imported when asked: :mod:`.validation` imports this schema."""
+    if name in ("validate", "effective_config"):
+        from . import validation
 
-    data = config.model_dump(mode="json")
-    for kind in PLUGIN_KINDS:
-        data[kind] = {"name": classes[kind].name, **params[kind].model_dump(mode="json")}
-    if disturbances:
-        data["disturbances"] = effective(disturbances)
-    return data
-
-
-def validate(data: dict[str, Any], registry: "Any") -> Scenario:
-    """Validate composed config ``data`` in one pass; raise :class:`ConfigError` listing every problem.
-
-    Args:
-        data: plain composed config (no ``hydra`` node).
-        registry: a :class:`~swarmscene.core.registry.Registry` (plugin classes by kind and name).
-    Returns:
-        the :class:`Scenario`, with the obstacles and start positions built while checking it.
-    """
-    errors: list[str] = []
-    try:
-        config = ScenarioConfig.model_validate(data)
-    except ValidationError as exc:
-        errors += format_validation_error(exc, ScenarioConfig, data)
-        config = None
-    classes, params = _validate_plugins(data, registry, errors)
-    disturbances = validate_disturbances(data.get("disturbances"), errors)
-    errors += shared_option_conflicts(params)  # e.g. the thesis' graph parameters, declared twice
-    world = None
-    if config is not None:
-        errors += _scenario_checks(config)
-        formation = classes.get("formation")
-        if formation is not None and formation.requires_leader and config.swarm.leader is None:
-            errors.append(
-                f"swarm.leader: formation {formation.name!r} needs a leader "
-                f"(an agent index 0..{config.swarm.n - 1})"
-            )
-        if "dynamics" in classes:
-            errors += _rotor_checks(config, classes["dynamics"])
-        errors += channel_errors(disturbances, config.swarm.n, config.clock.guidance_period)
-        if not errors and len(classes) == len(PLUGIN_KINDS):
-            errors += memory_checks(config, classes["dynamics"])
-        if not errors:
-            world, world_errors = _build_world(config)
-            errors += world_errors
-    if errors:
-        raise ConfigError(errors)
-    obstacles, positions, rng_state = world
-    return Scenario(
-        config=config,
-        plugin_classes=classes,
-        plugin_params=params,
-        data=effective_config(config, classes, params, disturbances),
-        composed=data,
-        obstacles=obstacles,
-        initial_positions=positions,
-        rng_state=rng_state,
-        disturbances=disturbances,
-    )
-
-
-def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dict, dict]:
-    classes: dict[str, Any] = {}
-    params: dict[str, PluginParams] = {}
-    for kind in PLUGIN_KINDS:
-        node = data.get(kind)
-        if not isinstance(node, dict) or "name" not in node:
-            continue  # ScenarioConfig already reported it
-        name = node["name"]
-        available = registry.names(kind)
-        if name not in available:
-            errors.append(f"{kind}.name: unknown {kind} {name!r} (valid: {', '.join(available)})")
-            continue
-        cls = registry.get(kind, name)
-        options = {k: v for k, v in node.items() if k != "name"}
-        try:
-            params[kind] = cls.Params.model_validate(options)
-            classes[kind] = cls
-        except ValidationError as exc:
-            errors += format_validation_error(exc, cls.Params, options, prefix=kind)
-    return classes, params
-
-
-def _scenario_checks(config: ScenarioConfig) -> list[str]:
-    """Checks across sections that no single field can make (before anything is built)."""
-    from .geometry import build_obstacles
-
-    errors: list[str] = _clock_checks(config)
-    n = config.swarm.n
-    if config.swarm.leader is not None and config.swarm.leader >= n:
-        errors.append(f"swarm.leader: must be < swarm.n = {n} (got {config.swarm.leader})")
-    errors += check_events(config.events, n)
-    errors += build_obstacles(config.environment)[1]
-    return errors
-
-
-def _rotor_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
-    """``motor_failure`` events need a dynamics model with rotors, and a rotor it has."""
-    errors = []
-    rotors = getattr(dynamics, "rotors", 0)
-    for k, event in enumerate(config.events):
-        if event.kind != "motor_failure":
-            continue
-        if rotors == 0:
-            errors.append(f"events.{k}.kind: motor_failure needs a dynamics model with rotors "
-                          f"(dynamics {dynamics.name!r} has none; e.g. dynamics=quadrotor)")
-        elif event.rotor is not None and event.rotor >= rotors:
-            errors.append(f"events.{k}.rotor: must be < {rotors}, the rotors of dynamics "
-                          f"{dynamics.name!r} (got {event.rotor})")
-    return errors
-
-
-def _clock_checks(config: ScenarioConfig) -> list[str]:
-    """The physics step divides the guidance period, and the run has a bounded number of ticks."""
-    clock = config.clock
-    substeps = clock.guidance_period / config.physics_step  # may overflow to inf: no round() before
-    if not substeps <= MAX_SUBSTEPS:
-        return [f"clock.physics_step: must be >= clock.guidance_period / {MAX_SUBSTEPS} "
-                f"(got {config.physics_step})"]
-    if abs(substeps - round(substeps)) > 1e-9 * max(1.0, substeps) or round(substeps) < 1:
-        return [f"clock.physics_step: must divide clock.guidance_period = {clock.guidance_period} "
-                f"(got {config.physics_step})"]
-    if clock.duration < clock.guidance_period:
-        return [f"clock.duration: must be >= clock.guidance_period = {clock.guidance_period} "
-                f"(got {clock.duration})"]
-    ticks = clock.duration / clock.guidance_period
-    if not ticks <= MAX_TICKS:
-        return [f"clock.duration: at most {MAX_TICKS} guidance ticks of clock.guidance_period = "
-                f"{clock.guidance_period} s (got {clock.duration}: {ticks:.3g} ticks)"]
-    return []
-
-
-def memory_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
-    """The run's estimated peak memory against the machine's: one line when it does not fit.
-
-    Estimate: :data:`BASE_WORKING_BYTES` + N x :data:`AGENT_WORKING_BYTES` + 8 bytes per tick
-    (timing) + the trajectory frames held in memory (the whole record, or one chunk of
-    ``output.trajectory_buffer_mb`` when it is streamed; see :mod:`swarmscene.core.recorder`).
-    """
-    need = estimated_memory(config, getattr(dynamics, "has_attitude", False))
-    have = machine_memory()
-    if have is None or need <= have:
-        return []
-    return [
-        f"swarm.n: the run needs an estimated {need / 2**30:.3g} GiB of memory, the machine has "
-        f"{have / 2**30:.3g} GiB (got swarm.n = {config.swarm.n}, {config.clock.duration / config.clock.guidance_period:.3g}"
-        f" ticks, output.trajectory_buffer_mb = {config.output.trajectory_buffer_mb})"
-    ]
-
-
-def estimated_memory(config: ScenarioConfig, has_attitude: bool) -> float:
-    """Estimated peak memory of a run, bytes (see :func:`memory_checks`)."""
-    n, out = config.swarm.n, config.output
-    ticks = config.clock.duration / config.clock.guidance_period
-    total = BASE_WORKING_BYTES + n * AGENT_WORKING_BYTES + 8.0 * ticks
-    if out.trajectory:
-        itemsize = 4 if out.float32 else 8
-        frame = n * ((6 + (4 if has_attitude else 0)) * itemsize + 1)
-        frames = ticks // out.trajectory_every + 1
-        held = frames * frame
-        streamed = out.trajectory_stream == "on" or (
-            out.trajectory_stream == "auto" and held > out.trajectory_buffer_mb * 2**20
-        )
-        if streamed:
-            held = max(1.0, min(frames, out.trajectory_buffer_mb * 2**20 // frame)) * frame
-        total += held + 8.0 * frames
-    return total
-
-
-def machine_memory() -> int | None:
-    """Memory the run may use, bytes: MemAvailable of /proc/meminfo, else physical memory
-    (``os.sysconf``), else None (unknown: not checked)."""
-    import os
-
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def _build_world(config: ScenarioConfig) -> tuple[tuple | None, list[str]]:
-    """The obstacles, the start positions and the generator state after drawing them, or errors."""
-    from .geometry import build_obstacles, initial_positions
-
-    obstacles, _ = build_obstacles(config.environment)
-    rng = np.random.default_rng(config.seed)
-    try:
-        pos = initial_positions(config, rng)
-    except ValueError as exc:
-        return None, [str(exc)]
-    errors = _start_checks(config, pos, obstacles)
-    pos.flags.writeable = False
-    return (obstacles, pos, rng.bit_generator.state), errors
-
-
-def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> list[str]:
-    from .environment import Environment
-    from .vectors import pairs_within
-
-    reach = float(np.abs(pos).max(initial=0.0))
-    if not reach <= MAX_LENGTH:  # NaN too
-        return [f"swarm.start: positions must lie within {MAX_LENGTH:g} m of the origin on each axis "
-                f"(got {reach:.3g} m from swarm.start with swarm.n = {config.swarm.n})"]
-    errors: list[str] = []
-    env = Environment(obstacles)
-    inside = np.flatnonzero(env.clearance(pos) < 0)
-    if inside.size:
-        errors.append(f"swarm.start: agents {inside.tolist()} start inside an obstacle")
-    d_min = config.safety.separation_limit
-    if len(pos) > 1 and d_min > 0:
-        pairs, _ = pairs_within(pos, d_min)
-        if len(pairs):
-            msg = (
-                f"swarm.start: {len(pairs)} pairs of agents start closer than "
-                f"safety.separation_limit = {d_min} m (first: {pairs[0].tolist()})"
-            )
-            if config.safety.start_overlap == "error":
-                errors.append(msg)
-            else:
-                warnings.warn(msg, stacklevel=2)
-    return errors
+        return getattr(validation, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,6 +10,10 @@ In config (``events`` list)::
       - {at: 3.0, agents: [5], kind: motor_failure, rotor: 0, fraction: 0.0}  # rotor 0 dead
       - {at: {uniform: [2, 20]}, agents: {sample: 1}, kind: hover}  # a random agent, a random time
 
+Each ``kind`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarmscene_register_events``):
+the five above are built in (their classes here, registered by ``plugins/event/``), a package may
+add its own, with its own fields validated by its ``Params``.
+
 The kernel applies an event at the first guidance tick whose time reaches ``at`` (the events phase),
 changes the world state, then calls the ``swarmscene_event`` hook so plugins can react; after the
 physics sub-steps it calls :meth:`EventQueue.hold`, which moves the vehicles whose fault dictates
@@ -25,12 +29,12 @@ draws the same events. The drawn values are reported as metrics ``events.<k>.at`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum, IntEnum
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
-from pydantic import Field, TypeAdapter, field_validator, model_serializer, model_validator
+from pydantic import Field, PrivateAttr, TypeAdapter, ValidationError, ValidationInfo, field_validator, model_serializer, model_validator
 
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
 from .fields import MAX_DURATION, Point3, StrictModel, key_error
@@ -68,10 +72,10 @@ class EventConfig(StrictModel):
     agents: AgentSample | list[int] = Field(
         description="indices of the agents hit, or {sample: k, among: [...]} (k drawn at random)"
     )
-    kind: Literal["hover", "comm_loss", "stuck", "drift", "motor_failure"] = Field(
-        description="hover: failure, holds position | comm_loss: radio lost | stuck: failure, keeps "
-        "its last velocity | drift: failure, drifts at `velocity` | motor_failure: one rotor's "
-        "thrust cut to `fraction` (quadrotor dynamics)"
+    kind: str = Field(
+        description="a registered event kind: hover: failure, holds position | comm_loss: radio "
+        "lost | stuck: failure, keeps its last velocity | drift: failure, drifts at `velocity` | "
+        "motor_failure: one rotor's thrust cut to `fraction` (quadrotor dynamics) | a plugin's kind"
     )
     velocity: Point3 | None = Field(None, description="drift only: drift velocity [vx, vy, vz], m/s")
     rotor: int | None = Field(None, ge=0, description="motor_failure only: index of the failed rotor")
@@ -93,30 +97,89 @@ class EventConfig(StrictModel):
             raise ValueError("must be agent indices, not true/false")
         return _AGENT_LIST.validate_python(value)
 
+    _kind: Any = PrivateAttr(None)
+    _params: Any = PrivateAttr(None)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _kind_own_fields(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
+        """A plugin kind's own fields (beyond velocity, rotor, fraction) are taken out before the
+        strict check and validated by the kind's ``Params`` (after it, in :meth:`_checked`)."""
+        own: dict[str, Any] = {}
+        if isinstance(data, dict):
+            kind_cls = _kind_class(data.get("kind"), info.context)
+            if kind_cls is not None:
+                own = {k: v for k, v in data.items()
+                       if k in kind_cls.Params.model_fields and k not in cls.model_fields}
+                data = {k: v for k, v in data.items() if k not in own}
+        model = handler(data)
+        return model._checked(own, info.context) if isinstance(model, EventConfig) else model
+
     @model_serializer(mode="wrap")
     def _without_unused_keys(self, handler: Any) -> dict[str, Any]:
-        """Recorded as written: a hover event has no ``velocity: null``."""
+        """Recorded as written: a hover event has no ``velocity: null``; a plugin kind's own
+        fields are recorded with every default."""
         data = handler(self)
-        return {k: v for k, v in data.items() if v is not None or k not in _KIND_FIELDS}
+        data = {k: v for k, v in data.items() if v is not None or k not in _KIND_FIELDS}
+        if self._params is not None:
+            extra = self._params.model_dump(mode="json")
+            data.update({k: v for k, v in extra.items() if k not in data and k not in _KIND_FIELDS})
+        return data
 
-    @model_validator(mode="after")
-    def _fields_of_the_kind(self) -> "EventConfig":
-        own = {"drift": ("velocity",), "motor_failure": ("rotor", "fraction")}.get(self.kind, ())
+    def _checked(self, own: dict[str, Any], context: Any) -> "EventConfig":
+        """The kind's rules: only its own fields given, the ones it needs present; its Params built.
+        An unknown kind is the registry's error (``validate_choice``) when a registry validates,
+        else one line here (listing the built-in kinds)."""
+        kinds = _kinds(context)
+        kind_cls = kinds.get(self.kind)
+        if kind_cls is None:
+            if isinstance(context, dict) and context.get("registry") is not None:
+                return self  # reported once, by validate_choice
+            raise key_error("kind", f"unknown event kind {self.kind!r} (valid: {', '.join(sorted(kinds))})",
+                            self.kind)
+        takes = kind_cls.Params.model_fields
         for key in _KIND_FIELDS:
             value = getattr(self, key)
-            if value is not None and key not in own:
-                users = "drift" if key == "velocity" else "motor_failure"
+            if value is not None and key not in takes:
+                users = " or ".join(sorted(n for n, c in kinds.items() if key in c.Params.model_fields))
                 raise key_error(key, f"only a {users} event takes it (this event is {self.kind})", value)
-        if self.kind == "drift" and self.velocity is None:
-            raise key_error("velocity", "a drift event needs its drift velocity [vx, vy, vz], m/s", None)
-        if self.kind == "motor_failure" and self.rotor is None:
-            raise key_error("rotor", "a motor_failure event needs the index of the failed rotor", None)
+        given = {k: getattr(self, k) for k in _KIND_FIELDS if k in takes and getattr(self, k) is not None}
+        for key, info in takes.items():
+            if info.is_required() and key not in given and key not in own:
+                raise key_error(key, f"a {self.kind} event needs {info.description}", None)
+        values = {**given, **own}
+        try:
+            self._params = kind_cls.Params.model_validate(values)
+        except ValidationError as exc:  # its first problem, at its key (events.<k>.<key>)
+            raise _at_key(exc, kind_cls.Params, values) from None
+        self._kind = kind_cls
         return self
+
+    @property
+    def kind_class(self) -> "type[EventKindPlugin]":
+        """The event kind's class (a registered :class:`EventKindPlugin`)."""
+        return self._kind if self._kind is not None else BUILTIN_EVENT_KINDS[self.kind]
+
+    @property
+    def params(self) -> "EventParams":
+        """The kind's validated Params (its own fields, defaults filled)."""
+        return self._params
 
     @property
     def random(self) -> bool:
         """Whether its time or its agents are drawn."""
         return isinstance(self.at, Draw) or isinstance(self.agents, AgentSample)
+
+
+def _at_key(exc: ValidationError, model: type, values: dict[str, Any]) -> Exception:
+    """The first problem of a kind's Params, in the schema's words, as an error at its key."""
+    from .errors import format_validation_error
+
+    err = exc.errors(include_url=False)[0]
+    line = format_validation_error(exc, model, values)[0]
+    key, _, message = line.partition(": ")
+    got = f" (got {err['input']!r})"
+    return key_error(key.split(".")[0], message.removesuffix(got), err["input"])
 
 
 def check_events(events: list[EventConfig], n: int) -> list[str]:
@@ -139,7 +202,10 @@ def check_events(events: list[EventConfig], n: int) -> list[str]:
 
 
 class EventKind(str, Enum):
-    """What happens to the event's agents. Every kind but ``comm_loss`` is a failure: the agent's
+    """The built-in kinds' names (a plugin's kind is its registered name, a plain string; the
+    behaviour of each is its :class:`EventKindPlugin` below).
+
+    What happens to the event's agents. Every kind but ``comm_loss`` is a failure: the agent's
     ``healthy`` flag drops, so formations and avoidance treat it as failed from that tick on.
 
     HOVER: abrupt failure; the vehicle stops where it is (velocity zero) and stays there for the
@@ -174,6 +240,114 @@ class Motion(IntEnum):
     COAST = 2  # stuck, drift: constant velocity from where it failed
 
 
+class EventParams(StrictModel):
+    """Base of an event kind's own fields (``velocity`` of a drift, ``rotor`` of a motor failure).
+
+    A field without a default is required; its ``description`` completes the error line
+    ``events.<k>.<field>: a <kind> event needs <description>``. The fields ``velocity``,
+    ``rotor`` and ``fraction`` are the event's own attributes (:class:`Event`); any other field
+    is read from ``event.params``."""
+
+
+class EventKindPlugin:
+    """An event kind: what an event does to its agents, and how the kernel moves them afterwards.
+
+    Subclasses declare ``name`` (what a scenario writes as ``kind``), ``Params`` (its own fields),
+    ``failure`` and ``motion``, and may extend :meth:`apply`. The kernel applies an event in the
+    events phase of a tick (:meth:`apply`, then the ``swarmscene_event`` hook, through which a
+    dynamics model applies what only it can, e.g. a rotor's thrust), and after the physics
+    sub-steps moves each agent by the motion of the last failure event that hit it.
+    """
+
+    name: ClassVar[str]
+    Params: ClassVar[type[EventParams]] = EventParams
+    failure: ClassVar[bool] = True
+    """True: the agents fail (``healthy`` False: formations and avoidance treat them as failed);
+    False: they lose their radio (``comm_ok`` False) and keep flying on their last information."""
+    motion: ClassVar[Motion] = Motion.DYNAMICS
+    """After the dynamics, each tick: HOLD (stays where it failed, at rest), COAST (constant velocity
+    from where it failed: the velocity :meth:`apply` left), DYNAMICS (the dynamics model moves it)."""
+
+    @classmethod
+    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+        """Change ``world`` for the agents ``idx`` (their flags, and velocities where the kind sets
+        them: a COAST kind coasts at the velocity left here)."""
+        if cls.failure:
+            world.healthy[idx] = False
+        else:
+            world.comm_ok[idx] = False
+
+
+class Hover(EventKindPlugin):
+    """Abrupt failure: stops where it is and stays (the CEM paper's failure model)."""
+
+    name = "hover"
+    motion = Motion.HOLD
+
+    @classmethod
+    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+        super().apply(event, world, idx)
+        world.vel[idx] = 0.0
+
+
+class CommLoss(EventKindPlugin):
+    """Radio lost: leaves the communication graph, keeps flying on its last information."""
+
+    name = "comm_loss"
+    failure = False
+
+
+class Stuck(EventKindPlugin):
+    """No longer responds: keeps the velocity it had at the event (a fly-away)."""
+
+    name = "stuck"
+    motion = Motion.COAST
+
+
+class Drift(EventKindPlugin):
+    """No longer responds: moves at the event's constant ``velocity`` (a drifting estimate)."""
+
+    name = "drift"
+    motion = Motion.COAST
+
+    class Params(EventParams):
+        velocity: Point3 = Field(description="its drift velocity [vx, vy, vz], m/s")
+
+    @classmethod
+    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+        super().apply(event, world, idx)
+        world.vel[idx] = event.velocity
+
+
+class MotorFailure(EventKindPlugin):
+    """One rotor keeps ``fraction`` of its thrust; the dynamics model applies it (not held)."""
+
+    name = "motor_failure"
+
+    class Params(EventParams):
+        rotor: int = Field(ge=0, description="the index of the failed rotor")
+        fraction: float = Field(0.0, ge=0, le=1, description="thrust the rotor keeps, 0..1 (0: dead)")
+
+
+BUILTIN_EVENT_KINDS: dict[str, type[EventKindPlugin]] = {
+    cls.name: cls for cls in (Hover, CommLoss, Stuck, Drift, MotorFailure)
+}
+"""The built-in kinds (:class:`EventKind`). The kernel's motions are theirs, so their classes live
+here; ``plugins/event/`` registers each through ``swarmscene_register_events`` like a third-party
+kind, and validation reads the registry. Without a registry (an ``EventConfig`` validated on its
+own) these are the kinds known."""
+
+
+def _kinds(context: Any) -> dict[str, type[EventKindPlugin]]:
+    """The event kinds known to a validation: its registry's, else the built-ins."""
+    registry = context.get("registry") if isinstance(context, dict) else None
+    return registry.classes["event"] if registry is not None else BUILTIN_EVENT_KINDS
+
+
+def _kind_class(kind: Any, context: Any) -> type[EventKindPlugin] | None:
+    return _kinds(context).get(kind) if isinstance(kind, str) else None
+
+
 @dataclass(frozen=True)
 class Event:
     """One event, as applied (random parts drawn).
@@ -181,39 +355,38 @@ class Event:
     Attributes:
         at: time at which it happens, s (applied at the first guidance tick with t >= at).
         agents: indices of the agents it hits.
-        kind: :class:`EventKind`.
+        kind: :class:`EventKind` for a built-in kind, else the registered name (a ``str`` either way).
         velocity: drift velocity (3,), m/s, world frame (``drift`` only).
         rotor: index of the failed rotor (``motor_failure`` only).
         fraction: thrust the failed rotor keeps, 0..1 (``motor_failure`` only).
+        params: the kind's validated Params (a plugin kind's own fields), or None.
+        kind_class: the kind's :class:`EventKindPlugin` (None: the built-in of that name).
     """
 
     at: float
     agents: tuple[int, ...]
-    kind: EventKind
+    kind: EventKind | str
     velocity: tuple[float, float, float] | None = None
     rotor: int | None = None
     fraction: float | None = None
+    params: Any = field(default=None, compare=False)
+    kind_class: Any = field(default=None, compare=False)
+
+    @property
+    def behaviour(self) -> type[EventKindPlugin]:
+        """The class that says what this event does."""
+        if self.kind_class is not None:
+            return self.kind_class
+        return BUILTIN_EVENT_KINDS[getattr(self.kind, "value", self.kind)]
 
     @property
     def failure(self) -> bool:
-        """Whether it fails its agents (every kind but ``comm_loss``)."""
-        return self.kind is not EventKind.COMM_LOSS
+        """Whether it fails its agents (every built-in kind but ``comm_loss``)."""
+        return self.behaviour.failure
 
     def apply(self, world: WorldState) -> None:
         """Change ``world`` as this event says (its flags and, for hover and drift, velocities)."""
-        idx = np.asarray(self.agents, dtype=int)
-        if self.kind is EventKind.COMM_LOSS:
-            world.comm_ok[idx] = False
-            return
-        world.healthy[idx] = False
-        if self.kind is EventKind.HOVER:
-            world.vel[idx] = 0.0
-        elif self.kind is EventKind.DRIFT:
-            world.vel[idx] = self.velocity
-
-
-_MOTION = {EventKind.HOVER: Motion.HOLD, EventKind.STUCK: Motion.COAST, EventKind.DRIFT: Motion.COAST,
-           EventKind.MOTOR_FAILURE: Motion.DYNAMICS}
+        self.behaviour.apply(self, world, np.asarray(self.agents, dtype=int))
 
 
 def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
@@ -227,11 +400,13 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
         if isinstance(agents, AgentSample):
             pool = np.unique(agents.among) if agents.among else np.arange(n)
             agents = np.sort(rng.choice(pool, size=agents.sample, replace=False)).tolist()
+    kind_class, params = config.kind_class, config.params
     fraction = config.fraction
-    if config.kind == "motor_failure" and fraction is None:
-        fraction = 0.0  # the rotor is dead
-    return Event(float(at), tuple(int(a) for a in agents), EventKind(config.kind),
-                 velocity=config.velocity, rotor=config.rotor, fraction=fraction)
+    if fraction is None and "fraction" in kind_class.Params.model_fields:
+        fraction = params.fraction if params is not None else 0.0  # motor_failure: the rotor is dead
+    kind = EventKind(config.kind) if config.kind in EventKind._value2member_map_ else config.kind
+    return Event(float(at), tuple(int(a) for a in agents), kind, velocity=config.velocity,
+                 rotor=config.rotor, fraction=fraction, params=params, kind_class=kind_class)
 
 
 class EventQueue:
@@ -254,7 +429,7 @@ class EventQueue:
         self._next = 0
         self.guidance_period = guidance_period
         self.drawn = list(drawn or [])
-        coasting = any(_MOTION.get(e.kind) is Motion.COAST for e in events)
+        coasting = any(e.failure and e.behaviour.motion is Motion.COAST for e in events)
         if coasting and guidance_period is None:
             raise ValueError("EventQueue: stuck and drift events need the guidance period "
                              "(build the queue with EventQueue.from_scenario)")
@@ -314,7 +489,7 @@ class EventQueue:
             self._anchor, self._anchor_t = np.zeros((n, 3)), np.zeros(n)
             self._coast_vel = np.zeros((n, 3))
         idx = np.asarray(event.agents, dtype=int)
-        self._motion[idx] = _MOTION[event.kind]
+        self._motion[idx] = event.behaviour.motion
         self._anchor[idx] = world.pos[idx]
         self._anchor_t[idx] = world.t
         self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import shapely
@@ -325,10 +325,62 @@ def generate(generator: str, params_json: str) -> tuple[tuple[Polygon, ...], tup
         return (), (str(exc),)
 
 
+class MapGenerator:
+    """A map generator: obstacle footprints from a few numeric parameters (``environment.generator``).
+
+    Subclasses declare ``name``, a ``Params`` model (its parameters, which sit beside
+    ``generator`` in the ``environment`` section: ``environment.width=0.5``) and :meth:`build`.
+    Errors a build finds (a density out of reach) are ``ValueError`` whose message starts with
+    the key it names (``environment.density: ...``).
+    """
+
+    name: ClassVar[str]
+    Params: ClassVar[type[StrictModel]] = StrictModel
+
+    @classmethod
+    def build(cls, params: Any) -> list[Polygon]:
+        """The obstacle footprints (shapely polygons, m) of ``params``, a validated ``Params``."""
+        raise NotImplementedError
+
+
+class Corridor(MapGenerator):
+    """A corridor of width w between two square rooms, straight or bent once (thesis 5.4)."""
+
+    name = "corridor"
+    Params = CorridorParams
+
+    @classmethod
+    def build(cls, params: Any) -> list[Polygon]:
+        return corridor(params)
+
+
+class Building(MapGenerator):
+    """A floor with start and end halls and a ring corridor around rooms (thesis Appendix A)."""
+
+    name = "building"
+    Params = BuildingParams
+
+    @classmethod
+    def build(cls, params: Any) -> list[Polygon]:
+        return building(params)
+
+
+class ObstacleField(MapGenerator):
+    """Round obstacles of random sizes covering a fraction of a rectangle, seeded."""
+
+    name = "obstacle_field"
+    Params = ObstacleFieldParams
+
+    @classmethod
+    def build(cls, params: Any) -> list[Polygon]:
+        return obstacle_field(params)
+
+
+BUILTIN_GENERATORS: tuple[type[MapGenerator], ...] = (Corridor, Building, ObstacleField)
+"""The built-in generators (``plugins/generator/`` registers each through
+``swarmscene_register_generators``; the numerics above stay here, beside the geometry they share)."""
+
 GeneratorName = Literal["corridor", "building", "obstacle_field"]
-GENERATORS: dict[str, tuple[type[StrictModel], Any]] = {
-    "corridor": (CorridorParams, corridor),
-    "building": (BuildingParams, building),
-    "obstacle_field": (ObstacleFieldParams, obstacle_field),
-}
-"""Each generator's parameters model and its builder (parameters -> obstacle polygons)."""
+GENERATORS: dict[str, tuple[type[StrictModel], Any]] = {g.name: (g.Params, g.build) for g in BUILTIN_GENERATORS}
+"""Each built-in generator's parameters model and its builder (parameters -> obstacle polygons): the
+``environment`` section's schema (:mod:`swarmscene.core.obstacles`) is built from it."""

@@ -19,8 +19,10 @@ from typing import TYPE_CHECKING, Any
 import pluggy
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .events import Event
-    from .plugin import Avoidance, Dynamics, Formation
+    from .disturbances.base import Disturbance
+    from .events import Event, EventKindPlugin
+    from .generators import MapGenerator
+    from .plugin import Avoidance, Dynamics, Formation, Policy
     from .simulation import Simulation
 
 PROJECT = "swarmscene"
@@ -31,6 +33,10 @@ FormationRegister = Callable[[type["Formation"]], None]
 AvoidanceRegister = Callable[[type["Avoidance"]], None]
 DynamicsRegister = Callable[[type["Dynamics"]], None]
 ObserverRegister = Callable[[type[Any]], None]
+DisturbanceRegister = Callable[[type["Disturbance"]], None]
+EventKindRegister = Callable[[type["EventKindPlugin"]], None]
+GeneratorRegister = Callable[[type["MapGenerator"]], None]
+PolicyRegister = Callable[[type["Policy"]], None]
 
 
 @hookspec
@@ -74,6 +80,53 @@ def swarmscene_register_observers(register: ObserverRegister) -> None:
     only (state never leaks between runs).
     Args:
         register: takes a class whose instances implement lifecycle hooks.
+    """
+
+
+@hookspec
+def swarmscene_register_disturbances(register: DisturbanceRegister) -> None:
+    """Register disturbance models: call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built. A scenario chooses one under
+    ``disturbances.<key>`` (``kind: <name>``, or the key itself).
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.disturbances.base.Disturbance`
+            declaring ``name``, ``phase`` and a ``Params`` subclassing ``DisturbanceParams``.
+    """
+
+
+@hookspec
+def swarmscene_register_events(register: EventKindRegister) -> None:
+    """Register event kinds: call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built. A scenario names one as an event's ``kind``.
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.events.EventKindPlugin` declaring
+            ``name``, ``Params`` (subclassing ``EventParams``), ``failure`` and ``motion``.
+    """
+
+
+@hookspec
+def swarmscene_register_generators(register: GeneratorRegister) -> None:
+    """Register map generators: call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built. A scenario chooses one with
+    ``environment.generator``.
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.generators.MapGenerator`
+            declaring ``name``, ``Params`` and ``build``.
+    """
+
+
+@hookspec
+def swarmscene_register_policies(register: PolicyRegister) -> None:
+    """Register policies (observation rows to actions): call ``register(cls)`` once per class.
+
+    When: once, while the plugin manager is built. A scenario chooses one with
+    ``avoidance.policy`` (the ``policy`` avoidance) and :mod:`swarmscene.env` with ``policy=``.
+    Args:
+        register: takes a subclass of :class:`~swarmscene.core.plugin.Policy` declaring ``name``
+            and ``Params``.
     """
 
 

@@ -217,12 +217,55 @@ class Dynamics(Plugin):
         """
 
 
+class Policy(ABC):
+    """A named policy: maps every agent's observation row to a normalised action in [-1, 1].
+
+    Chosen by ``avoidance.policy=<name>`` (the ``policy`` avoidance, :mod:`swarmscene.env`); built
+    once per run as ``cls(params, layout, spec)`` with its validated ``Params`` (the avoidance's
+    ``policy_options``), the observation layout (which columns hold what,
+    :class:`~swarmscene.methods.policy.observation.ObservationLayout`) and the action spec
+    (velocity or acceleration actions and their scales,
+    :class:`~swarmscene.methods.policy.actions.ActionSpec`); then called once per guidance tick.
+    """
+
+    name: ClassVar[str]
+    """Registered name, the value users write in ``avoidance.policy``."""
+    Params: ClassVar[type[PluginParams]] = PluginParams
+    """Pydantic model of its options (``avoidance.policy_options``)."""
+
+    def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
+        self.params, self.layout, self.spec = params, layout, spec
+
+    @abstractmethod
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions (N, 3) in [-1, 1] from observations (N, D): row i is agent i's."""
+
+
 PLUGIN_KINDS: dict[str, type[Plugin]] = {
     "formation": Formation,
     "avoidance": Avoidance,
     "dynamics": Dynamics,
 }
 """The config group of each kind and the base class its plugins derive from."""
+
+
+def choose(info: Any, kind: str, name: str) -> type | None:
+    """In a ``Params`` model validator: the registered class of ``kind`` that an option names (the
+    ``policy`` avoidance's ``policy``), from the registry validating the scenario, which passes
+    itself as the validation context. None when the Params are validated without one (a unit test).
+
+    Raises:
+        ValueError: ``<option>: unknown <kind> 'x' (valid: ...)`` is the caller's to raise from a
+            model validator, so the line names ``<plugin kind>.<option>``; here the message
+            without the option: ``unknown policy 'x' (valid: ...)``.
+    """
+    registry = info.context.get("registry") if isinstance(info.context, dict) else None
+    if registry is None:
+        return None
+    found = registry.classes[kind].get(name)
+    if found is None:
+        raise ValueError(f"unknown {kind} {name!r} (valid: {', '.join(registry.names(kind))})")
+    return found
 
 
 SHARED = "shared"

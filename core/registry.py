@@ -1,8 +1,10 @@
-"""Plugin manager factory and the registry of plugin classes by kind and name.
+"""Plugin manager factory and the one registry of every kind of component chosen by name.
 
 Built in the style of tox: a factory (no module-level manager) that loads the built-in modules
 first, then the entry points of the group ``swarmscene``, calls ``check_pending()`` so a misspelt
-hook fails loudly, and collects every class registered through the ``swarmscene_register_*`` hooks.
+hook fails loudly, and collects every class registered through the ``swarmscene_register_<kind>s``
+hooks (:data:`KINDS`: formation, avoidance, dynamics, observer, disturbance, event, generator,
+policy). A name a user writes is checked by one function, :func:`validate_choice`, for every kind.
 The engine never names a plugin: the app layer passes the tuple of built-in module names.
 """
 
@@ -12,15 +14,20 @@ import importlib
 import os
 import warnings
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from functools import lru_cache
 from importlib.metadata import entry_points
 from typing import Any
 
 import pluggy
+from pydantic import BaseModel
 
 from . import hookspecs
+from .disturbances.base import Disturbance, DisturbanceParams
 from .errors import PluginError
-from .plugin import PLUGIN_KINDS, Plugin, PluginParams
+from .events import EventKindPlugin, EventParams
+from .generators import MapGenerator
+from .plugin import Avoidance, Dynamics, Formation, Plugin, PluginParams, Policy
 
 ENTRY_POINT_GROUP = "swarmscene"
 """Entry-point group through which third-party packages add plugin modules."""
@@ -29,51 +36,121 @@ DISABLE_ENV = "SWARMSCENE_DISABLE_PLUGINS"
 CORE_OBSERVERS = ("swarmscene.core.monitors", "swarmscene.core.recorder")
 
 
+@dataclass(frozen=True)
+class Kind:
+    """One kind of component chosen by name.
+
+    Attributes:
+        hook: its registration hook (``swarmscene_register_<kind>s``).
+        base: the class every registered class derives from (None: any class, the observers).
+        params: the base of its ``Params`` model (None: no ``Params``, the observers).
+        label: how errors name it (``unknown disturbance model 'x'``).
+        where: what a user writes to choose one (``swarmscene plugins`` and ``--help``).
+    """
+
+    hook: str
+    base: type | None
+    params: type[BaseModel] | None
+    label: str
+    where: str
+
+
+KINDS: dict[str, Kind] = {
+    "formation": Kind("swarmscene_register_formations", Formation, PluginParams, "formation",
+                      "formation=<name>"),
+    "avoidance": Kind("swarmscene_register_avoidances", Avoidance, PluginParams, "avoidance",
+                      "avoidance=<name>"),
+    "dynamics": Kind("swarmscene_register_dynamics", Dynamics, PluginParams, "dynamics",
+                     "dynamics=<name>"),
+    "observer": Kind("swarmscene_register_observers", None, None, "observer",
+                     "every run (not chosen)"),
+    "disturbance": Kind("swarmscene_register_disturbances", Disturbance, DisturbanceParams,
+                        "disturbance model", "disturbances.<key>.kind=<name>"),
+    "event": Kind("swarmscene_register_events", EventKindPlugin, EventParams, "event kind",
+                  "events.<k>.kind=<name>"),
+    "generator": Kind("swarmscene_register_generators", MapGenerator, BaseModel, "map generator",
+                      "environment.generator=<name>"),
+    "policy": Kind("swarmscene_register_policies", Policy, PluginParams, "policy",
+                   "avoidance.policy=<name>"),
+}
+"""Every kind of component registered by name, in the order ``swarmscene plugins`` lists them."""
+
+
 class Registry:
-    """Plugin classes by kind (``formation``, ``avoidance``, ``dynamics``) and name, and observers.
+    """Registered classes by kind (:data:`KINDS`) and name, and the observers in registration order.
 
     ``sources`` names the plugin module that registered each class (``(kind, name)`` -> the
     manager's plugin name: a built-in module, or ``dist:entry-point`` for a third-party one), and
     ``distributions`` the distribution and version behind each third-party plugin name, so
-    ``swarmscene plugins`` and the manifest can say which package provides what.
+    ``swarmscene plugins`` and the manifest can say which package provides what. Observers carry no
+    ``name``: they are keyed by their class name and all of them run in every run.
     """
 
     def __init__(self) -> None:
-        self.classes: dict[str, dict[str, type[Plugin]]] = {kind: {} for kind in PLUGIN_KINDS}
+        self.classes: dict[str, dict[str, type[Any]]] = {kind: {} for kind in KINDS}
         self.observers: list[type[Any]] = []
         self.sources: dict[tuple[str, str], str] = {}
         self.distributions: dict[str, tuple[str, str]] = {}
 
-    def register(self, kind: str, cls: type[Plugin]) -> None:
-        """Add ``cls`` under its declared ``name``; a second class with the same name is an error."""
-        base = PLUGIN_KINDS[kind]
-        if not (isinstance(cls, type) and issubclass(cls, base)):
-            raise PluginError(f"{kind} plugins must subclass {base.__name__} (got {cls!r})")
-        name = getattr(cls, "name", None)
-        if not isinstance(name, str) or not name:
-            raise PluginError(f"{cls.__module__}.{cls.__qualname__} declares no `name`")
-        if not (isinstance(cls.Params, type) and issubclass(cls.Params, PluginParams)):
-            raise PluginError(f"{kind} {name!r}: Params must subclass PluginParams")
+    def register(self, kind: str, cls: type[Any]) -> str:
+        """Add ``cls`` under its declared ``name``; return the name. A second class with the same
+        name is an error naming both; so is a class that is not of its kind."""
+        spec = KINDS[kind]
+        if spec.base is None:
+            if not isinstance(cls, type):
+                raise PluginError(f"{kind}s must be classes (got {cls!r})")
+            self.observers.append(cls)
+            name = cls.__name__
+        else:
+            name = _checked_name(kind, spec, cls)
         old = self.classes[kind].get(name)
-        if old is not None and old is not cls:
+        if old is not None and old is not cls and spec.base is not None:
             raise PluginError(
                 f"{kind} {name!r} registered twice: by {old.__module__}.{old.__qualname__} "
                 f"and by {cls.__module__}.{cls.__qualname__}"
             )
-        self.classes[kind][name] = cls
+        self.classes[kind].setdefault(name, cls)
+        return name
 
     def names(self, kind: str) -> list[str]:
         """Registered names of ``kind``, sorted."""
         return sorted(self.classes[kind])
 
-    def get(self, kind: str, name: str) -> type[Plugin]:
+    def get(self, kind: str, name: str) -> type[Any]:
         """The class registered as ``name``; unknown names list the valid ones."""
         try:
             return self.classes[kind][name]
         except KeyError:
             raise PluginError(
-                f"unknown {kind} {name!r} (valid: {', '.join(self.names(kind))})"
+                f"unknown {KINDS[kind].label} {name!r} (valid: {', '.join(self.names(kind))})"
             ) from None
+
+
+def _checked_name(kind: str, spec: Kind, cls: Any) -> str:
+    """The ``name`` ``cls`` declares, after checking it is a class of ``kind`` with a Params model."""
+    assert spec.base is not None and spec.params is not None
+    if not (isinstance(cls, type) and issubclass(cls, spec.base)):
+        raise PluginError(f"{kind} plugins must subclass {spec.base.__name__} (got {cls!r})")
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not name:
+        raise PluginError(f"{cls.__module__}.{cls.__qualname__} declares no `name`")
+    params = getattr(cls, "Params", None)
+    if not (isinstance(params, type) and issubclass(params, spec.params)):
+        raise PluginError(f"{kind} {name!r}: Params must subclass {spec.params.__name__}")
+    return name
+
+
+def validate_choice(registry: Registry, kind: str, name: Any, key: str, errors: list[str]) -> Any:
+    """The class registered as ``name`` for the config key ``key``, or None with one error line.
+
+    The one check of a chosen name for every kind (formation, disturbance model, event kind, map
+    generator, policy...): ``<key>: unknown <kind> 'x' (valid: a, b, c)``.
+    """
+    if isinstance(name, str) and name in registry.classes[kind]:
+        return registry.classes[kind][name]
+    errors.append(f"{key}: unknown {KINDS[kind].label} {name!r} "
+                  f"(valid: {', '.join(registry.names(kind))})")
+    return None
 
 
 def make_plugin_manager(
@@ -96,29 +173,21 @@ def make_plugin_manager(
         registry.distributions = _load_entry_points(pm)
     pm.check_pending()
     trusted = {*CORE_OBSERVERS, *builtins}
-    for hook_name, kind in (
-        ("swarmscene_register_formations", "formation"),
-        ("swarmscene_register_avoidances", "avoidance"),
-        ("swarmscene_register_dynamics", "dynamics"),
-        ("swarmscene_register_observers", None),
-    ):
-        _call_registration(getattr(pm.hook, hook_name), registry, kind, trusted)
+    for kind, spec in KINDS.items():
+        _call_registration(getattr(pm.hook, spec.hook), registry, kind, trusted)
     return pm, registry
 
 
-def _call_registration(hook: Any, registry: Registry, kind: str | None, trusted: set[str]) -> None:
+def _call_registration(hook: Any, registry: Registry, kind: str, trusted: set[str]) -> None:
     """Call one registration hook plugin by plugin, so a failure names its plugin.
 
     A built-in that fails is a bug and raises; a third-party plugin that fails is skipped with a
-    warning naming it. ``kind`` None is the observers' hook.
+    warning naming it (what it registered before failing stays registered).
     """
     for impl in hook.get_hookimpls():
         def register(cls: Any, source: str = impl.plugin_name) -> None:
-            if kind is None:
-                registry.observers.append(cls)
-                return
-            registry.register(kind, cls)
-            registry.sources[(kind, cls.name)] = source
+            name = registry.register(kind, cls)
+            registry.sources.setdefault((kind, name), source)
 
         try:
             impl.function(register=register)

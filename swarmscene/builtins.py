@@ -26,4 +26,24 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.avoidance.policy",
     "swarmscene.plugins.avoidance.orca",
     "swarmscene.plugins.avoidance.cbf",
+    # disturbance: what the world does to them (models in core/disturbances/)
+    "swarmscene.plugins.disturbance.constant_wind",
+    "swarmscene.plugins.disturbance.gust",
+    "swarmscene.plugins.disturbance.dryden",
+    "swarmscene.plugins.disturbance.sensing_noise",
+    "swarmscene.plugins.disturbance.comm_delay",
+    "swarmscene.plugins.disturbance.packet_loss",
+    # event: what an event does to its agents (semantics in core/events.py)
+    "swarmscene.plugins.event.hover",
+    "swarmscene.plugins.event.comm_loss",
+    "swarmscene.plugins.event.stuck",
+    "swarmscene.plugins.event.drift",
+    "swarmscene.plugins.event.motor_failure",
+    # generator: obstacle maps from parameters (geometry in core/generators.py)
+    "swarmscene.plugins.generator.corridor",
+    "swarmscene.plugins.generator.building",
+    "swarmscene.plugins.generator.obstacle_field",
+    # policy: observations to actions (avoidance.policy; numerics in methods/policy/)
+    "swarmscene.plugins.policy.seek_reference",
+    "swarmscene.plugins.policy.entry_point_group",
 )

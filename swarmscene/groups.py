@@ -51,8 +51,16 @@ def help_groups(options: Callable[[str], list[str]] = group_options) -> str:
     for group, _ in GROUPS:
         prefix = "+" if group == "sweep" else ""
         lines.append(f"{prefix}{group}: {', '.join(options(group))}")
+    lines.append("Plugin kinds, each chosen by name: " + kind_choices())
     lines.append("Installed plugins, with their packages: swarmscene plugins")
     return "\n".join(lines)
+
+
+def kind_choices() -> str:
+    """Every registered kind and where a user names one (``event: events.<k>.kind``)."""
+    from .core.registry import KINDS
+
+    return "; ".join(f"{kind}: {spec.where}" for kind, spec in KINDS.items())
 
 
 def installed_options(group: str) -> list[str]:

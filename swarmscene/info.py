@@ -42,6 +42,8 @@ def components(registry: Any) -> list[dict[str, str]]:
     own = (DISTRIBUTION, package_version())
     rows = []
     for kind in sorted(registry.classes):
+        if kind == "observer":
+            continue  # listed below, in the order they run
         for name in registry.names(kind):
             cls = registry.classes[kind][name]
             source = registry.sources.get((kind, name), "")

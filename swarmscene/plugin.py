@@ -1,4 +1,7 @@
-"""Everything a plugin author imports, in one public module.
+"""Everything a plugin author imports, in one public module, for every kind: formation,
+avoidance, dynamics (``Formation``...), observer (any class with lifecycle hooks), disturbance model
+(``Disturbance``), event kind (``EventKindPlugin``), map generator (``MapGenerator``) and policy
+(``Policy``); docs/plugins.md has a section and a worked example for each.
 
     from swarmscene.plugin import Avoidance, PluginParams, Setpoints, hookimpl
 
@@ -32,16 +35,24 @@ from typing import Any
 
 import numpy as np
 
+from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
+from .core.events import Event, EventKindPlugin, EventParams, Motion
+from .core.fields import StrictModel
+from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl
-from .core.plugin import SHARED, Avoidance, BuildContext, Dynamics, Formation, Plugin, PluginParams
+from .core.plugin import (
+    SHARED, Avoidance, BuildContext, Dynamics, Formation, Plugin, PluginParams, Policy, choose,
+)
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
 
 __all__ = [
-    "Avoidance", "BuildContext", "Dynamics", "Environment", "Formation", "Mode", "Plugin", "PluginParams",
-    "SHARED", "Sensing", "Setpoints", "WorldState", "build_context", "hookimpl",
+    "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
+    "Environment", "Event", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
+    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "SHARED", "Sensing", "Setpoints",
+    "StrictModel", "WorldState", "build_context", "choose", "disturbance_context", "hookimpl",
 ]
 
 
@@ -82,3 +93,13 @@ def build_context(
         environment=environment or Environment(), rng=np.random.default_rng(seed),
         initial=WorldState.at_rest(positions, leader=leader), **values,
     )
+
+
+def disturbance_context(key: str = "model", n: int = 6, *, guidance_period: float = 0.1,
+                        physics_step: float = 0.01, comm_range: float = 10.0,
+                        seed: int = 0) -> DisturbanceContext:
+    """A :class:`DisturbanceContext` for unit tests of a disturbance model, as the engine builds it
+    (the model's own random stream: seed ``seed``, key ``key``)."""
+    from .core.disturbances.base import model_rng
+
+    return DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))

@@ -25,7 +25,19 @@ the last one failed), runs the class through the contract of its kind for a few 
   uses its feed-forward (a moving target is followed more closely with ``vel``/``acc`` than from
   ``pos`` alone); the declared ``wind_coupling`` is honoured (``integrated``: ``step`` reacts to
   ``world.wind``; ``force``/``carried``: the kernel applies the wind, so ``step`` must not read it
-  as well); a model with attitude keeps unit quaternions.
+  as well); a model with attitude keeps unit quaternions;
+- disturbance model (:func:`check_disturbance`): a ``phase`` and its method; run through the
+  kernel's phases, it never modifies the truth, gives finite (N, 3) outputs, draws only from its own
+  stream, shares no state between instances, and reports unprefixed, finite JSON metrics;
+- event kind (:func:`check_event_kind`): ``Params`` from ``EventParams``, ``failure`` and ``motion``
+  declared; an event of the kind validates and its record validates to itself; ``apply`` changes
+  only its agents' flags and velocities (never a position);
+- map generator (:func:`check_generator`): parameters that do not clash with the environment's
+  keys; ``build`` returns valid, finite, non-empty polygons, the same for the same parameters;
+- policy (:func:`check_policy`): finite actions (N, 3) in [-1, 1] for velocity and acceleration
+  actions, observations left as they were, deterministic, no state shared between instances;
+- observer (:func:`check_observer`): only lifecycle hooks, each marked ``hookimpl``; it changes
+  nothing of a run, adds finite JSON metrics, and gives the same metrics in a second run.
 
 The built-in plugins pass these checks in the test suite (tests/test_contract.py).
 """
@@ -33,6 +45,7 @@ The built-in plugins pass these checks in the test suite (tests/test_contract.py
 from __future__ import annotations
 
 import copy
+import functools
 from typing import Any
 
 import numpy as np
@@ -47,7 +60,12 @@ from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
 from .plugin import build_context
 
-__all__ = ["check_avoidance", "check_dynamics", "check_formation", "check_params", "example_world"]
+from .testing_kinds import (  # the kinds beside the three algorithms, rules listed above
+    check_disturbance, check_event_kind, check_generator, check_observer, check_policy,
+)
+
+__all__ = ["check_avoidance", "check_disturbance", "check_dynamics", "check_event_kind", "check_formation",
+           "check_generator", "check_observer", "check_params", "check_policy", "example_world"]
 
 N_AGENTS = 6
 GUIDANCE_PERIOD = 0.1  # s
@@ -65,6 +83,16 @@ def example_world(n: int = N_AGENTS, failed: bool = True) -> WorldState:
     return world
 
 
+@functools.cache
+def installed_registry() -> Any:
+    """The registry of this installation (built-ins and installed packages), built once: the checks
+    validate options against it as a scenario would, so an option naming another kind's component
+    (``avoidance.policy``) is resolved."""
+    from .api import plugins
+
+    return plugins()[1]
+
+
 def check_params(cls: type, options: dict[str, Any] | None = None,
                  refused: dict[str, dict[str, Any]] | None = None) -> PluginParams:
     """``name`` and ``Params`` as the engine needs them; returns the validated options.
@@ -78,9 +106,10 @@ def check_params(cls: type, options: dict[str, Any] | None = None,
     assert cls.Params.model_config.get("extra") == "forbid", f"{cls.name}: Params must refuse unknown keys"
     for field, info in cls.Params.model_fields.items():
         assert info.description, f"{cls.name}: option {field!r} has no description"
-    params = cls.Params.model_validate(options or {})
+    context = {"registry": installed_registry()}  # as a scenario validates them (core.plugin.choose)
+    params = cls.Params.model_validate(options or {}, context=context)
     text = yaml.safe_dump(params.model_dump(mode="json"))
-    again = cls.Params.model_validate(yaml.safe_load(text))
+    again = cls.Params.model_validate(yaml.safe_load(text), context=context)
     assert again == params, f"{cls.name}: Params do not round-trip through YAML ({text!r})"
     for key, bad in (refused or {}).items():
         _assert_refused(cls, key, bad)
@@ -90,7 +119,7 @@ def check_params(cls: type, options: dict[str, Any] | None = None,
 def _assert_refused(cls: type, key: str, options: dict[str, Any]) -> None:
     kind = next((k for k, base in PLUGIN_KINDS.items() if issubclass(cls, base)), "plugin")
     try:
-        cls.Params.model_validate(options)
+        cls.Params.model_validate(options, context={"registry": installed_registry()})
     except ValidationError as exc:
         lines = format_validation_error(exc, cls.Params, options, prefix=kind)
     else:

@@ -46,7 +46,8 @@ def test_env_driven_by_a_policy_flies_exactly_as_the_policy_plugin():
     env = make_env(FAILING)
     env.reset(seed=3)
     episode = env.driver.episode
-    policy = make_policy("seek_reference", episode.policy.layout, episode.policy.spec, {})
+    seek = api.plugins()[1].get("policy", "seek_reference")
+    policy = make_policy(seek, episode.policy.layout, episode.policy.spec, {})
     while env.agents:
         act = policy(episode.observe())
         _, _, _, _, infos = env.step({a: act[int(a.split("_")[1])] for a in env.agents})
@@ -169,12 +170,13 @@ def test_collision_ends_the_episode_with_termination_on_collision():
 def test_the_policy_plugin_names_an_unknown_policy_in_one_line():
     with pytest.raises(ConfigError) as err:
         api.build(["avoidance=policy", "avoidance.policy=nope"])
-    assert err.value.lines == ["avoidance: unknown policy 'nope' (valid: seek_reference)"]
+    assert err.value.lines == ["avoidance.policy: unknown policy 'nope' (valid: seek_reference)"]
 
 
 def test_a_packaged_policy_flies_as_a_plugin_by_name(tmp_path, monkeypatch):
-    """A package's policy, found through the entry-point group swarmscene.policies, chosen by
-    name in the scenario: here one that sends every agent up at half the top speed."""
+    """A package's policy, found through the deprecated entry-point group swarmscene.policies (one
+    more release, with a DeprecationWarning naming the hook), chosen by name in the scenario: here
+    one that sends every agent up at half the top speed."""
     (tmp_path / "climb_policy.py").write_text(
         "import numpy as np\n"
         "def make(layout, spec, rate=0.5):\n"
@@ -183,8 +185,9 @@ def test_a_packaged_policy_flies_as_a_plugin_by_name(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     ep = EntryPoint(name="climb", value="climb_policy:make", group=policies.POLICY_GROUP)
     monkeypatch.setattr(policies, "entry_points", lambda group: [ep] if group == policies.POLICY_GROUP else [])
-    run = api.run([*ALONE, "avoidance=policy", "avoidance.policy=climb", "avoidance.policy_options.rate=0.25",
-                   "avoidance.max_speed=4"])
+    with pytest.warns(DeprecationWarning, match="swarmscene_register_policies"):
+        run = api.run([*ALONE, "avoidance=policy", "avoidance.policy=climb",
+                       "avoidance.policy_options.rate=0.25", "avoidance.max_speed=4"])
     climb = run.trajectory["pos"][:, 0, 2] - run.trajectory["pos"][0, 0, 2]
     np.testing.assert_allclose(climb, np.arange(len(climb)) * 0.1, atol=1e-12)  # 1 m/s for 2 s
 

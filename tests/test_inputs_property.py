@@ -198,11 +198,11 @@ def test_a_period_of_1e_300_is_a_bounded_number_of_ticks(limits):
 
 
 def test_a_run_that_does_not_fit_in_memory_is_refused_before_it_is_built(monkeypatch):
-    """Estimate (core.config.estimated_memory): 256 MiB + 16 KiB per agent + 8 B per tick + the frames
+    """Estimate (core.resources.estimated_memory): 256 MiB + 16 KiB per agent + 8 B per tick + the frames
     held in memory (here streamed: one chunk of 54 frames of 100,000 x 49 B within 256 MiB)."""
-    from swarmscene.core import config
+    from swarmscene.core import resources
 
-    monkeypatch.setattr(config, "machine_memory", lambda: 2**29)
+    monkeypatch.setattr(resources, "machine_memory", lambda: 2**29)
     data = api.compose(["swarm.n=100000", "swarm.start.kind=line"])
     expected = 256 * 2**20 + 100_000 * 16 * 1024 + 8 * 450 + 54 * 100_000 * 49 + 8 * 451
     with pytest.raises(ConfigError) as info:
@@ -210,7 +210,7 @@ def test_a_run_that_does_not_fit_in_memory_is_refused_before_it_is_built(monkeyp
     assert info.value.lines == [
         f"swarm.n: the run needs an estimated {expected / 2**30:.3g} GiB of memory, the machine has 0.5 GiB "
         "(got swarm.n = 100000, 450 ticks, output.trajectory_buffer_mb = 256.0)"]
-    monkeypatch.setattr(config, "machine_memory", lambda: expected)  # exactly enough: it is checked, not run
+    monkeypatch.setattr(resources, "machine_memory", lambda: expected)  # exactly enough: it is checked, not run
     data["clock"]["duration"] = 0.1
     data["output"]["trajectory"] = False
     assert api.load(data).config.swarm.n == 100_000

@@ -79,3 +79,33 @@ def test_plugin_folders_hold_registered_plugins_only():
     }
     unregistered = sorted(modules - set(BUILTIN_PLUGINS))
     assert not unregistered, f"not registered plugins (move their numerics to methods/): {unregistered}"
+
+
+def test_every_kind_has_a_plugin_folder_with_a_readme_and_a_template():
+    """plugins/<kind>/ for each kind of the registry (core/registry.py KINDS), as RotorPy keeps one
+    folder per component kind: a README listing its modules and a runnable _template.py."""
+    from swarmscene.core.registry import KINDS
+
+    for kind in KINDS:
+        folder = ROOT / "plugins" / kind
+        missing = [f for f in ("__init__.py", "README.md", "_template.py") if not (folder / f).is_file()]
+        assert not missing, f"plugins/{kind}/ lacks {missing}"
+
+
+@pytest.mark.parametrize("module", BUILTIN_PLUGINS)
+def test_a_builtin_module_registers_one_component_of_its_folders_kind(module):
+    """One registered plugin per module, through the hook of the kind its folder names (the
+    deprecated policy entry-point group's adapter registers what that group lists)."""
+    import importlib
+
+    from swarmscene.core.registry import KINDS
+
+    kind = module.split(".")[2]
+    loaded = importlib.import_module(module)
+    hooks = sorted(name for name in vars(loaded) if name.startswith("swarmscene_register_"))
+    assert hooks == [KINDS[kind].hook], f"{module}: registration hooks {hooks}"
+    if module.endswith(".entry_point_group"):
+        return
+    registered: list[type] = []
+    getattr(loaded, hooks[0])(registered.append)
+    assert len(registered) == 1, f"{module} registers {len(registered)} components"

@@ -16,6 +16,10 @@ Where in the tick (``Simulation.step``)::
                     summed, acts as a force on the plant: dynamics.step integrates it
     -> hold, wrap, finite check, observers   on the truth
 
+Models are registered plugins (hook ``swarmscene_register_disturbances``): the built-in classes
+are here and in this package's modules (the phases below call them), registered by
+``plugins/disturbance/``; a package adds its own the same way, and validation reads the registry.
+
 Composition: ``swarmscene disturbances=[dryden,gps]`` (Hydra's list selection of one group);
 options ``disturbances.dryden.speed=8``. With none declared the kernel takes none of these phases'
 paths (:class:`Disturbances` is inactive) and draws nothing: results are bit-identical to a run
@@ -38,19 +42,30 @@ from .comm import ChannelModels, CommDelay, PacketLoss
 from .noise import MODELS as _NOISE
 from .wind import MODELS as _WIND
 
-__all__ = ["DISTURBANCE_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
+__all__ = ["BUILTIN_MODELS", "DISTURBANCE_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
            "PHASES", "validate_disturbances"]
 
-DISTURBANCE_MODELS: dict[str, type[Disturbance]] = {m.kind: m for m in (*_WIND, *_NOISE, *_COMM)}
-"""Every disturbance model by ``kind``."""
+BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
+"""The built-in models' classes (their numerics live here; ``plugins/disturbance/`` registers each
+through ``swarmscene_register_disturbances``, like a third-party model)."""
+DISTURBANCE_MODELS: dict[str, type[Disturbance]] = {m.name: m for m in BUILTIN_MODELS}
+"""The built-in models by name (kept for one release: validation reads the plugin registry,
+which also holds third-party models)."""
 
 
-def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
+def validate_disturbances(data: Any, errors: list[str], registry: Any) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
     """Validate the ``disturbances`` mapping; append one line per problem to ``errors``.
 
+    Args:
+        data: the composed ``disturbances`` section.
+        errors: the validation's error lines.
+        registry: the plugin :class:`~swarmscene.core.registry.Registry` (kind ``disturbance``).
     Returns:
         each key's model class and validated Params (keys sorted: the order of application).
     """
+    from ..registry import validate_choice  # the registry imports this package's base
+
+
     if data is None:
         return {}
     if not isinstance(data, dict):
@@ -63,11 +78,9 @@ def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[
             errors.append(f"disturbances.{key}: must be a mapping of options (got {node!r})")
             continue
         kind = node.get("kind", key)
-        cls = DISTURBANCE_MODELS.get(kind) if isinstance(kind, str) else None
+        where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
+        cls = validate_choice(registry, "disturbance", kind, where, errors)
         if cls is None:
-            where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
-            errors.append(f"{where}: unknown disturbance model {kind!r} "
-                          f"(valid: {', '.join(sorted(DISTURBANCE_MODELS))})")
             continue
         options = {k: v for k, v in node.items() if k != "kind"}
         try:
@@ -79,7 +92,7 @@ def validate_disturbances(data: Any, errors: list[str]) -> dict[str, tuple[type[
 
 def effective(models: dict[str, tuple[type[Disturbance], DisturbanceParams]]) -> dict[str, Any]:
     """The declared models with every option resolved, as plain data (the run record)."""
-    return {key: {"kind": cls.kind, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
+    return {key: {"kind": cls.name, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
 
 
 class Perceived:
@@ -130,10 +143,14 @@ class Disturbances:
         self.make_sensing = make_sensing
         self._sensing = self._own_sensing = None
         # one vehicle property declared on each wind model: the one of largest magnitude holds
-        arms = [m.params.moment_arm for m in self.by_phase["wind"]]
+        # (a plugin's wind model without the option has none: 0 m)
+        arms = [getattr(m.params, "moment_arm", 0.0) for m in self.by_phase["wind"]]
         self.moment_arm = max(arms, key=abs, default=0.0)
-        self.channel = ChannelModels([m for m in self.by_phase["communicate"] if isinstance(m, CommDelay)],
-                                     [m for m in self.by_phase["communicate"] if isinstance(m, PacketLoss)])
+        comm = self.by_phase["communicate"]
+        self.channel = ChannelModels([m for m in comm if isinstance(m, CommDelay)],
+                                     [m for m in comm if isinstance(m, PacketLoss)])
+        # A plugin's communicate model (neither built-in channel model) acts after the channel.
+        self.relays = [m for m in comm if not isinstance(m, (CommDelay, PacketLoss))]
         self._acc: np.ndarray | None = None
         self.wind_peak = 0.0
         self.wind_sum = 0.0
@@ -193,8 +210,10 @@ class Disturbances:
             self.sense_sq += float(np.einsum("ij,ij->", err, err))
             self.sense_count += world.n
         own = _view(world, pos, vel)
-        if self.by_phase["communicate"]:
+        if len(self.relays) < len(self.by_phase["communicate"]):
             pos, vel = self.channel.communicate(world, sensing, pos, vel)
+        for model in self.relays:
+            pos, vel = model.communicate(world, pos, vel)
         picture = own if pos is own.pos else _view(world, pos, vel)
         self._sensing = self.make_sensing(picture, self._sensing)
         if self.shared_picture or picture is own:

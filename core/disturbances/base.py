@@ -63,7 +63,11 @@ def model_rng(seed: int, key: str) -> np.random.Generator:
 
 
 class Disturbance:
-    """A disturbance model: subclasses set ``kind``, ``phase``, ``Params`` and their phase's method.
+    """A disturbance model: subclasses set ``name``, ``phase``, ``Params`` and their phase's method.
+
+    ``name`` is the registered name a scenario writes as ``kind`` (``disturbances.<key>.kind``, the
+    key itself when it is left out); ``kind`` is the same string under its older attribute name
+    (either may be declared: the other follows).
 
     sense:        ``sense(world, pos, vel) -> (pos, vel)``: each agent's estimate of its own state,
                   from the truth (``world``) and the estimate of the models before it.
@@ -75,9 +79,20 @@ class Disturbance:
     ``disturbances.<key>.``).
     """
 
+    name: ClassVar[str]
     kind: ClassVar[str]
     phase: ClassVar[str]
     Params: ClassVar[type[DisturbanceParams]] = DisturbanceParams
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # One name under two attributes: the registry reads ``name`` like every kind's; the
+        # kernel's records (``effective``) and older third-party models use ``kind``.
+        own = cls.__dict__
+        if "name" in own and "kind" not in own:
+            cls.kind = cls.name
+        elif "kind" in own and "name" not in own:
+            cls.name = cls.kind
 
     def __init__(self, params: DisturbanceParams, ctx: DisturbanceContext) -> None:
         self.params = params

@@ -1,93 +1,115 @@
 """Named policies: a policy maps observations (N, D) to normalised actions (N, 3) in [-1, 1].
 
-A policy is made by a factory ``factory(layout, spec, **options) -> policy`` where ``layout`` is the
-:class:`~swarmscene.methods.policy.observation.ObservationLayout`, ``spec`` the
-:class:`~swarmscene.methods.policy.actions.ActionSpec` and ``options`` the plugin's
-``policy_options``; ``policy(obs)`` is called once per guidance tick with every agent's row.
+A policy is a registered class (:class:`~swarmscene.core.plugin.Policy`, hook
+``swarmscene_register_policies``) built once per run as ``cls(params, layout, spec)``, where
+``layout`` is the :class:`~swarmscene.methods.policy.observation.ObservationLayout`, ``spec`` the
+:class:`~swarmscene.methods.policy.actions.ActionSpec` and ``params`` its validated ``Params`` (the
+plugin's ``policy_options``); ``policy(obs)`` is called once per guidance tick with every agent's row.
 
-Factories are found by name: the built-in scripted ones below, then the entry-point group
-``swarmscene.policies`` of installed packages (a trained network wrapped by its own package)::
-
-    [project.entry-points."swarmscene.policies"]
-    my_ppo = "my_package.policy:make_policy"
-
-A name offered twice is an error naming both sources; an unknown name lists the valid ones.
+This module holds the numerics of the built-in scripted policy (:func:`seek_reference_actions`,
+registered by ``plugins/policy/seek_reference.py``) and the deprecated entry-point group
+``swarmscene.policies`` (factories ``factory(layout, spec, **options) -> policy``), which still works
+for one release, with a DeprecationWarning pointing to the hook (:func:`entry_point_policies`).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
+from functools import lru_cache
 from importlib.metadata import entry_points
 from typing import Any
 
 import numpy as np
+from pydantic import ConfigDict
+
+from swarmscene.core.plugin import PluginParams, Policy
 
 from .actions import ActionSpec
 from .observation import ObservationLayout
 
 POLICY_GROUP = "swarmscene.policies"
-Policy = Callable[[np.ndarray], np.ndarray]
+"""Deprecated entry-point group of policy factories (use the hook ``swarmscene_register_policies``)."""
+PolicyFunction = Callable[[np.ndarray], np.ndarray]
 
 
-class SeekReference:
+def seek_reference_actions(layout: ObservationLayout, spec: ActionSpec, obs: np.ndarray, gain: float,
+                           repulsion: float, radius: float) -> np.ndarray:
     """A scripted policy: fly to the formation's reference, pushed off close neighbours and obstacles.
 
     Desired velocity, from the observation only:
         v_d = v_ref + k_p (p_ref - p_i)
               - k_r sum_j (1 - |d_ij| / r) d_ij / |d_ij|     over neighbours with |d_ij| < r
               - k_r (1 - c_i / r) n_i                         when the clearance c_i < r
-    (d_ij = p_j - p_i, n_i the unit direction to the nearest obstacle), then scaled to the action:
-    velocity actions a = v_d / max_speed; acceleration actions a = (v_d - v_i) / (T_s max_accel).
+    (d_ij = p_j - p_i, n_i the unit direction to the nearest obstacle; k_p ``gain``, k_r
+    ``repulsion``, r ``radius``), then scaled to the action: velocity actions a = v_d / max_speed;
+    acceleration actions a = (v_d - v_i) / (T_s max_accel). Returns (N, 3) float32 in [-1, 1].
     """
-
-    def __init__(self, layout: ObservationLayout, spec: ActionSpec, gain: float = 1.0,
-                 repulsion: float = 2.0, radius: float = 1.0) -> None:
-        if gain < 0 or repulsion < 0 or radius <= 0:
-            raise ValueError("seek_reference: gain and repulsion must be >= 0 and radius > 0 "
-                             f"(got gain={gain}, repulsion={repulsion}, radius={radius})")
-        self.layout, self.spec = layout, spec
-        self.gain, self.repulsion, self.radius = gain, repulsion, radius
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        f = self.layout.split(np.asarray(obs, dtype=float))
-        desired = f["ref_vel"] + self.gain * f["ref_offset"] * f["ref_mask"]
-        d = f["nbr_pos"]
-        dist = np.linalg.norm(d, axis=2)
-        close = (f["nbr_mask"] > 0) & (dist < self.radius) & (dist > 0)
-        weight = np.where(close, (1.0 - dist / self.radius) / np.where(dist > 0, dist, 1.0), 0.0)
-        desired -= self.repulsion * np.einsum("nk,nkc->nc", weight, d)
-        clearance = f["obs_clearance"][:, 0]
-        wall = (f["obs_mask"][:, 0] > 0) & (clearance < self.radius)
-        push = np.where(wall, 1.0 - np.maximum(clearance, 0.0) / self.radius, 0.0)
-        desired -= self.repulsion * push[:, None] * f["obs_dir"]
-        spec = self.spec
-        if spec.kind == "velocity":
-            action = desired / spec.max_speed
-        else:
-            action = (desired - f["own_vel"]) / (spec.guidance_period * spec.max_accel)
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+    f = layout.split(np.asarray(obs, dtype=float))
+    desired = f["ref_vel"] + gain * f["ref_offset"] * f["ref_mask"]
+    d = f["nbr_pos"]
+    dist = np.linalg.norm(d, axis=2)
+    close = (f["nbr_mask"] > 0) & (dist < radius) & (dist > 0)
+    weight = np.where(close, (1.0 - dist / radius) / np.where(dist > 0, dist, 1.0), 0.0)
+    desired -= repulsion * np.einsum("nk,nkc->nc", weight, d)
+    clearance = f["obs_clearance"][:, 0]
+    wall = (f["obs_mask"][:, 0] > 0) & (clearance < radius)
+    push = np.where(wall, 1.0 - np.maximum(clearance, 0.0) / radius, 0.0)
+    desired -= repulsion * push[:, None] * f["obs_dir"]
+    if spec.kind == "velocity":
+        action = desired / spec.max_speed
+    else:
+        action = (desired - f["own_vel"]) / (spec.guidance_period * spec.max_accel)
+    return np.clip(action, -1.0, 1.0).astype(np.float32)
 
 
-BUILTIN_POLICIES: dict[str, Callable[..., Policy]] = {"seek_reference": SeekReference}
+def make_policy(cls: type[Policy], layout: ObservationLayout, spec: ActionSpec,
+                options: dict[str, Any]) -> Policy:
+    """The registered policy class ``cls`` built with ``options`` (validated by its ``Params``)."""
+    return cls(cls.Params.model_validate(options), layout, spec)
 
 
-def policy_factories() -> dict[str, tuple[Callable[..., Policy] | Any, str]]:
-    """Every policy factory by name, with where it comes from (entry points loaded lazily)."""
-    found: dict[str, tuple[Any, str]] = {name: (f, "swarmscene") for name, f in BUILTIN_POLICIES.items()}
-    for ep in entry_points(group=POLICY_GROUP):
+class _FactoryOptions(PluginParams):
+    """Options of a policy from the deprecated entry-point group: passed to its factory as given."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+
+def _factory_policy(name: str, ep: Any) -> type[Policy]:
+    """A :class:`Policy` class wrapping an entry point's factory (loaded when the policy is built)."""
+
+    class FactoryPolicy(Policy):
+        __doc__ = f"Policy {name!r} from the entry-point group {POLICY_GROUP} (deprecated)."
+        Params = _FactoryOptions
+
+        def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
+            super().__init__(params, layout, spec)
+            self.function = ep.load()(layout, spec, **(params.model_extra or {}))
+
+        def __call__(self, obs: np.ndarray) -> np.ndarray:
+            return self.function(obs)
+
+    FactoryPolicy.name = name
+    return FactoryPolicy
+
+
+@lru_cache(maxsize=4)
+def _listed(lister: Callable[..., Any]) -> tuple[Any, ...]:
+    """The group's entry points, listed once per process (every plugin manager asks: every job of
+    a sweep); keyed by the lister, so a test that replaces ``entry_points`` gets its own list."""
+    return tuple(lister(group=POLICY_GROUP))
+
+
+def entry_point_policies() -> list[type[Policy]]:
+    """The policies of the deprecated group ``swarmscene.policies``, each wrapped as a Policy class;
+    a DeprecationWarning names each one found (register a Policy subclass through the hook
+    ``swarmscene_register_policies`` instead)."""
+    found = []
+    for ep in _listed(entry_points):
         source = f"{ep.dist.name if ep.dist is not None else 'unknown'}:{ep.value}"
-        if ep.name in found:
-            raise ValueError(f"policy {ep.name!r} offered twice: by {found[ep.name][1]} and by {source}")
-        found[ep.name] = (ep, source)
+        warnings.warn(
+            f"policy {ep.name!r} ({source}) comes through the entry-point group {POLICY_GROUP}, "
+            "deprecated: register a swarmscene.plugin.Policy subclass through the hook "
+            "swarmscene_register_policies (docs/plugins.md)", DeprecationWarning, stacklevel=2)
+        found.append(_factory_policy(ep.name, ep))
     return found
-
-
-def make_policy(name: str, layout: ObservationLayout, spec: ActionSpec, options: dict[str, Any]) -> Policy:
-    """The policy registered as ``name``, built with ``options``; unknown names list the valid ones."""
-    factories = policy_factories()
-    if name not in factories:
-        raise ValueError(f"unknown policy {name!r} (valid: {', '.join(sorted(factories))})")
-    factory = factories[name][0]
-    if hasattr(factory, "load") and hasattr(factory, "group"):  # an entry point
-        factory = factory.load()
-    return factory(layout, spec, **options)

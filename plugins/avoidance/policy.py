@@ -7,10 +7,11 @@ acceleration setpoint (``methods/policy/actions.py``). The formation's setpoints
 reference in the observation); this plugin replaces them, so the policy must keep the swarm safe
 itself, and the safety monitor judges it like any other method.
 
-``policy`` names where the actions come from: a registered policy (the built-in scripted
-``seek_reference``, or a package's entry point in the group ``swarmscene.policies``), or null when
-:mod:`swarmscene.env` drives the agents (the environment hands each tick's actions to
-:meth:`PolicyAvoidance.command`). A scenario file names a policy, never an import path.
+``policy`` names where the actions come from: a registered policy (hook
+``swarmscene_register_policies``: the built-in scripted ``seek_reference``, or a package's), or null
+when :mod:`swarmscene.env` drives the agents (the environment hands each tick's actions to
+:meth:`PolicyAvoidance.command`). A scenario file names a policy, never an import path; the name
+and ``policy_options`` are checked when the scenario is validated (the policy's own ``Params``).
 
 Choices: the reference observed is the formation's setpoint of the previous tick (none at t = 0),
 which is what an environment can show its agents before they act; the plugin does the same when it
@@ -22,15 +23,17 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
 
 from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
+from swarmscene.core.errors import format_validation_error
+from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams, choose
 from swarmscene.core.setpoint import Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.methods.policy.actions import ActionKind, ActionSpec, action_setpoints
 from swarmscene.methods.policy.observation import ObservationLayout, observe
 from swarmscene.methods.policy.policies import make_policy
+from swarmscene.plugin import Policy
 
 
 class PolicyAvoidance(Avoidance):
@@ -41,11 +44,12 @@ class PolicyAvoidance(Avoidance):
     class Params(PluginParams):
         policy: str | None = Field(
             None, description="registered policy that flies the agents (built-in: seek_reference; "
-            "packages add theirs through the entry-point group swarmscene.policies); null: the "
+            "packages add theirs through the hook swarmscene_register_policies); null: the "
             "actions come from swarmscene.env")
         policy_options: dict[str, Any] = Field(
             default_factory=dict, description="keyword options of the chosen policy (e.g. the path "
-            "of a trained model); seek_reference takes gain, repulsion, radius")
+            "of a trained model), validated by the policy's Params; seek_reference takes gain, "
+            "repulsion, radius")
         action: ActionKind = Field(
             "velocity", description="what an action commands: velocity (a * max_speed) or "
             "acceleration (a * max_accel, through the dynamics' velocity loop)")
@@ -58,14 +62,39 @@ class PolicyAvoidance(Avoidance):
             5.0, gt=0, le=1e6, description="R_o: the nearest obstacle is observed within this distance, m "
             "(at most 1000 km)")
 
+        _policy: Any = PrivateAttr(None)
+
+        @model_validator(mode="after")
+        def _registered_policy(self, info: ValidationInfo) -> "PolicyAvoidance.Params":
+            """The policy named is registered and its options pass its Params (checked against the
+            registry validating the scenario; without one, when the plugin is built)."""
+            if self.policy is None:
+                return self
+            try:
+                cls = choose(info, "policy", self.policy)
+            except ValueError as exc:
+                raise ValueError(f"policy: {exc}") from None
+            if cls is not None:
+                _check_options(cls, self.policy_options)
+                self._policy = cls
+            return self
+
+        @property
+        def policy_class(self) -> type[Policy] | None:
+            """The registered class ``policy`` names (None: not resolved by a registry)."""
+            return self._policy
+
     def __init__(self, params: "PolicyAvoidance.Params", ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.layout = ObservationLayout(params.neighbours)
         self.spec = ActionSpec(params.action, params.max_speed, params.max_accel, ctx.guidance_period)
         self.sensing_range = params.sensing_range or ctx.comm_range
+        if params.policy is not None and params.policy_class is None:
+            raise ValueError(f"policy: {params.policy!r} was not resolved by a registry: build the "
+                             "scenario through swarmscene.api (which validates it)")
         self.policy = (
             None if params.policy is None
-            else make_policy(params.policy, self.layout, self.spec, params.policy_options)
+            else make_policy(params.policy_class, self.layout, self.spec, params.policy_options)
         )
         self.reference: Setpoints | None = None
         """The formation's setpoints of the last tick (observed as the reference)."""
@@ -93,6 +122,14 @@ class PolicyAvoidance(Avoidance):
         if self.policy is None:
             self._action = None  # an environment must command every tick
         return out
+
+
+def _check_options(cls: type[Policy], options: dict[str, Any]) -> None:
+    """``policy_options`` against the policy's Params: the first problem as one line naming it."""
+    try:
+        cls.Params.model_validate(options)
+    except ValidationError as exc:
+        raise ValueError(format_validation_error(exc, cls.Params, options, prefix="policy_options")[0]) from None
 
 
 @hookimpl

@@ -45,7 +45,8 @@ def test_default_config_validates(data):
         ),
         (
             lambda d: d.update(events=[{"at": 1.0, "agents": [0], "kind": "explode"}]),
-            "events.0.kind: must be one of 'hover', 'comm_loss'",  # the kinds core/events.py lists
+            "events.0.kind: unknown event kind 'explode' (valid: comm_loss, drift, hover, motor_failure, "
+            "stuck)",  # the registered kinds, one validate_choice line like every kind's
         ),
         (
             lambda d: d["environment"].update(obstacles=[{"type": "polygon", "points": [[0, 0], [1, 1], [0, 1], [1, 0]]}]),

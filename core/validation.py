@@ -1,0 +1,239 @@
+"""The one validation pass after Hydra composition: composed data in, a :class:`Scenario` or every
+problem out.
+
+Hydra composes plain YAML; ``OmegaConf.to_container(resolve=True)`` turns it into plain data;
+:func:`validate` checks it in one pass: every name a user chose against the plugin registry
+(``validate_choice``: plugins, disturbance models, event kinds, the map generator), the engine's own
+keys against :class:`~.config.ScenarioConfig` (its events by their registered kinds), each chosen
+plugin's keys against that plugin's ``Params``, then scenario-level checks (physics step divides
+the guidance period, events name existing agents, agents start clear of obstacles and of each
+other, the run fits the machine: :mod:`.resources`). Every problem becomes one line
+``dotted.key: what is allowed (got value)``, collected in a :class:`ConfigError`.
+
+Validation builds what it checks (the obstacle footprints, the start positions) once: the returned
+:class:`~.config.Scenario` carries them to the simulation, with the effective configuration (every
+default resolved) that the run directory records.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from .config import MAX_LENGTH, MAX_SUBSTEPS, MAX_TICKS, Scenario, ScenarioConfig
+from .disturbances import validate_disturbances
+from .disturbances.comm import channel_errors
+from .errors import ConfigError, format_validation_error
+from .events import check_events
+from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts
+from .registry import validate_choice
+from .resources import memory_checks
+
+
+def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: dict[str, PluginParams],
+                     disturbances: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The configuration a run uses, every default resolved, as plain data (JSON types) in the
+    nested shape of the composed config: the engine schema's fields, then for each plugin kind its
+    ``name`` and every field of its Params, then each declared disturbance with every option.
+    ``disturbances`` is left out when none is declared, so the record (and its hash) of such a run
+    is the one it had before disturbances existed."""
+    from .disturbances import effective
+
+    data = config.model_dump(mode="json")
+    for kind in PLUGIN_KINDS:
+        data[kind] = {"name": classes[kind].name, **params[kind].model_dump(mode="json")}
+    if disturbances:
+        data["disturbances"] = effective(disturbances)
+    return data
+
+
+def validate(data: dict[str, Any], registry: "Any") -> Scenario:
+    """Validate composed config ``data`` in one pass; raise :class:`ConfigError` listing every problem.
+
+    Args:
+        data: plain composed config (no ``hydra`` node).
+        registry: a :class:`~swarmscene.core.registry.Registry` (plugin classes by kind and name).
+    Returns:
+        the :class:`Scenario`, with the obstacles and start positions built while checking it.
+    """
+    errors: list[str] = []
+    _validate_event_kinds(data.get("events"), registry, errors)
+    data = _validate_generator(data, registry, errors)
+    try:
+        # The registry in the context: each event is checked by its registered kind's rules.
+        config = ScenarioConfig.model_validate(data, context={"registry": registry})
+    except ValidationError as exc:
+        errors += format_validation_error(exc, ScenarioConfig, data)
+        config = None
+    classes, params = _validate_plugins(data, registry, errors)
+    disturbances = validate_disturbances(data.get("disturbances"), errors, registry)
+    errors += shared_option_conflicts(params)  # e.g. the thesis' graph parameters, declared twice
+    world = None
+    if config is not None:
+        errors += _scenario_checks(config)
+        formation = classes.get("formation")
+        if formation is not None and formation.requires_leader and config.swarm.leader is None:
+            errors.append(
+                f"swarm.leader: formation {formation.name!r} needs a leader "
+                f"(an agent index 0..{config.swarm.n - 1})"
+            )
+        if "dynamics" in classes:
+            errors += _rotor_checks(config, classes["dynamics"])
+        errors += channel_errors(disturbances, config.swarm.n, config.clock.guidance_period)
+        if not errors and len(classes) == len(PLUGIN_KINDS):
+            errors += memory_checks(config, classes["dynamics"])
+        if not errors:
+            world, world_errors = _build_world(config)
+            errors += world_errors
+    if errors:
+        raise ConfigError(errors)
+    obstacles, positions, rng_state = world
+    return Scenario(
+        config=config,
+        plugin_classes=classes,
+        plugin_params=params,
+        data=effective_config(config, classes, params, disturbances),
+        composed=data,
+        obstacles=obstacles,
+        initial_positions=positions,
+        rng_state=rng_state,
+        disturbances=disturbances,
+    )
+
+
+def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) -> dict[str, Any]:
+    """``environment.generator`` is a registered map generator; an unknown one is reported here
+    once, and the schema then checks the map without it (its parameters unchecked)."""
+    from .obstacles import GENERATOR_KEYS
+
+    env = data.get("environment")
+    name = env.get("generator") if isinstance(env, dict) else None
+    if name is None or validate_choice(registry, "generator", name, "environment.generator", errors):
+        return data
+    env = {k: v for k, v in env.items() if k != "generator" and k not in GENERATOR_KEYS}
+    return {**data, "environment": env}
+
+
+def _validate_event_kinds(events: Any, registry: Any, errors: list[str]) -> None:
+    """Each event's ``kind`` is a registered event kind (the schema checks everything else)."""
+    if not isinstance(events, list):
+        return
+    for k, event in enumerate(events):
+        if isinstance(event, dict) and "kind" in event:
+            validate_choice(registry, "event", event["kind"], f"events.{k}.kind", errors)
+
+
+def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dict, dict]:
+    classes: dict[str, Any] = {}
+    params: dict[str, PluginParams] = {}
+    for kind in PLUGIN_KINDS:
+        node = data.get(kind)
+        if not isinstance(node, dict) or "name" not in node:
+            continue  # ScenarioConfig already reported it
+        cls = validate_choice(registry, kind, node["name"], f"{kind}.name", errors)
+        if cls is None:
+            continue
+        options = {k: v for k, v in node.items() if k != "name"}
+        try:
+            # The registry as context: an option naming another kind's class (avoidance.policy)
+            # is checked against it (core.plugin.choose).
+            params[kind] = cls.Params.model_validate(options, context={"registry": registry})
+            classes[kind] = cls
+        except ValidationError as exc:
+            errors += format_validation_error(exc, cls.Params, options, prefix=kind)
+    return classes, params
+
+
+def _scenario_checks(config: ScenarioConfig) -> list[str]:
+    """Checks across sections that no single field can make (before anything is built)."""
+    from .geometry import build_obstacles
+
+    errors: list[str] = _clock_checks(config)
+    n = config.swarm.n
+    if config.swarm.leader is not None and config.swarm.leader >= n:
+        errors.append(f"swarm.leader: must be < swarm.n = {n} (got {config.swarm.leader})")
+    errors += check_events(config.events, n)
+    errors += build_obstacles(config.environment)[1]
+    return errors
+
+
+def _rotor_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
+    """``motor_failure`` events need a dynamics model with rotors, and a rotor it has."""
+    errors = []
+    rotors = getattr(dynamics, "rotors", 0)
+    for k, event in enumerate(config.events):
+        if event.kind != "motor_failure":
+            continue
+        if rotors == 0:
+            errors.append(f"events.{k}.kind: motor_failure needs a dynamics model with rotors "
+                          f"(dynamics {dynamics.name!r} has none; e.g. dynamics=quadrotor)")
+        elif event.rotor is not None and event.rotor >= rotors:
+            errors.append(f"events.{k}.rotor: must be < {rotors}, the rotors of dynamics "
+                          f"{dynamics.name!r} (got {event.rotor})")
+    return errors
+
+
+def _clock_checks(config: ScenarioConfig) -> list[str]:
+    """The physics step divides the guidance period, and the run has a bounded number of ticks."""
+    clock = config.clock
+    substeps = clock.guidance_period / config.physics_step  # may overflow to inf: no round() before
+    if not substeps <= MAX_SUBSTEPS:
+        return [f"clock.physics_step: must be >= clock.guidance_period / {MAX_SUBSTEPS} "
+                f"(got {config.physics_step})"]
+    if abs(substeps - round(substeps)) > 1e-9 * max(1.0, substeps) or round(substeps) < 1:
+        return [f"clock.physics_step: must divide clock.guidance_period = {clock.guidance_period} "
+                f"(got {config.physics_step})"]
+    if clock.duration < clock.guidance_period:
+        return [f"clock.duration: must be >= clock.guidance_period = {clock.guidance_period} "
+                f"(got {clock.duration})"]
+    ticks = clock.duration / clock.guidance_period
+    if not ticks <= MAX_TICKS:
+        return [f"clock.duration: at most {MAX_TICKS} guidance ticks of clock.guidance_period = "
+                f"{clock.guidance_period} s (got {clock.duration}: {ticks:.3g} ticks)"]
+    return []
+
+
+def _build_world(config: ScenarioConfig) -> tuple[tuple | None, list[str]]:
+    """The obstacles, the start positions and the generator state after drawing them, or errors."""
+    from .geometry import build_obstacles, initial_positions
+
+    obstacles, _ = build_obstacles(config.environment)
+    rng = np.random.default_rng(config.seed)
+    try:
+        pos = initial_positions(config, rng)
+    except ValueError as exc:
+        return None, [str(exc)]
+    errors = _start_checks(config, pos, obstacles)
+    pos.flags.writeable = False
+    return (obstacles, pos, rng.bit_generator.state), errors
+
+
+def _start_checks(config: ScenarioConfig, pos: np.ndarray, obstacles: list) -> list[str]:
+    from .environment import Environment
+    from .vectors import pairs_within
+
+    reach = float(np.abs(pos).max(initial=0.0))
+    if not reach <= MAX_LENGTH:  # NaN too
+        return [f"swarm.start: positions must lie within {MAX_LENGTH:g} m of the origin on each axis "
+                f"(got {reach:.3g} m from swarm.start with swarm.n = {config.swarm.n})"]
+    errors: list[str] = []
+    env = Environment(obstacles)
+    inside = np.flatnonzero(env.clearance(pos) < 0)
+    if inside.size:
+        errors.append(f"swarm.start: agents {inside.tolist()} start inside an obstacle")
+    d_min = config.safety.separation_limit
+    if len(pos) > 1 and d_min > 0:
+        pairs, _ = pairs_within(pos, d_min)
+        if len(pairs):
+            msg = (
+                f"swarm.start: {len(pairs)} pairs of agents start closer than "
+                f"safety.separation_limit = {d_min} m (first: {pairs[0].tolist()})"
+            )
+            if config.safety.start_overlap == "error":
+                errors.append(msg)
+            else:
+                warnings.warn(msg, stacklevel=2)
+    return errors

@@ -1,0 +1,1 @@
+"""Disturbance models (``disturbances=[...]``), one registered module each."""

@@ -1,0 +1,1 @@
+"""Event kinds (an event's ``kind``), one registered module each."""

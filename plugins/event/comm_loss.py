@@ -1,0 +1,11 @@
+"""The ``comm_loss`` event kind: registered here; its semantics in :mod:`swarmscene.core.events`
+(the motions :class:`~swarmscene.core.events.EventQueue` applies are the kernel's, so the class
+lives in core)."""
+
+from swarmscene.core.events import CommLoss
+from swarmscene.plugin import hookimpl
+
+
+@hookimpl
+def swarmscene_register_events(register):
+    register(CommLoss)

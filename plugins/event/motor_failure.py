@@ -1,0 +1,11 @@
+"""The ``motor_failure`` event kind: registered here; its semantics in :mod:`swarmscene.core.events`
+(the motions :class:`~swarmscene.core.events.EventQueue` applies are the kernel's, so the class
+lives in core)."""
+
+from swarmscene.core.events import MotorFailure
+from swarmscene.plugin import hookimpl
+
+
+@hookimpl
+def swarmscene_register_events(register):
+    register(MotorFailure)

@@ -1,0 +1,1 @@
+"""Map generators (``environment.generator``), one registered module each."""

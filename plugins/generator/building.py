@@ -1,0 +1,10 @@
+"""The ``building`` map generator: registered here; its geometry in :mod:`swarmscene.core.generators`
+(shared by the three built-ins and by the environment schema, so it lives in core)."""
+
+from swarmscene.core.generators import Building
+from swarmscene.plugin import hookimpl
+
+
+@hookimpl
+def swarmscene_register_generators(register):
+    register(Building)

@@ -1,0 +1,1 @@
+"""Observers (monitors, metrics, recorders): every registered one runs in every run."""

@@ -1,0 +1,1 @@
+"""Policies (``avoidance.policy``), one registered module each."""
