@@ -553,7 +553,8 @@ def crazyswarm2_script(show: ShowExport) -> str:
     ends = [fit.poly.evaluate([fit.poly.t0 + fit.poly.duration])[0] for fit in show.fits]
     duration = max(fit.poly.duration for fit in show.fits)
     files = "".join(f"    {name!r}: {name + '.csv'!r},\n" for name in starts)
-    start = "".join(f"    {name!r}: ({', '.join(repr(float(np.float32(v))) for v in p)}),\n" for name, p in starts.items())
+    start = "".join(f"    {name!r}: ({', '.join(repr(float(np.float32(v))) for v in p)}),\n"
+                    for name, p in starts.items())
     on_floor_at_start = all(p[2] - floor <= ON_FLOOR for p in starts.values())
     on_floor_at_end = all(p[2] - floor <= ON_FLOOR for p in ends)
     return _SCRIPT.format(n=len(show.fits), files=files, start=start, duration=repr(float(np.float32(duration))),

@@ -293,8 +293,9 @@ class LiveView:
         now = np.array(world.pos, float)
         self.recent = (self.recent + [now])[-(self.trail + 1):]
         quat = getattr(world, "quat", None)
-        frame = replace(self.run, t=np.array([float(world.t)]), pos=now[None], vel=np.array(world.vel, float)[None],
-                        healthy=np.array(world.healthy)[None], quat=None if quat is None else np.array(quat, float)[None])
+        frame = replace(self.run, t=np.array([float(world.t)]), pos=now[None],
+                        vel=np.array(world.vel, float)[None], healthy=np.array(world.healthy)[None],
+                        quat=None if quat is None else np.array(quat, float)[None])
         _log_agents(self.rec, frame, np.arange(1))
         self.rec.set_time(TIMELINE, duration=float(world.t))
         log_scene(self.rec, np.stack(self.recent), frame.healthy[0], self.zone, self.palette, frame.comm_range)
