@@ -275,3 +275,39 @@ def test_a_viewer_lost_mid_run_ends_the_live_view_not_the_run(sink, capsys):
     err = capsys.readouterr().err.splitlines()
     assert err[-1] == ("swarmscene: warning: output.live: the live view stopped (AttributeError: 'NoneType' object "
                        "has no attribute 'send_columns'); the run goes on")
+
+
+# -- from the command line and in a sweep (api.extra_writers attaches the view) --------------------
+def test_the_command_line_streams_its_run(sink, tmp_path):
+    import sys
+
+    url, saved, proc = sink
+    run_dir = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-c", "from swarmscene.cli import main; main()", *RUN,
+                           f"output.live=connect:{url}", "output.rerun=true", "output.summary=false",
+                           f"hydra.run.dir={run_dir}"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert f"live view: streaming to {url}" in done.stderr.splitlines()
+    stop(proc)
+    (rid, streamed), = replay.read_recordings([saved]).items()
+    (replay_id, replayed), = replay.read_recordings([run_dir / "replay.rrd"]).items()
+    assert rid == replay_id
+    assert_same_run(streamed, replayed)
+
+
+def test_each_job_of_a_sweep_is_its_own_recording(sink, tmp_path):
+    import json
+
+    url, saved, proc = sink
+    result = api.sweep({"seed": [0, 1]}, [*RUN, f"output.live=connect:{url}", "output.rerun=true"],
+                       sweep_dir=tmp_path / "sweep")
+    assert result.exit_status == 0 and not result.failed
+    stop(proc)
+    received = replay.read_recordings([saved])
+    for job in ("0", "1"):
+        manifest = json.loads((tmp_path / "sweep" / job / "manifest.json").read_text())
+        (replay_id, replayed), = replay.read_recordings([tmp_path / "sweep" / job / "replay.rrd"]).items()
+        assert replay_id == f"cem_six_vehicle-seed{job}-{manifest['config_hash'][:12]}"
+        assert_same_run(received[replay_id], replayed)
+    assert len(received) == 2
