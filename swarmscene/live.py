@@ -223,23 +223,21 @@ class LiveView:
     def __init__(self, sim: Any, url: str) -> None:
         import rerun as rr
 
+        from .core.outputs import config_hash
         from .plots import RunData, agent_colors
         from .replay import APPLICATION_ID, exclusion_radius, recording_id
 
         self.url = url
-        self.every = max(1, sim.total_steps // MAX_FRAMES)
+        self.every = max(1, sim.total_steps // MAX_FRAMES)  # the replay's thinning: <= ~600 frames
         self.trail = max(1, int(round(TRAIL_SECONDS / (sim.config.clock.guidance_period * self.every))))
-        self.data = sim.scenario.data
-        self.obstacles = list(sim.environment.obstacles)
-        from .core.outputs import config_hash
-
-        self.hash = config_hash(self.data)
-        self.run = RunData(config=self.data, t=np.zeros(1), pos=np.array(sim.world.pos, float)[None],
-                           vel=np.array(sim.world.vel, float)[None], healthy=np.array(sim.world.healthy)[None],
-                           obstacles=self.obstacles, config_hash=self.hash)
-        self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run))
+        world, data = sim.world, sim.scenario.data
+        # the run as the replay sees it (its first frame): the replay's functions draw from it
+        self.run = RunData(config=data, t=np.array([float(world.t)]), pos=np.array(world.pos, float)[None],
+                           vel=np.array(world.vel, float)[None], healthy=np.array(world.healthy)[None],
+                           obstacles=list(sim.environment.obstacles), config_hash=config_hash(data))
+        self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run))  # the replay's id
         self.palette = agent_colors(self.run.n)
-        self.zone = exclusion_radius(self.data, {})  # cem's a_p is a metric: known at the end only
+        self.zone = exclusion_radius(data, {})  # cem's a_p is a metric: known at the end only, so none
         self.recent: list[np.ndarray] = []
         self.last_step = -1
         self.failed: set[int] = set()
@@ -278,16 +276,16 @@ class LiveView:
     def _begin(self, sim: Any) -> None:
         import rerun as rr
 
-        from .replay import _log_static, blueprint
+        from .replay import log_static, blueprint
 
         self.rec.set_sinks(rr.GrpcSink(self.url), default_blueprint=blueprint(self.run))
         self.rec.send_recording_name(f"{self.run.name} seed {self.run.seed}")
-        _log_static(self.rec, self.run)
+        log_static(self.rec, self.run)
         self._frame(sim)
 
     def _frame(self, sim: Any) -> None:
         """The agents and the scene at the current tick (the replay's entities)."""
-        from .replay import TIMELINE, _log_agents, log_scene
+        from .replay import TIMELINE, log_agents, log_scene
 
         world = sim.world
         now = np.array(world.pos, float)
@@ -296,7 +294,7 @@ class LiveView:
         frame = replace(self.run, t=np.array([float(world.t)]), pos=now[None],
                         vel=np.array(world.vel, float)[None], healthy=np.array(world.healthy)[None],
                         quat=None if quat is None else np.array(quat, float)[None])
-        _log_agents(self.rec, frame, np.arange(1))
+        log_agents(self.rec, frame, np.arange(1))
         self.rec.set_time(TIMELINE, duration=float(world.t))
         log_scene(self.rec, np.stack(self.recent), frame.healthy[0], self.zone, self.palette, frame.comm_range)
         self._safety(frame)

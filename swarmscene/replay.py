@@ -217,7 +217,8 @@ def blueprint(run: RunData) -> Any:
     )
 
 
-def _log_static(rec: Any, run: RunData) -> None:
+def log_static(rec: Any, run: RunData) -> None:
+    """The static scene: the world's axes, the obstacles, the series' styles (the live view's too)."""
     import rerun as rr
 
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -234,7 +235,7 @@ def _log_static(rec: Any, run: RunData) -> None:
             static=True)
 
 
-def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
+def log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
     """Points (and with attitude, boxes and body axes) of every agent at every frame, as columns."""
     import rerun as rr
 
@@ -356,9 +357,9 @@ def export(run: RunData, path: Path | None, every: int = 1, trail_seconds: float
         raise ValueError("export needs a path or a viewer address to connect to")
     rec.set_sinks(*sinks, default_blueprint=blueprint(run))
     rec.send_recording_name(f"{run.name} seed {run.seed}")
-    _log_static(rec, run)
+    log_static(rec, run)
     frames = _frames(run, every)
-    _log_agents(rec, run, frames)
+    log_agents(rec, run, frames)
     _log_safety(rec, run)
     _log_frames(rec, run, frames, trail_seconds)
     rec.flush()
