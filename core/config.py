@@ -177,10 +177,35 @@ class OutputConfig(_Strict):
     )
     comm_edges: bool = Field(False, description="draw communication edges (within comm.range) in the animation")
     rerun: bool = Field(False, description="write replay.rrd for the Rerun viewer (needs the rerun extra)")
+    live: str = Field(
+        "off",
+        description="stream the run to a Rerun viewer as it is simulated (rerun extra): off; spawn[:PORT] "
+        "(the native viewer on this machine); serve[:PORT[:WEB_PORT]] (a background web viewer, for "
+        "headless nodes); connect[:URL] (a viewer already running); docs/outputs.md",
+    )
     objective: list[str] = Field(
         default_factory=list,
         description="metrics the run returns to a Hydra sweeper (one: a float, several: a tuple), e.g. Optuna",
     )
+
+    @field_validator("live")
+    @classmethod
+    def _live_view(cls, value: str) -> str:
+        import re
+
+        # the grammar only; swarmscene.live starts or reaches the viewer (ports: Rerun's 9876 and 9090)
+        match = re.fullmatch(LIVE_PATTERN, value)
+        ports = [int(p) for p in match.groupdict(default="0").values() if p.isdigit()] if match else []
+        if match is None or any(port > 65535 for port in ports):
+            raise ValueError("must be off, spawn[:PORT], serve[:PORT[:WEB_PORT]] or connect[:URL] with a port "
+                             "1-65535 and a URL rerun+http(s)://HOST:PORT/proxy")
+        return value
+
+
+LIVE_PATTERN = (r"off|spawn(?::(?P<spawn>[1-9]\d{0,4}))?"
+                r"|serve(?::(?P<serve>[1-9]\d{0,4})(?::(?P<web>[1-9]\d{0,4}))?)?"
+                r"|connect(?::rerun\+https?://[^\s/:]+:(?P<connect>[1-9]\d{0,4})/proxy)?")
+"""``output.live``'s values (:class:`OutputConfig`)."""
 
 
 class PluginChoice(BaseModel):

@@ -142,7 +142,8 @@ def run(
 
 def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
     """The optional outputs asked for (plots, animation, Rerun replay), as writer functions; a
-    missing optional package is a one-line ConfigError now, not after the run."""
+    missing optional package is a one-line ConfigError now, not after the run. A live view
+    (``output.live``) is attached to ``sim`` here, before its run (swarmscene.live)."""
     output, writers = sim.config.output, []
     if output.plots or output.animation:
         _require("matplotlib", "output.plots/output.animation", "plots")
@@ -154,6 +155,10 @@ def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
         from .replay import export_rerun
 
         writers.append(export_rerun)
+    if output.live != "off":  # streams during the run: an observer on this run's plugin manager
+        from .live import attach
+
+        attach(sim)
     return writers
 
 

@@ -16,8 +16,10 @@ of the piece, and its float32 duration; 132 bytes), written as the CSV that Craz
     Duration,x^0,...,x^7,y^0,...,y^7,z^0,...,z^7,yaw^0,...,yaw^7
 
 one file ``cf_<i>.csv`` per vehicle, plus ``crazyflie.json`` with the fit's numbers and the
-limits checked, and Crazyswarm2's ``crazyflies.yaml`` (:func:`crazyswarm2_config`: each vehicle's
-``initial_position``, the start of its trajectory). The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
+limits checked, Crazyswarm2's ``crazyflies.yaml`` (:func:`crazyswarm2_config`: each vehicle's
+``initial_position``, the start of its trajectory) and ``crazyswarm2_show.py``, a script for
+Crazyswarm2's ``crazyflie_py`` that uploads the trajectories and flies the show
+(:func:`crazyswarm2_script`). The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
 bytes (``crtp_commander_high_level.h``: "4k allows us to store 31 poly4d pieces"), so a vehicle's
 path has at most 31 pieces.
 
@@ -358,12 +360,14 @@ class ShowExport:
         return phrases
 
     def write(self, out_dir: Path) -> None:
-        """``cf_<i>.csv`` per vehicle and ``crazyflie.json``, each written atomically."""
+        """``cf_<i>.csv`` per vehicle, ``crazyflie.json``, ``crazyflies.yaml`` and ``crazyswarm2_show.py``,
+        each written atomically."""
         out_dir = Path(out_dir)
         for i, fit in enumerate(self.fits):
             fit.poly.to_csv(out_dir / f"cf_{i}.csv")
         atomic_write_json(out_dir / "crazyflie.json", self.summary())
         atomic_write_bytes(out_dir / "crazyflies.yaml", crazyswarm2_config(self).encode())
+        atomic_write_bytes(out_dir / LAUNCH_SCRIPT, crazyswarm2_script(self).encode())
 
 
 # -- placement in a lab volume -------------------------------------------------------------------
@@ -518,6 +522,128 @@ def crazyswarm2_config(show: ShowExport) -> str:
     header = ("# Crazyswarm2 crazyflies.yaml written by python -m swarmscene.export: one robot per cf_<i>.csv,\n"
               "# placed at the start of its trajectory. The radio addresses are placeholders: edit them.\n")
     return header + yaml.safe_dump(config, sort_keys=False)
+
+
+LAUNCH_SCRIPT = "crazyswarm2_show.py"
+"""The bundle's Crazyswarm2 script (:func:`crazyswarm2_script`)."""
+ON_FLOOR = 0.05
+"""m: a trajectory whose first (last) point is within this height of the floor starts (ends) on the
+ground, so the script takes off (lands) with the trajectory itself."""
+LANDING_CLEARANCE = 0.06
+"""m above the floor where the script's own landing ends (Crazyswarm2's examples land at 0.06 m, so
+that the controller does not press into a floor the motion capture sees a little off)."""
+
+
+def _floor(show: ShowExport) -> float:
+    """The floor of the show's lab (m): that of its take-off and landing segments, else z = 0."""
+    return float(show.segments.floor) if show.segments is not None and show.segments.floor is not None else 0.0
+
+
+def crazyswarm2_script(show: ShowExport) -> str:
+    """``crazyswarm2_show.py``: a script for Crazyswarm2's ``crazyflie_py`` API that flies the show.
+
+    It uploads each robot's ``cf_<i>.csv`` as trajectory 0, brings the vehicles to the trajectories'
+    first points (a take-off to each one's first height and a go-to, unless every trajectory starts on
+    the floor: then the trajectory is the take-off), starts all trajectories at once with the
+    positions absolute (``relative=False``) and the time scale 1 (the export's ``time_scale`` is
+    already in the durations), waits the trajectories' duration, and lands those that end in the air
+    (a landing that ends the high-level commander's plan follows every show)."""
+    floor = _floor(show)
+    starts = {f"cf_{i}": fit.poly.evaluate([fit.poly.t0])[0] for i, fit in enumerate(show.fits)}
+    ends = [fit.poly.evaluate([fit.poly.t0 + fit.poly.duration])[0] for fit in show.fits]
+    duration = max(fit.poly.duration for fit in show.fits)
+    files = "".join(f"    {name!r}: {name + '.csv'!r},\n" for name in starts)
+    start = "".join(f"    {name!r}: ({', '.join(repr(float(np.float32(v))) for v in p)}),\n"
+                    for name, p in starts.items())
+    on_floor_at_start = all(p[2] - floor <= ON_FLOOR for p in starts.values())
+    on_floor_at_end = all(p[2] - floor <= ON_FLOOR for p in ends)
+    return _SCRIPT.format(n=len(show.fits), files=files, start=start, duration=repr(float(np.float32(duration))),
+                          starts_on_floor=on_floor_at_start, ends_on_floor=on_floor_at_end, floor=repr(floor),
+                          landing_height=repr(round(floor + LANDING_CLEARANCE, 6)), script=LAUNCH_SCRIPT)
+
+
+_SCRIPT = '''#!/usr/bin/env python3
+"""Fly a swarmscene show of {n} Crazyflies with Crazyswarm2 (crazyflie_py).
+
+Written by python -m swarmscene.export beside the trajectories (cf_<i>.csv) and crazyflies.yaml.
+Start Crazyswarm2's server on this folder's crazyflies.yaml, then run this script in a shell where
+the Crazyswarm2 workspace is sourced:
+
+    # in Crazyswarm2's simulator:
+    ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml backend:=sim
+    python3 {script} --ros-args -p use_sim_time:=True
+    # real vehicles (put your radio uris into crazyflies.yaml first):
+    ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml
+    python3 {script}
+
+Positions are absolute, in the frame of the motion capture (x east, y north, z up, metres): place
+each vehicle at its initial_position of crazyflies.yaml.
+"""
+
+import sys
+from pathlib import Path
+
+from crazyflie_py import Crazyswarm
+from crazyflie_py.uav_trajectory import Trajectory
+
+HERE = Path(__file__).resolve().parent
+TRAJECTORY_ID = 0
+TRAJECTORIES = {{
+{files}}}
+"""Each robot of crazyflies.yaml and the file of its trajectory."""
+START = {{
+{start}}}
+"""Each trajectory's first point: x, y, z (m) and yaw (rad)."""
+SHOW_SECONDS = {duration}
+"""The trajectories' duration (s), the export's time scale and take-off/landing segments included."""
+TIMESCALE = 1.0
+"""startTrajectory's timescale: 1, the export's time scale is already in the durations."""
+STARTS_ON_FLOOR = {starts_on_floor}
+"""Every trajectory starts on the floor: it is the take-off (no separate one)."""
+ENDS_ON_FLOOR = {ends_on_floor}
+"""Every trajectory ends on the floor: it is the landing."""
+FLOOR = {floor}
+LANDING_HEIGHT = {landing_height}
+"""m: where a landing from the air ends (a few centimetres above the floor)."""
+TAKEOFF_SECONDS = 3.0
+GOTO_SECONDS = 2.0
+LAND_SECONDS = 3.0
+SETTLE_SECONDS = 1.0
+
+
+def main():
+    swarm = Crazyswarm()
+    time_helper = swarm.timeHelper
+    allcfs = swarm.allcfs
+    missing = sorted(set(TRAJECTORIES) - set(allcfs.crazyfliesByName))
+    if missing:
+        sys.exit(f"{script}: the Crazyswarm2 server has no {{', '.join(missing)}}: "
+                 "start it on this folder's crazyflies.yaml")
+    cfs = {{name: allcfs.crazyfliesByName[name] for name in TRAJECTORIES}}
+    for name, cf in cfs.items():
+        trajectory = Trajectory()
+        trajectory.loadcsv(HERE / TRAJECTORIES[name])
+        cf.uploadTrajectory(TRAJECTORY_ID, 0, trajectory)
+    if not STARTS_ON_FLOOR:  # the show starts in the air: rise straight up, then go to each first point
+        for name, cf in cfs.items():
+            cf.takeoff(targetHeight=START[name][2], duration=TAKEOFF_SECONDS)
+        time_helper.sleep(TAKEOFF_SECONDS + SETTLE_SECONDS)
+        for name, cf in cfs.items():
+            cf.goTo(START[name][:3], START[name][3], GOTO_SECONDS)
+        time_helper.sleep(GOTO_SECONDS + SETTLE_SECONDS)
+    allcfs.startTrajectory(TRAJECTORY_ID, timescale=TIMESCALE, relative=False)
+    time_helper.sleep(SHOW_SECONDS * TIMESCALE + SETTLE_SECONDS)
+    if ENDS_ON_FLOOR:  # already down: a short landing in place ends the commander's plan
+        allcfs.land(targetHeight=FLOOR, duration=1.0)
+        time_helper.sleep(1.0 + SETTLE_SECONDS)
+    else:
+        allcfs.land(targetHeight=LANDING_HEIGHT, duration=LAND_SECONDS)
+        time_helper.sleep(LAND_SECONDS + SETTLE_SECONDS)
+
+
+if __name__ == "__main__":
+    main()
+'''
 
 
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
@@ -726,7 +852,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
     parser.add_argument("--crazyflie", type=Path, metavar="DIR",
-                        help="write cf_<i>.csv, crazyflie.json and crazyflies.yaml")
+                        help="write cf_<i>.csv, crazyflie.json, crazyflies.yaml and crazyswarm2_show.py")
     parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
@@ -789,6 +915,7 @@ def main(argv: list[str] | None = None) -> None:
             print(f"  cf_{i}.csv: {fit.poly.pieces} pieces ({fit.poly.nbytes} of {TRAJECTORY_MEMORY_BYTES} bytes), "
                   f"max error {fit.max_position_error * 1000:.1f} mm, {fit.max_yaw_error:.4f} rad; "
                   + ("limits hold" if not bad else "EXCEEDS " + "; ".join(bad)))
+        print(f"  crazyflies.yaml and {LAUNCH_SCRIPT} (Crazyswarm2: the show lasts {show.fits[0].poly.duration:.2f} s)")
 
 
 if __name__ == "__main__":

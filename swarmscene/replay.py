@@ -167,14 +167,26 @@ def rotation_matrices(quat: np.ndarray) -> np.ndarray:
     ], -2)
 
 
+def event_text(kind: Any, agents: Any) -> str:
+    """The event log's line for a scheduled event (``hover``, ``comm_loss``) of ``agents``."""
+    what = {"hover": "failed (hovers in place)", "comm_loss": "lost its radio"}.get(str(kind), str(kind))
+    return f"agent {', '.join(str(a) for a in agents)}: {what}"
+
+
 def events(run: RunData) -> list[tuple[float, str, str]]:
     """(time s, level, text) of every event of the run, in time order (module docstring)."""
     out: list[tuple[float, str, str]] = []
     for event in run.config.get("events") or []:
-        agents = ", ".join(str(a) for a in event.get("agents", []))
-        what = {"hover": "failed (hovers in place)", "comm_loss": "lost its radio"}.get(event.get("kind"), event.get("kind"))
         if float(event["at"]) <= float(run.t[-1]) + 1e-9:
-            out.append((float(event["at"]), "WARN", f"agent {agents}: {what}"))
+            out.append((float(event["at"]), "WARN", event_text(event.get("kind"), event.get("agents", []))))
+    out += end_events(run)
+    return sorted(out, key=lambda e: e[0])
+
+
+def end_events(run: RunData) -> list[tuple[float, str, str]]:
+    """(time s, level, text) known at the end of a run: each safety condition's first violation
+    (``violations.*`` metrics) and the end (``stop_reason``)."""
+    out: list[tuple[float, str, str]] = []
     for condition in ("separation", "clearance", "connectivity"):
         first = run.metrics.get(f"violations.{condition}.first_time")
         if isinstance(first, (int, float)):
@@ -183,7 +195,7 @@ def events(run: RunData) -> list[tuple[float, str, str]]:
     reason = run.metrics.get("stop_reason")
     if reason is not None:
         out.append((float(run.t[-1]), "INFO", f"run ended: {reason}"))
-    return sorted(out, key=lambda e: e[0])
+    return out
 
 
 def blueprint(run: RunData) -> Any:
@@ -205,7 +217,8 @@ def blueprint(run: RunData) -> Any:
     )
 
 
-def _log_static(rec: Any, run: RunData) -> None:
+def log_static(rec: Any, run: RunData) -> None:
+    """The static scene: the world's axes, the obstacles, the series' styles (the live view's too)."""
     import rerun as rr
 
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -222,7 +235,7 @@ def _log_static(rec: Any, run: RunData) -> None:
             static=True)
 
 
-def _log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
+def log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
     """Points (and with attitude, boxes and body axes) of every agent at every frame, as columns."""
     import rerun as rr
 
@@ -297,27 +310,39 @@ def _log_safety(rec: Any, run: RunData) -> None:
 
 def _log_frames(rec: Any, run: RunData, frames: np.ndarray, trail_seconds: float) -> None:
     """Trails, failure markers, exclusion circles and comm edges, logged per recorded frame."""
-    import rerun as rr
-
     dt = float(np.median(np.diff(run.t))) if len(run.t) > 1 else 1.0
     trail = max(1, int(round(trail_seconds / dt)))
     zone = exclusion_radius(run.config, run.metrics)
     palette = agent_colors(run.n)
     for agent, when, where in run.failures():
-        rec.set_time(TIMELINE, duration=when)
-        rec.log(f"world/failures/{agent}", rr.Points3D([where], colors=[FAILED_RGB], radii=[0.06],
-                                                       labels=[f"{agent} failed @ {when:.1f} s"]))
+        log_failure(rec, agent, when, where)
     for k in frames:  # per frame, vectorised over agents
         rec.set_time(TIMELINE, duration=float(run.t[k]))
-        start = max(0, k - trail)
-        rec.log("world/trails", rr.LineStrips3D(np.transpose(run.pos[start : k + 1], (1, 0, 2)), radii=0.008,
-                                                colors=palette))
-        failed = np.flatnonzero(~run.healthy[k])
-        if zone is not None:
-            rec.log("world/exclusion", rr.LineStrips3D([_circle(run.pos[k, i], zone) for i in failed],
-                                                       colors=[FAILED_RGB]))
-        pairs = comm_edges(run.pos[k, :, :2], run.healthy[k], run.comm_range)
-        rec.log("world/comm_edges", rr.LineStrips3D(run.pos[k][pairs], colors=[EDGE_RGB], radii=0.01))
+        log_scene(rec, run.pos[max(0, k - trail) : k + 1], run.healthy[k], zone, palette, run.comm_range)
+
+
+def log_failure(rec: Any, agent: int, when: float, where: np.ndarray) -> None:
+    """A red marker where ``agent`` failed, from the time it failed."""
+    import rerun as rr
+
+    rec.set_time(TIMELINE, duration=when)
+    rec.log(f"world/failures/{agent}", rr.Points3D([where], colors=[FAILED_RGB], radii=[0.06],
+                                                   labels=[f"{agent} failed @ {when:.1f} s"]))
+
+
+def log_scene(rec: Any, recent: np.ndarray, healthy: np.ndarray, zone: float | None, palette: np.ndarray,
+              comm_range: float) -> None:
+    """At the time set on ``rec``: the trails (``recent`` (K, N, 3), the last K positions, the
+    current one last), the exclusion circles around failed vehicles and the comm edges."""
+    import rerun as rr
+
+    now = recent[-1]
+    rec.log("world/trails", rr.LineStrips3D(np.transpose(recent, (1, 0, 2)), radii=0.008, colors=palette))
+    if zone is not None:
+        rec.log("world/exclusion", rr.LineStrips3D([_circle(now[i], zone) for i in np.flatnonzero(~healthy)],
+                                                   colors=[FAILED_RGB]))
+    pairs = comm_edges(now[:, :2], healthy, comm_range)
+    rec.log("world/comm_edges", rr.LineStrips3D(now[pairs], colors=[EDGE_RGB], radii=0.01))
 
 
 def export(run: RunData, path: Path | None, every: int = 1, trail_seconds: float = 3.0,
@@ -332,9 +357,9 @@ def export(run: RunData, path: Path | None, every: int = 1, trail_seconds: float
         raise ValueError("export needs a path or a viewer address to connect to")
     rec.set_sinks(*sinks, default_blueprint=blueprint(run))
     rec.send_recording_name(f"{run.name} seed {run.seed}")
-    _log_static(rec, run)
+    log_static(rec, run)
     frames = _frames(run, every)
-    _log_agents(rec, run, frames)
+    log_agents(rec, run, frames)
     _log_safety(rec, run)
     _log_frames(rec, run, frames, trail_seconds)
     rec.flush()

@@ -32,7 +32,7 @@ SWEEP_FILE = "sweep.json"
 LOCK_FILE = ".sweep.lock"
 DISPLAY_KEYS = (
     "output.progress", "output.summary", "output.plots", "output.animation", "output.animation_frames",
-    "output.comm_edges", "output.rerun", "output.objective", "description",
+    "output.comm_edges", "output.rerun", "output.live", "output.objective", "description",
 )
 """Options that change what is shown or drawn, not what a job computes: their overrides are left
 out when a directory's grid is compared (and out of the config hash: ``COSMETIC_KEYS``)."""
