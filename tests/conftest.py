@@ -20,7 +20,7 @@ END_TO_END = (
     "test_tutorial.py", "test_third_party_plugin.py", "test_reproduction.py", "test_composition.py",
     "test_inputs_property.py", "test_cli.py", "test_api.py", "test_falsify.py", "test_export.py",
     "test_replay.py", "test_plots.py", "test_report.py", "test_compile.py", "test_packaging.py",
-    "test_rl_train.py", "test_rl_supersuit.py",
+    "test_rl_train.py", "test_rl_supersuit.py", "test_live.py", "test_export_crazyswarm2.py", "test_export_cflib.py",
 )
 """Test modules that run whole commands, sweeps, clusters or installs: left out by ``--quick``."""
 
