@@ -1,6 +1,6 @@
 """The boids' steer in one compiled pass over the neighbour pairs (numba, cached on disk).
 
-The sums are those of ``plugins/formation/reynolds_flocking.py`` (cohesion, separation and
+The sums are those of :mod:`.steering` (cohesion, separation and
 alignment; see its docstring for the rule), accumulated in the order NumPy's ``bincount`` takes
 them, pair by pair, into separate sums that are added as the NumPy form adds them: the result is
 bit for bit that of the NumPy form kept in ``tests/oracles/flocking.py``, at a tenth of its cost

@@ -47,7 +47,7 @@ def test_compiled_seam_pairs_equal_the_tree_form(axes, seed):
     from oracles.flocking import seam_pairs as tree_seam_pairs
 
     from swarmscene.methods.flocking.kernels import seam_pairs
-    from swarmscene.plugins.formation.reynolds_flocking import periodic_shifts
+    from swarmscene.methods.flocking.torus import periodic_shifts
 
     rng = np.random.default_rng(seed)
     lo, hi = np.array([-5.0, 0.0, 1.0]), np.array([15.0, 30.0, 21.0])
