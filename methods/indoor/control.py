@@ -68,6 +68,37 @@ class IndoorGains:
     alpha_lsat: float = 0.7
     alpha_lcon: float = 0.95
 
+    # The kernels' gain arrays and the sensing memo's key are built once per gain set and kept on
+    # it (a frozen dataclass: cached_property writes the instance dict, not a field), so they live
+    # and die with the plugin that owns the gains; hashing the 26 fields every tick would cost
+    # more than the lookup saves.
+
+    @cached_property
+    def formation_kernel_gains(self) -> np.ndarray:
+        """The gains :func:`~.kernels.formation_kernel` reads (:data:`FORMATION_GAINS`), in its order."""
+        return self.kernel_gains(FORMATION_GAINS)
+
+    @cached_property
+    def avoidance_kernel_gains(self) -> np.ndarray:
+        """The gains :func:`~.kernels.avoidance_kernel` reads (:data:`AVOIDANCE_GAINS`), in its order."""
+        return self.kernel_gains(AVOIDANCE_GAINS)
+
+    def kernel_gains(self, names: tuple[str, ...]) -> np.ndarray:
+        """The named gains as the float array a compiled kernel takes (built on every call)."""
+        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(self)))
+        return np.array([float(values[k]) for k in names])
+
+    @cached_property
+    def sensing_reach(self) -> float:
+        """How far obstacles are looked for: min(l_o, d_s) (nothing beyond l_o acts, eq. 5.34)."""
+        return min(self.l_o, self.d_s)
+
+    @cached_property
+    def snapshot_key(self) -> tuple[tuple[str, object], ...]:
+        """The parameters that define one tick's sensing graphs (the shared memo's key)."""
+        return (("d_n", self.d_n), ("d_l", self.d_l), ("phi_d", self.phi_d),
+                ("reach", self.sensing_reach), ("deactivation_candidates", self.deactivation_candidates))
+
 
 TABLE_5_1 = IndoorGains()
 """The thesis' simulation parameters (Table 5.1)."""
@@ -181,23 +212,6 @@ AVOIDANCE_GAINS = ("d_o", "l_o", "K_obs", "eps_obs", "d_c", "l_c", "K_col", "eps
 """The gains :func:`~.kernels.avoidance_kernel` reads, in its order."""
 
 
-_GAIN_ARRAYS: dict[tuple[int, tuple[str, ...]], tuple[IndoorGains, np.ndarray]] = {}
-
-
-def _gain_array(g: IndoorGains, names: tuple[str, ...]) -> np.ndarray:
-    """The named gains as the float array a kernel takes, cached per gain set (by identity: a
-    plugin keeps one ``IndoorGains``, and hashing its 26 fields every tick costs more than the
-    lookup it saves)."""
-    key = (id(g), names)
-    known = _GAIN_ARRAYS.get(key)
-    if known is None or known[0] is not g:
-        if len(_GAIN_ARRAYS) >= 64:  # gain sets of finished runs
-            _GAIN_ARRAYS.clear()
-        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(g)))
-        known = _GAIN_ARRAYS[key] = (g, np.array([float(values[k]) for k in names]))
-    return known[1]
-
-
 def formation_step(
     snap: "IndoorSnapshot", rho_bar: np.ndarray, leader: int, waypoints: np.ndarray, m: int,
     g: IndoorGains = TABLE_5_1,
@@ -218,7 +232,7 @@ def formation_step(
 
     _, dst = snap.g_sigma.directed()
     w, m, rho_bar = formation_kernel(
-        snap.r, snap.g_sigma.indptr, dst, rho_bar, leader, waypoints, m, _gain_array(g, FORMATION_GAINS)
+        snap.r, snap.g_sigma.indptr, dst, rho_bar, leader, waypoints, m, g.formation_kernel_gains
     )
     return w, int(m), rho_bar
 
@@ -229,7 +243,7 @@ def avoidance_terms(snap: "IndoorSnapshot", g: IndoorGains = TABLE_5_1) -> np.nd
     from .kernels import avoidance_kernel  # numba loads at first use, not at registration
 
     _, dst = snap.g_sigma.directed()
-    return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, _gain_array(g, AVOIDANCE_GAINS))
+    return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, g.avoidance_kernel_gains)
 
 
 _VELOCITY, _LEADER = int(Mode.VELOCITY), int(Role.LEADER)

@@ -15,6 +15,7 @@ geometric tests (line of sight, nearest obstacle points) are one compiled call e
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,14 +34,29 @@ if TYPE_CHECKING:  # pragma: no cover
 Obstacles = Sequence[BaseGeometry] | STRtree | None
 
 
+class ObstacleTree(STRtree):
+    """An STRtree that keeps the compiled kernels' form of its obstacles (:attr:`footprints`).
+
+    The footprint arrays belong to the obstacle set they describe: built on first use, they live
+    and die with this tree (the engine's :class:`~swarmscene.core.environment.Environment` keeps
+    its own the same way).
+    """
+
+    @cached_property
+    def footprints(self) -> tuple[np.ndarray, ...]:
+        """:func:`~swarmscene.core.environment.footprint_arrays` of :attr:`geometries`."""
+        return footprint_arrays(self.geometries)
+
+
 def obstacle_tree(obstacles: Obstacles) -> STRtree | None:
-    """The STRtree over ``obstacles`` (built if a sequence is given), or ``None`` for open space."""
+    """The STRtree over ``obstacles`` (an :class:`ObstacleTree` if a sequence is given), or
+    ``None`` for open space."""
     if obstacles is None:
         return None
     if isinstance(obstacles, STRtree):
         return obstacles if len(obstacles.geometries) else None
     geoms = np.asarray(list(obstacles), dtype=object)
-    return STRtree(geoms) if geoms.size else None
+    return ObstacleTree(geoms) if geoms.size else None
 
 
 def saturate(w: np.ndarray, limit: float) -> np.ndarray:
@@ -92,11 +108,11 @@ def nearest_obstacle(
     if tree is None or n == 0:
         return np.full((n, 2), np.nan), np.full(n, np.inf)
     index, dist = nearest_within(tree, r, max_distance)  # the engine's own bounded search
-    return nearest_points(r, tree.geometries, index), dist
+    return nearest_points(r, tree, index), dist
 
 
-def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """o_i, the point of obstacle ``geometries[index[i]]`` closest to r_i (eq. 5.32), (N, 2);
+def nearest_points(r: np.ndarray, geometries: np.ndarray | STRtree, index: np.ndarray) -> np.ndarray:
+    """o_i, the point of obstacle ``geometries[index[i]]`` (or the tree's) closest to r_i (eq. 5.32), (N, 2);
     NaN where ``index`` is -1 (nothing detected). One compiled call (GEOS' nearest-point formulas,
     so the points equal ``shapely.shortest_line``'s)."""
     from .kernels import nearest_points_kernel  # numba loads at first use, not at registration
@@ -106,23 +122,17 @@ def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> 
     return nearest_points_kernel(r, np.asarray(index, dtype=np.intp), seg, geom_start, polygonal)
 
 
-_KERNEL_OBSTACLES: dict[int, tuple[np.ndarray, tuple[np.ndarray, ...]]] = {}
-
-
 def kernel_obstacles(geometries: np.ndarray | STRtree | None) -> tuple[np.ndarray, ...]:
     """The engine's :func:`~swarmscene.core.environment.footprint_arrays` of an obstacle set (its
-    STRtree or the tree's ``geometries``),
-    cached per set: a map's walls are converted once, not every tick."""
+    STRtree or the tree's ``geometries``): an :class:`ObstacleTree`'s own (converted once for the
+    set), else converted on this call."""
     if geometries is None:
         return NO_FOOTPRINTS
+    if isinstance(geometries, ObstacleTree):
+        return geometries.footprints
     if isinstance(geometries, STRtree):
         geometries = geometries.geometries
-    key = id(geometries)
-    if key not in _KERNEL_OBSTACLES or _KERNEL_OBSTACLES[key][0] is not geometries:
-        if len(_KERNEL_OBSTACLES) >= 16:  # maps of finished runs
-            _KERNEL_OBSTACLES.clear()
-        _KERNEL_OBSTACLES[key] = (geometries, footprint_arrays(geometries))
-    return _KERNEL_OBSTACLES[key][1]
+    return footprint_arrays(geometries)
 
 
 def obstacle_free(r: np.ndarray, obstacles: Obstacles, d_o: float) -> bool:
