@@ -84,8 +84,8 @@ def turn_headings(
             divided in place by |N_i|.
         count: (N,) |N_i|.
         planar: headings stay in the x-y plane.
-        goal, boundary: (N, 3) optional extra terms (:func:`goal_steer` turns every boid,
-            :func:`boundary_steer` those it pushes).
+        goal: (N, 3) optional goal term (:func:`goal_steer`): every boid turns.
+        boundary: (N, 3) optional boundary term (:func:`boundary_steer`): the boids it pushes turn.
 
     Returns:
         (N, 3) the new unit headings; unchanged where a boid has nothing to steer by.

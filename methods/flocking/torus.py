@@ -56,7 +56,8 @@ def torus_neighbours(
     Args:
         pos: (N, 3) positions inside the box, m.
         pairs: (M, 2) the pairs within ``radius`` by plain distance (the tick's pair list).
-        lo, hi: (A,) the box's corners on its A periodic axes, m.
+        lo: (A,) the box's lower corner on its A periodic axes, m.
+        hi: (A,) its upper corner, m.
         radius: neighbour radius, m (below half the box's smallest side).
         shifts: :func:`periodic_shifts` of A, as floats.
 

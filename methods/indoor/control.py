@@ -32,7 +32,7 @@ from swarmscene.core.setpoint import Mode
 from swarmscene.core.state import Role
 
 from .graphs import EdgeList, check_reading, graphs_from_kernel, tick_graphs
-from .sensing import Obstacles, nearest_obstacle, saturate
+from .sensing import Obstacles, nearest_obstacle
 
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.spatial import cKDTree
@@ -85,7 +85,7 @@ class IndoorGains:
 
     def kernel_gains(self, names: tuple[str, ...]) -> np.ndarray:
         """The named gains as the float array a compiled kernel takes (built on every call)."""
-        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(self)))
+        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(self), strict=True))
         return np.array([float(values[k]) for k in names])
 
     @cached_property
@@ -150,7 +150,8 @@ class PairGeometry:
     length: np.ndarray
 
     @classmethod
-    def of(cls, r: np.ndarray, g_sigma: EdgeList) -> "PairGeometry":
+    def of(cls, r: np.ndarray, g_sigma: EdgeList) -> PairGeometry:
+        """The geometry of every arc (i, j) of ``g_sigma`` at positions ``r`` (N, 2)."""
         src, dst = g_sigma.directed()
         d = r[dst] - r[src]
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
@@ -196,7 +197,7 @@ def w_com(r: np.ndarray, g_sigma: EdgeList | PairGeometry, g: IndoorGains = TABL
 
 
 def w_led(
-    r: np.ndarray, l: np.ndarray, has_neighbour: np.ndarray, g: IndoorGains = TABLE_5_1
+    r: np.ndarray, l: np.ndarray, has_neighbour: np.ndarray, g: IndoorGains = TABLE_5_1  # noqa: E741 (l_i, eq. 5.41)
 ) -> np.ndarray:
     """Leader traction toward the virtual leader l_i (thesis eq. 5.41-5.42).
 
@@ -213,7 +214,7 @@ AVOIDANCE_GAINS = ("d_o", "l_o", "K_obs", "eps_obs", "d_c", "l_c", "K_col", "eps
 
 
 def formation_step(
-    snap: "IndoorSnapshot", rho_bar: np.ndarray, leader: int, waypoints: np.ndarray, m: int,
+    snap: IndoorSnapshot, rho_bar: np.ndarray, leader: int, waypoints: np.ndarray, m: int,
     g: IndoorGains = TABLE_5_1,
 ) -> tuple[np.ndarray, int, np.ndarray]:
     """One tick of the formation's part of the method, one compiled call (eq. 5.24-5.26, 5.37-5.44).
@@ -237,7 +238,7 @@ def formation_step(
     return w, int(m), rho_bar
 
 
-def avoidance_terms(snap: "IndoorSnapshot", g: IndoorGains = TABLE_5_1) -> np.ndarray:
+def avoidance_terms(snap: IndoorSnapshot, g: IndoorGains = TABLE_5_1) -> np.ndarray:
     """w_obs + w_col (N, 2), m per T_s (eq. 5.32-5.36): :func:`w_obs` plus :func:`w_col` over
     G_sigma in one compiled call, bit for bit."""
     from .kernels import avoidance_kernel  # numba loads at first use, not at registration
@@ -293,7 +294,7 @@ def sense(
     r: np.ndarray,
     obstacles: Obstacles,
     g: IndoorGains = TABLE_5_1,
-    tree: "cKDTree | None" = None,
+    tree: cKDTree | None = None,
     nearest: tuple[np.ndarray, np.ndarray] | None = None,
     candidates: np.ndarray | None = None,
 ) -> IndoorSnapshot:

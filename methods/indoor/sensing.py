@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 import scipy  # submodules load at first use (start-up: this module is imported at registration)
@@ -31,7 +31,7 @@ from swarmscene.core.vectors import clip_norm, min_pair_distance
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.spatial import cKDTree
 
-Obstacles = Sequence[BaseGeometry] | STRtree | None
+Obstacles: TypeAlias = Sequence[BaseGeometry] | STRtree | None
 
 
 class ObstacleTree(STRtree):
@@ -145,7 +145,8 @@ def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: floa
     """LOS clearance of the segments L_ab: every point at least d_l from obstacles (eq. 5.4, 5.8).
 
     Args:
-        a, b: (P, 2) segment end points, m.
+        a: (P, 2) segment start points, m.
+        b: (P, 2) segment end points, m.
         obstacles: geometries or their STRtree.
         d_l: clearance distance d_l, m.
 
@@ -156,7 +157,7 @@ def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: floa
     return segments_clear_of(obstacle_tree(obstacles), a, b, d_l)  # the engine's LOS test
 
 
-def candidate_pairs(r: np.ndarray, radius: float, tree: "cKDTree | None" = None) -> np.ndarray:
+def candidate_pairs(r: np.ndarray, radius: float, tree: cKDTree | None = None) -> np.ndarray:
     """Index pairs (i < j) with ||r_i - r_j|| <= radius, shape (P, 2), from one cKDTree (eq. 5.7)."""
     tree = scipy.spatial.cKDTree(r) if tree is None else tree
     pairs = tree.query_pairs(radius, output_type="ndarray")
@@ -168,7 +169,7 @@ def sensing_pairs(
     d_range: float,
     obstacles: Obstacles,
     d_l: float,
-    tree: "cKDTree | None" = None,
+    tree: cKDTree | None = None,
     clearance: np.ndarray | None = None,
     candidates: np.ndarray | None = None,
 ) -> np.ndarray:

@@ -3,7 +3,7 @@ indoor formation and the thesis' avoidance terms so the graphs are built once pe
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -11,6 +11,10 @@ from pydantic import Field
 from swarmscene.core.plugin import SHARED, PluginParams
 
 from .control import TABLE_5_1, IndoorGains, IndoorSnapshot, sense, sense_indexed
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pydantic.json_schema import JsonDict
+
 
 def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     """The tick's :class:`IndoorSnapshot` (G_s, G_n, G_sigma, obstacle points), built once per tick.
@@ -36,7 +40,7 @@ def _snapshot(sensing: Any, gains: IndoorGains, reach: float) -> IndoorSnapshot:
     return sense_indexed(r, footprints, gains, index, np.maximum(clearance, 0.0), candidates)
 
 
-_GRAPH = {SHARED: "the thesis' sensing graphs (G_s, G_n, G_sigma)"}
+_GRAPH: JsonDict = {SHARED: "the thesis' sensing graphs (G_s, G_n, G_sigma)"}
 
 
 class GraphParams(PluginParams):

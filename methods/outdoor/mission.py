@@ -62,10 +62,21 @@ import scipy  # its submodules load on first use: registering the plugin must no
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.methods.outdoor.apf_navigation import (
-    LEVEL_BAND, arrived_on_target, attraction_velocity, close_to_target, flight_level_altitude,
-    saturate)
+    LEVEL_BAND,
+    arrived_on_target,
+    attraction_velocity,
+    close_to_target,
+    flight_level_altitude,
+    saturate,
+)
 from swarmscene.methods.outdoor.hex_pattern import (
-    DECIMETRE, assign_offsets, assignment_cost, formation_graph, hex_pattern, solve_assignment)
+    DECIMETRE,
+    assign_offsets,
+    assignment_cost,
+    formation_graph,
+    hex_pattern,
+    solve_assignment,
+)
 from swarmscene.methods.outdoor.swarm_map import SwarmMap, hop_matrix, map_repulsion
 from swarmscene.methods.paths import WaypointPath
 
@@ -134,7 +145,10 @@ class LeaderLogic:
         self.W = np.zeros(n, dtype=bool)
         self.rel0 = np.zeros((n, 3))
         self.delta = np.zeros(3)
-        self.formed_at = self.departed_at = self.path_done_at = self.done_at = None
+        self.formed_at: float | None = None
+        self.departed_at: float | None = None
+        self.path_done_at: float | None = None
+        self.done_at: float | None = None
         self.aborted = False
         self.ref = self.home.copy()
 
@@ -216,6 +230,7 @@ class LeaderLogic:
         elif self.phase == "stop":
             active = self.expected & ~self.ignored
             stopped = active & row & (st == Task.STOP)
+            assert self.path_done_at is not None  # set on entering "stop"
             if np.array_equal(stopped, active) or t - self.path_done_at >= p.T_end:
                 self.phase, self.done_at = "done", t
         sp.mode[L] = Mode.TRACK
@@ -269,7 +284,8 @@ class MissionWorkflow:
         self._others = ~np.eye(n, dtype=bool)
         self._cache: dict[int, np.ndarray] = {}
         self._hops: np.ndarray | None = None
-        self._one_hop, self._members = False, None
+        self._one_hop = False
+        self._members: np.ndarray | None = None
         self._hash_w = np.random.default_rng(12345).integers(1, 2**62, size=4 * n + 3)
         th = p.catchup_threshold if p.catchup_threshold is not None else p.d_r / 2
         self.leader = LeaderLogic(self.home[leader], np.asarray(p.waypoints, dtype=float), p, th,
@@ -289,12 +305,14 @@ class MissionWorkflow:
         d_com = self.comm_range
         box = world.pos[members].max(axis=0) - world.pos[members].min(axis=0) if members.any() else 0
         one_hop = bool(np.linalg.norm(box) <= d_com)  # everyone in range of everyone
-        if not (one_hop and self._one_hop and np.array_equal(members, self._members)):
+        hops = self._hops
+        same = self._members is not None and np.array_equal(members, self._members)
+        if hops is None or not (one_hop and self._one_hop and same):
             tree = sensing.tree if sensing is not None else None
-            self._hops = hop_matrix(world.pos, members, d_com, tree)
+            hops = self._hops = hop_matrix(world.pos, members, d_com, tree)
         self._one_hop, self._members = one_hop, members
         lost = self.link_loss(world, sensing) if self.link_loss is not None else None
-        return self.map.deliver(self._hops, lost)
+        return self.map.deliver(hops, lost)
 
     # -- assignment (eq. 4.12-4.13) on each agent's map ------------------------------------------
 

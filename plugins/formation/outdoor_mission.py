@@ -70,7 +70,8 @@ class OutdoorMission(Formation):
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        leader = ctx.initial.leader  # requires_leader: validation checked it
+        leader = ctx.initial.leader
+        assert leader is not None  # requires_leader: validation checked it
         if ctx.n < 2:
             raise ValueError("outdoor_mission needs a follower besides the leader (swarm.n >= 2)")
         options = params.model_dump()
@@ -119,4 +120,5 @@ class OutdoorMission(Formation):
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Register ``outdoor_mission``."""
     register(OutdoorMission)

@@ -20,9 +20,9 @@ Space (``space``): ``open`` (no walls), ``bounded`` (steered back into the box `
 (:func:`~swarmscene.methods.flocking.torus.torus_neighbours`, exact minimum image while ``vision``
 < half the box). The plugin declares the box (:meth:`periodic_box`) and the kernel folds
 positions back into it in its ``wrap`` phase, after every physics update and before any observer
-reads them, so monitors, recorders and the next tick see positions in the box, as in Mesa. Note the engine's safety monitor
-measures Euclidean distance in the box: pairs close across a seam are not seen by it. Distances are
-3-D (equal to Mesa's 2-D ones while the flock shares one altitude).
+reads them, so monitors, recorders and the next tick see positions in the box, as in Mesa. Note the
+engine's safety monitor measures Euclidean distance in the box: pairs close across a seam are not
+seen by it. Distances are 3-D (equal to Mesa's 2-D ones while the flock shares one altitude).
 
 Memory per boid (plugin scratch): the heading (3 float64) plus, per tick, O(neighbours) pair arrays.
 """
@@ -41,7 +41,12 @@ from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import wrap
 from swarmscene.methods.flocking.steering import (
-    boundary_steer, current_headings, goal_steer, initial_headings, turn_headings)
+    boundary_steer,
+    current_headings,
+    goal_steer,
+    initial_headings,
+    turn_headings,
+)
 from swarmscene.methods.flocking.torus import in_box, minimum_image, pair_offsets, periodic_shifts, torus_neighbours
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -80,9 +85,9 @@ class FlockingParams(PluginParams):
     )
 
     @model_validator(mode="after")
-    def _box_not_empty(self) -> "FlockingParams":
+    def _box_not_empty(self) -> FlockingParams:
         axes = 2 if self.planar else 3
-        sides = [hi - lo for lo, hi in zip(self.box_min[:axes], self.box_max[:axes])]
+        sides = [hi - lo for lo, hi in zip(self.box_min[:axes], self.box_max[:axes], strict=True)]
         if min(sides) <= 0:
             raise ValueError(f"box_max: must exceed box_min on every axis (got {self.box_max})")
         if self.space == "toroidal" and self.vision >= min(sides) / 2:
@@ -122,6 +127,7 @@ class ReynoldsFlocking(Formation):
     the separation verdict (swarmscene/summary.py)."""
     metric_prefix = "flocking"
     Params = FlockingParams
+    params: FlockingParams
 
     def __init__(self, params: FlockingParams, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
@@ -145,7 +151,7 @@ class ReynoldsFlocking(Formation):
             )
 
     # -- neighbours --------------------------------------------------------------------------
-    def neighbours(self, world: WorldState, sensing: "Sensing") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def neighbours(self, world: WorldState, sensing: Sensing) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs within ``vision`` as index arrays i, j (M,) and p_j - p_i on the steered axes (A, M)."""
         a = self.axes
         pairs = sensing.pairs(self.params.vision)  # the tick's shared pair list (in a torus: the interior)
@@ -159,7 +165,7 @@ class ReynoldsFlocking(Formation):
         return torus_neighbours(world.pos, pairs, self.lo[:a], self.hi[:a], self.params.vision, self._shifts)
 
     # -- the tick ----------------------------------------------------------------------------
-    def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
+    def setpoints(self, world: WorldState, sensing: Sensing) -> Setpoints:
         """Steer every boid by Mesa's rule from this tick's neighbours; fly the new headings."""
         p = self.params
         heading = current_headings(world.vel, self.heading, p.speed, p.planar)
@@ -170,7 +176,9 @@ class ReynoldsFlocking(Formation):
         if p.goal is not None and p.goal_weight > 0:
             size = self.size[: self.axes] if p.space == "toroidal" else None
             goal = goal_steer(world.pos, np.asarray(p.goal, dtype=float), p.goal_weight, size)
-        push = boundary_steer(world.pos, self.lo, self.hi, p.vision, p.boundary_weight) if p.space == "bounded" else None
+        push = None
+        if p.space == "bounded":
+            push = boundary_steer(world.pos, self.lo, self.hi, p.vision, p.boundary_weight)
         self.heading = turn_headings(heading, self.heading, healthy, steer, count, p.planar, goal, push)
         self.neighbour_count = count
         self._track_goal(world)
@@ -212,7 +220,8 @@ class ReynoldsFlocking(Formation):
         return self.lo[: self.axes].copy(), self.size[: self.axes].copy()
 
     @hookimpl
-    def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
+        """``flocking.*`` metrics: polarization of the healthy boids' headings, mean |N_i|."""
         heading = self.heading[sim.world.healthy]
         unit = heading / np.maximum(np.linalg.norm(heading, axis=1, keepdims=True), 1e-12)
         metrics["flocking.polarization"] = float(np.linalg.norm(unit.mean(axis=0))) if len(unit) else None
@@ -221,4 +230,5 @@ class ReynoldsFlocking(Formation):
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Register ``reynolds_flocking``."""
     register(ReynoldsFlocking)
