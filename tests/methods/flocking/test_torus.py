@@ -27,7 +27,7 @@ def test_shared_tree_plus_seam_pairs_equal_the_periodic_neighbours(axes):
     radius = 3.0
     inner = cKDTree(pos).query_pairs(radius, output_type="ndarray")
     si, sj, sdelta = seam_pairs(pos, lo[:axes], hi[:axes], radius, periodic_shifts(axes).astype(float))
-    found = {tuple(sorted(p)) for p in inner.tolist()} | {tuple(sorted(p)) for p in zip(si.tolist(), sj.tolist())}
+    found = {tuple(sorted(p)) for p in inner.tolist()} | {tuple(sorted(p)) for p in zip(si.tolist(), sj.tolist(), strict=True)}
     assert len(found) == len(inner) + len(si)  # no pair twice
     size = hi[:axes] - lo[:axes]
     expected = cKDTree(np.column_stack([pos[:, :axes] - lo[:axes], pos[:, axes:]]),
@@ -51,7 +51,7 @@ def test_torus_neighbours_are_the_periodic_pairs_with_their_minimum_image(axes):
     size = hi[:axes] - lo[:axes]
     expected = cKDTree(np.column_stack([pos[:, :axes] - lo[:axes], pos[:, axes:]]),
                        boxsize=np.r_[size, np.full(3 - axes, 1e9)]).query_pairs(radius)
-    assert {tuple(sorted(p)) for p in zip(i.tolist(), j.tolist())} == expected
+    assert {tuple(sorted(p)) for p in zip(i.tolist(), j.tolist(), strict=True)} == expected
     assert len(i) == len(expected) > len(inner)  # seam pairs added, none twice
     assert delta.shape == (axes, len(i))
     np.testing.assert_allclose(delta.T, minimum_image(pos[j, :axes] - pos[i, :axes], size), atol=1e-9)

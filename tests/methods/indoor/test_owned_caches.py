@@ -50,7 +50,7 @@ def test_two_gain_sets_do_not_share_arrays_or_keys():
 
 def test_no_module_keeps_a_gain_set_or_an_obstacle_set_alive():
     g = replace(TABLE_5_1, K_led=0.07)
-    g.formation_kernel_gains, g.avoidance_kernel_gains, g.snapshot_key
+    _ = g.formation_kernel_gains, g.avoidance_kernel_gains, g.snapshot_key
     tree = obstacle_tree([box(0, 0, 1, 1)])
     kernel_obstacles(tree)
     refs = [weakref.ref(g), weakref.ref(tree)]
@@ -70,11 +70,11 @@ def test_two_obstacle_trees_keep_their_own_footprints():
     fa, fb = kernel_obstacles(a), kernel_obstacles(b)
     assert kernel_obstacles(a) is fa  # converted once for the set
     for got, want in ((fa, footprint_arrays(a.geometries)), (fb, footprint_arrays(b.geometries))):
-        for x, y in zip(got, want):
+        for x, y in zip(got, want, strict=True):
             np.testing.assert_array_equal(x, y)
     assert len(fa[0]) != len(fb[0])
     plain = STRtree(np.asarray(walls_b, dtype=object))  # a caller's own tree: converted per call
-    for x, y in zip(kernel_obstacles(plain), fb):
+    for x, y in zip(kernel_obstacles(plain), fb, strict=True):
         np.testing.assert_array_equal(x, y)
 
 
