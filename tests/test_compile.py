@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from swarmscene import api, compile as warm
+from swarmscene import api
+from swarmscene import compile as warm
 
 
 def test_every_preset_and_each_dynamics_with_a_large_swarm_is_warmed():

@@ -90,7 +90,7 @@ def test_auto_time_scale_brings_the_show_within_the_pid_limits(plan, fitted):
     t = np.linspace(0.0, 71.0, 7101)
     slow = export.crazyflie_trajectories((t, samples), controller="pid", time_scale="auto")
     assert slow.time_scale == pytest.approx(1.3)
-    for fit, checks in zip(slow.fits, slow.checks):
+    for fit, checks in zip(slow.fits, slow.checks, strict=True):
         assert {c["name"]: c["holds"] for c in checks} == {
             "collective thrust |a + g e3| (m/s^2)": True, "downward acceleration -a_z (m/s^2)": True,
             "axis speed max(|vx|, |vy|, |vz|) (m/s)": True, "tilt (deg)": True}

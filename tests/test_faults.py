@@ -12,7 +12,6 @@ where the machine lets us mount one, and many signals and kills at random moment
 from __future__ import annotations
 
 import errno
-import json
 import os
 import random
 import shutil

@@ -4,7 +4,8 @@ deliberate, commented deviations from the Params (or engine schema) defaults.
 A value that merely repeats a default would hide a later change of that default (the run would keep
 the old value, while docs/options.md shows the new one); a value that differs without a comment is a
 silent deviation (the stale PD gains of double_integrator.yaml, issue #15). Both fail here, for
-every group file shipped, including those of plugins added later.
+every group file shipped, including those of plugins added later, and for the primary config
+(``scenarios/config.yaml``) against the engine schema.
 """
 
 from __future__ import annotations
@@ -85,6 +86,39 @@ def test_group_yaml_holds_only_commented_deviations(path):
     # A map's obstacles are the option's content, described by the file's header.
     commented = group != "environment"
     assert problems(model_of(group, data), data, text, "", commented) == []
+
+
+def test_primary_config_holds_only_commented_deviations_from_the_engine_schema():
+    """scenarios/config.yaml copied ~30 engine defaults (issue #27): only deliberate values stay,
+    each with a comment on its line saying why; a value equal to its default stays only where that
+    comment starts with "deliberate" (``seed`` for ``${seed}`` interpolations, for example)."""
+    text = (SCENARIOS / "config.yaml").read_text()
+    data = yaml.safe_load(text)
+    # Hydra's own node and the defaults list are not engine options; the description is the
+    # default scenario's one line of text, not a tuning.
+    engine = {k: v for k, v in data.items() if k not in ("hydra", "defaults", "description")}
+    assert set(engine) <= set(ScenarioConfig.model_fields)
+    kept = []
+    for line in problems(ScenarioConfig, engine, text, ""):
+        key = line.split(":")[0].rsplit(".", 1)[-1]
+        deliberate = re.search(rf"^\s*{re.escape(key)}:.*#\s*deliberate", text, flags=re.MULTILINE)
+        if not ("repeats the default" in line and deliberate):
+            kept.append(line)
+    assert kept == []
+    assert re.search(r"^name:.*#\s*deliberate", text, flags=re.MULTILINE)  # the run dir reads it
+    repeated = [k for k in ("seed", "guidance_period", "objective")
+                if re.search(rf"^\s*{k}:.*#\s*deliberate", text, re.M)]
+    assert repeated == ["seed", "guidance_period", "objective"], "a kept default says why; drop it here when it goes"
+
+
+def test_the_primary_config_check_catches_a_copied_default():
+    text = "seed: 0\nclock:\n  guidance_period: 0.1\n  duration: 45.0\ncomm:\n  range: 20.0  # m\n"
+    assert problems(ScenarioConfig, yaml.safe_load(text), text, "") == [
+        "seed: repeats the default 0",
+        "clock.guidance_period: repeats the default 0.1",
+        "clock.duration: deviates from the default without a comment on its line",
+        "comm.range: repeats the default 20.0",
+    ]
 
 
 def test_the_contract_catches_a_repeated_and_an_uncommented_default():

@@ -15,7 +15,7 @@ import resource
 import signal
 import types
 import typing
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -63,12 +63,12 @@ def scalar_fields(model: type[BaseModel], prefix: tuple[str, ...]) -> list[tuple
     return paths
 
 
-@lru_cache(maxsize=None)
+@cache
 def registry() -> Any:
     return api.plugins()[1]
 
 
-@lru_cache(maxsize=None)
+@cache
 def base(kind: str, name: str) -> dict[str, Any]:
     """Composed data of a scenario that selects plugin ``name`` of ``kind`` and validates: the
     default scenario with that choice, else the first preset that chooses it."""

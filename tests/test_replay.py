@@ -30,7 +30,7 @@ def _write(run_dir, overrides):
 def seeds(tmp_path_factory):
     """The default scenario with the leader failing at 3 s, seeds 0 and 1, read back together."""
     dirs = [tmp_path_factory.mktemp(f"seed{seed}") for seed in (0, 1)]
-    paths = [_write(d, [*OVERRIDES, f"seed={seed}"]) for seed, d in zip((0, 1), dirs)]
+    paths = [_write(d, [*OVERRIDES, f"seed={seed}"]) for seed, d in zip((0, 1), dirs, strict=True)]
     return dirs, paths, replay.read_recordings(paths)
 
 
@@ -59,11 +59,11 @@ def _plain(value):
 def test_each_seed_is_its_own_recording_named_by_name_seed_and_config_hash(seeds):
     dirs, paths, recordings = seeds
     expected = []
-    for seed, run_dir in zip((0, 1), dirs):
+    for seed, run_dir in zip((0, 1), dirs, strict=True):
         digest = json.loads((run_dir / "manifest.json").read_text())["config_hash"]
         expected.append(f"default-seed{seed}-{digest[:12]}")
     assert sorted(recordings) == sorted(expected) and expected[0] != expected[1]
-    for path, rid in zip(paths, expected):
+    for path, rid in zip(paths, expected, strict=True):
         (recording,) = RrdReader(str(path)).recordings()
         assert recording.application_id == "swarmscene" and recording.recording_id == rid
 
@@ -122,7 +122,7 @@ def test_events_are_logged_and_marked_on_the_separation_series(seeds):
     run = plots.load_run(dirs[0])
     frame = recordings[replay.recording_id(run)]
     times, texts = _column(frame, "/events", "TextLog:text")
-    assert dict(zip(np.round(times, 9).tolist(), texts)) == {3.0: ["agent 0: failed (hovers in place)"],
+    assert dict(zip(np.round(times, 9).tolist(), texts, strict=True)) == {3.0: ["agent 0: failed (hovers in place)"],
                                                               8.0: ["run ended: duration"]}
     times, values = _column(frame, "/safety/separation/events", "Scalars:scalars")
     assert times.tolist() == [3.0, 8.0]

@@ -8,7 +8,6 @@ import csv
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -133,7 +132,7 @@ def test_comparing_methods_from_the_command_line(tmp_path):
     assert table[2] == "| scenario | cem | potential | none |"
     cells = [c.strip() for c in table[4].strip("|").split("|")]
     assert cells[0] == "cem_six_vehicle"
-    for method, cell in zip(("cem", "potential", "none"), cells[1:]):
+    for method, cell in zip(("cem", "potential", "none"), cells[1:], strict=True):
         group = [r for r in rows if r["avoidance"] == method]
         worst = min(float(r["min_separation"]) for r in group)
         success = sum(r["success"] == "True" for r in group) / 2

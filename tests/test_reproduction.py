@@ -61,7 +61,7 @@ def _claim(**kw):
 
 def _results(claim, values, reading=None):
     jobs = claim.jobs(reading or claim.default_reading)
-    return {job.key: {"m": v} for job, v in zip(jobs, values)}
+    return {job.key: {"m": v} for job, v in zip(jobs, values, strict=True)}
 
 
 def test_rate_gets_wilson_interval_and_tolerance_verdict():

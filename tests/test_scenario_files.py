@@ -125,7 +125,7 @@ def test_a_long_value_aliased_many_times_is_refused_by_its_expanded_bytes():
     from swarmscene.scenario_files import MAX_EXPANDED_BYTES
 
     value = "x" * (1024 * 1024)  # 1 MiB, anchored once: the file stays under its size limit
-    aliases = "\n".join(f"  - *v" for _ in range(MAX_EXPANDED_BYTES // len(value) + 1))
+    aliases = "\n".join("  - *v" for _ in range(MAX_EXPANDED_BYTES // len(value) + 1))
     text = HEADER + f"description: &v {value}\nlist:\n{aliases}\n"
     line, _, problem = refusal(text).removeprefix("my.yaml:").partition(": ")
     assert problem == f"expands to more than {MAX_EXPANDED_BYTES} bytes of values (YAML aliases of a long value?)"

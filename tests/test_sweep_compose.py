@@ -80,7 +80,9 @@ def test_flags_and_resolution_match_hydras(hydra_loader):
     loader, master = hydra_loader
     theirs = loader.load_sweep_config(master, ["scenario=swap", "seed=5"])
     assert OmegaConf.is_struct(cfg) == OmegaConf.is_struct(theirs) is True
-    with pytest.raises(Exception):
+    from omegaconf.errors import ConfigAttributeError
+
+    with pytest.raises(ConfigAttributeError):
         cfg.not_a_key = 1  # struct: a new key is refused as in Hydra's
     task = {k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "hydra"}
     assert task["seed"] == 5

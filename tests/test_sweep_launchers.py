@@ -23,7 +23,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from swarmscene.rundir import RunDir
@@ -53,7 +52,7 @@ def outcome(sweep_dir: Path) -> list[tuple[dict, dict]]:
 def assert_identical(a: Path, b: Path) -> None:
     left, right = outcome(a), outcome(b)
     assert len(left) == len(right) == 8
-    for (m1, t1), (m2, t2) in zip(left, right):
+    for (m1, t1), (m2, t2) in zip(left, right, strict=True):
         assert m1 == m2
         assert t1.keys() == t2.keys()
         for name in t1:

@@ -456,7 +456,7 @@ def test_sweep_presets_grid_and_every_job_validates(preset, expected):
     import itertools
 
     for combo in itertools.product(*grid.values()):
-        overrides = [f"+sweep={preset}", *(f"{k}={v}" for k, v in zip(keys, combo))]
+        overrides = [f"+sweep={preset}", *(f"{k}={v}" for k, v in zip(keys, combo, strict=True))]
         api.load(overrides)
 
 
@@ -467,8 +467,8 @@ def test_methods_preset_is_every_paper_scenario_times_every_method():
     import yaml
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from swarmscene.sweeps.grid import expand
     from swarmscene import api
+    from swarmscene.sweeps.grid import expand
 
     data = yaml.safe_load((Path(tables.__file__).parents[2] / "scenarios" / "sweep" / "methods.yaml").read_text())
     sweeper = data["hydra"]["sweeper"]

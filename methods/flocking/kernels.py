@@ -1,6 +1,6 @@
 """The boids' steer in one compiled pass over the neighbour pairs (numba, cached on disk).
 
-The sums are those of ``plugins/formation/reynolds_flocking.py`` (cohesion, separation and
+The sums are those of :mod:`.steering` (cohesion, separation and
 alignment; see its docstring for the rule), accumulated in the order NumPy's ``bincount`` takes
 them, pair by pair, into separate sums that are added as the NumPy form adds them: the result is
 bit for bit that of the NumPy form kept in ``tests/oracles/flocking.py``, at a tenth of its cost
@@ -20,11 +20,16 @@ def flocking_steer(i, j, delta, heading, follow, cohere, match, separate, separa
     """Sum of cohesion, separation and alignment for every boid, and its neighbour count |N_i|.
 
     Args:
-        i, j: (M,) neighbour pairs, each unordered pair once.
+        i: (M,) first boid of each neighbour pair (each unordered pair once).
+        j: (M,) second boid of each pair.
         delta: (A, M) p_j - p_i along the first A steered axes (minimum image where periodic), m.
         heading: (N, 3) d_j of every boid.
         follow: (N,) bool, boids that count as neighbours for cohesion and alignment.
-        cohere, match, separate: the weights; separation: the separation distance, m.
+        cohere: cohesion weight, 1/m.
+        match: alignment weight.
+        separate: separation weight, 1/m.
+        separation: the separation distance, m.
+
     Returns:
         steer (N, 3) = c_i + s_i + m_i (not yet divided by |N_i|), and |N_i| (N,).
     """
@@ -90,8 +95,11 @@ def seam_pairs(pos, lo, hi, radius, shifts):
 
     Args:
         pos: (N, 3) positions inside the box on its periodic axes (the first A = ``len(lo)``).
-        lo, hi: (A,) corners of the box on the periodic axes; ``radius`` < half its smallest side.
+        lo: (A,) lower corner of the box on the periodic axes.
+        hi: (A,) upper corner.
+        radius: neighbour radius, below half the box's smallest side.
         shifts: (K, A) the images to try, in box units (``periodic_shifts``: half of the 3^A - 1).
+
     Returns:
         i, j (M,) and p_j - (p_i + shift) on the periodic axes, (A, M): the minimum-image vectors.
 

@@ -32,7 +32,7 @@ from swarmscene.core.setpoint import Mode
 from swarmscene.core.state import Role
 
 from .graphs import EdgeList, check_reading, graphs_from_kernel, tick_graphs
-from .sensing import Obstacles, nearest_obstacle, saturate
+from .sensing import Obstacles, nearest_obstacle
 
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.spatial import cKDTree
@@ -67,6 +67,37 @@ class IndoorGains:
     K_led: float = 0.06
     alpha_lsat: float = 0.7
     alpha_lcon: float = 0.95
+
+    # The kernels' gain arrays and the sensing memo's key are built once per gain set and kept on
+    # it (a frozen dataclass: cached_property writes the instance dict, not a field), so they live
+    # and die with the plugin that owns the gains; hashing the 26 fields every tick would cost
+    # more than the lookup saves.
+
+    @cached_property
+    def formation_kernel_gains(self) -> np.ndarray:
+        """The gains :func:`~.kernels.formation_kernel` reads (:data:`FORMATION_GAINS`), in its order."""
+        return self.kernel_gains(FORMATION_GAINS)
+
+    @cached_property
+    def avoidance_kernel_gains(self) -> np.ndarray:
+        """The gains :func:`~.kernels.avoidance_kernel` reads (:data:`AVOIDANCE_GAINS`), in its order."""
+        return self.kernel_gains(AVOIDANCE_GAINS)
+
+    def kernel_gains(self, names: tuple[str, ...]) -> np.ndarray:
+        """The named gains as the float array a compiled kernel takes (built on every call)."""
+        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(self), strict=True))
+        return np.array([float(values[k]) for k in names])
+
+    @cached_property
+    def sensing_reach(self) -> float:
+        """How far obstacles are looked for: min(l_o, d_s) (nothing beyond l_o acts, eq. 5.34)."""
+        return min(self.l_o, self.d_s)
+
+    @cached_property
+    def snapshot_key(self) -> tuple[tuple[str, object], ...]:
+        """The parameters that define one tick's sensing graphs (the shared memo's key)."""
+        return (("d_n", self.d_n), ("d_l", self.d_l), ("phi_d", self.phi_d),
+                ("reach", self.sensing_reach), ("deactivation_candidates", self.deactivation_candidates))
 
 
 TABLE_5_1 = IndoorGains()
@@ -119,7 +150,8 @@ class PairGeometry:
     length: np.ndarray
 
     @classmethod
-    def of(cls, r: np.ndarray, g_sigma: EdgeList) -> "PairGeometry":
+    def of(cls, r: np.ndarray, g_sigma: EdgeList) -> PairGeometry:
+        """The geometry of every arc (i, j) of ``g_sigma`` at positions ``r`` (N, 2)."""
         src, dst = g_sigma.directed()
         d = r[dst] - r[src]
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
@@ -165,7 +197,7 @@ def w_com(r: np.ndarray, g_sigma: EdgeList | PairGeometry, g: IndoorGains = TABL
 
 
 def w_led(
-    r: np.ndarray, l: np.ndarray, has_neighbour: np.ndarray, g: IndoorGains = TABLE_5_1
+    r: np.ndarray, l: np.ndarray, has_neighbour: np.ndarray, g: IndoorGains = TABLE_5_1  # noqa: E741 (l_i, eq. 5.41)
 ) -> np.ndarray:
     """Leader traction toward the virtual leader l_i (thesis eq. 5.41-5.42).
 
@@ -181,25 +213,8 @@ AVOIDANCE_GAINS = ("d_o", "l_o", "K_obs", "eps_obs", "d_c", "l_c", "K_col", "eps
 """The gains :func:`~.kernels.avoidance_kernel` reads, in its order."""
 
 
-_GAIN_ARRAYS: dict[tuple[int, tuple[str, ...]], tuple[IndoorGains, np.ndarray]] = {}
-
-
-def _gain_array(g: IndoorGains, names: tuple[str, ...]) -> np.ndarray:
-    """The named gains as the float array a kernel takes, cached per gain set (by identity: a
-    plugin keeps one ``IndoorGains``, and hashing its 26 fields every tick costs more than the
-    lookup it saves)."""
-    key = (id(g), names)
-    known = _GAIN_ARRAYS.get(key)
-    if known is None or known[0] is not g:
-        if len(_GAIN_ARRAYS) >= 64:  # gain sets of finished runs
-            _GAIN_ARRAYS.clear()
-        values = dict(zip(IndoorGains.__dataclass_fields__, astuple(g)))
-        known = _GAIN_ARRAYS[key] = (g, np.array([float(values[k]) for k in names]))
-    return known[1]
-
-
 def formation_step(
-    snap: "IndoorSnapshot", rho_bar: np.ndarray, leader: int, waypoints: np.ndarray, m: int,
+    snap: IndoorSnapshot, rho_bar: np.ndarray, leader: int, waypoints: np.ndarray, m: int,
     g: IndoorGains = TABLE_5_1,
 ) -> tuple[np.ndarray, int, np.ndarray]:
     """One tick of the formation's part of the method, one compiled call (eq. 5.24-5.26, 5.37-5.44).
@@ -218,18 +233,18 @@ def formation_step(
 
     _, dst = snap.g_sigma.directed()
     w, m, rho_bar = formation_kernel(
-        snap.r, snap.g_sigma.indptr, dst, rho_bar, leader, waypoints, m, _gain_array(g, FORMATION_GAINS)
+        snap.r, snap.g_sigma.indptr, dst, rho_bar, leader, waypoints, m, g.formation_kernel_gains
     )
     return w, int(m), rho_bar
 
 
-def avoidance_terms(snap: "IndoorSnapshot", g: IndoorGains = TABLE_5_1) -> np.ndarray:
+def avoidance_terms(snap: IndoorSnapshot, g: IndoorGains = TABLE_5_1) -> np.ndarray:
     """w_obs + w_col (N, 2), m per T_s (eq. 5.32-5.36): :func:`w_obs` plus :func:`w_col` over
     G_sigma in one compiled call, bit for bit."""
     from .kernels import avoidance_kernel  # numba loads at first use, not at registration
 
     _, dst = snap.g_sigma.directed()
-    return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, _gain_array(g, AVOIDANCE_GAINS))
+    return avoidance_kernel(snap.r, snap.o, snap.g_sigma.indptr, dst, g.avoidance_kernel_gains)
 
 
 _VELOCITY, _LEADER = int(Mode.VELOCITY), int(Role.LEADER)
@@ -279,7 +294,7 @@ def sense(
     r: np.ndarray,
     obstacles: Obstacles,
     g: IndoorGains = TABLE_5_1,
-    tree: "cKDTree | None" = None,
+    tree: cKDTree | None = None,
     nearest: tuple[np.ndarray, np.ndarray] | None = None,
     candidates: np.ndarray | None = None,
 ) -> IndoorSnapshot:

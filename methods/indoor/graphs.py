@@ -57,7 +57,7 @@ class EdgeList:
     j: np.ndarray
 
     @classmethod
-    def from_pairs(cls, n: int, pairs: np.ndarray) -> "EdgeList":
+    def from_pairs(cls, n: int, pairs: np.ndarray) -> EdgeList:
         """From an (P, 2) array of pairs (either order; duplicates are not allowed), sorted by (i, j)."""
         pairs = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
         lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
@@ -72,7 +72,7 @@ class EdgeList:
         d = r[self.j] - r[self.i]
         return np.sqrt(np.einsum("ij,ij->i", d, d))
 
-    def subgraph(self, keep: np.ndarray) -> "EdgeList":
+    def subgraph(self, keep: np.ndarray) -> EdgeList:
         """The subgraph with the edges where ``keep`` (P,) is True (same nodes)."""
         return EdgeList(self.n, self.i[keep], self.j[keep])
 
@@ -112,7 +112,7 @@ class EdgeList:
         """(N,) number of neighbours |N_i|."""
         return np.bincount(self.i, minlength=self.n) + np.bincount(self.j, minlength=self.n)
 
-    def csgraph(self) -> "csr_matrix":
+    def csgraph(self) -> csr_matrix:
         """Symmetric (N, N) sparse adjacency for scipy.sparse.csgraph.
 
         Built straight from the cached CSR arrays with float data, the layout csgraph works on,
@@ -121,18 +121,18 @@ class EdgeList:
         _, dst = self.directed()
         return scipy.sparse.csr_matrix((np.ones(len(dst)), dst, self.indptr), shape=(self.n, self.n))
 
-    def to_networkx(self) -> "nx.Graph":
+    def to_networkx(self) -> nx.Graph:
         """The same graph as networkx, for analysis and metrics (not for the per-step path)."""
         import networkx as nx
 
         graph = nx.Graph()
         graph.add_nodes_from(range(self.n))
-        graph.add_edges_from(zip(self.i.tolist(), self.j.tolist()))
+        graph.add_edges_from(zip(self.i.tolist(), self.j.tolist(), strict=True))
         return graph
 
     def edge_set(self) -> set[tuple[int, int]]:
         """Edges as a Python set of (i, j), i < j (tests, analysis)."""
-        return set(zip(self.i.tolist(), self.j.tolist()))
+        return set(zip(self.i.tolist(), self.j.tolist(), strict=True))
 
 
 DEACTIVATION_CANDIDATES = ("neighbours", "common", "directed")
@@ -150,7 +150,7 @@ class ArcList(EdgeList):
     """
 
     @classmethod
-    def from_arcs(cls, n: int, src: np.ndarray, dst: np.ndarray) -> "ArcList":
+    def from_arcs(cls, n: int, src: np.ndarray, dst: np.ndarray) -> ArcList:
         """From arcs src -> dst (any order), sorted by (src, dst)."""
         src, dst = np.asarray(src, dtype=np.intp), np.asarray(dst, dtype=np.intp)
         order = np.argsort(src * n + dst)
@@ -164,15 +164,17 @@ class ArcList(EdgeList):
         """(N,) out-degree |N_i|: the neighbours agent i listens to."""
         return np.bincount(self.i, minlength=self.n)
 
-    def subgraph(self, keep: np.ndarray) -> "ArcList":
+    def subgraph(self, keep: np.ndarray) -> ArcList:
+        """The arcs where ``keep`` (bool, one per arc) is True."""
         return ArcList(self.n, self.i[keep], self.j[keep])
 
-    def to_networkx(self) -> "nx.DiGraph":
+    def to_networkx(self) -> nx.DiGraph:
+        """The arcs as a networkx DiGraph on nodes 0..N-1 (analysis and tests, not the hot path)."""
         import networkx as nx
 
         graph = nx.DiGraph()
         graph.add_nodes_from(range(self.n))
-        graph.add_edges_from(zip(self.i.tolist(), self.j.tolist()))
+        graph.add_edges_from(zip(self.i.tolist(), self.j.tolist(), strict=True))
         return graph
 
 
@@ -182,7 +184,7 @@ def mean_degree(graph: EdgeList) -> float:
 
 
 def sensing_graph(
-    r: np.ndarray, obstacles: Obstacles, d_s: float, d_l: float, tree: "cKDTree | None" = None
+    r: np.ndarray, obstacles: Obstacles, d_s: float, d_l: float, tree: cKDTree | None = None
 ) -> EdgeList:
     """G_s: agents within d_s of each other with a clear line of sight (thesis eq. 5.7-5.8)."""
     return EdgeList.from_pairs(len(r), sensing_pairs(r, d_s, obstacles, d_l, tree))
@@ -193,7 +195,7 @@ def neighbour_graph(
     obstacles: Obstacles,
     d_n: float,
     d_l: float,
-    tree: "cKDTree | None" = None,
+    tree: cKDTree | None = None,
     clearance: np.ndarray | None = None,
     candidates: np.ndarray | None = None,
 ) -> EdgeList:
@@ -319,7 +321,7 @@ def tick_graphs(
     d_l: float,
     phi_d: float,
     candidates: str = "neighbours",
-    tree: "cKDTree | None" = None,
+    tree: cKDTree | None = None,
     clearance: np.ndarray | None = None,
     pairs: np.ndarray | None = None,
 ) -> tuple[EdgeList, EdgeList]:
@@ -447,9 +449,9 @@ def virtual_leader(
     s, d = src[surrogate], dst[surrogate]
     count = np.bincount(s, minlength=n)
     has = count > 0
-    l = r.astype(float, copy=True)
+    l_i = r.astype(float, copy=True)
     sx = np.bincount(s, weights=r[d, 0], minlength=n)
     sy = np.bincount(s, weights=r[d, 1], minlength=n)
-    l[has, 0] = sx[has] / count[has]
-    l[has, 1] = sy[has] / count[has]
-    return l, has
+    l_i[has, 0] = sx[has] / count[has]
+    l_i[has, 1] = sy[has] / count[has]
+    return l_i, has

@@ -5,7 +5,8 @@ One call per tick senses (:func:`snapshot_kernel`: the nearest obstacle points o
 eq. 5.13-5.22, under each reading of eq. 5.15-5.16), one computes the formation terms, the
 leader's input and the rank step (:func:`formation_kernel`, eq. 5.24-5.26, 5.37-5.44), one the
 avoidance terms (:func:`avoidance_kernel`, eq. 5.32-5.36), one the saturated command
-(:func:`barrier_kernel`, eq. 5.30), one the maximum rank (:func:`max_rank_kernel`, eq. 5.23). They replace dozens of small numpy calls whose fixed overhead dominated the tick; the
+(:func:`barrier_kernel`, eq. 5.30), one the maximum rank (:func:`max_rank_kernel`, eq. 5.23). They
+replace dozens of small numpy calls whose fixed overhead dominated the tick; the
 numpy formulation they replace is kept as the test oracle (tests/oracles/indoor_graphs.py).
 
 Arithmetic: every float operation is written in the order of the numpy code it replaces (sums in

@@ -77,7 +77,7 @@ def wall_segments(free_space: Polygon | MultiPolygon) -> list[LineString]:
 def resample_path(vertices: np.ndarray, spacing: float) -> np.ndarray:
     """Way-points every ``spacing`` m along the polyline ``vertices`` (k, 2), keeping every vertex."""
     out = [vertices[:1]]
-    for a, b in zip(vertices[:-1], vertices[1:]):  # a handful of segments, built once per map
+    for a, b in zip(vertices[:-1], vertices[1:], strict=True):  # a handful of segments, built once per map
         count = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
         t = np.arange(1, count + 1)[:, None] / count
         out.append(a + t * (b - a))

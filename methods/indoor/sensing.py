@@ -15,7 +15,8 @@ geometric tests (line of sight, nearest obstacle points) are one compiled call e
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from functools import cached_property
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 import scipy  # submodules load at first use (start-up: this module is imported at registration)
@@ -30,17 +31,32 @@ from swarmscene.core.vectors import clip_norm, min_pair_distance
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.spatial import cKDTree
 
-Obstacles = Sequence[BaseGeometry] | STRtree | None
+Obstacles: TypeAlias = Sequence[BaseGeometry] | STRtree | None
+
+
+class ObstacleTree(STRtree):
+    """An STRtree that keeps the compiled kernels' form of its obstacles (:attr:`footprints`).
+
+    The footprint arrays belong to the obstacle set they describe: built on first use, they live
+    and die with this tree (the engine's :class:`~swarmscene.core.environment.Environment` keeps
+    its own the same way).
+    """
+
+    @cached_property
+    def footprints(self) -> tuple[np.ndarray, ...]:
+        """:func:`~swarmscene.core.environment.footprint_arrays` of :attr:`geometries`."""
+        return footprint_arrays(self.geometries)
 
 
 def obstacle_tree(obstacles: Obstacles) -> STRtree | None:
-    """The STRtree over ``obstacles`` (built if a sequence is given), or ``None`` for open space."""
+    """The STRtree over ``obstacles`` (an :class:`ObstacleTree` if a sequence is given), or
+    ``None`` for open space."""
     if obstacles is None:
         return None
     if isinstance(obstacles, STRtree):
         return obstacles if len(obstacles.geometries) else None
     geoms = np.asarray(list(obstacles), dtype=object)
-    return STRtree(geoms) if geoms.size else None
+    return ObstacleTree(geoms) if geoms.size else None
 
 
 def saturate(w: np.ndarray, limit: float) -> np.ndarray:
@@ -92,11 +108,11 @@ def nearest_obstacle(
     if tree is None or n == 0:
         return np.full((n, 2), np.nan), np.full(n, np.inf)
     index, dist = nearest_within(tree, r, max_distance)  # the engine's own bounded search
-    return nearest_points(r, tree.geometries, index), dist
+    return nearest_points(r, tree, index), dist
 
 
-def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """o_i, the point of obstacle ``geometries[index[i]]`` closest to r_i (eq. 5.32), (N, 2);
+def nearest_points(r: np.ndarray, geometries: np.ndarray | STRtree, index: np.ndarray) -> np.ndarray:
+    """o_i, the point of obstacle ``geometries[index[i]]`` (or the tree's) closest to r_i (eq. 5.32), (N, 2);
     NaN where ``index`` is -1 (nothing detected). One compiled call (GEOS' nearest-point formulas,
     so the points equal ``shapely.shortest_line``'s)."""
     from .kernels import nearest_points_kernel  # numba loads at first use, not at registration
@@ -106,23 +122,17 @@ def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> 
     return nearest_points_kernel(r, np.asarray(index, dtype=np.intp), seg, geom_start, polygonal)
 
 
-_KERNEL_OBSTACLES: dict[int, tuple[np.ndarray, tuple[np.ndarray, ...]]] = {}
-
-
 def kernel_obstacles(geometries: np.ndarray | STRtree | None) -> tuple[np.ndarray, ...]:
     """The engine's :func:`~swarmscene.core.environment.footprint_arrays` of an obstacle set (its
-    STRtree or the tree's ``geometries``),
-    cached per set: a map's walls are converted once, not every tick."""
+    STRtree or the tree's ``geometries``): an :class:`ObstacleTree`'s own (converted once for the
+    set), else converted on this call."""
     if geometries is None:
         return NO_FOOTPRINTS
+    if isinstance(geometries, ObstacleTree):
+        return geometries.footprints
     if isinstance(geometries, STRtree):
         geometries = geometries.geometries
-    key = id(geometries)
-    if key not in _KERNEL_OBSTACLES or _KERNEL_OBSTACLES[key][0] is not geometries:
-        if len(_KERNEL_OBSTACLES) >= 16:  # maps of finished runs
-            _KERNEL_OBSTACLES.clear()
-        _KERNEL_OBSTACLES[key] = (geometries, footprint_arrays(geometries))
-    return _KERNEL_OBSTACLES[key][1]
+    return footprint_arrays(geometries)
 
 
 def obstacle_free(r: np.ndarray, obstacles: Obstacles, d_o: float) -> bool:
@@ -135,7 +145,8 @@ def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: floa
     """LOS clearance of the segments L_ab: every point at least d_l from obstacles (eq. 5.4, 5.8).
 
     Args:
-        a, b: (P, 2) segment end points, m.
+        a: (P, 2) segment start points, m.
+        b: (P, 2) segment end points, m.
         obstacles: geometries or their STRtree.
         d_l: clearance distance d_l, m.
 
@@ -146,7 +157,7 @@ def segments_clear(a: np.ndarray, b: np.ndarray, obstacles: Obstacles, d_l: floa
     return segments_clear_of(obstacle_tree(obstacles), a, b, d_l)  # the engine's LOS test
 
 
-def candidate_pairs(r: np.ndarray, radius: float, tree: "cKDTree | None" = None) -> np.ndarray:
+def candidate_pairs(r: np.ndarray, radius: float, tree: cKDTree | None = None) -> np.ndarray:
     """Index pairs (i < j) with ||r_i - r_j|| <= radius, shape (P, 2), from one cKDTree (eq. 5.7)."""
     tree = scipy.spatial.cKDTree(r) if tree is None else tree
     pairs = tree.query_pairs(radius, output_type="ndarray")
@@ -158,7 +169,7 @@ def sensing_pairs(
     d_range: float,
     obstacles: Obstacles,
     d_l: float,
-    tree: "cKDTree | None" = None,
+    tree: cKDTree | None = None,
     clearance: np.ndarray | None = None,
     candidates: np.ndarray | None = None,
 ) -> np.ndarray:

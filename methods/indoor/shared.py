@@ -3,7 +3,7 @@ indoor formation and the thesis' avoidance terms so the graphs are built once pe
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -12,6 +12,10 @@ from swarmscene.core.plugin import SHARED, PluginParams
 
 from .control import TABLE_5_1, IndoorGains, IndoorSnapshot, sense, sense_indexed
 
+if TYPE_CHECKING:  # pragma: no cover
+    from pydantic.json_schema import JsonDict
+
+
 def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     """The tick's :class:`IndoorSnapshot` (G_s, G_n, G_sigma, obstacle points), built once per tick.
 
@@ -19,22 +23,9 @@ def shared_snapshot(sensing: Any, gains: IndoorGains) -> IndoorSnapshot:
     the kernel's per-tick memo (:meth:`~swarmscene.core.sensing.Sensing.shared`), the second reuses
     it; if their graph parameters differ the memo refuses (they must describe one graph).
     """
-    key = _KEYS.get(id(gains))
-    if key is None or key[0] is not gains:  # once per gain set, not every tick
-        if len(_KEYS) >= 64:
-            _KEYS.clear()
-        reach = min(gains.l_o, gains.d_s)
-        params = {
-            "d_n": gains.d_n, "d_l": gains.d_l, "phi_d": gains.phi_d, "reach": reach,
-            "deactivation_candidates": gains.deactivation_candidates,
-        }
-        key = _KEYS[id(gains)] = (gains, tuple(params.items()), reach)
-    _, params, reach = key
-    return sensing.shared("thesis.indoor_snapshot", params, lambda: _snapshot(sensing, gains, reach))
-
-
-_KEYS: dict[int, tuple[IndoorGains, tuple, float]] = {}
-"""Each gain set's snapshot parameters (the memo's key) and sensing reach, by identity."""
+    reach = gains.sensing_reach
+    return sensing.shared("thesis.indoor_snapshot", gains.snapshot_key,
+                          lambda: _snapshot(sensing, gains, reach))
 
 
 def _snapshot(sensing: Any, gains: IndoorGains, reach: float) -> IndoorSnapshot:
@@ -49,7 +40,7 @@ def _snapshot(sensing: Any, gains: IndoorGains, reach: float) -> IndoorSnapshot:
     return sense_indexed(r, footprints, gains, index, np.maximum(clearance, 0.0), candidates)
 
 
-_GRAPH = {SHARED: "the thesis' sensing graphs (G_s, G_n, G_sigma)"}
+_GRAPH: JsonDict = {SHARED: "the thesis' sensing graphs (G_s, G_n, G_sigma)"}
 
 
 class GraphParams(PluginParams):

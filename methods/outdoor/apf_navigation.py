@@ -183,7 +183,9 @@ def apf_navigation(
     Args:
         pos: (N, 3) world positions r_i.
         targets: (N, 3) world targets t_i (all at one altitude in the thesis).
-        d_c: collision-free distance, m. v_sat: speed bound, m/s. eps_r: arrival tolerance, m.
+        d_c: collision-free distance, m.
+        v_sat: speed bound, m/s.
+        eps_r: arrival tolerance, m.
         tree: optional shared cKDTree over ``pos`` (see :func:`same_level_pairs`).
         level_offset: flight level in units of d_c above the target level (thesis: +1).
     """

@@ -76,7 +76,8 @@ def topological_distance(a: np.ndarray, b: np.ndarray | None = None) -> np.ndarr
     """dist(i, j) of eq. 4.6 between axial nodes ``a`` and ``b`` (default: the leader node 0).
 
     Args:
-        a, b: integer axial coordinates, shape (..., 2); they broadcast.
+        a: integer axial coordinates, shape (..., 2).
+        b: integer axial coordinates broadcasting with ``a`` (default: the leader node 0).
 
     With axial coordinates (q, r) = (h^T x~_h, h^T y~_h) eq. 4.6 reads (|dq| + |dr| + |dq + dr|) / 2,
     the number of lattice edges on a shortest path.
@@ -229,7 +230,7 @@ def hex_pattern(n: int, d_r: float, alpha: float = 0.0) -> HexPattern:
     )
 
 
-def formation_graph(pattern: HexPattern) -> "nx.Graph":
+def formation_graph(pattern: HexPattern) -> nx.Graph:
     """G_h: the leader node 0 and offsets 1..M, joined when their Voronoi cells are adjacent.
 
     The cells are those of the lattice (Fig. 4.8): the Voronoi diagram is computed on the kept
@@ -254,7 +255,7 @@ def formation_graph(pattern: HexPattern) -> "nx.Graph":
         graph.add_node(node, axial=tuple(kept[node]), xy=xy[node], rho=int(topological_distance(kept[node])))
     lengths = np.linalg.norm(xy[ridges[:, 0]] - xy[ridges[:, 1]], axis=1)
     graph.add_edges_from(
-        (int(i), int(j), {"length": float(length)}) for (i, j), length in zip(ridges, lengths)
+        (int(i), int(j), {"length": float(length)}) for (i, j), length in zip(ridges, lengths, strict=True)
     )
     return graph
 

@@ -52,7 +52,8 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
     """dist(i, j): hops between every pair over the communication graph, (N, N) float.
 
     Args:
-        pos: (N, 3) positions. members: (N,) bool, agents taking part in communication.
+        pos: (N, 3) positions.
+        members: (N,) bool, agents taking part in communication.
         d_com: communication range, m (two members closer than this are one hop apart).
         tree: optional cKDTree over ``pos`` (used instead of a dense matrix for large N).
 

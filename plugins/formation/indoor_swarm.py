@@ -81,11 +81,9 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-
 from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, IndoorSnapshot, formation_step
-from swarmscene.methods.indoor.graphs import initial_rank_estimate
+from swarmscene.methods.indoor.graphs import initial_rank_estimate, mean_degree
 from swarmscene.methods.indoor.graphs import max_rank as max_rank_of
-from swarmscene.methods.indoor.graphs import mean_degree
 from swarmscene.methods.indoor.maps import resample_path
 from swarmscene.methods.indoor.sensing import saturate
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
@@ -121,9 +119,13 @@ class IndoorSwarm(Formation):
             False, description="saturate followers at u_sat here (when the avoidance does not)"
         )
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
-        self.leader = leader = ctx.initial.leader  # requires_leader: validation checked it
+        leader = ctx.initial.leader
+        assert leader is not None  # requires_leader: validation checked it
+        self.leader = leader
         fields = IndoorGains.__dataclass_fields__
         self.gains = replace(
             TABLE_5_1, T_s=ctx.guidance_period, **{k: v for k, v in params if k in fields}
@@ -145,6 +147,7 @@ class IndoorSwarm(Formation):
         from swarmscene.methods.indoor import kernels  # noqa: F401
 
     def setpoints(self, world: WorldState, sensing: Any) -> Setpoints:
+        """The followers' input w_i (eq. 5.24-5.26, 5.37-5.42) and the leader's (Algorithm 1), as velocities."""
         g, T = self.gains, self.gains.T_s
         snap = self.snapshot = shared_snapshot(sensing, g)
         # w_con + w_com + w_led, the leader's input in its row, and the rank step: one kernel call.
@@ -182,10 +185,12 @@ class IndoorSwarm(Formation):
         return shapely.contains_xy(self.end_region, world.pos[:, 0], world.pos[:, 1])
 
     def complete(self, world: WorldState) -> bool:
+        """Every healthy agent is inside the end region."""
         return bool(self.arrived(world)[world.healthy].all())
 
     @hookimpl(trylast=True)
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """``indoor.*`` metrics: arrival, connectivity, max rank, mean |N_i|, the first split, success."""
         arrived = bool(self.arrived(sim.world).all())
         ticks = max(self._ticks, 1)
         metrics["indoor.arrived"] = arrived
@@ -233,4 +238,5 @@ def _cut_links(
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Register ``indoor_swarm``."""
     register(IndoorSwarm)

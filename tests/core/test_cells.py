@@ -61,7 +61,7 @@ def _assert_tree_pairs(points, radius, pairs, d2):
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_pairs_equal_the_k_d_tree(seed):
     rng = np.random.default_rng(seed)
-    for name, points in _layouts(rng):
+    for _name, points in _layouts(rng):
         for radius in (0.0, 0.05, 1.0, 3.0, 25.0):
             pairs, d2 = compiled_pairs(np.ascontiguousarray(points, dtype=float), radius)
             _assert_tree_pairs(points, radius, pairs, d2)

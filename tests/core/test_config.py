@@ -181,7 +181,7 @@ def test_connected_random_start_redraws_until_connected_and_keeps_a_connected_fi
     drawn = [positions([f"seed={s}", "swarm.start.connected=true"]) for s in range(20)]
     assert not all(connected(p) for p in plain)  # the case exercises redraws
     assert all(connected(p) for p in drawn)
-    assert all(np.array_equal(a, b) for a, b in zip(plain, drawn) if connected(a))
+    assert all(np.array_equal(a, b) for a, b in zip(plain, drawn, strict=True) if connected(a))
     lines = errors_of_overrides(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "swarm.start.extent=500",
                                  "swarm.start.connected=true", "comm.range=3"])
     assert lines == ["swarm.start: no connected swarm (comm.range = 3.0 m) in 200 random draws of 12 agents "

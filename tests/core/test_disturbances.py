@@ -77,8 +77,9 @@ def test_models_that_change_nothing_leave_the_run_bit_identical():
                  "disturbances.constant_wind.speed=0", "disturbances.dryden.speed=0",
                  "disturbances.sensing_noise.pos_std=[0,0,0]", "disturbances.sensing_noise.vel_std=[0,0,0]"])
     assert np.array_equal(a.trajectory["pos"], b.trajectory["pos"])
-    strip = lambda m: {k: v for k, v in m.items()
-                       if k not in TIMING and "_ms" not in k and not k.startswith("disturbances.")}
+    def strip(m):
+        return {k: v for k, v in m.items()
+                if k not in TIMING and "_ms" not in k and not k.startswith("disturbances.")}
     assert strip(a.metrics) == strip(b.metrics)
     assert b.metrics["disturbances.models"] == ["constant_wind", "dryden", "sensing_noise"]
 

@@ -10,7 +10,6 @@ from swarmscene import api
 from swarmscene.core.disturbances import links
 from swarmscene.core.setpoint import Setpoints
 
-
 # -- numerics ----------------------------------------------------------------------------------
 
 

@@ -34,8 +34,8 @@ def probed(data: dict, noise: dict, ticks: int = 400, n: int = N, spacing: float
 
     sim.formation.setpoints = setpoints
     result = sim.run()
-    pos_err = np.array([s[0] - t[0] for s, t in zip(seen, truth)])  # (ticks, N, 3)
-    vel_err = np.array([s[1] - t[1] for s, t in zip(seen, truth)])
+    pos_err = np.array([s[0] - t[0] for s, t in zip(seen, truth, strict=True)])  # (ticks, N, 3)
+    vel_err = np.array([s[1] - t[1] for s, t in zip(seen, truth, strict=True)])
     return sim, result, pos_err, vel_err, np.array([s[0] for s in seen])
 
 

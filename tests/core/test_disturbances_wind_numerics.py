@@ -1,14 +1,19 @@
 """Wind numerics against independent references: the Dryden spectra (MIL-F-8785C) by Welch's
 method, the filters' variances, the exact 1-cosine gust shape, and the scale formulas."""
 
-import math
 
 import numpy as np
 import pytest
 from scipy.signal import welch
 
 from swarmscene.core.disturbances.atmosphere import (
-    FT, DrydenFilters, dryden_psd, dryden_scales, log_profile, one_minus_cosine)
+    FT,
+    DrydenFilters,
+    dryden_psd,
+    dryden_scales,
+    log_profile,
+    one_minus_cosine,
+)
 
 FS = 20.0          # Hz, sampling of the generated series
 AGENTS = 64        # independent realisations averaged
@@ -64,7 +69,7 @@ def test_dryden_spectra_match_the_analytic_ones(series, axis, component):
     expected = dryden_psd(f, L[axis], sigma[axis], V, component)
     edges = np.geomspace(0.05, 2.0, 8)
     ratios = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         band = (f >= lo) & (f < hi)
         assert band.sum() >= 3
         ratios.append(pxx[band].sum() / expected[band].sum())

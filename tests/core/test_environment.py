@@ -51,14 +51,14 @@ def test_sensing_pairs_nearest_and_connectivity_match_brute_force():
     sensing = Sensing(world, Environment(), comm_range=3.0)
     d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
     i, j = np.nonzero(np.triu(d < 2.0, k=1))
-    assert sorted(map(tuple, sensing.pairs(2.0).tolist())) == sorted(zip(i.tolist(), j.tolist()))
+    assert sorted(map(tuple, sensing.pairs(2.0).tolist())) == sorted(zip(i.tolist(), j.tolist(), strict=True))
     np.fill_diagonal(d, np.inf)
     assert sensing.nearest[0] == pytest.approx(d.min(axis=1))
     import networkx as nx
 
     graph = nx.Graph()
     graph.add_nodes_from(range(300))
-    graph.add_edges_from(zip(*np.nonzero(d < 3.0)))
+    graph.add_edges_from(zip(*np.nonzero(d < 3.0), strict=True))
     assert sensing.comm_connected == nx.is_connected(graph)
     assert nx.utils.graphs_equal(sensing.comm_graph, graph)
     hops = sensing.hop_distances(0)
@@ -79,7 +79,7 @@ def test_connectivity_matches_networkx_small_and_large(n):
         d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
         graph = nx.Graph()
         graph.add_nodes_from(members)
-        graph.add_edges_from((a, b) for a, b in zip(*np.nonzero(d <= radius)) if a in members and b in members and a != b and a > 0 and b > 0)
+        graph.add_edges_from((a, b) for a, b in zip(*np.nonzero(d <= radius), strict=True) if a in members and b in members and a != b and a > 0 and b > 0)
         assert Sensing(world, Environment(), comm_range=radius).comm_connected == nx.is_connected(graph)
 
 
@@ -93,7 +93,7 @@ def test_bounded_clearance_is_exact_inside_its_range(env):
     world = WorldState.at_rest(np.column_stack([pts, np.zeros(5)]))
     sensing = Sensing(world, env, comm_range=3.0)
     assert np.array_equal(sensing.clearance_within(1.5), bounded)
-    sensing.clearance  # once the exact array exists, bounded views derive from it
+    _ = sensing.clearance  # once the exact array exists, bounded views derive from it
     assert np.array_equal(sensing.clearance_within(1.5), bounded)
 
 
@@ -149,7 +149,7 @@ def test_pairs_of_the_previous_ticks_range_are_listed_once_and_give_the_separati
     assert second.min_separation == pytest.approx(d.min())  # listed at 1.5 m for the caller to come
     for radius in (1.5, 0.7):
         i, j = np.nonzero(np.triu(d <= radius, k=1))
-        assert sorted(map(tuple, second.pairs(radius).tolist())) == sorted(zip(i.tolist(), j.tolist()))
+        assert sorted(map(tuple, second.pairs(radius).tolist())) == sorted(zip(i.tolist(), j.tolist(), strict=True))
     assert walks == [1.5]
 
 
@@ -159,10 +159,10 @@ def test_a_prefetch_does_not_keep_itself_alive():
     first = Sensing(world, Environment(), comm_range=3.0)
     first.pairs(2.0)
     second = Sensing(world, Environment(), comm_range=3.0, previous=first)
-    second.min_separation
+    _ = second.min_separation
     assert list(second._pairs) == [2.0]
     third = Sensing(world, Environment(), comm_range=3.0, previous=second)
-    third.min_separation
+    _ = third.min_separation
     assert third._pairs == {} and third.min_separation == pytest.approx(second.min_separation)
 
 

@@ -53,7 +53,7 @@ def test_pair_distances_are_the_per_axis_sums(dim):
         for scale, offset in ((1.0, 0.0), (1e-3, 1e6), (50.0, -3.0)):
             pts = offset + scale * rng.standard_normal((n, dim))
             for points in (pts, pts.astype(np.float32), np.round(pts).astype(int)):
-                for new, ref in zip(dense_pair_dist2(points), old.dense_pair_dist2(points)):
+                for new, ref in zip(dense_pair_dist2(points), old.dense_pair_dist2(points), strict=True):
                     same_bits(new, ref)
 
 

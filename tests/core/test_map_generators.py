@@ -18,8 +18,15 @@ from swarmscene.core.config import ScenarioConfig
 from swarmscene.core.environment import Environment
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.generators import (
-    BuildingParams, CorridorParams, ObstacleFieldParams, building, building_free_space, corridor,
-    corridor_axis, corridor_free_space, obstacle_field_discs,
+    BuildingParams,
+    CorridorParams,
+    ObstacleFieldParams,
+    building,
+    building_free_space,
+    corridor,
+    corridor_axis,
+    corridor_free_space,
+    obstacle_field_discs,
 )
 from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.obstacles import EnvironmentConfig
@@ -43,7 +50,7 @@ def test_presets_build_exactly_the_polygons_they_listed(name):
     built = preset(name)
     listed = [shapely.Polygon(points) for points in LISTED[name]]
     assert len(built) == len(listed)
-    for a, b in zip(built, listed):
+    for a, b in zip(built, listed, strict=True):
         assert np.array_equal(shapely.get_coordinates(a), shapely.get_coordinates(b))
 
 
@@ -54,7 +61,7 @@ def test_corridors_equal_the_thesis_map_builders_at_any_width(width):
         built = corridor(params)
         expected = thesis.wall_polygons(0.1)
         assert len(built) == len(expected)
-        for a, b in zip(built, expected):  # the same up to the 1 nm rounding of generated vertices
+        for a, b in zip(built, expected, strict=True):  # the same up to the 1 nm rounding of generated vertices
             np.testing.assert_allclose(shapely.get_coordinates(a), shapely.get_coordinates(b), atol=1e-9)
         assert corridor_free_space(params).equals(thesis.free_space)
 

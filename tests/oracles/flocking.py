@@ -21,12 +21,14 @@ def flocking_steer(
     """Sum of cohesion, separation and alignment for every boid, and its neighbour count |N_i|.
 
     Args:
-        i, j: (M,) neighbour pairs, each unordered pair once.
+        i: (M,) first boid of each neighbour pair (each unordered pair once).
+        j: (M,) second boid of each pair.
         delta: (A, M) p_j - p_i along the first A steered axes (minimum image where periodic), m;
             A = 2 in a planar flock (its z steer stays 0), else 3.
         heading: (N, 3) d_j of every boid.
         follow: (N,) bool, boids that count as neighbours for cohesion and alignment.
         p: the weights and the separation distance.
+
     Returns:
         steer (N, 3) = c_i + s_i + m_i (not yet divided by |N_i|), and |N_i| (N,).
 
@@ -71,7 +73,10 @@ def seam_pairs(
     Args:
         pos: (N, 3) positions inside the box on its periodic axes (the first A = ``len(lo)``).
         tree: the k-d tree over ``pos`` (the tick's shared one).
-        lo, hi: (A,) corners of the box on the periodic axes; ``radius`` < half its smallest side.
+        lo: (A,) lower corner of the box on the periodic axes.
+        hi: (A,) upper corner.
+        radius: neighbour radius, below half the box's smallest side.
+
     Returns:
         i, j (M,) and p_j - (p_i + shift) on the periodic axes, (A, M): the minimum-image vectors.
 

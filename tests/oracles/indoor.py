@@ -14,6 +14,8 @@ import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry import Polygon
 
+from oracles.indoor_graphs import nearest_points, neighbour_graph, rank_estimate_step, sigma_graph
+from swarmscene.core.environment import nearest_within
 from swarmscene.methods.indoor.control import (
     TABLE_5_1,
     IndoorGains,
@@ -25,11 +27,8 @@ from swarmscene.methods.indoor.control import (
     w_led,
     w_obs,
 )
-from swarmscene.core.environment import nearest_within
 from swarmscene.methods.indoor.graphs import EdgeList, initial_rank_estimate, virtual_leader
 from swarmscene.methods.indoor.sensing import Obstacles, obstacle_tree, saturate
-
-from oracles.indoor_graphs import nearest_points, neighbour_graph, rank_estimate_step, sigma_graph
 
 
 def sense(
@@ -52,7 +51,7 @@ def follower_input(
     r: np.ndarray,
     g_sigma: EdgeList,
     o: np.ndarray,
-    l: np.ndarray,
+    l: np.ndarray,  # noqa: E741 (l_i, the virtual leaders: thesis eq. 5.41)
     has_neighbour: np.ndarray,
     g: IndoorGains = TABLE_5_1,
 ) -> np.ndarray:
@@ -151,8 +150,8 @@ class IndoorController:
         """As :meth:`input`, from an already computed :class:`IndoorSnapshot`."""
         g, r = self.gains, snap.r
         self.g_n, self.g_sigma = snap.g_n, snap.g_sigma
-        l, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
-        u = follower_input(r, snap.g_sigma, snap.o, l, has, g)
+        l_i, has = virtual_leader(r, snap.g_sigma, self.rho_bar)
+        u = follower_input(r, snap.g_sigma, snap.o, l_i, has, g)
         u[self.leader], self.m = leader_input(r, self.leader, snap.g_sigma, self.waypoints, self.m, g)
         self.rho_bar = rank_estimate_step(self.rho_bar, snap.g_sigma, self.leader)
         return u

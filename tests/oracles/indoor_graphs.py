@@ -9,12 +9,19 @@ here is shapely's (GEOS), the sets are vectorised numpy and scipy.sparse.csgraph
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import shapely
 from scipy.sparse.csgraph import breadth_first_order
 
 from swarmscene.methods.indoor.graphs import DEACTIVATION_CANDIDATES, ArcList, EdgeList
 from swarmscene.methods.indoor.sensing import candidate_pairs, obstacle_tree, segments_clear
+
+if TYPE_CHECKING:  # pragma: no cover
+    from scipy.spatial import cKDTree
+
+    from swarmscene.methods.indoor.sensing import Obstacles
 
 
 def nearest_points(r: np.ndarray, geometries: np.ndarray, index: np.ndarray) -> np.ndarray:

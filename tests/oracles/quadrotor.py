@@ -190,8 +190,12 @@ def flat_state(
     2011, sec. III; VRB paper sec. III).
 
     Args:
-        acc, jerk, snap: (N, 3) p̈, p⃛, p⁗ in the world frame.
-        yaw, yaw_rate, yaw_acc: (N,) ψ, ψ̇, ψ̈ (rates default to zero).
+        acc: (N, 3) p̈ in the world frame.
+        jerk: (N, 3) p⃛.
+        snap: (N, 3) p⁗.
+        yaw: (N,) ψ.
+        yaw_rate: (N,) ψ̇ (default zero).
+        yaw_acc: (N,) ψ̈ (default zero).
 
     The thrust vector per unit mass is t = a + g e_3, so z_b = t / |t|, and its derivatives follow
     from ṫ = j, ẗ = s; the body rates are read from R^T Ṙ = [ω×] (eq. 3.6):
@@ -272,9 +276,13 @@ def attitude_torque(R, omega, R_d, omega_d, alpha_d, gains: SE3Gains, inertia: n
     """Lee et al.'s moment M (N, 3) and attitude error e_R (N, 3).
 
     Args:
-        R, R_d: (N, 3, 3) attitude and desired attitude. omega: (N, 3) body rates.
-        omega_d, alpha_d: (N, 3) desired body rates and their derivative, in the desired frame,
-            or ``None`` for zero (hover-like references: skips two batched products).
+        R: (N, 3, 3) attitude.
+        omega: (N, 3) body rates.
+        R_d: (N, 3, 3) desired attitude.
+        omega_d: (N, 3) desired body rates, in the desired frame, or ``None`` for zero
+            (hover-like references: skips two batched products).
+        alpha_d: (N, 3) their derivative, or ``None`` for zero.
+        gains: k_R and k_Omega.
         inertia: (3,) diagonal of J.
     """
     A = R_d.transpose(0, 2, 1) @ R                     # R_d^T R
@@ -299,10 +307,20 @@ def se3_control(p, v, R, omega, p_d, v_d, a_d, yaw_d, omega_d, alpha_d, gains: S
     """Full tracking law: returns thrust f (N,) N, torque M (N, 3) N m and R_d (N, 3, 3).
 
     Args:
-        p, v: (N, 3) position and velocity. R: (N, 3, 3) attitude. omega: (N, 3) body rates.
-        p_d, v_d, a_d: (N, 3) reference and its feed-forward acceleration. yaw_d: (N,) ψ_d.
-        omega_d, alpha_d: (N, 3) flatness feed-forward body rates and acceleration (None: zero).
+        p: (N, 3) position.
+        v: (N, 3) velocity.
+        R: (N, 3, 3) attitude.
+        omega: (N, 3) body rates.
+        p_d: (N, 3) reference position.
+        v_d: (N, 3) reference velocity.
+        a_d: (N, 3) feed-forward acceleration.
+        yaw_d: (N,) ψ_d.
+        omega_d: (N, 3) flatness feed-forward body rates (None: zero).
+        alpha_d: (N, 3) flatness feed-forward angular acceleration (None: zero).
+        gains: the SE(3) gains.
+        airframe: mass and inertia.
         position_mask: (N,) bool, False where only velocity is tracked.
+        max_tilt: largest tilt of the desired thrust, rad.
         heading: optional (N, 3) ``flatness.heading_vector(yaw_d)``, reused while ψ_d is held.
     """
     F = desired_force(p, v, p_d, v_d, a_d, gains, airframe.mass, position_mask, max_tilt)

@@ -53,7 +53,7 @@ def test_each_agent_gets_the_optimum_of_its_qp(power):
     rng = np.random.default_rng(power)
     d_s, gamma, v_max = 0.6, 1.0, 1.0
     compared = 0
-    for trial in range(12):
+    for _trial in range(12):
         pos = swarm(rng, 10, 2.5, d_s)
         u_nom = rng.uniform(-1.2, 1.2, (10, 2))
         static = rng.uniform(size=10) < 0.2

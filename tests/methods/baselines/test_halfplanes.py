@@ -87,10 +87,10 @@ def test_infeasible_rows_get_the_least_largest_penetration():
     ours = violation(point, direction, v).max(axis=1)
     for i in np.flatnonzero(~feasible):
         q, d = point[i], direction[i]
-        pen = lambda x: d[:, 0] * (q[:, 1] - x[1]) - d[:, 1] * (q[:, 0] - x[0])  # noqa: E731
+        pen = lambda x: d[:, 0] * (q[:, 1] - x[1]) - d[:, 1] * (q[:, 0] - x[0])  # noqa: E731, B023 (used in this iteration)
         best = min(
             (minimize(lambda x: x[2], np.r_[start, 5.0], method="SLSQP",
-                      constraints=[{"type": "ineq", "fun": lambda x: x[2] - pen(x)},
+                      constraints=[{"type": "ineq", "fun": lambda x: x[2] - pen(x)},  # noqa: B023 (this iteration)
                                    {"type": "ineq", "fun": lambda x: radius**2 - x[:2] @ x[:2]}],
                       options={"ftol": 1e-13, "maxiter": 500}).fun
              for start in ([0.0, 0.0], [0.5, -0.5])),

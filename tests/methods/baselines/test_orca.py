@@ -26,7 +26,7 @@ def rvo2_step(pos, vel, pref):
     sim = pyrvo.RVOSimulator()
     sim.set_time_step(TIME_STEP)
     sim.set_agent_defaults(NEIGHBOR_DIST, MAX_NEIGHBORS, TAU, TAU, RADIUS, V_MAX)
-    for p, v, w in zip(pos, vel, pref):
+    for p, v, w in zip(pos, vel, pref, strict=True):
         a = sim.add_agent(tuple(p))
         sim.set_agent_velocity(a, tuple(v))
         sim.set_agent_pref_velocity(a, tuple(w))

@@ -276,7 +276,7 @@ def test_six_vehicles_keep_the_papers_invariants(six_k2):
 
 
 def test_printed_noise_keeps_theorem_2_and_bounds_its_departures(six_printed):
-    """Eq. 6 as printed, K = 1, 2, 5 x 10 seeds. What it guarantees, and the measured bounds:
+    """Eq. 6 as printed, K = 1, 2, 5 x 10 seeds: what it guarantees, and the measured bounds.
 
     * Theorem 2's conclusion (every pair >= 2 (delta + eps), Fig. 9) holds on every run: the
       formation's margin (1.42 m vs 1.36 m) dwarfs the noise.
@@ -289,8 +289,8 @@ def test_printed_noise_keeps_theorem_2_and_bounds_its_departures(six_printed):
       points. Measured: -1.36e-6 m (without the guard: -6.8e-5 m on 10 seeds, the issue's ~0.2 mm).
     * The seed matters.
     """
-    for K, runs in six_printed.items():
-        for nav, P, V, dphi, drift, margin in runs:
+    for _K, runs in six_printed.items():
+        for _nav, P, _V, _dphi, drift, margin in runs:
             assert min_pair(P) >= PAIR_BOUND
             assert 1e-4 < drift <= 2 * 5 * SIGMA
             assert margin >= -1e-6 * A_P

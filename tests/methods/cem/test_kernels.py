@@ -130,7 +130,7 @@ def test_complex_helpers_follow_numpy_rounding():
     b = rng.standard_normal(400) + 1j * rng.standard_normal(400) * 10 ** rng.uniform(-3, 3, 400)
     pairs = [(np.multiply(a, b), numerics.cmul), (np.divide(a, b), numerics.cdiv)]
     for ref, fn in pairs:
-        got = np.array([complex(*fn(x.real, x.imag, y.real, y.imag)) for x, y in zip(a, b)])
+        got = np.array([complex(*fn(x.real, x.imag, y.real, y.imag)) for x, y in zip(a, b, strict=True)])
         np.testing.assert_allclose(got, ref, rtol=4e-16, atol=0)
     recip = np.array([complex(*numerics.crecip(y.real, y.imag)) for y in b])
     np.testing.assert_allclose(recip, np.reciprocal(b), rtol=4e-16, atol=0)

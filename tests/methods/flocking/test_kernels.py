@@ -47,13 +47,14 @@ def test_compiled_seam_pairs_equal_the_tree_form(axes, seed):
     from oracles.flocking import seam_pairs as tree_seam_pairs
 
     from swarmscene.methods.flocking.kernels import seam_pairs
-    from swarmscene.plugins.formation.reynolds_flocking import periodic_shifts
+    from swarmscene.methods.flocking.torus import periodic_shifts
 
     rng = np.random.default_rng(seed)
     lo, hi = np.array([-5.0, 0.0, 1.0]), np.array([15.0, 30.0, 21.0])
     pos = rng.uniform(lo, hi, size=(500, 3))
     want = tree_seam_pairs(pos, cKDTree(pos), lo[:axes], hi[:axes], 3.0)
     got = seam_pairs(pos, lo[:axes], hi[:axes], 3.0, periodic_shifts(axes).astype(float))
-    as_dict = lambda i, j, d: {(a, b): tuple(v) for a, b, v in zip(i.tolist(), j.tolist(), d.T.tolist())}
+    def as_dict(i, j, d):
+        return {(a, b): tuple(v) for a, b, v in zip(i.tolist(), j.tolist(), d.T.tolist(), strict=True)}
     assert len(got[0]) == len(want[0]) > 0
     assert as_dict(*got) == as_dict(*want)

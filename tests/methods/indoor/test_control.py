@@ -3,6 +3,13 @@ and a closed-loop corridor run with Table 5.1 parameters."""
 
 import numpy as np
 import pytest
+from oracles.indoor import (
+    IndoorController,
+    follower_input,
+    leader_direction,
+    leader_input,
+    random_connected_swarm,
+)
 
 from swarmscene.methods.indoor.control import (
     TABLE_5_1,
@@ -29,13 +36,6 @@ from swarmscene.methods.indoor.sensing import (
     nearest_obstacle,
     pairwise_min_distance,
     single_integrator_step,
-)
-from oracles.indoor import (
-    IndoorController,
-    follower_input,
-    leader_direction,
-    leader_input,
-    random_connected_swarm,
 )
 
 G = TABLE_5_1
@@ -102,8 +102,8 @@ def test_w_obs_pushes_away_and_ignores_undetected():
 
 def test_w_led_pulls_to_virtual_leader():
     r = np.zeros((2, 2))
-    l = np.array([[1.0, 2.0], [3.0, 3.0]])
-    np.testing.assert_allclose(w_led(r, l, np.array([True, False])), [[0.06, 0.12], [0.0, 0.0]])
+    l_i = np.array([[1.0, 2.0], [3.0, 3.0]])
+    np.testing.assert_allclose(w_led(r, l_i, np.array([True, False])), [[0.06, 0.12], [0.0, 0.0]])
 
 
 def test_follower_input_saturates_at_u_sat_eq_5_30():
@@ -114,9 +114,9 @@ def test_follower_input_saturates_at_u_sat_eq_5_30():
     r += rng.normal(0.0, 0.01, size=r.shape)
     r[0] = r[1] + [-0.35, 0.0]
     g = sigma_graph(r, neighbour_graph(r, [], G.d_n, G.d_l), G.phi_d)
-    l, has = virtual_leader(r, g, np.zeros(36, dtype=int))
-    u = follower_input(r, g, np.full((36, 2), np.nan), l, has)
-    w = w_col(r, g) + w_con(r, g) + w_com(r, g) + w_led(r, l, has)
+    l_i, has = virtual_leader(r, g, np.zeros(36, dtype=int))
+    u = follower_input(r, g, np.full((36, 2), np.nan), l_i, has)
+    w = w_col(r, g) + w_con(r, g) + w_com(r, g) + w_led(r, l_i, has)
     norm_u, norm_w = np.linalg.norm(u, axis=1), np.linalg.norm(w, axis=1)
     assert np.all(norm_u <= G.u_sat + 1e-15)
     big = norm_w > G.u_sat

@@ -3,7 +3,6 @@
 import networkx as nx
 import numpy as np
 import pytest
-
 from shapely.geometry import LineString, box
 
 from swarmscene.methods.indoor.graphs import (
@@ -67,7 +66,7 @@ def test_fig_5_3_needs_m_closer_to_both_ends():
     r = np.array([[0.0, 0.0], [0.5, 0.0], [0.95, 0.02]])
     g = _complete(r)
     sigma = edge_activation(r, g, PHI_D)
-    assert dict(zip(sorted(g.edge_set()), sigma.tolist())) == {
+    assert dict(zip(sorted(g.edge_set()), sigma.tolist(), strict=True)) == {
         (0, 1): True, (0, 2): False, (1, 2): True}
 
 
@@ -77,7 +76,7 @@ def test_fig_5_4_four_agents_longest_crossing_edge():
     g = _complete(r)
     rule1, rule2 = deactivation_rules(r, g, PHI_D)
     assert not rule1.any()
-    assert dict(zip(sorted(g.edge_set()), rule2.tolist())) == {
+    assert dict(zip(sorted(g.edge_set()), rule2.tolist(), strict=True)) == {
         (0, 1): True, (0, 2): False, (0, 3): False, (1, 2): False, (1, 3): False, (2, 3): False}
     assert len(sigma_graph(r, g, PHI_D)) == 5
 
@@ -95,7 +94,7 @@ def _rules_by_the_letter(r, g, phi_d, candidates="neighbours", perspective="i"):
         nb[a].add(b)
         nb[b].add(a)
     out = []
-    for a, b in zip(g.i.tolist(), g.j.tolist()):
+    for a, b in zip(g.i.tolist(), g.j.tolist(), strict=True):
         if perspective == "j":
             a, b = b, a
         r_ji = r[b] - r[a]
@@ -200,7 +199,8 @@ def test_common_reading_is_symmetric_and_keeps_the_components_of_g_n(seed):
     np.testing.assert_array_equal(from_i[1], from_j[1])
     g_sigma = sigma_graph(r, g_n, PHI_D, "common")
     assert len(g_sigma) < len(g_n)
-    comps = lambda g: {frozenset(c) for c in nx.connected_components(g.to_networkx())}
+    def comps(g):
+        return {frozenset(c) for c in nx.connected_components(g.to_networkx())}
     assert comps(g_sigma) == comps(g_n)
 
 
@@ -216,7 +216,7 @@ def test_literal_and_directed_readings_against_common(seed):
     assert literal <= common
     assert literal == {(a, b) for a, b in arcs if a < b and (b, a) in arcs}
     assert literal == set(zip(g_n.i[edge_activation(r, g_n, PHI_D)].tolist(),
-                              g_n.j[edge_activation(r, g_n, PHI_D)].tolist()))
+                              g_n.j[edge_activation(r, g_n, PHI_D)].tolist(), strict=True))
 
 
 def test_unknown_reading_and_edge_activation_of_the_directed_reading_are_refused():
@@ -274,11 +274,11 @@ def test_virtual_leader_eq_5_24_5_25_averages_lowest_rank_neighbours():
     r = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [5.0, 5.0]])
     g = EdgeList.from_pairs(5, [(0, 1), (0, 2), (0, 3)])
     rho_bar = np.array([3, 1, 1, 2, 4])
-    l, has = virtual_leader(r, g, rho_bar)
-    np.testing.assert_allclose(l[0], [0.5, 0.5])  # mean of agents 1 and 2 (rank 1)
-    np.testing.assert_allclose(l[3], r[0])  # its only neighbour
+    l_i, has = virtual_leader(r, g, rho_bar)
+    np.testing.assert_allclose(l_i[0], [0.5, 0.5])  # mean of agents 1 and 2 (rank 1)
+    np.testing.assert_allclose(l_i[3], r[0])  # its only neighbour
     assert has.tolist() == [True, True, True, True, False]
-    np.testing.assert_allclose(l[4], r[4])
+    np.testing.assert_allclose(l_i[4], r[4])
 
 
 def test_max_rank_and_neighbour_min_match_networkx_on_random_graphs():

@@ -11,10 +11,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import shapely
-from shapely import STRtree
-
 from oracles import indoor_graphs as oracle
 from oracles.indoor import leader_input
+from shapely import STRtree
+
 from swarmscene.methods.indoor.control import (
     TABLE_5_1,
     IndoorSnapshot,
@@ -82,7 +82,7 @@ def test_graphs_equal_the_numpy_oracle_under_every_reading(name, seed, polygons)
         assert len(g_sigma) < len(g_n) if reading != "directed" else len(g_sigma) < 2 * len(g_n)
         # The arc layout the kernel fills in is the one EdgeList would compute.
         fresh = type(expect)(expect.n, expect.i, expect.j)
-        for got, want in zip(g_sigma.directed(), fresh.directed()):
+        for got, want in zip(g_sigma.directed(), fresh.directed(), strict=True):
             np.testing.assert_array_equal(got, want)
         np.testing.assert_array_equal(g_sigma.indptr, fresh.indptr)
         for perspective in ("i", "j"):
@@ -128,9 +128,9 @@ def test_nearest_obstacle_points_equal_shapely_to_the_bit(polygons):
 
 def _oracle_formation(snap, rho_bar, leader, waypoints, m, g):
     """The formation plugin's numpy tick before issue 20: w_con + w_com + w_led, the leader's row."""
-    l, has = virtual_leader(snap.r, snap.g_sigma, rho_bar)
+    l_i, has = virtual_leader(snap.r, snap.g_sigma, rho_bar)
     pg = snap.pair_geometry
-    w = pg.sum(psi_con(pg.length, g) + psi_com(pg.length, g)) + w_led(snap.r, l, has, g)
+    w = pg.sum(psi_con(pg.length, g) + psi_com(pg.length, g)) + w_led(snap.r, l_i, has, g)
     w[leader], m = leader_input(snap.r, leader, snap.g_sigma, waypoints, m, g)
     return w, m, oracle.rank_estimate_step(rho_bar, snap.g_sigma, leader)
 

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import shapely
+from oracles.indoor import random_connected_swarm
 from shapely.geometry import LineString, Point, box
 
 from swarmscene.methods.indoor.graphs import is_connected, neighbour_graph
@@ -15,7 +16,6 @@ from swarmscene.methods.indoor.maps import (
     straight_corridor,
 )
 from swarmscene.methods.indoor.sensing import nearest_obstacle
-from oracles.indoor import random_connected_swarm
 
 
 def _corridor_part(mp):

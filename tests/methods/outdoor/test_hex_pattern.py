@@ -192,15 +192,15 @@ def test_assignment_is_deterministic_under_reordering_with_ties():
     leader = np.zeros(3)
     cost = assignment_cost(p, followers, leader)
     assert cost[0, 0] == cost[0, 1] == cost[1, 0] == cost[1, 1]  # a genuine tie
-    reference = dict(zip(ids.tolist(), assign_offsets(p, ids, followers, leader).tolist()))
+    reference = dict(zip(ids.tolist(), assign_offsets(p, ids, followers, leader).tolist(), strict=True))
     assert len(set(reference.values())) == 2
     for perm in itertools.permutations(range(2)):
         perm = list(perm)
         got = assign_offsets(p, ids[perm], followers[perm], leader)
-        assert dict(zip(ids[perm].tolist(), got.tolist())) == reference
+        assert dict(zip(ids[perm].tolist(), got.tolist(), strict=True)) == reference
     # Sub-decimetre differences between two agents' maps do not change the answer.
     jitter = followers + np.array([[0.01, -0.02], [-0.015, 0.01]])
-    assert dict(zip(ids.tolist(), assign_offsets(p, ids, jitter, leader).tolist())) == reference
+    assert dict(zip(ids.tolist(), assign_offsets(p, ids, jitter, leader).tolist(), strict=True)) == reference
 
 
 def test_assignment_with_many_agents_is_order_independent():
@@ -210,11 +210,11 @@ def test_assignment_with_many_agents_is_order_independent():
     ids = rng.permutation(1000)[: n - 1]
     xy = np.round(rng.uniform(-15, 15, size=(n - 1, 2)), 1)  # decimetre grid: many exact ties
     leader = np.array([1.0, 2.0])
-    reference = dict(zip(ids.tolist(), assign_offsets(p, ids, xy, leader).tolist()))
+    reference = dict(zip(ids.tolist(), assign_offsets(p, ids, xy, leader).tolist(), strict=True))
     for _ in range(5):
         perm = rng.permutation(n - 1)
         got = assign_offsets(p, ids[perm], xy[perm], leader)
-        assert dict(zip(ids[perm].tolist(), got.tolist())) == reference
+        assert dict(zip(ids[perm].tolist(), got.tolist(), strict=True)) == reference
 
 
 def _segments_cross(a, b, c, d):

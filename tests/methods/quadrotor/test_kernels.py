@@ -9,8 +9,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
 from oracles.quadrotor import QuadrotorOracle, desired_force, flat_state
+
 from swarmscene.core.events import Event, EventKind
 from swarmscene.core.plugin import BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
@@ -84,7 +84,7 @@ def fail_rotors(rng, dyns, worlds):
                                     (rng.choice(n, 3, replace=False), 2, 0.4)):
         event = Event(0.0, tuple(int(a) for a in agents), EventKind.MOTOR_FAILURE, rotor=rotor,
                       fraction=fraction)
-        for dyn, world in zip(dyns, worlds):
+        for dyn, world in zip(dyns, worlds, strict=True):
             dyn.swarmscene_event(sim=SimpleNamespace(world=world), event=event)
 
 

@@ -5,8 +5,8 @@ tests/methods/quadrotor/test_kernels.py checks the compiled kernels against it."
 
 import numpy as np
 import pytest
-
 from oracles.quadrotor import allocate, rk4_step, step_rotors, wrench
+
 from swarmscene.methods.quadrotor.model import (
     AIRFRAMES,
     CRAZYFLIE,

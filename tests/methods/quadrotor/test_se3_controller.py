@@ -3,7 +3,6 @@ form (tests/oracles/quadrotor.py); tests/methods/quadrotor/test_kernels.py check
 
 import numpy as np
 import pytest
-
 from oracles.quadrotor import (
     allocate,
     flat_inputs,
@@ -13,6 +12,7 @@ from oracles.quadrotor import (
     step_rotors,
     taylor_propagate,
 )
+
 from swarmscene.methods.quadrotor.model import (
     CRAZYFLIE,
     GRAVITY,

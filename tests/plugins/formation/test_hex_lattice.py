@@ -13,8 +13,8 @@ from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.setpoint import Mode
 from swarmscene.core.simulation import Simulation
 from swarmscene.core.state import WorldState
-from swarmscene.plugins.formation.hex_lattice import HexLattice
 from swarmscene.methods.outdoor.hex_pattern import formation_graph
+from swarmscene.plugins.formation.hex_lattice import HexLattice
 
 # Listed here as well until swarmscene/builtins.py registers them (a no-op afterwards).
 MODULES = ("swarmscene.plugins.formation.hex_lattice", "swarmscene.plugins.avoidance.apf_navigation")

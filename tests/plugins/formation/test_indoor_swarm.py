@@ -3,21 +3,22 @@
 
 from __future__ import annotations
 
+from importlib.resources import files
+
 import numpy as np
 import pytest
 import shapely
 import yaml
-from importlib.resources import files
+from oracles.indoor import IndoorController
 
 from swarmscene import api
 from swarmscene.builtins import BUILTIN_PLUGINS
-from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.config import EnvironmentConfig
 from swarmscene.core.errors import ConfigError
+from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.simulation import Simulation
 from swarmscene.methods.indoor.maps import building, l_corridor, straight_corridor
-from oracles.indoor import IndoorController
 
 MODULES = (
     "swarmscene.plugins.formation.indoor_swarm",

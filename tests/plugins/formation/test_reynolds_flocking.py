@@ -11,16 +11,9 @@ from swarmscene.core.plugin import BuildContext
 from swarmscene.core.sensing import Sensing
 from swarmscene.core.setpoint import Mode
 from swarmscene.core.state import WorldState
-from swarmscene.plugins.formation.reynolds_flocking import (
-    FlockingParams,
-    ReynoldsFlocking,
-    minimum_image,
-    params_from_mesa,
-    periodic_shifts,
-)
-from swarmscene.methods.flocking.kernels import seam_pairs
 from swarmscene.core.vectors import wrap
-from scipy.spatial import cKDTree
+from swarmscene.methods.flocking.torus import minimum_image
+from swarmscene.plugins.formation.reynolds_flocking import FlockingParams, ReynoldsFlocking, params_from_mesa
 
 OPEN = Environment([])
 
@@ -177,33 +170,6 @@ def test_toroidal_neighbours_across_the_seam_and_wrap():
     flock, world = make([[99.8, 50, 2]], [[1, 0, 0]], space="toroidal")
     tick(flock, world)
     np.testing.assert_allclose(world.pos[0], [0.8, 50, 2], atol=1e-12)
-
-
-def test_wrap_and_minimum_image():
-    size = np.array([10.0, 10.0])
-    np.testing.assert_allclose(wrap(np.array([[-0.5, 10.5], [3.0, 20.0]]), np.zeros(2), size),
-                               [[9.5, 0.5], [3.0, 0.0]])
-    assert np.all(wrap(np.array([[-1e-18, 0.0]]), np.zeros(2), size) < size)
-    np.testing.assert_allclose(minimum_image(np.array([[9.0, -6.0]]), size), [[-1.0, 4.0]])
-
-
-@pytest.mark.parametrize("axes", [2, 3])
-def test_shared_tree_plus_seam_pairs_equal_the_periodic_neighbours(axes):
-    rng = np.random.default_rng(11)
-    lo, hi = np.array([-5.0, 0.0, 1.0]), np.array([15.0, 30.0, 21.0])
-    pos = rng.uniform(lo, hi, size=(400, 3))
-    radius = 3.0
-    inner = cKDTree(pos).query_pairs(radius, output_type="ndarray")
-    si, sj, sdelta = seam_pairs(pos, lo[:axes], hi[:axes], radius, periodic_shifts(axes).astype(float))
-    found = {tuple(sorted(p)) for p in inner.tolist()} | {tuple(sorted(p)) for p in zip(si.tolist(), sj.tolist())}
-    assert len(found) == len(inner) + len(si)  # no pair twice
-    size = hi[:axes] - lo[:axes]
-    expected = cKDTree(np.column_stack([pos[:, :axes] - lo[:axes], pos[:, axes:]]),
-                       boxsize=np.r_[size, np.full(3 - axes, 1e9)]).query_pairs(radius)
-    assert found == expected and len(si) > 0
-    direct = pos[sj, :axes] - pos[si, :axes]
-    np.testing.assert_allclose(sdelta.T, minimum_image(direct, size), atol=1e-9)
-    assert len(periodic_shifts(axes)) == (3**axes - 1) // 2
 
 
 def test_bounded_space_turns_boids_back():
