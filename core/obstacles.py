@@ -1,20 +1,23 @@
 """The environment section of the scenario schema: the obstacle map's footprints, listed or generated.
 
-Validated here (a generator's parameters by its own model in :mod:`swarmscene.core.generators`),
+Validated here (a generator's parameters by its own ``Params``: the registry's map generators, a
+plugin's included; the built-ins are in :mod:`swarmscene.core.generators`),
 built into shapely geometries by :func:`swarmscene.core.geometry.build_obstacles`,
 queried during a run through :class:`swarmscene.core.environment.Environment`.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    BaseModel, ConfigDict, Field, create_model, field_validator, model_serializer, model_validator,
+    BaseModel, ConfigDict, Field, PrivateAttr, SerializationInfo, ValidationInfo, create_model,
+    field_validator, model_serializer, model_validator,
 )
 
 from .fields import MAX_LENGTH, Point2, StrictModel, key_error
-from .generators import GENERATORS, GeneratorName, generate
+from .generators import BUILTIN_GENERATORS, MapGenerator
 from .plugin import reject_bool_as_number
 
 
@@ -61,76 +64,130 @@ class _EnvironmentBase(StrictModel):
     ``environment.width``), see :mod:`swarmscene.core.generators`."""
 
     name: str = Field("open", description="label of the map")
-    generator: GeneratorName | None = Field(
+    generator: str | None = Field(
         None,
-        description="map generator: corridor | building | obstacle_field (null: only the listed obstacles)",
+        description="map generator, a registered name: corridor | building | obstacle_field | a "
+        "plugin's (null: only the listed obstacles)",
     )
     obstacles: list[Obstacle] = Field(
         default_factory=list, description="obstacle footprints (added to the generator's)"
     )
 
+    _generator: Any = PrivateAttr(None)
+    _params: Any = PrivateAttr(None)
+
     @model_validator(mode="wrap")
     @classmethod
-    def _generator_parameters(cls, data: Any, handler: Any) -> Any:
-        """The chosen generator's parameters are validated by its own model (defaults filled, so
-        the run's config records all of them); a parameter of another generator is an error."""
-        generator = data.get("generator") if isinstance(data, dict) else None
-        if generator is not None and generator not in GENERATORS:
-            return handler(data)  # reported as an unknown generator, its parameters unchecked
+    def _generator_parameters(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
+        """The chosen generator's parameters are validated by its own ``Params`` (defaults filled,
+        so the run's config records all of them); a parameter of another generator is an error.
+
+        The generators are the registry's when one validates (``context={"registry": ...}``, as
+        :mod:`.validation` does, so a plugin's generator is chosen by name), else the built-ins.
+        A built-in's parameters are also fields of this model (``environment.width``); a plugin's
+        are held beside them (:meth:`generator_params`)."""
         if not isinstance(data, dict):
             return handler(data)
-        params_model = GENERATORS[generator][0] if generator in GENERATORS else None
-        given = {k: v for k, v in data.items() if k in GENERATOR_KEYS}
-        own = params_model.model_fields if params_model is not None else {}
-        for key, value in given.items():
-            if key not in own:
-                raise key_error(key, _not_a_parameter(key, generator), value)
-        if params_model is not None:
-            data = {**data, **params_model.model_validate(given).model_dump(mode="json")}
-        return handler(data)
+        generators = _generators(info.context)
+        name = data.get("generator")
+        chosen = generators.get(name) if isinstance(name, str) else None
+        if name is not None and chosen is None:
+            raise key_error("generator", _unknown(name, generators), name)
+        own = chosen.Params.model_fields if chosen is not None else {}
+        given = {k: v for k, v in data.items() if k in own and k not in _ENVIRONMENT_KEYS}
+        for key, value in data.items():
+            if key not in own and key not in _ENVIRONMENT_KEYS and _users(key, generators):
+                raise key_error(key, _not_a_parameter(key, name, generators), value)
+        params = chosen.Params.model_validate(given) if chosen is not None else None
+        rest = {k: v for k, v in data.items() if k not in given}
+        if params is not None:  # a built-in's parameters as the flat fields, defaults filled
+            rest.update({k: v for k, v in params.model_dump(mode="json").items() if k in GENERATOR_KEYS})
+        model = handler(rest)
+        if isinstance(model, _EnvironmentBase):
+            model._generator, model._params = chosen, params
+        return model
 
     @model_serializer(mode="wrap")
-    def _recorded(self, handler: Any) -> dict[str, Any]:
+    def _recorded(self, handler: Any, info: SerializationInfo) -> dict[str, Any]:
         """As a user writes it: the generator's parameters only (no other generator's nulls), and
-        no ``generator: null`` for a listed map."""
-        own = GENERATORS[self.generator][0].model_fields if self.generator else {}
-        return {k: v for k, v in handler(self).items()
+        no ``generator: null`` for a listed map; a plugin generator's parameters after them."""
+        own = type(self._params).model_fields if self._params is not None else {}
+        data = {k: v for k, v in handler(self).items()
                 if (k not in GENERATOR_KEYS and (k != "generator" or v is not None)) or k in own}
+        if self._params is not None:
+            mode = "json" if info.mode_is_json() else "python"
+            data.update({k: v for k, v in self._params.model_dump(mode=mode).items() if k not in data})
+        return data
 
     def generated(self) -> tuple[list, list[str]]:
         """The generator's obstacle polygons and its error lines (none without a generator)."""
         if self.generator is None:
             return [], []
-        polygons, errors = generate(self.generator, self.generator_params().model_dump_json())
+        polygons, errors = _build(self._generator, self._params.model_dump_json())
         return list(polygons), list(errors)  # new lists: the cached ones are shared
 
-    def generator_params(self) -> StrictModel | None:
+    def generator_params(self) -> BaseModel | None:
         """The chosen generator's validated parameters (None without a generator)."""
-        if self.generator is None:
-            return None
-        model = GENERATORS[self.generator][0]
-        return model.model_validate({k: getattr(self, k) for k in model.model_fields})
+        return self._params
+
+    @property
+    def generator_class(self) -> type[MapGenerator] | None:
+        """The chosen generator's class (a registered :class:`MapGenerator`; None without one)."""
+        return self._generator
 
 
-def _not_a_parameter(key: str, generator: str | None) -> str:
-    users = [name for name, (model, _) in GENERATORS.items() if key in model.model_fields]
+def _generators(context: Any) -> dict[str, type[MapGenerator]]:
+    """The map generators known to a validation: its registry's, else the built-ins."""
+    registry = context.get("registry") if isinstance(context, dict) else None
+    return registry.classes["generator"] if registry is not None else BUILTIN
+
+
+def _unknown(name: Any, generators: dict[str, type[MapGenerator]]) -> str:
+    """The registry's line for an unknown name (:func:`~.registry.validate_choice`'s words)."""
+    return f"unknown map generator {name!r} (valid: {', '.join(sorted(generators))})"
+
+
+def _users(key: str, generators: dict[str, type[MapGenerator]]) -> list[str]:
+    """The generators that take parameter ``key``."""
+    return [name for name, cls in generators.items() if key in cls.Params.model_fields]
+
+
+def _not_a_parameter(key: str, generator: str | None, generators: dict[str, type[MapGenerator]]) -> str:
     if generator is None:
-        return f"a parameter of environment.generator {' or '.join(users)}, which is not chosen"
+        return (f"a parameter of environment.generator {' or '.join(_users(key, generators))}, "
+                "which is not chosen")
     return (f"not a parameter of generator {generator} (its parameters: "
-            f"{', '.join(GENERATORS[generator][0].model_fields)})")
+            f"{', '.join(generators[generator].Params.model_fields)})")
+
+
+@functools.lru_cache(maxsize=8)
+def _build(generator: type[MapGenerator], params_json: str) -> tuple[tuple[Any, ...], tuple[str, ...]]:
+    """The obstacle polygons of ``generator`` with its parameters (as JSON) and its error lines.
+
+    Cached by value: validation asks twice (to check the map, then the start positions), and a
+    sweep's jobs in one process share a map; shapely geometries are immutable and the result is
+    tuples, so no caller can change what the next one gets. Keyed by the class, not its name, so
+    two registries with different generators of one name never share a map.
+    """
+    try:
+        return tuple(generator.build(generator.Params.model_validate_json(params_json))), ()
+    except ValueError as exc:  # one line naming its key (e.g. environment.density)
+        return (), (str(exc),)
 
 
 def _generator_fields() -> dict[str, Any]:
-    """The generators' parameters as optional fields of the environment section (one flat
+    """The built-in generators' parameters as optional fields of the environment section (one flat
     namespace, so ``environment.width=0.5`` overrides a corridor's width); a name shared by two
-    generators means the same thing in both. Their own models hold the defaults and constraints."""
+    generators means the same thing in both. Their own models hold the defaults and constraints.
+    A plugin generator's parameters are validated by its own model only (they are no fields here,
+    as the schema is built before any plugin loads)."""
     owners: dict[str, list[str]] = {}
-    for name, (model, _) in GENERATORS.items():
-        for key in model.model_fields:
+    for name, cls in BUILTIN.items():
+        for key in cls.Params.model_fields:
             owners.setdefault(key, []).append(name)
     fields: dict[str, Any] = {}
     for key, names in owners.items():
-        info = GENERATORS[names[0]][0].model_fields[key]
+        info = BUILTIN[names[0]].Params.model_fields[key]
         default = info.get_default(call_default_factory=True)
         default = "required" if info.is_required() else f"default {default!r}"
         description = f"{', '.join(names)}: {info.description} ({default})"
@@ -138,8 +195,12 @@ def _generator_fields() -> dict[str, Any]:
     return fields
 
 
-GENERATOR_KEYS = frozenset(key for model, _ in GENERATORS.values() for key in model.model_fields)
-"""Every generator parameter's name (the environment section's optional keys)."""
+BUILTIN: dict[str, type[MapGenerator]] = {cls.name: cls for cls in BUILTIN_GENERATORS}
+"""The built-in generators by name: the ones known where no registry validates (an
+``EnvironmentConfig`` validated on its own), and the source of the section's flat fields."""
+_ENVIRONMENT_KEYS = frozenset(_EnvironmentBase.model_fields)
+GENERATOR_KEYS = frozenset(key for cls in BUILTIN.values() for key in cls.Params.model_fields)
+"""Every built-in generator parameter's name (the environment section's optional keys)."""
 
 EnvironmentConfig = create_model(
     "EnvironmentConfig", __base__=_EnvironmentBase, __module__=__name__,

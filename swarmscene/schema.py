@@ -9,7 +9,11 @@ options (third-party plugins included), for editors and other tools.
 Both come from the same pydantic models the engine validates with (:mod:`swarmscene.core.config`
 and each plugin's ``Params``). ``formation``, ``avoidance`` and ``dynamics`` are each one of the
 registered plugins of their kind, told apart by ``name`` (a ``const``), so an editor completes and
-checks the options of the plugin chosen. The full schema describes what the engine validates after
+checks the options of the plugin chosen. The other kinds chosen by name come from the registry
+too: each event is the event kind its ``kind`` names (an enum of the registered kinds, each with its
+own fields), each ``disturbances`` entry the model its ``kind`` (or key) names, and
+``environment.generator`` one of the registered map generators, a plugin's parameters beside the
+built-ins'. The full schema describes what the engine validates after
 Hydra composition (``swarmscene --cfg job``, ``api.compose``); the partial one describes the files a
 user writes (presets, experiment files): every key optional, a Hydra ``defaults`` list and a
 ``hydra`` node allowed, and a plugin section whose ``name`` comes from the defaults list accepted.
@@ -34,7 +38,6 @@ from typing import Any
 from pydantic.json_schema import GenerateJsonSchema, PydanticJsonSchemaWarning, models_json_schema
 
 from .core.config import ScenarioConfig
-from .core.disturbances import DISTURBANCE_MODELS
 from .core.plugin import PLUGIN_KINDS
 
 DIALECT = "http://json-schema.org/draft-07/schema#"
@@ -50,10 +53,13 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
 
         _, registry = plugins()
     plugins_by_kind = {kind: [registry.get(kind, n) for n in registry.names(kind)] for kind in PLUGIN_KINDS}
-    disturbance_models = [DISTURBANCE_MODELS[kind] for kind in sorted(DISTURBANCE_MODELS)]
+    # Disturbance models and event kinds are the registry's too (a plugin's appear beside the built-ins).
+    disturbance_models = [registry.get("disturbance", n) for n in registry.names("disturbance")]
+    event_kinds = [registry.get("event", n) for n in registry.names("event")]
+    generators = [registry.get("generator", n) for n in registry.names("generator")]
     models = [(ScenarioConfig, "validation")] + [
         (cls.Params, "validation") for classes in plugins_by_kind.values() for cls in classes
-    ] + [(cls.Params, "validation") for cls in disturbance_models]
+    ] + [(cls.Params, "validation") for cls in (*disturbance_models, *event_kinds, *generators)]
     with warnings.catch_warnings():  # a default JSON cannot hold (a function) is left out: said here
         warnings.simplefilter("ignore", PydanticJsonSchemaWarning)
         refs, top = models_json_schema(models, ref_template=REF, schema_generator=_Generator)
@@ -76,14 +82,16 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
         else:
             root["properties"][kind] = {"description": description, "oneOf": variants}
     for cls in disturbance_models:
-        defs[f"disturbances.{cls.kind}"] = _disturbance(cls, defs.pop(_name(refs[(cls.Params, "validation")])))
+        defs[f"disturbances.{cls.name}"] = _disturbance(cls, defs.pop(_name(refs[(cls.Params, "validation")])))
     if partial:
         defs["disturbances.any"] = _any_method(
             "options of a disturbance chosen elsewhere",
             "an entry named by another file (disturbances=[gps]): options of any disturbance model",
-            [defs[f"disturbances.{c.kind}"] for c in disturbance_models], "kind")
+            [defs[f"disturbances.{c.name}"] for c in disturbance_models], "kind")
     root["properties"]["disturbances"] = _disturbances(
-        root["properties"]["disturbances"], [c.kind for c in disturbance_models], partial)
+        root["properties"]["disturbances"], [c.name for c in disturbance_models], partial)
+    _event_kinds(root, defs, event_kinds, refs, partial)
+    _map_generators(defs, generators, refs)
     schema = {
         "$schema": DIALECT,
         "title": "swarmscene scenario" + (" file" if partial else " (composed)"),
@@ -210,6 +218,67 @@ def _disturbances(node: dict[str, Any], kinds: list[str], partial: bool) -> dict
         "type": "object",
         "properties": {k: entry(k) for k in kinds},
         "additionalProperties": entry(None),
+    }
+
+
+def _event_kinds(root: dict[str, Any], defs: dict[str, Any], kinds: list[Any], refs: dict[Any, Any],
+                 partial: bool) -> None:
+    """``events``: each event is the registered kind its ``kind`` names (an enum of the registry's
+    kinds), with ``at``, ``agents`` and that kind's own fields (its ``Params``) only; the engine's
+    one ``EventConfig`` definition, which admits any kind's fields, is replaced by one per kind."""
+    base = defs.pop("EventConfig")["properties"]
+    own = {cls.name: _name(refs[(cls.Params, "validation")]) for cls in kinds}
+    for cls in kinds:
+        defs[f"events.{cls.name}"] = _event(cls, base, defs[own[cls.name]])
+    for name in set(own.values()):  # kinds without fields of their own share EventParams
+        defs.pop(name)
+    names = [cls.name for cls in kinds]
+    if partial:  # an event whose kind another file gives: any kind's fields
+        defs["events.any"] = _any_method(
+            "an event whose kind is given elsewhere", "at, agents and the fields of any event kind",
+            [defs[f"events.{n}"] for n in names], "kind")
+    chosen = [{"if": {"properties": {"kind": {"const": n}}, "required": ["kind"]},
+               "then": {"$ref": REF.format(model=f"events.{n}")}} for n in names]
+    missing = {"$ref": REF.format(model="events.any")} if partial else {"required": ["kind"]}
+    item = {"type": "object", "allOf": [*chosen, {
+        "if": {"required": ["kind"]},
+        "then": {"properties": {"kind": {"enum": names, "description": "registered event kind"}}},
+        "else": missing}]}
+    node = root["properties"]["events"]
+    root["properties"]["events"] = {**{k: v for k, v in node.items() if k != "items"}, "items": item}
+
+
+def _map_generators(defs: dict[str, Any], generators: list[Any], refs: dict[Any, Any]) -> None:
+    """``environment.generator``: an enum of the registered map generators; a plugin generator's
+    parameters join the built-ins' beside it (one flat namespace, as the engine reads them; which
+    generator takes which parameter is said in each description and checked by the engine)."""
+    props = defs["EnvironmentConfig"]["properties"]
+    names = [cls.name for cls in generators]
+    props["generator"] = {
+        "anyOf": [{"enum": names}, {"type": "null"}], "default": None,
+        "description": f"map generator, a registered name: {' | '.join(names)} (null: only the listed obstacles)"}
+    own = {_name(refs[(cls.Params, "validation")]) for cls in generators}
+    for cls in generators:
+        for key, prop in defs[_name(refs[(cls.Params, "validation")])].get("properties", {}).items():
+            if key not in props:  # a built-in's parameters are the section's own fields already
+                props[key] = {**prop, "description": f"{cls.name}: {prop.get('description', key)}"}
+    for name in own:
+        defs.pop(name, None)
+
+
+def _event(cls: Any, base: dict[str, Any], params: dict[str, Any]) -> dict[str, Any]:
+    """An event kind: ``at`` and ``agents`` (every event's), its ``kind`` as a const, its Params."""
+    doc = (cls.__doc__ or "").strip().splitlines()
+    return {
+        **{k: v for k, v in params.items() if k not in ("properties", "required", "title", "description")},
+        "title": f"events kind={cls.name}",
+        "description": doc[0] if doc else f"event kind {cls.name}",
+        "type": "object",
+        "properties": {"at": base["at"], "agents": base["agents"],
+                       "kind": {"const": cls.name, "description": "registered event kind"},
+                       **params.get("properties", {})},
+        "required": ["at", "agents", "kind", *params.get("required", [])],
+        "additionalProperties": False,
     }
 
 

@@ -42,15 +42,12 @@ from .comm import ChannelModels, CommDelay, PacketLoss
 from .noise import MODELS as _NOISE
 from .wind import MODELS as _WIND
 
-__all__ = ["BUILTIN_MODELS", "DISTURBANCE_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
+__all__ = ["BUILTIN_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
            "PHASES", "validate_disturbances"]
 
 BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
 """The built-in models' classes (their numerics live here; ``plugins/disturbance/`` registers each
 through ``swarmscene_register_disturbances``, like a third-party model)."""
-DISTURBANCE_MODELS: dict[str, type[Disturbance]] = {m.name: m for m in BUILTIN_MODELS}
-"""The built-in models by name (kept for one release: validation reads the plugin registry,
-which also holds third-party models)."""
 
 
 def validate_disturbances(data: Any, errors: list[str], registry: Any) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:

@@ -9,7 +9,8 @@ plugin's ``policy_options``); ``policy(obs)`` is called once per guidance tick w
 This module holds the numerics of the built-in scripted policy (:func:`seek_reference_actions`,
 registered by ``plugins/policy/seek_reference.py``) and the deprecated entry-point group
 ``swarmscene.policies`` (factories ``factory(layout, spec, **options) -> policy``), which still works
-for one release, with a DeprecationWarning pointing to the hook (:func:`entry_point_policies`).
+for one release, with a DeprecationWarning pointing to the hook (:func:`entry_point_policies`);
+each of its policies is a :class:`FactoryPolicy` subclass held as a module attribute, so it pickles.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import warnings
 from collections.abc import Callable
 from functools import lru_cache
 from importlib.metadata import entry_points
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import ConfigDict
@@ -75,22 +76,63 @@ class _FactoryOptions(PluginParams):
     model_config = ConfigDict(extra="allow", frozen=True)
 
 
-def _factory_policy(name: str, ep: Any) -> type[Policy]:
-    """A :class:`Policy` class wrapping an entry point's factory (loaded when the policy is built)."""
+class FactoryPolicy(Policy):
+    """A policy from the deprecated entry-point group ``swarmscene.policies``: the entry point's
+    factory, loaded and called once per run with the layout, the action spec and the options.
 
-    class FactoryPolicy(Policy):
-        __doc__ = f"Policy {name!r} from the entry-point group {POLICY_GROUP} (deprecated)."
-        Params = _FactoryOptions
+    Each listed name is a subclass of this one (:func:`_factory_policy`) made a module attribute,
+    so pickle finds it by name, as it finds any class (a launcher such as joblib or Ray pickles a
+    scenario, whose validated options hold the policy's class); another process that unpickles it
+    lists the group again (:func:`__getattr__`). An instance pickles if its factory's function does.
+    """
 
-        def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
-            super().__init__(params, layout, spec)
-            self.function = ep.load()(layout, spec, **(params.model_extra or {}))
+    entry_point: ClassVar[Any]
+    """The entry point whose factory builds the policy function."""
+    Params = _FactoryOptions
 
-        def __call__(self, obs: np.ndarray) -> np.ndarray:
-            return self.function(obs)
+    def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
+        super().__init__(params, layout, spec)
+        self.function = self.entry_point.load()(layout, spec, **(params.model_extra or {}))
 
-    FactoryPolicy.name = name
-    return FactoryPolicy
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.function(obs)
+
+
+_FACTORY_POLICIES: dict[str, type[FactoryPolicy]] = {}
+"""The classes made so far, by attribute name: one class per entry point for the whole process
+(pickle checks that the class it finds by name is the one it was given)."""
+
+
+def _attribute(name: str) -> str:
+    """The module attribute that holds the class of policy ``name`` (pickle splits a class's
+    qualified name at dots, which an entry-point name may hold)."""
+    return "FactoryPolicy[" + name.replace("%", "%25").replace(".", "%2E") + "]"
+
+
+def _factory_policy(name: str, ep: Any) -> type[FactoryPolicy]:
+    """The :class:`FactoryPolicy` subclass of entry point ``ep`` (the same class every time the
+    same entry point is listed)."""
+    attribute = _attribute(name)
+    cls = _FACTORY_POLICIES.get(attribute)
+    if cls is None or cls.entry_point != ep:
+        doc = f"Policy {name!r} from the entry-point group {POLICY_GROUP} (deprecated)."
+        cls = type(attribute, (FactoryPolicy,), {
+            "name": name, "entry_point": ep, "__doc__": doc, "__module__": __name__, "__qualname__": attribute})
+        _FACTORY_POLICIES[attribute] = cls
+    return cls
+
+
+def __getattr__(attribute: str) -> type[FactoryPolicy]:
+    """A policy class of the deprecated group, by its attribute name: what pickle asks for when it
+    loads one in a process that has not listed the group yet (a launcher's worker)."""
+    if attribute.startswith("FactoryPolicy[") and attribute not in _FACTORY_POLICIES:
+        for ep in _listed(entry_points):
+            if _attribute(ep.name) == attribute:
+                _factory_policy(ep.name, ep)
+    try:
+        return _FACTORY_POLICIES[attribute]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {attribute!r}") from None
 
 
 @lru_cache(maxsize=4)

@@ -186,11 +186,11 @@ def test_every_model_option_is_documented():
     """docs/disturbances.md carries each model's option table as the docgen renders it."""
     from pathlib import Path
 
-    from swarmscene.core.disturbances import DISTURBANCE_MODELS
+    from swarmscene.core.disturbances import BUILTIN_MODELS
     from swarmscene.docgen import model_table
 
     doc = (Path(__file__).parents[2] / "docs" / "disturbances.md").read_text()
-    for kind, cls in DISTURBANCE_MODELS.items():
+    for kind, cls in ((m.name, m) for m in BUILTIN_MODELS):
         assert f"### `{kind}`" in doc
         for row in model_table(cls.Params, "disturbances.<name>."):
             assert row in doc, f"docs/disturbances.md: {kind}'s table is out of date ({row})"

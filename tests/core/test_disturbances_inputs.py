@@ -8,11 +8,12 @@ import copy
 import pytest
 
 from swarmscene import api
-from swarmscene.core.disturbances import DISTURBANCE_MODELS
+from swarmscene.core.disturbances import BUILTIN_MODELS
 from swarmscene.core.errors import ConfigError
 
 VALUES = [0, -0.0, -1, 1e308, 5e-324, float("nan"), float("inf"), True, None, "x"]
-CASES = [(kind, name) for kind, cls in DISTURBANCE_MODELS.items() for name in cls.Params.model_fields]
+MODELS = {m.name: m for m in BUILTIN_MODELS}
+CASES = [(kind, name) for kind, cls in MODELS.items() for name in cls.Params.model_fields]
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +31,7 @@ def test_boundary_values_run_or_are_one_line(small, kind, name):
         for value in VALUES:
             data = copy.deepcopy(small)
             data["dynamics"] = {"name": dynamics}
-            tuple_field = isinstance(DISTURBANCE_MODELS[kind].Params.model_fields[name].default, tuple)
+            tuple_field = isinstance(MODELS[kind].Params.model_fields[name].default, tuple)
             data["disturbances"] = {"m": {"kind": kind, name: [value] * 3 if tuple_field else value}}
             try:
                 api.run(data)

@@ -239,7 +239,8 @@ BASE = {"swarm": {"n": 2}, "formation": {"name": "a"}, "avoidance": {"name": "b"
     ({"width": 0.5},
      "environment.width: a parameter of environment.generator corridor, which is not chosen (got 0.5)"),
     ({"generator": "maze", "width": 0.5},
-     "environment.generator: must be one of 'corridor', 'building' or 'obstacle_field' (got 'maze')"),
+     "environment.generator: unknown map generator 'maze' (valid: building, corridor, obstacle_field) "
+     "(got 'maze')"),
     ({"generator": "building", "rooms": 5}, "environment.rooms: must be even (two rows of rooms) (got 5)"),
     ({"generator": "building", "door_width": 8.0},
      "environment.door_width: must be < the room's width 7.2 m (got 8.0)"),
