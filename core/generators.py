@@ -22,9 +22,8 @@ are rounded to :data:`DECIMALS` places, so a generated map equals its listed-obs
 
 from __future__ import annotations
 
-import functools
 import math
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import numpy as np
 import shapely
@@ -310,21 +309,6 @@ def obstacle_field(params: ObstacleFieldParams) -> list[Polygon]:
     return [Point(c).buffer(r, quad_segs=16) for c, r in zip(centres, radii)]
 
 
-@functools.lru_cache(maxsize=8)
-def generate(generator: str, params_json: str) -> tuple[tuple[Polygon, ...], tuple[str, ...]]:
-    """The obstacle polygons of ``generator`` with its parameters (as JSON) and its error lines.
-
-    Cached by value: validation asks twice (to check the map, then the start positions), and a
-    sweep's jobs in one process share a map; shapely geometries are immutable and the result is
-    tuples, so no caller can change what the next one gets.
-    """
-    model, build = GENERATORS[generator]
-    try:
-        return tuple(build(model.model_validate_json(params_json))), ()
-    except ValueError as exc:  # one line naming its key (e.g. environment.density)
-        return (), (str(exc),)
-
-
 class MapGenerator:
     """A map generator: obstacle footprints from a few numeric parameters (``environment.generator``).
 
@@ -379,8 +363,3 @@ class ObstacleField(MapGenerator):
 BUILTIN_GENERATORS: tuple[type[MapGenerator], ...] = (Corridor, Building, ObstacleField)
 """The built-in generators (``plugins/generator/`` registers each through
 ``swarmscene_register_generators``; the numerics above stay here, beside the geometry they share)."""
-
-GeneratorName = Literal["corridor", "building", "obstacle_field"]
-GENERATORS: dict[str, tuple[type[StrictModel], Any]] = {g.name: (g.Params, g.build) for g in BUILTIN_GENERATORS}
-"""Each built-in generator's parameters model and its builder (parameters -> obstacle polygons): the
-``environment`` section's schema (:mod:`swarmscene.core.obstacles`) is built from it."""

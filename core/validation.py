@@ -113,7 +113,9 @@ def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) 
     name = env.get("generator") if isinstance(env, dict) else None
     if name is None or validate_choice(registry, "generator", name, "environment.generator", errors):
         return data
-    env = {k: v for k, v in env.items() if k != "generator" and k not in GENERATOR_KEYS}
+    # every known generator's parameters leave with the unknown name: one line, not one per option
+    known = GENERATOR_KEYS.union(*(cls.Params.model_fields for cls in registry.classes["generator"].values()))
+    env = {k: v for k, v in env.items() if k != "generator" and k not in known}
     return {**data, "environment": env}
 
 

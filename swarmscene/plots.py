@@ -163,10 +163,13 @@ class RunData:
 
 
 def _obstacles(config: dict[str, Any]) -> list[Any]:
+    """The run's obstacles, rebuilt from its environment section with the installed registry, so
+    a run whose map came from a plugin's generator reads back like a built-in's."""
+    from .api import plugins
     from .core.config import EnvironmentConfig
     from .core.geometry import build_obstacles
 
-    env = EnvironmentConfig.model_validate(config.get("environment") or {})
+    env = EnvironmentConfig.model_validate(config.get("environment") or {}, context={"registry": plugins()[1]})
     obstacles, _ = build_obstacles(env)
     return obstacles
 

@@ -87,6 +87,10 @@ def test_the_plugin_generator_parameters_get_their_defaults_and_add_to_listed_ob
     (["environment.generator=maze"],
      "environment.generator: unknown map generator 'maze' (valid: ak_posts, building, corridor, "
      "obstacle_field)"),
+    # a plugin generator's parameter goes with the unknown name, as a built-in's does: one line
+    (["environment.generator=maze", "environment.count=2", "environment.width=1.0"],
+     "environment.generator: unknown map generator 'maze' (valid: ak_posts, building, corridor, "
+     "obstacle_field)"),
 ])
 def test_bad_plugin_generator_input_is_one_line_naming_the_key(registry, overrides, line):
     assert _lines(overrides, registry) == [line]
@@ -106,3 +110,14 @@ def test_a_validated_plugin_map_survives_pickling(registry):
     back = pickle.loads(pickle.dumps(env))
     assert back.generator_class is env.generator_class and back.generator_params() == env.generator_params()
     assert _coordinates(back.generated()[0]) == _coordinates(env.generated()[0])
+
+
+def test_a_plugin_generator_run_directory_reads_back_with_its_posts(registry, tmp_path):
+    """Pictures, replay and export rebuild the map from the run's config.yaml with the installed
+    registry: a plugin's generator is found there as in the run (it was refused before)."""
+    from swarmscene import plots
+
+    scenario = api.load([*BASE, "environment.generator=ak_posts", "environment.count=2"], registry)
+    api.run(scenario, output_dir=tmp_path / "run")
+    back = plots.load_run(tmp_path / "run")
+    assert _coordinates(back.obstacles) == _coordinates(scenario.obstacles)
