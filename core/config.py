@@ -24,7 +24,11 @@ from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, Strict
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
 from .plugin import PluginParams
 from .resources import (  # the resource checks under their old module name
-    AGENT_WORKING_BYTES, BASE_WORKING_BYTES, estimated_memory, machine_memory, memory_checks,
+    AGENT_WORKING_BYTES,
+    BASE_WORKING_BYTES,
+    estimated_memory,
+    machine_memory,
+    memory_checks,
 )
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
@@ -273,7 +277,7 @@ class ScenarioConfig(_Strict):
         return name
 
     @model_validator(mode="after")
-    def _explicit_positions_match_n(self) -> "ScenarioConfig":
+    def _explicit_positions_match_n(self) -> ScenarioConfig:
         start = self.swarm.start
         if start.kind == "explicit" and len(start.positions) != self.swarm.n:
             raise ValueError(

@@ -34,7 +34,16 @@ from enum import Enum, IntEnum
 from typing import Annotated, Any, ClassVar
 
 import numpy as np
-from pydantic import Field, PrivateAttr, TypeAdapter, ValidationError, ValidationInfo, field_validator, model_serializer, model_validator
+from pydantic import (
+    Field,
+    PrivateAttr,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
 from .fields import MAX_DURATION, Point3, StrictModel, key_error
@@ -126,7 +135,7 @@ class EventConfig(StrictModel):
             data.update({k: v for k, v in extra.items() if k not in data and k not in _KIND_FIELDS})
         return data
 
-    def _checked(self, own: dict[str, Any], context: Any) -> "EventConfig":
+    def _checked(self, own: dict[str, Any], context: Any) -> EventConfig:
         """The kind's rules: only its own fields given, the ones it needs present; its Params built.
         An unknown kind is the registry's error (``validate_choice``) when a registry validates,
         else one line here (listing the built-in kinds)."""
@@ -156,12 +165,12 @@ class EventConfig(StrictModel):
         return self
 
     @property
-    def kind_class(self) -> "type[EventKindPlugin]":
+    def kind_class(self) -> type[EventKindPlugin]:
         """The event kind's class (a registered :class:`EventKindPlugin`)."""
         return self._kind if self._kind is not None else BUILTIN_EVENT_KINDS[self.kind]
 
     @property
-    def params(self) -> "EventParams":
+    def params(self) -> EventParams:
         """The kind's validated Params (its own fields, defaults filled)."""
         return self._params
 
@@ -269,7 +278,7 @@ class EventKindPlugin:
     from where it failed: the velocity :meth:`apply` left), DYNAMICS (the dynamics model moves it)."""
 
     @classmethod
-    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
         """Change ``world`` for the agents ``idx`` (their flags, and velocities where the kind sets
         them: a COAST kind coasts at the velocity left here)."""
         if cls.failure:
@@ -285,7 +294,7 @@ class Hover(EventKindPlugin):
     motion = Motion.HOLD
 
     @classmethod
-    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
         super().apply(event, world, idx)
         world.vel[idx] = 0.0
 
@@ -314,7 +323,7 @@ class Drift(EventKindPlugin):
         velocity: Point3 = Field(description="its drift velocity [vx, vy, vz], m/s")
 
     @classmethod
-    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
         super().apply(event, world, idx)
         world.vel[idx] = event.velocity
 
@@ -440,7 +449,7 @@ class EventQueue:
 
     @classmethod
     def from_config(cls, events: list[EventConfig], n: int | None = None, seed: int = 0,
-                    guidance_period: float | None = None) -> "EventQueue":
+                    guidance_period: float | None = None) -> EventQueue:
         """The queue of a scenario's ``events`` list; random parts drawn with ``seed`` for ``n``
         agents (both needed only when an event is random)."""
         if n is None and any(e.random for e in events):
@@ -451,7 +460,7 @@ class EventQueue:
         return cls(built, guidance_period, drawn)
 
     @classmethod
-    def from_scenario(cls, config: Any) -> "EventQueue":
+    def from_scenario(cls, config: Any) -> EventQueue:
         """The queue of a validated ``ScenarioConfig``: its events, random parts drawn for its
         ``swarm.n`` agents from its ``seed``, holding at its guidance period."""
         return cls.from_config(config.events, config.swarm.n, config.seed, config.clock.guidance_period)

@@ -90,7 +90,7 @@ class BuildingParams(StrictModel):
         return value
 
     @model_validator(mode="after")
-    def _door_fits(self) -> "BuildingParams":
+    def _door_fits(self) -> BuildingParams:
         if self.door_width >= self.room_size[0]:
             width = self.room_size[0]
             raise key_error("door_width", f"must be < the room's width {width} m", self.door_width)

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import warnings
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
@@ -99,7 +99,7 @@ class BuildContext:
     separation_limit: float
     clearance_limit: float
     comm_range: float
-    environment: "Environment"
+    environment: Environment
     rng: np.random.Generator
     initial: WorldState
     link_delay: Callable[[np.ndarray], np.ndarray] | None = None
@@ -146,7 +146,7 @@ class Formation(Plugin):
     delays from ``BuildContext.link_delay`` when one is declared."""
 
     @abstractmethod
-    def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
+    def setpoints(self, world: WorldState, sensing: Sensing) -> Setpoints:
         """Return the setpoints of all N agents for this guidance tick."""
 
     def periodic_box(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -171,7 +171,7 @@ class Avoidance(Plugin):
     """Takes the formation's setpoints and returns safe ones."""
 
     @abstractmethod
-    def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
+    def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Return setpoints that keep agents apart and clear of obstacles (may return ``sp``)."""
 
 

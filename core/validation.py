@@ -50,12 +50,13 @@ def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: di
     return data
 
 
-def validate(data: dict[str, Any], registry: "Any") -> Scenario:
+def validate(data: dict[str, Any], registry: Any) -> Scenario:
     """Validate composed config ``data`` in one pass; raise :class:`ConfigError` listing every problem.
 
     Args:
         data: plain composed config (no ``hydra`` node).
         registry: a :class:`~swarmscene.core.registry.Registry` (plugin classes by kind and name).
+
     Returns:
         the :class:`Scenario`, with the obstacles and start positions built while checking it.
     """

@@ -16,8 +16,8 @@ from pathlib import Path
 from pydantic import BaseModel
 
 from .api import plugins
-from .groups import README_BEGIN, README_END, readme_groups
 from .core import config as schema
+from .groups import README_BEGIN, README_END, readme_groups
 
 
 def _default(info) -> str:

@@ -380,14 +380,14 @@ class _Renderer:
         self.mode = render_mode
         self.window = _Window(fps) if render_mode == "human" else None
 
-    def render(self, driver: "_Driver") -> np.ndarray | None:
+    def render(self, driver: _Driver) -> np.ndarray | None:
         frame = render_frame(driver, self.mode)
         if self.window is None or frame is None:
             return frame
         self.window.show(frame)
         return None
 
-    def after_step(self, driver: "_Driver") -> None:
+    def after_step(self, driver: _Driver) -> None:
         if self.window is not None:
             self.render(driver)
 
@@ -458,7 +458,7 @@ class _Window:
             self.figure = self.image = None
 
 
-def render_frame(driver: "_Driver", render_mode: str | None) -> np.ndarray | None:
+def render_frame(driver: _Driver, render_mode: str | None) -> np.ndarray | None:
     """The current top-down view as an (H, W, 3) uint8 array: the obstacles and every agent (failed
     ones as red crosses), titled with the time; None when ``render_mode`` is None or before
     ``reset``. Drawn with matplotlib (the plots extra), off screen (``human`` shows this frame)."""

@@ -141,7 +141,7 @@ class Poly4D:
     def duration(self) -> float:
         return float(np.sum(self.durations))
 
-    def as_float32(self) -> "Poly4D":
+    def as_float32(self) -> Poly4D:
         """The polynomials as the vehicle stores them (float32 coefficients and durations)."""
         return Poly4D(self.durations.astype(np.float32).astype(float),
                       self.coeffs.astype(np.float32).astype(float), self.t0)
@@ -166,7 +166,7 @@ class Poly4D:
         atomic_write_bytes(Path(path), ("\n".join(lines) + "\n").encode())
 
     @classmethod
-    def from_csv(cls, path: Path, t0: float = 0.0) -> "Poly4D":
+    def from_csv(cls, path: Path, t0: float = 0.0) -> Poly4D:
         """Read a trajectory CSV as Crazyswarm2 does (skip the header, 33 columns)."""
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
         return cls(data[:, 0], data[:, 1:].reshape(-1, len(AXES), POLY_DEGREE + 1), t0)
@@ -324,10 +324,10 @@ class ShowExport:
     time_scale: float
     controller: str
     checks: list[list[dict[str, Any]]]
-    placement: "Placement | None" = None
-    geofence: "Box | None" = None
-    breach: "dict[str, Any] | None" = None  # the first exit from the geofence, None: inside
-    segments: "Segments | None" = None
+    placement: Placement | None = None
+    geofence: Box | None = None
+    breach: dict[str, Any] | None = None  # the first exit from the geofence, None: inside
+    segments: Segments | None = None
 
     def summary(self) -> dict[str, Any]:
         return {
@@ -379,7 +379,7 @@ class Box:
     hi: tuple[float, float, float]
 
     @classmethod
-    def parse(cls, option: str, values: list[str]) -> "Box":
+    def parse(cls, option: str, values: list[str]) -> Box:
         """``--fit-box`` / ``--geofence`` XMIN YMIN ZMIN XMAX YMAX ZMAX: finite, each min < max."""
         numbers = _finite_numbers(option, values)
         box = cls(tuple(numbers[:3]), tuple(numbers[3:]))
@@ -404,7 +404,7 @@ class Placement:
         return placed
 
     @classmethod
-    def into(cls, samples: np.ndarray, box: Box, margin: float) -> "Placement":
+    def into(cls, samples: np.ndarray, box: Box, margin: float) -> Placement:
         """The largest uniform scale <= 1 (a show is never enlarged) that fits every position of
         ``samples`` (T, N, >=3) into ``box`` shrunk by ``margin`` on every face, and the shift that
         centres the show in x and y and puts its lowest point on the shrunk floor (a show that
@@ -650,7 +650,7 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
                            controller: str = "mellinger", time_scale: float | str = 1.0,
                            tolerance: float = 0.005, kind: str = "auto", placement: Placement | None = None,
                            fit_box: Box | None = None, geofence: Box | None = None,
-                           segments: "Segments | None" = None) -> ShowExport:
+                           segments: Segments | None = None) -> ShowExport:
     """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
     ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring).
 
@@ -791,7 +791,7 @@ def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, 
     return placement, fit_box, geofence
 
 
-def _segments(args: argparse.Namespace) -> "Segments | None":
+def _segments(args: argparse.Namespace) -> Segments | None:
     """``--takeoff`` / ``--land`` SECONDS (finite, > 0) and ``--floor`` Z (finite, with one of them)."""
     seconds = {}
     for option, text in (("--takeoff", args.takeoff), ("--land", args.land)):

@@ -176,7 +176,7 @@ def _warn(value: str, why: str) -> None:
     print(f"swarmscene: warning: output.live={value}: {why}; the run goes on without a live view", file=sys.stderr)
 
 
-def attach(sim: Any) -> "LiveView | None":
+def attach(sim: Any) -> LiveView | None:
     """Stream ``sim``'s run live as its ``output.live`` asks (module docstring): the observer,
     registered on the run's plugin manager before the run starts, or None (off, or a one-line
     warning on stderr when the view cannot be had)."""
@@ -276,7 +276,7 @@ class LiveView:
     def _begin(self, sim: Any) -> None:
         import rerun as rr
 
-        from .replay import log_static, blueprint
+        from .replay import blueprint, log_static
 
         self.rec.set_sinks(rr.GrpcSink(self.url), default_blueprint=blueprint(self.run))
         self.rec.send_recording_name(f"{self.run.name} seed {self.run.seed}")

@@ -42,7 +42,15 @@ from .core.fields import StrictModel
 from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl
 from .core.plugin import (
-    SHARED, Avoidance, BuildContext, Dynamics, Formation, Plugin, PluginParams, Policy, choose,
+    SHARED,
+    Avoidance,
+    BuildContext,
+    Dynamics,
+    Formation,
+    Plugin,
+    PluginParams,
+    Policy,
+    choose,
 )
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints

@@ -207,7 +207,7 @@ class Progress:
         self.first: tuple[float, float] | None = None  # (done, elapsed) at a write's first item
 
     @classmethod
-    def maybe(cls, mode: str, enabled: bool = True, delay: float | None = None) -> "Progress | None":
+    def maybe(cls, mode: str, enabled: bool = True, delay: float | None = None) -> Progress | None:
         """A Progress when asked for (``on``), or for ``auto`` when stderr is a terminal and this
         is not a job of a Hydra multirun (parallel jobs would interleave their lines)."""
         if not enabled or mode == "off":

@@ -59,9 +59,12 @@ from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
 from .plugin import build_context
-
 from .testing_kinds import (  # the kinds beside the three algorithms, rules listed above
-    check_disturbance, check_event_kind, check_generator, check_observer, check_policy,
+    check_disturbance,
+    check_event_kind,
+    check_generator,
+    check_observer,
+    check_policy,
 )
 
 __all__ = ["check_avoidance", "check_disturbance", "check_dynamics", "check_event_kind", "check_formation",

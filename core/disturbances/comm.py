@@ -16,10 +16,10 @@ from __future__ import annotations
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field
 
-from . import links as numerics
 from ..state import WorldState
+from . import links as numerics
 from .base import Disturbance, DisturbanceContext, DisturbanceParams
 
 MAX_DELAY = 60.0
@@ -47,7 +47,7 @@ class CommDelay(Disturbance):
         jitter: float = Field(
             0.1, ge=0.0, le=MAX_DELAY, description="random: mean of the exponential extra delay, s")
 
-    def __init__(self, params: "CommDelay.Params", ctx: DisturbanceContext) -> None:
+    def __init__(self, params: CommDelay.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.T_s = ctx.guidance_period
         self.tau_com = params.tau
@@ -85,7 +85,7 @@ class CommDelay(Disturbance):
         return np.where(reachable, ticks, -1).astype(np.int64)
 
 
-def max_delay_ticks(params: "CommDelay.Params", n: int, T_s: float) -> int:
+def max_delay_ticks(params: CommDelay.Params, n: int, T_s: float) -> int:
     """The longest delay the channel must keep, ticks: fixed tau; hops (n - 1) tau (the mean over
     receivers is at most that); random tau + 10 jitter (P(X > 10 jitter) = e^-10: rarer, longer
     delays are cut to it); never more than ``MAX_DELAY``."""
@@ -130,7 +130,7 @@ class PacketLoss(Disturbance):
         range_start: float = Field(
             0.5, ge=0.0, le=1.0, description="range: fraction of comm.range up to which the loss is p")
 
-    def __init__(self, params: "PacketLoss.Params", ctx: DisturbanceContext) -> None:
+    def __init__(self, params: PacketLoss.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.comm_range = ctx.comm_range
         self.chains = (numerics.GilbertElliott(ctx.n, self.rng, params.p_gb, params.p_bg,

@@ -69,7 +69,7 @@ class SensingNoise(Disturbance):
 
                     raise key_error(key, "each must be in [0, 1000]", list(values))
 
-    def __init__(self, params: "SensingNoise.Params", ctx: DisturbanceContext) -> None:
+    def __init__(self, params: SensingNoise.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         n = ctx.n
         self.pos_std = np.array(params.pos_std)

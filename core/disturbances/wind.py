@@ -13,9 +13,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from . import atmosphere as numerics
 from ..fields import MAX_DURATION
 from ..state import WorldState
+from . import atmosphere as numerics
 from .base import Disturbance, DisturbanceContext, DisturbanceParams
 
 MAX_WIND = 100.0
@@ -49,7 +49,7 @@ class ConstantWind(Disturbance):
         speed: float = Field(5.0, ge=0.0, le=MAX_WIND, description="wind speed, m/s")
         vertical: float = Field(0.0, ge=-MAX_WIND, le=MAX_WIND, description="vertical component, m/s (up +)")
 
-    def __init__(self, params: "ConstantWind.Params", ctx: DisturbanceContext) -> None:
+    def __init__(self, params: ConstantWind.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.velocity = params.speed * _direction(params.heading)
         self.velocity[2] = params.vertical
@@ -80,7 +80,7 @@ class Gust(Disturbance):
             description="time at the peak before the mirror-image decay, s (null: stays, the "
             "MIL-F-8785C form; 0: the 1-cosine pulse)")
 
-    def __init__(self, params: "Gust.Params", ctx: DisturbanceContext) -> None:
+    def __init__(self, params: Gust.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.peak = params.amplitude * _direction(params.heading, params.elevation)
 
@@ -114,7 +114,7 @@ class Dryden(Disturbance):
             description="shared: one realisation at the swarm's mean altitude for every agent (the "
             "field is correlated over tens of metres); independent: one per agent")
 
-    def __init__(self, params: "Dryden.Params", ctx: DisturbanceContext) -> None:
+    def __init__(self, params: Dryden.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.axes = numerics.wind_axes(math.radians(params.heading))
         self.filters: numerics.DrydenFilters | None = None

@@ -93,7 +93,7 @@ class BarrierCertificates(Avoidance):
         deadlock_ratio: float = Field(
             0.1, gt=0, lt=1, description="|u*| / |u^nom| under which an agent counts as stopped")
 
-    def __init__(self, params: "BarrierCertificates.Params", ctx: BuildContext) -> None:
+    def __init__(self, params: BarrierCertificates.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.safe_distance = ctx.separation_limit + params.margin
         self.range = influence_range(self.safe_distance, params.gamma, params.power, params.v_max)

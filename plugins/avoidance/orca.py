@@ -86,7 +86,7 @@ class Orca(Avoidance):
         neighbour_dist: float | None = Field(
             None, gt=0, le=1e6, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
 
-    def __init__(self, params: "Orca.Params", ctx: BuildContext) -> None:
+    def __init__(self, params: Orca.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.combined_radius = ctx.separation_limit + params.margin
         self.range = (params.neighbour_dist if params.neighbour_dist is not None

@@ -43,8 +43,12 @@ from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import every
-
-from swarmscene.methods.quadrotor.thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
+from swarmscene.methods.quadrotor.thesis_controllers import (
+    ThesisController,
+    position_gains,
+    tracker_gains,
+    velocity_gains,
+)
 
 
 class DoubleIntegrator(Dynamics):
@@ -83,7 +87,7 @@ class DoubleIntegrator(Dynamics):
             0.0, ge=0, description="anti-chattering threshold ε_lim, m/s (thesis: 3 σ of the "
             "velocity noise): a limit at or below it brakes with -K_lim v")
 
-    def __init__(self, params: "DoubleIntegrator.Params", ctx: BuildContext) -> None:
+    def __init__(self, params: DoubleIntegrator.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         T_s = ctx.guidance_period
         # the slower real pole is the one cancelled by the zero (eq. 3.28)

@@ -43,9 +43,8 @@ from pydantic import Field, model_validator
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.setpoint import Setpoints
 from swarmscene.core.state import WorldState
-
 from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.methods.quadrotor.model import AIRFRAMES, quat_to_rotmat, yaw_to_quat
 from swarmscene.methods.quadrotor.se3_controller import se3_gains
@@ -85,7 +84,7 @@ class Quadrotor(Dynamics):
             "(p, v, a, jerk, snap) between guidance ticks")
 
         @model_validator(mode="after")
-        def _inner_loop_resolved(self) -> "Quadrotor.Params":
+        def _inner_loop_resolved(self) -> Quadrotor.Params:
             # the attitude loop is discrete at max_step: keep omega dt well below its stability edge
             if self.attitude_omega * self.max_step > 0.5:
                 raise ValueError(
@@ -93,7 +92,7 @@ class Quadrotor(Dynamics):
                     f"(got {self.attitude_omega} * {self.max_step})")
             return self
 
-    def __init__(self, params: "Quadrotor.Params", ctx: BuildContext) -> None:
+    def __init__(self, params: Quadrotor.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         # numba is imported here, not at module level: listing plugins must not pay for it
         from swarmscene.methods.quadrotor import kernels

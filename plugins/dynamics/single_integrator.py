@@ -24,7 +24,6 @@ from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import clip_norm
 
-
 _VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
 """As ints: numpy compares an array with an enum member several times slower."""
 assert _VELOCITY & 1 and _HOLD & 1 and not int(Mode.POSITION) & 1 and not int(Mode.TRACK) & 1

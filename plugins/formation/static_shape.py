@@ -27,7 +27,6 @@ from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
 
-
 _TRACK, _HOLD = int(Mode.TRACK), int(Mode.HOLD)
 
 
@@ -144,7 +143,7 @@ class _Placement:
     """(N,) int8: TRACK with a slot, HOLD without"""
 
     @classmethod
-    def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> "_Placement":
+    def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> _Placement:
         slotted = slot_of >= 0
         mode = np.where(slotted, _TRACK, _HOLD).astype(np.int8)
         return cls(heading, turned[np.maximum(slot_of, 0)], rows_of(np.flatnonzero(~slotted)),

@@ -42,7 +42,6 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-
 from swarmscene.methods.shapes import shape_offsets
 from swarmscene.methods.vrb.airshow import airshow_keyframes, airshow_sequence
 from swarmscene.methods.vrb.trajectory import ORDER, Keyframes, VRBTrajectory
@@ -124,7 +123,7 @@ class VirtualRigidBody(Formation):
             0.3, ge=1e-3, description="deviation spline knot spacing, s (at least 1 ms)")
 
         @model_validator(mode="after")
-        def _preset_or_custom(self) -> "VirtualRigidBody.Params":
+        def _preset_or_custom(self) -> VirtualRigidBody.Params:
             if self.preset == "airshow" and (self.keyframes or self.formations):
                 raise ValueError("keyframes/formations are only read with preset: custom")
             if self.preset == "custom" and (len(self.keyframes) < 2 or not self.formations):
@@ -135,7 +134,7 @@ class VirtualRigidBody(Formation):
                 raise ValueError("threshold D must exceed s_i + s_j = 2 clearance (eq. 8)")
             return self
 
-    def __init__(self, params: "VirtualRigidBody.Params", ctx: BuildContext) -> None:
+    def __init__(self, params: VirtualRigidBody.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         keyframes, sequence = self._task(params, ctx.n)
         self.trajectory = VRBTrajectory(keyframes)
@@ -152,7 +151,7 @@ class VirtualRigidBody(Formation):
         self._min_transform_distance = np.inf
 
     @staticmethod
-    def _task(params: "VirtualRigidBody.Params", n: int) -> tuple[Keyframes, FormationSequence]:
+    def _task(params: VirtualRigidBody.Params, n: int) -> tuple[Keyframes, FormationSequence]:
         if params.preset == "airshow":
             seq = airshow_sequence()
             if seq.slots.shape[1] != n:
