@@ -69,6 +69,8 @@ class SensingNoise(Disturbance):
 
                     raise key_error(key, "each must be in [0, 1000]", list(values))
 
+    params: Params
+
     def __init__(self, params: SensingNoise.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         n = ctx.n

@@ -57,6 +57,8 @@ class ApfNavigation(Avoidance):
         include_leader: bool = Field(
             False, description="let the leader navigate too (thesis: it never does)")
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.engaged = np.zeros(ctx.n, dtype=bool)

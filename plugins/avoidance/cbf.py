@@ -93,6 +93,8 @@ class BarrierCertificates(Avoidance):
         deadlock_ratio: float = Field(
             0.1, gt=0, lt=1, description="|u*| / |u^nom| under which an agent counts as stopped")
 
+    params: Params
+
     def __init__(self, params: BarrierCertificates.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.safe_distance = ctx.separation_limit + params.margin

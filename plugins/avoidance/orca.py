@@ -86,6 +86,8 @@ class Orca(Avoidance):
         neighbour_dist: float | None = Field(
             None, gt=0, le=1e6, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
 
+    params: Params
+
     def __init__(self, params: Orca.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.combined_radius = ctx.separation_limit + params.margin

@@ -57,6 +57,8 @@ class PotentialBarrier(Avoidance):
             True, description="leave the leader's command alone (the thesis' leader has no avoidance)"
         )
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         fields = IndoorGains.__dataclass_fields__

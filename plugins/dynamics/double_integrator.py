@@ -87,6 +87,8 @@ class DoubleIntegrator(Dynamics):
             0.0, ge=0, description="anti-chattering threshold ε_lim, m/s (thesis: 3 σ of the "
             "velocity noise): a limit at or below it brakes with -K_lim v")
 
+    params: Params
+
     def __init__(self, params: DoubleIntegrator.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         T_s = ctx.guidance_period

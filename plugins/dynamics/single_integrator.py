@@ -41,6 +41,8 @@ class SingleIntegrator(Dynamics):
             1.0, gt=0, description="proportional gain on position error in POSITION/TRACK/HOLD, 1/s"
         )
 
+    params: Params
+
     def initialize(self, world: WorldState) -> None:
         self.u = np.zeros_like(world.pos)
 

@@ -45,6 +45,8 @@ class AntipodalSwap(Formation):
         arrival_tolerance: float = Field(
             0.1, gt=0, description="distance to its goal at which an agent has arrived, m")
 
+    params: Params
+
     def __init__(self, params: AntipodalSwap.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         start = ctx.initial.pos

@@ -82,6 +82,8 @@ class HexLattice(Formation):
             True, description="add the leader's applied input (world.acc) as TRACK feed-forward"
         )
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         leader = ctx.initial.leader  # requires_leader: validation checked it

@@ -54,6 +54,8 @@ class StaticShape(Formation):
             0.5, gt=0, description="distance to its slot at which an agent has arrived, m"
         )
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         start = ctx.initial.pos.mean(axis=0)

@@ -134,6 +134,8 @@ class VirtualRigidBody(Formation):
                 raise ValueError("threshold D must exceed s_i + s_j = 2 clearance (eq. 8)")
             return self
 
+    params: Params
+
     def __init__(self, params: VirtualRigidBody.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         keyframes, sequence = self._task(params, ctx.n)

@@ -23,6 +23,8 @@ class SeekReference(Policy):
         repulsion: float = Field(2.0, ge=0, description="k_r: push off neighbours and obstacles, m/s")
         radius: float = Field(1.0, gt=0, description="r: distance under which it pushes off, m")
 
+    params: Params
+
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         p = self.params
         return seek_reference_actions(self.layout, self.spec, obs, p.gain, p.repulsion, p.radius)
