@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum, IntEnum
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, ClassVar, cast
 
 import numpy as np
 from pydantic import (
@@ -412,8 +412,11 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
     kind_class, params = config.kind_class, config.params
     fraction = config.fraction
     if fraction is None and "fraction" in kind_class.Params.model_fields:
-        fraction = params.fraction if params is not None else 0.0  # motor_failure: the rotor is dead
+        # the kind's own Params have the field (checked just above); EventParams does not
+        fraction = params.fraction if params is not None else 0.0  # type: ignore[attr-defined]
     kind = EventKind(config.kind) if config.kind in EventKind._value2member_map_ else config.kind
+    # Whatever was random is drawn by now: a time in seconds, a list of indices.
+    at, agents = cast(float, at), cast(list[int], agents)
     return Event(float(at), tuple(int(a) for a in agents), kind, velocity=config.velocity,
                  rotor=config.rotor, fraction=fraction, params=params, kind_class=kind_class)
 
@@ -443,9 +446,10 @@ class EventQueue:
             raise ValueError("EventQueue: stuck and drift events need the guidance period "
                              "(build the queue with EventQueue.from_scenario)")
         self._motion: np.ndarray | None = None  # (N,) Motion, allocated at the first failure
-        self._anchor: np.ndarray | None = None  # (N, 3) m: where each vehicle failed
-        self._anchor_t: np.ndarray | None = None  # (N,) s: when
-        self._coast_vel: np.ndarray | None = None  # (N, 3) m/s: its constant velocity
+        # Sized with _motion at the first failure (empty until then: nothing reads them before).
+        self._anchor = np.zeros((0, 3))  # (N, 3) m: where each vehicle failed
+        self._anchor_t = np.zeros(0)  # (N,) s: when
+        self._coast_vel = np.zeros((0, 3))  # (N, 3) m/s: its constant velocity
 
     @classmethod
     def from_config(cls, events: list[EventConfig], n: int | None = None, seed: int = 0,
@@ -519,6 +523,7 @@ class EventQueue:
             world.vel[held] = 0.0
         coast = self._coasting
         if coast.size:
-            elapsed = world.t + self.guidance_period - self._anchor_t[coast]
+            T_s = cast(float, self.guidance_period)  # set whenever an event coasts (__init__ checks)
+            elapsed = world.t + T_s - self._anchor_t[coast]
             world.pos[coast] = self._anchor[coast] + self._coast_vel[coast] * elapsed[:, None]
             world.vel[coast] = self._coast_vel[coast]

@@ -126,7 +126,8 @@ class Plugin(ABC):
     name: ClassVar[str]
     """Registered name, the value users write in ``formation=``, ``avoidance=``, ``dynamics=``."""
     Params: ClassVar[type[PluginParams]] = PluginParams
-    """Pydantic model of the YAML options (one docstring-described field per option)."""
+    """Pydantic model of the YAML options (one docstring-described field per option); a subclass
+    declares ``params: Params`` under its own so that ``self.params`` is typed as that model."""
     metric_prefix: ClassVar[str | None] = None
     """Prefix of the metrics the plugin adds (``<prefix>.<key>``); ``None``: its ``name``."""
 
@@ -200,6 +201,7 @@ class Dynamics(Plugin):
 
     def wind_acceleration(self, world: WorldState) -> np.ndarray:
         """The wind's acceleration on each agent, (N, 3) m/s^2: ``drag_coefficient * world.wind``."""
+        assert world.wind is not None, "wind_acceleration: the kernel calls it only under a wind model"
         return self.drag_coefficient * world.wind
 
     def initialize(self, world: WorldState) -> None:
@@ -231,7 +233,8 @@ class Policy(ABC):
     name: ClassVar[str]
     """Registered name, the value users write in ``avoidance.policy``."""
     Params: ClassVar[type[PluginParams]] = PluginParams
-    """Pydantic model of its options (``avoidance.policy_options``)."""
+    """Pydantic model of its options (``avoidance.policy_options``); ``params: Params`` under a
+    subclass's own types ``self.params`` as that model."""
 
     def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
         self.params, self.layout, self.spec = params, layout, spec
@@ -281,7 +284,7 @@ def shared_option_conflicts(params: dict[str, PluginParams]) -> list[str]:
     Args:
         params: each chosen plugin's validated Params, by kind (``formation``, ``avoidance``, ...).
     """
-    first: dict[tuple[str, str], tuple[str, Any]] = {}
+    first: dict[tuple[Any, str], tuple[str, Any]] = {}  # (quantity, option) -> (kind, value)
     lines = []
     for kind, model in params.items():
         for field, info in type(model).model_fields.items():

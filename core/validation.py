@@ -91,6 +91,7 @@ def validate(data: dict[str, Any], registry: Any) -> Scenario:
             errors += world_errors
     if errors:
         raise ConfigError(errors)
+    assert config is not None and world is not None  # without an error both were built
     obstacles, positions, rng_state = world
     return Scenario(
         config=config,
@@ -111,7 +112,9 @@ def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) 
     from .obstacles import GENERATOR_KEYS
 
     env = data.get("environment")
-    name = env.get("generator") if isinstance(env, dict) else None
+    if not isinstance(env, dict):
+        return data
+    name = env.get("generator")
     if name is None or validate_choice(registry, "generator", name, "environment.generator", errors):
         return data
     env = {k: v for k, v in env.items() if k != "generator" and k not in GENERATOR_KEYS}

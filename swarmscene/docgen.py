@@ -49,7 +49,7 @@ _Top.model_fields.update(
     {k: schema.ScenarioConfig.model_fields[k] for k in ("name", "description", "seed")}
 )
 
-SECTIONS = [
+SECTIONS: list[tuple[str, type[BaseModel]]] = [
     ("", _Top),
     ("swarm", schema.SwarmConfig),
     ("swarm.start", schema.StartConfig),

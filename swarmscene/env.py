@@ -104,7 +104,8 @@ class _Episode:
     def __init__(self, scenario: Scenario, options: EnvOptions) -> None:
         self.sim = sim = api.build(scenario)
         self.options = options
-        self.policy = sim.avoidance
+        # the policy avoidance (observe, command, reference), a plugin this module does not import
+        self.policy: Any = sim.avoidance
         self.n = sim.world.n
         self.done = False
         self.stop_reason: str | None = None
@@ -168,7 +169,7 @@ class _Driver:
             scenario = _with(scenario, output={**scenario.data.get("output", {}), "trajectory": False})
         self.scenario = scenario
         self.seeds = np.random.default_rng(scenario.config.seed)
-        params = scenario.plugin_params["avoidance"]
+        params: Any = scenario.plugin_params["avoidance"]  # the policy avoidance's Params
         self.layout_size = 19 + 7 * params.neighbours
         self.n = scenario.config.swarm.n
         self.episode: _Episode | None = None
@@ -227,7 +228,7 @@ class SwarmParallelEnv(ParallelEnv):
         options: :class:`EnvOptions` (or its dict).
     """
 
-    metadata = {"name": "swarmscene_v0", "render_modes": ["rgb_array", "human"], "render_fps": 10,
+    metadata: dict[str, Any] = {"name": "swarmscene_v0", "render_modes": ["rgb_array", "human"], "render_fps": 10,
                 "is_parallelizable": True}
 
     def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
@@ -418,7 +419,7 @@ def _non_interactive_backends() -> set[str]:
         return set(backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE))
     except ImportError:  # pragma: no cover - matplotlib 3.8
         from matplotlib import rcsetup
-        return {b.lower() for b in rcsetup.non_interactive_bk}
+        return {b.lower() for b in rcsetup.non_interactive_bk}  # type: ignore[attr-defined]  # 3.8 only
 
 
 class _Window:
@@ -428,8 +429,8 @@ class _Window:
 
     def __init__(self, fps: float) -> None:
         self.period = 1.0 / fps
-        self.figure = None
-        self.image = None
+        self.figure: Any = None  # pyplot's Figure and its image once shown (None: no window yet)
+        self.image: Any = None
         self.shown_at: float | None = None
 
     def show(self, frame: np.ndarray) -> None:

@@ -75,6 +75,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .core.outputs import atomic_write_bytes, atomic_write_json
 
@@ -146,7 +147,7 @@ class Poly4D:
         return Poly4D(self.durations.astype(np.float32).astype(float),
                       self.coeffs.astype(np.float32).astype(float), self.t0)
 
-    def evaluate(self, t: np.ndarray, derivative: int = 0) -> np.ndarray:
+    def evaluate(self, t: ArrayLike, derivative: int = 0) -> np.ndarray:
         """(T, 4): x, y, z, yaw (or their ``derivative``-th time derivative) at times ``t``
         (simulation time; clipped to the trajectory), vectorised over times."""
         t = np.atleast_1d(np.asarray(t, float)) - self.t0
@@ -282,7 +283,7 @@ def limit_checks(poly: Poly4D, limits: Limits, t: np.ndarray) -> list[dict[str, 
     vel = poly.evaluate(t, 1)[:, :3]
     acc = poly.evaluate(t, 2)[:, :3]
     thrust = acc + np.array([0.0, 0.0, GRAVITY])
-    checks = [
+    checks: list[dict[str, Any]] = [
         {"name": "collective thrust |a + g e3| (m/s^2)", "value": float(np.linalg.norm(thrust, axis=1).max()),
          "limit": limits.max_collective_acc},
         {"name": "downward acceleration -a_z (m/s^2)", "value": float(-acc[:, 2].min()), "limit": GRAVITY},
@@ -382,7 +383,7 @@ class Box:
     def parse(cls, option: str, values: list[str]) -> Box:
         """``--fit-box`` / ``--geofence`` XMIN YMIN ZMIN XMAX YMAX ZMAX: finite, each min < max."""
         numbers = _finite_numbers(option, values)
-        box = cls(tuple(numbers[:3]), tuple(numbers[3:]))
+        box = cls(_xyz(numbers[:3]), _xyz(numbers[3:]))
         for axis, lo, hi in zip("xyz", box.lo, box.hi):
             if not lo < hi:
                 raise ValueError(f"{option}: {axis}min must be below {axis}max (got {lo:g} and {hi:g})")
@@ -418,7 +419,7 @@ class Placement:
         scale = float(min([1.0, *ratios]))
         offset = 0.5 * (room_lo + room_hi) - scale * 0.5 * (lo + hi)
         offset[2] = room_lo[2] - scale * lo[2]
-        return cls(scale, tuple(float(v) for v in offset))
+        return cls(scale, _xyz([float(v) for v in offset]))
 
 
 FACES = ("min", "max")
@@ -482,7 +483,8 @@ class Segments:
         end = poly.t0 + poly.duration
         first = np.stack([poly.evaluate([poly.t0], n)[0] for n in range(4)])  # (4 derivatives, 4 axes)
         last = np.stack([poly.evaluate([end], n)[0] for n in range(4)])
-        durations, coeffs, t0 = [poly.durations], [poly.coeffs], poly.t0
+        durations: list[ArrayLike] = [poly.durations]
+        coeffs, t0 = [poly.coeffs], poly.t0
         if self.takeoff is not None:
             durations.insert(0, [self.takeoff])
             coeffs.insert(0, hermite7(self._rest_below(first), first, self.takeoff)[None])
@@ -760,6 +762,12 @@ def _number(text: Any) -> float:
         return math.nan
 
 
+def _xyz(numbers: list[float]) -> tuple[float, float, float]:
+    """Three numbers as a point (x, y, z); argparse gave exactly three per point (nargs)."""
+    x, y, z = numbers
+    return x, y, z
+
+
 def _finite_numbers(option: str, values: list[str]) -> list[float]:
     numbers = []
     for text in values:
@@ -785,7 +793,7 @@ def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, 
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"--scale: must be a finite number > 0 (got {args.scale!r})")
         offset = _finite_numbers("--offset", args.offset or ["0", "0", "0"])
-        placement = Placement(scale, tuple(offset))
+        placement = Placement(scale, _xyz(offset))
     fit_box = Box.parse("--fit-box", args.fit_box) if args.fit_box is not None else None
     geofence = Box.parse("--geofence", args.geofence) if args.geofence is not None else None
     return placement, fit_box, geofence

@@ -37,7 +37,7 @@ from typing import Any
 try:
     from hydra.experimental.callback import Callback as _Callback
 except ImportError:  # pragma: no cover - hydra-core is a dependency
-    _Callback = object
+    _Callback = object  # type: ignore[misc,assignment]  # a plain base when hydra is absent
 
 FAILURE_TIME = "events.0.at"
 """Override key of the searched failure's time, s."""
@@ -207,7 +207,7 @@ def study_problem(sweeper: Any) -> str | None:
             low, high = value.start, value.stop
         else:
             continue
-        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+        if low is None or high is None or not (math.isfinite(low) and math.isfinite(high) and low < high):
             return f"hydra.sweeper.params.{name}: the interval must have low < high, both finite (got {text})"
         if "log" in value.tags and low <= 0:
             return f"hydra.sweeper.params.{name}: a log-scaled interval needs low > 0 (got {text})"

@@ -32,7 +32,7 @@ from typing import Any
 try:
     from hydra.experimental.callback import Callback as _Callback
 except ImportError:  # pragma: no cover - hydra-core is a dependency
-    _Callback = object
+    _Callback = object  # type: ignore[misc,assignment]  # a plain base when hydra is absent
 
 MAX_PARAM_LENGTH = 500
 """Longest parameter value logged as such (MLflow allows 6,000; longer lists belong to config.yaml)."""

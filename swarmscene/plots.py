@@ -187,7 +187,7 @@ def load_run(run_dir: Path) -> RunData:
     run = RunDir(run_dir)
     config = run.config()
     _check_sections(run.path / CONFIG, config)
-    arrays = run.trajectory()
+    arrays: dict[str, Any] = run.trajectory()  # t, pos, vel, healthy (and quat): RunData's fields
     quat = arrays.pop("quat", None)
     manifest = run.manifest() if run.has(MANIFEST) else {}
     metrics = run.metrics() if run.has(METRICS) else {}
@@ -335,7 +335,7 @@ def trajectory_figure(run: RunData) -> Any:
         ax.scatter(where[:, 0], where[:, 1], s=80, marker="x", color=FAILED_COLOR, linewidths=2,
                    label=f"failed ({len(fails)})", zorder=5, gid="failed")
         for agent, t, p in fails:
-            ax.annotate(f"{agent} @ {t:.1f} s", p[:2], textcoords="offset points", xytext=(5, 5), fontsize=8)
+            ax.annotate(f"{agent} @ {t:.1f} s", tuple(p[:2]), textcoords="offset points", xytext=(5, 5), fontsize=8)
     ax.set_xlabel("x (m, east)")
     ax.set_ylabel("y (m, north)")
     ax.set_aspect("equal", adjustable="datalim")
@@ -512,7 +512,9 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
         return dots, crosses, trails, edge_lines, title
 
     draw(keys[-1])
-    fig.get_layout_engine().execute(fig)  # lay out once (widest title), then keep it for every frame
+    engine = fig.get_layout_engine()  # the figure's "constrained" one
+    assert engine is not None
+    engine.execute(fig)  # lay out once (widest title), then keep it for every frame
     fig.set_layout_engine("none")
     anim = animation.FuncAnimation(fig, draw, frames=keys, blit=False)
     use_mp4 = animation.writers.is_available("ffmpeg")

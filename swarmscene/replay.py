@@ -248,7 +248,7 @@ def log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
     healthy = run.healthy[frames]
     palette = agent_colors(n)
     colors = np.broadcast_to(palette, (f, n, 3)).reshape(-1, 3)
-    labelled = {}
+    labelled: dict[str, Any] = {}
     if n <= MAX_LABELLED:  # a label per agent per frame: affordable for small swarms only
         names = np.array([str(i) for i in range(n)], dtype=object)
         labels = np.where(healthy, names, np.char.add(names.astype(str), " failed").astype(object)).reshape(-1)
@@ -398,7 +398,7 @@ def read_recordings(paths: list[Path], index: str | None = TIMELINE,
     with rr.server.Server(datasets={"replay": [str(p) for p in paths]}) as server:
         dataset = server.client().get_dataset("replay")
         ids = sorted(dataset.segment_ids())
-        frame = dataset.filter_contents(contents).reader(index=index).to_pandas() if ids else None
+        frame: Any = dataset.filter_contents(contents).reader(index=index).to_pandas() if ids else None
     out = {}
     for rid in ids:
         rows = frame[frame["rerun_segment_id"] == rid]

@@ -137,7 +137,7 @@ def _has_alias(root: Any) -> bool:
     return False
 
 
-_KIND_WORDS = {dict: "a mapping", list: "a list", str: "a string"}
+_KIND_WORDS: dict[type, str] = {dict: "a mapping", list: "a list", str: "a string"}
 
 
 def _expect(path: Path | str, value: Any, kind: type | tuple[type, ...]) -> None:

@@ -96,7 +96,7 @@ def installed_registry() -> Any:
     return plugins()[1]
 
 
-def check_params(cls: type, options: dict[str, Any] | None = None,
+def check_params(cls: type[Any], options: dict[str, Any] | None = None,
                  refused: dict[str, dict[str, Any]] | None = None) -> PluginParams:
     """``name`` and ``Params`` as the engine needs them; returns the validated options.
 
@@ -119,7 +119,7 @@ def check_params(cls: type, options: dict[str, Any] | None = None,
     return params
 
 
-def _assert_refused(cls: type, key: str, options: dict[str, Any]) -> None:
+def _assert_refused(cls: type[Any], key: str, options: dict[str, Any]) -> None:
     kind = next((k for k, base in PLUGIN_KINDS.items() if issubclass(cls, base)), "plugin")
     try:
         cls.Params.model_validate(options, context={"registry": installed_registry()})
@@ -369,11 +369,11 @@ def _class_state(cls: type) -> dict[str, Any]:
     return state
 
 
-def _assert_class_untouched(cls: type, before: dict[str, Any]) -> None:
+def _assert_class_untouched(cls: type[Any], before: dict[str, Any]) -> None:
     """Instances keep their state to themselves: running them changed no class attribute."""
     after = _class_state(cls)
     for attr, value in before.items():
-        new = after.get(attr)
+        new: Any = after.get(attr)  # None where the attribute is gone: then not equal
         same = (np.array_equal(value, new) if isinstance(value, np.ndarray) or isinstance(new, np.ndarray)
                 else _equal(value, new))
         assert same, (f"{cls.name}: running an instance changed the class attribute {attr}: two instances "

@@ -47,6 +47,8 @@ class CommDelay(Disturbance):
         jitter: float = Field(
             0.1, ge=0.0, le=MAX_DELAY, description="random: mean of the exponential extra delay, s")
 
+    params: Params
+
     def __init__(self, params: CommDelay.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.T_s = ctx.guidance_period
@@ -130,6 +132,8 @@ class PacketLoss(Disturbance):
         range_start: float = Field(
             0.5, ge=0.0, le=1.0, description="range: fraction of comm.range up to which the loss is p")
 
+    params: Params
+
     def __init__(self, params: PacketLoss.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.comm_range = ctx.comm_range
@@ -144,6 +148,7 @@ class PacketLoss(Disturbance):
         if p.model == "bernoulli":
             return self.rng.random(n) < p.p
         if p.model == "gilbert_elliott":
+            assert self.chains is not None  # built for this model in __init__
             return self.chains.step()
         d = sensing.nearest[0] if n > 1 else np.full(n, np.inf)
         prob = numerics.range_loss_probability(d, p.p, p.range_start * self.comm_range, self.comm_range)
@@ -221,8 +226,8 @@ class ChannelModels:
         for model in self.delays:
             delay = delay + model.delays(world, sensing)
         lost = np.zeros(n, dtype=bool)
-        for model in self.losses:
-            lost |= model.lost(world, sensing)
+        for loss in self.losses:
+            lost |= loss.lost(world, sensing)
         if self.channel is None:
             depth = sum(m.max_ticks for m in self.delays)
             self.channel = Channel(pos, vel, depth)

@@ -8,7 +8,7 @@ phase"). Numerics and sources: :mod:`swarmscene.core.disturbances.atmosphere`.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -49,6 +49,8 @@ class ConstantWind(Disturbance):
         speed: float = Field(5.0, ge=0.0, le=MAX_WIND, description="wind speed, m/s")
         vertical: float = Field(0.0, ge=-MAX_WIND, le=MAX_WIND, description="vertical component, m/s (up +)")
 
+    params: Params
+
     def __init__(self, params: ConstantWind.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.velocity = params.speed * _direction(params.heading)
@@ -79,6 +81,8 @@ class Gust(Disturbance):
             None, ge=0.0, le=MAX_DURATION,
             description="time at the peak before the mirror-image decay, s (null: stays, the "
             "MIL-F-8785C form; 0: the 1-cosine pulse)")
+
+    params: Params
 
     def __init__(self, params: Gust.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
@@ -114,6 +118,8 @@ class Dryden(Disturbance):
             description="shared: one realisation at the swarm's mean altitude for every agent (the "
             "field is correlated over tens of metres); independent: one per agent")
 
+    params: Params
+
     def __init__(self, params: Dryden.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.axes = numerics.wind_axes(math.radians(params.heading))
@@ -121,7 +127,7 @@ class Dryden(Disturbance):
         self.dt = ctx.physics_step
         self.per_tick = max(1, round(ctx.guidance_period / ctx.physics_step))
         self.steps = 0
-        self.conditions: tuple | None = None
+        self.conditions: tuple[Any, ...] = ()  # (L, sigma, V, mean): set at the first physics step
 
     def _conditions(self, world: WorldState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(h, L, sigma, V) per realisation; the mean wind (M, 3) at those altitudes."""

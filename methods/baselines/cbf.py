@@ -148,11 +148,11 @@ def influence_range(safe_distance: float, gamma: float, power: int, v_max: float
     kappa(d^2 - D^2) / 2; the smallest such d (bisection on the monotone condition).
     """
     lo, hi = safe_distance, safe_distance + 1.0
-    while 4.0 * hi * v_max > gamma * class_k(np.float64(hi * hi - safe_distance**2), power):
+    while 4.0 * hi * v_max > gamma * class_k(np.asarray(hi * hi - safe_distance**2), power):
         hi *= 2.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if 4.0 * mid * v_max > gamma * class_k(np.float64(mid * mid - safe_distance**2), power):
+        if 4.0 * mid * v_max > gamma * class_k(np.asarray(mid * mid - safe_distance**2), power):
             lo = mid
         else:
             hi = mid

@@ -367,6 +367,7 @@ class ThesisController:
             u = sat(u_inf, self.u_sat)
             self.velocity.integrate(v, v_ref, u_inf, u)
             return u
+        law: _IntegralLaw  # the position or the tracker law: both integrate alike
         if family == _POSITION:
             law, u_inf = self.position, self.position.unbounded(r, v, r_ref)
         else:

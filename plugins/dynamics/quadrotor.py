@@ -92,6 +92,8 @@ class Quadrotor(Dynamics):
                     f"(got {self.attitude_omega} * {self.max_step})")
             return self
 
+    params: Params
+
     def __init__(self, params: Quadrotor.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         # numba is imported here, not at module level: listing plugins must not pay for it
@@ -176,6 +178,8 @@ class Quadrotor(Dynamics):
 
     def wind_acceleration(self, world: WorldState) -> np.ndarray:
         """The wind's force per mass a = R D R^T w (N, 3) world (``step`` integrates it itself)."""
+        # initialize() set the attitude; the kernel asks for this only when a wind model is declared
+        assert world.quat is not None and world.wind is not None
         R = quat_to_rotmat(world.quat)
         f_body = np.einsum("nji,nj->ni", R, world.wind) * self._drag
         return np.einsum("nij,nj->ni", R, f_body)
