@@ -80,6 +80,7 @@ class Draw(StrictModel):
 
     @property
     def kind(self) -> str:
+        """The one distribution key given (``uniform``, ``normal``, ...)."""
         return self.kinds()[0]
 
     def support(self) -> tuple[float, float]:

@@ -130,6 +130,7 @@ class Environment:
 
     @property
     def empty(self) -> bool:
+        """True when the map holds no obstacle (every query then answers without shapely)."""
         return not self.obstacles
 
     def near_pairs(self, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:

@@ -295,6 +295,7 @@ class Hover(EventKindPlugin):
 
     @classmethod
     def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
+        """Hover: the agent fails and stops where it is (velocity zero, held by the queue)."""
         super().apply(event, world, idx)
         world.vel[idx] = 0.0
 
@@ -324,6 +325,7 @@ class Drift(EventKindPlugin):
 
     @classmethod
     def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
+        """Drift: the agent fails and coasts at the event's ``velocity`` from now on."""
         super().apply(event, world, idx)
         world.vel[idx] = event.velocity
 

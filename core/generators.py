@@ -151,6 +151,8 @@ def snap(value: Any) -> Any:
 
 
 def snapped_box(x0: float, y0: float, x1: float, y1: float) -> Polygon:
+    """The rectangle [x0, x1] x [y0, y1], its corners rounded by :func:`snap` like every generated
+    coordinate, so that boxes built from the same numbers share exact edges."""
     return box(*snap([x0, y0, x1, y1]))
 
 
@@ -351,6 +353,7 @@ class Corridor(MapGenerator):
 
     @classmethod
     def build(cls, params: Any) -> list[Polygon]:
+        """The corridor's wall polygons (:func:`corridor`)."""
         return corridor(params)
 
 
@@ -362,6 +365,7 @@ class Building(MapGenerator):
 
     @classmethod
     def build(cls, params: Any) -> list[Polygon]:
+        """The building's wall polygons (:func:`building`)."""
         return building(params)
 
 
@@ -373,6 +377,7 @@ class ObstacleField(MapGenerator):
 
     @classmethod
     def build(cls, params: Any) -> list[Polygon]:
+        """The field's round obstacles (:func:`obstacle_field`), drawn from its ``seed``."""
         return obstacle_field(params)
 
 

@@ -244,9 +244,11 @@ class SwarmParallelEnv(ParallelEnv):
         self._active = np.zeros(self.driver.n, dtype=bool)
 
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
+        """Every agent's observation space (all agents share one)."""
         return self._observation_space
 
     def action_space(self, agent: str) -> gymnasium.spaces.Box:
+        """Every agent's action space (all agents share one)."""
         return self._action_space
 
     @property
@@ -255,6 +257,7 @@ class SwarmParallelEnv(ParallelEnv):
         return self.driver.episode.sim
 
     def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode from ``seed``; the observations and (empty) infos of the healthy agents."""
         episode = self.driver.reset(seed)
         self._active = episode.sim.world.healthy.copy()
         self.agents = [a for a, alive in zip(self.possible_agents, self._active) if alive]
@@ -263,6 +266,8 @@ class SwarmParallelEnv(ParallelEnv):
         return {a: obs[self._index[a]] for a in self.agents}, {a: {} for a in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]):
+        """One guidance tick with each live agent's action; observations, rewards, terminations,
+        truncations and infos by agent (an agent that fails is done)."""
         episode = self.driver.episode
         if episode is None or not self.agents:
             raise RuntimeError("step() called before reset() or after every agent is done")
@@ -303,6 +308,7 @@ class SwarmParallelEnv(ParallelEnv):
         return self.renderer.render(self.driver)
 
     def close(self) -> None:
+        """Close the window, if any, and drop the episode."""
         self.renderer.close()
         self.driver.episode = None
 
@@ -328,15 +334,19 @@ class SwarmGymEnv(gymnasium.Env):
 
     @property
     def sim(self):
+        """The current episode's :class:`~swarmscene.core.simulation.Simulation` (read it, e.g. ``sim.world``)."""
         return self.driver.episode.sim
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode from ``seed``; the swarm's observation and an empty info."""
         super().reset(seed=seed)
         episode = self.driver.reset(seed)
         self.renderer.after_step(self.driver)
         return episode.observe(), {}
 
     def step(self, action: np.ndarray):
+        """One guidance tick with the whole swarm's action; observation, summed reward, terminated,
+        truncated and info."""
         episode = self.driver.episode
         if episode is None:
             raise RuntimeError("step() called before reset()")
@@ -355,6 +365,7 @@ class SwarmGymEnv(gymnasium.Env):
         return self.renderer.render(self.driver)
 
     def close(self) -> None:
+        """Close the window, if any."""
         self.renderer.close()
 
 

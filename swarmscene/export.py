@@ -131,6 +131,7 @@ class Poly4D:
 
     @property
     def pieces(self) -> int:
+        """Number of polynomial pieces."""
         return len(self.durations)
 
     @property
@@ -140,6 +141,7 @@ class Poly4D:
 
     @property
     def duration(self) -> float:
+        """Total duration of the pieces, s."""
         return float(np.sum(self.durations))
 
     def as_float32(self) -> Poly4D:
@@ -331,6 +333,7 @@ class ShowExport:
     segments: Segments | None = None
 
     def summary(self) -> dict[str, Any]:
+        """What the export records of itself: format, source, time scale, placement, memory limits, checks."""
         return {
             "format": "poly4d (Crazyflie high-level commander; Crazyswarm2 trajectory CSV)",
             "source": self.source, "time_scale": self.time_scale, "controller": self.controller,
@@ -400,6 +403,7 @@ class Placement:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def apply(self, samples: np.ndarray) -> np.ndarray:
+        """The samples placed: positions scaled about the origin and shifted by ``offset`` (yaw unchanged)."""
         placed = np.array(samples, float)
         placed[..., :3] = self.scale * placed[..., :3] + np.asarray(self.offset)
         return placed
@@ -470,6 +474,7 @@ class Segments:
 
     @property
     def pieces(self) -> int:
+        """Pieces it adds to a trajectory: one each for the take-off and the landing given."""
         return (self.takeoff is not None) + (self.land is not None)
 
     def _rest_below(self, state: np.ndarray) -> np.ndarray:

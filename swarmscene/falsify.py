@@ -286,6 +286,7 @@ class WorstCase(_Callback):
             raise SystemExit(2)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        """After the search: write the worst trial (``worst_case.yaml``, ``.json``) and print its verdict."""
         sweep_dir = Path(config.hydra.sweep.dir)
         sampler = str(config.hydra.sweeper.sampler.get("_target_", "")).rpartition(".")[2]
         record = write_worst_case(sweep_dir, sampler)

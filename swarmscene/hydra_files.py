@@ -60,6 +60,7 @@ def protect_hydra_writes() -> None:
 
 
 def register_dir_name_resolver() -> None:
+    """Make the ``dir_name`` resolver known to OmegaConf (once: registering twice is an error)."""
     from omegaconf import OmegaConf
 
     if not OmegaConf.has_resolver(RESOLVER):

@@ -98,6 +98,7 @@ class MlflowLogger(_Callback):
         self.artifacts = artifacts
 
     def on_job_end(self, config: Any, job_return: Any, **kwargs: Any) -> None:
+        """Log the finished job to MLflow; a tracking failure is reported and never fails the job."""
         run_dir = Path(config.hydra.runtime.output_dir)
         try:
             self.log_job(run_dir, list(job_return.overrides or []), str(config.hydra.job.get("num", "0")))

@@ -114,27 +114,33 @@ class RunData:
 
     @property
     def n(self) -> int:
+        """Number of agents, N."""
         return self.pos.shape[1]
 
     @property
     def name(self) -> str:
+        """The scenario's name (``run`` when the config gives none)."""
         return str(self.config.get("name", "run"))
 
     @property
     def seed(self) -> int | None:
+        """The run's seed, or None when the config gives none."""
         seed = self.config.get("seed")
         return None if seed is None else int(seed)
 
     @property
     def min_separation_limit(self) -> float:
+        """The safety section's separation limit, m (the line drawn on the separation plot)."""
         return safety_limit(self.config, "separation_limit")
 
     @property
     def min_clearance_limit(self) -> float:
+        """The safety section's clearance limit, m (the line drawn on the clearance plot)."""
         return safety_limit(self.config, "clearance_limit")
 
     @property
     def comm_range(self) -> float:
+        """The communication range, m (inf when the config gives none)."""
         return float(self.config.get("comm", {}).get("range", np.inf))
 
     def speed_limits(self) -> dict[str, float]:

@@ -225,15 +225,19 @@ class RunDir:
             raise RunFileError(self.path, "not a run directory (missing, or not a directory)")
 
     def metrics(self) -> dict[str, Any]:
+        """``metrics.json``, checked to be a JSON object."""
         return read_json(self.path / METRICS)
 
     def manifest(self) -> dict[str, Any]:
+        """``manifest.json``, checked to be a JSON object."""
         return read_json(self.path / MANIFEST)
 
     def error(self) -> dict[str, Any]:
+        """``error.json`` (a failed run's), checked to be a JSON object."""
         return read_json(self.path / ERROR)
 
     def config(self) -> dict[str, Any]:
+        """``config.yaml``, the resolved scenario, checked to be a mapping."""
         return read_yaml(self.path / CONFIG)
 
     def overrides(self) -> list[str]:
@@ -242,12 +246,14 @@ class RunDir:
         return [str(v) for v in values]
 
     def trajectory(self) -> dict[str, np.ndarray]:
+        """The trajectory's arrays by name, read and checked (missing when ``output.trajectory`` was false)."""
         path = self.path / TRAJECTORY
         if not path.exists() and not path.is_symlink():
             raise RunFileError(path, "missing (was the run made with output.trajectory=false?)")
         return read_trajectory(path)
 
     def check_trajectory(self) -> None:
+        """Check the trajectory file's columns and shapes without keeping its arrays."""
         check_trajectory(self.path / TRAJECTORY)
 
     def has(self, name: str) -> bool:

@@ -101,4 +101,5 @@ class Disturbance:
         self.rng = ctx.rng
 
     def metrics(self) -> dict[str, Any]:
+        """The model's own metrics, keys without prefix (none by default)."""
         return {}

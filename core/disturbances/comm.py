@@ -192,6 +192,8 @@ class Channel:
         self.sent = self.lost = self.age_sum = 0
 
     def send(self, pos: np.ndarray, vel: np.ndarray, delay: np.ndarray, lost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Send this tick's states with their ``delay`` (ticks) and ``lost`` flags; the picture each
+        agent's message gives the others now, (pos, vel): the newest message of it that has arrived."""
         k, slot = self.k, self.k % self.depth
         n = pos.shape[0]
         self.sent_pos[slot], self.sent_vel[slot] = pos, vel
@@ -221,6 +223,8 @@ class ChannelModels:
         self.channel: Channel | None = None
 
     def communicate(self, world: WorldState, sensing: Any, pos: np.ndarray, vel: np.ndarray):
+        """The communicate phase: delays of every delay model add, a message lost by any loss model
+        is lost; returns what the swarm sees of each agent, (pos, vel)."""
         n = world.n
         delay = np.zeros(n, dtype=np.int64)
         for model in self.delays:
@@ -234,6 +238,8 @@ class ChannelModels:
         return self.channel.send(pos, vel, delay, lost)
 
     def metrics(self) -> dict[str, Any]:
+        """Fraction of messages lost and mean age of the picture, in ticks, over the run (none before
+        a message is sent)."""
         c = self.channel
         if c is None or not c.sent:
             return {}

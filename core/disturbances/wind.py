@@ -57,6 +57,7 @@ class ConstantWind(Disturbance):
         self.velocity[2] = params.vertical
 
     def air(self, world: WorldState, t: float) -> np.ndarray:
+        """The same constant wind at every agent, (N, 3) m/s (a read-only broadcast: no copy per step)."""
         return np.broadcast_to(self.velocity, world.pos.shape)
 
 
@@ -89,6 +90,7 @@ class Gust(Disturbance):
         self.peak = params.amplitude * _direction(params.heading, params.elevation)
 
     def air(self, world: WorldState, t: float) -> np.ndarray:
+        """v(t) = V_m s(t) along the gust's direction at every agent, (N, 3) m/s."""
         p = self.params
         shape = float(numerics.one_minus_cosine(t, p.start, p.rise, p.hold))
         return np.broadcast_to(shape * self.peak, world.pos.shape)

@@ -292,10 +292,12 @@ class VRBTrajectory:
 
     @property
     def t_start(self) -> float:
+        """Time of the first key frame, s."""
         return float(self.keyframes.t[0])
 
     @property
     def t_end(self) -> float:
+        """Time of the last key frame, s (the trajectory holds its end after it)."""
         return float(self.keyframes.t[-1])
 
     def channels(self, t: np.ndarray | float) -> np.ndarray:

@@ -345,6 +345,7 @@ class Transformation:
 
     @property
     def duration(self) -> float:
+        """t_end - t_start: the transformation's length, s."""
         return self.t_end - self.t_start
 
     def local(self, t: np.ndarray) -> np.ndarray:
@@ -441,6 +442,7 @@ class FormationFlight:
 
     @property
     def bounds(self) -> np.ndarray:
+        """(2M,) s: the phases' bounds, formations and transformations alternating (Definition 4)."""
         return self.sequence.phase_bounds()
 
     @property

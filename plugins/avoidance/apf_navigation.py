@@ -67,9 +67,12 @@ class ApfNavigation(Avoidance):
 
     @property
     def engage_distance(self) -> float:
+        """Distance at which the navigation function takes over, m: ``engage_distance``, else d_c."""
         return self.params.d_c if self.params.engage_distance is None else self.params.engage_distance
 
     def adjust(self, world: WorldState, sensing, sp: Setpoints) -> Setpoints:
+        """Within the engage distance, the APF navigation command replaces the formation's velocity
+        (healthy agents, the leader only with ``include_leader``); others keep their setpoints."""
         p = self.params
         cmd = apf_navigation(world.pos, sp.pos, p.d_c, p.v_sat, p.eps_r, tree=sensing.tree,
                              level_offset=p.level_offset)
@@ -105,4 +108,5 @@ class ApfNavigation(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`ApfNavigation` to the registry, so that ``avoidance=apf_navigation`` chooses it."""
     register(ApfNavigation)

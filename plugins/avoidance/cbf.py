@@ -107,6 +107,8 @@ class BarrierCertificates(Avoidance):
         self.max_used = 0
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        """The velocity nearest the nominal one that keeps every pairwise barrier h_ij >= 0 (a QP per
+        agent over its neighbours); agents found stopped are turned out of a deadlock."""
         p = self.params
         u_nom = preferred_velocity(sp, world.pos, p.gain, p.v_max)
         index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
@@ -135,4 +137,5 @@ class BarrierCertificates(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`BarrierCertificates` to the registry, so that ``avoidance=cbf`` chooses it."""
     register(BarrierCertificates)

@@ -108,6 +108,8 @@ class Potential(Avoidance):
         return v
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        """Add the repulsive velocity v_rep to the setpoints' velocity, and shift their positions by
+        ``lookahead`` v_rep so the position loop does not pull the agent back (failed agents get none)."""
         repulsion = self._repulsion(world, sensing)
         if repulsion is not None and not every(world.healthy):
             repulsion[~world.healthy] = 0.0
@@ -127,4 +129,5 @@ class Potential(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`Potential` to the registry, so that ``avoidance=potential`` chooses it."""
     register(Potential)

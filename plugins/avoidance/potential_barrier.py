@@ -73,6 +73,8 @@ class PotentialBarrier(Avoidance):
         return avoidance_terms(shared_snapshot(sensing, self.gains), self.gains)
 
     def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
+        """The thesis' saturated sum of the formation command and the barrier terms: VELOCITY rows in
+        one compiled call, the others shifted by the same terms."""
         T = self.gains.T_s
         w = self.terms(sensing)
         out = sp.copy()
@@ -92,4 +94,5 @@ class PotentialBarrier(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`PotentialBarrier` to the registry, so that ``avoidance=potential_barrier`` chooses it."""
     register(PotentialBarrier)

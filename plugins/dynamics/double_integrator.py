@@ -103,6 +103,7 @@ class DoubleIntegrator(Dynamics):
         self.K_lim = min(params.K_lim, 1.0 / T_s)
 
     def initialize(self, world: WorldState) -> None:
+        """Build the thesis controller for N agents and expose its input u as ``world.acc``."""
         p = self.params
         self.controller = ThesisController(world.n, self.velocity, self.position, self.tracker,
                                            p.u_sat, self.K_lim, p.eps_lim)
@@ -112,6 +113,8 @@ class DoubleIntegrator(Dynamics):
         self._move = np.empty_like(self.u)  # step()'s work array
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
+        """u from the thesis' three laws (velocity PI, position PID, tracker), by setpoint mode;
+        failed agents are switched to HOLD."""
         healthy = world.healthy
         if every(healthy):  # nobody to switch to HOLD (the selections below would copy sp as is)
             mode, r_ref = sp.mode, sp.pos
@@ -128,6 +131,7 @@ class DoubleIntegrator(Dynamics):
         self._held_dt = None
 
     def step(self, world: WorldState, dt: float) -> None:
+        """r += T v + T^2/2 u, v += T u (exact for u held over the step)."""
         # r += T v + T^2/2 u, v += T u. u is held over the tick's sub-steps, so its two terms are
         # computed once per tick and dt (the same products, in the same order: the same bits).
         if self._held_dt != dt:
@@ -140,4 +144,5 @@ class DoubleIntegrator(Dynamics):
 
 @hookimpl
 def swarmscene_register_dynamics(register) -> None:
+    """Add :class:`DoubleIntegrator` to the registry, so that ``dynamics=double_integrator`` chooses it."""
     register(DoubleIntegrator)

@@ -116,6 +116,7 @@ class Quadrotor(Dynamics):
 
     # -- lifecycle ---------------------------------------------------------------------------
     def initialize(self, world: WorldState) -> None:
+        """Attitude level and yawed to 0, at rest, every rotor at hover speed; all rotors healthy."""
         n = world.n
         world.quat = yaw_to_quat(np.zeros(n))
         world.omega = np.zeros((n, 3))
@@ -196,4 +197,5 @@ def _floats(a) -> np.ndarray:
 
 @hookimpl
 def swarmscene_register_dynamics(register) -> None:
+    """Add :class:`Quadrotor` to the registry, so that ``dynamics=quadrotor`` chooses it."""
     register(Quadrotor)

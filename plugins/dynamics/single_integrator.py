@@ -44,9 +44,11 @@ class SingleIntegrator(Dynamics):
     params: Params
 
     def initialize(self, world: WorldState) -> None:
+        """The velocity command u, zero until the first guidance tick."""
         self.u = np.zeros_like(world.pos)
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
+        """u = v̄ + k (r̄ - r); VELOCITY setpoints take v̄ alone, HOLD ones k (r̄ - r) alone."""
         p = self.params
         correction = p.gain * (sp.pos - world.pos)
         u = sp.vel + correction
@@ -58,10 +60,12 @@ class SingleIntegrator(Dynamics):
         self.u = clip_norm(u, p.u_max)
 
     def step(self, world: WorldState, dt: float) -> None:
+        """r += u T, v = u: the velocity command is flown exactly."""
         world.pos += self.u * dt
         world.vel[:] = self.u
 
 
 @hookimpl
 def swarmscene_register_dynamics(register) -> None:
+    """Add :class:`SingleIntegrator` to the registry, so that ``dynamics=single_integrator`` chooses it."""
     register(SingleIntegrator)

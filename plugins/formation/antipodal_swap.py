@@ -54,6 +54,8 @@ class AntipodalSwap(Formation):
         self.goal = 2.0 * self.center - start
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """Healthy agents fly at their goal (the antipode of their start) at the capped speed;
+        failed ones hold."""
         p = self.params
         sp = Setpoints.hold(world.pos)
         healthy = world.healthy
@@ -63,10 +65,12 @@ class AntipodalSwap(Formation):
         return sp
 
     def complete(self, world: WorldState) -> bool:
+        """True when every healthy agent is within ``arrival_tolerance`` of its goal."""
         error = np.linalg.norm(world.pos - self.goal, axis=1)
         return bool(np.all(error[world.healthy] <= self.params.arrival_tolerance))
 
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`AntipodalSwap` to the registry, so that ``formation=antipodal_swap`` chooses it."""
     register(AntipodalSwap)

@@ -130,6 +130,8 @@ class HexLattice(Formation):
         return targets
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """Each agent's lattice slot around the leader; slots reassigned after a failure and as
+        ``reassign`` says."""
         p = self.params
         failure = not np.array_equal(world.healthy, self._healthy)
         leader_waiting = self.t_start is None
@@ -164,6 +166,7 @@ class HexLattice(Formation):
         return sp
 
     def complete(self, world: WorldState) -> bool:
+        """True once the leader has reached the path's end and every agent is in its slot."""
         if not self._end_reached:
             return False
         return bool(np.all(self._in_place(world, self.slot_targets(world))))
@@ -180,4 +183,5 @@ class HexLattice(Formation):
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`HexLattice` to the registry, so that ``formation=hex_lattice`` chooses it."""
     register(HexLattice)

@@ -96,6 +96,8 @@ class StaticShape(Formation):
         return slot_of
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """The shape's slots carried along the path at time t (heading of the current leg); the
+        slots are reassigned after a failure when ``reassign_on_failure``."""
         center, velocity, leg, self._end_reached = self.path.at(world.t)
         self.heading = self._leg_heading[min(leg, len(self._leg_heading) - 1)]
         healthy_count = int(np.count_nonzero(world.healthy))
@@ -122,6 +124,8 @@ class StaticShape(Formation):
         return sp
 
     def complete(self, world: WorldState) -> bool:
+        """True once the path's end is reached and every healthy agent with a slot is within
+        ``arrival_tolerance`` of it."""
         if not self._end_reached:
             return False
         active = world.healthy & (self.slot_of >= 0)
@@ -154,4 +158,5 @@ class _Placement:
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`StaticShape` to the registry, so that ``formation=static_shape`` chooses it."""
     register(StaticShape)

@@ -193,6 +193,8 @@ class VirtualRigidBody(Formation):
         return FormationSequence(slots, seq.durations, seq.transitions, seq.t1)
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """Each robot's flat outputs (position and derivatives up to snap) at time t, as TRACK
+        setpoints; records the tracking error for the run's metrics."""
         fo = robot_flat_outputs(self.trajectory, self.flight, world.t)
         p = fo.p[:, 0]  # (5, N, 3) at this tick
         err = np.linalg.norm(world.pos - p[0], axis=1)[world.healthy]
@@ -213,10 +215,12 @@ class VirtualRigidBody(Formation):
         )
 
     def complete(self, world: WorldState) -> bool:
+        """True once the last transformation has ended."""
         return world.t >= self.end_time
 
     @hookimpl
     def swarmscene_step_end(self, sim: Any) -> None:
+        """During a transformation: the smallest inter-agent distance seen (what s_ij must bound)."""
         t = sim.world.t
         if self._windows.size and np.any((self._windows[:, 0] <= t) & (t <= self._windows[:, 1])):
             nearest, _ = sim.sensing.nearest
@@ -237,6 +241,8 @@ class VirtualRigidBody(Formation):
 
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """Metrics of the switches (jumps of the flat outputs) and of the transformations'
+        distances against the clearance s_ij."""
         jumps = switch_jumps(self.trajectory, self.flight)  # (switches, 5)
         ts = self.flight.switch_times
         scale = np.abs(robot_flat_outputs(self.trajectory, self.flight, ts).p).max(axis=(2, 3)).T
@@ -257,4 +263,5 @@ class VirtualRigidBody(Formation):
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`VirtualRigidBody` to the registry, so that ``formation=virtual_rigid_body`` chooses it."""
     register(VirtualRigidBody)

@@ -26,10 +26,13 @@ class SeekReference(Policy):
     params: Params
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The actions that fly each agent at its formation reference, gain k, pushed off neighbours
+        closer than ``radius``."""
         p = self.params
         return seek_reference_actions(self.layout, self.spec, obs, p.gain, p.repulsion, p.radius)
 
 
 @hookimpl
 def swarmscene_register_policies(register):
+    """Add :class:`SeekReference` to the registry, so that ``avoidance.policy: seek_reference`` chooses it."""
     register(SeekReference)
