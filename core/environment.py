@@ -223,7 +223,8 @@ class Environment:
         """True where the segment a[k]-b[k] stays at least ``clearance`` m from every obstacle.
 
         Args:
-            a, b: segment end points, shape (M, 2) or (M, 3).
+            a: the segments' first end points, shape (M, 2) or (M, 3).
+            b: their other end points, the same shape.
             clearance: required distance between the segment and obstacles (d_l in the thesis).
         """
         a, b = _xy(a).reshape(-1, 2), _xy(b).reshape(-1, 2)

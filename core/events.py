@@ -210,7 +210,7 @@ def check_events(events: list[EventConfig], n: int) -> list[str]:
     return errors
 
 
-class EventKind(str, Enum):
+class EventKind(str, Enum):  # noqa: UP042  # not StrEnum: str() and f-strings of a member keep "EventKind.HOVER"
     """The built-in kinds' names (a plugin's kind is its registered name, a plain string; the
     behaviour of each is its :class:`EventKindPlugin` below).
 

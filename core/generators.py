@@ -309,7 +309,7 @@ def _take_in_order(cand: np.ndarray, size: np.ndarray, gap: float, area_left: fl
 def obstacle_field(params: ObstacleFieldParams) -> list[Polygon]:
     """The field's discs as polygons (the same 16-segment quarter circles as a listed circle)."""
     centres, radii = obstacle_field_discs(params)
-    return [Point(c).buffer(r, quad_segs=16) for c, r in zip(centres, radii)]
+    return [Point(c).buffer(r, quad_segs=16) for c, r in zip(centres, radii, strict=True)]
 
 
 @functools.lru_cache(maxsize=8)

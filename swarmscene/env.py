@@ -72,8 +72,10 @@ class RewardOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     progress: float = Field(1.0, description="per metre gained toward the formation's reference position")
-    separation: float = Field(10.0, ge=0, description="penalty per tick closer than safety.separation_limit to another agent")
-    clearance: float = Field(10.0, ge=0, description="penalty per tick closer than safety.clearance_limit to an obstacle")
+    separation: float = Field(
+        10.0, ge=0, description="penalty per tick closer than safety.separation_limit to another agent")
+    clearance: float = Field(
+        10.0, ge=0, description="penalty per tick closer than safety.clearance_limit to an obstacle")
     effort: float = Field(0.0, ge=0, description="penalty per unit squared norm of the normalised action")
     complete: float = Field(0.0, description="bonus to every agent when the mission completes")
 
@@ -260,7 +262,7 @@ class SwarmParallelEnv(ParallelEnv):
         """Start an episode from ``seed``; the observations and (empty) infos of the healthy agents."""
         episode = self.driver.reset(seed)
         self._active = episode.sim.world.healthy.copy()
-        self.agents = [a for a, alive in zip(self.possible_agents, self._active) if alive]
+        self.agents = [a for a, alive in zip(self.possible_agents, self._active, strict=True) if alive]
         obs = episode.observe()
         self.renderer.after_step(self.driver)
         return {a: obs[self._index[a]] for a in self.agents}, {a: {} for a in self.agents}

@@ -31,10 +31,10 @@ formation has one.
 Fit: a degree-7 B-spline per vehicle (x, y, z, yaw share its knots, as a poly4d piece shares one
 duration) fitted by least squares to the samples, each interior knot of multiplicity 4, so every
 join is C^3 (position to jerk continuous: the commander's velocity, acceleration and the body
-rates it derives from jerk have no jumps; C^4 needs about 15 % more pieces for the same error). Knots are added where the error is largest (the worst
-piece is split in two) until the error is below ``tolerance`` (5 mm, 0.01 rad yaw by default) or the
-memory is full. The polynomials are then evaluated with float32 coefficients, as the vehicle stores
-them, to report the error.
+rates it derives from jerk have no jumps; C^4 needs about 15 % more pieces for the same error).
+Knots are added where the error is largest (the worst piece is split in two) until the error is
+below ``tolerance`` (5 mm, 0.01 rad yaw by default) or the memory is full. The polynomials are
+then evaluated with float32 coefficients, as the vehicle stores them, to report the error.
 
 Limits (:data:`CRAZYFLIE`, Crazyflie 2.x, ``platform_defaults_cf2.h`` of the firmware):
     collective thrust per unit mass |a + g e_3| <= 4 THRUST_MAX / CF_MASS = 15.5 m/s^2
@@ -308,11 +308,13 @@ def _auto_time_scale(samples: np.ndarray, t: np.ndarray, limits: Limits) -> floa
     acc = np.gradient(vel, axis=0) / dt[:, None, None]
     for scale in np.arange(1.0, 5.0001, 0.05):
         a = acc / scale**2 + np.array([0.0, 0.0, GRAVITY])
-        ok = np.linalg.norm(a, axis=-1).max() <= limits.max_collective_acc and (acc[..., 2] / scale**2).min() >= -GRAVITY
+        ok = (np.linalg.norm(a, axis=-1).max() <= limits.max_collective_acc
+              and (acc[..., 2] / scale**2).min() >= -GRAVITY)
         if limits.max_axis_speed is not None:
             ok &= np.abs(vel / scale).max() <= limits.max_axis_speed * 0.98  # margin for the fit
         if limits.max_tilt_deg is not None:
-            ok &= np.degrees(np.arccos(np.clip(a[..., 2] / np.linalg.norm(a, axis=-1), -1, 1))).max() <= limits.max_tilt_deg
+            tilt = np.degrees(np.arccos(np.clip(a[..., 2] / np.linalg.norm(a, axis=-1), -1, 1)))
+            ok &= tilt.max() <= limits.max_tilt_deg
         if ok:
             return float(round(scale, 2))
     raise ValueError(f"no time scale up to 5 brings the show within the {limits.controller} limits")
@@ -349,7 +351,7 @@ class ShowExport:
                  "duration": fit.poly.duration, "start_time": fit.poly.t0,
                  "max_position_error": fit.max_position_error, "max_yaw_error": fit.max_yaw_error,
                  "limits": checks}
-                for i, (fit, checks) in enumerate(zip(self.fits, self.checks))
+                for i, (fit, checks) in enumerate(zip(self.fits, self.checks, strict=True))
             ],
         }
 
@@ -387,7 +389,7 @@ class Box:
         """``--fit-box`` / ``--geofence`` XMIN YMIN ZMIN XMAX YMAX ZMAX: finite, each min < max."""
         numbers = _finite_numbers(option, values)
         box = cls(_xyz(numbers[:3]), _xyz(numbers[3:]))
-        for axis, lo, hi in zip("xyz", box.lo, box.hi):
+        for axis, lo, hi in zip("xyz", box.lo, box.hi, strict=True):
             if not lo < hi:
                 raise ValueError(f"{option}: {axis}min must be below {axis}max (got {lo:g} and {hi:g})")
         return box
@@ -419,7 +421,7 @@ class Placement:
         room, extent = room_hi - room_lo, hi - lo
         if np.any(room <= 0):
             raise ValueError(f"--fit-box: the box leaves no room inside its {margin * 100:g} cm margin")
-        ratios = [r / e for r, e in zip(room, extent) if e > 0]
+        ratios = [r / e for r, e in zip(room, extent, strict=True) if e > 0]
         scale = float(min([1.0, *ratios]))
         offset = 0.5 * (room_lo + room_hi) - scale * 0.5 * (lo + hi)
         offset[2] = room_lo[2] - scale * lo[2]
@@ -923,7 +925,7 @@ def main(argv: list[str] | None = None) -> None:
         origin = {"plan": "plan", "flown": "flown trajectory"}.get(show.source, show.source)
         print(f"crazyflie: {len(show.fits)} vehicles from the {origin}, time scale {show.time_scale:g}, "
               f"controller {show.controller}")
-        for i, (fit, checks) in enumerate(zip(show.fits, show.checks)):
+        for i, (fit, checks) in enumerate(zip(show.fits, show.checks, strict=True)):
             bad = [c["name"] for c in checks if not c["holds"]]
             print(f"  cf_{i}.csv: {fit.poly.pieces} pieces ({fit.poly.nbytes} of {TRAJECTORY_MEMORY_BYTES} bytes), "
                   f"max error {fit.max_position_error * 1000:.1f} mm, {fit.max_yaw_error:.4f} rad; "

@@ -242,7 +242,8 @@ def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmsc
         "failed": [t.trial for t in trials if t.status == "failed"],
         "violated": found.robustness < 0,
         "violating_trials": sum(t.robustness < 0 for t in trials),
-        "first_violating_trial": next((t.trial for t in sorted(trials, key=lambda t: t.trial) if t.robustness < 0), None),
+        "first_violating_trial": next(
+            (t.trial for t in sorted(trials, key=lambda t: t.trial) if t.robustness < 0), None),
         **{k: v for k, v in asdict(found).items() if k not in ("trial",)},
         "running_worst": running_worst(trials),
         "reproduce": reproduce,
@@ -278,8 +279,8 @@ class WorstCase(_Callback):
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
         """Refuse a budget or a search interval Optuna would reject, naming the option, before
-        the first trial. (Hydra turns a callback's exception into a warning, so the refusal is
-        the command line's: one line and exit status 2.)"""
+        the first trial (Hydra turns a callback's exception into a warning, so the refusal is
+        the command line's: one line and exit status 2)."""
         problem = study_problem(config.hydra.sweeper)
         if problem is not None:
             print(f"swarmscene: {problem}", file=sys.stderr)

@@ -103,7 +103,8 @@ class MlflowLogger(_Callback):
         try:
             self.log_job(run_dir, list(job_return.overrides or []), str(config.hydra.job.get("num", "0")))
         except Exception as exc:  # tracking must never lose the job's own outputs
-            print(f"swarmscene: could not log job {run_dir.name} to MLflow: {type(exc).__name__}: {exc}", file=sys.stderr)
+            print(f"swarmscene: could not log job {run_dir.name} to MLflow: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
 
     def log_job(self, run_dir: Path, overrides: list[str], job: str) -> str:
         """Log one run directory as an MLflow run; returns the run id."""

@@ -288,7 +288,7 @@ def bands(values: np.ndarray) -> dict[str, np.ndarray]:
     rows = ~np.all(np.isnan(finite), axis=1)
     if rows.any():
         q = np.nanpercentile(finite[rows], list(BANDS.values()), axis=1)
-        for k, row in zip(BANDS, q):
+        for k, row in zip(BANDS, q, strict=True):
             out[k][rows] = row
     return out
 

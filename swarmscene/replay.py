@@ -16,8 +16,9 @@ Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (se
                            translucent walls and roof (``world/obstacles/solid``) and outlines
     world/agents           one point per agent in its colour (``plots.agent_colors``, the colours of
                            the pictures and the animation), labelled with its index ("3 failed"
-                           once failed; up to 500 agents, drawn up to 30); radius half the separation limit, so touching spheres
-                           mean a separation violation (a quarter of that with attitude boxes)
+                           once failed; up to 500 agents, drawn up to 30); radius half the
+                           separation limit, so touching spheres mean a separation violation
+                           (a quarter of that with attitude boxes)
     world/bodies           with attitude dynamics (``quat`` in the trajectory): a flat box per
                            vehicle oriented by its attitude, in the agent's colour, red once failed
     world/body_axes        ... and its body axes x (red), y (green), z (blue, the thrust axis)

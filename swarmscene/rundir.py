@@ -182,7 +182,7 @@ def _check_shapes(path: Path, headers: dict[str, tuple[tuple[int, ...], np.dtype
     missing = [name for name in TRAJECTORY_ARRAYS if name not in headers]
     if missing:
         raise RunFileError(path, f"lacks the array(s) {', '.join(missing)}")
-    for name, (shape, dtype) in headers.items():
+    for name, (_shape, dtype) in headers.items():
         if dtype.hasobject:
             raise RunFileError(path, f"array {name!r} holds Python objects (refused: nothing is unpickled)")
     expected = dict(TRAJECTORY_ARRAYS, quat=3)

@@ -101,6 +101,8 @@ def check_params(cls: type[Any], options: dict[str, Any] | None = None,
     """``name`` and ``Params`` as the engine needs them; returns the validated options.
 
     Args:
+        cls: the plugin class (any kind with a ``name`` and a ``Params`` model).
+        options: the options to validate (the defaults when None).
         refused: option name -> options that ``Params`` must refuse with a line naming that option
             (for cross-field checks: a model validator names its key, ``ValueError("vision: ...")``).
     """

@@ -191,7 +191,8 @@ class Channel:
         self.k = 0
         self.sent = self.lost = self.age_sum = 0
 
-    def send(self, pos: np.ndarray, vel: np.ndarray, delay: np.ndarray, lost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def send(self, pos: np.ndarray, vel: np.ndarray, delay: np.ndarray,
+             lost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Send this tick's states with their ``delay`` (ticks) and ``lost`` flags; the picture each
         agent's message gives the others now, (pos, vel): the newest message of it that has arrived."""
         k, slot = self.k, self.k % self.depth

@@ -333,8 +333,13 @@ class ThesisController:
         """One controller period: return the saturated input u (N, 3), m/s^2, and advance states.
 
         Args:
-            mode: (N,) :class:`Mode` values. r, v: (N, 3) state. r_ref, v_ref, u_ref: (N, 3)
-            references r̄, v̄, ū. v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
+            mode: (N,) :class:`Mode` values.
+            r: (N, 3) positions.
+            v: (N, 3) velocities.
+            r_ref: (N, 3) reference positions r̄.
+            v_ref: (N, 3) reference velocities v̄.
+            u_ref: (N, 3) reference inputs ū.
+            v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
         """
         first = int(mode[0]) if mode.size else int(Mode.VELOCITY)
         if every(mode == first):  # one mode, so one law, for every agent (the usual case)

@@ -235,7 +235,8 @@ class VirtualRigidBody(Formation):
         measured = m.get("vrb.min_transformation_distance")
         if measured is None:
             return "n/a: no transformation flown, Problem 4's bound has nothing to check"
-        return (f"min {measured:.3g} m vs s_i + s_j = 2 formation.clearance = {m['vrb.safety_distance']:.3g} m (Problem 4), "
+        return (f"min {measured:.3g} m vs s_i + s_j = 2 formation.clearance = "
+                f"{m['vrb.safety_distance']:.3g} m (Problem 4), "
                 "nearest pairs in 3-D, every guidance tick during transformations only (formations held "
                 "between them: the separation line)")
 
