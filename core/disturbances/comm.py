@@ -193,8 +193,8 @@ class Channel:
 
     def send(self, pos: np.ndarray, vel: np.ndarray, delay: np.ndarray,
              lost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Send this tick's states with their ``delay`` (ticks) and ``lost`` flags; the picture each
-        agent's message gives the others now, (pos, vel): the newest message of it that has arrived."""
+        """Send this tick's states, each message delayed ``delay`` ticks or ``lost``; returns the
+        picture of each agent the others hold now, (pos, vel): its newest message that has arrived."""
         k, slot = self.k, self.k % self.depth
         n = pos.shape[0]
         self.sent_pos[slot], self.sent_vel[slot] = pos, vel

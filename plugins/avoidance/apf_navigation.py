@@ -67,12 +67,14 @@ class ApfNavigation(Avoidance):
 
     @property
     def engage_distance(self) -> float:
-        """Distance at which the navigation function takes over, m: ``engage_distance``, else d_c."""
+        """Distance from its reference beyond which an agent navigates by the APF, m: ``engage_distance``,
+        else d_c."""
         return self.params.d_c if self.params.engage_distance is None else self.params.engage_distance
 
     def adjust(self, world: WorldState, sensing, sp: Setpoints) -> Setpoints:
-        """Within the engage distance, the APF navigation command replaces the formation's velocity
-        (healthy agents, the leader only with ``include_leader``); others keep their setpoints."""
+        """An agent farther than the engage distance from its reference flies the APF navigation
+        command (VELOCITY, altitude held) until it arrives; the others, failed agents and (without
+        ``include_leader``) the leader keep the formation's setpoints."""
         p = self.params
         cmd = apf_navigation(world.pos, sp.pos, p.d_c, p.v_sat, p.eps_r, tree=sensing.tree,
                              level_offset=p.level_offset)

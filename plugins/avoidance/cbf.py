@@ -107,8 +107,9 @@ class BarrierCertificates(Avoidance):
         self.max_used = 0
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
-        """The velocity nearest the nominal one that keeps every pairwise barrier h_ij >= 0 (a QP per
-        agent over its neighbours); agents found stopped are turned out of a deadlock."""
+        """The planar velocity nearest the (perturbed) nominal one that keeps every certificate
+        h >= 0, against neighbours and the nearest obstacle, as VELOCITY setpoints for the healthy
+        agents; counts the ticks an agent had to fall back to the least violation."""
         p = self.params
         u_nom = preferred_velocity(sp, world.pos, p.gain, p.v_max)
         index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)

@@ -109,7 +109,7 @@ class Potential(Avoidance):
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
         """Add the repulsive velocity v_rep to the setpoints' velocity, and shift their positions by
-        ``lookahead`` v_rep so the position loop does not pull the agent back (failed agents get none)."""
+        ``lookahead`` v_rep, so that position-mode controllers turn away too (failed agents get none)."""
         repulsion = self._repulsion(world, sensing)
         if repulsion is not None and not every(world.healthy):
             repulsion[~world.healthy] = 0.0

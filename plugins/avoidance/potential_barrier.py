@@ -73,8 +73,8 @@ class PotentialBarrier(Avoidance):
         return avoidance_terms(shared_snapshot(sensing, self.gains), self.gains)
 
     def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
-        """The thesis' saturated sum of the formation command and the barrier terms: VELOCITY rows in
-        one compiled call, the others shifted by the same terms."""
+        """The thesis' saturated sum of the formation command and the barrier terms for VELOCITY rows
+        (one compiled call); other modes get the terms as feed-forward and a shifted reference."""
         T = self.gains.T_s
         w = self.terms(sensing)
         out = sp.copy()

@@ -130,8 +130,9 @@ class HexLattice(Formation):
         return targets
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
-        """Each agent's lattice slot around the leader; slots reassigned after a failure and as
-        ``reassign`` says."""
+        """TRACK setpoints: the leader holds home until the lattice has formed (or the timeout), then
+        follows the path; each follower tracks its slot with the leader's state as feed-forward.
+        Slots are reassigned after a failure and as ``reassign`` says."""
         p = self.params
         failure = not np.array_equal(world.healthy, self._healthy)
         leader_waiting = self.t_start is None

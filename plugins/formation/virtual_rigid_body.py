@@ -242,8 +242,9 @@ class VirtualRigidBody(Formation):
 
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
-        """Metrics of the switches (jumps of the flat outputs) and of the transformations'
-        distances against the clearance s_ij."""
+        """The ``vrb.`` metrics: the transformations' smallest distance against s_ij = 2 clearance
+        (Problem 4), the largest jump of the flat outputs at a switch, the tracking error, the
+        planning time."""
         jumps = switch_jumps(self.trajectory, self.flight)  # (switches, 5)
         ts = self.flight.switch_times
         scale = np.abs(robot_flat_outputs(self.trajectory, self.flight, ts).p).max(axis=(2, 3)).T

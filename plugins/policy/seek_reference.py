@@ -27,7 +27,7 @@ class SeekReference(Policy):
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """The actions that fly each agent at its formation reference, gain k, pushed off neighbours
-        closer than ``radius``."""
+        and obstacles closer than ``radius``."""
         p = self.params
         return seek_reference_actions(self.layout, self.spec, obs, p.gain, p.repulsion, p.radius)
 
