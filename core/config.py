@@ -24,15 +24,20 @@ from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, Strict
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
 from .plugin import PluginParams
 from .resources import (  # the resource checks under their old module name
-    AGENT_WORKING_BYTES, BASE_WORKING_BYTES, estimated_memory, machine_memory, memory_checks,
+    AGENT_WORKING_BYTES,
+    BASE_WORKING_BYTES,
+    estimated_memory,
+    machine_memory,
+    memory_checks,
 )
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
 
-__all__ = ["AGENT_WORKING_BYTES", "BASE_WORKING_BYTES", "CircleObstacle", "Coordinate", "EnvironmentConfig", "EventConfig", "MAX_DURATION",
-           "MAX_LENGTH", "Obstacle", "Point2", "PolygonObstacle", "Scenario", "ScenarioConfig",
-           "WallObstacle", "effective_config", "estimated_memory", "machine_memory", "memory_checks",
-           "validate"]
+# What this module binds. `validate` and `effective_config` resolve here too, but only through
+# __getattr__ at the end (.validation imports this module), so they are not listed as defined.
+__all__ = ["AGENT_WORKING_BYTES", "BASE_WORKING_BYTES", "CircleObstacle", "Coordinate", "EnvironmentConfig",
+           "EventConfig", "MAX_DURATION", "MAX_LENGTH", "Obstacle", "Point2", "PolygonObstacle", "Scenario",
+           "ScenarioConfig", "WallObstacle", "estimated_memory", "machine_memory", "memory_checks"]
 
 MAX_AGENTS = 1_000_000
 """Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
@@ -220,10 +225,10 @@ MAX_NAME_LENGTH = 100
 
 
 def name_problem(name: Any) -> str | None:
-    """Why ``name`` cannot name an output directory, or None.
+    r"""Why ``name`` cannot name an output directory, or None.
 
     The name is one path component under ``outputs/`` or ``multirun/``, so it stays inside the
-    working directory: no ``/`` or ``\\``, not ``.`` or ``..`` (nor any name starting with a dot,
+    working directory: no ``/`` or ``\``, not ``.`` or ``..`` (nor any name starting with a dot,
     which would hide the directory), no control characters, at most ``MAX_NAME_LENGTH`` characters.
     """
     if not isinstance(name, str) or not name.strip():
@@ -273,7 +278,7 @@ class ScenarioConfig(_Strict):
         return name
 
     @model_validator(mode="after")
-    def _explicit_positions_match_n(self) -> "ScenarioConfig":
+    def _explicit_positions_match_n(self) -> ScenarioConfig:
         start = self.swarm.start
         if start.kind == "explicit" and len(start.positions) != self.swarm.n:
             raise ValueError(
@@ -284,10 +289,12 @@ class ScenarioConfig(_Strict):
 
     @property
     def physics_step(self) -> float:
+        """The physics step, s: ``clock.physics_step``, or the guidance period T_s when it is null."""
         return self.clock.physics_step or self.clock.guidance_period
 
     @property
     def substeps(self) -> int:
+        """Physics steps per guidance tick, T_s / physics step (validation checks it is whole)."""
         return int(round(self.clock.guidance_period / self.physics_step))
 
 

@@ -53,7 +53,7 @@ class Draw(StrictModel):
     choice: list[float] | None = Field(None, min_length=1, description="values, equally likely")
 
     @model_validator(mode="after")
-    def _one_distribution(self) -> "Draw":
+    def _one_distribution(self) -> Draw:
         given = self.kinds()
         if len(given) != 1:
             raise ValueError(
@@ -80,6 +80,7 @@ class Draw(StrictModel):
 
     @property
     def kind(self) -> str:
+        """The one distribution key given (``uniform``, ``normal``, ...)."""
         return self.kinds()[0]
 
     def support(self) -> tuple[float, float]:
@@ -116,7 +117,7 @@ class Draw(StrictModel):
         return np.asarray(value, dtype=float)[picks]
 
 
-def parse_draw(value: Any, number: TypeAdapter) -> "float | Draw":
+def parse_draw(value: Any, number: TypeAdapter) -> float | Draw:
     """A field that is a number or a :class:`Draw`: a mapping is validated as a Draw (its errors
     name their key below the field: ``events.0.at.uniform: ...``), anything else by ``number``."""
     if isinstance(value, (dict, Draw)):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import shapely
@@ -115,7 +116,8 @@ class Environment:
         self.name = name
         self.obstacles: list[BaseGeometry] = list(obstacles)
         self._geoms = np.array(self.obstacles, dtype=object)
-        self.tree = STRtree(self._geoms) if self.obstacles else None
+        # None for an empty map: every query asks `empty` first, which mypy cannot follow.
+        self.tree: Any = STRtree(self._geoms) if self.obstacles else None
         # One prepared union answers "inside any obstacle?" in a single vectorised call.
         self.union = shapely.union_all(self._geoms) if self.obstacles else None
         if self.union is not None:
@@ -128,6 +130,7 @@ class Environment:
 
     @property
     def empty(self) -> bool:
+        """True when the map holds no obstacle (every query then answers without shapely)."""
         return not self.obstacles
 
     def near_pairs(self, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -143,7 +146,7 @@ class Environment:
         xy: np.ndarray,
         max_distance: float | None = None,
         candidates: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """Index of each point's nearest obstacle (-1 beyond ``max_distance``), the point
         geometries (``None`` from the compiled search) and their distances (``inf`` beyond
         ``max_distance``)."""
@@ -220,7 +223,8 @@ class Environment:
         """True where the segment a[k]-b[k] stays at least ``clearance`` m from every obstacle.
 
         Args:
-            a, b: segment end points, shape (M, 2) or (M, 3).
+            a: the segments' first end points, shape (M, 2) or (M, 3).
+            b: their other end points, the same shape.
             clearance: required distance between the segment and obstacles (d_l in the thesis).
         """
         a, b = _xy(a).reshape(-1, 2), _xy(b).reshape(-1, 2)

@@ -31,10 +31,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum, IntEnum
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, ClassVar, cast
 
 import numpy as np
-from pydantic import Field, PrivateAttr, TypeAdapter, ValidationError, ValidationInfo, field_validator, model_serializer, model_validator
+from pydantic import (
+    Field,
+    PrivateAttr,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
 from .fields import MAX_DURATION, Point3, StrictModel, key_error
@@ -126,7 +135,7 @@ class EventConfig(StrictModel):
             data.update({k: v for k, v in extra.items() if k not in data and k not in _KIND_FIELDS})
         return data
 
-    def _checked(self, own: dict[str, Any], context: Any) -> "EventConfig":
+    def _checked(self, own: dict[str, Any], context: Any) -> EventConfig:
         """The kind's rules: only its own fields given, the ones it needs present; its Params built.
         An unknown kind is the registry's error (``validate_choice``) when a registry validates,
         else one line here (listing the built-in kinds)."""
@@ -156,12 +165,12 @@ class EventConfig(StrictModel):
         return self
 
     @property
-    def kind_class(self) -> "type[EventKindPlugin]":
+    def kind_class(self) -> type[EventKindPlugin]:
         """The event kind's class (a registered :class:`EventKindPlugin`)."""
         return self._kind if self._kind is not None else BUILTIN_EVENT_KINDS[self.kind]
 
     @property
-    def params(self) -> "EventParams":
+    def params(self) -> EventParams:
         """The kind's validated Params (its own fields, defaults filled)."""
         return self._params
 
@@ -201,7 +210,7 @@ def check_events(events: list[EventConfig], n: int) -> list[str]:
     return errors
 
 
-class EventKind(str, Enum):
+class EventKind(str, Enum):  # noqa: UP042  # not StrEnum: str() and f-strings of a member keep "EventKind.HOVER"
     """The built-in kinds' names (a plugin's kind is its registered name, a plain string; the
     behaviour of each is its :class:`EventKindPlugin` below).
 
@@ -269,7 +278,7 @@ class EventKindPlugin:
     from where it failed: the velocity :meth:`apply` left), DYNAMICS (the dynamics model moves it)."""
 
     @classmethod
-    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
         """Change ``world`` for the agents ``idx`` (their flags, and velocities where the kind sets
         them: a COAST kind coasts at the velocity left here)."""
         if cls.failure:
@@ -285,7 +294,8 @@ class Hover(EventKindPlugin):
     motion = Motion.HOLD
 
     @classmethod
-    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
+        """Hover: the agent fails and stops where it is (velocity zero, held by the queue)."""
         super().apply(event, world, idx)
         world.vel[idx] = 0.0
 
@@ -314,7 +324,8 @@ class Drift(EventKindPlugin):
         velocity: Point3 = Field(description="its drift velocity [vx, vy, vz], m/s")
 
     @classmethod
-    def apply(cls, event: "Event", world: WorldState, idx: np.ndarray) -> None:
+    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
+        """Drift: the agent fails and coasts at the event's ``velocity`` from now on."""
         super().apply(event, world, idx)
         world.vel[idx] = event.velocity
 
@@ -403,8 +414,11 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
     kind_class, params = config.kind_class, config.params
     fraction = config.fraction
     if fraction is None and "fraction" in kind_class.Params.model_fields:
-        fraction = params.fraction if params is not None else 0.0  # motor_failure: the rotor is dead
+        # the kind's own Params have the field (checked just above); EventParams does not
+        fraction = params.fraction if params is not None else 0.0  # type: ignore[attr-defined]
     kind = EventKind(config.kind) if config.kind in EventKind._value2member_map_ else config.kind
+    # Whatever was random is drawn by now: a time in seconds, a list of indices.
+    at, agents = cast(float, at), cast(list[int], agents)
     return Event(float(at), tuple(int(a) for a in agents), kind, velocity=config.velocity,
                  rotor=config.rotor, fraction=fraction, params=params, kind_class=kind_class)
 
@@ -434,13 +448,14 @@ class EventQueue:
             raise ValueError("EventQueue: stuck and drift events need the guidance period "
                              "(build the queue with EventQueue.from_scenario)")
         self._motion: np.ndarray | None = None  # (N,) Motion, allocated at the first failure
-        self._anchor: np.ndarray | None = None  # (N, 3) m: where each vehicle failed
-        self._anchor_t: np.ndarray | None = None  # (N,) s: when
-        self._coast_vel: np.ndarray | None = None  # (N, 3) m/s: its constant velocity
+        # Sized with _motion at the first failure (empty until then: nothing reads them before).
+        self._anchor = np.zeros((0, 3))  # (N, 3) m: where each vehicle failed
+        self._anchor_t = np.zeros(0)  # (N,) s: when
+        self._coast_vel = np.zeros((0, 3))  # (N, 3) m/s: its constant velocity
 
     @classmethod
     def from_config(cls, events: list[EventConfig], n: int | None = None, seed: int = 0,
-                    guidance_period: float | None = None) -> "EventQueue":
+                    guidance_period: float | None = None) -> EventQueue:
         """The queue of a scenario's ``events`` list; random parts drawn with ``seed`` for ``n``
         agents (both needed only when an event is random)."""
         if n is None and any(e.random for e in events):
@@ -451,7 +466,7 @@ class EventQueue:
         return cls(built, guidance_period, drawn)
 
     @classmethod
-    def from_scenario(cls, config: Any) -> "EventQueue":
+    def from_scenario(cls, config: Any) -> EventQueue:
         """The queue of a validated ``ScenarioConfig``: its events, random parts drawn for its
         ``swarm.n`` agents from its ``seed``, holding at its guidance period."""
         return cls.from_config(config.events, config.swarm.n, config.seed, config.clock.guidance_period)
@@ -510,6 +525,7 @@ class EventQueue:
             world.vel[held] = 0.0
         coast = self._coasting
         if coast.size:
-            elapsed = world.t + self.guidance_period - self._anchor_t[coast]
+            T_s = cast(float, self.guidance_period)  # set whenever an event coasts (__init__ checks)
+            elapsed = world.t + T_s - self._anchor_t[coast]
             world.pos[coast] = self._anchor[coast] + self._coast_vel[coast] * elapsed[:, None]
             world.vel[coast] = self._coast_vel[coast]

@@ -89,7 +89,7 @@ class BuildingParams(StrictModel):
         return value
 
     @model_validator(mode="after")
-    def _door_fits(self) -> "BuildingParams":
+    def _door_fits(self) -> BuildingParams:
         if self.door_width >= self.room_size[0]:
             width = self.room_size[0]
             raise key_error("door_width", f"must be < the room's width {width} m", self.door_width)
@@ -150,6 +150,8 @@ def snap(value: Any) -> Any:
 
 
 def snapped_box(x0: float, y0: float, x1: float, y1: float) -> Polygon:
+    """The rectangle [x0, x1] x [y0, y1], its corners rounded by :func:`snap` like every generated
+    coordinate, so that boxes built from the same numbers share exact edges."""
     return box(*snap([x0, y0, x1, y1]))
 
 
@@ -306,7 +308,7 @@ def _take_in_order(cand: np.ndarray, size: np.ndarray, gap: float, area_left: fl
 def obstacle_field(params: ObstacleFieldParams) -> list[Polygon]:
     """The field's discs as polygons (the same 16-segment quarter circles as a listed circle)."""
     centres, radii = obstacle_field_discs(params)
-    return [Point(c).buffer(r, quad_segs=16) for c, r in zip(centres, radii)]
+    return [Point(c).buffer(r, quad_segs=16) for c, r in zip(centres, radii, strict=True)]
 
 
 class MapGenerator:
@@ -335,6 +337,7 @@ class Corridor(MapGenerator):
 
     @classmethod
     def build(cls, params: Any) -> list[Polygon]:
+        """The corridor's wall polygons (:func:`corridor`)."""
         return corridor(params)
 
 
@@ -346,6 +349,7 @@ class Building(MapGenerator):
 
     @classmethod
     def build(cls, params: Any) -> list[Polygon]:
+        """The building's wall polygons (:func:`building`)."""
         return building(params)
 
 
@@ -357,6 +361,7 @@ class ObstacleField(MapGenerator):
 
     @classmethod
     def build(cls, params: Any) -> list[Polygon]:
+        """The field's round obstacles (:func:`obstacle_field`), drawn from its ``seed``."""
         return obstacle_field(params)
 
 

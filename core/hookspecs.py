@@ -44,6 +44,7 @@ def swarmscene_register_formations(register: FormationRegister) -> None:
     """Register formation classes: call ``register(cls)`` once per class.
 
     When: once, while the plugin manager is built (before any run).
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.plugin.Formation` declaring
             ``name`` and ``Params``; a name registered twice is an error naming both sources.
@@ -55,6 +56,7 @@ def swarmscene_register_avoidances(register: AvoidanceRegister) -> None:
     """Register avoidance classes: call ``register(cls)`` once per class.
 
     When: once, while the plugin manager is built.
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.plugin.Avoidance`.
     """
@@ -65,6 +67,7 @@ def swarmscene_register_dynamics(register: DynamicsRegister) -> None:
     """Register dynamics classes: call ``register(cls)`` once per class.
 
     When: once, while the plugin manager is built.
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.plugin.Dynamics`.
     """
@@ -78,6 +81,7 @@ def swarmscene_register_observers(register: ObserverRegister) -> None:
     ``cls(sim)`` when a :class:`~swarmscene.core.simulation.Simulation` is built and the instance
     is registered with that simulation's plugin manager, so its lifecycle hooks fire for that run
     only (state never leaks between runs).
+
     Args:
         register: takes a class whose instances implement lifecycle hooks.
     """
@@ -89,6 +93,7 @@ def swarmscene_register_disturbances(register: DisturbanceRegister) -> None:
 
     When: once, while the plugin manager is built. A scenario chooses one under
     ``disturbances.<key>`` (``kind: <name>``, or the key itself).
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.disturbances.base.Disturbance`
             declaring ``name``, ``phase`` and a ``Params`` subclassing ``DisturbanceParams``.
@@ -100,6 +105,7 @@ def swarmscene_register_events(register: EventKindRegister) -> None:
     """Register event kinds: call ``register(cls)`` once per class.
 
     When: once, while the plugin manager is built. A scenario names one as an event's ``kind``.
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.events.EventKindPlugin` declaring
             ``name``, ``Params`` (subclassing ``EventParams``), ``failure`` and ``motion``.
@@ -112,6 +118,7 @@ def swarmscene_register_generators(register: GeneratorRegister) -> None:
 
     When: once, while the plugin manager is built. A scenario chooses one with
     ``environment.generator``.
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.generators.MapGenerator`
             declaring ``name``, ``Params`` and ``build``.
@@ -124,6 +131,7 @@ def swarmscene_register_policies(register: PolicyRegister) -> None:
 
     When: once, while the plugin manager is built. A scenario chooses one with
     ``avoidance.policy`` (the ``policy`` avoidance) and :mod:`swarmscene.env` with ``policy=``.
+
     Args:
         register: takes a subclass of :class:`~swarmscene.core.plugin.Policy` declaring ``name``
             and ``Params``.
@@ -131,24 +139,26 @@ def swarmscene_register_policies(register: PolicyRegister) -> None:
 
 
 @hookspec
-def swarmscene_run_start(sim: "Simulation") -> None:
+def swarmscene_run_start(sim: Simulation) -> None:
     """The run is about to take its first step.
 
     When: once per run, after every component is built and before the first tick; ``sim.world``
     holds the initial state.
+
     Args:
         sim: the simulation (world state, clock, environment, sensing, chosen plugins).
     """
 
 
 @hookspec
-def swarmscene_event(sim: "Simulation", event: "Event") -> None:
+def swarmscene_event(sim: Simulation, event: Event) -> None:
     """A scheduled event (failure, communication loss) has just been applied to the world.
 
     When: during the events phase of the guidance tick at which ``event.at`` is reached, after the
     kernel changed ``sim.world`` (e.g. ``healthy`` mask) and before sensing and formation run.
     A dynamics model may react here to what only it can apply (the quadrotor cuts the thrust of
     the rotor a ``motor_failure`` names).
+
     Args:
         sim: the simulation.
         event: the event applied (time, agents, kind).
@@ -156,18 +166,19 @@ def swarmscene_event(sim: "Simulation", event: "Event") -> None:
 
 
 @hookspec
-def swarmscene_step_end(sim: "Simulation") -> None:
+def swarmscene_step_end(sim: Simulation) -> None:
     """A guidance tick has finished: dynamics have moved the agents and sensing is rebuilt.
 
     When: once per guidance tick, after the physics sub-steps; ``sim.world.t`` is the new time and
     ``sim.sensing`` reflects the new positions (the k-d tree is shared, do not rebuild it).
+
     Args:
         sim: the simulation.
     """
 
 
 @hookspec
-def swarmscene_run_end(sim: "Simulation", metrics: dict[str, Any]) -> None:
+def swarmscene_run_end(sim: Simulation, metrics: dict[str, Any]) -> None:
     """The run is over: add entries to ``metrics``.
 
     When: once per run, after the last tick (or an early termination). Implementations add flat,
@@ -175,6 +186,7 @@ def swarmscene_run_end(sim: "Simulation", metrics: dict[str, Any]) -> None:
     (``cem.max_speed``, ``indoor.success``; the prefix defaults to the plugin's ``name``); the
     engine's own keys are unprefixed (``min_separation``) or under ``violations.``; a plugin may
     also set the engine's ``success``. Values must be JSON-serialisable.
+
     Args:
         sim: the simulation.
         metrics: the run's metrics, to be written to ``metrics.json``.

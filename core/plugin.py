@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import warnings
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
@@ -99,7 +99,7 @@ class BuildContext:
     separation_limit: float
     clearance_limit: float
     comm_range: float
-    environment: "Environment"
+    environment: Environment
     rng: np.random.Generator
     initial: WorldState
     link_delay: Callable[[np.ndarray], np.ndarray] | None = None
@@ -126,7 +126,8 @@ class Plugin(ABC):
     name: ClassVar[str]
     """Registered name, the value users write in ``formation=``, ``avoidance=``, ``dynamics=``."""
     Params: ClassVar[type[PluginParams]] = PluginParams
-    """Pydantic model of the YAML options (one docstring-described field per option)."""
+    """Pydantic model of the YAML options (one docstring-described field per option); a subclass
+    declares ``params: Params`` under its own so that ``self.params`` is typed as that model."""
     metric_prefix: ClassVar[str | None] = None
     """Prefix of the metrics the plugin adds (``<prefix>.<key>``); ``None``: its ``name``."""
 
@@ -146,7 +147,7 @@ class Formation(Plugin):
     delays from ``BuildContext.link_delay`` when one is declared."""
 
     @abstractmethod
-    def setpoints(self, world: WorldState, sensing: "Sensing") -> Setpoints:
+    def setpoints(self, world: WorldState, sensing: Sensing) -> Setpoints:
         """Return the setpoints of all N agents for this guidance tick."""
 
     def periodic_box(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -171,7 +172,7 @@ class Avoidance(Plugin):
     """Takes the formation's setpoints and returns safe ones."""
 
     @abstractmethod
-    def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
+    def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Return setpoints that keep agents apart and clear of obstacles (may return ``sp``)."""
 
 
@@ -200,6 +201,7 @@ class Dynamics(Plugin):
 
     def wind_acceleration(self, world: WorldState) -> np.ndarray:
         """The wind's acceleration on each agent, (N, 3) m/s^2: ``drag_coefficient * world.wind``."""
+        assert world.wind is not None, "wind_acceleration: the kernel calls it only under a wind model"
         return self.drag_coefficient * world.wind
 
     def initialize(self, world: WorldState) -> None:
@@ -231,7 +233,8 @@ class Policy(ABC):
     name: ClassVar[str]
     """Registered name, the value users write in ``avoidance.policy``."""
     Params: ClassVar[type[PluginParams]] = PluginParams
-    """Pydantic model of its options (``avoidance.policy_options``)."""
+    """Pydantic model of its options (``avoidance.policy_options``); ``params: Params`` under a
+    subclass's own types ``self.params`` as that model."""
 
     def __init__(self, params: PluginParams, layout: Any, spec: Any) -> None:
         self.params, self.layout, self.spec = params, layout, spec
@@ -281,7 +284,7 @@ def shared_option_conflicts(params: dict[str, PluginParams]) -> list[str]:
     Args:
         params: each chosen plugin's validated Params, by kind (``formation``, ``avoidance``, ...).
     """
-    first: dict[tuple[str, str], tuple[str, Any]] = {}
+    first: dict[tuple[Any, str], tuple[str, Any]] = {}  # (quantity, option) -> (kind, value)
     lines = []
     for kind, model in params.items():
         for field, info in type(model).model_fields.items():

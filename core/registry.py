@@ -27,7 +27,7 @@ from .disturbances.base import Disturbance, DisturbanceParams
 from .errors import PluginError
 from .events import EventKindPlugin, EventParams
 from .generators import MapGenerator
-from .plugin import Avoidance, Dynamics, Formation, Plugin, PluginParams, Policy
+from .plugin import Avoidance, Dynamics, Formation, PluginParams, Policy
 
 ENTRY_POINT_GROUP = "swarmscene"
 """Entry-point group through which third-party packages add plugin modules."""
@@ -161,6 +161,7 @@ def make_plugin_manager(
     Args:
         builtins: module names of the built-in plugins (registered like any other plugin).
         load_entry_points: also load third-party modules from the ``swarmscene`` entry points.
+
     Returns:
         The manager (owned by whoever asked: one per simulation) and the filled registry.
     """

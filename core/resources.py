@@ -32,8 +32,9 @@ def memory_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
         return []
     return [
         f"swarm.n: the run needs an estimated {need / 2**30:.3g} GiB of memory, the machine has "
-        f"{have / 2**30:.3g} GiB (got swarm.n = {config.swarm.n}, {config.clock.duration / config.clock.guidance_period:.3g}"
-        f" ticks, output.trajectory_buffer_mb = {config.output.trajectory_buffer_mb})"
+        f"{have / 2**30:.3g} GiB (got swarm.n = {config.swarm.n}, "
+        f"{config.clock.duration / config.clock.guidance_period:.3g} ticks, "
+        f"output.trajectory_buffer_mb = {config.output.trajectory_buffer_mb})"
     ]
 
 

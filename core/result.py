@@ -33,8 +33,8 @@ class RunResult:
     stop_reason: str
     complete: bool
     error: str | None = None
-    recorder: "TrajectoryRecorder | None" = None
-    monitor: "SafetyMonitor | None" = None
+    recorder: TrajectoryRecorder | None = None
+    monitor: SafetyMonitor | None = None
     observers: list[Any] = field(default_factory=list)
     run_dir: Path | None = None
 

@@ -50,12 +50,13 @@ def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: di
     return data
 
 
-def validate(data: dict[str, Any], registry: "Any") -> Scenario:
+def validate(data: dict[str, Any], registry: Any) -> Scenario:
     """Validate composed config ``data`` in one pass; raise :class:`ConfigError` listing every problem.
 
     Args:
         data: plain composed config (no ``hydra`` node).
         registry: a :class:`~swarmscene.core.registry.Registry` (plugin classes by kind and name).
+
     Returns:
         the :class:`Scenario`, with the obstacles and start positions built while checking it.
     """
@@ -90,6 +91,7 @@ def validate(data: dict[str, Any], registry: "Any") -> Scenario:
             errors += world_errors
     if errors:
         raise ConfigError(errors)
+    assert config is not None and world is not None  # without an error both were built
     obstacles, positions, rng_state = world
     return Scenario(
         config=config,
@@ -110,7 +112,9 @@ def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) 
     from .obstacles import GENERATOR_KEYS
 
     env = data.get("environment")
-    name = env.get("generator") if isinstance(env, dict) else None
+    if not isinstance(env, dict):
+        return data
+    name = env.get("generator")
     if name is None or validate_choice(registry, "generator", name, "environment.generator", errors):
         return data
     # every known generator's parameters leave with the unknown name: one line, not one per option

@@ -25,6 +25,7 @@ class WaypointPath:
 
     @property
     def length(self) -> float:
+        """Total length of the path, m (the sum of its legs)."""
         return self._length
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray, int, bool]:

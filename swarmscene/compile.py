@@ -52,6 +52,7 @@ def short(data: dict[str, Any]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``swarmscene-compile``: run the warm-up scenarios, so numba's kernels are compiled and cached."""
     parser = argparse.ArgumentParser(prog="swarmscene-compile", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
     from . import api

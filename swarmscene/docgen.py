@@ -16,8 +16,8 @@ from pathlib import Path
 from pydantic import BaseModel
 
 from .api import plugins
-from .groups import README_BEGIN, README_END, readme_groups
 from .core import config as schema
+from .groups import README_BEGIN, README_END, readme_groups
 
 
 def _default(info) -> str:
@@ -34,6 +34,7 @@ def _type(info) -> str:
 
 
 def model_table(model: type[BaseModel], prefix: str) -> list[str]:
+    """The markdown table of a model's fields: key (under ``prefix``), type, default, meaning."""
     rows = ["| key | type | default | meaning |", "|---|---|---|---|"]
     for name, info in model.model_fields.items():
         desc = (info.description or "").replace("\n", " ").replace("|", "\\|")
@@ -49,7 +50,7 @@ _Top.model_fields.update(
     {k: schema.ScenarioConfig.model_fields[k] for k in ("name", "description", "seed")}
 )
 
-SECTIONS = [
+SECTIONS: list[tuple[str, type[BaseModel]]] = [
     ("", _Top),
     ("swarm", schema.SwarmConfig),
     ("swarm.start", schema.StartConfig),
@@ -64,6 +65,7 @@ SECTIONS = [
 
 
 def render() -> str:
+    """docs/options.md: the engine's sections and every registered plugin's Params, one table each."""
     _, registry = plugins()
     lines = [
         "# Every option",
@@ -98,6 +100,7 @@ def write_groups(root: Path) -> Path:
 
 
 def main() -> None:
+    """Write docs/options.md (or the path given), or the config groups' README with ``--groups``."""
     if sys.argv[1:] == ["--groups"]:
         print(f"wrote {write_groups(Path.cwd())}")
         return

@@ -72,8 +72,10 @@ class RewardOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     progress: float = Field(1.0, description="per metre gained toward the formation's reference position")
-    separation: float = Field(10.0, ge=0, description="penalty per tick closer than safety.separation_limit to another agent")
-    clearance: float = Field(10.0, ge=0, description="penalty per tick closer than safety.clearance_limit to an obstacle")
+    separation: float = Field(
+        10.0, ge=0, description="penalty per tick closer than safety.separation_limit to another agent")
+    clearance: float = Field(
+        10.0, ge=0, description="penalty per tick closer than safety.clearance_limit to an obstacle")
     effort: float = Field(0.0, ge=0, description="penalty per unit squared norm of the normalised action")
     complete: float = Field(0.0, description="bonus to every agent when the mission completes")
 
@@ -104,7 +106,8 @@ class _Episode:
     def __init__(self, scenario: Scenario, options: EnvOptions) -> None:
         self.sim = sim = api.build(scenario)
         self.options = options
-        self.policy = sim.avoidance
+        # the policy avoidance (observe, command, reference), a plugin this module does not import
+        self.policy: Any = sim.avoidance
         self.n = sim.world.n
         self.done = False
         self.stop_reason: str | None = None
@@ -168,7 +171,7 @@ class _Driver:
             scenario = _with(scenario, output={**scenario.data.get("output", {}), "trajectory": False})
         self.scenario = scenario
         self.seeds = np.random.default_rng(scenario.config.seed)
-        params = scenario.plugin_params["avoidance"]
+        params: Any = scenario.plugin_params["avoidance"]  # the policy avoidance's Params
         self.layout_size = 19 + 7 * params.neighbours
         self.n = scenario.config.swarm.n
         self.episode: _Episode | None = None
@@ -227,7 +230,7 @@ class SwarmParallelEnv(ParallelEnv):
         options: :class:`EnvOptions` (or its dict).
     """
 
-    metadata = {"name": "swarmscene_v0", "render_modes": ["rgb_array", "human"], "render_fps": 10,
+    metadata: dict[str, Any] = {"name": "swarmscene_v0", "render_modes": ["rgb_array", "human"], "render_fps": 10,
                 "is_parallelizable": True}
 
     def __init__(self, config: Sequence[str] | dict[str, Any] = (), options: EnvOptions | dict | None = None,
@@ -243,9 +246,11 @@ class SwarmParallelEnv(ParallelEnv):
         self._active = np.zeros(self.driver.n, dtype=bool)
 
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
+        """Every agent's observation space (all agents share one)."""
         return self._observation_space
 
     def action_space(self, agent: str) -> gymnasium.spaces.Box:
+        """Every agent's action space (all agents share one)."""
         return self._action_space
 
     @property
@@ -254,14 +259,17 @@ class SwarmParallelEnv(ParallelEnv):
         return self.driver.episode.sim
 
     def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode from ``seed``; the observations and (empty) infos of the healthy agents."""
         episode = self.driver.reset(seed)
         self._active = episode.sim.world.healthy.copy()
-        self.agents = [a for a, alive in zip(self.possible_agents, self._active) if alive]
+        self.agents = [a for a, alive in zip(self.possible_agents, self._active, strict=True) if alive]
         obs = episode.observe()
         self.renderer.after_step(self.driver)
         return {a: obs[self._index[a]] for a in self.agents}, {a: {} for a in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]):
+        """One guidance tick with each live agent's action; observations, rewards, terminations,
+        truncations and infos by agent (an agent that fails is done)."""
         episode = self.driver.episode
         if episode is None or not self.agents:
             raise RuntimeError("step() called before reset() or after every agent is done")
@@ -302,6 +310,7 @@ class SwarmParallelEnv(ParallelEnv):
         return self.renderer.render(self.driver)
 
     def close(self) -> None:
+        """Close the window, if any, and drop the episode."""
         self.renderer.close()
         self.driver.episode = None
 
@@ -327,15 +336,19 @@ class SwarmGymEnv(gymnasium.Env):
 
     @property
     def sim(self):
+        """The current episode's :class:`~swarmscene.core.simulation.Simulation` (read it, e.g. ``sim.world``)."""
         return self.driver.episode.sim
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode from ``seed``; the swarm's observation and an empty info."""
         super().reset(seed=seed)
         episode = self.driver.reset(seed)
         self.renderer.after_step(self.driver)
         return episode.observe(), {}
 
     def step(self, action: np.ndarray):
+        """One guidance tick with the whole swarm's action; observation, summed reward, terminated,
+        truncated and info."""
         episode = self.driver.episode
         if episode is None:
             raise RuntimeError("step() called before reset()")
@@ -354,6 +367,7 @@ class SwarmGymEnv(gymnasium.Env):
         return self.renderer.render(self.driver)
 
     def close(self) -> None:
+        """Close the window, if any."""
         self.renderer.close()
 
 
@@ -380,14 +394,14 @@ class _Renderer:
         self.mode = render_mode
         self.window = _Window(fps) if render_mode == "human" else None
 
-    def render(self, driver: "_Driver") -> np.ndarray | None:
+    def render(self, driver: _Driver) -> np.ndarray | None:
         frame = render_frame(driver, self.mode)
         if self.window is None or frame is None:
             return frame
         self.window.show(frame)
         return None
 
-    def after_step(self, driver: "_Driver") -> None:
+    def after_step(self, driver: _Driver) -> None:
         if self.window is not None:
             self.render(driver)
 
@@ -418,7 +432,7 @@ def _non_interactive_backends() -> set[str]:
         return set(backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE))
     except ImportError:  # pragma: no cover - matplotlib 3.8
         from matplotlib import rcsetup
-        return {b.lower() for b in rcsetup.non_interactive_bk}
+        return {b.lower() for b in rcsetup.non_interactive_bk}  # type: ignore[attr-defined]  # 3.8 only
 
 
 class _Window:
@@ -428,8 +442,8 @@ class _Window:
 
     def __init__(self, fps: float) -> None:
         self.period = 1.0 / fps
-        self.figure = None
-        self.image = None
+        self.figure: Any = None  # pyplot's Figure and its image once shown (None: no window yet)
+        self.image: Any = None
         self.shown_at: float | None = None
 
     def show(self, frame: np.ndarray) -> None:
@@ -458,7 +472,7 @@ class _Window:
             self.figure = self.image = None
 
 
-def render_frame(driver: "_Driver", render_mode: str | None) -> np.ndarray | None:
+def render_frame(driver: _Driver, render_mode: str | None) -> np.ndarray | None:
     """The current top-down view as an (H, W, 3) uint8 array: the obstacles and every agent (failed
     ones as red crosses), titled with the time; None when ``render_mode`` is None or before
     ``reset``. Drawn with matplotlib (the plots extra), off screen (``human`` shows this frame)."""

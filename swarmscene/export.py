@@ -31,10 +31,10 @@ formation has one.
 Fit: a degree-7 B-spline per vehicle (x, y, z, yaw share its knots, as a poly4d piece shares one
 duration) fitted by least squares to the samples, each interior knot of multiplicity 4, so every
 join is C^3 (position to jerk continuous: the commander's velocity, acceleration and the body
-rates it derives from jerk have no jumps; C^4 needs about 15 % more pieces for the same error). Knots are added where the error is largest (the worst
-piece is split in two) until the error is below ``tolerance`` (5 mm, 0.01 rad yaw by default) or the
-memory is full. The polynomials are then evaluated with float32 coefficients, as the vehicle stores
-them, to report the error.
+rates it derives from jerk have no jumps; C^4 needs about 15 % more pieces for the same error).
+Knots are added where the error is largest (the worst piece is split in two) until the error is
+below ``tolerance`` (5 mm, 0.01 rad yaw by default) or the memory is full. The polynomials are
+then evaluated with float32 coefficients, as the vehicle stores them, to report the error.
 
 Limits (:data:`CRAZYFLIE`, Crazyflie 2.x, ``platform_defaults_cf2.h`` of the firmware):
     collective thrust per unit mass |a + g e_3| <= 4 THRUST_MAX / CF_MASS = 15.5 m/s^2
@@ -75,6 +75,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .core.outputs import atomic_write_bytes, atomic_write_json
 
@@ -130,6 +131,7 @@ class Poly4D:
 
     @property
     def pieces(self) -> int:
+        """Number of polynomial pieces."""
         return len(self.durations)
 
     @property
@@ -139,14 +141,15 @@ class Poly4D:
 
     @property
     def duration(self) -> float:
+        """Total duration of the pieces, s."""
         return float(np.sum(self.durations))
 
-    def as_float32(self) -> "Poly4D":
+    def as_float32(self) -> Poly4D:
         """The polynomials as the vehicle stores them (float32 coefficients and durations)."""
         return Poly4D(self.durations.astype(np.float32).astype(float),
                       self.coeffs.astype(np.float32).astype(float), self.t0)
 
-    def evaluate(self, t: np.ndarray, derivative: int = 0) -> np.ndarray:
+    def evaluate(self, t: ArrayLike, derivative: int = 0) -> np.ndarray:
         """(T, 4): x, y, z, yaw (or their ``derivative``-th time derivative) at times ``t``
         (simulation time; clipped to the trajectory), vectorised over times."""
         t = np.atleast_1d(np.asarray(t, float)) - self.t0
@@ -166,7 +169,7 @@ class Poly4D:
         atomic_write_bytes(Path(path), ("\n".join(lines) + "\n").encode())
 
     @classmethod
-    def from_csv(cls, path: Path, t0: float = 0.0) -> "Poly4D":
+    def from_csv(cls, path: Path, t0: float = 0.0) -> Poly4D:
         """Read a trajectory CSV as Crazyswarm2 does (skip the header, 33 columns)."""
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
         return cls(data[:, 0], data[:, 1:].reshape(-1, len(AXES), POLY_DEGREE + 1), t0)
@@ -282,7 +285,7 @@ def limit_checks(poly: Poly4D, limits: Limits, t: np.ndarray) -> list[dict[str, 
     vel = poly.evaluate(t, 1)[:, :3]
     acc = poly.evaluate(t, 2)[:, :3]
     thrust = acc + np.array([0.0, 0.0, GRAVITY])
-    checks = [
+    checks: list[dict[str, Any]] = [
         {"name": "collective thrust |a + g e3| (m/s^2)", "value": float(np.linalg.norm(thrust, axis=1).max()),
          "limit": limits.max_collective_acc},
         {"name": "downward acceleration -a_z (m/s^2)", "value": float(-acc[:, 2].min()), "limit": GRAVITY},
@@ -305,11 +308,13 @@ def _auto_time_scale(samples: np.ndarray, t: np.ndarray, limits: Limits) -> floa
     acc = np.gradient(vel, axis=0) / dt[:, None, None]
     for scale in np.arange(1.0, 5.0001, 0.05):
         a = acc / scale**2 + np.array([0.0, 0.0, GRAVITY])
-        ok = np.linalg.norm(a, axis=-1).max() <= limits.max_collective_acc and (acc[..., 2] / scale**2).min() >= -GRAVITY
+        ok = (np.linalg.norm(a, axis=-1).max() <= limits.max_collective_acc
+              and (acc[..., 2] / scale**2).min() >= -GRAVITY)
         if limits.max_axis_speed is not None:
             ok &= np.abs(vel / scale).max() <= limits.max_axis_speed * 0.98  # margin for the fit
         if limits.max_tilt_deg is not None:
-            ok &= np.degrees(np.arccos(np.clip(a[..., 2] / np.linalg.norm(a, axis=-1), -1, 1))).max() <= limits.max_tilt_deg
+            tilt = np.degrees(np.arccos(np.clip(a[..., 2] / np.linalg.norm(a, axis=-1), -1, 1)))
+            ok &= tilt.max() <= limits.max_tilt_deg
         if ok:
             return float(round(scale, 2))
     raise ValueError(f"no time scale up to 5 brings the show within the {limits.controller} limits")
@@ -324,12 +329,13 @@ class ShowExport:
     time_scale: float
     controller: str
     checks: list[list[dict[str, Any]]]
-    placement: "Placement | None" = None
-    geofence: "Box | None" = None
-    breach: "dict[str, Any] | None" = None  # the first exit from the geofence, None: inside
-    segments: "Segments | None" = None
+    placement: Placement | None = None
+    geofence: Box | None = None
+    breach: dict[str, Any] | None = None  # the first exit from the geofence, None: inside
+    segments: Segments | None = None
 
     def summary(self) -> dict[str, Any]:
+        """What the export records of itself: format, source, time scale, placement, memory limits, checks."""
         return {
             "format": "poly4d (Crazyflie high-level commander; Crazyswarm2 trajectory CSV)",
             "source": self.source, "time_scale": self.time_scale, "controller": self.controller,
@@ -345,7 +351,7 @@ class ShowExport:
                  "duration": fit.poly.duration, "start_time": fit.poly.t0,
                  "max_position_error": fit.max_position_error, "max_yaw_error": fit.max_yaw_error,
                  "limits": checks}
-                for i, (fit, checks) in enumerate(zip(self.fits, self.checks))
+                for i, (fit, checks) in enumerate(zip(self.fits, self.checks, strict=True))
             ],
         }
 
@@ -379,11 +385,11 @@ class Box:
     hi: tuple[float, float, float]
 
     @classmethod
-    def parse(cls, option: str, values: list[str]) -> "Box":
+    def parse(cls, option: str, values: list[str]) -> Box:
         """``--fit-box`` / ``--geofence`` XMIN YMIN ZMIN XMAX YMAX ZMAX: finite, each min < max."""
         numbers = _finite_numbers(option, values)
-        box = cls(tuple(numbers[:3]), tuple(numbers[3:]))
-        for axis, lo, hi in zip("xyz", box.lo, box.hi):
+        box = cls(_xyz(numbers[:3]), _xyz(numbers[3:]))
+        for axis, lo, hi in zip("xyz", box.lo, box.hi, strict=True):
             if not lo < hi:
                 raise ValueError(f"{option}: {axis}min must be below {axis}max (got {lo:g} and {hi:g})")
         return box
@@ -399,12 +405,13 @@ class Placement:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def apply(self, samples: np.ndarray) -> np.ndarray:
+        """The samples placed: positions scaled about the origin and shifted by ``offset`` (yaw unchanged)."""
         placed = np.array(samples, float)
         placed[..., :3] = self.scale * placed[..., :3] + np.asarray(self.offset)
         return placed
 
     @classmethod
-    def into(cls, samples: np.ndarray, box: Box, margin: float) -> "Placement":
+    def into(cls, samples: np.ndarray, box: Box, margin: float) -> Placement:
         """The largest uniform scale <= 1 (a show is never enlarged) that fits every position of
         ``samples`` (T, N, >=3) into ``box`` shrunk by ``margin`` on every face, and the shift that
         centres the show in x and y and puts its lowest point on the shrunk floor (a show that
@@ -414,11 +421,11 @@ class Placement:
         room, extent = room_hi - room_lo, hi - lo
         if np.any(room <= 0):
             raise ValueError(f"--fit-box: the box leaves no room inside its {margin * 100:g} cm margin")
-        ratios = [r / e for r, e in zip(room, extent) if e > 0]
+        ratios = [r / e for r, e in zip(room, extent, strict=True) if e > 0]
         scale = float(min([1.0, *ratios]))
         offset = 0.5 * (room_lo + room_hi) - scale * 0.5 * (lo + hi)
         offset[2] = room_lo[2] - scale * lo[2]
-        return cls(scale, tuple(float(v) for v in offset))
+        return cls(scale, _xyz([float(v) for v in offset]))
 
 
 FACES = ("min", "max")
@@ -469,6 +476,7 @@ class Segments:
 
     @property
     def pieces(self) -> int:
+        """Pieces it adds to a trajectory: one each for the take-off and the landing given."""
         return (self.takeoff is not None) + (self.land is not None)
 
     def _rest_below(self, state: np.ndarray) -> np.ndarray:
@@ -482,7 +490,8 @@ class Segments:
         end = poly.t0 + poly.duration
         first = np.stack([poly.evaluate([poly.t0], n)[0] for n in range(4)])  # (4 derivatives, 4 axes)
         last = np.stack([poly.evaluate([end], n)[0] for n in range(4)])
-        durations, coeffs, t0 = [poly.durations], [poly.coeffs], poly.t0
+        durations: list[ArrayLike] = [poly.durations]
+        coeffs, t0 = [poly.coeffs], poly.t0
         if self.takeoff is not None:
             durations.insert(0, [self.takeoff])
             coeffs.insert(0, hermite7(self._rest_below(first), first, self.takeoff)[None])
@@ -650,7 +659,7 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
                            controller: str = "mellinger", time_scale: float | str = 1.0,
                            tolerance: float = 0.005, kind: str = "auto", placement: Placement | None = None,
                            fit_box: Box | None = None, geofence: Box | None = None,
-                           segments: "Segments | None" = None) -> ShowExport:
+                           segments: Segments | None = None) -> ShowExport:
     """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
     ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring).
 
@@ -760,6 +769,12 @@ def _number(text: Any) -> float:
         return math.nan
 
 
+def _xyz(numbers: list[float]) -> tuple[float, float, float]:
+    """Three numbers as a point (x, y, z); argparse gave exactly three per point (nargs)."""
+    x, y, z = numbers
+    return x, y, z
+
+
 def _finite_numbers(option: str, values: list[str]) -> list[float]:
     numbers = []
     for text in values:
@@ -785,13 +800,13 @@ def _placement(args: argparse.Namespace) -> tuple[Placement | None, Box | None, 
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"--scale: must be a finite number > 0 (got {args.scale!r})")
         offset = _finite_numbers("--offset", args.offset or ["0", "0", "0"])
-        placement = Placement(scale, tuple(offset))
+        placement = Placement(scale, _xyz(offset))
     fit_box = Box.parse("--fit-box", args.fit_box) if args.fit_box is not None else None
     geofence = Box.parse("--geofence", args.geofence) if args.geofence is not None else None
     return placement, fit_box, geofence
 
 
-def _segments(args: argparse.Namespace) -> "Segments | None":
+def _segments(args: argparse.Namespace) -> Segments | None:
     """``--takeoff`` / ``--land`` SECONDS (finite, > 0) and ``--floor`` Z (finite, with one of them)."""
     seconds = {}
     for option, text in (("--takeoff", args.takeoff), ("--land", args.land)):
@@ -910,7 +925,7 @@ def main(argv: list[str] | None = None) -> None:
         origin = {"plan": "plan", "flown": "flown trajectory"}.get(show.source, show.source)
         print(f"crazyflie: {len(show.fits)} vehicles from the {origin}, time scale {show.time_scale:g}, "
               f"controller {show.controller}")
-        for i, (fit, checks) in enumerate(zip(show.fits, show.checks)):
+        for i, (fit, checks) in enumerate(zip(show.fits, show.checks, strict=True)):
             bad = [c["name"] for c in checks if not c["holds"]]
             print(f"  cf_{i}.csv: {fit.poly.pieces} pieces ({fit.poly.nbytes} of {TRAJECTORY_MEMORY_BYTES} bytes), "
                   f"max error {fit.max_position_error * 1000:.1f} mm, {fit.max_yaw_error:.4f} rad; "

@@ -37,7 +37,7 @@ from typing import Any
 try:
     from hydra.experimental.callback import Callback as _Callback
 except ImportError:  # pragma: no cover - hydra-core is a dependency
-    _Callback = object
+    _Callback = object  # type: ignore[misc,assignment]  # a plain base when hydra is absent
 
 FAILURE_TIME = "events.0.at"
 """Override key of the searched failure's time, s."""
@@ -207,7 +207,7 @@ def study_problem(sweeper: Any) -> str | None:
             low, high = value.start, value.stop
         else:
             continue
-        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+        if low is None or high is None or not (math.isfinite(low) and math.isfinite(high) and low < high):
             return f"hydra.sweeper.params.{name}: the interval must have low < high, both finite (got {text})"
         if "log" in value.tags and low <= 0:
             return f"hydra.sweeper.params.{name}: a log-scaled interval needs low > 0 (got {text})"
@@ -242,7 +242,8 @@ def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmsc
         "failed": [t.trial for t in trials if t.status == "failed"],
         "violated": found.robustness < 0,
         "violating_trials": sum(t.robustness < 0 for t in trials),
-        "first_violating_trial": next((t.trial for t in sorted(trials, key=lambda t: t.trial) if t.robustness < 0), None),
+        "first_violating_trial": next(
+            (t.trial for t in sorted(trials, key=lambda t: t.trial) if t.robustness < 0), None),
         **{k: v for k, v in asdict(found).items() if k not in ("trial",)},
         "running_worst": running_worst(trials),
         "reproduce": reproduce,
@@ -278,14 +279,15 @@ class WorstCase(_Callback):
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
         """Refuse a budget or a search interval Optuna would reject, naming the option, before
-        the first trial. (Hydra turns a callback's exception into a warning, so the refusal is
-        the command line's: one line and exit status 2.)"""
+        the first trial (Hydra turns a callback's exception into a warning, so the refusal is
+        the command line's: one line and exit status 2)."""
         problem = study_problem(config.hydra.sweeper)
         if problem is not None:
             print(f"swarmscene: {problem}", file=sys.stderr)
             raise SystemExit(2)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        """After the search: write the worst trial (``worst_case.yaml``, ``.json``) and print its verdict."""
         sweep_dir = Path(config.hydra.sweep.dir)
         sampler = str(config.hydra.sweeper.sampler.get("_target_", "")).rpartition(".")[2]
         record = write_worst_case(sweep_dir, sampler)

@@ -60,7 +60,7 @@ def hydra_error_line(exc: BaseException) -> str | None:
     return resolution_error_line(exc)
 
 
-def yaml_error_line(exc: BaseException) -> str | None:
+def yaml_error_line(exc: BaseException | None) -> str | None:
     """``file:line: cannot parse YAML: problem`` for a YAML file that does not parse, else None."""
     import yaml
 
@@ -79,7 +79,7 @@ def yaml_error_line(exc: BaseException) -> str | None:
     return f"{where}: cannot parse YAML: {problem}{tail}"
 
 
-def resolution_error_line(exc: BaseException) -> str | None:
+def resolution_error_line(exc: BaseException | None) -> str | None:
     """``key: cannot resolve ${...}: reason`` for an interpolation that does not resolve, else None."""
     from omegaconf.errors import OmegaConfBaseException
 

@@ -47,7 +47,8 @@ def _save_config(cfg: Any, filename: str, output_dir: Path) -> None:
     output_dir = Path(output_dir)
     for directory in (output_dir.parent, output_dir):
         if directory.is_symlink():
-            raise RunFileError(directory, "is a symbolic link (refused: Hydra's records are written inside the run directory)")
+            raise RunFileError(
+                directory, "is a symbolic link (refused: Hydra's records are written inside the run directory)")
     output_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(output_dir / filename, OmegaConf.to_yaml(cfg).encode("utf-8"))
 
@@ -60,6 +61,7 @@ def protect_hydra_writes() -> None:
 
 
 def register_dir_name_resolver() -> None:
+    """Make the ``dir_name`` resolver known to OmegaConf (once: registering twice is an error)."""
     from omegaconf import OmegaConf
 
     if not OmegaConf.has_resolver(RESOLVER):

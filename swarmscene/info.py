@@ -1,7 +1,7 @@
 """What is installed: ``swarmscene --version`` and ``swarmscene plugins``.
 
-    swarmscene --version     # swarmscene 0.2.0 (Hydra 1.3.2, Python 3.11.7)
-    swarmscene plugins       # every registered component: kind, name, package, version, description
+swarmscene --version     # swarmscene 0.2.0 (Hydra 1.3.2, Python 3.11.7)
+swarmscene plugins       # every registered component: kind, name, package, version, description
 """
 
 from __future__ import annotations

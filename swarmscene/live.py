@@ -82,10 +82,12 @@ class Target:
 
     @property
     def host(self) -> str:
+        """The viewer server's host name (127.0.0.1 when the URL names none)."""
         return urlsplit(self.url).hostname or "127.0.0.1"
 
     @property
     def port(self) -> int:
+        """The viewer server's port (``DEFAULT_PORT`` when the URL names none)."""
         return int(urlsplit(self.url).port or DEFAULT_PORT)
 
     @property
@@ -176,7 +178,7 @@ def _warn(value: str, why: str) -> None:
     print(f"swarmscene: warning: output.live={value}: {why}; the run goes on without a live view", file=sys.stderr)
 
 
-def attach(sim: Any) -> "LiveView | None":
+def attach(sim: Any) -> LiveView | None:
     """Stream ``sim``'s run live as its ``output.live`` asks (module docstring): the observer,
     registered on the run's plugin manager before the run starts, or None (off, or a one-line
     warning on stderr when the view cannot be had)."""
@@ -257,26 +259,30 @@ class LiveView:
     # -- lifecycle hooks ----------------------------------------------------------------------
     @hookimpl
     def swarmscene_run_start(self, sim: Any) -> None:
+        """Open the stream and send the static scene (a failure turns the live view off, not the run)."""
         self._guard(self._begin, sim)
 
     @hookimpl
     def swarmscene_step_end(self, sim: Any) -> None:
+        """Every ``every``-th tick: send the frame."""
         if sim.step_count % self.every == 0:
             self._guard(self._frame, sim)
 
     @hookimpl
     def swarmscene_event(self, sim: Any, event: Any) -> None:
+        """Send the event as a marker on the timeline."""
         self._guard(self._event, sim, event)
 
     @hookimpl(trylast=True)  # after the monitors have added their metrics
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """Send the last tick (when thinning skipped it) and the run's end lines, then disconnect."""
         self._guard(self._end, sim, metrics)
 
     # -- what is sent ---------------------------------------------------------------------------
     def _begin(self, sim: Any) -> None:
         import rerun as rr
 
-        from .replay import log_static, blueprint
+        from .replay import blueprint, log_static
 
         self.rec.set_sinks(rr.GrpcSink(self.url), default_blueprint=blueprint(self.run))
         self.rec.send_recording_name(f"{self.run.name} seed {self.run.seed}")

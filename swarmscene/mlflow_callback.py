@@ -32,7 +32,7 @@ from typing import Any
 try:
     from hydra.experimental.callback import Callback as _Callback
 except ImportError:  # pragma: no cover - hydra-core is a dependency
-    _Callback = object
+    _Callback = object  # type: ignore[misc,assignment]  # a plain base when hydra is absent
 
 MAX_PARAM_LENGTH = 500
 """Longest parameter value logged as such (MLflow allows 6,000; longer lists belong to config.yaml)."""
@@ -98,11 +98,13 @@ class MlflowLogger(_Callback):
         self.artifacts = artifacts
 
     def on_job_end(self, config: Any, job_return: Any, **kwargs: Any) -> None:
+        """Log the finished job to MLflow; a tracking failure is reported and never fails the job."""
         run_dir = Path(config.hydra.runtime.output_dir)
         try:
             self.log_job(run_dir, list(job_return.overrides or []), str(config.hydra.job.get("num", "0")))
         except Exception as exc:  # tracking must never lose the job's own outputs
-            print(f"swarmscene: could not log job {run_dir.name} to MLflow: {type(exc).__name__}: {exc}", file=sys.stderr)
+            print(f"swarmscene: could not log job {run_dir.name} to MLflow: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
 
     def log_job(self, run_dir: Path, overrides: list[str], job: str) -> str:
         """Log one run directory as an MLflow run; returns the run id."""

@@ -114,27 +114,33 @@ class RunData:
 
     @property
     def n(self) -> int:
+        """Number of agents, N."""
         return self.pos.shape[1]
 
     @property
     def name(self) -> str:
+        """The scenario's name (``run`` when the config gives none)."""
         return str(self.config.get("name", "run"))
 
     @property
     def seed(self) -> int | None:
+        """The run's seed, or None when the config gives none."""
         seed = self.config.get("seed")
         return None if seed is None else int(seed)
 
     @property
     def min_separation_limit(self) -> float:
+        """The safety section's separation limit, m (the line drawn on the separation plot)."""
         return safety_limit(self.config, "separation_limit")
 
     @property
     def min_clearance_limit(self) -> float:
+        """The safety section's clearance limit, m (the line drawn on the clearance plot)."""
         return safety_limit(self.config, "clearance_limit")
 
     @property
     def comm_range(self) -> float:
+        """The communication range, m (inf when the config gives none)."""
         return float(self.config.get("comm", {}).get("range", np.inf))
 
     def speed_limits(self) -> dict[str, float]:
@@ -190,7 +196,7 @@ def load_run(run_dir: Path) -> RunData:
     run = RunDir(run_dir)
     config = run.config()
     _check_sections(run.path / CONFIG, config)
-    arrays = run.trajectory()
+    arrays: dict[str, Any] = run.trajectory()  # t, pos, vel, healthy (and quat): RunData's fields
     quat = arrays.pop("quat", None)
     manifest = run.manifest() if run.has(MANIFEST) else {}
     metrics = run.metrics() if run.has(METRICS) else {}
@@ -285,7 +291,7 @@ def bands(values: np.ndarray) -> dict[str, np.ndarray]:
     rows = ~np.all(np.isnan(finite), axis=1)
     if rows.any():
         q = np.nanpercentile(finite[rows], list(BANDS.values()), axis=1)
-        for k, row in zip(BANDS, q):
+        for k, row in zip(BANDS, q, strict=True):
             out[k][rows] = row
     return out
 
@@ -338,7 +344,7 @@ def trajectory_figure(run: RunData) -> Any:
         ax.scatter(where[:, 0], where[:, 1], s=80, marker="x", color=FAILED_COLOR, linewidths=2,
                    label=f"failed ({len(fails)})", zorder=5, gid="failed")
         for agent, t, p in fails:
-            ax.annotate(f"{agent} @ {t:.1f} s", p[:2], textcoords="offset points", xytext=(5, 5), fontsize=8)
+            ax.annotate(f"{agent} @ {t:.1f} s", tuple(p[:2]), textcoords="offset points", xytext=(5, 5), fontsize=8)
     ax.set_xlabel("x (m, east)")
     ax.set_ylabel("y (m, north)")
     ax.set_aspect("equal", adjustable="datalim")
@@ -515,7 +521,9 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
         return dots, crosses, trails, edge_lines, title
 
     draw(keys[-1])
-    fig.get_layout_engine().execute(fig)  # lay out once (widest title), then keep it for every frame
+    engine = fig.get_layout_engine()  # the figure's "constrained" one
+    assert engine is not None
+    engine.execute(fig)  # lay out once (widest title), then keep it for every frame
     fig.set_layout_engine("none")
     anim = animation.FuncAnimation(fig, draw, frames=keys, blit=False)
     use_mp4 = animation.writers.is_available("ffmpeg")

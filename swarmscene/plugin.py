@@ -42,7 +42,15 @@ from .core.fields import StrictModel
 from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl
 from .core.plugin import (
-    SHARED, Avoidance, BuildContext, Dynamics, Formation, Plugin, PluginParams, Policy, choose,
+    SHARED,
+    Avoidance,
+    BuildContext,
+    Dynamics,
+    Formation,
+    Plugin,
+    PluginParams,
+    Policy,
+    choose,
 )
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
@@ -74,7 +82,8 @@ def build_context(
         positions: (N, 3) m, the agents at t = 0; default ``n`` agents on a 2-row grid 3 m apart at
             2 m altitude (:func:`swarmscene.testing.example_world`).
         leader: the leading agent, or None.
-        guidance_period, physics_step: T_s and the plant's step, s.
+        guidance_period: T_s, s.
+        physics_step: the plant's integration step, s.
         seed: seed of the run's random generator (``ctx.rng``).
         environment: the obstacle map; default an open one.
         **fields: any other ``BuildContext`` field (``duration``, ``separation_limit``,

@@ -16,8 +16,9 @@ Entities, world frame (x east, y north, z up, metres), timeline ``sim_time`` (se
                            translucent walls and roof (``world/obstacles/solid``) and outlines
     world/agents           one point per agent in its colour (``plots.agent_colors``, the colours of
                            the pictures and the animation), labelled with its index ("3 failed"
-                           once failed; up to 500 agents, drawn up to 30); radius half the separation limit, so touching spheres
-                           mean a separation violation (a quarter of that with attitude boxes)
+                           once failed; up to 500 agents, drawn up to 30); radius half the
+                           separation limit, so touching spheres mean a separation violation
+                           (a quarter of that with attitude boxes)
     world/bodies           with attitude dynamics (``quat`` in the trajectory): a flat box per
                            vehicle oriented by its attitude, in the agent's colour, red once failed
     world/body_axes        ... and its body axes x (red), y (green), z (blue, the thrust axis)
@@ -248,7 +249,7 @@ def log_agents(rec: Any, run: RunData, frames: np.ndarray) -> None:
     healthy = run.healthy[frames]
     palette = agent_colors(n)
     colors = np.broadcast_to(palette, (f, n, 3)).reshape(-1, 3)
-    labelled = {}
+    labelled: dict[str, Any] = {}
     if n <= MAX_LABELLED:  # a label per agent per frame: affordable for small swarms only
         names = np.array([str(i) for i in range(n)], dtype=object)
         labels = np.where(healthy, names, np.char.add(names.astype(str), " failed").astype(object)).reshape(-1)
@@ -398,7 +399,7 @@ def read_recordings(paths: list[Path], index: str | None = TIMELINE,
     with rr.server.Server(datasets={"replay": [str(p) for p in paths]}) as server:
         dataset = server.client().get_dataset("replay")
         ids = sorted(dataset.segment_ids())
-        frame = dataset.filter_contents(contents).reader(index=index).to_pandas() if ids else None
+        frame: Any = dataset.filter_contents(contents).reader(index=index).to_pandas() if ids else None
     out = {}
     for rid in ids:
         rows = frame[frame["rerun_segment_id"] == rid]

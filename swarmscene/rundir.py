@@ -137,7 +137,7 @@ def _has_alias(root: Any) -> bool:
     return False
 
 
-_KIND_WORDS = {dict: "a mapping", list: "a list", str: "a string"}
+_KIND_WORDS: dict[type, str] = {dict: "a mapping", list: "a list", str: "a string"}
 
 
 def _expect(path: Path | str, value: Any, kind: type | tuple[type, ...]) -> None:
@@ -182,7 +182,7 @@ def _check_shapes(path: Path, headers: dict[str, tuple[tuple[int, ...], np.dtype
     missing = [name for name in TRAJECTORY_ARRAYS if name not in headers]
     if missing:
         raise RunFileError(path, f"lacks the array(s) {', '.join(missing)}")
-    for name, (shape, dtype) in headers.items():
+    for name, (_shape, dtype) in headers.items():
         if dtype.hasobject:
             raise RunFileError(path, f"array {name!r} holds Python objects (refused: nothing is unpickled)")
     expected = dict(TRAJECTORY_ARRAYS, quat=3)
@@ -225,15 +225,19 @@ class RunDir:
             raise RunFileError(self.path, "not a run directory (missing, or not a directory)")
 
     def metrics(self) -> dict[str, Any]:
+        """``metrics.json``, checked to be a JSON object."""
         return read_json(self.path / METRICS)
 
     def manifest(self) -> dict[str, Any]:
+        """``manifest.json``, checked to be a JSON object."""
         return read_json(self.path / MANIFEST)
 
     def error(self) -> dict[str, Any]:
+        """``error.json`` (a failed run's), checked to be a JSON object."""
         return read_json(self.path / ERROR)
 
     def config(self) -> dict[str, Any]:
+        """``config.yaml``, the resolved scenario, checked to be a mapping."""
         return read_yaml(self.path / CONFIG)
 
     def overrides(self) -> list[str]:
@@ -242,12 +246,14 @@ class RunDir:
         return [str(v) for v in values]
 
     def trajectory(self) -> dict[str, np.ndarray]:
+        """The trajectory's arrays by name, read and checked (missing when ``output.trajectory`` was false)."""
         path = self.path / TRAJECTORY
         if not path.exists() and not path.is_symlink():
             raise RunFileError(path, "missing (was the run made with output.trajectory=false?)")
         return read_trajectory(path)
 
     def check_trajectory(self) -> None:
+        """Check the trajectory file's columns and shapes without keeping its arrays."""
         check_trajectory(self.path / TRAJECTORY)
 
     def has(self, name: str) -> bool:

@@ -97,7 +97,8 @@ def _check_structure(text: str, where: str) -> None:
             if nodes > MAX_NODES:
                 _refuse(where, event, f"expands to more than {MAX_NODES} nodes (YAML aliases of aliases?)")
             if bytes_ > MAX_EXPANDED_BYTES:
-                _refuse(where, event, f"expands to more than {MAX_EXPANDED_BYTES} bytes of values (YAML aliases of a long value?)")
+                _refuse(where, event,
+                        f"expands to more than {MAX_EXPANDED_BYTES} bytes of values (YAML aliases of a long value?)")
     except yaml.YAMLError:
         return  # Hydra's own reading reports a syntax error with its file and line (hydra_errors)
 

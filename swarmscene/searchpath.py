@@ -48,6 +48,7 @@ class SwarmsceneSearchPathPlugin(SearchPathPlugin):
     """Appends every third-party config folder after the engine's own tree."""
 
     def manipulate_search_path(self, search_path: ConfigSearchPath) -> None:
+        """Append each installed package's config folder to Hydra's search path."""
         for provider, path in third_party_config_paths():
             search_path.append(provider=provider, path=path)
 

@@ -156,6 +156,8 @@ def success_reason(metrics: dict[str, Any], lines: list[Verdict]) -> str:
 
 
 def summary_text(sim: Any, result: Any, run_dir: Path | None) -> str:
+    """The lines printed after a run: the scenario, the verdicts on its safety limits, its metrics
+    and where its outputs are."""
     m = result.metrics
     lines = verdicts(sim, m)
     out = [
@@ -207,7 +209,7 @@ class Progress:
         self.first: tuple[float, float] | None = None  # (done, elapsed) at a write's first item
 
     @classmethod
-    def maybe(cls, mode: str, enabled: bool = True, delay: float | None = None) -> "Progress | None":
+    def maybe(cls, mode: str, enabled: bool = True, delay: float | None = None) -> Progress | None:
         """A Progress when asked for (``on``), or for ``auto`` when stderr is a terminal and this
         is not a job of a Hydra multirun (parallel jobs would interleave their lines)."""
         if not enabled or mode == "off":
@@ -261,6 +263,7 @@ class Progress:
         self._show(self.line(done, total, f"{label} {done}/{total}", now, since=self.first))
 
     def close(self) -> None:
+        """End the progress line (a newline) if one was shown."""
         if self.shown:
             self.stream.write("\n")
             self.stream.flush()

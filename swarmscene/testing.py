@@ -59,9 +59,12 @@ from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
 from .plugin import build_context
-
 from .testing_kinds import (  # the kinds beside the three algorithms, rules listed above
-    check_disturbance, check_event_kind, check_generator, check_observer, check_policy,
+    check_disturbance,
+    check_event_kind,
+    check_generator,
+    check_observer,
+    check_policy,
 )
 
 __all__ = ["check_avoidance", "check_disturbance", "check_dynamics", "check_event_kind", "check_formation",
@@ -93,11 +96,13 @@ def installed_registry() -> Any:
     return plugins()[1]
 
 
-def check_params(cls: type, options: dict[str, Any] | None = None,
+def check_params(cls: type[Any], options: dict[str, Any] | None = None,
                  refused: dict[str, dict[str, Any]] | None = None) -> PluginParams:
     """``name`` and ``Params`` as the engine needs them; returns the validated options.
 
     Args:
+        cls: the plugin class (any kind with a ``name`` and a ``Params`` model).
+        options: the options to validate (the defaults when None).
         refused: option name -> options that ``Params`` must refuse with a line naming that option
             (for cross-field checks: a model validator names its key, ``ValueError("vision: ...")``).
     """
@@ -116,7 +121,7 @@ def check_params(cls: type, options: dict[str, Any] | None = None,
     return params
 
 
-def _assert_refused(cls: type, key: str, options: dict[str, Any]) -> None:
+def _assert_refused(cls: type[Any], key: str, options: dict[str, Any]) -> None:
     kind = next((k for k, base in PLUGIN_KINDS.items() if issubclass(cls, base)), "plugin")
     try:
         cls.Params.model_validate(options, context={"registry": installed_registry()})
@@ -366,11 +371,11 @@ def _class_state(cls: type) -> dict[str, Any]:
     return state
 
 
-def _assert_class_untouched(cls: type, before: dict[str, Any]) -> None:
+def _assert_class_untouched(cls: type[Any], before: dict[str, Any]) -> None:
     """Instances keep their state to themselves: running them changed no class attribute."""
     after = _class_state(cls)
     for attr, value in before.items():
-        new = after.get(attr)
+        new: Any = after.get(attr)  # None where the attribute is gone: then not equal
         same = (np.array_equal(value, new) if isinstance(value, np.ndarray) or isinstance(new, np.ndarray)
                 else _equal(value, new))
         assert same, (f"{cls.name}: running an instance changed the class attribute {attr}: two instances "

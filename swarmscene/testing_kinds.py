@@ -141,19 +141,22 @@ def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS) -> list[li
     out: list[list[np.ndarray]] = [[] for _ in runners]
     env = Environment()
     for _ in range(ticks):
-        for world, runner, record in zip(worlds, runners, out):
+        for world, runner, record in zip(worlds, runners, out, strict=True):
             truth = {k: np.array(getattr(world, k), copy=True) for k in ("pos", "vel", "healthy", "comm_ok")}
             try:
                 seen = runner.perceive(world, Sensing(world, env, 10.0))
             except (ValueError, TypeError, IndexError) as exc:  # e.g. outputs of the wrong shape
-                raise AssertionError(f"{runner_name(runner)}: the kernel's sense/communicate phase failed on "
-                                     f"its outputs (each must be (N, 3) m or m/s): {type(exc).__name__}: {exc}") from None
+                raise AssertionError(
+                    f"{runner_name(runner)}: the kernel's sense/communicate phase failed on its outputs "
+                    f"(each must be (N, 3) m or m/s): {type(exc).__name__}: {exc}") from None
             for k, v in truth.items():
                 assert np.array_equal(getattr(world, k), v), (
-                    f"{runner_name(runner)}: modified world.{k} (a model returns new arrays; the truth is the kernel's)")
+                    f"{runner_name(runner)}: modified world.{k} "
+                    "(a model returns new arrays; the truth is the kernel's)")
             for label, arr in (("picture pos", seen.world.pos), ("picture vel", seen.world.vel),
                                ("own pos", seen.own.pos), ("own vel", seen.own.vel)):
-                assert np.shape(arr) == (N_AGENTS, 3), f"{runner_name(runner)}: {label} has shape {np.shape(arr)}, expected (N, 3)"
+                assert np.shape(arr) == (N_AGENTS, 3), (
+                    f"{runner_name(runner)}: {label} has shape {np.shape(arr)}, expected (N, 3)")
                 assert np.isfinite(arr).all(), f"{runner_name(runner)}: {label} is not finite"
             record += [np.array(seen.world.pos), np.array(seen.own.vel)]
             for j in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
@@ -186,7 +189,8 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
     params = _check_declaration(cls, Disturbance, DisturbanceParams, "disturbances.<key>.kind",
                                 options, refused, f"disturbances.{getattr(cls, 'name', '?')}")
     name = cls.name
-    assert getattr(cls, "phase", None) in PHASES, f"{name}: phase must be one of {', '.join(PHASES)} (got {getattr(cls, 'phase', None)!r})"
+    phase = getattr(cls, "phase", None)
+    assert phase in PHASES, f"{name}: phase must be one of {', '.join(PHASES)} (got {phase!r})"
     method = PHASE_METHOD[cls.phase]
     builtin_channel = issubclass(cls, (CommDelay, PacketLoss))
     assert builtin_channel or callable(getattr(cls, method, None)), (
@@ -195,10 +199,10 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
     alone = _disturbed_ticks([_disturbances(cls, params, "a", 0)])[0]
     _assert_class_untouched(name, cls, Disturbance, state)
     again = _disturbed_ticks([_disturbances(cls, params, "a", 0)])[0]
-    for x, y in zip(alone, again):
+    for x, y in zip(alone, again, strict=True):
         assert np.array_equal(x, y), f"{name}: not deterministic under a seed (draw only from ctx.rng)"
     beside = _disturbed_ticks([_disturbances(cls, params, "a", 0), _disturbances(cls, params, "b", 1)])[0]
-    for x, y in zip(alone, beside):
+    for x, y in zip(alone, beside, strict=True):
         assert np.array_equal(x, y), (
             f"{name}: two instances share state (one ran differently beside another): keep state on "
             "the instance, not the class or the module")
@@ -246,7 +250,8 @@ def check_event_kind(cls: type[EventKindPlugin], options: dict[str, Any] | None 
     try:
         config = EventConfig.model_validate(data, context=context)
     except ValidationError as exc:
-        raise AssertionError(f"{name}: an event of this kind is refused: {format_validation_error(exc, EventConfig, data, 'events.0')}") from None
+        problems = format_validation_error(exc, EventConfig, data, "events.0")
+        raise AssertionError(f"{name}: an event of this kind is refused: {problems}") from None
     record = config.model_dump(mode="json")
     again = EventConfig.model_validate(record, context=context).model_dump(mode="json")
     assert again == record, f"{name}: an event's record does not validate to itself ({record} -> {again})"
@@ -262,12 +267,15 @@ def _check_apply(name: str, cls: type[EventKindPlugin], event: Any) -> None:
     hit = np.zeros(N_AGENTS, dtype=bool)
     hit[list(event.agents)] = True
     for k, value in before.items():
-        assert np.array_equal(getattr(world, k)[~hit], value[~hit]), f"{name}: apply() changed world.{k} of agents it does not hit"
-    assert np.array_equal(world.pos, before["pos"]), f"{name}: apply() moved agents (the kernel moves them: declare a motion)"
+        assert np.array_equal(getattr(world, k)[~hit], value[~hit]), (
+            f"{name}: apply() changed world.{k} of agents it does not hit")
+    assert np.array_equal(world.pos, before["pos"]), (
+        f"{name}: apply() moved agents (the kernel moves them: declare a motion)")
     assert np.isfinite(world.vel).all(), f"{name}: apply() left non-finite velocities"
     if cls.failure:
         assert not world.healthy[hit].any(), f"{name}: a failure must drop healthy of its agents"
-        assert np.array_equal(world.comm_ok, before["comm_ok"]), f"{name}: a failure keeps comm_ok (declare failure = False for a radio loss)"
+        assert np.array_equal(world.comm_ok, before["comm_ok"]), (
+            f"{name}: a failure keeps comm_ok (declare failure = False for a radio loss)")
     else:
         assert not world.comm_ok[hit].any(), f"{name}: a kind that is not a failure must drop comm_ok of its agents"
         assert np.array_equal(world.healthy, before["healthy"]), f"{name}: a kind that is not a failure keeps healthy"
@@ -306,18 +314,21 @@ def check_generator(cls: type[MapGenerator], options: dict[str, Any] | None = No
     name = cls.name
     clash = sorted(set(cls.Params.model_fields) & set(ENVIRONMENT_KEYS))
     assert not clash, f"{name}: parameters {clash} clash with the environment section's own keys"
-    assert cls.build.__func__ is not MapGenerator.build.__func__, f"{name}: define build(params)"
+    # build is a classmethod: mypy types the bound method without its __func__
+    overridden = cls.build.__func__ is not MapGenerator.build.__func__  # type: ignore[attr-defined]
+    assert overridden, f"{name}: define build(params)"
     dump = params.model_dump(mode="json")
     first, second = cls.build(params), cls.build(params)
     assert params.model_dump(mode="json") == dump, f"{name}: build() changed its parameters"
     assert isinstance(first, list) and first, f"{name}: build() must return a non-empty list of polygons"
     for k, poly in enumerate(first):
         assert isinstance(poly, shapely.Polygon), f"{name}: obstacle {k} is a {type(poly).__name__}, not a Polygon"
-        assert poly.is_valid and not poly.is_empty and poly.area > 0, f"{name}: obstacle {k} is not a valid, non-empty polygon"
+        assert poly.is_valid and not poly.is_empty and poly.area > 0, (
+            f"{name}: obstacle {k} is not a valid, non-empty polygon")
         bounds = np.asarray(poly.bounds)
         assert np.isfinite(bounds).all() and np.abs(bounds).max() <= MAX_LENGTH, (
             f"{name}: obstacle {k} reaches beyond {MAX_LENGTH:g} m or is not finite")
-    assert len(first) == len(second) and all(a.equals_exact(b, 0.0) for a, b in zip(first, second)), (
+    assert len(first) == len(second) and all(a.equals_exact(b, 0.0) for a, b in zip(first, second, strict=True)), (
         f"{name}: not deterministic (the same parameters must build the same map)")
 
 
@@ -362,7 +373,7 @@ def check_policy(cls: type[Policy], options: dict[str, Any] | None = None,
         for _ in range(3):
             beside.append(np.array(fresh(obs)))
             second(other)
-        for a, b in zip(alone, beside):
+        for a, b in zip(alone, beside, strict=True):
             assert np.array_equal(a, b), (
                 f"{name}: not deterministic, or two instances share state (one acted differently beside "
                 "another): keep state on the instance")

@@ -24,8 +24,16 @@ from swarmscene.core import hookspecs
 from swarmscene.core import registry as registry_module
 from swarmscene.core.registry import KINDS, make_plugin_manager, validate_choice
 from swarmscene.plugin import (
-    Disturbance, DisturbanceParams, EventKindPlugin, EventParams, MapGenerator, Motion, PluginParams,
-    Policy, StrictModel, hookimpl,
+    Disturbance,
+    DisturbanceParams,
+    EventKindPlugin,
+    EventParams,
+    MapGenerator,
+    Motion,
+    PluginParams,
+    Policy,
+    StrictModel,
+    hookimpl,
 )
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -93,6 +93,7 @@ def dryden_scales(h: np.ndarray, w20: float) -> tuple[np.ndarray, np.ndarray]:
         h: altitudes, m, any shape (clamped to ``ALTITUDE_RANGE``).
         w20: W_20, the wind speed at 20 ft, m/s (MIL-F-8785C: 15 kt light, 30 kt moderate, 45 kt
             severe).
+
     Returns:
         L (..., 3) m and sigma (..., 3) m/s, components (u, v, w).
     """

@@ -63,7 +63,8 @@ def model_rng(seed: int, key: str) -> np.random.Generator:
 
 
 class Disturbance:
-    """A disturbance model: subclasses set ``name``, ``phase``, ``Params`` and their phase's method.
+    """A disturbance model: subclasses set ``name``, ``phase``, ``Params`` and their phase's method
+    (and ``params: Params`` under their ``Params``, which types ``self.params`` as that model).
 
     ``name`` is the registered name a scenario writes as ``kind`` (``disturbances.<key>.kind``, the
     key itself when it is left out); ``kind`` is the same string under its older attribute name
@@ -100,4 +101,5 @@ class Disturbance:
         self.rng = ctx.rng
 
     def metrics(self) -> dict[str, Any]:
+        """The model's own metrics, keys without prefix (none by default)."""
         return {}

@@ -16,10 +16,10 @@ from __future__ import annotations
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field
 
-from . import links as numerics
 from ..state import WorldState
+from . import links as numerics
 from .base import Disturbance, DisturbanceContext, DisturbanceParams
 
 MAX_DELAY = 60.0
@@ -47,7 +47,9 @@ class CommDelay(Disturbance):
         jitter: float = Field(
             0.1, ge=0.0, le=MAX_DELAY, description="random: mean of the exponential extra delay, s")
 
-    def __init__(self, params: "CommDelay.Params", ctx: DisturbanceContext) -> None:
+    params: Params
+
+    def __init__(self, params: CommDelay.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.T_s = ctx.guidance_period
         self.tau_com = params.tau
@@ -85,7 +87,7 @@ class CommDelay(Disturbance):
         return np.where(reachable, ticks, -1).astype(np.int64)
 
 
-def max_delay_ticks(params: "CommDelay.Params", n: int, T_s: float) -> int:
+def max_delay_ticks(params: CommDelay.Params, n: int, T_s: float) -> int:
     """The longest delay the channel must keep, ticks: fixed tau; hops (n - 1) tau (the mean over
     receivers is at most that); random tau + 10 jitter (P(X > 10 jitter) = e^-10: rarer, longer
     delays are cut to it); never more than ``MAX_DELAY``."""
@@ -130,7 +132,9 @@ class PacketLoss(Disturbance):
         range_start: float = Field(
             0.5, ge=0.0, le=1.0, description="range: fraction of comm.range up to which the loss is p")
 
-    def __init__(self, params: "PacketLoss.Params", ctx: DisturbanceContext) -> None:
+    params: Params
+
+    def __init__(self, params: PacketLoss.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.comm_range = ctx.comm_range
         self.chains = (numerics.GilbertElliott(ctx.n, self.rng, params.p_gb, params.p_bg,
@@ -144,6 +148,7 @@ class PacketLoss(Disturbance):
         if p.model == "bernoulli":
             return self.rng.random(n) < p.p
         if p.model == "gilbert_elliott":
+            assert self.chains is not None  # built for this model in __init__
             return self.chains.step()
         d = sensing.nearest[0] if n > 1 else np.full(n, np.inf)
         prob = numerics.range_loss_probability(d, p.p, p.range_start * self.comm_range, self.comm_range)
@@ -186,7 +191,10 @@ class Channel:
         self.k = 0
         self.sent = self.lost = self.age_sum = 0
 
-    def send(self, pos: np.ndarray, vel: np.ndarray, delay: np.ndarray, lost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def send(self, pos: np.ndarray, vel: np.ndarray, delay: np.ndarray,
+             lost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Send this tick's states, each message delayed ``delay`` ticks or ``lost``; returns the
+        picture of each agent the others hold now, (pos, vel): its newest message that has arrived."""
         k, slot = self.k, self.k % self.depth
         n = pos.shape[0]
         self.sent_pos[slot], self.sent_vel[slot] = pos, vel
@@ -216,19 +224,23 @@ class ChannelModels:
         self.channel: Channel | None = None
 
     def communicate(self, world: WorldState, sensing: Any, pos: np.ndarray, vel: np.ndarray):
+        """The communicate phase: delays of every delay model add, a message lost by any loss model
+        is lost; returns what the swarm sees of each agent, (pos, vel)."""
         n = world.n
         delay = np.zeros(n, dtype=np.int64)
         for model in self.delays:
             delay = delay + model.delays(world, sensing)
         lost = np.zeros(n, dtype=bool)
-        for model in self.losses:
-            lost |= model.lost(world, sensing)
+        for loss in self.losses:
+            lost |= loss.lost(world, sensing)
         if self.channel is None:
             depth = sum(m.max_ticks for m in self.delays)
             self.channel = Channel(pos, vel, depth)
         return self.channel.send(pos, vel, delay, lost)
 
     def metrics(self) -> dict[str, Any]:
+        """Fraction of messages lost and mean age of the picture, in ticks, over the run (none before
+        a message is sent)."""
         c = self.channel
         if c is None or not c.sent:
             return {}

@@ -79,6 +79,7 @@ class GilbertElliott:
 
     @property
     def stationary_bad(self) -> float:
+        """pi_B = p_GB / (p_GB + p_BG): the long-run share of time a link spends in the bad state."""
         total = self.p_gb + self.p_bg
         return self.p_gb / total if total > 0 else 0.0
 

@@ -62,6 +62,7 @@ class SensingNoise(Disturbance):
             "tick (its estimate then keeps the last one)")
 
         def model_post_init(self, _: Any) -> None:
+            """Each component of the three per-axis standard deviations lies in [0, 1000] m (or m/s)."""
             for key in ("pos_std", "vel_std", "pos_bias_std"):
                 values = getattr(self, key)
                 if not all(0.0 <= v <= 1e3 for v in values):
@@ -69,7 +70,9 @@ class SensingNoise(Disturbance):
 
                     raise key_error(key, "each must be in [0, 1000]", list(values))
 
-    def __init__(self, params: "SensingNoise.Params", ctx: DisturbanceContext) -> None:
+    params: Params
+
+    def __init__(self, params: SensingNoise.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         n = ctx.n
         self.pos_std = np.array(params.pos_std)
@@ -83,6 +86,8 @@ class SensingNoise(Disturbance):
         self.samples = 0
 
     def sense(self, world: WorldState, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The estimate: bias + first-order Gauss-Markov position error, white velocity noise; a lost
+        measurement (``dropout``) keeps the agent's previous estimate."""
         n = world.n
         rng = self.rng
         a = self.a
@@ -100,6 +105,7 @@ class SensingNoise(Disturbance):
         return pos, vel
 
     def metrics(self) -> dict[str, Any]:
+        """The fraction of measurements lost to ``dropout`` over the run."""
         return {"dropout_rate": self.lost / self.samples if self.samples else 0.0}
 
 

@@ -8,14 +8,14 @@ phase"). Numerics and sources: :mod:`swarmscene.core.disturbances.atmosphere`.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
 
-from . import atmosphere as numerics
 from ..fields import MAX_DURATION
 from ..state import WorldState
+from . import atmosphere as numerics
 from .base import Disturbance, DisturbanceContext, DisturbanceParams
 
 MAX_WIND = 100.0
@@ -49,12 +49,15 @@ class ConstantWind(Disturbance):
         speed: float = Field(5.0, ge=0.0, le=MAX_WIND, description="wind speed, m/s")
         vertical: float = Field(0.0, ge=-MAX_WIND, le=MAX_WIND, description="vertical component, m/s (up +)")
 
-    def __init__(self, params: "ConstantWind.Params", ctx: DisturbanceContext) -> None:
+    params: Params
+
+    def __init__(self, params: ConstantWind.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.velocity = params.speed * _direction(params.heading)
         self.velocity[2] = params.vertical
 
     def air(self, world: WorldState, t: float) -> np.ndarray:
+        """The same constant wind at every agent, (N, 3) m/s (a read-only broadcast: no copy per step)."""
         return np.broadcast_to(self.velocity, world.pos.shape)
 
 
@@ -80,11 +83,14 @@ class Gust(Disturbance):
             description="time at the peak before the mirror-image decay, s (null: stays, the "
             "MIL-F-8785C form; 0: the 1-cosine pulse)")
 
-    def __init__(self, params: "Gust.Params", ctx: DisturbanceContext) -> None:
+    params: Params
+
+    def __init__(self, params: Gust.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.peak = params.amplitude * _direction(params.heading, params.elevation)
 
     def air(self, world: WorldState, t: float) -> np.ndarray:
+        """v(t) = V_m s(t) along the gust's direction at every agent, (N, 3) m/s."""
         p = self.params
         shape = float(numerics.one_minus_cosine(t, p.start, p.rise, p.hold))
         return np.broadcast_to(shape * self.peak, world.pos.shape)
@@ -114,14 +120,16 @@ class Dryden(Disturbance):
             description="shared: one realisation at the swarm's mean altitude for every agent (the "
             "field is correlated over tens of metres); independent: one per agent")
 
-    def __init__(self, params: "Dryden.Params", ctx: DisturbanceContext) -> None:
+    params: Params
+
+    def __init__(self, params: Dryden.Params, ctx: DisturbanceContext) -> None:
         super().__init__(params, ctx)
         self.axes = numerics.wind_axes(math.radians(params.heading))
         self.filters: numerics.DrydenFilters | None = None
         self.dt = ctx.physics_step
         self.per_tick = max(1, round(ctx.guidance_period / ctx.physics_step))
         self.steps = 0
-        self.conditions: tuple | None = None
+        self.conditions: tuple[Any, ...] = ()  # (L, sigma, V, mean): set at the first physics step
 
     def _conditions(self, world: WorldState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(h, L, sigma, V) per realisation; the mean wind (M, 3) at those altitudes."""

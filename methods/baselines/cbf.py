@@ -79,18 +79,22 @@ def safe_velocities(
     """The minimally invasive inputs u_i* of the decentralised certificates (planar, x-y).
 
     Args:
-        pos, u_nom: (N, 2) positions m and nominal velocities m/s.
-        neighbours, valid: (N, K) neighbour table (:func:`.neighbour_table`).
+        pos: (N, 2) positions, m.
+        u_nom: (N, 2) nominal velocities, m/s.
+        neighbours: (N, K) neighbour table (:func:`.neighbour_table`).
+        valid: (N, K) bool, which of its entries are neighbours (the rest is padding).
         static: (N,) bool, neighbours that do not avoid (responsibility 1 against them).
         safe_distance: D_s, m.
-        gamma, power: the certificate dh/dt >= -gamma h^p.
+        gamma: the certificate's gain in dh/dt >= -gamma h^p.
+        power: its exponent p.
         v_max: |u_i| <= v_max, m/s.
         obstacle: optional (normal (N, 2), clearance (N,), near (N,) bool, D_o) of each agent's
             nearest obstacle point: its barrier is a hard constraint.
         detour: rad, the right-hand rule of :func:`.detour_if_blocked` (0: none).
-        deadlock_turn, deadlock_ratio: rows whose filtered input is shorter than ``deadlock_ratio``
-            times the nominal one are solved again with the nominal turned clockwise by
-            ``deadlock_turn`` rad (0: never).
+        deadlock_turn: rows found in a deadlock are solved again with the nominal turned clockwise
+            by this angle, rad (0: never).
+        deadlock_ratio: a row is in a deadlock when its filtered input is shorter than this
+            fraction of the nominal one.
 
     Returns:
         (u (N, 2), feasible (N,)): where not feasible, the least-violation fallback was used.
@@ -148,11 +152,11 @@ def influence_range(safe_distance: float, gamma: float, power: int, v_max: float
     kappa(d^2 - D^2) / 2; the smallest such d (bisection on the monotone condition).
     """
     lo, hi = safe_distance, safe_distance + 1.0
-    while 4.0 * hi * v_max > gamma * class_k(np.float64(hi * hi - safe_distance**2), power):
+    while 4.0 * hi * v_max > gamma * class_k(np.asarray(hi * hi - safe_distance**2), power):
         hi *= 2.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if 4.0 * mid * v_max > gamma * class_k(np.float64(mid * mid - safe_distance**2), power):
+        if 4.0 * mid * v_max > gamma * class_k(np.asarray(mid * mid - safe_distance**2), power):
             lo = mid
         else:
             hi = mid

@@ -78,7 +78,8 @@ def linear_program2(point, direction, valid, radius, opt, direction_opt=False):
     """RVO2 ``linearProgram2`` for every row: (result (M, 2), index of the failing line (M,)).
 
     Args:
-        point, direction: (M, L, 2) half-planes; ``direction`` of unit length.
+        point: (M, L, 2) a point on each half-plane's boundary line.
+        direction: (M, L, 2) the line's direction, unit length (the allowed side on its left).
         valid: (M, L) bool; False rows of padding are ignored.
         radius: (M,) or scalar, the disc |v| <= radius.
         opt: (M, 2) preferred velocity (a unit direction when ``direction_opt``).

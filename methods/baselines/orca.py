@@ -126,11 +126,16 @@ def new_velocities(
     """v_A^new of eq. 5 for every agent (planar, x-y).
 
     Args:
-        pos, vel, v_pref: (N, 2) positions m, current and preferred velocities m/s.
-        neighbours, valid: (N, K) the neighbour table, nearest first (:func:`.neighbour_table`).
+        pos: (N, 2) positions, m.
+        vel: (N, 2) current velocities, m/s.
+        v_pref: (N, 2) preferred velocities, m/s.
+        neighbours: (N, K) the neighbour table, nearest first (:func:`.neighbour_table`).
+        valid: (N, K) bool, which of its entries are neighbours (the rest is padding).
         static: (N,) bool, agents that do not avoid (failed vehicles): responsibility 1 against them.
         combined_radius: r_A + r_B, m.
-        tau, time_step, v_max: time horizon s, guidance period s, speed limit (the disc) m/s.
+        tau: the time horizon, s.
+        time_step: the guidance period, s.
+        v_max: the speed limit (the disc), m/s.
         hard: optional (point, direction, valid) (N, H, 2/2/-) obstacle half-planes, kept hard.
         detour: rad, the right-hand rule of :func:`.detour_if_blocked` (0: none, as in the paper).
 

@@ -98,8 +98,12 @@ def flat_rates(acc, jerk, snap, y_c, yaw_rate, yaw_acc):
     2011, sec. III; VRB paper sec. III), for one agent.
 
     Args:
-        acc, jerk, snap: p̈, p⃛, p⁗ (world, 3-tuples). y_c: (-sin ψ, cos ψ, 0), the heading vector
-            (flatness.heading_vector). yaw_rate, yaw_acc: ψ̇, ψ̈.
+        acc: p̈ (world, 3-tuple).
+        jerk: p⃛ (world, 3-tuple).
+        snap: p⁗ (world, 3-tuple).
+        y_c: (-sin ψ, cos ψ, 0), the heading vector (flatness.heading_vector).
+        yaw_rate: ψ̇.
+        yaw_acc: ψ̈.
 
     z_b = t / |t| with t = a + g e_3 (ṫ = j, ẗ = s); x_b = (y_c × z_b) / |y_c × z_b|,
     y_b = z_b × x_b; R^T Ṙ = [ω×] (eq. 3.6) gives ω = (z_b·ẏ_b, x_b·ż_b, y_b·ẋ_b) and α its

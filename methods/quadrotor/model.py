@@ -72,6 +72,7 @@ class Airframe:
 
     @cached_property
     def J(self) -> np.ndarray:
+        """(J_x, J_y, J_z): the airframe's principal moments of inertia, kg m^2 (the J of eq. 3.7)."""
         return np.array(self.inertia, dtype=float)
 
     @cached_property
@@ -82,10 +83,12 @@ class Airframe:
 
     @cached_property
     def mixer(self) -> np.ndarray:
+        """The 4x4 matrix from squared rotor speeds to [T, M_x, M_y, M_z] (eq. 3.13-3.15, built once)."""
         return mixer_matrix(self.arm, self.k_T, self.k_D)
 
     @cached_property
     def mixer_inverse(self) -> np.ndarray:
+        """Inverse of :attr:`mixer`: the squared rotor speeds that give a thrust and three moments."""
         return np.linalg.inv(self.mixer)
 
     @property

@@ -211,10 +211,12 @@ class VelocityPI(_IntegralLaw):
         self.gains = gains
 
     def unbounded(self, v: np.ndarray, v_ref: np.ndarray) -> np.ndarray:
+        """u_∞ = -K_Iv x_Iv - K_Pv v + K_Fv v̄ (eq. 3.23), before the saturation."""
         g = self.gains
         return -g.K_Iv * self.x_I - g.K_Pv * v + g.K_Fv * v_ref
 
     def integrate(self, v, v_ref, u_inf, u, active=None) -> None:
+        """x_Iv += v - v̄ + K_Wv (u_∞ - u) (eq. 3.24), for the ``active`` agents only (all when None)."""
         self._advance(v - v_ref, u_inf, u, self.gains.K_Wv, active)
 
     def reset(self, mask: np.ndarray, v: np.ndarray) -> None:
@@ -238,10 +240,12 @@ class PositionPID(_IntegralLaw):
         self.gains = gains
 
     def unbounded(self, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray) -> np.ndarray:
+        """u_∞ = -K_Ir x_Ir - K_Pr r - K_Dr v + K_Fr r̄ (eq. 3.29), before the limiter and saturation."""
         g = self.gains
         return -g.K_Ir * self.x_I - g.K_Pr * r - g.K_Dr * v + g.K_Fr * r_ref
 
     def integrate(self, r, r_ref, u_inf, u, active=None) -> None:
+        """x_Ir += r - r̄ + K_Wr (u_∞ - u) (eq. 3.30), for the ``active`` agents only (all when None)."""
         self._advance(r - r_ref, u_inf, u, self.gains.K_Wr, active)
 
     def reset(self, mask: np.ndarray, r: np.ndarray) -> None:
@@ -266,13 +270,16 @@ class TrackerControl(_IntegralLaw):
         self.gains = gains
 
     def unbounded(self, r, v, r_ref, v_ref, u_ref) -> np.ndarray:
+        """u_∞ = -K_It x_It - K_Pt e_r - K_Dt e_v + ū (eq. 3.41), before the limiter and saturation."""
         g = self.gains
         return -g.K_It * self.x_I - g.K_Pt * (r - r_ref) - g.K_Dt * (v - v_ref) + u_ref
 
     def integrate(self, r, r_ref, u_inf, u, active=None) -> None:
+        """x_It += e_r + K_Wt (u_∞ - u) (eq. 3.42), for the ``active`` agents only (all when None)."""
         self._advance(r - r_ref, u_inf, u, self.gains.K_Wt, active)
 
     def reset(self, mask: np.ndarray) -> None:
+        """Agents in ``mask`` start tracking with x_It = 0: the law is shift-invariant in e_r, e_v."""
         self.x_I[mask] = 0.0
 
 
@@ -326,8 +333,13 @@ class ThesisController:
         """One controller period: return the saturated input u (N, 3), m/s^2, and advance states.
 
         Args:
-            mode: (N,) :class:`Mode` values. r, v: (N, 3) state. r_ref, v_ref, u_ref: (N, 3)
-            references r̄, v̄, ū. v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
+            mode: (N,) :class:`Mode` values.
+            r: (N, 3) positions.
+            v: (N, 3) velocities.
+            r_ref: (N, 3) reference positions r̄.
+            v_ref: (N, 3) reference velocities v̄.
+            u_ref: (N, 3) reference inputs ū.
+            v_lim: velocity limit v̄_lim (scalar or (N,)), or None for none.
         """
         first = int(mode[0]) if mode.size else int(Mode.VELOCITY)
         if every(mode == first):  # one mode, so one law, for every agent (the usual case)
@@ -367,6 +379,7 @@ class ThesisController:
             u = sat(u_inf, self.u_sat)
             self.velocity.integrate(v, v_ref, u_inf, u)
             return u
+        law: _IntegralLaw  # the position or the tracker law: both integrate alike
         if family == _POSITION:
             law, u_inf = self.position, self.position.unbounded(r, v, r_ref)
         else:

@@ -116,6 +116,7 @@ def minimum_snap(t: np.ndarray, values: np.ndarray, fixed: np.ndarray) -> np.nda
         t: (K,) keyframe times, s.
         values: (K,) channel values at the keyframes.
         fixed: (K, ORDER) fixed derivatives 1..4 at each keyframe (NaN = free).
+
     Returns:
         (K-1, DEGREE+1) coefficients c_k of s^k, s = (t - t_j) / T_j on piece j.
     """
@@ -161,7 +162,7 @@ def minimum_snap(t: np.ndarray, values: np.ndarray, fixed: np.ndarray) -> np.nda
     return sol[:nv].reshape(m, nc)
 
 
-def _to_ppoly(t: np.ndarray, coeffs: np.ndarray) -> "scipy.interpolate.PPoly":
+def _to_ppoly(t: np.ndarray, coeffs: np.ndarray) -> scipy.interpolate.PPoly:
     """Pieces (C, K-1, DEGREE+1) in normalised s -> one PPoly over (K-1) intervals with C channels."""
     seg = np.diff(t)
     k = np.arange(DEGREE + 1)
@@ -257,6 +258,7 @@ def rotation_derivatives(euler: np.ndarray) -> np.ndarray:
 
     Args:
         euler: (5, T, 3) (roll, pitch, yaw) and their derivatives 1..4.
+
     Returns:
         (5, T, 3, 3).
     """
@@ -290,10 +292,12 @@ class VRBTrajectory:
 
     @property
     def t_start(self) -> float:
+        """Time of the first key frame, s."""
         return float(self.keyframes.t[0])
 
     @property
     def t_end(self) -> float:
+        """Time of the last key frame, s (the trajectory holds its end after it)."""
         return float(self.keyframes.t[-1])
 
     def channels(self, t: np.ndarray | float) -> np.ndarray:

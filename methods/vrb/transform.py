@@ -73,6 +73,7 @@ def assign_targets(r_from: np.ndarray, slots: np.ndarray) -> np.ndarray:
     Args:
         r_from: (N, 3) m, local positions ^m r_i of the robots in Pi_m.
         slots: (N, 3) m, the local positions of Pi_{m+1}, in any order.
+
     Returns:
         (N,) int, ``perm``; cost is the sum of squared distances (CAPT, ref. [16]).
     """
@@ -108,6 +109,7 @@ def repelling_velocity(
         clearance: (N,) m, s_i (the safety distance of a pair is s_i + s_j).
         threshold: D, m; j in N_i iff ||r_i - r_j|| <= D.
         gain: (N,) m/s, B_j of the repelling robot j.
+
     Returns:
         (N, 3) m/s.
     """
@@ -339,10 +341,11 @@ class Transformation:
     t_end: float
     r_from: np.ndarray
     r_to: np.ndarray
-    deviation: "scipy.interpolate.BSpline | None" = None
+    deviation: scipy.interpolate.BSpline | None = None
 
     @property
     def duration(self) -> float:
+        """t_end - t_start: the transformation's length, s."""
         return self.t_end - self.t_start
 
     def local(self, t: np.ndarray) -> np.ndarray:
@@ -439,6 +442,7 @@ class FormationFlight:
 
     @property
     def bounds(self) -> np.ndarray:
+        """(2M,) s: the phases' bounds, formations and transformations alternating (Definition 4)."""
         return self.sequence.phase_bounds()
 
     @property
@@ -516,6 +520,7 @@ def flat_outputs(body: VRBState, local: np.ndarray) -> FlatOutputs:
     """Theorems 1-2: p_i^(n) = p_v^(n) + sum_k C(n, k) R_v^(k) r_i^(n-k) (eq. 1-3).
 
     Eq. 2 (formation) is the special case r_i^(k) = 0 for k >= 1.
+
     Args:
         body: the VRB at T times (p_v, R_v and derivatives).
         local: (5, T, N, 3), r_i and derivatives at the same times.

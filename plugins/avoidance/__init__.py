@@ -1,0 +1,1 @@
+"""Avoidance methods (``avoidance=NAME``), one registered module each."""

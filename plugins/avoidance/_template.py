@@ -23,6 +23,8 @@ class MyAvoidance(Avoidance):
         radius: float = Field(3.0, gt=0, description="neighbour distance that triggers it, m")
         factor: float = Field(0.5, gt=0, le=1, description="fraction of velocity kept")
 
+    params: Params  # self.params: the validated options, typed as this class's own (for mypy, editors)
+
     def __init__(self, params, ctx):
         super().__init__(params, ctx)
         self.slowed = 0

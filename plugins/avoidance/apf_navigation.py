@@ -57,6 +57,8 @@ class ApfNavigation(Avoidance):
         include_leader: bool = Field(
             False, description="let the leader navigate too (thesis: it never does)")
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.engaged = np.zeros(ctx.n, dtype=bool)
@@ -65,9 +67,14 @@ class ApfNavigation(Avoidance):
 
     @property
     def engage_distance(self) -> float:
+        """Distance from its reference beyond which an agent navigates by the APF, m: ``engage_distance``,
+        else d_c."""
         return self.params.d_c if self.params.engage_distance is None else self.params.engage_distance
 
     def adjust(self, world: WorldState, sensing, sp: Setpoints) -> Setpoints:
+        """An agent farther than the engage distance from its reference flies the APF navigation
+        command (VELOCITY, altitude held) until it arrives; the others, failed agents and (without
+        ``include_leader``) the leader keep the formation's setpoints."""
         p = self.params
         cmd = apf_navigation(world.pos, sp.pos, p.d_c, p.v_sat, p.eps_r, tree=sensing.tree,
                              level_offset=p.level_offset)
@@ -103,4 +110,5 @@ class ApfNavigation(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`ApfNavigation` to the registry, so that ``avoidance=apf_navigation`` chooses it."""
     register(ApfNavigation)

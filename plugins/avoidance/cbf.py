@@ -93,7 +93,9 @@ class BarrierCertificates(Avoidance):
         deadlock_ratio: float = Field(
             0.1, gt=0, lt=1, description="|u*| / |u^nom| under which an agent counts as stopped")
 
-    def __init__(self, params: "BarrierCertificates.Params", ctx: BuildContext) -> None:
+    params: Params
+
+    def __init__(self, params: BarrierCertificates.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.safe_distance = ctx.separation_limit + params.margin
         self.range = influence_range(self.safe_distance, params.gamma, params.power, params.v_max)
@@ -105,6 +107,9 @@ class BarrierCertificates(Avoidance):
         self.max_used = 0
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        """The planar velocity nearest the (perturbed) nominal one that keeps every certificate
+        h >= 0, against neighbours and the nearest obstacle, as VELOCITY setpoints for the healthy
+        agents; counts the ticks an agent had to fall back to the least violation."""
         p = self.params
         u_nom = preferred_velocity(sp, world.pos, p.gain, p.v_max)
         index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
@@ -133,4 +138,5 @@ class BarrierCertificates(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`BarrierCertificates` to the registry, so that ``avoidance=cbf`` chooses it."""
     register(BarrierCertificates)

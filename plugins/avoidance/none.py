@@ -13,9 +13,11 @@ class NoAvoidance(Avoidance):
     name = "none"
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        """The formation's setpoints unchanged: the baseline with no avoidance."""
         return sp
 
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`NoAvoidance` to the registry, so that ``avoidance=none`` chooses it."""
     register(NoAvoidance)

@@ -86,7 +86,9 @@ class Orca(Avoidance):
         neighbour_dist: float | None = Field(
             None, gt=0, le=1e6, description="neighbour range, m; null: 2 v_max tau + r_A + r_B")
 
-    def __init__(self, params: "Orca.Params", ctx: BuildContext) -> None:
+    params: Params
+
+    def __init__(self, params: Orca.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.combined_radius = ctx.separation_limit + params.margin
         self.range = (params.neighbour_dist if params.neighbour_dist is not None
@@ -98,6 +100,8 @@ class Orca(Avoidance):
         self.max_used = 0
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
+        """Each agent's velocity nearest its preferred one inside the ORCA half-planes of its
+        neighbours (reciprocal: each takes half of the avoidance); failed agents count as static."""
         p = self.params
         v_pref = preferred_velocity(sp, world.pos, p.gain, p.v_max)
         index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
@@ -131,4 +135,5 @@ class Orca(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`Orca` to the registry, so that ``avoidance=orca`` chooses it."""
     register(Orca)

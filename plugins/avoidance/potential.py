@@ -62,6 +62,8 @@ class Potential(Avoidance):
             1.0, ge=0, description="shift of the position reference along v_rep, s"
         )
 
+    params: Params
+
     def repulsion(self, world, sensing) -> np.ndarray:
         """Repulsive velocity (N, 3) from neighbours and obstacles (failed agents included)."""
         v = self._repulsion(world, sensing)
@@ -106,18 +108,20 @@ class Potential(Avoidance):
         return v
 
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
-        v_rep = self._repulsion(world, sensing)
-        if v_rep is None:  # added as a scalar 0.0: the same sums as with an array of zeros
-            v_rep = 0.0
-        elif not every(world.healthy):
-            v_rep[~world.healthy] = 0.0
+        """Add the repulsive velocity v_rep to the setpoints' velocity, and shift their positions by
+        ``lookahead`` v_rep, so that position-mode controllers turn away too (failed agents get none)."""
+        repulsion = self._repulsion(world, sensing)
+        if repulsion is not None and not every(world.healthy):
+            repulsion[~world.healthy] = 0.0
+        # None is added as a scalar 0.0: the same sums as with an array of zeros
+        v_rep = 0.0 if repulsion is None else repulsion
         shift = self.params.lookahead * v_rep
         moving = sp.mode != _VELOCITY
         if every(moving):  # pos + shift, without two gathers and a scatter
             pos = sp.pos + shift
         else:
             pos = sp.pos.copy()
-            pos[moving] += shift if np.isscalar(shift) else shift[moving]
+            pos[moving] += shift[moving] if isinstance(shift, np.ndarray) else shift
         # New pos and vel; the fields it does not change are handed on, not copied (nothing
         # after avoidance writes to setpoints: the dynamics' contract forbids it).
         return Setpoints(sp.mode, pos, sp.vel + v_rep, sp.acc, sp.yaw, sp.jerk, sp.snap)
@@ -125,4 +129,5 @@ class Potential(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`Potential` to the registry, so that ``avoidance=potential`` chooses it."""
     register(Potential)

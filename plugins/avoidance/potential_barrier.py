@@ -57,6 +57,8 @@ class PotentialBarrier(Avoidance):
             True, description="leave the leader's command alone (the thesis' leader has no avoidance)"
         )
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         fields = IndoorGains.__dataclass_fields__
@@ -71,6 +73,8 @@ class PotentialBarrier(Avoidance):
         return avoidance_terms(shared_snapshot(sensing, self.gains), self.gains)
 
     def adjust(self, world: WorldState, sensing: Any, sp: Setpoints) -> Setpoints:
+        """The thesis' saturated sum of the formation command and the barrier terms for VELOCITY rows
+        (one compiled call); other modes get the terms as feed-forward and a shifted reference."""
         T = self.gains.T_s
         w = self.terms(sensing)
         out = sp.copy()
@@ -90,4 +94,5 @@ class PotentialBarrier(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`PotentialBarrier` to the registry, so that ``avoidance=potential_barrier`` chooses it."""
     register(PotentialBarrier)

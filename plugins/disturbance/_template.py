@@ -28,6 +28,8 @@ class MyDisturbance(Disturbance):
         bias: tuple[float, float, float] = Field((0.0, 0.0, 0.5), description="b: constant offset [x, y, z], m")
         std: float = Field(0.1, ge=0, le=100, description="sigma: standard deviation of the noise, m")
 
+    params: Params  # self.params: the validated options, typed as this class's own (for mypy, editors)
+
     def __init__(self, params, ctx):
         super().__init__(params, ctx)
         self.largest = 0.0  # state on the instance: one model per run

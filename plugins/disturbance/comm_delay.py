@@ -7,4 +7,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_disturbances(register):
+    """Add :class:`CommDelay` to the registry, so that ``disturbances.<key>.kind: comm_delay`` chooses it."""
     register(CommDelay)

@@ -7,4 +7,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_disturbances(register):
+    """Add :class:`Gust` to the registry, so that ``disturbances.<key>.kind: gust`` chooses it."""
     register(Gust)

@@ -7,4 +7,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_disturbances(register):
+    """Add :class:`PacketLoss` to the registry, so that ``disturbances.<key>.kind: packet_loss`` chooses it."""
     register(PacketLoss)

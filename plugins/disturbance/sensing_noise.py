@@ -7,4 +7,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_disturbances(register):
+    """Add :class:`SensingNoise` to the registry, so that ``disturbances.<key>.kind: sensing_noise`` chooses it."""
     register(SensingNoise)

@@ -1,0 +1,1 @@
+"""Dynamics models (``dynamics=NAME``), one registered module each."""

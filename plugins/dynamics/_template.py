@@ -25,6 +25,8 @@ class MyDynamics(Dynamics):
     class Params(PluginParams):
         gain: float = Field(1.0, gt=0, description="position gain, 1/s")
 
+    params: Params  # self.params: the validated options, typed as this class's own (for mypy, editors)
+
     def initialize(self, world: WorldState) -> None:
         self.u = np.zeros_like(world.pos)
 

@@ -43,8 +43,12 @@ from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import every
-
-from swarmscene.methods.quadrotor.thesis_controllers import ThesisController, position_gains, tracker_gains, velocity_gains
+from swarmscene.methods.quadrotor.thesis_controllers import (
+    ThesisController,
+    position_gains,
+    tracker_gains,
+    velocity_gains,
+)
 
 
 class DoubleIntegrator(Dynamics):
@@ -83,7 +87,9 @@ class DoubleIntegrator(Dynamics):
             0.0, ge=0, description="anti-chattering threshold ε_lim, m/s (thesis: 3 σ of the "
             "velocity noise): a limit at or below it brakes with -K_lim v")
 
-    def __init__(self, params: "DoubleIntegrator.Params", ctx: BuildContext) -> None:
+    params: Params
+
+    def __init__(self, params: DoubleIntegrator.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         T_s = ctx.guidance_period
         # the slower real pole is the one cancelled by the zero (eq. 3.28)
@@ -97,6 +103,7 @@ class DoubleIntegrator(Dynamics):
         self.K_lim = min(params.K_lim, 1.0 / T_s)
 
     def initialize(self, world: WorldState) -> None:
+        """Build the thesis controller for N agents and expose its input u as ``world.acc``."""
         p = self.params
         self.controller = ThesisController(world.n, self.velocity, self.position, self.tracker,
                                            p.u_sat, self.K_lim, p.eps_lim)
@@ -106,6 +113,8 @@ class DoubleIntegrator(Dynamics):
         self._move = np.empty_like(self.u)  # step()'s work array
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
+        """u from the thesis' three laws (velocity PI, position PID, tracker), by setpoint mode;
+        failed agents are switched to HOLD."""
         healthy = world.healthy
         if every(healthy):  # nobody to switch to HOLD (the selections below would copy sp as is)
             mode, r_ref = sp.mode, sp.pos
@@ -122,6 +131,7 @@ class DoubleIntegrator(Dynamics):
         self._held_dt = None
 
     def step(self, world: WorldState, dt: float) -> None:
+        """r += T v + T^2/2 u, v += T u (exact for u held over the step)."""
         # r += T v + T^2/2 u, v += T u. u is held over the tick's sub-steps, so its two terms are
         # computed once per tick and dt (the same products, in the same order: the same bits).
         if self._held_dt != dt:
@@ -134,4 +144,5 @@ class DoubleIntegrator(Dynamics):
 
 @hookimpl
 def swarmscene_register_dynamics(register) -> None:
+    """Add :class:`DoubleIntegrator` to the registry, so that ``dynamics=double_integrator`` chooses it."""
     register(DoubleIntegrator)

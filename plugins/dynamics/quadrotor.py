@@ -43,9 +43,8 @@ from pydantic import Field, model_validator
 
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.setpoint import Setpoints
 from swarmscene.core.state import WorldState
-
 from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.methods.quadrotor.model import AIRFRAMES, quat_to_rotmat, yaw_to_quat
 from swarmscene.methods.quadrotor.se3_controller import se3_gains
@@ -85,7 +84,7 @@ class Quadrotor(Dynamics):
             "(p, v, a, jerk, snap) between guidance ticks")
 
         @model_validator(mode="after")
-        def _inner_loop_resolved(self) -> "Quadrotor.Params":
+        def _inner_loop_resolved(self) -> Quadrotor.Params:
             # the attitude loop is discrete at max_step: keep omega dt well below its stability edge
             if self.attitude_omega * self.max_step > 0.5:
                 raise ValueError(
@@ -93,7 +92,9 @@ class Quadrotor(Dynamics):
                     f"(got {self.attitude_omega} * {self.max_step})")
             return self
 
-    def __init__(self, params: "Quadrotor.Params", ctx: BuildContext) -> None:
+    params: Params
+
+    def __init__(self, params: Quadrotor.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         # numba is imported here, not at module level: listing plugins must not pay for it
         from swarmscene.methods.quadrotor import kernels
@@ -115,6 +116,7 @@ class Quadrotor(Dynamics):
 
     # -- lifecycle ---------------------------------------------------------------------------
     def initialize(self, world: WorldState) -> None:
+        """Attitude level and yawed to 0, at rest, every rotor at hover speed; all rotors healthy."""
         n = world.n
         world.quat = yaw_to_quat(np.zeros(n))
         world.omega = np.zeros((n, 3))
@@ -177,6 +179,8 @@ class Quadrotor(Dynamics):
 
     def wind_acceleration(self, world: WorldState) -> np.ndarray:
         """The wind's force per mass a = R D R^T w (N, 3) world (``step`` integrates it itself)."""
+        # initialize() set the attitude; the kernel asks for this only when a wind model is declared
+        assert world.quat is not None and world.wind is not None
         R = quat_to_rotmat(world.quat)
         f_body = np.einsum("nji,nj->ni", R, world.wind) * self._drag
         return np.einsum("nij,nj->ni", R, f_body)
@@ -193,4 +197,5 @@ def _floats(a) -> np.ndarray:
 
 @hookimpl
 def swarmscene_register_dynamics(register) -> None:
+    """Add :class:`Quadrotor` to the registry, so that ``dynamics=quadrotor`` chooses it."""
     register(Quadrotor)

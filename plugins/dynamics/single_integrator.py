@@ -24,7 +24,6 @@ from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import clip_norm
 
-
 _VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
 """As ints: numpy compares an array with an enum member several times slower."""
 assert _VELOCITY & 1 and _HOLD & 1 and not int(Mode.POSITION) & 1 and not int(Mode.TRACK) & 1
@@ -42,10 +41,14 @@ class SingleIntegrator(Dynamics):
             1.0, gt=0, description="proportional gain on position error in POSITION/TRACK/HOLD, 1/s"
         )
 
+    params: Params
+
     def initialize(self, world: WorldState) -> None:
+        """The velocity command u, zero until the first guidance tick."""
         self.u = np.zeros_like(world.pos)
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
+        """u = v̄ + k (r̄ - r); VELOCITY setpoints take v̄ alone, HOLD ones k (r̄ - r) alone."""
         p = self.params
         correction = p.gain * (sp.pos - world.pos)
         u = sp.vel + correction
@@ -57,10 +60,12 @@ class SingleIntegrator(Dynamics):
         self.u = clip_norm(u, p.u_max)
 
     def step(self, world: WorldState, dt: float) -> None:
+        """r += u T, v = u: the velocity command is flown exactly."""
         world.pos += self.u * dt
         world.vel[:] = self.u
 
 
 @hookimpl
 def swarmscene_register_dynamics(register) -> None:
+    """Add :class:`SingleIntegrator` to the registry, so that ``dynamics=single_integrator`` chooses it."""
     register(SingleIntegrator)

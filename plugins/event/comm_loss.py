@@ -8,4 +8,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_events(register):
+    """Add :class:`CommLoss` to the registry, so that an event's ``kind: comm_loss`` chooses it."""
     register(CommLoss)

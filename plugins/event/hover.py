@@ -8,4 +8,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_events(register):
+    """Add :class:`Hover` to the registry, so that an event's ``kind: hover`` chooses it."""
     register(Hover)

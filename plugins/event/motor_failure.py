@@ -8,4 +8,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_events(register):
+    """Add :class:`MotorFailure` to the registry, so that an event's ``kind: motor_failure`` chooses it."""
     register(MotorFailure)

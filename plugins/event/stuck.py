@@ -8,4 +8,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_events(register):
+    """Add :class:`Stuck` to the registry, so that an event's ``kind: stuck`` chooses it."""
     register(Stuck)

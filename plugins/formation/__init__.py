@@ -1,0 +1,1 @@
+"""Formations (``formation=NAME``), one registered module each."""

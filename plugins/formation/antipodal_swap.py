@@ -45,13 +45,17 @@ class AntipodalSwap(Formation):
         arrival_tolerance: float = Field(
             0.1, gt=0, description="distance to its goal at which an agent has arrived, m")
 
-    def __init__(self, params: "AntipodalSwap.Params", ctx: BuildContext) -> None:
+    params: Params
+
+    def __init__(self, params: AntipodalSwap.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         start = ctx.initial.pos
         self.center = start.mean(axis=0)
         self.goal = 2.0 * self.center - start
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """Healthy agents fly at their goal (the antipode of their start) at the capped speed;
+        failed ones hold."""
         p = self.params
         sp = Setpoints.hold(world.pos)
         healthy = world.healthy
@@ -61,10 +65,12 @@ class AntipodalSwap(Formation):
         return sp
 
     def complete(self, world: WorldState) -> bool:
+        """True when every healthy agent is within ``arrival_tolerance`` of its goal."""
         error = np.linalg.norm(world.pos - self.goal, axis=1)
         return bool(np.all(error[world.healthy] <= self.params.arrival_tolerance))
 
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`AntipodalSwap` to the registry, so that ``formation=antipodal_swap`` chooses it."""
     register(AntipodalSwap)

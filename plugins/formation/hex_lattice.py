@@ -82,6 +82,8 @@ class HexLattice(Formation):
             True, description="add the leader's applied input (world.acc) as TRACK feed-forward"
         )
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         leader = ctx.initial.leader  # requires_leader: validation checked it
@@ -128,6 +130,9 @@ class HexLattice(Formation):
         return targets
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """TRACK setpoints: the leader holds home until the lattice has formed (or the timeout), then
+        follows the path; each follower tracks its slot with the leader's state as feed-forward.
+        Slots are reassigned after a failure and as ``reassign`` says."""
         p = self.params
         failure = not np.array_equal(world.healthy, self._healthy)
         leader_waiting = self.t_start is None
@@ -162,6 +167,7 @@ class HexLattice(Formation):
         return sp
 
     def complete(self, world: WorldState) -> bool:
+        """True once the leader has reached the path's end and every agent is in its slot."""
         if not self._end_reached:
             return False
         return bool(np.all(self._in_place(world, self.slot_targets(world))))
@@ -178,4 +184,5 @@ class HexLattice(Formation):
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`HexLattice` to the registry, so that ``formation=hex_lattice`` chooses it."""
     register(HexLattice)

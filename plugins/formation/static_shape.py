@@ -27,7 +27,6 @@ from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
 
-
 _TRACK, _HOLD = int(Mode.TRACK), int(Mode.HOLD)
 
 
@@ -54,6 +53,8 @@ class StaticShape(Formation):
         arrival_tolerance: float = Field(
             0.5, gt=0, description="distance to its slot at which an agent has arrived, m"
         )
+
+    params: Params
 
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
@@ -95,6 +96,8 @@ class StaticShape(Formation):
         return slot_of
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """The shape's slots carried along the path at time t (heading of the current leg); the
+        slots are reassigned after a failure when ``reassign_on_failure``."""
         center, velocity, leg, self._end_reached = self.path.at(world.t)
         self.heading = self._leg_heading[min(leg, len(self._leg_heading) - 1)]
         healthy_count = int(np.count_nonzero(world.healthy))
@@ -121,6 +124,8 @@ class StaticShape(Formation):
         return sp
 
     def complete(self, world: WorldState) -> bool:
+        """True once the path's end is reached and every healthy agent with a slot is within
+        ``arrival_tolerance`` of it."""
         if not self._end_reached:
             return False
         active = world.healthy & (self.slot_of >= 0)
@@ -144,7 +149,7 @@ class _Placement:
     """(N,) int8: TRACK with a slot, HOLD without"""
 
     @classmethod
-    def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> "_Placement":
+    def of(cls, heading: float, turned: np.ndarray, slot_of: np.ndarray) -> _Placement:
         slotted = slot_of >= 0
         mode = np.where(slotted, _TRACK, _HOLD).astype(np.int8)
         return cls(heading, turned[np.maximum(slot_of, 0)], rows_of(np.flatnonzero(~slotted)),
@@ -153,4 +158,5 @@ class _Placement:
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`StaticShape` to the registry, so that ``formation=static_shape`` chooses it."""
     register(StaticShape)

@@ -42,7 +42,6 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import BuildContext, Formation, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-
 from swarmscene.methods.shapes import shape_offsets
 from swarmscene.methods.vrb.airshow import airshow_keyframes, airshow_sequence
 from swarmscene.methods.vrb.trajectory import ORDER, Keyframes, VRBTrajectory
@@ -124,7 +123,7 @@ class VirtualRigidBody(Formation):
             0.3, ge=1e-3, description="deviation spline knot spacing, s (at least 1 ms)")
 
         @model_validator(mode="after")
-        def _preset_or_custom(self) -> "VirtualRigidBody.Params":
+        def _preset_or_custom(self) -> VirtualRigidBody.Params:
             if self.preset == "airshow" and (self.keyframes or self.formations):
                 raise ValueError("keyframes/formations are only read with preset: custom")
             if self.preset == "custom" and (len(self.keyframes) < 2 or not self.formations):
@@ -135,7 +134,9 @@ class VirtualRigidBody(Formation):
                 raise ValueError("threshold D must exceed s_i + s_j = 2 clearance (eq. 8)")
             return self
 
-    def __init__(self, params: "VirtualRigidBody.Params", ctx: BuildContext) -> None:
+    params: Params
+
+    def __init__(self, params: VirtualRigidBody.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         keyframes, sequence = self._task(params, ctx.n)
         self.trajectory = VRBTrajectory(keyframes)
@@ -152,7 +153,7 @@ class VirtualRigidBody(Formation):
         self._min_transform_distance = np.inf
 
     @staticmethod
-    def _task(params: "VirtualRigidBody.Params", n: int) -> tuple[Keyframes, FormationSequence]:
+    def _task(params: VirtualRigidBody.Params, n: int) -> tuple[Keyframes, FormationSequence]:
         if params.preset == "airshow":
             seq = airshow_sequence()
             if seq.slots.shape[1] != n:
@@ -192,6 +193,8 @@ class VirtualRigidBody(Formation):
         return FormationSequence(slots, seq.durations, seq.transitions, seq.t1)
 
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
+        """Each robot's flat outputs (position and derivatives up to snap) at time t, as TRACK
+        setpoints; records the tracking error for the run's metrics."""
         fo = robot_flat_outputs(self.trajectory, self.flight, world.t)
         p = fo.p[:, 0]  # (5, N, 3) at this tick
         err = np.linalg.norm(world.pos - p[0], axis=1)[world.healthy]
@@ -212,10 +215,12 @@ class VirtualRigidBody(Formation):
         )
 
     def complete(self, world: WorldState) -> bool:
+        """True once the last transformation has ended."""
         return world.t >= self.end_time
 
     @hookimpl
     def swarmscene_step_end(self, sim: Any) -> None:
+        """During a transformation: the smallest inter-agent distance seen (what s_ij must bound)."""
         t = sim.world.t
         if self._windows.size and np.any((self._windows[:, 0] <= t) & (t <= self._windows[:, 1])):
             nearest, _ = sim.sensing.nearest
@@ -230,12 +235,16 @@ class VirtualRigidBody(Formation):
         measured = m.get("vrb.min_transformation_distance")
         if measured is None:
             return "n/a: no transformation flown, Problem 4's bound has nothing to check"
-        return (f"min {measured:.3g} m vs s_i + s_j = 2 formation.clearance = {m['vrb.safety_distance']:.3g} m (Problem 4), "
+        return (f"min {measured:.3g} m vs s_i + s_j = 2 formation.clearance = "
+                f"{m['vrb.safety_distance']:.3g} m (Problem 4), "
                 "nearest pairs in 3-D, every guidance tick during transformations only (formations held "
                 "between them: the separation line)")
 
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """The ``vrb.`` metrics: the transformations' smallest distance against s_ij = 2 clearance
+        (Problem 4), the largest jump of the flat outputs at a switch, the tracking error, the
+        planning time."""
         jumps = switch_jumps(self.trajectory, self.flight)  # (switches, 5)
         ts = self.flight.switch_times
         scale = np.abs(robot_flat_outputs(self.trajectory, self.flight, ts).p).max(axis=(2, 3)).T
@@ -256,4 +265,5 @@ class VirtualRigidBody(Formation):
 
 @hookimpl
 def swarmscene_register_formations(register) -> None:
+    """Add :class:`VirtualRigidBody` to the registry, so that ``formation=virtual_rigid_body`` chooses it."""
     register(VirtualRigidBody)

@@ -7,4 +7,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_generators(register):
+    """Add :class:`Building` to the registry, so that ``environment.generator: building`` chooses it."""
     register(Building)

@@ -7,4 +7,5 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl
 def swarmscene_register_generators(register):
+    """Add :class:`ObstacleField` to the registry, so that ``environment.generator: obstacle_field`` chooses it."""
     register(ObstacleField)

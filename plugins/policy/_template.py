@@ -23,6 +23,8 @@ class MyPolicy(Policy):
     class Params(PluginParams):
         gain: float = Field(1.0, gt=0, description="k: commanded speed per metre of offset, 1/s")
 
+    params: Params  # self.params: the validated options, typed as this class's own (for mypy, editors)
+
     def __call__(self, obs):
         """Actions (N, 3) in [-1, 1] from the observations (N, D): ``self.layout.split`` names the
         columns (own state, neighbours, nearest obstacle, reference); ``self.spec`` says whether an

@@ -13,6 +13,8 @@ from swarmscene.plugin import hookimpl
 
 @hookimpl(trylast=True)
 def swarmscene_register_policies(register):
+    """Register each policy of the older ``swarmscene.policies`` entry-point group; one whose
+    name a hook already took is skipped with a warning."""
     for cls in entry_point_policies():
         try:
             register(cls)

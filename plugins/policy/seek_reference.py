@@ -23,11 +23,16 @@ class SeekReference(Policy):
         repulsion: float = Field(2.0, ge=0, description="k_r: push off neighbours and obstacles, m/s")
         radius: float = Field(1.0, gt=0, description="r: distance under which it pushes off, m")
 
+    params: Params
+
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The actions that fly each agent at its formation reference, gain k, pushed off neighbours
+        and obstacles closer than ``radius``."""
         p = self.params
         return seek_reference_actions(self.layout, self.spec, obs, p.gain, p.repulsion, p.radius)
 
 
 @hookimpl
 def swarmscene_register_policies(register):
+    """Add :class:`SeekReference` to the registry, so that ``avoidance.policy: seek_reference`` chooses it."""
     register(SeekReference)

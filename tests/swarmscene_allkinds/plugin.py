@@ -8,8 +8,21 @@ from pydantic import Field
 from shapely.geometry import box
 
 from swarmscene.plugin import (
-    Avoidance, Disturbance, DisturbanceParams, Dynamics, EventKindPlugin, EventParams, Formation,
-    MapGenerator, Mode, Motion, PluginParams, Policy, Setpoints, StrictModel, hookimpl,
+    Avoidance,
+    Disturbance,
+    DisturbanceParams,
+    Dynamics,
+    EventKindPlugin,
+    EventParams,
+    Formation,
+    MapGenerator,
+    Mode,
+    Motion,
+    PluginParams,
+    Policy,
+    Setpoints,
+    StrictModel,
+    hookimpl,
 )
 
 
