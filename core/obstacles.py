@@ -12,8 +12,16 @@ import functools
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    BaseModel, ConfigDict, Field, PrivateAttr, SerializationInfo, ValidationInfo, create_model,
-    field_validator, model_serializer, model_validator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    SerializationInfo,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_serializer,
+    model_validator,
 )
 
 from .fields import MAX_LENGTH, Point2, StrictModel, key_error

@@ -369,6 +369,7 @@ def schema_file_name(group: str | None) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
+    """``python -m swarmscene.schema``: write or print the JSON Schemas (one line and exit 2 on bad input)."""
     parser = argparse.ArgumentParser(prog="python -m swarmscene.schema",
                                      description=" ".join(__doc__.split("\n\n")[0].split()))
     which = parser.add_mutually_exclusive_group()

@@ -50,13 +50,16 @@ BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
 through ``swarmscene_register_disturbances``, like a third-party model)."""
 
 
-def validate_disturbances(data: Any, errors: list[str], registry: Any) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
+def validate_disturbances(
+    data: Any, errors: list[str], registry: Any
+) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
     """Validate the ``disturbances`` mapping; append one line per problem to ``errors``.
 
     Args:
         data: the composed ``disturbances`` section.
         errors: the validation's error lines.
         registry: the plugin :class:`~swarmscene.core.registry.Registry` (kind ``disturbance``).
+
     Returns:
         each key's model class and validated Params (keys sorted: the order of application).
     """
@@ -273,6 +276,7 @@ class Disturbances:
 
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
+        """Add each model's ``disturbances.<key>.*`` metrics to the run's."""
         metrics.update(self.metrics())
 
 

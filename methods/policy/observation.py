@@ -48,6 +48,7 @@ class ObservationLayout:
 
     @property
     def blocks(self) -> tuple[tuple[str, int], ...]:
+        """Each feature block's name and width, in row order (own state, k neighbours, obstacle, reference)."""
         k = self.k
         return (*OWN, ("nbr_pos", 3 * k), ("nbr_vel", 3 * k), ("nbr_mask", k), *OBSTACLE, *REFERENCE)
 
@@ -57,6 +58,7 @@ class ObservationLayout:
         return sum(width for _, width in self.blocks)
 
     def slices(self) -> dict[str, slice]:
+        """Each feature block's slice of a row, by name."""
         out, start = {}, 0
         for name, width in self.blocks:
             out[name] = slice(start, start + width)

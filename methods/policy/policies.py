@@ -95,6 +95,7 @@ class FactoryPolicy(Policy):
         self.function = self.entry_point.load()(layout, spec, **(params.model_extra or {}))
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The factory-built function's actions for the observation rows."""
         return self.function(obs)
 
 

@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
 
-from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.errors import format_validation_error
+from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams, choose
 from swarmscene.core.setpoint import Setpoints
 from swarmscene.core.state import WorldState
@@ -65,7 +65,7 @@ class PolicyAvoidance(Avoidance):
         _policy: Any = PrivateAttr(None)
 
         @model_validator(mode="after")
-        def _registered_policy(self, info: ValidationInfo) -> "PolicyAvoidance.Params":
+        def _registered_policy(self, info: ValidationInfo) -> PolicyAvoidance.Params:
             """The policy named is registered and its options pass its Params (checked against the
             registry validating the scenario; without one, when the plugin is built)."""
             if self.policy is None:
@@ -84,7 +84,7 @@ class PolicyAvoidance(Avoidance):
             """The registered class ``policy`` names (None: not resolved by a registry)."""
             return self._policy
 
-    def __init__(self, params: "PolicyAvoidance.Params", ctx: BuildContext) -> None:
+    def __init__(self, params: PolicyAvoidance.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.layout = ObservationLayout(params.neighbours)
         self.spec = ActionSpec(params.action, params.max_speed, params.max_accel, ctx.guidance_period)
@@ -111,6 +111,7 @@ class PolicyAvoidance(Avoidance):
         self._active = np.asarray(active, dtype=bool)
 
     def adjust(self, world: WorldState, sensing, sp: Setpoints) -> Setpoints:
+        """Fly this tick's actions: the named policy's, or those an environment commanded."""
         if self.policy is not None:
             self.command(self.policy(self.observe(sensing)), np.ones(world.n, dtype=bool))
         elif self._action is None:
@@ -134,4 +135,5 @@ def _check_options(cls: type[Policy], options: dict[str, Any]) -> None:
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Register :class:`PolicyAvoidance` (``avoidance=policy``)."""
     register(PolicyAvoidance)
