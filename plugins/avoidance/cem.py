@@ -129,7 +129,7 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import min_pair_distance
+from swarmscene.core.vectors import min_distance_between, min_pair_distance
 
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius, segment_clearance
 
@@ -141,19 +141,6 @@ _TRACK = int(Mode.TRACK)
 _VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
 HANDBACK_RULES = ("clear_path", "passed")
 """``hand_back_rule`` (module docstring): the default first."""
-
-
-def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty.
-
-    Squares summed x then y, as ``np.linalg.norm`` and a k-d tree sum them (the same distance to the
-    bit), in a few small array operations: this runs every tick after a hand-back.
-    """
-    if a.shape[0] == 0 or b.shape[0] == 0:
-        return math.inf
-    dx = a[:, 0, None] - b[None, :, 0]
-    dy = a[:, 1, None] - b[None, :, 1]
-    return math.sqrt(float((dx * dx + dy * dy).min()))
 
 
 class CEM(Avoidance):
@@ -290,7 +277,7 @@ class CEM(Avoidance):
                                 branch_guard=p.branch_guard)
         self.healthy_idx = healthy
         self.nav.track_rows(healthy, _TRACK)
-        self._k = self.nav.inverter._k  # the compiled kernels module (loaded with the navigator)
+        self._k = self.nav.kernels  # the compiled kernels module (loaded with the navigator)
         self._failed_xy = np.ascontiguousarray(failed_xy, dtype=float)  # (F, 2) world x-y z_f
         self._measured = np.empty(self._k.N_MEAS)
         self._handback_at = float(self.nav.centres.real.max() + self.handback_distance)  # flow frame, m
@@ -434,12 +421,12 @@ class CEM(Avoidance):
         if agents.size == 0:
             return
         xy = world.pos[agents, :2]
-        self._clearance = min(self._clearance, _min_distance(xy, self._failed_xy) - self.a_f - self.params.eps)
+        self._clearance = min(self._clearance, min_distance_between(xy, self._failed_xy) - self.a_f - self.params.eps)
         self._pair = min(self._pair, min_pair_distance(xy))
         placed = agents[(sp.mode[agents] == _TRACK) | (sp.mode[agents] == int(Mode.POSITION))]
         if placed.size:
             cmd = sp.pos[placed, :2]
-            self._margin = min(self._margin, _min_distance(cmd, self._failed_xy) - self.a_p)
+            self._margin = min(self._margin, min_distance_between(cmd, self._failed_xy) - self.a_p)
             self._pair_cmd = min(self._pair_cmd, min_pair_distance(cmd))
 
     def _note_violations(self, world: WorldState) -> None:
