@@ -17,6 +17,9 @@ does no per-job composition in the main process:
    A grid checked whole is launched in batches of ``max_batch_size`` (all at once by default); a
    grid checked batch by batch in batches of :data:`FIRST_BATCH` jobs, doubling up to
    :data:`LAST_BATCH`, so the first job starts at once.
+4. the tables: the sweep's summary (``summary.csv``/``.md``,
+   :class:`~swarmscene.sweeps.callback.SweepSummary`) is written before the lock is released, so a
+   second sweep let into the directory never changes its jobs under tables being written.
 
 Options (``hydra.sweeper.*``), besides ``params`` and ``max_batch_size``:
 
@@ -113,6 +116,7 @@ class SwarmsceneSweeper(Sweeper):
         from omegaconf import OmegaConf
 
         from ..core.outputs import atomic_write_bytes
+        from .callback import summary_wanted, write_under_lock
         from .records import SweepLock, check_grid_owner, record_grid
 
         loader = self.hydra_context.config_loader
@@ -139,6 +143,8 @@ class SwarmsceneSweeper(Sweeper):
                 for result in results:
                     _ = result.return_value  # re-raises what ended a job (a Ctrl-C)
                 returns.append(results)
+            if summary_wanted(self.config):  # the tables, before another sweep may take the directory
+                write_under_lock(sweep_dir)
             return returns
         finally:
             lock.release()
