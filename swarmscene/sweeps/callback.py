@@ -102,7 +102,8 @@ class SweepSummary(Callback):
             return
         with open_dict(sweeper):
             sweeper["_target_"] = SWARMSCENE_SWEEPER
-            for key, value in (("validate", "each_value"), ("on_invalid", "stop"), ("cases", None), ("upfront", 1000)):
+            for key, value in (("validate", "each_value"), ("on_invalid", "stop"), ("cases", None), ("upfront", 1000),
+                           ("jobs_per_task", "auto")):
                 sweeper.setdefault(key, value)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 from collections import OrderedDict
 from collections.abc import Sequence
 from typing import Any
@@ -104,6 +105,17 @@ class GroupCachingLoader(ConfigLoader):
         return getattr(self.inner, name)
 
     def load_sweep_config(self, master_config: Any, sweep_overrides: list[str]) -> Any:
+        from . import chunks
+
+        task = chunks.split(sweep_overrides)  # a launcher task of several jobs (sweeps.chunks)
+        if task is None:
+            return self._load_job(master_config, sweep_overrides)
+        (first, overrides), rest = task[0], task[1:]
+        cfg = self._load_job(master_config, overrides)
+        chunks.set_first(cfg, first, rest, master_config, self._search_path())
+        return cfg
+
+    def _load_job(self, master_config: Any, sweep_overrides: list[str]) -> Any:
         from omegaconf import OmegaConf
 
         parsed = parse(list(sweep_overrides))
@@ -201,8 +213,16 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     from ..core.outputs import COMMAND_ENV
 
     with open_dict(cfg.hydra.job.env_set):
-        cfg.hydra.job.env_set[COMMAND_ENV] = json.dumps(list(command))
+        cfg.hydra.job.env_set[COMMAND_ENV] = literal(json.dumps(list(command)))
     cfg.hydra.output_subdir = None
+
+
+def literal(text: str) -> str:
+    """``text`` as a config value that OmegaConf reads back unchanged: every ``${`` escaped (with
+    the backslashes before it doubled). Hydra resolves ``hydra.job.env_set`` when it sets the job's
+    environment: the command as typed ``description='${hydra:job.num}'`` must reach the manifest as
+    typed, not as the first job's value."""
+    return re.sub(r"(\\*)\$\{", lambda m: m.group(1) * 2 + "\\${", text)
 
 
 def _apply_values(values: Sequence[Any], cfg: Any) -> None:
