@@ -63,10 +63,12 @@ def test_jobs_per_task_auto_keeps_four_tasks_per_worker_and_falls_back_to_one_jo
         assert chunks.jobs_per_task("auto", joblib, refused, 200) == 1
 
 
+DESCRIBED = "description=job ${hydra:job.num} id ${hydra:job.id}"
+
+
 def sweep(where: Path, *args: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    proc = subprocess.run([*EXE, "--multirun", "clock.duration=0.3", "seed=0,1,2,3,4",
-                           "description=job ${hydra:job.num} id ${hydra:job.id}", *args,
+    proc = subprocess.run([*EXE, "--multirun", "clock.duration=0.3", "seed=0,1,2,3,4", *args,
                            f"hydra.sweep.dir={where}"], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr
     return proc
@@ -81,18 +83,27 @@ def job_record(job: Path) -> dict:
             "command": [a for a in manifest["command"] if "jobs_per_task" not in a and "sweep.dir" not in a]}
 
 
-@pytest.mark.parametrize("launch", [[], ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"]], ids=["basic", "joblib"])
-def test_a_task_of_several_jobs_writes_what_the_jobs_launched_alone_write(tmp_path, launch):
+JOBLIB = ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"]
+
+
+@pytest.mark.parametrize("launch, described", [([], True), (JOBLIB, True), ([], False), (JOBLIB, False)],
+                         ids=["basic-hydra-read", "joblib-hydra-read", "basic-lean", "joblib-lean"])
+def test_a_task_of_several_jobs_writes_what_the_jobs_launched_alone_write(tmp_path, launch, described):
     """Tasks of 2 jobs ([0, 1], [2, 3], [4]) against one job a task: every run directory the same
-    (config, overrides, trajectory bit for bit, metrics, manifest), each job numbered as itself."""
-    sweep(tmp_path / "tasks", *launch, "+hydra.sweeper.jobs_per_task=2")
-    sweep(tmp_path / "alone", *launch, "+hydra.sweeper.jobs_per_task=1")
+    (config, overrides, trajectory bit for bit, metrics, manifest), each job numbered as itself.
+    A config that reads ``${hydra:...}`` is composed whole for each job; one that does not takes the
+    lean path (one ``hydra`` node per composition, loader.load_task_job)."""
+    extra = [DESCRIBED] if described else ["description=lean"]
+    sweep(tmp_path / "tasks", *launch, *extra, "+hydra.sweeper.jobs_per_task=2")
+    sweep(tmp_path / "alone", *launch, *extra, "+hydra.sweeper.jobs_per_task=1")
     for n in range(5):
         task, alone = job_record(tmp_path / "tasks" / str(n)), job_record(tmp_path / "alone" / str(n))
         assert task == alone, n
-        description = OmegaConf.create(task["config"]).description
-        assert description.startswith(f"job {n} id ") and description.endswith(str(n))
-        assert "description=job ${hydra:job.num} id ${hydra:job.id}" in task["command"]  # as typed
+        if described:
+            description = OmegaConf.create(task["config"]).description
+            assert description.startswith(f"job {n} id ") and description.endswith(str(n))
+            assert DESCRIBED in task["command"]  # as typed, not as the first job resolved it
+        assert f"- seed={n}" in task["overrides"].splitlines()
     assert sorted(p.name for p in (tmp_path / "tasks").iterdir() if p.is_dir()) == ["0", "1", "2", "3", "4"]
     summary = (tmp_path / "tasks" / "summary.csv").read_text().splitlines()
     assert len(summary) == 6 and all(",complete," in line for line in summary[1:])
@@ -105,3 +116,23 @@ def test_jobs_per_task_is_checked_in_one_line(tmp_path):
     assert proc.returncode != 0
     assert "hydra.sweeper.jobs_per_task: must be auto or an integer >= 1 (got 0)" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("described, lean", [(False, 2), (True, 0)])
+def test_a_tasks_later_jobs_take_the_lean_path_unless_the_config_reads_hydra(tmp_path, monkeypatch, capsys,
+                                                                             described, lean):
+    from swarmscene import cli
+
+    calls = []
+    as_lean = chunks._as_lean_job
+    monkeypatch.setattr(chunks, "_as_lean_job", lambda *a: calls.append(a[2]) or as_lean(*a))
+    extra = [DESCRIBED] if described else ["description=lean"]
+    monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "clock.duration=0.2", "seed=0,1,2", *extra,
+                                      "+hydra.sweeper.jobs_per_task=3", f"hydra.sweep.dir={tmp_path / 'sw'}"])
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    try:
+        cli.main()
+    except SystemExit as exc:
+        assert not exc.code
+    assert calls == [1, 2][:lean]
+    assert "3 jobs, all complete" in capsys.readouterr().err

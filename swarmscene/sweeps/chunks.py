@@ -161,8 +161,12 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
     before = HydraConfig.instance().cfg
     try:
         for idx, overrides in task["rest"]:
-            cfg = loader.load_sweep_config(master, list(overrides))
-            run_one(*_as_job(cfg, idx, task["sweep_dir"], prefix))
+            lean = loader.load_task_job(master, list(overrides))
+            if lean is not None:
+                run_one(*_as_lean_job(*lean, idx, task["sweep_dir"], prefix))
+            else:
+                cfg = loader.load_sweep_config(master, list(overrides))
+                run_one(*_as_job(cfg, idx, task["sweep_dir"], prefix))
     finally:
         HydraConfig.instance().cfg = before
 
@@ -190,6 +194,9 @@ def _number(job: Any, idx: int, id_prefix: str | None) -> None:
         job.id = f"{id_prefix or ''}{idx}"
 
 
+_LOADERS: dict[tuple[str, str | None], Any] = {}
+
+
 def _loader_and_master(task: dict[str, Any], first_cfg: Any) -> tuple[Any, Any]:
     """This process's group-caching loader for the sweep's search path, and the little of the
     sweep's config that composing a job reads (its config name, Hydra overrides, resolver cache)."""
@@ -199,11 +206,15 @@ def _loader_and_master(task: dict[str, Any], first_cfg: Any) -> tuple[Any, Any]:
     from ..core.outputs import COMMAND_ENV
     from .compose import GroupCachingLoader
 
-    search_path = ConfigSearchPathImpl()
-    for provider, path in task["search_path"]:
-        search_path.append(provider, path)
     raw_command = os.environ.get(COMMAND_ENV)
-    loader = GroupCachingLoader(None, json.loads(raw_command) if raw_command else None, search_path)
+    key = (json.dumps(task["search_path"]), raw_command)
+    if key not in _LOADERS:  # one per process: its compositions and job templates serve every task
+        search_path = ConfigSearchPathImpl()
+        for provider, path in task["search_path"]:
+            search_path.append(provider, path)
+        _LOADERS.clear()
+        _LOADERS[key] = GroupCachingLoader(None, json.loads(raw_command) if raw_command else None, search_path)
+    loader = _LOADERS[key]
     master = OmegaConf.create({"hydra": {"overrides": {"hydra": task["hydra_overrides"]},
                                          "job": {"config_name": task["config_name"]},
                                          "searchpath": task["searchpath"]}})
@@ -228,3 +239,24 @@ def _as_job(cfg: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[
     with read_write(cfg), open_dict(cfg):
         del cfg["hydra"]
     return cfg, run_dir
+
+
+def _as_lean_job(task_cfg: Any, hydra_root: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[Any, Any]:
+    """:func:`_as_job` for a job from :meth:`~.compose.GroupCachingLoader.load_task_job`: the
+    composition's one ``hydra`` node numbered for this job and set as ``HydraConfig`` (its parent the
+    job's config, as ``set_config`` makes it; no copy), the run directory ``sweep_dir/<n>``."""
+    from pathlib import Path
+
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import OmegaConf, read_write
+
+    node = hydra_root.hydra
+    run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))  # subdir ${hydra.job.num}
+    with read_write(node):
+        _number(node.job, idx, id_prefix)
+        node.runtime.output_dir = str(run_dir)
+    OmegaConf.set_readonly(node, True)
+    node._set_parent(task_cfg)
+    HydraConfig.instance().cfg = hydra_root
+    run_dir.mkdir(parents=True, exist_ok=True)
+    return task_cfg, run_dir
