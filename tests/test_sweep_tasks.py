@@ -61,6 +61,7 @@ def test_jobs_per_task_auto_keeps_four_tasks_per_worker_and_falls_back_to_one_jo
     assert chunks.refusal(joblib, config()) is None
     for refused in (config(callbacks=mlflow), config(chdir=True)):
         assert chunks.jobs_per_task("auto", joblib, refused, 200) == 1
+        assert chunks.jobs_per_task(8, joblib, refused, 200) == 1  # a setting cannot force it
 
 
 DESCRIBED = "description=job ${hydra:job.num} id ${hydra:job.id}"

@@ -14,7 +14,10 @@ launcher unchanged. In the process that composes the task (:class:`~.compose.Gro
   rest (:func:`run_rest`): each composed from the cached composition of its groups, numbered, given
   its own run directory and ``HydraConfig``, and run by the same per-job function, which writes the
   same run directory (``.hydra/overrides.yaml``, config, manifest, metrics; resume and failure
-  records per job).
+  records per job). A job that only changes values takes the lean path
+  (:meth:`~.compose.GroupCachingLoader.load_task_job`): a copy of its composition without the
+  ``hydra`` node, and one ``hydra`` node per composition renumbered job after job (Hydra copies
+  that node twice a job); a config that reads ``${hydra:...}`` is composed whole.
 
 What a task does not do per job: Hydra's job callbacks (``on_job_start``/``on_job_end``; a sweep with
 callbacks other than the summary, MLflow's say, is launched job by job), a working-directory change
@@ -42,17 +45,17 @@ quarter of a sweep on one core."""
 CHUNKING_LAUNCHERS = ("BasicLauncher", "JoblibLauncher", "RayLauncher")
 """Launchers whose tasks are composed and run as the module docstring says (submitit's jobs keep
 their own SLURM ids: job by job)."""
-SUMMARY_TARGET = "swarmscene.sweeps.callback.SweepSummary"
 
 
 def jobs_per_task(setting: Any, launcher: Any, config: Any, jobs: int, cores: int | None = None) -> int:
-    """K for a batch of ``jobs``: ``setting`` when an integer; for ``auto``, 1 where a task cannot
-    run several jobs (:func:`refusal`), the whole batch (at most :data:`MAX_PER_TASK`) in this
-    process's basic launcher, else ``jobs / (TASKS_PER_WORKER x workers)``."""
-    if setting != "auto":
-        return max(1, min(int(setting), jobs))
+    """K for a batch of ``jobs``: 1 where a task cannot run several jobs (:func:`refusal`), whatever
+    the setting; else ``setting`` when an integer; for ``auto`` the whole batch (at most
+    :data:`MAX_PER_TASK`) in this process's basic launcher, else ``jobs / (TASKS_PER_WORKER x
+    workers)``."""
     if refusal(launcher, config) is not None:
         return 1
+    if setting != "auto":
+        return max(1, min(int(setting), jobs))
     workers = 1 if type(launcher).__name__ == "BasicLauncher" else _workers(config, cores)
     per_worker = 1 if workers == 1 else TASKS_PER_WORKER
     return max(1, min(MAX_PER_TASK, math.ceil(jobs / (per_worker * workers))))
@@ -65,6 +68,8 @@ def refusal(launcher: Any, config: Any) -> str | None:
     hydra = config.hydra
     if hydra.job.chdir:
         return "hydra.job.chdir"
+    from .callback import SUMMARY_TARGET
+
     callbacks = hydra.callbacks or {}
     if any((c or {}).get("_target_") != SUMMARY_TARGET for c in callbacks.values()):
         return "job callbacks"

@@ -34,8 +34,9 @@ Options (``hydra.sweeper.*``), besides ``params`` and ``max_batch_size``:
 - ``jobs_per_task``: ``auto`` (the default) or K >= 1: jobs one launcher task runs back to back in
   one process (:mod:`swarmscene.sweeps.chunks`: Hydra's per-job bookkeeping and the launcher's
   round trip paid once per task). ``auto``: a batch's jobs / (4 x the launcher's workers), at most
-  64; the basic launcher's whole batch (at most 64); 1 (job by job) where a task cannot run several
-  (launchers other than basic, joblib and Ray, job callbacks such as MLflow's, ``hydra.job.chdir``);
+  64; the basic launcher's whole batch (at most 64). Whatever the setting, 1 (job by job) where a
+  task cannot run several (launchers other than basic, joblib and Ray, job callbacks such as
+  MLflow's, ``hydra.job.chdir``);
 - ``cases``: a list of override lists taken together rather than crossed (Hydra's grid is a
   product only): the jobs are every case times the product of ``params``. A key given on the
   command line that a case also sets replaces the cases (the command line picks the grid).
