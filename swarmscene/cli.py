@@ -95,7 +95,10 @@ def _main() -> None:
     if debug:
         os.environ[DEBUG_ENV] = "1"  # the task reads it too
     # With HYDRA_FULL_ERROR Hydra raises composition errors instead of printing them with its own
-    # multi-line wording, so they reach the one-line formatting below.
+    # multi-line wording, so they reach the one-line formatting below. Put back afterwards: a
+    # caller in the same process (a test, a notebook) must not hand it to its later subprocesses,
+    # which would then print tracebacks instead of one line.
+    before = os.environ.get("HYDRA_FULL_ERROR")
     os.environ["HYDRA_FULL_ERROR"] = "1"
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
@@ -110,6 +113,11 @@ def _main() -> None:
         if debug:
             raise
         _report(_error_lines(exc))
+    finally:
+        if before is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = before
     if interrupts.requested() is not None:  # came after the last job was written
         _exit_interrupted("after the outputs were written")
     sweep_status = _multirun_status()

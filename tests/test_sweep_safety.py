@@ -334,6 +334,7 @@ def test_the_summary_is_written_while_the_sweep_still_holds_its_lock(tmp_path, m
         cli.main()
     except SystemExit as exc:
         assert not exc.code
+    assert "HYDRA_FULL_ERROR" not in os.environ  # the command put back what it set for itself
     assert held == [True]  # written once, by the sweeper, under its lock
     assert (sw / "summary.md").is_file() and not (sw / records.LOCK_FILE).exists()
     assert "2 jobs, all complete" in capsys.readouterr().err
