@@ -126,7 +126,9 @@ def test_a_tasks_later_jobs_take_the_lean_path_unless_the_config_reads_hydra(tmp
 
     calls = []
     as_lean = chunks._as_lean_job
-    monkeypatch.setattr(chunks, "_as_lean_job", lambda *a: calls.append(a[2]) or as_lean(*a))
+    seen = []  # the task's payload is no longer in the environment a job (and its subprocesses) sees
+    monkeypatch.setattr(chunks, "_as_lean_job",
+                        lambda *a: calls.append(a[2]) or seen.append(os.environ.get(chunks.CHUNK_ENV)) or as_lean(*a))
     extra = [DESCRIBED] if described else ["description=lean"]
     monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "clock.duration=0.2", "seed=0,1,2", *extra,
                                       "+hydra.sweeper.jobs_per_task=3", f"hydra.sweep.dir={tmp_path / 'sw'}"])
@@ -135,5 +137,6 @@ def test_a_tasks_later_jobs_take_the_lean_path_unless_the_config_reads_hydra(tmp
         cli.main()
     except SystemExit as exc:
         assert not exc.code
-    assert calls == [1, 2][:lean]
+    assert calls == [1, 2][:lean] and seen == [""] * lean
+    assert chunks.CHUNK_ENV not in os.environ  # Hydra removed it after the task
     assert "3 jobs, all complete" in capsys.readouterr().err

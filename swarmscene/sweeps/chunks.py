@@ -143,8 +143,14 @@ def set_first(cfg: Any, first: int, rest: list[tuple[int, list[str]]], master_co
 
 def renumber_first() -> None:
     """In the task's process, before its first job runs: the job's own number in ``HydraConfig``
-    (the launcher gave the task's), so ``${hydra:job.num}`` and the records read the job's."""
-    task = _task()
+    (the launcher gave the task's), so ``${hydra:job.num}`` and the records read the job's. The
+    task is taken from the environment (emptied: a job's own subprocesses do not inherit it; Hydra
+    removes the variable after the task)."""
+    raw = os.environ.get(CHUNK_ENV)
+    _CURRENT[0] = json.loads(raw) if raw else None
+    if raw:
+        os.environ[CHUNK_ENV] = ""
+    task = _CURRENT[0]
     if task is not None:
         from hydra.core.hydra_config import HydraConfig
 
@@ -156,7 +162,7 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
     """Run the rest of this process's task (nothing for a job launched alone), each job as
     ``run_one(config without hydra, run directory)`` with its ``HydraConfig`` set as ``run_job``
     sets it. ``first_cfg``: the first job's config (its resolver cache: ``${now:}`` as Hydra's)."""
-    task = _task()
+    task, _CURRENT[0] = _CURRENT[0], None  # read by renumber_first
     if task is None:
         return
     from hydra.core.hydra_config import HydraConfig
@@ -176,9 +182,8 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
         HydraConfig.instance().cfg = before
 
 
-def _task() -> dict[str, Any] | None:
-    raw = os.environ.get(CHUNK_ENV)
-    return None if not raw else json.loads(raw)
+_CURRENT: list[dict[str, Any] | None] = [None]
+"""The task this process runs now (:func:`renumber_first` takes it, :func:`run_rest` runs it)."""
 
 
 def _id_prefix(job: Any) -> str | None:
