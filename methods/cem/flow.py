@@ -503,7 +503,8 @@ class CEMNavigator:
         from the world's ``healthy`` (M,), ``pos``/``vel`` (M, 3) and the failures' x-y ``failed``
         (F, 2). Returns how many agents under CEM are still healthy."""
         inv = self.inverter
-        return inv.kernels.measure_tick(inv.cw, inv.iw, self._w0_imag, self._consts, healthy, pos, vel, failed, drift, out)
+        return inv.kernels.measure_tick(inv.cw, inv.iw, self._w0_imag, self._consts, healthy, pos, vel, failed,
+                                        drift, out)
 
     def stream_drift(self) -> np.ndarray:
         """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""
