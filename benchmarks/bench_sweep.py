@@ -4,6 +4,7 @@ and the speed-up over the cores of the machine it runs on (issue 25's goals).
     python benchmarks/bench_sweep.py                    # every part below, small sizes (~3 min)
     python benchmarks/bench_sweep.py --part main        # one part: main, fixed, cem, scaling
     python benchmarks/bench_sweep.py --part cem --seeds 1000
+    python benchmarks/bench_sweep.py --part fixed --jobs-per-task 1   # job by job (the ratio's baseline)
 
 Every command runs in a fresh process with its wall time measured around it; a job's start is the
 time its ``.hydra/overrides.yaml`` appears (the first file a sweep job writes).
@@ -48,11 +49,15 @@ def joblib(workers: int) -> list[str]:
     return ["hydra/launcher=joblib", f"hydra.launcher.n_jobs={workers}"]
 
 
+PER_TASK: list[str] = []
+"""``+hydra.sweeper.jobs_per_task=K`` when ``--jobs-per-task`` is given (default: the sweeper's auto)."""
+
+
 def run(args: list[str], directory: Path) -> tuple[float, float]:
     """(wall time, CPU time of the command and its workers), s, of ``swarmscene --multirun args``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run([*EXE, "--multirun", *args, f"hydra.sweep.dir={directory}"], check=True, env=ENV,
+    subprocess.run([*EXE, "--multirun", *args, *PER_TASK, f"hydra.sweep.dir={directory}"], check=True, env=ENV,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -166,7 +171,12 @@ def main() -> None:
     parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "all"), default="all")
     parser.add_argument("--seeds", type=int, default=100, help="seeds of the full cem_six_vehicle sweep")
     parser.add_argument("--scaling-jobs", type=int, default=96, help="jobs of the scaling sweep")
+    parser.add_argument("--jobs-per-task", default=None,
+                        help="hydra.sweeper.jobs_per_task of every sweep (default: the sweeper's, auto); "
+                             "1 launches job by job, as before launcher tasks, for a side-by-side ratio")
     args = parser.parse_args()
+    if args.jobs_per_task is not None:
+        PER_TASK.append(f"+hydra.sweeper.jobs_per_task={args.jobs_per_task}")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         if args.part in ("main", "all"):

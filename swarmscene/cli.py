@@ -95,7 +95,10 @@ def _main() -> None:
     if debug:
         os.environ[DEBUG_ENV] = "1"  # the task reads it too
     # With HYDRA_FULL_ERROR Hydra raises composition errors instead of printing them with its own
-    # multi-line wording, so they reach the one-line formatting below.
+    # multi-line wording, so they reach the one-line formatting below. Put back afterwards: a
+    # caller in the same process (a test, a notebook) must not hand it to its later subprocesses,
+    # which would then print tracebacks instead of one line.
+    before = os.environ.get("HYDRA_FULL_ERROR")
     os.environ["HYDRA_FULL_ERROR"] = "1"
     app = hydra.main(config_path="pkg://swarmscene.scenarios", config_name="config", version_base="1.3")(
         _task
@@ -110,6 +113,11 @@ def _main() -> None:
         if debug:
             raise
         _report(_error_lines(exc))
+    finally:
+        if before is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = before
     if interrupts.requested() is not None:  # came after the last job was written
         _exit_interrupted("after the outputs were written")
     sweep_status = _multirun_status()
@@ -171,8 +179,24 @@ def _task(cfg: Any) -> Any:
     (``error.json``, and a manifest with status ``failed``), so the other jobs still run and the
     sweep table shows the error; a job whose directory already holds a complete manifest with the
     same config hash is skipped (resume). A Ctrl-C writes what the run has, marked incomplete, and
-    ends the process with status 130.
+    ends the process with status 130. A launcher task of several sweep jobs
+    (:mod:`swarmscene.sweeps.chunks`) runs them one after another, each as a job of its own.
     """
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from .sweeps import chunks
+
+    if HydraConfig.get().mode != RunMode.MULTIRUN:
+        return _one(cfg)
+    chunks.renumber_first()  # a launcher task of several jobs: this job's number, not the task's
+    result = _one(cfg)
+    chunks.run_rest(lambda job_cfg, run_dir: _one(job_cfg), cfg)  # the task's other jobs, if any
+    return result
+
+
+def _one(cfg: Any) -> Any:
+    """One run or one sweep job, in the run directory ``HydraConfig`` names."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
     from omegaconf import OmegaConf
@@ -192,6 +216,11 @@ def _task(cfg: Any) -> Any:
         _report([line])
     if hydra_cfg.mode != RunMode.MULTIRUN:
         return _single(data, run_dir)
+    return _sweep_job(data, run_dir)
+
+
+def _sweep_job(data: dict[str, Any], run_dir: Path) -> Any:
+    """A sweep job: every exception recorded in its run directory (module docstring of _task)."""
     from .rundir import RunFileError
     from .sweeps.records import record_failure
 

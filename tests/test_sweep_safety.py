@@ -290,7 +290,7 @@ def test_sigterm_to_a_joblib_sweeps_main_process_stops_it_with_143(tmp_path):
     env.pop("HYDRA_FULL_ERROR", None)
     proc = subprocess.Popen(
         [*EXE, "--multirun", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "seed=range(0,40)",
-         "clock.duration=3000", f"hydra.sweep.dir={sw}"],
+         "clock.duration=3000", "termination.on_complete=false", f"hydra.sweep.dir={sw}"],
         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     deadline = time.monotonic() + 120
@@ -302,3 +302,41 @@ def test_sigterm_to_a_joblib_sweeps_main_process_stops_it_with_143(tmp_path):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 143, err
     assert time.monotonic() - started < 60  # 40 jobs of 3,000 s would take hours
+    # (termination.on_complete=false: the mission completes at 28 s, and 40 such jobs in tasks of
+    # several ended within the 2 s the test waits)
+
+
+def test_the_summary_is_written_while_the_sweep_still_holds_its_lock(tmp_path, monkeypatch, capsys):
+    """The tables are written before the lock is released: a second sweep let into the directory
+    once the lock is free can never change its jobs under tables being written."""
+    import fcntl
+
+    from swarmscene import cli
+    from swarmscene.sweeps import callback
+
+    sw = tmp_path / "sw"
+    held = []
+    real = callback.write_summary
+
+    def write_summary(sweep_dir):
+        fd = os.open(sw / records.LOCK_FILE, os.O_RDWR)  # a second opener, as another sweep would be
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            held.append(False)
+        except BlockingIOError:
+            held.append(True)
+        finally:
+            os.close(fd)
+        return real(sweep_dir)
+
+    monkeypatch.setattr(callback, "write_summary", write_summary)
+    monkeypatch.setattr(sys, "argv", ["swarmscene", *SMALL, "clock.duration=0.3", f"hydra.sweep.dir={sw}"])
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    try:
+        cli.main()
+    except SystemExit as exc:
+        assert not exc.code
+    assert "HYDRA_FULL_ERROR" not in os.environ  # the command put back what it set for itself
+    assert held == [True]  # written once, by the sweeper, under its lock
+    assert (sw / "summary.md").is_file() and not (sw / records.LOCK_FILE).exists()
+    assert "2 jobs, all complete" in capsys.readouterr().err

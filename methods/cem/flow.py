@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -342,6 +343,12 @@ class NewtonInverter:
         self.z = self.zz[kernels.Z]  # the estimate, updated in place (a view)
 
     @property
+    def kernels(self) -> Any:
+        """The compiled kernels module this inverter runs (:mod:`swarmscene.methods.cem.kernels`):
+        its index constants (``N_MEAS``, ``M_PAIR``, ...) name the slots of the work arrays."""
+        return self._k
+
+    @property
     def iterations(self) -> int:
         """Newton iterations run by the last CalcXY call (diagnostic)."""
         return int(self.iprm[self._k.I_ITERATIONS])
@@ -412,7 +419,7 @@ class CEMNavigator:
         self.newton_stop, self.branch_guard = newton_stop, bool(branch_guard)
         self.inverter = NewtonInverter(self.centres, a_p, zeta0.size, n, sigma, rng or np.random.default_rng(),
                                        self.strengths, noise_rule, newton_stop, branch_guard)
-        inv, k = self.inverter, self.inverter._k
+        inv, k = self.inverter, self.inverter.kernels
         inv.z[:] = zeta0  # r_d <- r, line 5
         inv.zz[k.W] = self.w0  # phi_last + j psi_i0
         rot_dt = self.rot / self.dT
@@ -437,14 +444,20 @@ class CEMNavigator:
         self._w0_imag, self._consts = self.w0.imag.copy(), np.array([mean.real, mean.imag, self.a_p])
 
     @property
+    def kernels(self) -> Any:
+        """The compiled kernels module of this navigator's inverter (:attr:`NewtonInverter.kernels`),
+        for a caller that reads the measurement slots of :meth:`measure_tick`."""
+        return self.inverter.kernels
+
+    @property
     def dphi(self) -> float:
         """The sliding step for the next tick (line 20), phi units."""
-        return float(self.inverter.prm[self.inverter._k.P_DPHI])
+        return float(self.inverter.prm[self.inverter.kernels.P_DPHI])
 
     @property
     def dphi_used(self) -> float:
         """The step phi actually advanced by at the last tick (Fig. 8); 0 before the first."""
-        return float(self.inverter.prm[self.inverter._k.P_USED])
+        return float(self.inverter.prm[self.inverter.kernels.P_USED])
 
     @property
     def n_agents(self) -> int:
@@ -462,13 +475,13 @@ class CEMNavigator:
     @property
     def iterations_total(self) -> tuple[int, int]:
         """(sum over ticks of the last pass's Newton iterations, ticks stepped), for their mean."""
-        k = self.inverter._k
+        k = self.inverter.kernels
         return int(self.inverter.iprm[k.I_ITER_TOTAL]), int(self.inverter.iprm[k.I_TICKS])
 
     @property
     def along_track_min(self) -> float:
         """min over agents of the commands' along-track coordinate (flow frame, m): Re(zeta).min()."""
-        return float(self.inverter.prm[self.inverter._k.P_ALONG_MIN])
+        return float(self.inverter.prm[self.inverter.kernels.P_ALONG_MIN])
 
     def step(self) -> tuple[np.ndarray, np.ndarray]:
         """One guidance tick (Algorithm 1 lines 13-22, one compiled call): returns world (N, 2)
@@ -479,7 +492,7 @@ class CEMNavigator:
     def track_rows(self, idx: np.ndarray, track: int) -> None:
         """Set where ``step_into`` writes: agent j's commands go to setpoint row idx[j] (N,),
         whose mode becomes ``track``."""
-        k, iw = self.inverter._k, self.inverter.iw
+        k, iw = self.inverter.kernels, self.inverter.iw
         iw[iw.size - self.n_agents:] = idx
         iw[k.I_TRACK] = track
 
@@ -490,7 +503,8 @@ class CEMNavigator:
         from the world's ``healthy`` (M,), ``pos``/``vel`` (M, 3) and the failures' x-y ``failed``
         (F, 2). Returns how many agents under CEM are still healthy."""
         inv = self.inverter
-        return inv._k.measure_tick(inv.cw, inv.iw, self._w0_imag, self._consts, healthy, pos, vel, failed, drift, out)
+        return inv.kernels.measure_tick(inv.cw, inv.iw, self._w0_imag, self._consts, healthy, pos, vel, failed,
+                                        drift, out)
 
     def stream_drift(self) -> np.ndarray:
         """|psi_i(t) - psi_i0| of the commanded positions, (N,) (eq. 4 says it stays zero)."""

@@ -452,3 +452,96 @@ def measure_tick(cw, iw, w0_imag, consts, healthy, pos, vel, failed, drift, out)
     else:
         out[M_PAIR], out[M_PAIR_CMD] = np.nan, np.nan
     return n
+
+
+# ---- after hand-back: the formation's ticks -----------------------------------------------------
+# The plugin's NumPy code for these ran every tick after a hand-back (two thirds of a cem_six_vehicle
+# run): ~15 small array operations a tick. The same arithmetic, operation for operation, in one call.
+(F_CLEAR, F_PAIR, F_MARGIN, F_PAIR_CMD, N_FORM) = range(5)
+FORMATION_POINTS_MAX = 32  # as core.vectors.DENSE_POINTS: above it min_pair_distance is a cell list
+
+
+@njit(**JIT)
+def _min_pair_rows(x, y, n):
+    """core.vectors.min_pair_distance of n <= 32 points: sqrt of NumPy's min over i < j of
+    (x_j - x_i)^2 + (y_j - y_i)^2 (a NaN wins); inf below two points."""
+    if n < 2:
+        return np.inf
+    best = np.inf
+    for i in range(n):
+        for j in range(i + 1, n):
+            dx, dy = x[j] - x[i], y[j] - y[i]
+            best = _nan_better(best, dx * dx + dy * dy, True)
+    return np.sqrt(best)
+
+
+@njit(**JIT)
+def _min_to_failed(x, y, n, failed):
+    """core.vectors.min_distance_between(rows, failed): sqrt of NumPy's min of dx^2 + dy^2; inf if
+    either is empty."""
+    if n == 0 or failed.shape[0] == 0:
+        return np.inf
+    best = np.inf
+    for i in range(n):
+        for f in range(failed.shape[0]):
+            dx, dy = x[i] - failed[f, 0], y[i] - failed[f, 1]
+            best = _nan_better(best, dx * dx + dy * dy, True)
+    return np.sqrt(best)
+
+
+@njit(**JIT)
+def measure_formation(healthy, pos, mode, sp_pos, failed, track, position, out):
+    """The ``cem`` plugin's per-tick safety quantities after a hand-back (its ``_measure_formation``):
+    over healthy agents' actual x-y, out[F_CLEAR] = min distance to a failed vehicle and out[F_PAIR]
+    = min pair distance; over the setpoints of TRACK and POSITION rows, out[F_MARGIN] and
+    out[F_PAIR_CMD] the same. Returns (healthy agents, placed setpoints); the caller uses
+    core.vectors above FORMATION_POINTS_MAX healthy agents."""
+    m = healthy.shape[0]
+    ax, ay, cx, cy = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+    n, p = 0, 0
+    for i in range(m):
+        if not healthy[i]:
+            continue
+        ax[n], ay[n] = pos[i, 0], pos[i, 1]
+        n += 1
+        if mode[i] == track or mode[i] == position:
+            cx[p], cy[p] = sp_pos[i, 0], sp_pos[i, 1]
+            p += 1
+    if n == 0 or n > FORMATION_POINTS_MAX:
+        return n, p
+    out[F_CLEAR], out[F_PAIR] = _min_to_failed(ax, ay, n, failed), _min_pair_rows(ax, ay, n)
+    out[F_MARGIN], out[F_PAIR_CMD] = _min_to_failed(cx, cy, p, failed), _min_pair_rows(cx, cy, p)
+    return n, p
+
+
+@njit(**JIT)
+def path_clear(healthy, pos, mode, sp_pos, sp_vel, failed, hold, velocity, lookahead, a_p):
+    """The ``clear_path`` hand-back test (flow.segment_clearance of the plugin's setpoint targets):
+    True when, for every healthy agent and failed vehicle, the distance from z_f to the segment from
+    the agent to its target is >= a_p (False for a NaN, as NumPy's min and >= give). The target:
+    the agent's own x-y (HOLD), x-y + lookahead * v (VELOCITY), else the setpoint's x-y."""
+    for i in range(healthy.shape[0]):
+        if not healthy[i]:
+            continue
+        sx, sy = pos[i, 0], pos[i, 1]
+        if mode[i] == hold:
+            ex, ey = sx, sy
+        elif mode[i] == velocity:
+            ex, ey = sx + lookahead * sp_vel[i, 0], sy + lookahead * sp_vel[i, 1]
+        else:
+            ex, ey = sp_pos[i, 0], sp_pos[i, 1]
+        gx, gy = ex - sx, ey - sy
+        length2 = gx * gx + gy * gy
+        for f in range(failed.shape[0]):
+            rx, ry = failed[f, 0] - sx, failed[f, 1] - sy
+            s = (rx * gx + ry * gy) / length2 if length2 > 0 else 0.0
+            if s != s:
+                pass  # NaN stays NaN through the clip, as np.clip keeps it
+            elif s < 0.0:
+                s = 0.0
+            elif s > 1.0:
+                s = 1.0
+            dx, dy = rx - s * gx, ry - s * gy
+            if not np.sqrt(dx * dx + dy * dy) >= a_p:
+                return False
+    return True

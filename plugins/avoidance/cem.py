@@ -129,31 +129,18 @@ from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import min_pair_distance
+from swarmscene.core.vectors import min_distance_between, min_pair_distance
 
-from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius, segment_clearance
+from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
 
 if TYPE_CHECKING:  # pragma: no cover
     from swarmscene.core.sensing import Sensing
 
 
 _TRACK = int(Mode.TRACK)
-_VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
+_VELOCITY, _HOLD, _POSITION = int(Mode.VELOCITY), int(Mode.HOLD), int(Mode.POSITION)
 HANDBACK_RULES = ("clear_path", "passed")
 """``hand_back_rule`` (module docstring): the default first."""
-
-
-def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2); inf if either is empty.
-
-    Squares summed x then y, as ``np.linalg.norm`` and a k-d tree sum them (the same distance to the
-    bit), in a few small array operations: this runs every tick after a hand-back.
-    """
-    if a.shape[0] == 0 or b.shape[0] == 0:
-        return math.inf
-    dx = a[:, 0, None] - b[None, :, 0]
-    dy = a[:, 1, None] - b[None, :, 1]
-    return math.sqrt(float((dx * dx + dy * dy).min()))
 
 
 class CEM(Avoidance):
@@ -290,9 +277,10 @@ class CEM(Avoidance):
                                 branch_guard=p.branch_guard)
         self.healthy_idx = healthy
         self.nav.track_rows(healthy, _TRACK)
-        self._k = self.nav.inverter._k  # the compiled kernels module (loaded with the navigator)
+        self._k = self.nav.kernels  # the compiled kernels module (loaded with the navigator)
         self._failed_xy = np.ascontiguousarray(failed_xy, dtype=float)  # (F, 2) world x-y z_f
         self._measured = np.empty(self._k.N_MEAS)
+        self._formation = np.empty(self._k.N_FORM)
         self._handback_at = float(self.nav.centres.real.max() + self.handback_distance)  # flow frame, m
         self.active = True
         self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
@@ -333,30 +321,18 @@ class CEM(Avoidance):
         """Along-track test: every agent is handback_distance past the most downstream failure."""
         return self.nav.along_track_min >= self._handback_at
 
-    def setpoint_targets(self, world: WorldState, sp: Setpoints, agents: np.ndarray) -> np.ndarray:
-        """(M, 2) x-y where the formation sends ``agents``: the setpoint's position (TRACK, POSITION),
-        the agent's own position (HOLD), or for VELOCITY the point it reaches flying the commanded
-        velocity for handback_distance / v_des seconds (the time CEM takes to clear a failure)."""
-        mode = sp.mode[agents]
-        target = sp.pos[agents, :2]  # a copy (fancy indexing)
-        hold = mode == _HOLD
-        if hold.any():  # this runs every tick after a hand-back: skip the empty cases
-            target[hold] = world.pos[agents[hold], :2]
-        vel = mode == _VELOCITY
-        if vel.any():
-            lookahead = self.handback_distance / self.params.v_des
-            target[vel] = world.pos[agents[vel], :2] + lookahead * sp.vel[agents[vel], :2]
-        return target
-
     def formation_clear(self, world: WorldState, sp: Setpoints) -> bool:
         """Each healthy agent's formation setpoint, and the straight path from it to that setpoint,
-        at least a_p from every failed vehicle (the ``clear_path`` hand-back test)."""
-        agents = np.flatnonzero(world.healthy)
-        if agents.size == 0 or not self.failed:
+        at least a_p from every failed vehicle (the ``clear_path`` hand-back test). The target: the
+        setpoint's position (TRACK, POSITION), the agent's own position (HOLD), or for VELOCITY the
+        point it reaches flying the commanded velocity for handback_distance / v_des seconds (the
+        time CEM takes to clear a failure). One compiled call (``kernels.path_clear``:
+        ``flow.segment_clearance`` operation for operation), as it runs every tick after a hand-back."""
+        if not self.failed or not world.healthy.any():
             return True
-        target = self.setpoint_targets(world, sp, agents)
-        gap = segment_clearance(world.pos[agents, :2], target, self._failed_xy)
-        return bool((gap >= self.a_p).all())
+        lookahead = self.handback_distance / self.params.v_des
+        return bool(self._k.path_clear(world.healthy, world.pos, sp.mode, sp.pos, sp.vel, self._failed_xy,
+                                       _HOLD, _VELOCITY, lookahead, self.a_p))
 
     def hands_back(self, world: WorldState, sp: Setpoints) -> bool:
         """The hand-back decision of this tick (``hand_back_rule``, module docstring)."""
@@ -429,17 +405,32 @@ class CEM(Avoidance):
 
     def _measure_formation(self, world: WorldState, sp: Setpoints) -> None:
         """A tick after hand-back: the formation's commands (TRACK and POSITION rows) and the healthy
-        agents' actual positions, against the failed vehicles (NumPy; a handful of agents)."""
-        agents = np.flatnonzero(world.healthy)
-        if agents.size == 0:
+        agents' actual positions, against the failed vehicles: one compiled call
+        (``kernels.measure_formation``, core.vectors' arithmetic), NumPy above its point limit."""
+        k, out = self._k, self._formation
+        n, placed_n = k.measure_formation(world.healthy, world.pos, sp.mode, sp.pos, self._failed_xy,
+                                          _TRACK, _POSITION, out)
+        if n == 0:
             return
+        if n > k.FORMATION_POINTS_MAX:
+            self._measure_formation_numpy(world, sp)
+            return
+        self._clearance = min(self._clearance, float(out[k.F_CLEAR]) - self.a_f - self.params.eps)
+        self._pair = min(self._pair, float(out[k.F_PAIR]))
+        if placed_n:
+            self._margin = min(self._margin, float(out[k.F_MARGIN]) - self.a_p)
+            self._pair_cmd = min(self._pair_cmd, float(out[k.F_PAIR_CMD]))
+
+    def _measure_formation_numpy(self, world: WorldState, sp: Setpoints) -> None:
+        """:meth:`_measure_formation` for a large swarm (the engine's cell list for the pairs)."""
+        agents = np.flatnonzero(world.healthy)
         xy = world.pos[agents, :2]
-        self._clearance = min(self._clearance, _min_distance(xy, self._failed_xy) - self.a_f - self.params.eps)
+        self._clearance = min(self._clearance, min_distance_between(xy, self._failed_xy) - self.a_f - self.params.eps)
         self._pair = min(self._pair, min_pair_distance(xy))
-        placed = agents[(sp.mode[agents] == _TRACK) | (sp.mode[agents] == int(Mode.POSITION))]
+        placed = agents[(sp.mode[agents] == _TRACK) | (sp.mode[agents] == _POSITION)]
         if placed.size:
             cmd = sp.pos[placed, :2]
-            self._margin = min(self._margin, _min_distance(cmd, self._failed_xy) - self.a_p)
+            self._margin = min(self._margin, min_distance_between(cmd, self._failed_xy) - self.a_p)
             self._pair_cmd = min(self._pair_cmd, min_pair_distance(cmd))
 
     def _note_violations(self, world: WorldState) -> None:

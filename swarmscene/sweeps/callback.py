@@ -16,6 +16,30 @@ SWARMSCENE_SWEEPER = "hydra_plugins.swarmscene_sweeper.SwarmsceneSweeper"
 PROGRESS = ("auto", "on", "off")
 
 _outcome: dict[str, int] = {}
+_written: dict[str, Any] = {}
+"""The summary written by the sweeper under its lock (:func:`write_under_lock`), by sweep directory:
+its rows, or the exception that stopped it; the callback reports it rather than writing again."""
+SUMMARY_TARGET = "swarmscene.sweeps.callback.SweepSummary"
+
+
+def summary_wanted(config: Any) -> bool:
+    """Whether this multirun's callbacks include the sweep summary (a user may remove it)."""
+    try:
+        callbacks = config.hydra.callbacks or {}
+        return any((c or {}).get("_target_") == SUMMARY_TARGET for c in callbacks.values())
+    except Exception:  # no callbacks node: no summary
+        return False
+
+
+def write_under_lock(sweep_dir: Path) -> None:
+    """Write the sweep's tables while the sweeper still holds the directory's lock (called by
+    :class:`~swarmscene.sweeps.sweeper.SwarmsceneSweeper` before it releases it): written after the
+    release, a second sweep let into the directory could change its jobs under the tables being
+    written. The outcome waits for the callback's ``on_multirun_end``, which reports it."""
+    try:
+        _written[str(sweep_dir)] = write_summary(sweep_dir)
+    except Exception as exc:  # reported by the callback, like its own write's failure
+        _written[str(sweep_dir)] = exc
 
 
 def take_exit_status() -> int | None:
@@ -55,6 +79,7 @@ class SweepSummary(Callback):
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
         _outcome.pop("status", None)
+        _written.clear()
         self._replace_basic_sweeper(config)
         from .progress import SweepProgress
 
@@ -77,15 +102,18 @@ class SweepSummary(Callback):
             return
         with open_dict(sweeper):
             sweeper["_target_"] = SWARMSCENE_SWEEPER
-            for key, value in (("validate", "each_value"), ("on_invalid", "stop"), ("cases", None), ("upfront", 1000)):
+            for key, value in (("validate", "each_value"), ("on_invalid", "stop"), ("cases", None), ("upfront", 1000),
+                           ("jobs_per_task", "auto")):
                 sweeper.setdefault(key, value)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
         if self.progress is not None:
             self.progress.stop()
         sweep_dir = Path(config.hydra.sweep.dir)
-        try:
-            rows = write_summary(sweep_dir)
+        try:  # written by swarmscene's sweeper under its lock; another sweeper's (Optuna): here
+            rows = _written.pop(str(sweep_dir)) if str(sweep_dir) in _written else write_summary(sweep_dir)
+            if isinstance(rows, Exception):
+                raise rows
         except Exception as exc:  # a table problem must not hide the jobs' own outputs
             print(f"swarmscene: could not write the sweep summary: {exc}", file=sys.stderr)
             _outcome["status"] = 1

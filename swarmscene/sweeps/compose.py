@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 from collections import OrderedDict
 from collections.abc import Sequence
 from typing import Any
@@ -79,6 +80,7 @@ class GroupCachingLoader(ConfigLoader):
         self.command = None if command is None else list(command)
         self._groups: dict[str, bool] = {}
         self._where: tuple[tuple[str, str], ...] | None = None
+        self._templates: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 
     @property
     def inner(self) -> ConfigLoader:
@@ -104,6 +106,17 @@ class GroupCachingLoader(ConfigLoader):
         return getattr(self.inner, name)
 
     def load_sweep_config(self, master_config: Any, sweep_overrides: list[str]) -> Any:
+        from . import chunks
+
+        task = chunks.split(sweep_overrides)  # a launcher task of several jobs (sweeps.chunks)
+        if task is None:
+            return self._load_job(master_config, sweep_overrides)
+        (first, overrides), rest = task[0], task[1:]
+        cfg = self._load_job(master_config, overrides)
+        chunks.set_first(cfg, first, rest, master_config, self._search_path())
+        return cfg
+
+    def _load_job(self, master_config: Any, sweep_overrides: list[str]) -> Any:
         from omegaconf import OmegaConf
 
         parsed = parse(list(sweep_overrides))
@@ -119,6 +132,57 @@ class GroupCachingLoader(ConfigLoader):
         if self.command is not None:
             _as_sweep_job(cfg, self.command)
         return cfg
+
+    def load_task_job(self, master_config: Any, sweep_overrides: list[str]) -> tuple[Any, Any] | None:
+        """A job of a launcher task (:mod:`.chunks`) without the copies of the ``hydra`` node:
+        ``(task config, hydra root)``, the first the job's config without its ``hydra`` node (what
+        ``run_job`` hands the task function), the second a ``{"hydra": ...}`` config, one per
+        composition and reused job after job, with this job's overrides recorded in it (its number
+        and run directory are the caller's). None where a job must be composed whole
+        (:meth:`load_sweep_config`): a group-only job, an added search path, a ``${hydra:...}``
+        read in the task's config or overrides (the hydra root's parent is the task config, not a
+        whole config), or a ``hydra.sweep.subdir`` other than ``${hydra.job.num}``."""
+        from omegaconf import OmegaConf, read_write
+
+        parsed = parse(list(sweep_overrides))  # a value's ${ is escaped in its override: \$\{hydra\:
+        values = [o for o in parsed if self._is_value(o)]
+        reads_hydra = any("${hydra:" in o.input_line.replace("\\", "") for o in parsed)
+        if (not values or reads_hydra or extends_search_path(master_config)
+                or any(o.key_or_group == "hydra.searchpath" for o in parsed)):
+            return None
+        groups = [o.input_line for o in parsed if not self._is_value(o)]
+        template = self._task_template(master_config, groups)
+        if template is None:
+            return None
+        task_base, hydra_root = template
+        task = copy.deepcopy(task_base)
+        _apply_values(values, task)
+        OmegaConf.copy_cache(from_config=master_config, to_config=task)
+        with read_write(hydra_root.hydra):
+            _record_overrides(hydra_root, parsed)
+        return task, hydra_root
+
+    def _task_template(self, master_config: Any, groups: list[str]) -> tuple[Any, Any] | None:
+        """(the composition without its ``hydra`` node, its ``hydra`` node set up as a sweep job's),
+        once per composition; None where :meth:`load_task_job` cannot use them."""
+        from omegaconf import OmegaConf, open_dict, read_write
+
+        key = (master_config.hydra.job.config_name, tuple(master_config.hydra.overrides.hydra), tuple(groups))
+        if key not in self._templates:
+            composed = self._composed(master_config, groups)
+            subdir = OmegaConf.to_container(composed.hydra.sweep, resolve=False).get("subdir")
+            task = copy.deepcopy(composed)
+            with read_write(task), open_dict(task):
+                del task["hydra"]
+            reads_hydra = "${hydra:" in OmegaConf.to_yaml(task)  # unresolved: the interpolations as written
+            usable = self.command is not None and subdir == "${hydra.job.num}" and not reads_hydra
+            hydra_root = OmegaConf.masked_copy(composed, "hydra") if usable else None
+            if hydra_root is not None:
+                _as_sweep_job(hydra_root, self.command)
+            self._templates[key] = (task, hydra_root) if usable else None
+            while len(self._templates) > CACHED:
+                self._templates.popitem(last=False)
+        return self._templates[key]
 
     def _composed(self, master_config: Any, groups: list[str]) -> Any:
         from omegaconf import OmegaConf
@@ -201,8 +265,16 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     from ..core.outputs import COMMAND_ENV
 
     with open_dict(cfg.hydra.job.env_set):
-        cfg.hydra.job.env_set[COMMAND_ENV] = json.dumps(list(command))
+        cfg.hydra.job.env_set[COMMAND_ENV] = literal(json.dumps(list(command)))
     cfg.hydra.output_subdir = None
+
+
+def literal(text: str) -> str:
+    """``text`` as a config value that OmegaConf reads back unchanged: every ``${`` escaped (with
+    the backslashes before it doubled). Hydra resolves ``hydra.job.env_set`` when it sets the job's
+    environment: the command as typed ``description='${hydra:job.num}'`` must reach the manifest as
+    typed, not as the first job's value."""
+    return re.sub(r"(\\*)\$\{", lambda m: m.group(1) * 2 + "\\${", text)
 
 
 def _apply_values(values: Sequence[Any], cfg: Any) -> None:

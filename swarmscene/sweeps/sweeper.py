@@ -11,12 +11,16 @@ does no per-job composition in the main process:
 2. the check: each distinct set of group overrides composed once, each distinct value validated
    once (:mod:`swarmscene.sweeps.grid`), whole before the first job for a grid of up to
    ``upfront`` distinct overrides (1,000), else batch by batch;
-3. the launch: the launcher gets a :class:`~swarmscene.sweeps.compose.GroupCachingLoader`, so its
-   workers compose once per set of group overrides too; and the command as typed
+3. the launch: the launcher gets tasks of several jobs each (``jobs_per_task``, below), and a
+   :class:`~swarmscene.sweeps.compose.GroupCachingLoader`, so its workers compose once per set of
+   group overrides too; and the command as typed
    (``SWARMSCENE_COMMAND`` in ``hydra.job.env_set``) for the jobs' manifests, wherever they run.
    A grid checked whole is launched in batches of ``max_batch_size`` (all at once by default); a
    grid checked batch by batch in batches of :data:`FIRST_BATCH` jobs, doubling up to
    :data:`LAST_BATCH`, so the first job starts at once.
+4. the tables: the sweep's summary (``summary.csv``/``.md``,
+   :class:`~swarmscene.sweeps.callback.SweepSummary`) is written before the lock is released, so a
+   second sweep let into the directory never changes its jobs under tables being written.
 
 Options (``hydra.sweeper.*``), besides ``params`` and ``max_batch_size``:
 
@@ -27,6 +31,12 @@ Options (``hydra.sweeper.*``), besides ``params`` and ``max_batch_size``:
   or key) still stops the sweep;
 - ``upfront``: the most distinct overrides a grid may hold to be checked whole before its first
   job (default 1,000: about a second); a larger grid is checked batch by batch;
+- ``jobs_per_task``: ``auto`` (the default) or K >= 1: jobs one launcher task runs back to back in
+  one process (:mod:`swarmscene.sweeps.chunks`: Hydra's per-job bookkeeping and the launcher's
+  round trip paid once per task). ``auto``: a batch's jobs / (4 x the launcher's workers), at most
+  64; the basic launcher's whole batch (at most 64). Whatever the setting, 1 (job by job) where a
+  task cannot run several (launchers other than basic, joblib and Ray, job callbacks such as
+  MLflow's, ``hydra.job.chdir``);
 - ``cases``: a list of override lists taken together rather than crossed (Hydra's grid is a
   product only): the jobs are every case times the product of ``params``. A key given on the
   command line that a case also sets replaces the cases (the command line picks the grid).
@@ -65,6 +75,7 @@ class SwarmsceneSweeper(Sweeper):
         on_invalid: str = "stop",
         cases: Sequence[Sequence[str]] | None = None,
         upfront: int = UPFRONT,
+        jobs_per_task: int | str = "auto",
     ) -> None:
         if validate not in VALIDATE:
             raise ValueError(f"hydra.sweeper.validate: must be one of {VALIDATE} (got {validate!r})")
@@ -72,6 +83,9 @@ class SwarmsceneSweeper(Sweeper):
             raise ValueError(f"hydra.sweeper.on_invalid: must be one of {ON_INVALID} (got {on_invalid!r})")
         if isinstance(upfront, bool) or not isinstance(upfront, int) or upfront < 0:
             raise ValueError(f"hydra.sweeper.upfront: must be an integer >= 0 (got {upfront!r})")
+        if jobs_per_task != "auto" and (isinstance(jobs_per_task, bool) or not isinstance(jobs_per_task, int)
+                                        or jobs_per_task < 1):
+            raise ValueError(f"hydra.sweeper.jobs_per_task: must be auto or an integer >= 1 (got {jobs_per_task!r})")
         if max_batch_size is not None and max_batch_size != -1 and max_batch_size < 1:
             raise ValueError(f"hydra.sweeper.max_batch_size: must be >= 1, -1 or null (got {max_batch_size})")
         self.max_batch_size = None if max_batch_size == -1 else max_batch_size
@@ -80,6 +94,7 @@ class SwarmsceneSweeper(Sweeper):
         self.on_invalid = on_invalid
         self.cases = [list(case) for case in (cases or [])]
         self.upfront = upfront
+        self.jobs_per_task = jobs_per_task
         self.config: Any = None
         self.hydra_context: Any = None
         self.launcher: Any = None
@@ -113,6 +128,8 @@ class SwarmsceneSweeper(Sweeper):
         from omegaconf import OmegaConf
 
         from ..core.outputs import atomic_write_bytes
+        from .callback import summary_wanted, write_under_lock
+        from .chunks import jobs_per_task, tasks
         from .records import SweepLock, check_grid_owner, record_grid
 
         loader = self.hydra_context.config_loader
@@ -134,11 +151,14 @@ class SwarmsceneSweeper(Sweeper):
                     checker.check(start, stop)
                 if interrupts.requested() is not None:  # a stop request between batches
                     raise KeyboardInterrupt
+                per_task = jobs_per_task(self.jobs_per_task, self.launcher, self.config, stop - start)
                 with self._stoppable():
-                    results = self.launcher.launch(jobs[start:stop], initial_job_idx=start)
+                    results = self.launcher.launch(tasks(jobs, start, stop, per_task), initial_job_idx=start)
                 for result in results:
                     _ = result.return_value  # re-raises what ended a job (a Ctrl-C)
                 returns.append(results)
+            if summary_wanted(self.config):  # the tables, before another sweep may take the directory
+                write_under_lock(sweep_dir)
             return returns
         finally:
             lock.release()

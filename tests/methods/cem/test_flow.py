@@ -355,3 +355,14 @@ def test_rotating_the_flow_rotates_the_paths():
         p, _ = ref.step()
         q, _ = rot.step()
     np.testing.assert_allclose(q, p @ R.T + [3.0, -2.0], atol=1e-6)
+
+
+def test_the_navigator_names_its_kernels_module_publicly():
+    """The plugin reads the measurement slots through ``CEMNavigator.kernels`` (issue 27: no reach
+    into the inverter's private attribute); it is the compiled module the inverter runs."""
+    from swarmscene.methods.cem import kernels
+    from swarmscene.methods.cem.flow import CEMNavigator
+
+    nav = CEMNavigator(np.array([[-5.0, 0.3], [-5.0, -0.4]]), np.array([[0.0, 0.0]]), a_p=1.0, theta=0.0,
+                       v_des=1.0, dT=0.1, K=1, n=20, sigma=0.001, rng=np.random.default_rng(0))
+    assert nav.kernels is kernels and nav.inverter.kernels is kernels

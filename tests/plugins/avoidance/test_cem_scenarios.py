@@ -153,11 +153,12 @@ def test_passed_rule_hands_back_into_the_failed_lead_and_the_whole_run_keys_say_
 
 
 def test_measurement_after_hand_back_builds_no_tree(monkeypatch):
-    """After a hand-back the plugin measures every tick a handful of agents: the engine's closest pair
-    (core.vectors.min_pair_distance, dense for so few), never a k-d tree (55 against 14 us a call)."""
+    """After a hand-back the plugin measures every tick a handful of agents in one compiled call
+    (kernels.measure_formation: core.vectors' closest pair, dense for so few, to the bit), never a
+    k-d tree (55 against 14 us a call)."""
     import scipy.spatial
 
-    from swarmscene.core import vectors
+    from swarmscene.methods.cem import kernels
 
     def no_tree(*args, **kwargs):
         raise AssertionError("a k-d tree was built to measure a handful of agents")
@@ -165,12 +166,12 @@ def test_measurement_after_hand_back_builds_no_tree(monkeypatch):
     monkeypatch.setattr(scipy.spatial, "cKDTree", no_tree)
     monkeypatch.setattr(scipy.spatial, "KDTree", no_tree)
     calls = []
-    monkeypatch.setattr(cem_plugin_module(), "min_pair_distance",
-                        lambda xy: calls.append(len(xy)) or vectors.min_pair_distance(xy))
+    measure = kernels.measure_formation
+    monkeypatch.setattr(kernels, "measure_formation", lambda *a: calls.append(measure(*a)) or calls[-1])
     sim, result = simulate(["scenario=cem_six_vehicle", "clock.duration=13.5"])
     m = result.metrics
     after = round((13.5 - m["cem.handback_time"]) / 0.01)  # ticks measured under the formation's setpoints
-    assert calls == [5] * (2 * after)  # actual and commanded positions of the five healthy agents
+    assert calls == [(5, 5)] * after  # actual and commanded positions of the five healthy agents
     assert m["cem.min_pair_distance"] >= PAIR_BOUND and m["cem.separation_holds"]
 
 

@@ -1,0 +1,272 @@
+"""Launcher tasks of several jobs: one task runs K of a sweep's jobs back to back in one process.
+
+A job launched alone pays Hydra's per-job bookkeeping (``hydra.core.utils.run_job``: two masked
+copies of the ``hydra`` node and two deep copies of the whole config, ~40 % of a small job) and, on
+joblib, one pickled config and one task round trip. The sweeper hands a launcher tasks of K jobs
+instead (``hydra.sweeper.jobs_per_task``); a task is the jobs' override lists one after another, each
+closed by its index marker (``::job=<n>``, which no override can be), so it travels through any
+launcher unchanged. In the process that composes the task (:class:`~.compose.GroupCachingLoader`):
+
+- the task's first job is composed as a job of its own, its run directory fixed as the job's
+  (``hydra.sweep.subdir`` resolved with its own number: the launcher numbers tasks, not jobs), and
+  the rest of the task set in its environment (:data:`CHUNK_ENV`, through ``hydra.job.env_set``);
+- Hydra's ``run_job`` runs the first job as ever; the task function (``cli._task``) then runs the
+  rest (:func:`run_rest`): each composed from the cached composition of its groups, numbered, given
+  its own run directory and ``HydraConfig``, and run by the same per-job function, which writes the
+  same run directory (``.hydra/overrides.yaml``, config, manifest, metrics; resume and failure
+  records per job). A job that only changes values takes the lean path
+  (:meth:`~.compose.GroupCachingLoader.load_task_job`): a copy of its composition without the
+  ``hydra`` node, and one ``hydra`` node per composition renumbered job after job (Hydra copies
+  that node twice a job); a config that reads ``${hydra:...}`` is composed whole.
+
+What a task does not do per job: Hydra's job callbacks (``on_job_start``/``on_job_end``; a sweep with
+callbacks other than the summary, MLflow's say, is launched job by job), a working-directory change
+(``hydra.job.chdir: true``: job by job), and Hydra's ``#n : overrides`` log line (one per task, listing
+its jobs). A stop request ends the task between jobs, as it ends a launch.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable, Sequence
+from typing import Any
+
+JOB_MARK = "::job="
+"""Closes each job's overrides in a task (not an override Hydra's grammar accepts: never a user's)."""
+CHUNK_ENV = "SWARMSCENE_SWEEP_TASK"
+"""The environment variable that carries the rest of a task to its first job's process."""
+MAX_PER_TASK = 64
+"""The most jobs one task runs (a task is the launcher's unit of load balancing and of its log)."""
+TASKS_PER_WORKER = 4
+"""``auto``: tasks per worker in a batch (K = jobs / (4 workers)): a slow task cannot hold the last
+quarter of a sweep on one core."""
+CHUNKING_LAUNCHERS = ("BasicLauncher", "JoblibLauncher", "RayLauncher")
+"""Launchers whose tasks are composed and run as the module docstring says (submitit's jobs keep
+their own SLURM ids: job by job)."""
+
+
+def jobs_per_task(setting: Any, launcher: Any, config: Any, jobs: int, cores: int | None = None) -> int:
+    """K for a batch of ``jobs``: 1 where a task cannot run several jobs (:func:`refusal`), whatever
+    the setting; else ``setting`` when an integer; for ``auto`` the whole batch (at most
+    :data:`MAX_PER_TASK`) in this process's basic launcher, else ``jobs / (TASKS_PER_WORKER x
+    workers)``."""
+    if refusal(launcher, config) is not None:
+        return 1
+    if setting != "auto":
+        return max(1, min(int(setting), jobs))
+    workers = 1 if type(launcher).__name__ == "BasicLauncher" else _workers(config, cores)
+    per_worker = 1 if workers == 1 else TASKS_PER_WORKER
+    return max(1, min(MAX_PER_TASK, math.ceil(jobs / (per_worker * workers))))
+
+
+def refusal(launcher: Any, config: Any) -> str | None:
+    """Why this sweep's jobs must be launched one by one (None: they may share tasks)."""
+    if type(launcher).__name__ not in CHUNKING_LAUNCHERS:
+        return f"launcher {type(launcher).__name__}"
+    hydra = config.hydra
+    if hydra.job.chdir:
+        return "hydra.job.chdir"
+    from .callback import SUMMARY_TARGET
+
+    callbacks = hydra.callbacks or {}
+    if any((c or {}).get("_target_") != SUMMARY_TARGET for c in callbacks.values()):
+        return "job callbacks"
+    from omegaconf import OmegaConf
+
+    subdir = OmegaConf.to_container(hydra.sweep, resolve=False).get("subdir")
+    if "${hydra:" in str(subdir):  # resolved against HydraConfig: not the task's own job
+        return "hydra.sweep.subdir"
+    return None
+
+
+def _workers(config: Any, cores: int | None) -> int:
+    cores = cores or os.cpu_count() or 1
+    n_jobs = config.hydra.launcher.get("n_jobs") if "launcher" in config.hydra else None
+    if isinstance(n_jobs, int) and n_jobs > 0:
+        return n_jobs
+    if isinstance(n_jobs, int) and n_jobs < 0:  # joblib's count: -1 all cores, -2 all but one
+        return max(1, cores + 1 + n_jobs)
+    return cores
+
+
+def tasks(jobs: Sequence[Sequence[str]], start: int, stop: int, per_task: int) -> list[list[str]]:
+    """The launcher's override lists for jobs ``start:stop``: ``per_task`` jobs each, each job's
+    overrides closed by its marker; with ``per_task`` 1, the jobs' own lists (Hydra's launch)."""
+    if per_task <= 1:
+        return [list(job) for job in jobs[start:stop]]
+    out = []
+    for first in range(start, stop, per_task):
+        task: list[str] = []
+        for idx in range(first, min(first + per_task, stop)):
+            task += [*jobs[idx], f"{JOB_MARK}{idx}"]
+        out.append(task)
+    return out
+
+
+def split(overrides: Sequence[str]) -> list[tuple[int, list[str]]] | None:
+    """``[(job number, its overrides), ...]`` of a task; None for one job's plain overrides."""
+    if not overrides or not str(overrides[-1]).startswith(JOB_MARK):
+        return None
+    out, current = [], []
+    for item in overrides:
+        if item.startswith(JOB_MARK):
+            out.append((int(item[len(JOB_MARK):]), current))
+            current = []
+        else:
+            current.append(item)
+    return out
+
+
+def set_first(cfg: Any, first: int, rest: list[tuple[int, list[str]]], master_config: Any,
+              search_path: Sequence[tuple[str, str]]) -> None:
+    """The task's first job, composed: numbered, its run directory fixed (the launcher will number
+    the task), and the rest of the task in its environment for :func:`run_rest`."""
+    from omegaconf import OmegaConf, open_dict
+
+    from .compose import literal
+
+    with open_dict(cfg):
+        cfg.hydra.job.num = first
+        cfg.hydra.sweep.subdir = str(OmegaConf.select(cfg, "hydra.sweep.subdir"))
+        cfg.hydra.job.env_set[CHUNK_ENV] = literal(json.dumps({
+            "first": first,
+            "rest": rest,
+            "sweep_dir": str(OmegaConf.select(cfg, "hydra.sweep.dir")),
+            "config_name": master_config.hydra.job.config_name,
+            "hydra_overrides": OmegaConf.to_container(master_config.hydra.overrides.hydra),
+            "searchpath": OmegaConf.to_container(master_config.hydra.searchpath),  # compose.extends_search_path
+            "search_path": [list(p) for p in search_path],
+        }))
+
+
+def renumber_first() -> None:
+    """In the task's process, before its first job runs: the job's own number in ``HydraConfig``
+    (the launcher gave the task's), so ``${hydra:job.num}`` and the records read the job's. The
+    task is taken from the environment (emptied: a job's own subprocesses do not inherit it; Hydra
+    removes the variable after the task)."""
+    raw = os.environ.get(CHUNK_ENV)
+    _CURRENT[0] = json.loads(raw) if raw else None
+    if raw:
+        os.environ[CHUNK_ENV] = ""
+    task = _CURRENT[0]
+    if task is not None:
+        from hydra.core.hydra_config import HydraConfig
+
+        job = HydraConfig.get().job
+        _number(job, task["first"], _id_prefix(job))
+
+
+def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
+    """Run the rest of this process's task (nothing for a job launched alone), each job as
+    ``run_one(config without hydra, run directory)`` with its ``HydraConfig`` set as ``run_job``
+    sets it. ``first_cfg``: the first job's config (its resolver cache: ``${now:}`` as Hydra's)."""
+    task, _CURRENT[0] = _CURRENT[0], None  # read by renumber_first
+    if task is None:
+        return
+    from hydra.core.hydra_config import HydraConfig
+
+    loader, master = _loader_and_master(task, first_cfg)
+    prefix = _id_prefix(HydraConfig.get().job)  # the first job's, numbered by renumber_first
+    before = HydraConfig.instance().cfg
+    try:
+        for idx, overrides in task["rest"]:
+            lean = loader.load_task_job(master, list(overrides))
+            if lean is not None:
+                run_one(*_as_lean_job(*lean, idx, task["sweep_dir"], prefix))
+            else:
+                cfg = loader.load_sweep_config(master, list(overrides))
+                run_one(*_as_job(cfg, idx, task["sweep_dir"], prefix))
+    finally:
+        HydraConfig.instance().cfg = before
+
+
+_CURRENT: list[dict[str, Any] | None] = [None]
+"""The task this process runs now (:func:`renumber_first` takes it, :func:`run_rest` runs it)."""
+
+
+def _id_prefix(job: Any) -> str | None:
+    """What the launcher wrote before the number in ``hydra.job.id`` (basic: ``n``, joblib:
+    ``<name>_n``, Ray: ``job_id_for_n``); None when the id does not end with the number."""
+    number, ident = job.get("num"), str(job.get("id"))
+    if number is None or not ident.endswith(str(number)):
+        return None
+    return ident[: len(ident) - len(str(number))]
+
+
+def _number(job: Any, idx: int, id_prefix: str | None) -> None:
+    """``hydra.job.num`` the job's, and ``hydra.job.id`` the launcher's prefix and the number."""
+    from omegaconf import open_dict, read_write
+
+    with read_write(job), open_dict(job):
+        job.num = idx
+        job.id = f"{id_prefix or ''}{idx}"
+
+
+_LOADERS: dict[tuple[str, str | None], Any] = {}
+
+
+def _loader_and_master(task: dict[str, Any], first_cfg: Any) -> tuple[Any, Any]:
+    """This process's group-caching loader for the sweep's search path, and the little of the
+    sweep's config that composing a job reads (its config name, Hydra overrides, resolver cache)."""
+    from hydra._internal.config_search_path_impl import ConfigSearchPathImpl
+    from omegaconf import OmegaConf
+
+    from ..core.outputs import COMMAND_ENV
+    from .compose import GroupCachingLoader
+
+    raw_command = os.environ.get(COMMAND_ENV)
+    key = (json.dumps(task["search_path"]), raw_command)
+    if key not in _LOADERS:  # one per process: its compositions and job templates serve every task
+        search_path = ConfigSearchPathImpl()
+        for provider, path in task["search_path"]:
+            search_path.append(provider, path)
+        _LOADERS.clear()
+        _LOADERS[key] = GroupCachingLoader(None, json.loads(raw_command) if raw_command else None, search_path)
+    loader = _LOADERS[key]
+    master = OmegaConf.create({"hydra": {"overrides": {"hydra": task["hydra_overrides"]},
+                                         "job": {"config_name": task["config_name"]},
+                                         "searchpath": task["searchpath"]}})
+    OmegaConf.copy_cache(from_config=first_cfg, to_config=master)
+    return loader, master
+
+
+def _as_job(cfg: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[Any, Any]:
+    """What ``run_job`` does before the task function, for one job of a task: its number, its run
+    directory (made), ``HydraConfig`` set; the config handed on without its ``hydra`` node."""
+    from pathlib import Path
+
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import OmegaConf, open_dict, read_write
+
+    _number(cfg.hydra.job, idx, id_prefix)
+    run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(OmegaConf.select(cfg, "hydra.sweep.subdir")))))
+    with read_write(cfg.hydra.runtime), open_dict(cfg.hydra.runtime):
+        cfg.hydra.runtime.output_dir = str(run_dir)
+    HydraConfig.instance().set_config(cfg)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    with read_write(cfg), open_dict(cfg):
+        del cfg["hydra"]
+    return cfg, run_dir
+
+
+def _as_lean_job(task_cfg: Any, hydra_root: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[Any, Any]:
+    """:func:`_as_job` for a job from :meth:`~.compose.GroupCachingLoader.load_task_job`: the
+    composition's one ``hydra`` node numbered for this job and set as ``HydraConfig`` (its parent the
+    job's config, as ``set_config`` makes it; no copy), the run directory ``sweep_dir/<n>``."""
+    from pathlib import Path
+
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import OmegaConf, read_write
+
+    node = hydra_root.hydra
+    run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))  # subdir ${hydra.job.num}
+    with read_write(node):
+        _number(node.job, idx, id_prefix)
+        node.runtime.output_dir = str(run_dir)
+    OmegaConf.set_readonly(node, True)
+    node._set_parent(task_cfg)
+    HydraConfig.instance().cfg = hydra_root
+    run_dir.mkdir(parents=True, exist_ok=True)
+    return task_cfg, run_dir
