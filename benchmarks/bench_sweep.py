@@ -50,7 +50,7 @@ def joblib(workers: int) -> list[str]:
 
 
 PER_TASK: list[str] = []
-"""``+hydra.sweeper.jobs_per_task=K`` when ``--jobs-per-task`` is given (default: the sweeper's auto)."""
+"""``hydra/sweeper=swarmscene hydra.sweeper.jobs_per_task=K`` when ``--jobs-per-task`` is given (default: the sweeper's auto)."""
 
 
 def run(args: list[str], directory: Path) -> tuple[float, float]:
@@ -176,7 +176,7 @@ def main() -> None:
                              "1 launches job by job, as before launcher tasks, for a side-by-side ratio")
     args = parser.parse_args()
     if args.jobs_per_task is not None:
-        PER_TASK.append(f"+hydra.sweeper.jobs_per_task={args.jobs_per_task}")
+        PER_TASK += ["hydra/sweeper=swarmscene", f"hydra.sweeper.jobs_per_task={args.jobs_per_task}"]
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         if args.part in ("main", "all"):

@@ -95,8 +95,8 @@ def test_a_task_of_several_jobs_writes_what_the_jobs_launched_alone_write(tmp_pa
     A config that reads ``${hydra:...}`` is composed whole for each job; one that does not takes the
     lean path (one ``hydra`` node per composition, loader.load_task_job)."""
     extra = [DESCRIBED] if described else ["description=lean"]
-    sweep(tmp_path / "tasks", *launch, *extra, "+hydra.sweeper.jobs_per_task=2")
-    sweep(tmp_path / "alone", *launch, *extra, "+hydra.sweeper.jobs_per_task=1")
+    sweep(tmp_path / "tasks", *launch, *extra, "hydra/sweeper=swarmscene", "hydra.sweeper.jobs_per_task=2")
+    sweep(tmp_path / "alone", *launch, *extra, "hydra/sweeper=swarmscene", "hydra.sweeper.jobs_per_task=1")
     for n in range(5):
         task, alone = job_record(tmp_path / "tasks" / str(n)), job_record(tmp_path / "alone" / str(n))
         assert task == alone, n
@@ -112,7 +112,7 @@ def test_a_task_of_several_jobs_writes_what_the_jobs_launched_alone_write(tmp_pa
 
 def test_jobs_per_task_is_checked_in_one_line(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    proc = subprocess.run([*EXE, "--multirun", "seed=0,1", "+hydra.sweeper.jobs_per_task=0",
+    proc = subprocess.run([*EXE, "--multirun", "seed=0,1", "hydra/sweeper=swarmscene", "hydra.sweeper.jobs_per_task=0",
                            f"hydra.sweep.dir={tmp_path / 'sw'}"], capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode != 0
     assert "hydra.sweeper.jobs_per_task: must be auto or an integer >= 1 (got 0)" in proc.stderr
@@ -131,7 +131,7 @@ def test_a_tasks_later_jobs_take_the_lean_path_unless_the_config_reads_hydra(tmp
                         lambda *a: calls.append(a[2]) or seen.append(os.environ.get(chunks.CHUNK_ENV)) or as_lean(*a))
     extra = [DESCRIBED] if described else ["description=lean"]
     monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "clock.duration=0.2", "seed=0,1,2", *extra,
-                                      "+hydra.sweeper.jobs_per_task=3", f"hydra.sweep.dir={tmp_path / 'sw'}"])
+                                      "hydra/sweeper=swarmscene", "hydra.sweeper.jobs_per_task=3", f"hydra.sweep.dir={tmp_path / 'sw'}"])
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
     try:
         cli.main()
