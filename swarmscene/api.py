@@ -190,7 +190,7 @@ def write_outputs(
     ``config.yaml`` is the effective configuration (``sim.scenario.data``); ``started_at`` is the
     run's start (UTC, ISO 8601) for the manifest.
     """
-    from .core.outputs import write_run_dir
+    from .outputs import write_run_dir
 
     write_run_dir(
         run_dir,

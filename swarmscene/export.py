@@ -77,7 +77,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .core.outputs import atomic_write_bytes, atomic_write_json
+from .outputs import atomic_write_bytes, atomic_write_json
 
 GRAVITY = 9.81
 POLY_DEGREE = 7

@@ -223,7 +223,7 @@ def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmsc
     ``worst_case.json`` records the trial, its searched values, rho, the first violation, the
     number of trials and the progress curve. None (nothing written) when no trial completed.
     """
-    from .core.outputs import atomic_write_bytes
+    from .outputs import atomic_write_bytes
     from .rundir import CONFIG, read_text
 
     sweep_dir = Path(sweep_dir)

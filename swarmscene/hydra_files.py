@@ -41,7 +41,7 @@ def _save_config(cfg: Any, filename: str, output_dir: Path) -> None:
     """Hydra's ``_save_config``, written atomically and never through a symbolic link."""
     from omegaconf import OmegaConf
 
-    from .core.outputs import atomic_write_bytes
+    from .outputs import atomic_write_bytes
     from .rundir import RunFileError
 
     output_dir = Path(output_dir)

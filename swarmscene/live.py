@@ -225,7 +225,7 @@ class LiveView:
     def __init__(self, sim: Any, url: str) -> None:
         import rerun as rr
 
-        from .core.outputs import config_hash
+        from .outputs import config_hash
         from .plots import RunData, agent_colors
         from .replay import APPLICATION_ID, exclusion_radius, recording_id
 

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from .core.outputs import atomic_write_bytes, private_temp_dir, publish
+from .outputs import atomic_write_bytes, private_temp_dir, publish
 
 FAILED_COLOR = "tab:red"
 LIMIT_COLOR = "tab:red"
@@ -227,7 +227,7 @@ def _check_sections(path: Path, config: dict[str, Any]) -> None:
 
 def _hash(config: dict[str, Any]) -> str:
     """The config hash the manifest holds for this config (the manifest is written last)."""
-    from .core.outputs import config_hash
+    from .outputs import config_hash
 
     return config_hash(config)
 

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from .core.outputs import private_temp_dir, publish
+from .outputs import private_temp_dir, publish
 from .plots import RunData, agent_colors, comm_edges, from_simulation, load_run, safety_limit, safety_series
 
 TIMELINE = "sim_time"

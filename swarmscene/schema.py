@@ -400,7 +400,7 @@ def _write(parser: argparse.ArgumentParser, output: str | None, schema: dict[str
     if not output:
         sys.stdout.write(text)
         return
-    from .core.outputs import atomic_write_bytes
+    from .outputs import atomic_write_bytes
 
     try:
         atomic_write_bytes(Path(output), text.encode("utf-8"))

@@ -109,3 +109,16 @@ def test_a_builtin_module_registers_one_component_of_its_folders_kind(module):
     registered: list[type] = []
     getattr(loaded, hooks[0])(registered.append)
     assert len(registered) == 1, f"{module} registers {len(registered)} components"
+
+
+@pytest.mark.parametrize("folder", ["core", "methods", "plugins"])
+def test_the_engine_imports_nothing_of_the_application_layer(folder):
+    """Run directories, sweeps, the command line and the pictures are the application's (swarmscene/):
+    the engine, the methods and the plugins read and write no run directory (issue #27)."""
+    engine = {"core", "methods", "plugins", "scenarios", "plugin"}  # plugin: the public re-export of core
+    for path in sources(folder):
+        for name in imported_modules(path):
+            parts = name.split(".")
+            assert not (parts[0] == "swarmscene" and len(parts) > 1 and parts[1] not in engine), (
+                f"{path.relative_to(ROOT)} imports {name}, which belongs to the application layer"
+            )

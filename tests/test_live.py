@@ -20,7 +20,7 @@ pytest.importorskip("rerun", reason="the rerun extra")
 
 from swarmscene import api, live, replay  # noqa: E402
 from swarmscene.core.errors import ConfigError  # noqa: E402
-from swarmscene.core.outputs import config_hash  # noqa: E402
+from swarmscene.outputs import config_hash  # noqa: E402
 
 RUN = ["scenario=cem_six_vehicle", "clock.duration=4"]
 """Six vehicles, agent 0 fails at 2 s (a hover event): 400 ticks, all streamed."""

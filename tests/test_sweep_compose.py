@@ -104,7 +104,7 @@ def test_a_bad_value_gives_hydras_own_error(hydra_loader):
 def test_the_command_reaches_the_job_through_env_set(hydra_loader):
     import json
 
-    from swarmscene.core.outputs import COMMAND_ENV
+    from swarmscene.outputs import COMMAND_ENV
 
     loader, master = hydra_loader
     typed = ["swarmscene", "-m", "seed=1,2", "avoidance.K=2"]

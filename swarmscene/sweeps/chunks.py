@@ -213,7 +213,7 @@ def _loader_and_master(task: dict[str, Any], first_cfg: Any) -> tuple[Any, Any]:
     from hydra._internal.config_search_path_impl import ConfigSearchPathImpl
     from omegaconf import OmegaConf
 
-    from ..core.outputs import COMMAND_ENV
+    from ..outputs import COMMAND_ENV
     from .compose import GroupCachingLoader
 
     raw_command = os.environ.get(COMMAND_ENV)

@@ -254,7 +254,7 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     """What a sweep's job records, set in its config (the one place a launcher carries to it):
 
     - ``hydra.job.env_set``: the command as typed, which Hydra sets in the job's process for the
-      manifest (``core.outputs.run_command``), wherever the job runs;
+      manifest (``swarmscene.outputs.run_command``), wherever the job runs;
     - ``hydra.output_subdir: null``: Hydra does not write ``.hydra/config.yaml`` and ``hydra.yaml``
       for each job (three YAML dumps, ~15 ms a job); the job writes ``.hydra/overrides.yaml``
       itself (``cli._job``), its ``config.yaml`` is the effective configuration, and the sweep
@@ -262,7 +262,7 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     """
     from omegaconf import open_dict
 
-    from ..core.outputs import COMMAND_ENV
+    from ..outputs import COMMAND_ENV
 
     with open_dict(cfg.hydra.job.env_set):
         cfg.hydra.job.env_set[COMMAND_ENV] = literal(json.dumps(list(command)))

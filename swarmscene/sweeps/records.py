@@ -24,7 +24,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from ..core.outputs import atomic_write_json, config_hash, package_versions, run_command
+from ..outputs import atomic_write_json, config_hash, package_versions, run_command
 
 ERROR_FILE = "error.json"
 MANIFEST = "manifest.json"
@@ -89,7 +89,7 @@ def write_overrides(run_dir: Path) -> None:
     import yaml
     from hydra.core.hydra_config import HydraConfig
 
-    from ..core.outputs import atomic_write_bytes
+    from ..outputs import atomic_write_bytes
 
     refuse_linked_job_dir(run_dir)
     path = Path(run_dir) / ".hydra" / "overrides.yaml"

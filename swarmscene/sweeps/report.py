@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
         out = args.out or directory / f"{_safe(args.plot)}_vs_{_safe(args.against)}.png"
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=110)
-        from ..core.outputs import atomic_write_bytes
+        from ..outputs import atomic_write_bytes
 
         atomic_write_bytes(out, buffer.getvalue())
         print(f"swarmscene-report: plot -> {out}")
@@ -219,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as exc:
             print(f"swarmscene-report: {exc}", file=sys.stderr)
             return 2
-        from ..core.outputs import atomic_write_bytes
+        from ..outputs import atomic_write_bytes
 
         atomic_write_bytes(directory / "methods.md", table.encode())
         print(table, end="")

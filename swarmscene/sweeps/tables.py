@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.outputs import atomic_write_bytes
+from ..outputs import atomic_write_bytes
 from .records import ERROR_FILE, MANIFEST, complete_problem, job_dirs
 from .stats import lower_bound, mean_interval, wilson
 

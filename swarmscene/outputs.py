@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from . import interrupts
+from .core import interrupts
 
 MANIFEST_PACKAGES = (
     "swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core", "numba",
@@ -275,7 +275,7 @@ def _without_cosmetic(data: dict[str, Any]) -> dict[str, Any]:
 def package_versions() -> dict[str, str]:
     """Python's version, the engine's packages' (:data:`MANIFEST_PACKAGES`) and every installed
     plugin distribution's (a ``swarmscene`` entry point): what the numbers depend on."""
-    from .registry import plugin_distributions
+    from .core.registry import plugin_distributions
 
     return {**_engine_versions(), **plugin_distributions()}
 
