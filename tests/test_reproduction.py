@@ -1,6 +1,6 @@
-"""The reproduction report (benchmarks/reproduce.py) and the paper claims it checks.
+"""The reproduction report (benchmarks/reproduction/reproduce.py) and the paper claims it checks.
 
-Fast: every claim in benchmarks/claims/ is well formed and every reading composes into a valid
+Fast: every claim in benchmarks/reproduction/claims/ is well formed and every reading composes into a valid
 scenario; the report's statistics and verdicts are exact on hand-made results. Slow (``pytest -m
 slow tests/test_reproduction.py``): every claim's default reading is re-run on all its seeds and
 must hold within the tolerance the claim states (or, declared ``expect: misses``, still miss it).
@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _load_reproduce():
-    spec = importlib.util.spec_from_file_location("reproduce", ROOT / "benchmarks" / "reproduce.py")
+    spec = importlib.util.spec_from_file_location("reproduce", ROOT / "benchmarks" / "reproduction" / "reproduce.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules["reproduce"] = module
     spec.loader.exec_module(module)
@@ -44,11 +44,11 @@ def test_every_reading_composes(claim):
         job = claim.jobs(reading)[0]
         if job.function is not None:
             module, name = job.function.split(":")
-            sys.path.insert(0, str(ROOT / "benchmarks"))
+            sys.path.insert(0, str(ROOT / "benchmarks" / "reproduction"))
             try:
                 assert callable(getattr(__import__(module, fromlist=[name]), name))
             finally:
-                sys.path.remove(str(ROOT / "benchmarks"))
+                sys.path.remove(str(ROOT / "benchmarks" / "reproduction"))
         else:
             api.load([*job.overrides, f"seed={job.seed}"])
 
@@ -200,3 +200,4 @@ def test_claim_verdict_in_its_default_reading(claim):
         f"ours mean {out.mean:.4g} [{out.low:.4g}, {out.high:.4g}], worst {out.worst:.4g}, "
         f"{out.missing} runs without the metric"
     )
+
