@@ -201,3 +201,32 @@ def test_claim_verdict_in_its_default_reading(claim):
         f"{out.missing} runs without the metric"
     )
 
+
+def _one_function_claim_per_module():
+    """(claim, reading) for each module of function claims, the reading with the most arguments."""
+    chosen = {}
+    for claim in CLAIMS:
+        if claim.function is None:
+            continue
+        module = claim.function.split(":")[0]
+        reading = max(claim.readings, key=lambda r: len(claim.readings[r]))
+        if len(claim.readings[reading]) >= len(chosen.get(module, (None, ()))[1]):
+            chosen[module] = (claim, claim.readings[reading], reading)
+    return [(claim, reading) for claim, _, reading in chosen.values()]
+
+
+@pytest.mark.parametrize(("claim", "reading"), _one_function_claim_per_module(),
+                         ids=lambda x: getattr(x, "id", x))
+def test_a_function_claims_command_runs_from_the_repository_root(claim, reading):
+    """The report's command for a function claim (benchmarks/reproduction/, issue #27) runs as
+    printed, from the root, and prints the value the report computes for seed 0."""
+    import os
+    import subprocess
+
+    command = claim.command(reading)
+    assert command.startswith("PYTHONPATH=benchmarks/reproduction python -c ")
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    done = subprocess.run(command, shell=True, cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    expected = reproduce.run_job(claim.jobs(reading)[0])["value"]
+    assert float(done.stdout.strip().splitlines()[-1]) == pytest.approx(expected, rel=1e-12)

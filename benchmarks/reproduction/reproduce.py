@@ -46,6 +46,8 @@ from swarmscene.sweeps.stats import lower_bound, mean_interval, wilson
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]  # benchmarks/reproduction/ -> the repository
 CLAIMS_DIR = HERE / "claims"
+FUNCTIONS_DIR = HERE.relative_to(ROOT).as_posix()
+"""Where a function claim's module (``fig_thesis:gain``) lives, as the report's commands name it."""
 DEPARTURES = CLAIMS_DIR / "departures.yaml"
 """Where the shipped defaults depart from the papers as printed (not claims: the report's table)."""
 PAPERS = {
@@ -129,8 +131,11 @@ class Claim(BaseModel):
         """The command line that reproduces one run of this claim in this reading."""
         if self.function is not None:
             module, name = self.function.split(":")
-            args = " ".join(self.readings[reading])
-            return f"python -c 'from {module} import {name}; print({name}(0{', ' + repr(args) if args else ''}))'"
+            # The call run_job makes for seed 0: each of the reading's words one argument. From the
+            # repository root, like every other command in the report; double quotes outside
+            # because repr() quotes the arguments with single ones.
+            call = f"{name}({', '.join(['0', *map(repr, self.readings[reading])])})"
+            return f'PYTHONPATH={FUNCTIONS_DIR} python -c "from {module} import {name}; print({call})"'
         words = [*self.overrides, *self.readings[reading]]
         n = self.n_seeds(reading)
         seeds = f"seed='range(0,{n})' --multirun" if n > 1 else "seed=0"
