@@ -49,3 +49,50 @@ def test_every_benchmark_script_on_the_page_is_run_by_benchmarks_all():
     code = re.findall(r"`([^`]+)`", page) + re.findall(r"```\w*\n(.*?)```", page, re.S)
     shown = {m for text in code for m in re.findall(script, text)}
     assert len(shown) > 10 and shown - {"benchmarks/all.py"} <= run, sorted(shown - run)
+
+
+# Text files that name benchmark paths (benchmarks/ is split into speed/ and reproduction/, issue
+# #27); the engine's own docstrings and the scenario comments are left to the folders' owners.
+BENCHMARK_PATH_SOURCES = ("README.md", "docs/*.md", "benchmarks/**/*.md", "benchmarks/**/*.py",
+                          "benchmarks/**/*.yaml", "tests/**/*.py")
+
+
+def _git_ignored(path: str) -> bool:
+    """Whether ``path`` (or a folder above it) matches one of .gitignore's patterns: a generated
+    output the scripts write (a peer's venv, results/), named but never committed."""
+    from fnmatch import fnmatch
+
+    patterns = [p.strip().rstrip("/") for p in (ROOT / ".gitignore").read_text().splitlines()
+                if p.strip() and not p.startswith("#")]
+    parts = path.rstrip("/").split("/")
+    return any(fnmatch("/".join(parts[:k]), p) for k in range(1, len(parts) + 1) for p in patterns)
+
+
+def test_every_benchmark_path_named_exists():
+    """A path such as benchmarks/speed/bench_tick.py in the docs, a script's usage or a test names
+    a file that is there (or a git-ignored output), so a moved script leaves no stale command."""
+    named: dict[str, set[str]] = {}
+    for pattern in BENCHMARK_PATH_SOURCES:
+        for source in ROOT.glob(pattern):
+            if ".venv" in source.parts:
+                continue
+            for path in re.findall(r"benchmarks/[\w./-]*", source.read_text()):
+                named.setdefault(path.rstrip("."), set()).add(str(source.relative_to(ROOT)))
+    assert len(named) > 30
+    missing = {p: sorted(s) for p, s in named.items() if not (ROOT / p).exists() and not _git_ignored(p)}
+    assert not missing, missing
+
+
+def test_git_ignored_check_reads_the_patterns():
+    assert _git_ignored("benchmarks/speed/peers/.venv-mesa") and _git_ignored("benchmarks/results/all/x.log")
+    old_place = "/".join(("benchmarks", "bench_tick.py"))  # joined, so the scan above does not read it
+    assert not _git_ignored(old_place) and not _git_ignored("benchmarks/speed/bench_tick.py")
+
+
+def test_each_benchmark_folder_readme_names_every_script():
+    """benchmarks/speed/ and benchmarks/reproduction/ say in their README what each script is for."""
+    for folder in ("speed", "reproduction"):
+        readme = (ROOT / "benchmarks" / folder / "README.md").read_text()
+        scripts = {p.name for p in (ROOT / "benchmarks" / folder).glob("*.py")}
+        assert len(scripts) >= 8
+        assert {s for s in scripts if f"`{s}`" not in readme} == set(), folder

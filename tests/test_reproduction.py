@@ -1,6 +1,6 @@
-"""The reproduction report (benchmarks/reproduce.py) and the paper claims it checks.
+"""The reproduction report (benchmarks/reproduction/reproduce.py) and the paper claims it checks.
 
-Fast: every claim in benchmarks/claims/ is well formed and every reading composes into a valid
+Fast: every claim in benchmarks/reproduction/claims/ is well formed and every reading composes into a valid
 scenario; the report's statistics and verdicts are exact on hand-made results. Slow (``pytest -m
 slow tests/test_reproduction.py``): every claim's default reading is re-run on all its seeds and
 must hold within the tolerance the claim states (or, declared ``expect: misses``, still miss it).
@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _load_reproduce():
-    spec = importlib.util.spec_from_file_location("reproduce", ROOT / "benchmarks" / "reproduce.py")
+    spec = importlib.util.spec_from_file_location("reproduce", ROOT / "benchmarks" / "reproduction" / "reproduce.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules["reproduce"] = module
     spec.loader.exec_module(module)
@@ -44,11 +44,11 @@ def test_every_reading_composes(claim):
         job = claim.jobs(reading)[0]
         if job.function is not None:
             module, name = job.function.split(":")
-            sys.path.insert(0, str(ROOT / "benchmarks"))
+            sys.path.insert(0, str(ROOT / "benchmarks" / "reproduction"))
             try:
                 assert callable(getattr(__import__(module, fromlist=[name]), name))
             finally:
-                sys.path.remove(str(ROOT / "benchmarks"))
+                sys.path.remove(str(ROOT / "benchmarks" / "reproduction"))
         else:
             api.load([*job.overrides, f"seed={job.seed}"])
 
@@ -200,3 +200,33 @@ def test_claim_verdict_in_its_default_reading(claim):
         f"ours mean {out.mean:.4g} [{out.low:.4g}, {out.high:.4g}], worst {out.worst:.4g}, "
         f"{out.missing} runs without the metric"
     )
+
+
+def _one_function_claim_per_module():
+    """(claim, reading) for each module of function claims, the reading with the most arguments."""
+    chosen = {}
+    for claim in CLAIMS:
+        if claim.function is None:
+            continue
+        module = claim.function.split(":")[0]
+        reading = max(claim.readings, key=lambda r: len(claim.readings[r]))
+        if len(claim.readings[reading]) >= len(chosen.get(module, (None, ()))[1]):
+            chosen[module] = (claim, claim.readings[reading], reading)
+    return [(claim, reading) for claim, _, reading in chosen.values()]
+
+
+@pytest.mark.parametrize(("claim", "reading"), _one_function_claim_per_module(),
+                         ids=lambda x: getattr(x, "id", x))
+def test_a_function_claims_command_runs_from_the_repository_root(claim, reading):
+    """The report's command for a function claim (benchmarks/reproduction/, issue #27) runs as
+    printed, from the root, and prints the value the report computes for seed 0."""
+    import os
+    import subprocess
+
+    command = claim.command(reading)
+    assert command.startswith("PYTHONPATH=benchmarks/reproduction python -c ")
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    done = subprocess.run(command, shell=True, cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    expected = reproduce.run_job(claim.jobs(reading)[0])["value"]
+    assert float(done.stdout.strip().splitlines()[-1]) == pytest.approx(expected, rel=1e-12)

@@ -109,7 +109,7 @@ def test_fig_8_is_calibrated_and_what_the_uncalibrated_settings_give():
     field-off Phi^1_2 gives Fig. 8's 0.55 m, and B, k_r so that the field-on one gives 0.65 m.
     Uncalibrated (the triangle at the paper's formation distance 0.7 m, B = 1 m/s, k_r = 1 1/s) the
     field-off distance follows the side (0.495 m) while the field-on one stays near 0.65 m (it is set
-    by s_i + s_j and D): benchmarks/fig_8_vrb.py, benchmarks/claims/vrb.yaml."""
+    by s_i + s_j and D): benchmarks/reproduction/fig_8_vrb.py, benchmarks/reproduction/claims/vrb.yaml."""
     unit = replace(AIRSHOW_LAW, gain=1.0, k_return=1.0)
     assert _phi_1_2(0.89, AIRSHOW_LAW, False) == pytest.approx(0.550, abs=0.001)
     assert _phi_1_2(0.89, AIRSHOW_LAW, True) == pytest.approx(0.651, abs=0.001)

@@ -134,7 +134,7 @@ def test_straight_corridor_succeeds_for_w_at_least_0_7():
 
 @pytest.mark.slow
 def test_l_corridor_succeeds_at_0_9_and_stays_safe():
-    """Fig. 5.13 reduced (5 seeds). Full sweep (30 seeds, literal reading, benchmarks/
+    """Fig. 5.13 reduced (5 seeds). Full sweep (30 seeds, literal reading, benchmarks/reproduction/
     sweep_indoor.py): 0 %, 0 %, 90.0 %, 83.3 %, 100 % for w = 0.5 ... 0.9 m: below the thesis at
     0.8 m. The 0.7 m failures are links stretched past d_n at the corridor mouth; every 0.8 m
     failure is the tail's single 0.74 m link to an agent held 0.2 m from the inner wall by its

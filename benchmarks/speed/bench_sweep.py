@@ -1,0 +1,194 @@
+"""Sweep speed: the main process's cost per job, the workers' fixed cost per job, full paper sweeps,
+and the speed-up over the cores of the machine it runs on (issue 25's goals).
+
+    python benchmarks/speed/bench_sweep.py                    # every part below, small sizes (~3 min)
+    python benchmarks/speed/bench_sweep.py --part main        # one part: main, fixed, cem, scaling
+    python benchmarks/speed/bench_sweep.py --part cem --seeds 1000
+    python benchmarks/speed/bench_sweep.py --part fixed --jobs-per-task 1   # job by job (the ratio's baseline)
+
+Every command runs in a fresh process with its wall time measured around it; a job's start is the
+time its ``.hydra/overrides.yaml`` appears (the first file a sweep job writes).
+
+- ``main``: the time from the command to its first job's start for grids of 100, 1,000 and 10,000
+  seeds (the command is ended once the first job started), and the main process's work per job
+  (the grid expanded, checked and recorded), measured in-process. Goal: <= 2 ms per job and the
+  first job of a 10,000-job grid <= 2 s after the command.
+- ``fixed``: jobs of one tick (``scenario=cem_six_vehicle clock.duration=0.01``), one at a time
+  (basic launcher): the per-job fixed cost is (wall - the empty command's wall) / jobs; and the
+  issue's 200 jobs of 50 ticks on 2 joblib workers. Goal: <= 25 ms per job, 200 jobs <= 10 s.
+- ``cem``: ``--seeds`` (100) seeds of the full ``cem_six_vehicle`` on 2 joblib workers. Goal: 100
+  seeds <= 8 s, 1,000 seeds <= 75 s.
+- ``scaling``: the same 96-job sweep (``cem_six_vehicle clock.duration=6``) on 1, 2, 4, ... and all
+  cores (joblib): speed-up against 1 worker and parallel efficiency (speed-up / workers), and the
+  tables compared (identical apart from wall-clock metrics). Goal: >= 90 % on 2 cores, >= 80 % at 16.
+
+The cores each command got (CPU time / wall time) and the load average are printed: on a machine
+shared with other work the figures are bounded by them. Nothing here is asserted in the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import resource
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
+TIMING = {"wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median"}
+ENV = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+ENV.pop("HYDRA_FULL_ERROR", None)
+
+
+def joblib(workers: int) -> list[str]:
+    return ["hydra/launcher=joblib", f"hydra.launcher.n_jobs={workers}"]
+
+
+PER_TASK: list[str] = []
+"""``hydra/sweeper=swarmscene hydra.sweeper.jobs_per_task=K`` when ``--jobs-per-task`` is given (default: the sweeper's auto)."""
+
+
+def run(args: list[str], directory: Path) -> tuple[float, float]:
+    """(wall time, CPU time of the command and its workers), s, of ``swarmscene --multirun args``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run([*EXE, "--multirun", *args, *PER_TASK, f"hydra.sweep.dir={directory}"], check=True, env=ENV,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def first_start(args: list[str], directory: Path, limit: float = 600.0) -> float:
+    """Seconds from the command to its first job's start; the command is then ended."""
+    epoch = time.time()
+    proc = subprocess.Popen([*EXE, "--multirun", *args, f"hydra.sweep.dir={directory}"], env=ENV,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    marker = directory / "0" / ".hydra" / "overrides.yaml"
+    try:
+        while not marker.exists():
+            if proc.poll() is not None or time.time() - epoch > limit:
+                raise RuntimeError(f"no job started ({' '.join(args)})")
+            time.sleep(0.005)
+        return marker.stat().st_mtime - epoch
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def main_process_work(jobs: int) -> float:
+    """Seconds per job of the sweeper's work in the main process (expand, check, record), in-process."""
+    from hydra import initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.types import RunMode
+
+    from swarmscene.searchpath import register_search_path
+    from swarmscene.sweeps.compose import GroupCachingLoader
+    from swarmscene.sweeps.grid import GridCheck, JobCheck, expand
+    from swarmscene.sweeps.records import check_grid_owner, record_grid
+
+    register_search_path()
+    with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"), \
+            tempfile.TemporaryDirectory() as tmp:
+        loader = GroupCachingLoader(GlobalHydra.instance().config_loader(), command=["bench"])
+        master = loader.load_configuration("config", [f"hydra.sweep.dir={tmp}"], RunMode.MULTIRUN)
+        start = time.perf_counter()
+        grid, job_list = expand({}, ["scenario=cem_six_vehicle", f"seed=range(0,{jobs})"],
+                                OverridesParser.create(config_loader=loader))
+        check_grid_owner(Path(tmp), grid, job_list)
+        GridCheck(JobCheck(loader, master), job_list).check(0, len(job_list))
+        record_grid(Path(tmp), grid, job_list)
+        return (time.perf_counter() - start) / jobs
+
+
+def table(directory: Path) -> list[dict[str, str]]:
+    with open(directory / "summary.csv", newline="") as fh:
+        return [{k: v for k, v in row.items() if k not in TIMING and k != "overrides"} for row in csv.DictReader(fh)]
+
+
+def verdict(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def part_main(root: Path) -> None:
+    print("main process")
+    for jobs in (100, 1_000, 10_000):
+        per_job = main_process_work(jobs)
+        first = first_start(["scenario=cem_six_vehicle", f"seed=range(0,{jobs})"], root / f"main{jobs}")
+        goal = f"; first job <= 2 s: {verdict(first <= 2.0)}" if jobs == 10_000 else ""
+        print(f"  {jobs:6d} jobs: {1e3 * per_job:5.2f} ms per job in the main process "
+              f"(<= 2 ms: {verdict(per_job <= 2e-3)}), first job started {first:5.2f} s after the command{goal}")
+
+
+def part_fixed(root: Path) -> None:
+    print("per-job fixed cost")
+    jobs = 100
+    empty, empty_cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.01", "seed=0"], root / "empty")
+    wall, cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.01", f"seed=range(0,{jobs})"], root / "one_tick")
+    fixed = (wall - empty) / (jobs - 1)
+    # CPU time per job: what a job costs whatever else the machine runs (wall time is not).
+    fixed_cpu = (cpu - empty_cpu) / (jobs - 1)
+    print(f"  {jobs} jobs of one tick, basic launcher: {wall:.1f} s (one job: {empty:.1f} s): "
+          f"{1e3 * fixed:.0f} ms per job (<= 25 ms: {verdict(fixed <= 0.025)}), {1e3 * fixed_cpu:.0f} ms of CPU "
+          f"per job, {cpu / wall:.2f} cores used")
+    wall, cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.5", "seed=range(0,200)", *joblib(2)], root / "fifty")
+    print(f"  200 jobs of 50 ticks, joblib 2 workers: {wall:.1f} s (<= 10 s: {verdict(wall <= 10)}), "
+          f"{cpu / wall:.2f} cores used")
+
+
+def part_cem(root: Path, seeds: int) -> None:
+    print(f"full cem_six_vehicle, {seeds} seeds, joblib 2 workers")
+    wall, cpu = run(["scenario=cem_six_vehicle", f"seed=range(0,{seeds})", *joblib(2)], root / f"cem{seeds}")
+    goal = 8.0 if seeds <= 100 else 75.0 * seeds / 1000
+    print(f"  {wall:.1f} s (goal <= {goal:g} s: {verdict(wall <= goal)}), {cpu / wall:.2f} cores used")
+
+
+def part_scaling(root: Path, jobs: int) -> None:
+    cores = os.cpu_count() or 1
+    counts = sorted({1, *[2**k for k in range(1, 8) if 2**k < cores], cores})
+    print(f"scaling: {jobs} jobs of cem_six_vehicle clock.duration=6, joblib, {cores} cores")
+    args = ["scenario=cem_six_vehicle", "clock.duration=6", f"seed=range(0,{jobs})"]
+    base = None
+    reference = None
+    for workers in counts:
+        wall, cpu = run([*args, *joblib(workers)], root / f"scale{workers}")
+        base = base or wall
+        rows = table(root / f"scale{workers}")
+        reference = reference or rows
+        speedup = base / wall
+        print(f"  {workers:3d} workers: {wall:6.1f} s, speed-up {speedup:5.2f}x, efficiency {100 * speedup / workers:5.1f} %, "
+              f"{cpu / wall:.2f} cores used, table identical to 1 worker's: {rows == reference}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "all"), default="all")
+    parser.add_argument("--seeds", type=int, default=100, help="seeds of the full cem_six_vehicle sweep")
+    parser.add_argument("--scaling-jobs", type=int, default=96, help="jobs of the scaling sweep")
+    parser.add_argument("--jobs-per-task", default=None,
+                        help="hydra.sweeper.jobs_per_task of every sweep (default: the sweeper's, auto); "
+                             "1 launches job by job, as before launcher tasks, for a side-by-side ratio")
+    args = parser.parse_args()
+    if args.jobs_per_task is not None:
+        PER_TASK += ["hydra/sweeper=swarmscene", f"hydra.sweeper.jobs_per_task={args.jobs_per_task}"]
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        if args.part in ("main", "all"):
+            part_main(root)
+        if args.part in ("fixed", "all"):
+            part_fixed(root)
+        if args.part in ("cem", "all"):
+            part_cem(root, args.seeds)
+        if args.part in ("scaling", "all"):
+            part_scaling(root, args.scaling_jobs)
+    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
