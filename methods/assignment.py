@@ -19,7 +19,7 @@ are exact and the answer is a deterministic function of the matrix.
 Two row orders, both fixed functions of the matrix, keep the paths short: rows are sorted by their
 cheapest column before sampling (a stratified coarse sample, hence better duals), and scipy takes
 the rows of each reduced matrix with the fewest zeros first (tie-heavy rows last). At N = 1,000
-(benchmarks/bench_hex_assignment.py) every starting configuration then solves in under 50 ms.
+(benchmarks/speed/bench_hex_assignment.py) every starting configuration then solves in under 50 ms.
 """
 
 from __future__ import annotations

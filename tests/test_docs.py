@@ -54,7 +54,8 @@ def test_every_benchmark_script_on_the_page_is_run_by_benchmarks_all():
 # Text files that name benchmark paths (benchmarks/ is split into speed/ and reproduction/, issue
 # #27); the engine's own docstrings and the scenario comments are left to the folders' owners.
 BENCHMARK_PATH_SOURCES = ("README.md", "docs/*.md", "benchmarks/**/*.md", "benchmarks/**/*.py",
-                          "benchmarks/**/*.yaml", "tests/**/*.py")
+                          "benchmarks/**/*.yaml", "tests/**/*.py", "core/**/*.py", "methods/**/*.py",
+                          "plugins/**/*.py", "swarmscene/**/*.py", "scenarios/**/*.yaml")
 
 
 def _git_ignored(path: str) -> bool:

@@ -34,7 +34,8 @@ prediction. Uncalibrated, with the triangle at the paper's formation distance 0.
 gains B = 1 m/s, k_r = 1 1/s, Phi^1_2 gives 0.495 m / 0.640 m (side 0.7, shipped gains), 0.550 m /
 0.656 m (side 0.89, unit gains) and 0.495 m / 0.646 m (both): the field-on distance stays within
 0.01 m of 0.65 m (it is set by s_i + s_j and D, not by the fit), the field-off one follows the side.
-``python benchmarks/fig_8_vrb.py`` computes the table; benchmarks/claims/vrb.yaml reports both.
+``python benchmarks/reproduction/fig_8_vrb.py`` computes the table;
+benchmarks/reproduction/claims/vrb.yaml reports both.
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ when either end's rule fires (``deactivation_candidates: neighbours``, the defau
 (N_i ∩ N_j, the reading shipped before issue 17, which keeps G_n's components) and ``directed``
 are the alternatives, with their reasons in methods/indoor/graphs.py.
 What remains is the limitation the thesis states (no LOS maintenance, section 5.3.3); the
-``indoor.disconnect.*`` metrics classify each split (benchmarks/sweep_indoor.py). Measured with
+``indoor.disconnect.*`` metrics classify each split (benchmarks/reproduction/sweep_indoor.py). Measured with
 30 seeds per width, literal reading (docs/indoor_fidelity.md, every reading): straight
 0 / 0 / 93.3 / 100 / 100 % and L 0 / 0 / 90.0 / 83.3 / 100 % for w = 0.5 ... 0.9 m (``common``:
 0.7-0.8 m 90 / 96.7 % and 86.7 / 73.3 %).
