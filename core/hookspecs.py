@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .events import Event, EventKindPlugin
     from .generators import MapGenerator
     from .plugin import Avoidance, Dynamics, Formation, Policy
-    from .simulation import Simulation
+    from .run_view import RunView
 
 PROJECT = "swarmscene"
 hookspec = pluggy.HookspecMarker(PROJECT)
@@ -78,8 +78,8 @@ def swarmscene_register_observers(register: ObserverRegister) -> None:
     """Register observer classes (monitors, metrics, recorders) built once per run.
 
     When: once, while the plugin manager is built. Each class is instantiated as
-    ``cls(sim)`` when a :class:`~swarmscene.core.simulation.Simulation` is built and the instance
-    is registered with that simulation's plugin manager, so its lifecycle hooks fire for that run
+    ``cls(sim)`` when a :class:`~swarmscene.core.simulation.Simulation` is built (``sim`` the run's
+    read-only :class:`~swarmscene.core.run_view.RunView`) and the instance is registered with that simulation's plugin manager, so its lifecycle hooks fire for that run
     only (state never leaks between runs).
 
     Args:
@@ -139,19 +139,20 @@ def swarmscene_register_policies(register: PolicyRegister) -> None:
 
 
 @hookspec
-def swarmscene_run_start(sim: Simulation) -> None:
+def swarmscene_run_start(sim: RunView) -> None:
     """The run is about to take its first step.
 
     When: once per run, after every component is built and before the first tick; ``sim.world``
     holds the initial state.
 
     Args:
-        sim: the simulation (world state, clock, environment, sensing, chosen plugins).
+        sim: the run's read-only view (:class:`~swarmscene.core.run_view.RunView`: world,
+            sensing, environment, config, t, step counters, has_attitude, request_stop).
     """
 
 
 @hookspec
-def swarmscene_event(sim: Simulation, event: Event) -> None:
+def swarmscene_event(sim: RunView, event: Event) -> None:
     """A scheduled event (failure, communication loss) has just been applied to the world.
 
     When: during the events phase of the guidance tick at which ``event.at`` is reached, after the
@@ -160,25 +161,25 @@ def swarmscene_event(sim: Simulation, event: Event) -> None:
     the rotor a ``motor_failure`` names).
 
     Args:
-        sim: the simulation.
+        sim: the run's read-only view (:class:`~swarmscene.core.run_view.RunView`).
         event: the event applied (time, agents, kind).
     """
 
 
 @hookspec
-def swarmscene_step_end(sim: Simulation) -> None:
+def swarmscene_step_end(sim: RunView) -> None:
     """A guidance tick has finished: dynamics have moved the agents and sensing is rebuilt.
 
     When: once per guidance tick, after the physics sub-steps; ``sim.world.t`` is the new time and
     ``sim.sensing`` reflects the new positions (the k-d tree is shared, do not rebuild it).
 
     Args:
-        sim: the simulation.
+        sim: the run's read-only view (:class:`~swarmscene.core.run_view.RunView`).
     """
 
 
 @hookspec
-def swarmscene_run_end(sim: Simulation, metrics: dict[str, Any]) -> None:
+def swarmscene_run_end(sim: RunView, metrics: dict[str, Any]) -> None:
     """The run is over: add entries to ``metrics``.
 
     When: once per run, after the last tick (or an early termination). Implementations add flat,
@@ -188,6 +189,6 @@ def swarmscene_run_end(sim: Simulation, metrics: dict[str, Any]) -> None:
     also set the engine's ``success``. Values must be JSON-serialisable.
 
     Args:
-        sim: the simulation.
+        sim: the run's read-only view (:class:`~swarmscene.core.run_view.RunView`).
         metrics: the run's metrics, to be written to ``metrics.json``.
     """

@@ -37,6 +37,7 @@ from .monitors import SafetyMonitor
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
 from .recorder import TrajectoryRecorder
 from .result import RunResult
+from .run_view import RunView
 from .sensing import Sensing
 from .state import WorldState
 from .vectors import wrap
@@ -108,7 +109,8 @@ class Simulation:
         if self.disturbances.active:
             self.pm.register(self.disturbances, name="disturbances")
         self.step_seconds = np.zeros(self.total_steps)
-        self.observers = [cls(self) for cls in observers]
+        self.view = RunView(self)  # what hooks and observers see of the run
+        self.observers = [cls(self.view) for cls in observers]
         for obj in self.observers:
             self.pm.register(obj)
 
@@ -159,18 +161,18 @@ class Simulation:
             plain = not any(i.hookwrapper or i.wrapper for i in impls)
             self._step_end_calls = [(i.function, bool(i.argnames)) for i in reversed(impls)] if plain else None
         if self._step_end_calls is None or self.pm._inner_hookexec is not _PLAIN_HOOKEXEC:
-            caller(sim=self)
+            caller(sim=self.view)
             return
         for function, takes_sim in self._step_end_calls:
             if takes_sim:
-                function(self)
+                function(self.view)
             else:
                 function()
 
     def _apply_due_events(self) -> None:
         for event in self.events.apply_due(self.world):
             self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
-            self.hook.swarmscene_event(sim=self, event=event)
+            self.hook.swarmscene_event(sim=self.view, event=event)
 
     def _check_finite(self) -> None:
         """Stop at the first non-finite position or velocity, naming the agent and the tick."""
@@ -231,7 +233,7 @@ class Simulation:
         becomes NaN or infinite stops the run before that tick is observed: ``stop_reason``
         ``"non_finite"``, ``error`` names the first such agent and the tick, ``success`` is False.
         """
-        self.hook.swarmscene_run_start(sim=self)
+        self.hook.swarmscene_run_start(sim=self.view)
         wall_start = time.perf_counter()
         try:
             while self.step_count < self.total_steps and self.stop_reason is None:
@@ -253,7 +255,7 @@ class Simulation:
         wall = time.perf_counter() - wall_start
         metrics = self._engine_metrics(wall)
         metrics.update(self.events.metrics())  # the drawn times and agents of random events
-        self.hook.swarmscene_run_end(sim=self, metrics=metrics)
+        self.hook.swarmscene_run_end(sim=self.view, metrics=metrics)
         metrics.setdefault("success", self.default_success(metrics))
         if self.error is not None:
             metrics["success"] = False

@@ -52,6 +52,7 @@ from .core.plugin import (
     Policy,
     choose,
 )
+from .core.run_view import RunView
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
@@ -59,7 +60,7 @@ from .core.state import WorldState
 __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
     "Environment", "Event", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
-    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "SHARED", "Sensing", "Setpoints",
+    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "RunView", "SHARED", "Sensing", "Setpoints",
     "StrictModel", "WorldState", "build_context", "choose", "disturbance_context", "hookimpl",
 ]
 

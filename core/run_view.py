@@ -1,0 +1,112 @@
+"""What a hook sees of a run: a narrow, read-only view of the simulation (issue #27).
+
+The lifecycle hooks (``swarmscene_run_start``, ``swarmscene_event``, ``swarmscene_step_end``,
+``swarmscene_run_end``) and each observer's constructor receive a :class:`RunView` as their
+``sim`` argument, not the :class:`~swarmscene.core.simulation.Simulation` itself: an observer
+reads the run and may ask it to stop, and that is all. The kernel's parts (plugin objects, the
+plugin manager, the event queue, the disturbances) are out of its reach, so an observer cannot
+come to depend on them, and ``core/hookspecs.py`` needs no import of the kernel.
+
+What it holds is what the built-in observers, the safety monitor and the recorder read (listed
+by grep when it was introduced): ``world``, ``sensing``, ``environment``, ``config``, the step
+counters, ``has_attitude`` and :meth:`RunView.request_stop`. Reading is free of copies: ``world``
+is the live :class:`~swarmscene.core.state.WorldState`, read-only by contract (copying it every
+tick would cost more than most observers; ``swarmscene.testing.check_observer`` refuses an
+observer that moves an agent). Setting an attribute of the view raises. Reading any other
+attribute of the simulation (``sim.formation``, ``sim.pm``) still works in this release, with a
+DeprecationWarning naming it; the next minor release refuses it.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import TYPE_CHECKING, Any, NoReturn
+
+if TYPE_CHECKING:
+    from .config import ScenarioConfig
+    from .environment import Environment
+    from .sensing import Sensing
+    from .simulation import Simulation
+    from .state import WorldState
+
+
+class RunView:
+    """The run as a hook sees it (every attribute read through to the live simulation).
+
+    Attributes:
+        world: the true state (positions, velocities, health, time ``t``); read-only by contract.
+        sensing: this tick's :class:`~swarmscene.core.sensing.Sensing` over the true state (the
+            kernel makes a new one every tick, so read it through the view, not once).
+        environment: the map (obstacle footprints and their queries).
+        config: the validated scenario configuration (``config.safety``, ``config.output``, ...).
+        t: the simulated time, s (``world.t``).
+        step_count: guidance ticks done so far.
+        total_steps: guidance ticks the run lasts (``clock.duration / clock.guidance_period``).
+        has_attitude: whether the dynamics model flies attitude (the recorder records ``quat``).
+    """
+
+    __slots__ = ("_sim",)
+
+    def __init__(self, sim: Simulation) -> None:
+        object.__setattr__(self, "_sim", sim)
+
+    @property
+    def world(self) -> WorldState:
+        """The true state (positions, velocities, health, time); read-only by contract."""
+        return self._sim.world
+
+    @property
+    def sensing(self) -> Sensing:
+        """This tick's sensing over the true state (new every tick)."""
+        return self._sim.sensing
+
+    @property
+    def environment(self) -> Environment:
+        """The map: obstacle footprints and their queries."""
+        return self._sim.environment
+
+    @property
+    def config(self) -> ScenarioConfig:
+        """The validated scenario configuration."""
+        return self._sim.config
+
+    @property
+    def t(self) -> float:
+        """The simulated time, s."""
+        return self._sim.world.t
+
+    @property
+    def step_count(self) -> int:
+        """Guidance ticks done so far."""
+        return self._sim.step_count
+
+    @property
+    def total_steps(self) -> int:
+        """Guidance ticks the run lasts."""
+        return self._sim.total_steps
+
+    @property
+    def has_attitude(self) -> bool:
+        """Whether the dynamics model flies attitude (quaternions to record)."""
+        return bool(self._sim.dynamics.has_attitude)
+
+    def request_stop(self, reason: str) -> None:
+        """End the run after the current tick (e.g. the safety monitor on a collision)."""
+        self._sim.request_stop(reason)
+
+    def __getattr__(self, name: str) -> Any:
+        """Another attribute of the simulation, for one release, with a DeprecationWarning."""
+        if name.startswith("__"):
+            raise AttributeError(name)
+        value = getattr(self._sim, name)
+        warnings.warn(
+            f"swarmscene: a hook read sim.{name}, which is not part of the run's view (world, sensing, "
+            "environment, config, t, step_count, total_steps, has_attitude, request_stop); the next "
+            "minor release refuses it", DeprecationWarning, stacklevel=2)
+        return value
+
+    def __setattr__(self, name: str, value: Any) -> NoReturn:
+        raise AttributeError(f"a hook's view of the run is read-only (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        return f"RunView(t={self.t:g}, step {self.step_count} of {self.total_steps})"
