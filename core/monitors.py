@@ -88,7 +88,7 @@ class ConnectivityCertificate:
 class SafetyMonitor:
     """Records min separation, min clearance and connectivity at t = 0 and after every tick."""
 
-    def __init__(self, sim: "Simulation") -> None:
+    def __init__(self, sim: Simulation) -> None:
         self.d_sep = sim.config.safety.separation_limit
         self.d_clear = sim.config.safety.clearance_limit
         # Clearance is exact within the horizon; the minimum over agents is then exact too,
@@ -115,7 +115,7 @@ class SafetyMonitor:
         self._far_ticks: list[int] = []
         self._far_xy: list[np.ndarray] = []
 
-    def _observe(self, sim: "Simulation") -> None:
+    def _observe(self, sim: Simulation) -> None:
         sensing, t, k = sim.sensing, sim.world.t, self.count
         self.t[k] = t
         # Connectivity first: the pair list it may build makes the separation free.
@@ -178,22 +178,22 @@ class SafetyMonitor:
         self.first.setdefault(condition, (float(t), agents))
 
     @hookimpl
-    def swarmscene_run_start(self, sim: "Simulation") -> None:
+    def swarmscene_run_start(self, sim: Simulation) -> None:
         self._observe(sim)
 
     @hookimpl
-    def swarmscene_step_end(self, sim: "Simulation") -> None:
+    def swarmscene_step_end(self, sim: Simulation) -> None:
         self._observe(sim)
 
     @hookimpl
-    def swarmscene_event(self, sim: "Simulation", event: Any) -> None:
+    def swarmscene_event(self, sim: Simulation, event: Any) -> None:
         # A link lost by an event is lost at the event's tick, not at the end of it.
         if not sim.sensing.comm_connected:
             self.connected[self.count - 1] = False
             self._first("connectivity", sim.world.t, np.flatnonzero(sim.sensing.comm_members).tolist())
 
     @hookimpl
-    def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
         self._settle_far()
         k = self.count
         min_sep = float(self.min_separation[:k].min()) if k else float("inf")

@@ -106,7 +106,7 @@ class NpyAppender:
 class TrajectoryRecorder:
     """Keeps decimated frames of the world state in memory, or streams them to disk in chunks."""
 
-    def __init__(self, sim: "Simulation") -> None:
+    def __init__(self, sim: Simulation) -> None:
         out = sim.config.output
         self.enabled = out.trajectory
         self.every = out.trajectory_every
@@ -148,7 +148,7 @@ class TrajectoryRecorder:
         # valid on POSIX (an unlinked file lives while mapped).
         self._cleanup = weakref.finalize(self, _remove_spill, self.spill_dir, list(self.files.values()))
 
-    def _record(self, sim: "Simulation") -> None:
+    def _record(self, sim: Simulation) -> None:
         world, k = sim.world, self.filled
         self.t[self.count] = world.t
         self.buffer["pos"][k] = world.pos
@@ -168,17 +168,17 @@ class TrajectoryRecorder:
         self.filled = 0
 
     @hookimpl
-    def swarmscene_run_start(self, sim: "Simulation") -> None:
+    def swarmscene_run_start(self, sim: Simulation) -> None:
         if self.enabled:
             self._record(sim)
 
     @hookimpl
-    def swarmscene_step_end(self, sim: "Simulation") -> None:
+    def swarmscene_step_end(self, sim: Simulation) -> None:
         if self.enabled and sim.step_count % self.every == 0:
             self._record(sim)
 
     @hookimpl
-    def swarmscene_run_end(self, sim: "Simulation", metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
         if self.enabled and self.streaming:
             self._flush()
             for appender in self.files.values():

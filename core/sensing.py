@@ -149,7 +149,7 @@ class Sensing:
         world: WorldState,
         environment: Environment,
         comm_range: float,
-        previous: "Sensing | None" = None,
+        previous: Sensing | None = None,
     ) -> None:
         self.world = world
         self._n = world.n  # agents (read a few times a tick; a property of the world)
@@ -195,7 +195,7 @@ class Sensing:
         return value
 
     @per_tick
-    def tree(self) -> "cKDTree":
+    def tree(self) -> cKDTree:
         """k-d tree over all agents' positions (failed ones included: they are still obstacles)."""
         return scipy.spatial.cKDTree(self.world.pos)
 
@@ -357,7 +357,7 @@ class Sensing:
         return pairs[links], self._pair_d2[self.comm_range][links]
 
     @per_tick
-    def comm_adjacency(self) -> "csr_matrix":
+    def comm_adjacency(self) -> csr_matrix:
         """Symmetric sparse adjacency of the communication graph (range ``comm_range``)."""
         n = self.world.n
         edges = self.comm_edges
@@ -435,7 +435,7 @@ class Sensing:
         return scipy.sparse.csgraph.shortest_path(self.comm_adjacency, unweighted=True, indices=source)
 
     @per_tick
-    def comm_graph(self) -> "nx.Graph":
+    def comm_graph(self) -> nx.Graph:
         """The communication graph as a networkx graph, for analysis and metrics (not hot loops)."""
         import networkx as nx  # 0.1 s to import: only the analyses that ask for it pay
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
+from datetime import UTC
 from pathlib import Path
 from typing import Any
 
@@ -172,9 +173,9 @@ def _require(module: str, option: str, extra: str) -> None:
 
 def utc_now() -> str:
     """The current time, UTC, ISO 8601 (the manifest's ``started_at``)."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def write_outputs(
@@ -267,6 +268,7 @@ def sweep(
             directory); any path, spaces and commas included. The same grid into the same directory resumes (complete jobs are skipped);
             another grid there is refused.
         allow_failed: return normally when jobs failed (they are in ``rows`` with their reason).
+
     Raises:
         ConfigError: the sweep was refused before any job ran (a bad value anywhere in the grid,
             a directory holding another grid), with the command line's one-line messages; or jobs
@@ -274,14 +276,14 @@ def sweep(
     """
     import subprocess
     import sys
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     from .sweeps.tables import collect_rows
 
     if launcher not in LAUNCHERS:
         raise ConfigError([f"launcher: must be one of {', '.join(LAUNCHERS)} (got {launcher!r})"])
     if sweep_dir is None:
-        sweep_dir = Path("multirun", "api", datetime.now(timezone.utc).strftime("%Y-%m-%d_%H-%M-%S-%f"))
+        sweep_dir = Path("multirun", "api", datetime.now(UTC).strftime("%Y-%m-%d_%H-%M-%S-%f"))
     sweep_dir = Path(sweep_dir).resolve()
     swept = [f"{key}={_sweep_values(values)}" for key, values in grid.items()]
     command = [sys.executable, "-c", "from swarmscene.cli import main; main()", "--multirun",

@@ -141,7 +141,6 @@ def _report(lines: list[str]) -> None:
 def _error_lines(exc: BaseException) -> list[str]:
     from .core.errors import ConfigError
     from .hydra_errors import hydra_error_line
-
     from .rundir import RunFileError
 
     if isinstance(exc, ConfigError):

@@ -26,10 +26,10 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from functools import lru_cache
-from importlib.metadata import PackageNotFoundError, version
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from functools import lru_cache
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 

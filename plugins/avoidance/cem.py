@@ -130,7 +130,6 @@ from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import min_distance_between, min_pair_distance
-
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -344,7 +343,7 @@ class CEM(Avoidance):
             self.handback_blocked_time = world.t
         return False
 
-    def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
+    def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Pass ``sp`` through while inactive; else TRACK setpoints along the streamlines."""
         self._commanded = False
         self._last_sp = sp

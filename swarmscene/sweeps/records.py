@@ -182,7 +182,7 @@ class SweepLock:
         self.fd: int | None = None
         self.made_dir = False
 
-    def acquire(self) -> "SweepLock":
+    def acquire(self) -> SweepLock:
         from ..core.errors import ConfigError
 
         self.made_dir = not self.sweep_dir.exists()

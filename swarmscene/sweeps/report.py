@@ -130,10 +130,10 @@ def methods_table(rows: list[dict[str, Any]], method_key: str = "avoidance") -> 
         cells = [_method_cell([r for r in members if r.get(method_key) == m]) for m in methods]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     legend = (
-        f"Each cell: success rate of the jobs · worst minimum separation over the complete runs, m · "
-        f"median completion time, s (runs that completed the mission; 'not complete' when none did). "
-        f"(k failed): jobs of the cell that did not complete; det.: every seed gave the same run. "
-        f"A word instead: why the combination could not run (its jobs' error records)."
+        "Each cell: success rate of the jobs · worst minimum separation over the complete runs, m · "
+        "median completion time, s (runs that completed the mission; 'not complete' when none did). "
+        "(k failed): jobs of the cell that did not complete; det.: every seed gave the same run. "
+        "A word instead: why the combination could not run (its jobs' error records)."
     )
     return legend + "\n\n" + "\n".join(lines) + "\n"
 
