@@ -62,10 +62,12 @@ class ConnectivityCertificate:
         self.wait = 0
 
     def connected(self, sensing: Any) -> bool:
+        """Whether the communication graph of this tick is connected (exact: a kept tree's links
+        all in range prove it, else the exact test runs)."""
         if sensing.world.n <= DENSE_POINTS:  # the dense test is cheaper than keeping a tree
             return bool(sensing.comm_connected)
         if self.links is not None:
-            if self._holds(sensing):
+            if self._holds(sensing, self.links):
                 self.life += 1
                 return True
             short_lived = self.life < self.MIN_LIFE
@@ -77,11 +79,12 @@ class ConnectivityCertificate:
         self.wait = max(self.wait - 1, 0)
         return connected
 
-    def _holds(self, sensing: Any) -> bool:
+    def _holds(self, sensing: Any, links: np.ndarray) -> bool:
+        """The kept tree ``links`` (m - 1, 2) still spans the same members, every link in range."""
         if (sensing.comm_members != self.members).any():
             return False
         pos = sensing.world.pos
-        gap = pos[self.links[:, 1]] - pos[self.links[:, 0]]
+        gap = pos[links[:, 1]] - pos[links[:, 0]]
         return bool(np.all(np.einsum("ij,ij->i", gap, gap) <= sensing.comm_range**2))
 
 
@@ -179,14 +182,17 @@ class SafetyMonitor:
 
     @hookimpl
     def swarmscene_run_start(self, sim: Simulation) -> None:
+        """Observe the initial state (tick 0)."""
         self._observe(sim)
 
     @hookimpl
     def swarmscene_step_end(self, sim: Simulation) -> None:
+        """Observe the state after this tick: separation, clearance, connectivity."""
         self._observe(sim)
 
     @hookimpl
     def swarmscene_event(self, sim: Simulation, event: Any) -> None:
+        """Re-test connectivity after an event (a failure may cut the graph)."""
         # A link lost by an event is lost at the event's tick, not at the end of it.
         if not sim.sensing.comm_connected:
             self.connected[self.count - 1] = False
@@ -194,6 +200,8 @@ class SafetyMonitor:
 
     @hookimpl
     def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
+        """Add the safety metrics: min_separation, min_clearance, collisions, clearance_violations,
+        connected, and each violated condition's first time and agents."""
         self._settle_far()
         k = self.count
         min_sep = float(self.min_separation[:k].min()) if k else float("inf")
@@ -221,4 +229,5 @@ class SafetyMonitor:
 
 @hookimpl
 def swarmscene_register_observers(register: Any) -> None:
+    """Add :class:`SafetyMonitor` to the observers every run builds."""
     register(SafetyMonitor)

@@ -77,7 +77,8 @@ class NpyAppender:
     def append(self, block: np.ndarray) -> None:
         """Append frames ``block`` (k, *frame_shape), converted to this file's dtype."""
         data = np.ascontiguousarray(block, dtype=self.dtype)  # no copy for a buffer slice
-        self._fh.write(data.reshape(-1).view(np.uint8))
+        # mypy is wrong: an ndarray is a buffer (numpy declares __buffer__ to mypy for Python 3.12+ only)
+        self._fh.write(data.reshape(-1).view(np.uint8))  # type: ignore[arg-type]
         self.frames += len(block)
 
     def sync(self) -> None:
@@ -91,6 +92,7 @@ class NpyAppender:
         self._fh.flush()
 
     def close(self) -> None:
+        """Write the final header and close the file (a second call does nothing)."""
         if not self._fh.closed:
             self.sync()
             self._fh.close()
@@ -169,16 +171,19 @@ class TrajectoryRecorder:
 
     @hookimpl
     def swarmscene_run_start(self, sim: Simulation) -> None:
+        """Record the initial frame (tick 0)."""
         if self.enabled:
             self._record(sim)
 
     @hookimpl
     def swarmscene_step_end(self, sim: Simulation) -> None:
+        """Record a frame every ``every`` ticks."""
         if self.enabled and sim.step_count % self.every == 0:
             self._record(sim)
 
     @hookimpl
     def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
+        """Streamed: append the buffered frames and leave each spill file a whole ``.npy``."""
         if self.enabled and self.streaming:
             self._flush()
             for appender in self.files.values():
@@ -209,4 +214,5 @@ def _remove_spill(spill_dir: Path, files: list[NpyAppender]) -> None:
 
 @hookimpl
 def swarmscene_register_observers(register: Any) -> None:
+    """Add :class:`TrajectoryRecorder` to the observers every run builds."""
     register(TrajectoryRecorder)

@@ -74,4 +74,5 @@ class Setpoints:
 
     @property
     def n(self) -> int:
+        """N, the agents these setpoints command."""
         return self.pos.shape[0]
