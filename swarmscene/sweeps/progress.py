@@ -64,6 +64,7 @@ class SweepProgress:
         return done, failed, self.total
 
     def line(self, elapsed: float) -> str:
+        """The progress line ``elapsed`` seconds in: jobs done and failed (a bar with a total)."""
         done, failed, total = self.counts()
         if self.first is None:
             self.first = (float(done), elapsed)
