@@ -62,10 +62,12 @@ class ConnectivityCertificate:
         self.wait = 0
 
     def connected(self, sensing: Any) -> bool:
+        """Whether the communication graph of this tick is connected (exact: a kept tree's links
+        all in range prove it, else the exact test runs)."""
         if sensing.world.n <= DENSE_POINTS:  # the dense test is cheaper than keeping a tree
             return bool(sensing.comm_connected)
         if self.links is not None:
-            if self._holds(sensing):
+            if self._holds(sensing, self.links):
                 self.life += 1
                 return True
             short_lived = self.life < self.MIN_LIFE
@@ -77,18 +79,19 @@ class ConnectivityCertificate:
         self.wait = max(self.wait - 1, 0)
         return connected
 
-    def _holds(self, sensing: Any) -> bool:
+    def _holds(self, sensing: Any, links: np.ndarray) -> bool:
+        """The kept tree ``links`` (m - 1, 2) still spans the same members, every link in range."""
         if (sensing.comm_members != self.members).any():
             return False
         pos = sensing.world.pos
-        gap = pos[self.links[:, 1]] - pos[self.links[:, 0]]
+        gap = pos[links[:, 1]] - pos[links[:, 0]]
         return bool(np.all(np.einsum("ij,ij->i", gap, gap) <= sensing.comm_range**2))
 
 
 class SafetyMonitor:
     """Records min separation, min clearance and connectivity at t = 0 and after every tick."""
 
-    def __init__(self, sim: "RunView") -> None:
+    def __init__(self, sim: RunView) -> None:
         self.d_sep = sim.config.safety.separation_limit
         self.d_clear = sim.config.safety.clearance_limit
         # Clearance is exact within the horizon; the minimum over agents is then exact too,
@@ -115,7 +118,7 @@ class SafetyMonitor:
         self._far_ticks: list[int] = []
         self._far_xy: list[np.ndarray] = []
 
-    def _observe(self, sim: "RunView") -> None:
+    def _observe(self, sim: RunView) -> None:
         sensing, t, k = sim.sensing, sim.world.t, self.count
         self.t[k] = t
         # Connectivity first: the pair list it may build makes the separation free.
@@ -178,22 +181,27 @@ class SafetyMonitor:
         self.first.setdefault(condition, (float(t), agents))
 
     @hookimpl
-    def swarmscene_run_start(self, sim: "RunView") -> None:
+    def swarmscene_run_start(self, sim: RunView) -> None:
+        """Observe the initial state (tick 0)."""
         self._observe(sim)
 
     @hookimpl
-    def swarmscene_step_end(self, sim: "RunView") -> None:
+    def swarmscene_step_end(self, sim: RunView) -> None:
+        """Observe the state after this tick: separation, clearance, connectivity."""
         self._observe(sim)
 
     @hookimpl
-    def swarmscene_event(self, sim: "RunView", event: Any) -> None:
+    def swarmscene_event(self, sim: RunView, event: Any) -> None:
+        """Re-test connectivity after an event (a failure may cut the graph)."""
         # A link lost by an event is lost at the event's tick, not at the end of it.
         if not sim.sensing.comm_connected:
             self.connected[self.count - 1] = False
             self._first("connectivity", sim.world.t, np.flatnonzero(sim.sensing.comm_members).tolist())
 
     @hookimpl
-    def swarmscene_run_end(self, sim: "RunView", metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
+        """Add the safety metrics: min_separation, min_clearance, collisions, clearance_violations,
+        connected, and each violated condition's first time and agents."""
         self._settle_far()
         k = self.count
         min_sep = float(self.min_separation[:k].min()) if k else float("inf")
@@ -221,4 +229,5 @@ class SafetyMonitor:
 
 @hookimpl
 def swarmscene_register_observers(register: Any) -> None:
+    """Add :class:`SafetyMonitor` to the observers every run builds."""
     register(SafetyMonitor)

@@ -199,7 +199,8 @@ def _generator_fields() -> dict[str, Any]:
         default = info.get_default(call_default_factory=True)
         default = "required" if info.is_required() else f"default {default!r}"
         description = f"{', '.join(names)}: {info.description} ({default})"
-        fields[key] = (info.annotation | None, Field(None, description=description))
+        annotation: Any = info.annotation  # a type here (a field of a built-in generator's Params)
+        fields[key] = (annotation | None, Field(None, description=description))
     return fields
 
 

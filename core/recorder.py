@@ -77,7 +77,8 @@ class NpyAppender:
     def append(self, block: np.ndarray) -> None:
         """Append frames ``block`` (k, *frame_shape), converted to this file's dtype."""
         data = np.ascontiguousarray(block, dtype=self.dtype)  # no copy for a buffer slice
-        self._fh.write(data.reshape(-1).view(np.uint8))
+        # mypy is wrong: an ndarray is a buffer (numpy declares __buffer__ to mypy for Python 3.12+ only)
+        self._fh.write(data.reshape(-1).view(np.uint8))  # type: ignore[arg-type]
         self.frames += len(block)
 
     def sync(self) -> None:
@@ -91,6 +92,7 @@ class NpyAppender:
         self._fh.flush()
 
     def close(self) -> None:
+        """Write the final header and close the file (a second call does nothing)."""
         if not self._fh.closed:
             self.sync()
             self._fh.close()
@@ -106,7 +108,7 @@ class NpyAppender:
 class TrajectoryRecorder:
     """Keeps decimated frames of the world state in memory, or streams them to disk in chunks."""
 
-    def __init__(self, sim: "RunView") -> None:
+    def __init__(self, sim: RunView) -> None:
         out = sim.config.output
         self.enabled = out.trajectory
         self.every = out.trajectory_every
@@ -148,7 +150,7 @@ class TrajectoryRecorder:
         # valid on POSIX (an unlinked file lives while mapped).
         self._cleanup = weakref.finalize(self, _remove_spill, self.spill_dir, list(self.files.values()))
 
-    def _record(self, sim: "RunView") -> None:
+    def _record(self, sim: RunView) -> None:
         world, k = sim.world, self.filled
         self.t[self.count] = world.t
         self.buffer["pos"][k] = world.pos
@@ -168,17 +170,20 @@ class TrajectoryRecorder:
         self.filled = 0
 
     @hookimpl
-    def swarmscene_run_start(self, sim: "RunView") -> None:
+    def swarmscene_run_start(self, sim: RunView) -> None:
+        """Record the initial frame (tick 0)."""
         if self.enabled:
             self._record(sim)
 
     @hookimpl
-    def swarmscene_step_end(self, sim: "RunView") -> None:
+    def swarmscene_step_end(self, sim: RunView) -> None:
+        """Record a frame every ``every`` ticks."""
         if self.enabled and sim.step_count % self.every == 0:
             self._record(sim)
 
     @hookimpl
-    def swarmscene_run_end(self, sim: "RunView", metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
+        """Streamed: append the buffered frames and leave each spill file a whole ``.npy``."""
         if self.enabled and self.streaming:
             self._flush()
             for appender in self.files.values():
@@ -209,4 +214,5 @@ def _remove_spill(spill_dir: Path, files: list[NpyAppender]) -> None:
 
 @hookimpl
 def swarmscene_register_observers(register: Any) -> None:
+    """Add :class:`TrajectoryRecorder` to the observers every run builds."""
     register(TrajectoryRecorder)

@@ -19,7 +19,7 @@ import math
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, cast
 
 import numpy as np
 import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a small swarm needs neither
@@ -60,6 +60,7 @@ class ObstacleCandidates:
     geom: np.ndarray
 
     def cover(self, xy: np.ndarray, reach: float) -> bool:
+        """True when the list still holds every obstacle within ``reach`` of each agent at ``xy``."""
         if xy.shape != self.xy.shape or reach > self.radius:
             return False
         moved = xy - self.xy
@@ -149,7 +150,7 @@ class Sensing:
         world: WorldState,
         environment: Environment,
         comm_range: float,
-        previous: "Sensing | None" = None,
+        previous: Sensing | None = None,
     ) -> None:
         self.world = world
         self._n = world.n  # agents (read a few times a tick; a property of the world)
@@ -162,10 +163,11 @@ class Sensing:
         # Widest range asked of this snapshot ("asked") and of the previous one ("hint"), m.
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
-        self._candidates = previous._candidates if previous is not None else None
+        self._candidates: ObstacleCandidates | None = previous._candidates if previous is not None else None
         # comm_members as bytes, their count, which pairs join two members (mask; indices, or
         # None when every agent is a member)
-        self._members_memo = previous._members_memo if previous is not None else None
+        self._members_memo: tuple[bytes, int, np.ndarray, np.ndarray | None] | None = (
+            previous._members_memo if previous is not None else None)
         self._shared: dict[str, tuple[Hashable, Any]] = {}
 
     def shared(self, name: str, params: Hashable, compute: Callable[[], T]) -> T:
@@ -195,7 +197,7 @@ class Sensing:
         return value
 
     @per_tick
-    def tree(self) -> "cKDTree":
+    def tree(self) -> cKDTree:
         """k-d tree over all agents' positions (failed ones included: they are still obstacles)."""
         return scipy.spatial.cKDTree(self.world.pos)
 
@@ -357,7 +359,7 @@ class Sensing:
         return pairs[links], self._pair_d2[self.comm_range][links]
 
     @per_tick
-    def comm_adjacency(self) -> "csr_matrix":
+    def comm_adjacency(self) -> csr_matrix:
         """Symmetric sparse adjacency of the communication graph (range ``comm_range``)."""
         n = self.world.n
         edges = self.comm_edges
@@ -391,7 +393,8 @@ class Sensing:
         """:attr:`comm_connected` of a few agents, from :attr:`_every_pair`: a complete graph at once
         (every member within range of every other, the usual case), else by reachability sweeps."""
         members = self.comm_members
-        i, j, d2 = self._every_pair
+        # called only when _every_pair is not None (a few agents); cast: no work per tick
+        i, j, d2 = cast("tuple[np.ndarray, np.ndarray, np.ndarray]", self._every_pair)
         key = members.tobytes()  # the members change only with events: their pairs are kept
         if self._members_memo is None or self._members_memo[0] != key:
             m, both = int(np.count_nonzero(members)), members[i] & members[j]
@@ -435,12 +438,12 @@ class Sensing:
         return scipy.sparse.csgraph.shortest_path(self.comm_adjacency, unweighted=True, indices=source)
 
     @per_tick
-    def comm_graph(self) -> "nx.Graph":
+    def comm_graph(self) -> nx.Graph:
         """The communication graph as a networkx graph, for analysis and metrics (not hot loops)."""
         import networkx as nx  # 0.1 s to import: only the analyses that ask for it pay
 
         graph = nx.Graph()
         graph.add_nodes_from(np.flatnonzero(self.comm_members).tolist())
         rows, cols = self.comm_adjacency.nonzero()
-        graph.add_edges_from((int(a), int(b)) for a, b in zip(rows, cols) if a < b)
+        graph.add_edges_from((int(a), int(b)) for a, b in zip(rows, cols, strict=True) if a < b)
         return graph

@@ -52,7 +52,7 @@ class Setpoints:
     snap: np.ndarray | None = None
 
     @classmethod
-    def hold(cls, pos: np.ndarray, yaw: np.ndarray | None = None) -> "Setpoints":
+    def hold(cls, pos: np.ndarray, yaw: np.ndarray | None = None) -> Setpoints:
         """Every agent holds ``pos`` (N, 3) with zero feed-forward."""
         n = pos.shape[0]
         return cls(
@@ -63,7 +63,7 @@ class Setpoints:
             yaw=np.zeros(n) if yaw is None else np.array(yaw, dtype=float, copy=True),
         )
 
-    def copy(self) -> "Setpoints":
+    def copy(self) -> Setpoints:
         """A deep copy, so an avoidance method can edit without touching the formation's arrays."""
         # The constructor, not dataclasses.replace (twice its cost, on every avoidance's tick).
         return type(self)(
@@ -74,4 +74,5 @@ class Setpoints:
 
     @property
     def n(self) -> int:
+        """N, the agents these setpoints command."""
         return self.pos.shape[0]

@@ -220,7 +220,7 @@ class Simulation:
         if self.stop_reason is None:
             self.stop_reason = reason
 
-    def run(self, progress: Callable[["Simulation"], None] | None = None) -> RunResult:
+    def run(self, progress: Callable[[Simulation], None] | None = None) -> RunResult:
         """Run to the configured duration or an earlier termination; return the result.
 
         Args:

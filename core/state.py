@@ -65,7 +65,7 @@ class WorldState:
     wind_moment_arm: float = 0.0
 
     @classmethod
-    def at_rest(cls, pos: np.ndarray, leader: int | None = None) -> "WorldState":
+    def at_rest(cls, pos: np.ndarray, leader: int | None = None) -> WorldState:
         """A swarm at rest at ``pos`` (N, 3), all healthy, agent ``leader`` (if any) leading."""
         pos = np.array(pos, dtype=float, copy=True)
         n = pos.shape[0]

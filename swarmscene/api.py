@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
+from datetime import UTC
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from .builtins import BUILTIN_PLUGINS
 from .core.config import Scenario, validate
@@ -49,7 +50,7 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
     register_search_path()
     with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
         cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
-    return OmegaConf.to_container(cfg, resolve=True)
+    return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
 
 
 def load(config: Sequence[str] | dict[str, Any] = (), registry: Registry | None = None) -> Scenario:
@@ -144,7 +145,8 @@ def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
     """The optional outputs asked for (plots, animation, Rerun replay), as writer functions; a
     missing optional package is a one-line ConfigError now, not after the run. A live view
     (``output.live``) is attached to ``sim`` here, before its run (swarmscene.live)."""
-    output, writers = sim.config.output, []
+    output = sim.config.output
+    writers: list[Callable[..., Any]] = []
     if output.plots or output.animation:
         _require("matplotlib", "output.plots/output.animation", "plots")
         from .plots import write_run_plots
@@ -172,9 +174,9 @@ def _require(module: str, option: str, extra: str) -> None:
 
 def utc_now() -> str:
     """The current time, UTC, ISO 8601 (the manifest's ``started_at``)."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def write_outputs(
@@ -264,9 +266,10 @@ def sweep(
             (a local Ray, or a cluster with ``hydra.launcher.ray.init.address=...`` in
             ``overrides``: docs/sweeps.md), ``submitit_slurm``.
         sweep_dir: where the jobs go (default ``multirun/api/<UTC time>`` under the working
-            directory); any path, spaces and commas included. The same grid into the same directory resumes (complete jobs are skipped);
-            another grid there is refused.
+            directory); any path, spaces and commas included. The same grid into the same
+            directory resumes (complete jobs are skipped); another grid there is refused.
         allow_failed: return normally when jobs failed (they are in ``rows`` with their reason).
+
     Raises:
         ConfigError: the sweep was refused before any job ran (a bad value anywhere in the grid,
             a directory holding another grid), with the command line's one-line messages; or jobs
@@ -274,21 +277,22 @@ def sweep(
     """
     import subprocess
     import sys
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     from .sweeps.tables import collect_rows
 
     if launcher not in LAUNCHERS:
         raise ConfigError([f"launcher: must be one of {', '.join(LAUNCHERS)} (got {launcher!r})"])
     if sweep_dir is None:
-        sweep_dir = Path("multirun", "api", datetime.now(timezone.utc).strftime("%Y-%m-%d_%H-%M-%S-%f"))
+        sweep_dir = Path("multirun", "api", datetime.now(UTC).strftime("%Y-%m-%d_%H-%M-%S-%f"))
     sweep_dir = Path(sweep_dir).resolve()
     swept = [f"{key}={_sweep_values(values)}" for key, values in grid.items()]
     command = [sys.executable, "-c", "from swarmscene.cli import main; main()", "--multirun",
                *overrides, *swept, f"hydra.sweep.dir={_quoted(str(sweep_dir))}",
                f"hydra.callbacks.swarmscene_summary.allow_failed={str(allow_failed).lower()}"]
-    if LAUNCHERS[launcher]:
-        command.append(LAUNCHERS[launcher])
+    launcher_override = LAUNCHERS[launcher]  # None: Hydra's basic launcher
+    if launcher_override:
+        command.append(launcher_override)
     proc = subprocess.run(command, capture_output=True, text=True)
     lines = [line.removeprefix("swarmscene: ") for line in proc.stderr.splitlines() if line.startswith("swarmscene: ")]
     if proc.returncode == 2 or not (sweep_dir / "summary.csv").is_file():

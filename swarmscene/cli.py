@@ -21,7 +21,7 @@ import os
 import shutil
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from .core import interrupts
 
@@ -141,7 +141,6 @@ def _report(lines: list[str]) -> None:
 def _error_lines(exc: BaseException) -> list[str]:
     from .core.errors import ConfigError
     from .hydra_errors import hydra_error_line
-
     from .rundir import RunFileError
 
     if isinstance(exc, ConfigError):
@@ -207,11 +206,13 @@ def _one(cfg: Any) -> Any:
     hydra_cfg = HydraConfig.get()
     run_dir = Path(hydra_cfg.runtime.output_dir)
     try:
-        data = OmegaConf.to_container(cfg, resolve=True)
+        data = cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
     except Exception as exc:  # an interpolation that does not resolve: name its key
         line = resolution_error_line(exc)
-        if line is None or hydra_cfg.mode == RunMode.MULTIRUN:
-            raise ConfigError([line]) if line is not None else exc
+        if line is None:
+            raise
+        if hydra_cfg.mode == RunMode.MULTIRUN:
+            raise ConfigError([line]) from exc
         _remove_unfinished(run_dir)
         _report([line])
     if hydra_cfg.mode != RunMode.MULTIRUN:

@@ -26,12 +26,12 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from functools import lru_cache
-from importlib.metadata import PackageNotFoundError, version
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from functools import lru_cache
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -181,7 +181,7 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
                     else:  # numpy's own header, then the data: the bytes numpy would write
                         _write_npy_header(member, array)
                         with open(source, "rb") as src:
-                            src.seek(array.offset)
+                            src.seek(cast(np.memmap, array).offset)  # _whole_npy_file: a memmap
                             while block := src.read(COPY_CHUNK):
                                 member.write(block)
         os.replace(tmp, path)
@@ -242,6 +242,7 @@ def _jsonable(value: Any) -> Any:
 
 
 def atomic_write_json(path: Path, data: Any) -> None:
+    """Write ``data`` as indented JSON with sorted keys (inf and NaN as null), atomically."""
     text = json.dumps(_jsonable(data), indent=2, sort_keys=True) + "\n"
     atomic_write_bytes(path, text.encode())
 

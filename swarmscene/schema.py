@@ -204,6 +204,7 @@ def _disturbances(node: dict[str, Any], kinds: list[str], partial: bool) -> dict
     def entry(default: str | None) -> dict[str, Any]:
         chosen = [{"if": {"properties": {"kind": {"const": k}}, "required": ["kind"]},
                    "then": {"$ref": REF.format(model=f"disturbances.{k}")}} for k in kinds]
+        missing: dict[str, Any]  # the schema an entry without ``kind`` must meet
         if default:
             missing = {"$ref": REF.format(model=f"disturbances.{default}")}
         else:

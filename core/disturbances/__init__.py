@@ -28,7 +28,7 @@ of the engine before disturbances existed.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, cast
 
 import numpy as np
 from pydantic import ValidationError
@@ -48,6 +48,23 @@ __all__ = ["BUILTIN_MODELS", "Disturbance", "DisturbanceParams", "Disturbances",
 BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
 """The built-in models' classes (their numerics live here; ``plugins/disturbance/`` registers each
 through ``swarmscene_register_disturbances``, like a third-party model)."""
+
+
+# The phase methods (Disturbance's docstring): a model declares the one of its phase, which the
+# base class cannot name, so the phases' lists are typed by these.
+class _SenseModel(Protocol):
+    def sense(self, world: WorldState, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each agent's estimate of its own position and velocity, from the truth and the estimate so far."""
+
+
+class _RelayModel(Protocol):
+    def communicate(self, world: WorldState, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The swarm's picture of every agent, from the agents' own estimates."""
+
+
+class _WindModel(Protocol):
+    def air(self, world: WorldState, t: float) -> np.ndarray:
+        """The air's velocity at each agent at time ``t`` (N, 3), m/s."""
 
 
 def validate_disturbances(
@@ -135,6 +152,8 @@ class Disturbances:
             ctx = DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))
             self.models[key] = cls(params, ctx)
         self.by_phase = {phase: [m for m in self.models.values() if m.phase == phase] for phase in PHASES}
+        self.sensors = cast(list[_SenseModel], self.by_phase["sense"])  # the same lists, typed by phase
+        self.winds = cast(list[_WindModel], self.by_phase["wind"])
         self.active = bool(self.models)
         self.has_wind = bool(self.by_phase["wind"])
         self.perceives = bool(self.by_phase["sense"] or self.by_phase["communicate"])
@@ -150,7 +169,7 @@ class Disturbances:
         self.channel = ChannelModels([m for m in comm if isinstance(m, CommDelay)],
                                      [m for m in comm if isinstance(m, PacketLoss)])
         # A plugin's communicate model (neither built-in channel model) acts after the channel.
-        self.relays = [m for m in comm if not isinstance(m, (CommDelay, PacketLoss))]
+        self.relays = cast(list[_RelayModel], [m for m in comm if not isinstance(m, (CommDelay, PacketLoss))])
         self._acc: np.ndarray | None = None
         self.wind_peak = 0.0
         self.wind_sum = 0.0
@@ -203,17 +222,17 @@ class Disturbances:
         if not self.perceives:
             return Perceived(world, sensing, world)
         pos, vel = world.pos, world.vel
-        for model in self.by_phase["sense"]:
-            pos, vel = model.sense(world, pos, vel)
-        if self.by_phase["sense"]:
+        for sensor in self.sensors:
+            pos, vel = sensor.sense(world, pos, vel)
+        if self.sensors:
             err = pos - world.pos
             self.sense_sq += float(np.einsum("ij,ij->", err, err))
             self.sense_count += world.n
         own = _view(world, pos, vel)
         if len(self.relays) < len(self.by_phase["communicate"]):
             pos, vel = self.channel.communicate(world, sensing, pos, vel)
-        for model in self.relays:
-            pos, vel = model.communicate(world, pos, vel)
+        for relay in self.relays:
+            pos, vel = relay.communicate(world, pos, vel)
         picture = own if pos is own.pos else _view(world, pos, vel)
         self._sensing = self.make_sensing(picture, self._sensing)
         if self.shared_picture or picture is own:
@@ -227,8 +246,8 @@ class Disturbances:
         velocity at each agent (N, 3) m/s, summed over the wind models."""
         if not self.has_wind:
             return
-        air = self.by_phase["wind"][0].air(world, t)
-        for model in self.by_phase["wind"][1:]:
+        air = self.winds[0].air(world, t)
+        for model in self.winds[1:]:
             air = air + model.air(world, t)
         world.wind = np.array(air, dtype=float)
         world.wind_moment_arm = self.moment_arm
@@ -251,12 +270,13 @@ class Disturbances:
             return
         coupling = self.dynamics.wind_coupling
         if coupling == "force":
-            a = self._acc
+            a = cast(np.ndarray, self._acc)  # blow() set it before this step (force coupling)
             world.pos += 0.5 * dt * dt * a
             world.vel += dt * a
         elif coupling == "carried":
-            world.pos += dt * world.wind
-            world.vel += world.wind
+            wind = cast(np.ndarray, world.wind)  # blow() set it before this step
+            world.pos += dt * wind
+            world.vel += wind
 
     # -- records ----------------------------------------------------------------------------
     def metrics(self) -> dict[str, Any]:

@@ -8,7 +8,9 @@ __version__ = "1.0"
 
 
 class SwarmsceneSweeper(_sweeper.SwarmsceneSweeper):
-    __doc__ = _sweeper.SwarmsceneSweeper.__doc__
+    """The sweeper of :mod:`swarmscene.sweeps.sweeper`, under the package name Hydra scans."""
+
+    __doc__ = _sweeper.SwarmsceneSweeper.__doc__  # what Hydra and help() show: the sweeper's own
 
 
 def register() -> None:

@@ -138,8 +138,10 @@ def complex_potential(zeta: np.ndarray, centres: np.ndarray, a_p: float,
     """f(z) = phi + j psi = (z - zbar_F) + sum_f mu_f / (z - z_f), eq. 1-2 (see module docstring).
 
     Args:
-        zeta: (N,) complex flow-frame points. centres: (F,) complex doublet centres z_f.
-        a_p: planned exclusion radius, m. strengths: (F,) mu_f (default :func:`doublet_strengths`).
+        zeta: (N,) complex flow-frame points.
+        centres: (F,) complex doublet centres z_f.
+        a_p: planned exclusion radius, m.
+        strengths: (F,) mu_f (default :func:`doublet_strengths`).
     """
     zeta = np.asarray(zeta, dtype=complex)
     centres = np.atleast_1d(np.asarray(centres, dtype=complex))
@@ -461,6 +463,7 @@ class CEMNavigator:
 
     @property
     def n_agents(self) -> int:
+        """N, the agents this navigator steers."""
         return self.w0.size
 
     @property
@@ -470,6 +473,7 @@ class CEMNavigator:
 
     @property
     def phi(self) -> np.ndarray:
+        """(N,) velocity potential phi of each agent's streamline point (eq. 1, the along-flow coordinate)."""
         return self.w.real
 
     @property

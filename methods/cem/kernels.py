@@ -289,7 +289,8 @@ def _calc_xy(zz, flow, U, prm, R, r, g, tmp, iprm, rows, cols, state):
     iprm[I_ITERATIONS] = newton_iterations(z, zz[WT], z_start, c, mu, prm[P_OFF_R], prm[P_OFF_I], a, sigma,
                                            iprm[I_N], iprm[I_PRINTED] != 0, iprm[I_CONVERGED] != 0, U, R, r,
                                            zz[DZ], g, rows, cols, tmp, state)  # zz[DZ] is free until line 19
-    if iprm[I_GUARD] != 0 and _may_need_guard(z, c, a * (1.0 - 1e-6)):  # skip the call (and its exact distances) when clear
+    # skip the call (and its exact distances) when clear
+    if iprm[I_GUARD] != 0 and _may_need_guard(z, c, a * (1.0 - 1e-6)):
         branch_guard(z, z_start, c, mu, a, sigma, U, R, rows, cols, g, state)
 
 

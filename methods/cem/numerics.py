@@ -18,6 +18,8 @@ Compiled on first use, cached beside this module.
 
 from __future__ import annotations
 
+from typing import Literal, TypedDict
+
 import numpy as np
 from llvmlite import ir
 from numba import njit
@@ -25,7 +27,16 @@ from numba.core import types
 from numba.extending import intrinsic
 from numba.np.random._constants import fi_double, ki_double, wi_double, ziggurat_nor_inv_r, ziggurat_nor_r
 
-JIT = dict(cache=True, error_model="numpy")  # IEEE division: inf and nan, never an exception
+
+class JitOptions(TypedDict):
+    """The options every kernel here is compiled with (``njit(**JIT)``), typed so that mypy
+    matches them against njit's keywords."""
+
+    cache: bool
+    error_model: Literal["python", "numpy"]
+
+
+JIT: JitOptions = {"cache": True, "error_model": "numpy"}  # IEEE division: inf and nan, never an exception
 
 # PCG64 (numpy.random.PCG64): 128-bit LCG, state = state * MULT + inc, output XSL-RR.
 _MULT_HI = np.uint64(0x2360ED051FC65DA4)

@@ -147,7 +147,7 @@ def entry_point_policies() -> list[type[Policy]]:
     """The policies of the deprecated group ``swarmscene.policies``, each wrapped as a Policy class;
     a DeprecationWarning names each one found (register a Policy subclass through the hook
     ``swarmscene_register_policies`` instead)."""
-    found = []
+    found: list[type[Policy]] = []
     for ep in _listed(entry_points):
         source = f"{ep.dist.name if ep.dist is not None else 'unknown'}:{ep.value}"
         warnings.warn(

@@ -119,7 +119,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -130,7 +130,6 @@ from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import min_distance_between, min_pair_distance
-
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -207,6 +206,8 @@ class CEM(Avoidance):
                 del data["n"]
             return data
 
+    params: Params
+
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         p = self.params
@@ -269,7 +270,8 @@ class CEM(Avoidance):
             theta = self.flight_direction(world, healthy, failed_xy)
         p = self.params
         if self.nav is not None:  # keep the replaced navigator's iteration count
-            self._iters_done = tuple(a + b for a, b in zip(self._iters_done, self.nav.iterations_total))
+            (done_iters, done_ticks), (iters, ticks) = self._iters_done, self.nav.iterations_total
+            self._iters_done = (done_iters + iters, done_ticks + ticks)
         self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
                                 dT=self.ctx.guidance_period, K=p.K, n=p.newton_iterations, sigma=p.sigma,
                                 rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
@@ -319,7 +321,8 @@ class CEM(Avoidance):
 
     def passed(self) -> bool:
         """Along-track test: every agent is handback_distance past the most downstream failure."""
-        return self.nav.along_track_min >= self._handback_at
+        # asked only once a navigator exists (hands_back runs while active; cast: no work per tick)
+        return cast(CEMNavigator, self.nav).along_track_min >= self._handback_at
 
     def formation_clear(self, world: WorldState, sp: Setpoints) -> bool:
         """Each healthy agent's formation setpoint, and the straight path from it to that setpoint,
@@ -344,7 +347,7 @@ class CEM(Avoidance):
             self.handback_blocked_time = world.t
         return False
 
-    def adjust(self, world: WorldState, sensing: "Sensing", sp: Setpoints) -> Setpoints:
+    def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Pass ``sp`` through while inactive; else TRACK setpoints along the streamlines."""
         self._commanded = False
         self._last_sp = sp
@@ -364,7 +367,8 @@ class CEM(Avoidance):
         out = sp.copy()
         # TRACK with x-y position and velocity, zero x-y acceleration (first differences only); the
         # altitude (z) stays the formation's (Assumption 2). One compiled call: step and write-back.
-        self.nav.step_into(out.mode, out.pos, out.vel, out.acc)
+        # active (activate() set self.nav, and a re-activation replaces it): cast costs nothing per tick
+        cast(CEMNavigator, self.nav).step_into(out.mode, out.pos, out.vel, out.acc)
         self._step_s.append(time.perf_counter() - t0)
         self._commanded = True
         return out
@@ -384,7 +388,7 @@ class CEM(Avoidance):
 
     def _measure_cem(self, world: WorldState) -> None:
         """A tick under CEM's commands (one compiled call)."""
-        nav, out, k = self.nav, self._measured, self._k
+        nav, out, k = cast(CEMNavigator, self.nav), self._measured, self._k  # step_end checked nav
         # an agent may have failed during this tick's events (counted live no more)
         live_n = nav.measure_tick(world.healthy, world.pos, world.vel, self._failed_xy, self._psi_drift, out)
         self._margin = min(self._margin, float(out[k.M_MARGIN]))
@@ -565,4 +569,5 @@ class CEM(Avoidance):
 
 @hookimpl
 def swarmscene_register_avoidances(register) -> None:
+    """Add :class:`CEM` to the registry, so that ``avoidance=cem`` chooses it."""
     register(CEM)

@@ -20,7 +20,7 @@ flies, so a policy meets exactly the inputs it was trained on.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
@@ -84,17 +84,20 @@ class PolicyAvoidance(Avoidance):
             """The registered class ``policy`` names (None: not resolved by a registry)."""
             return self._policy
 
+    params: Params
+
     def __init__(self, params: PolicyAvoidance.Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         self.layout = ObservationLayout(params.neighbours)
         self.spec = ActionSpec(params.action, params.max_speed, params.max_accel, ctx.guidance_period)
         self.sensing_range = params.sensing_range or ctx.comm_range
-        if params.policy is not None and params.policy_class is None:
+        policy_class = params.policy_class
+        if params.policy is not None and policy_class is None:
             raise ValueError(f"policy: {params.policy!r} was not resolved by a registry: build the "
                              "scenario through swarmscene.api (which validates it)")
         self.policy = (
-            None if params.policy is None
-            else make_policy(params.policy_class, self.layout, self.spec, params.policy_options)
+            None if params.policy is None or policy_class is None  # (a policy without its class: raised)
+            else make_policy(policy_class, self.layout, self.spec, params.policy_options)
         )
         self.reference: Setpoints | None = None
         """The formation's setpoints of the last tick (observed as the reference)."""
@@ -118,7 +121,8 @@ class PolicyAvoidance(Avoidance):
             raise RuntimeError(
                 "avoidance 'policy' without avoidance.policy takes its actions from swarmscene.env; "
                 "name a registered policy to fly it on its own")
-        out = action_setpoints(world, self._action, self._active, self.spec)
+        # set by command() above or by the environment (the branch before raised otherwise)
+        out = action_setpoints(world, cast(np.ndarray, self._action), self._active, self.spec)
         self.reference = sp
         if self.policy is None:
             self._action = None  # an environment must command every tick

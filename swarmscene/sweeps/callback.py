@@ -78,6 +78,8 @@ class SweepSummary(Callback):
         return {**self.__dict__, "progress": None}
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        """Before the first job: Hydra's basic sweeper becomes swarmscene's, and the progress
+        line starts (``progress``)."""
         _outcome.pop("status", None)
         _written.clear()
         self._replace_basic_sweeper(config)
@@ -107,6 +109,7 @@ class SweepSummary(Callback):
                 sweeper.setdefault(key, value)
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        """After the last job: the summary tables, the outcome line and the command's exit status."""
         if self.progress is not None:
             self.progress.stop()
         sweep_dir = Path(config.hydra.sweep.dir)

@@ -31,7 +31,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, cast
 
 JOB_MARK = "::job="
 """Closes each job's overrides in a task (not an override Hydra's grammar accepts: never a user's)."""
@@ -75,7 +75,8 @@ def refusal(launcher: Any, config: Any) -> str | None:
         return "job callbacks"
     from omegaconf import OmegaConf
 
-    subdir = OmegaConf.to_container(hydra.sweep, resolve=False).get("subdir")
+    sweep = cast("dict[str, Any]", OmegaConf.to_container(hydra.sweep, resolve=False))
+    subdir = sweep.get("subdir")
     if "${hydra:" in str(subdir):  # resolved against HydraConfig: not the task's own job
         return "hydra.sweep.subdir"
     return None
@@ -109,7 +110,8 @@ def split(overrides: Sequence[str]) -> list[tuple[int, list[str]]] | None:
     """``[(job number, its overrides), ...]`` of a task; None for one job's plain overrides."""
     if not overrides or not str(overrides[-1]).startswith(JOB_MARK):
         return None
-    out, current = [], []
+    out: list[tuple[int, list[str]]] = []
+    current: list[str] = []
     for item in overrides:
         if item.startswith(JOB_MARK):
             out.append((int(item[len(JOB_MARK):]), current))
@@ -174,7 +176,8 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
         for idx, overrides in task["rest"]:
             lean = loader.load_task_job(master, list(overrides))
             if lean is not None:
-                run_one(*_as_lean_job(*lean, idx, task["sweep_dir"], prefix))
+                task_cfg, hydra_root = lean
+                run_one(*_as_lean_job(task_cfg, hydra_root, idx, task["sweep_dir"], prefix))
             else:
                 cfg = loader.load_sweep_config(master, list(overrides))
                 run_one(*_as_job(cfg, idx, task["sweep_dir"], prefix))

@@ -24,7 +24,7 @@ import json
 import re
 from collections import OrderedDict
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 from hydra.core.config_loader import ConfigLoader
 
@@ -47,7 +47,7 @@ def parse(overrides: Sequence[str]) -> list[Any]:
     if missing:
         if len(_PARSED) + len(missing) > PARSED:
             _PARSED.clear()
-        _PARSED.update(zip(missing, OverridesParser.create().parse_overrides(missing)))
+        _PARSED.update(zip(missing, OverridesParser.create().parse_overrides(missing), strict=True))  # one each
     return [_PARSED[o] for o in overrides]
 
 
@@ -84,6 +84,7 @@ class GroupCachingLoader(ConfigLoader):
 
     @property
     def inner(self) -> ConfigLoader:
+        """Hydra's loader this one wraps (built on first use after unpickling)."""
         if self._inner is None:
             self._inner = _loader_for(self._search_path_given)
         return self._inner
@@ -106,6 +107,7 @@ class GroupCachingLoader(ConfigLoader):
         return getattr(self.inner, name)
 
     def load_sweep_config(self, master_config: Any, sweep_overrides: list[str]) -> Any:
+        """A sweep job's config (the first job's, for a launcher task of several)."""
         from . import chunks
 
         task = chunks.split(sweep_overrides)  # a launcher task of several jobs (sweeps.chunks)
@@ -121,7 +123,8 @@ class GroupCachingLoader(ConfigLoader):
 
         parsed = parse(list(sweep_overrides))
         values = [o for o in parsed if self._is_value(o)]
-        if not values or extends_search_path(master_config) or any(o.key_or_group == "hydra.searchpath" for o in parsed):
+        if (not values or extends_search_path(master_config)
+                or any(o.key_or_group == "hydra.searchpath" for o in parsed)):
             cfg = self.inner.load_sweep_config(master_config, list(sweep_overrides))
         else:
             groups = [o.input_line for o in parsed if not self._is_value(o)]
@@ -170,16 +173,17 @@ class GroupCachingLoader(ConfigLoader):
         key = (master_config.hydra.job.config_name, tuple(master_config.hydra.overrides.hydra), tuple(groups))
         if key not in self._templates:
             composed = self._composed(master_config, groups)
-            subdir = OmegaConf.to_container(composed.hydra.sweep, resolve=False).get("subdir")
+            sweep = cast("dict[str, Any]", OmegaConf.to_container(composed.hydra.sweep, resolve=False))
+            subdir = sweep.get("subdir")
             task = copy.deepcopy(composed)
             with read_write(task), open_dict(task):
                 del task["hydra"]
             reads_hydra = "${hydra:" in OmegaConf.to_yaml(task)  # unresolved: the interpolations as written
-            usable = self.command is not None and subdir == "${hydra.job.num}" and not reads_hydra
-            hydra_root = OmegaConf.masked_copy(composed, "hydra") if usable else None
-            if hydra_root is not None:
+            hydra_root = None  # set where the template is usable
+            if self.command is not None and subdir == "${hydra.job.num}" and not reads_hydra:
+                hydra_root = OmegaConf.masked_copy(composed, "hydra")
                 _as_sweep_job(hydra_root, self.command)
-            self._templates[key] = (task, hydra_root) if usable else None
+            self._templates[key] = (task, hydra_root) if hydra_root is not None else None
             while len(self._templates) > CACHED:
                 self._templates.popitem(last=False)
         return self._templates[key]
@@ -187,7 +191,7 @@ class GroupCachingLoader(ConfigLoader):
     def _composed(self, master_config: Any, groups: list[str]) -> Any:
         from omegaconf import OmegaConf
 
-        hydra_overrides = OmegaConf.to_container(master_config.hydra.overrides.hydra)
+        hydra_overrides = cast("list[str]", OmegaConf.to_container(master_config.hydra.overrides.hydra))
         key = (self._search_path(), master_config.hydra.job.config_name, tuple(hydra_overrides), tuple(groups))
         if key in _COMPOSED:
             _COMPOSED.move_to_end(key)
@@ -218,21 +222,27 @@ class GroupCachingLoader(ConfigLoader):
 
     # -- the rest of ConfigLoader: the wrapped loader's ------------------------------------------
     def load_configuration(self, *args: Any, **kwargs: Any) -> Any:
+        """A run's whole configuration (the wrapped loader's)."""
         return self.inner.load_configuration(*args, **kwargs)
 
     def get_search_path(self) -> Any:
+        """Where configs are found (the wrapped loader's)."""
         return self.inner.get_search_path()
 
     def get_sources(self) -> Any:
+        """The config sources on the search path (the wrapped loader's)."""
         return self.inner.get_sources()
 
     def list_groups(self, parent_name: str) -> Any:
+        """The config groups under ``parent_name`` (the wrapped loader's)."""
         return self.inner.list_groups(parent_name)
 
     def get_group_options(self, *args: Any, **kwargs: Any) -> Any:
+        """A config group's options (the wrapped loader's)."""
         return self.inner.get_group_options(*args, **kwargs)
 
     def compute_defaults_list(self, *args: Any, **kwargs: Any) -> Any:
+        """A config's defaults list (the wrapped loader's)."""
         return self.inner.compute_defaults_list(*args, **kwargs)
 
 
@@ -251,7 +261,7 @@ def _loader_for(search_path: Any) -> Any:
 
 
 def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
-    """What a sweep's job records, set in its config (the one place a launcher carries to it):
+    """What a sweep's job records, set in its config (the one place a launcher carries to it).
 
     - ``hydra.job.env_set``: the command as typed, which Hydra sets in the job's process for the
       manifest (``swarmscene.outputs.run_command``), wherever the job runs;

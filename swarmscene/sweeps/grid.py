@@ -23,7 +23,7 @@ import copy
 import itertools
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 VALIDATE = ("each_value", "all")
 ON_INVALID = ("stop", "record")
@@ -155,7 +155,7 @@ class JobCheck:
         _apply_values(values, cfg)  # as Hydra applies the overrides that are not group choices
         with open_dict(cfg):
             del cfg["hydra"]
-        return OmegaConf.to_container(cfg, resolve=True)
+        return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
 
     def _compose(self, groups: tuple[str, ...]) -> tuple[Any, dict[str, Any] | None]:
         """The config composed with these config-group overrides (once), and its plain data when
@@ -165,7 +165,8 @@ class JobCheck:
 
         if groups not in self.composed:
             cfg = self.loader.load_sweep_config(self.master, list(groups))
-            task = {k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "hydra"}
+            composed = cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=False))
+            task = {k: v for k, v in composed.items() if k != "hydra"}
             self.composed[groups] = (cfg, None if "${" in repr(task) else task)
         return self.composed[groups]
 
@@ -259,6 +260,10 @@ class GridCheck:
         return len({o for job in self.jobs for o in job})
 
     def check(self, start: int, stop: int) -> None:
+        """Validate jobs ``start`` to ``stop - 1`` before they launch (``validate``: the jobs that
+        bring a value not seen before, or every job): an invalid one stops the sweep with a
+        ConfigError, one line per problem, or with ``on_invalid=record`` is announced and runs, to
+        fail and be recorded."""
         from ..core.errors import ConfigError
 
         for index in range(start, min(stop, len(self.jobs))):

@@ -36,7 +36,7 @@ class SweepProgress:
         self.total: int | None = None  # read from sweep.json once it exists
 
     @classmethod
-    def maybe(cls, sweep_dir: Path, mode: str = "auto") -> "SweepProgress | None":
+    def maybe(cls, sweep_dir: Path, mode: str = "auto") -> SweepProgress | None:
         """A started SweepProgress when asked for (``on``), or for ``auto`` on a terminal."""
         if mode == "off" or (mode == "auto" and not sys.stderr.isatty()):
             return None
@@ -64,6 +64,7 @@ class SweepProgress:
         return done, failed, self.total
 
     def line(self, elapsed: float) -> str:
+        """The progress line ``elapsed`` seconds in: jobs done and failed (a bar with a total)."""
         done, failed, total = self.counts()
         if self.first is None:
             self.first = (float(done), elapsed)

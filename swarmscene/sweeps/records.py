@@ -80,7 +80,8 @@ def refuse_linked_job_dir(run_dir: Path) -> None:
 
     for directory in (Path(run_dir), Path(run_dir) / ".hydra"):
         if directory.is_symlink():
-            raise RunFileError(directory, "is a symbolic link (refused: a job's records are written inside the sweep directory)")
+            raise RunFileError(
+                directory, "is a symbolic link (refused: a job's records are written inside the sweep directory)")
 
 
 def write_overrides(run_dir: Path) -> None:
@@ -182,7 +183,9 @@ class SweepLock:
         self.fd: int | None = None
         self.made_dir = False
 
-    def acquire(self) -> "SweepLock":
+    def acquire(self) -> SweepLock:
+        """Take the lock (making the directory if need be); a ConfigError names the directory when
+        another sweep holds it or its lock file cannot be opened."""
         from ..core.errors import ConfigError
 
         self.made_dir = not self.sweep_dir.exists()
@@ -226,6 +229,8 @@ class SweepLock:
         return True
 
     def release(self) -> None:
+        """Remove the lock file (ours only) and unlock; remove the directory if the lock made it and
+        it holds nothing else. A second call does nothing."""
         if self.fd is None:
             return
         try:  # while still held: a waiting opener sees it replaced; only our own file, though
@@ -327,7 +332,7 @@ def _same_jobs(old: Any, new: list[list[str]] | None) -> bool:
     plain value has changed before; the config hash still tells a changed job)."""
     if not isinstance(old, list) or new is None or len(old) != len(new):
         return False
-    return all(identity(a) == identity(b) for a, b in zip(old, new))
+    return all(identity(a) == identity(b) for a, b in zip(old, new, strict=True))  # lengths checked above
 
 
 def _override_key(override: str) -> str:
@@ -368,10 +373,10 @@ def _first_foreign_job(sweep_dir: Path, jobs: list[list[str]]) -> tuple[str, str
             return (str(exc), f"job {index}")
         new = jobs[index] if index < len(jobs) else None
         if not _same_jobs([old], [new] if new is not None else None):
-            return (
-                f"job {index}: {' '.join(map(_shown, old)) or 'no overrides'}",
-                f"job {index}: {' '.join(map(_shown, new)) or 'no overrides'}" if new is not None else f"{len(jobs)} jobs",
-            )
+            was = f"job {index}: {' '.join(map(_shown, old)) or 'no overrides'}"
+            if new is None:
+                return (was, f"{len(jobs)} jobs")
+            return (was, f"job {index}: {' '.join(map(_shown, new)) or 'no overrides'}")
     return None
 
 

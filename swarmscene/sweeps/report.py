@@ -7,8 +7,9 @@
 
 ``--plot METRIC --against PARAM`` writes ``METRIC_vs_PARAM.png`` into the directory: the mean of
 the metric over each value of the parameter (complete runs only) with its 95 % confidence interval
-as error bars (Student t for numbers, the percentile bootstrap for quantities that cannot be negative, Wilson for booleans, which are shown as rates), one line per
-combination of the other swept parameters. The seed is never a line: runs of all seeds are pooled.
+as error bars (Student t for numbers, the percentile bootstrap for quantities that cannot be
+negative, Wilson for booleans, which are shown as rates), one line per combination of the other
+swept parameters. The seed is never a line: runs of all seeds are pooled.
 
 ``--methods`` writes ``methods.md``: one row per scenario (the combination of the swept parameters
 other than the method and the seed), one column per method (``--method-key``, default
@@ -51,10 +52,10 @@ def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[
     others = [k for k in tables.swept_parameters(rows) if k not in (param, "seed")]
     lines: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for key, members in tables.groups(done, others):
-        label = ", ".join(f"{k}={v}" for k, v in zip(others, key)) or metric
+        label = ", ".join(f"{k}={v}" for k, v in zip(others, key, strict=True)) or metric  # a value per key
         stats = np.full((3, len(x)), np.nan)
         for j, xv in enumerate(x):
-            sample = [r.get(metric) for r in members if r.get(param) == xv and r.get(metric) is not None]
+            sample: list[Any] = [r.get(metric) for r in members if r.get(param) == xv and r.get(metric) is not None]
             if not sample:
                 continue
             if rate:
@@ -115,7 +116,8 @@ def methods_table(rows: list[dict[str, Any]], method_key: str = "avoidance") -> 
     if not rows:
         raise ValueError("no jobs found")
     if method_key not in {k for row in rows for k in row}:
-        raise ValueError(f"{method_key!r} is not a column (parameters: {', '.join(tables.param_columns(rows)) or 'none'})")
+        parameters = ", ".join(tables.param_columns(rows)) or "none"
+        raise ValueError(f"{method_key!r} is not a column (parameters: {parameters})")
     case_keys = [k for k in tables.swept_parameters(rows) if k != method_key]
     methods = list(dict.fromkeys(r.get(method_key) for r in rows))
     cases: dict[str, list[dict[str, Any]]] = {}
@@ -130,10 +132,10 @@ def methods_table(rows: list[dict[str, Any]], method_key: str = "avoidance") -> 
         cells = [_method_cell([r for r in members if r.get(method_key) == m]) for m in methods]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     legend = (
-        f"Each cell: success rate of the jobs · worst minimum separation over the complete runs, m · "
-        f"median completion time, s (runs that completed the mission; 'not complete' when none did). "
-        f"(k failed): jobs of the cell that did not complete; det.: every seed gave the same run. "
-        f"A word instead: why the combination could not run (its jobs' error records)."
+        "Each cell: success rate of the jobs · worst minimum separation over the complete runs, m · "
+        "median completion time, s (runs that completed the mission; 'not complete' when none did). "
+        "(k failed): jobs of the cell that did not complete; det.: every seed gave the same run. "
+        "A word instead: why the combination could not run (its jobs' error records)."
     )
     return legend + "\n\n" + "\n".join(lines) + "\n"
 
@@ -174,6 +176,7 @@ def _safe(name: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``swarmscene-report`` command (module docstring); returns its exit status."""
     parser = argparse.ArgumentParser(
         prog="swarmscene-report",
         description="Rebuild summary.csv, summary.parquet and summary.md of a sweep or run directory; "
@@ -202,7 +205,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"swarmscene-report: {len(rows)} jobs -> {directory / 'summary.csv'}, {directory / 'summary.md'}")
     if args.plot:
         try:
-            fig = plot_metric(rows, args.plot, args.against, title=f"{directory.name}: {args.plot} against {args.against}")
+            title = f"{directory.name}: {args.plot} against {args.against}"
+            fig = plot_metric(rows, args.plot, args.against, title=title)
         except ValueError as exc:
             print(f"swarmscene-report: {exc}", file=sys.stderr)
             return 2

@@ -100,6 +100,7 @@ class SwarmsceneSweeper(Sweeper):
         self.launcher: Any = None
 
     def setup(self, *, hydra_context: Any, task_function: Any, config: Any) -> None:
+        """Hydra's call before :meth:`sweep`: the config, a group-caching config loader, the launcher."""
         from hydra.core.plugins import Plugins
         from hydra.types import HydraContext
 
@@ -124,6 +125,9 @@ class SwarmsceneSweeper(Sweeper):
         return interrupts.raising()
 
     def sweep(self, arguments: list[str]) -> Any:
+        """Run the grid of ``params`` and ``arguments`` under the sweep directory's lock: expand it,
+        refuse a directory holding another grid, validate, record the grid, then launch the jobs
+        batch by batch (tasks of ``jobs_per_task`` jobs) and write the summary tables."""
         from hydra.core.override_parser.overrides_parser import OverridesParser
         from omegaconf import OmegaConf
 

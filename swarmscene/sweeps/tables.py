@@ -28,7 +28,7 @@ import json
 import math
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -138,6 +138,7 @@ def _reason(status: str, error: dict[str, Any] | None) -> str | None:
 
 
 def collect_rows(directory: Path) -> list[dict[str, Any]]:
+    """A row (:func:`job_row`) for each job directory of a sweep directory, in job order."""
     directory = Path(directory)
     return [job_row(d, directory) for d in job_dirs(directory)]
 
@@ -159,6 +160,7 @@ def swept_parameters(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def columns(rows: list[dict[str, Any]]) -> list[str]:
+    """The table's columns: identity and status, the overridden keys, then the metrics, sorted."""
     params = param_columns(rows)
     fixed = set(BASE_COLUMNS) | set(TAIL_COLUMNS) | set(params)
     metrics = sorted(({k for row in rows for k in row} | set(VIOLATION_COLUMNS)) - fixed)
@@ -174,6 +176,7 @@ def _cell(value: Any) -> Any:
 
 
 def csv_text(rows: list[dict[str, Any]]) -> str:
+    """``summary.csv``: one line per job, an empty cell for a missing or non-finite value."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=columns(rows), extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -214,7 +217,8 @@ def groups(rows: list[dict[str, Any]], by: list[str]) -> list[tuple[tuple[Any, .
     for row in rows:
         values = tuple(row.get(k) for k in by)
         out.setdefault(_key(values), (values, []))[1].append(row)
-    return sorted(out.values(), key=lambda g: tuple((isinstance(v, str), str(v) if isinstance(v, str) else v or 0) for v in g[0]))
+    return sorted(out.values(),
+                  key=lambda g: tuple((isinstance(v, str), str(v) if isinstance(v, str) else v or 0) for v in g[0]))
 
 
 def metric_names(rows: list[dict[str, Any]]) -> tuple[list[str], list[str]]:
@@ -243,7 +247,7 @@ def _fmt(value: float) -> str:
 
 def _label(by: list[str], values: tuple[Any, ...]) -> str:
     """``k=v, ...`` of a group; a key its jobs do not set (another case of the sweep) is left out."""
-    return ", ".join(f"{k}={v}" for k, v in zip(by, values) if v is not None) or "all jobs"
+    return ", ".join(f"{k}={v}" for k, v in zip(by, values, strict=True) if v is not None) or "all jobs"
 
 
 # The outcome of a run, in the overview and the methods table: safety first, then the mission.
@@ -254,8 +258,8 @@ OUTCOME_KEYS = ("success", "min_separation", "min_clearance", "duration", "steps
 
 def first_violation_time(row: dict[str, Any]) -> float | None:
     """The first time a safety condition (separation or clearance) was violated, s; None if never."""
-    times = [row.get(f"violations.{c}.first_time") for c in SAFETY_CONDITIONS]
-    times = [t for t in times if _is_number(t)]
+    recorded = [row.get(f"violations.{c}.first_time") for c in SAFETY_CONDITIONS]
+    times = [t for t in recorded if _is_number(t)]
     return float(min(times)) if times else None
 
 
@@ -296,6 +300,7 @@ def mean_cell(values: Iterable[float | None], unit: str = "", bounded: bool = Fa
 
 
 def success_cell(done: list[dict[str, Any]]) -> str:
+    """The success rate of a group's runs with its Wilson 95 % interval (none when deterministic)."""
     flags = [r["success"] for r in done if isinstance(r.get("success"), bool)]
     if not flags:
         return "n/a"
@@ -307,6 +312,7 @@ def success_cell(done: list[dict[str, Any]]) -> str:
 
 
 def violation_cell(done: list[dict[str, Any]]) -> str:
+    """How many of a group's runs violated a safety condition, and the mean first time, s."""
     times = [first_violation_time(r) for r in done]
     hit = [t for t in times if t is not None]
     if not done:
@@ -317,6 +323,7 @@ def violation_cell(done: list[dict[str, Any]]) -> str:
 
 
 def completion_cell(done: list[dict[str, Any]]) -> str:
+    """How many of a group's runs completed the mission, and their mean completion time, s."""
     times = [completion_time(r) for r in done]
     reached = [t for t in times if t is not None]
     if not done:
@@ -350,7 +357,8 @@ def markdown(rows: list[dict[str, Any]], title: str) -> str:
     """The short grouped report (see the module docstring)."""
     by = swept_parameters(rows)
     rates, numbers = metric_names(rows)
-    counts = {s: sum(r["status"] == s for r in rows) for s in ("complete", "incomplete", "failed", "unfinished", "damaged")}
+    statuses = ("complete", "incomplete", "failed", "unfinished", "damaged")
+    counts = {s: sum(r["status"] == s for r in rows) for s in statuses}
     seeds = sorted({r.get("seed") for r in rows if r.get("seed") is not None}, key=str)
     grouped = groups(rows, by)
     fixed = [_label(by, values) for values, members in grouped
@@ -418,7 +426,7 @@ def markdown(rows: list[dict[str, Any]], title: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: Any) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
