@@ -79,8 +79,9 @@ def swarmscene_register_observers(register: ObserverRegister) -> None:
 
     When: once, while the plugin manager is built. Each class is instantiated as
     ``cls(sim)`` when a :class:`~swarmscene.core.simulation.Simulation` is built (``sim`` the run's
-    read-only :class:`~swarmscene.core.run_view.RunView`) and the instance is registered with that simulation's plugin manager, so its lifecycle hooks fire for that run
-    only (state never leaks between runs).
+    read-only :class:`~swarmscene.core.run_view.RunView`) and the instance is registered with that
+    simulation's plugin manager, so its lifecycle hooks fire for that run only (state never leaks
+    between runs).
 
     Args:
         register: takes a class whose instances implement lifecycle hooks.
