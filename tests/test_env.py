@@ -3,6 +3,7 @@ actions, rewards, failures, seeded resets, and a policy registered by name."""
 
 from __future__ import annotations
 
+import sys
 from importlib.metadata import EntryPoint
 
 import numpy as np
@@ -182,6 +183,7 @@ def test_a_packaged_policy_flies_as_a_plugin_by_name(tmp_path, monkeypatch):
         "def make(layout, spec, rate=0.5):\n"
         "    return lambda obs: np.tile([0.0, 0.0, rate], (len(obs), 1))\n"
     )
+    monkeypatch.delitem(sys.modules, "climb_policy", raising=False)  # another test's module of that name
     monkeypatch.syspath_prepend(str(tmp_path))
     ep = EntryPoint(name="climb", value="climb_policy:make", group=policies.POLICY_GROUP)
     monkeypatch.setattr(policies, "entry_points", lambda group: [ep] if group == policies.POLICY_GROUP else [])

@@ -47,6 +47,7 @@ def installed(tmp_path, monkeypatch):
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: climb-policy\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text("[swarmscene.policies]\nclimb.up = climb_policy:make\n")
+    monkeypatch.delitem(sys.modules, "climb_policy", raising=False)  # another test's module of that name
     monkeypatch.syspath_prepend(str(tmp_path))
     # A lister of its own: the group's listing is cached per lister, and this one sees tmp_path.
     monkeypatch.setattr(policies, "entry_points", lambda group: metadata.entry_points(group=group))
