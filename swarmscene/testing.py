@@ -44,7 +44,6 @@ The built-in plugins pass these checks in the test suite (tests/test_contract.py
 
 from __future__ import annotations
 
-import copy
 import functools
 from typing import Any
 
@@ -60,6 +59,8 @@ from .core.setpoint import Mode, Setpoints
 from .core.state import WorldState
 from .plugin import build_context
 from .testing_kinds import (  # the kinds beside the three algorithms, rules listed above
+    _assert_class_untouched,
+    _class_state,
     check_disturbance,
     check_event_kind,
     check_generator,
@@ -141,7 +142,7 @@ def check_formation(cls: type[Formation], options: dict[str, Any] | None = None,
     """Run ``cls`` through the formation contract (see the module docstring)."""
     assert issubclass(cls, Formation), f"{cls.__name__} is not a Formation"
     params = check_params(cls, options, refused)
-    state = _class_state(cls)
+    state = _class_state(cls, Formation)
     first, second = (_build(cls, params, environment) for _ in range(2))
     world = example_world()
     for _ in range(TICKS):
@@ -153,7 +154,7 @@ def check_formation(cls: type[Formation], options: dict[str, Any] | None = None,
         done = first.complete(world)
         assert done is None or isinstance(done, (bool, np.bool_)), f"{cls.name}: complete() returned {done!r}"
         _fly(world, sp)
-    _assert_class_untouched(cls, state)
+    _assert_class_untouched(cls.name, cls, Formation, state)
 
 
 def check_avoidance(cls: type[Avoidance], options: dict[str, Any] | None = None,
@@ -162,7 +163,7 @@ def check_avoidance(cls: type[Avoidance], options: dict[str, Any] | None = None,
     """Run ``cls`` through the avoidance contract (see the module docstring)."""
     assert issubclass(cls, Avoidance), f"{cls.__name__} is not an Avoidance"
     params = check_params(cls, options, refused)
-    state = _class_state(cls)
+    state = _class_state(cls, Avoidance)
     first, second = (_build(cls, params, environment) for _ in range(2))
     world = example_world()
     failed = ~world.healthy
@@ -181,7 +182,7 @@ def check_avoidance(cls: type[Avoidance], options: dict[str, Any] | None = None,
             )
         _assert_same(cls.name, out, second.adjust(world, _sensing(world, environment), sp.copy()))
         _fly(world, out)
-    _assert_class_untouched(cls, state)
+    _assert_class_untouched(cls.name, cls, Avoidance, state)
 
 
 def check_dynamics(cls: type[Dynamics], options: dict[str, Any] | None = None,
@@ -189,7 +190,7 @@ def check_dynamics(cls: type[Dynamics], options: dict[str, Any] | None = None,
     """Run ``cls`` through the dynamics contract (see the module docstring)."""
     assert issubclass(cls, Dynamics), f"{cls.__name__} is not a Dynamics"
     params = check_params(cls, options, refused)
-    state = _class_state(cls)
+    state = _class_state(cls, Dynamics)
     world = example_world(failed=False)
     start = world.pos.copy()
     model = _build(cls, params, None, world)
@@ -223,7 +224,7 @@ def check_dynamics(cls: type[Dynamics], options: dict[str, Any] | None = None,
     _check_track_feed_forward(cls, params)
     _check_wind_coupling(cls, params)
     _check_dynamics_instances_apart(cls, params)
-    _assert_class_untouched(cls, state)
+    _assert_class_untouched(cls.name, cls, Dynamics, state)
 
 
 VELOCITY_COMMAND = 0.5
@@ -353,40 +354,6 @@ def _build(cls: type, params: PluginParams, environment: Environment | None,
     ctx = build_context(positions=world.pos, leader=world.leader, guidance_period=GUIDANCE_PERIOD,
                         physics_step=PHYSICS_STEP, environment=environment)
     return cls(params, ctx)
-
-
-def _class_state(cls: type) -> dict[str, Any]:
-    """Copies of the plain data attributes of ``cls`` and its bases up to the kind's base class."""
-    state = {}
-    for klass in cls.__mro__:
-        if klass in (Formation, Avoidance, Dynamics) or klass.__module__.startswith("swarmscene.core."):
-            break
-        for attr, value in vars(klass).items():
-            if attr.startswith("__") or callable(value) or isinstance(value, (classmethod, staticmethod, property)):
-                continue
-            try:
-                state[f"{klass.__qualname__}.{attr}"] = copy.deepcopy(value)
-            except Exception:  # an attribute that cannot be copied is not data the check can compare
-                continue
-    return state
-
-
-def _assert_class_untouched(cls: type[Any], before: dict[str, Any]) -> None:
-    """Instances keep their state to themselves: running them changed no class attribute."""
-    after = _class_state(cls)
-    for attr, value in before.items():
-        new: Any = after.get(attr)  # None where the attribute is gone: then not equal
-        same = (np.array_equal(value, new) if isinstance(value, np.ndarray) or isinstance(new, np.ndarray)
-                else _equal(value, new))
-        assert same, (f"{cls.name}: running an instance changed the class attribute {attr}: two instances "
-                      f"share state (keep it on the instance, not the class or module)")
-
-
-def _equal(a: Any, b: Any) -> bool:
-    try:
-        return bool(a == b)
-    except Exception:  # containers of arrays compare element-wise: compare their reprs instead
-        return repr(a) == repr(b)
 
 
 def _sensing(world: WorldState, environment: Environment | None) -> Sensing:
