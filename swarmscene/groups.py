@@ -70,11 +70,28 @@ def installed_options(group: str) -> list[str]:
     return sorted(GlobalHydra.instance().config_loader().get_group_options(group))
 
 
+def installed_help_groups() -> str:
+    """:func:`help_groups` for this installation, once per search path in a process.
+
+    OmegaConf resolves the help template whenever a composition merges over it (a merge looks
+    through an interpolation it replaces), three times per command, ~60 ms each, although only
+    ``--help`` shows it; the groups' options change only with the search path."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    key = repr(GlobalHydra.instance().config_loader().get_search_path())
+    if key not in _HELP_GROUPS:
+        _HELP_GROUPS[key] = help_groups(installed_options)
+    return _HELP_GROUPS[key]
+
+
+_HELP_GROUPS: dict[str, str] = {}
+
+
 def register_help_resolver() -> None:
     """Register ``${swarmscene_groups:}`` for the help template; idempotent."""
     from omegaconf import OmegaConf
 
     if not OmegaConf.has_resolver("swarmscene_groups"):
-        OmegaConf.register_new_resolver("swarmscene_groups", lambda: help_groups(installed_options))
+        OmegaConf.register_new_resolver("swarmscene_groups", installed_help_groups)
 
 
