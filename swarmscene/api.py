@@ -208,8 +208,8 @@ def write_outputs(
 
 
 # -- sweeps ---------------------------------------------------------------------------------------
-LAUNCHERS = {"basic": None, "joblib": "hydra/launcher=joblib", "ray": "hydra/launcher=ray",
-             "submitit_slurm": "hydra/launcher=submitit_slurm"}
+LAUNCHERS = {"basic": None, "pool": "hydra/launcher=pool", "joblib": "hydra/launcher=joblib",
+             "ray": "hydra/launcher=ray", "submitit_slurm": "hydra/launcher=submitit_slurm"}
 """``api.sweep``'s launcher names and the Hydra override that chooses each (basic: one process)."""
 
 
@@ -262,7 +262,8 @@ def sweep(
             two); a string instead of a sequence is Hydra's own sweep syntax (``"range(0,10)"``,
             ``"1,2,5"``).
         overrides: fixed overrides (``["scenario=cem_six_vehicle", "clock.duration=10"]``).
-        launcher: ``basic`` (this machine, one job at a time), ``joblib`` (all cores), ``ray``
+        launcher: ``basic`` (this machine, one job at a time), ``pool`` (all cores, workers that
+            start warm: the fastest on one machine), ``joblib`` (all cores), ``ray``
             (a local Ray, or a cluster with ``hydra.launcher.ray.init.address=...`` in
             ``overrides``: docs/sweeps.md), ``submitit_slurm``.
         sweep_dir: where the jobs go (default ``multirun/api/<UTC time>`` under the working

@@ -1,7 +1,10 @@
-"""Hydra's handle on swarmscene's sweeper (``hydra/sweeper=swarmscene``, the default of every
-multirun): the sweeper is :class:`swarmscene.sweeps.sweeper.SwarmsceneSweeper`. Hydra takes sweeper
-classes from the ``hydra_plugins`` package only, so the class is named here."""
+"""Hydra's handles on swarmscene's sweeper (``hydra/sweeper=swarmscene``, the default of every
+multirun) and pool launcher (``hydra/launcher=pool``): the classes are
+:class:`swarmscene.sweeps.sweeper.SwarmsceneSweeper` and :class:`swarmscene.sweeps.pool.PoolLauncher`.
+Hydra takes sweeper and launcher classes from the ``hydra_plugins`` package only, so they are named
+here."""
 
+from swarmscene.sweeps import pool as _pool
 from swarmscene.sweeps import sweeper as _sweeper
 
 __version__ = "1.0"
@@ -13,10 +16,18 @@ class SwarmsceneSweeper(_sweeper.SwarmsceneSweeper):
     __doc__ = _sweeper.SwarmsceneSweeper.__doc__  # what Hydra and help() show: the sweeper's own
 
 
+class PoolLauncher(_pool.PoolLauncher):
+    """The launcher of :mod:`swarmscene.sweeps.pool`, under the package name Hydra scans."""
+
+    __doc__ = _pool.PoolLauncher.__doc__
+
+
 def register() -> None:
-    """Make Hydra know the sweeper (its scan of ``hydra_plugins`` misses editable installs)."""
+    """Make Hydra know the sweeper and the launcher (its scan of ``hydra_plugins`` misses editable
+    installs)."""
     from hydra.core.plugins import Plugins
 
     plugins = Plugins.instance()
-    if SwarmsceneSweeper not in plugins.class_name_to_class.values():
-        plugins.register(SwarmsceneSweeper)
+    for cls in (SwarmsceneSweeper, PoolLauncher):
+        if cls not in plugins.class_name_to_class.values():
+            plugins.register(cls)

@@ -5,6 +5,9 @@
     sweeper.py   the sweeper of every multirun: no per-job composition in the main process, jobs
                  launched in batches (Hydra finds it through hydra_plugins/swarmscene_sweeper)
     compose.py   the launchers' config loader: one composition per set of group overrides
+    chunks.py    launcher tasks of several jobs, run back to back in one process
+    pool.py      the pool launcher (``hydra/launcher=pool``): workers forked from a warm fork server
+    warm.py      what that fork server loads before it forks: the engine, the sweep's scenario run once
     records.py   a sweep directory's records: job outcomes, resume, the grid that owns it, its lock
     tables.py    summary.csv/.parquet/.md and the sweep's exit status
     stats.py     intervals (Student t, percentile bootstrap, Wilson)

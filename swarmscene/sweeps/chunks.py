@@ -42,7 +42,7 @@ MAX_PER_TASK = 64
 TASKS_PER_WORKER = 4
 """``auto``: tasks per worker in a batch (K = jobs / (4 workers)): a slow task cannot hold the last
 quarter of a sweep on one core."""
-CHUNKING_LAUNCHERS = ("BasicLauncher", "JoblibLauncher", "RayLauncher")
+CHUNKING_LAUNCHERS = ("BasicLauncher", "JoblibLauncher", "PoolLauncher", "RayLauncher")
 """Launchers whose tasks are composed and run as the module docstring says (submitit's jobs keep
 their own SLURM ids: job by job)."""
 

@@ -35,13 +35,14 @@ Options (``hydra.sweeper.*``), besides ``params`` and ``max_batch_size``:
   one process (:mod:`swarmscene.sweeps.chunks`: Hydra's per-job bookkeeping and the launcher's
   round trip paid once per task). ``auto``: a batch's jobs / (4 x the launcher's workers), at most
   64; the basic launcher's whole batch (at most 64). Whatever the setting, 1 (job by job) where a
-  task cannot run several (launchers other than basic, joblib and Ray, job callbacks such as
+  task cannot run several (launchers other than basic, pool, joblib and Ray, job callbacks such as
   MLflow's, ``hydra.job.chdir``);
 - ``cases``: a list of override lists taken together rather than crossed (Hydra's grid is a
   product only): the jobs are every case times the product of ``params``. A key given on the
   command line that a case also sets replaces the cases (the command line picks the grid).
 
-It uses Hydra's launcher plugins unchanged (basic, joblib, Ray, submitit). Hydra finds it as
+It uses Hydra's launcher plugins unchanged (basic, joblib, Ray, submitit) and swarmscene's pool
+launcher (:mod:`.pool`). Hydra finds it as
 ``hydra_plugins.swarmscene_sweeper.SwarmsceneSweeper`` (a thin adapter: Hydra takes sweepers
 from the ``hydra_plugins`` package only).
 """

@@ -1,0 +1,41 @@
+"""What the pool launcher's fork server loads before it forks any worker (:mod:`.pool`).
+
+Python's fork server imports the modules of its preload list once, at its start; this module is
+that list. Importing it loads, in the fork server, what every job of the sweep would otherwise load
+in each worker: Hydra's job machinery, the engine and every registered plugin, and then, by running
+the sweep's scenario briefly (the scenario :mod:`.pool` puts in ``SWARMSCENE_POOL_WARM``; its events
+moved to the first ticks and its duration cut, as ``swarmscene-compile`` runs it, and nothing
+written), the compiled kernels its methods call and the libraries they load when they first act.
+The workers forked afterwards share all of it.
+
+Nothing here changes a job's numbers: the run uses its own simulation objects, and the engine keeps
+no state between runs but caches of loaded code. A scenario that fails here is left to its job,
+which reports it in its run directory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+
+def warm(scenario: str | None) -> None:
+    """Import the engine; run ``scenario`` (JSON of a composed config) briefly if given."""
+    import hydra.core.utils  # noqa: F401  (run_job and its logging: every job's first call)
+
+    from .. import api, cli  # noqa: F401  (the task function's module)
+
+    api.plugins()  # every registered plugin's module, the third parties' included
+    if not scenario:
+        return
+    from ..compile import short
+
+    data = short(json.loads(scenario))
+    data["output"] = {**data["output"], "plots": False, "animation": False, "rerun": False, "live": "off"}
+    try:
+        api.run(data)
+    except Exception:  # noqa: S110  (the job reports it, in its own run directory)
+        pass
+
+
+warm(os.environ.pop("SWARMSCENE_POOL_WARM", None))  # read once: the workers' jobs do not inherit it

@@ -1,0 +1,131 @@
+"""The pool launcher (``hydra/launcher=pool``, swarmscene/sweeps/pool.py): workers forked from a
+fork server that loaded the engine and ran the sweep's scenario once.
+
+- the basic launcher's numbers, bit for bit, jobs of one task and jobs launched alone alike, with
+  the manifests naming the command as typed;
+- the fork server really is warm: importing its preload module with a CEM scenario loads the
+  modules, compiled kernels and libraries that scenario's jobs use;
+- a stop request sent to the main process alone stops the workers' jobs between ticks (written,
+  marked incomplete) and ends the command with 143; a worker killed outright ends it with one line
+  and status 1, and the same command then resumes the jobs not written;
+- ``n_jobs`` is counted as joblib counts it, and a bad value is one line.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from test_sweep_launchers import GRID, assert_identical, basic, swarmscene  # noqa: F401  (basic: a fixture)
+
+from swarmscene.rundir import RunDir
+from swarmscene.sweeps import pool, tables
+
+POOL = ["hydra/launcher=pool", "hydra.launcher.n_jobs=2"]
+
+
+@pytest.mark.parametrize("per_task", ["auto", "1"], ids=["tasks", "job-by-job"])
+def test_the_pool_gives_the_basic_launchers_numbers_bit_for_bit(basic, tmp_path, per_task):  # noqa: F811
+    args = [*GRID, *POOL, "hydra/sweeper=swarmscene", f"hydra.sweeper.jobs_per_task={per_task}",
+            f"hydra.sweep.dir={tmp_path}/pool"]
+    proc = swarmscene(*args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert_identical(basic, tmp_path / "pool")
+    manifest = RunDir(tmp_path / "pool" / "3").manifest()
+    assert manifest["command"][1:] == args
+    keep = lambda rows: [{k: v for k, v in r.items() if k not in {"wall_time", "realtime_factor", "step_ms_median"}}  # noqa: E731
+                         for r in rows]
+    assert keep(tables.collect_rows(tmp_path / "pool")) == keep(tables.collect_rows(basic))
+
+
+def test_the_fork_servers_preload_runs_the_sweeps_scenario_and_loads_what_its_jobs_use(tmp_path):
+    from swarmscene import api
+
+    scenario = api.compose(["scenario=cem_six_vehicle"])
+    probe = (
+        "import sys; import swarmscene.sweeps.warm\n"
+        "from swarmscene.methods.cem import kernels\n"
+        "print(int('scipy.optimize' in sys.modules), len(kernels.navigator_step_into.signatures))\n"
+    )
+    env = {**os.environ, pool.WARM_ENV: json.dumps(scenario)}
+    warm = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert warm.returncode == 0, warm.stderr
+    assert warm.stdout.split() == ["1", "1"]  # CEM acted (its failure moved early): optimizer and kernel loaded
+    env[pool.WARM_ENV] = ""  # no scenario: the engine imported, nothing run
+    cold = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert cold.stdout.split() == ["0", "0"], cold.stderr
+    assert list(tmp_path.iterdir()) == []  # the warm-up writes nothing
+
+
+def _long_sweep(sw: Path, seeds: int = 40, wait: float = 2.0) -> subprocess.Popen:
+    """A sweep of ``seeds`` jobs of 30,000 ticks each (~2 s), started; returned ``wait`` s after its
+    first job began."""
+    env = dict(os.environ)
+    env.pop("HYDRA_FULL_ERROR", None)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from swarmscene.cli import main; main()", "--multirun", *POOL,
+         f"seed=range(0,{seeds})", "clock.duration=3000", "termination.on_complete=false", f"hydra.sweep.dir={sw}"],
+        cwd=sw.parent, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    deadline = time.monotonic() + 120
+    while not (sw / "0").exists() and time.monotonic() < deadline:  # the first job has started
+        time.sleep(0.05)
+    time.sleep(wait)
+    return proc
+
+
+def _group(pid: int) -> list[int]:
+    """The live processes of the sweep's process group (a zombie waits for its reaper: not live)."""
+    out = subprocess.run(["ps", "-o", "pid=,stat=", "-g", str(pid)], capture_output=True, text=True).stdout
+    return [int(line.split()[0]) for line in out.splitlines() if not line.split()[1].startswith("Z")]
+
+
+def test_sigterm_to_the_main_process_stops_the_workers_jobs_between_ticks_with_143(tmp_path):
+    sw = tmp_path / "sw"
+    proc = _long_sweep(sw)
+    proc.send_signal(signal.SIGTERM)  # to the main process alone: it passes the request on
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    stopped = [job for job in sw.glob("*/manifest.json") if not json.loads(job.read_text())["complete"]]
+    assert stopped  # the jobs running were written, marked incomplete, with the reason
+    assert all(json.loads((job.parent / "metrics.json").read_text())["stop_reason"] == "interrupted"
+               for job in stopped)
+    time.sleep(1.0)
+    assert _group(proc.pid) == []  # no worker, fork server or tracker left behind
+
+
+def test_a_killed_worker_is_one_line_and_the_same_command_resumes(tmp_path):
+    sw = tmp_path / "sw"
+    proc = _long_sweep(sw, seeds=6, wait=0.5)
+    workers = [p for p in _group(proc.pid) if p != proc.pid]
+    os.kill(max(workers), signal.SIGKILL)  # the newest process of the group: a worker
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1, err
+    assert err.strip().splitlines()[-1] == (f"swarmscene: {sw}: a worker process died (killed, or out of memory); "
+                                            "the jobs written are kept: run the same command to resume the others")
+    written = {job.parent.name for job in sw.glob("*/manifest.json") if json.loads(job.read_text())["complete"]}
+    again = swarmscene("--multirun", *POOL, "seed=range(0,6)", "clock.duration=3000", "termination.on_complete=false",
+                       f"hydra.sweep.dir={sw}", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert {line for line in again.stderr.splitlines() if "already complete" in line} == {
+        f"swarmscene: job {job} already complete (same config hash): skipped" for job in written}
+    assert len(tables.collect_rows(sw)) == 6 and all(RunDir(sw / str(i)).manifest()["complete"] for i in range(6))
+
+
+def test_n_jobs_counts_as_joblib_and_a_bad_value_is_one_line(tmp_path):
+    cores = len(os.sched_getaffinity(0))
+    assert pool.resolve_workers(None) == cores
+    assert pool.resolve_workers(-1) == cores
+    assert pool.resolve_workers(-cores - 5) == 1
+    assert pool.resolve_workers(3) == 3
+    proc = swarmscene("--multirun", "seed=0,1", "hydra/launcher=pool", "hydra.launcher.n_jobs=0",
+                      f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1] == (
+        "swarmscene: hydra.launcher.n_jobs: must be null, an integer >= 1 or a negative count (-1: all cores) (got 0)")
