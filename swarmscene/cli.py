@@ -71,16 +71,18 @@ def main() -> None:
 
 
 def _freeze_at_exit() -> None:
-    """At the process's exit, leave the interpreter's last garbage collections nothing to scan
-    (``gc.freeze``, the last exit handler): every file is written and closed by then, and those
-    collections, over Hydra's, OmegaConf's and numba's millions of objects, took ~0.45 s of every
-    command while freeing nothing that outlives the process. Registered once per process."""
+    """At the process's exit, leave the interpreter's shutdown garbage collections nothing to scan
+    (``gc.freeze``): every file is written and closed by then, and those collections, over the
+    ~170,000 objects of Hydra, OmegaConf and numba a run leaves, took ~0.4 s of every command
+    while freeing nothing that outlives the process. Registered once per process, at the start of
+    :func:`main`, so it runs after the exit handlers registered later (atexit runs them last in,
+    first out)."""
     import atexit
     import gc
 
     if not _FROZEN_AT_EXIT:
         _FROZEN_AT_EXIT.append(True)
-        atexit.register(gc.freeze)  # the first registered: run after every other exit handler
+        atexit.register(gc.freeze)
 
 
 _FROZEN_AT_EXIT: list[bool] = []
