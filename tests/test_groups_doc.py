@@ -43,3 +43,20 @@ def test_help_is_short_and_lists_no_internal_groups():
     assert "tuning/" not in out.stdout
     assert groups.help_groups(groups.group_options) in out.stdout  # built-ins, no third party here
     assert len(out.stdout.splitlines()) < 40
+
+
+def test_the_help_group_list_is_resolved_once_per_search_path(tmp_path, monkeypatch):
+    """OmegaConf resolves the help template at every composition that merges over it: the list is
+    made once per search path (a config folder added by a third party gives a new one)."""
+    from hydra import initialize_config_dir, initialize_config_module
+
+    made: list[int] = []
+    monkeypatch.setattr(groups, "help_groups", lambda options: made.append(1) or f"list {len(made)}")
+    monkeypatch.setattr(groups, "_HELP_GROUPS", {})
+    with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
+        first, again = groups.installed_help_groups(), groups.installed_help_groups()
+    (tmp_path / "swarm").mkdir()
+    (tmp_path / "swarm" / "mine.yaml").write_text("n: 3\n")
+    with initialize_config_dir(config_dir=str(tmp_path), version_base="1.3"):
+        other = groups.installed_help_groups()
+    assert (first, again, other) == ("list 1", "list 1", "list 2")
