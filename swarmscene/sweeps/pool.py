@@ -72,8 +72,10 @@ class PoolLauncher(Launcher):
         if n_jobs is not None and (isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0):
             raise ValueError(f"hydra.launcher.n_jobs: must be null, an integer >= 1 or a negative count "
                              f"(-1: all cores) (got {n_jobs!r})")
+        if not isinstance(warm, bool):
+            raise ValueError(f"hydra.launcher.warm: must be true or false (got {warm!r})")
         self.n_jobs = n_jobs
-        self.warm = bool(warm)
+        self.warm = warm
         self.config: Any = None
         self.task_function: Any = None
         self.hydra_context: Any = None
@@ -105,9 +107,10 @@ class PoolLauncher(Launcher):
         for idx, overrides in enumerate(job_overrides):
             log.info(f"\t#{initial_job_idx + idx} : {' '.join(filter_overrides(overrides))}")
         executor = self._pool()
-        futures = [executor.submit(_run_task, initial_job_idx + idx, list(overrides))
-                   for idx, overrides in enumerate(job_overrides)]
+        futures: list[Future[Any]] = []
         try:
+            for idx, overrides in enumerate(job_overrides):
+                futures.append(executor.submit(_run_task, initial_job_idx + idx, list(overrides)))
             return [future.result() for future in futures]
         except KeyboardInterrupt:
             self._stop(futures)
@@ -178,7 +181,8 @@ def warm_scenario(config: Any) -> str | None:
 def start_fork_server(scenario: str | None) -> Any:
     """Start Python's fork server with :mod:`.warm` preloaded (it runs ``scenario``); returns the
     ``forkserver`` context the pool forks its workers from. The server starts at once and loads
-    in the background; the first worker's start waits for it."""
+    in the background; the first worker's start waits for it. A fork server already running in
+    this process (a second sweep in the same process) is used as it is."""
     from multiprocessing import forkserver
 
     context = multiprocessing.get_context("forkserver")
