@@ -2,7 +2,7 @@
 and the speed-up over the cores of the machine it runs on (issue 25's goals).
 
     python benchmarks/speed/bench_sweep.py                    # every part below, small sizes (~3 min)
-    python benchmarks/speed/bench_sweep.py --part main        # one part: main, fixed, cem, scaling
+    python benchmarks/speed/bench_sweep.py --part main        # one part: main, fixed, cem, scaling, cold
     python benchmarks/speed/bench_sweep.py --part cem --seeds 1000
     python benchmarks/speed/bench_sweep.py --part cem --rounds 3   # pool and joblib alternated, 3 rounds
     python benchmarks/speed/bench_sweep.py --part fixed --jobs-per-task 1   # job by job (the ratio's baseline)
@@ -25,6 +25,10 @@ time its ``.hydra/overrides.yaml`` appears (the first file a sweep job writes).
   by default 240 per core of the machine) on 1, 2, 4, ... and all cores, for each launcher: speed-up against 1 worker
   and parallel efficiency (speed-up / workers), and the tables compared (identical apart from
   wall-clock metrics). Goal: >= 90 % on 2 cores, >= 80 % at 16.
+
+- ``cold``: 8 full ``cem_six_vehicle`` seeds on 2 workers with an empty numba cache (a fresh node
+  that skipped ``swarmscene-compile``): the pool compiles the kernels once, in its fork server;
+  joblib's workers each compile them.
 
 The launchers (``--launchers``, default ``pool,joblib``): ``pool``, swarmscene's launcher of warm
 workers (``hydra/launcher=pool``), and ``joblib``, Hydra's. The CPU time counts the command and
@@ -213,9 +217,23 @@ def part_scaling(root: Path, jobs: int) -> None:
                   f"table identical to 1 worker's: {rows == reference}")
 
 
+def part_cold(root: Path) -> None:
+    """A machine whose numba cache is empty (a fresh node or image without ``swarmscene-compile``):
+    8 full ``cem_six_vehicle`` seeds on 2 workers, each launcher with a cache of its own."""
+    print("cold numba cache: 8 seeds of cem_six_vehicle, 2 workers")
+    for name in LAUNCHERS:
+        with tempfile.TemporaryDirectory() as cache:
+            ENV["NUMBA_CACHE_DIR"] = cache
+            try:
+                wall, cpu = run(["scenario=cem_six_vehicle", "seed=range(0,8)", *launcher(name, 2)], root / f"cold_{name}")
+            finally:
+                ENV.pop("NUMBA_CACHE_DIR")
+        print(f"  {name}: {wall:.1f} s, {cpu:.1f} s of CPU (the kernels compiled in each worker, or once)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "all"), default="all")
+    parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "cold", "all"), default="all")
     parser.add_argument("--seeds", type=int, default=100, help="seeds of the full cem_six_vehicle sweep")
     parser.add_argument("--scaling-jobs", type=int, default=None,
                         help="jobs of the scaling sweep (default 240 per core: ~20 s of jobs per core, so the "
@@ -239,6 +257,8 @@ def main() -> None:
             part_fixed(root)
         if args.part in ("cem", "all"):
             part_cem(root, args.seeds, args.rounds)
+        if args.part in ("cold", "all"):
+            part_cold(root)
         if args.part in ("scaling", "all"):
             part_scaling(root, args.scaling_jobs or 240 * (os.cpu_count() or 1))
     print(f"load average at the end: {os.getloadavg()[0]:.2f}")
