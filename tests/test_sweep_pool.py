@@ -44,6 +44,19 @@ def test_the_pool_gives_the_basic_launchers_numbers_bit_for_bit(basic, tmp_path,
     assert keep(tables.collect_rows(tmp_path / "pool")) == keep(tables.collect_rows(basic))
 
 
+def test_an_optuna_sweep_on_the_pool_gives_the_basic_launchers_trials(tmp_path):
+    """The falsifier (Hydra's Optuna sweeper): Hydra's plugin scan re-imports the sweeper's config
+    class, which plain pickle refuses; the pool pickles it by name, both ways."""
+    keep = lambda rows: [{k: v for k, v in r.items() if k not in {"wall_time", "realtime_factor", "step_ms_median"}}  # noqa: E731
+                         for r in rows]
+    args = ["+sweep=falsify", "hydra.sweeper.n_trials=4", "hydra.sweeper.n_jobs=2"]
+    for name, launcher in (("basic", []), ("pool", POOL)):
+        proc = swarmscene(*args, *launcher, f"hydra.sweep.dir={tmp_path}/{name}", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+    assert keep(tables.collect_rows(tmp_path / "pool")) == keep(tables.collect_rows(tmp_path / "basic"))
+    assert len(tables.collect_rows(tmp_path / "pool")) == 4
+
+
 def test_the_fork_servers_preload_runs_the_sweeps_scenario_and_loads_what_its_jobs_use(tmp_path):
     from swarmscene import api
 

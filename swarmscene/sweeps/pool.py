@@ -37,10 +37,12 @@ scenario before forking; false: it only imports the engine).
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import multiprocessing
 import os
+import pickle
 import signal
 import time
 from collections.abc import Sequence
@@ -111,7 +113,7 @@ class PoolLauncher(Launcher):
         try:
             for idx, overrides in enumerate(job_overrides):
                 futures.append(executor.submit(_run_task, initial_job_idx + idx, list(overrides)))
-            return [future.result() for future in futures]
+            return [pickle.loads(future.result()) for future in futures]  # our own workers' JobReturn
         except KeyboardInterrupt:
             self._stop(futures)
             raise
@@ -126,9 +128,9 @@ class PoolLauncher(Launcher):
             from hydra.core.singleton import Singleton
 
             self._known = set(multiprocessing.active_children())
+            sweep = dumps((Singleton.get_state()["instances"], self.hydra_context, self.config, self.task_function))
             self._executor = ProcessPoolExecutor(
-                max_workers=self.workers(), mp_context=self._context, initializer=_start_worker,
-                initargs=(Singleton.get_state()["instances"], self.hydra_context, self.config, self.task_function),
+                max_workers=self.workers(), mp_context=self._context, initializer=_start_worker, initargs=(sweep,),
             )
         return self._executor
 
@@ -199,6 +201,38 @@ def start_fork_server(scenario: str | None) -> Any:
     return context
 
 
+def dumps(obj: Any) -> bytes:
+    """``obj`` pickled for the workers, a class that Hydra re-imported pickled by its name.
+
+    Hydra's plugin scan executes the modules of its plugins again (``Plugins.instance()``), so the
+    config store can hold a structured config's class that is no longer the one its module names
+    (the Optuna sweeper's ``OptunaSweeperConf``); ``pickle`` refuses such a class. It is the same
+    class as the one a worker's own import gives, so it goes by its module and name."""
+    buffer = io.BytesIO()
+    _ByName(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump(obj)
+    return buffer.getvalue()
+
+
+class _ByName(pickle.Pickler):
+    def reducer_override(self, obj: Any) -> Any:
+        if isinstance(obj, type) and _named(obj.__module__, obj.__qualname__) not in (None, obj):
+            return _named, (obj.__module__, obj.__qualname__)
+        return NotImplemented
+
+
+def _named(module: str, qualname: str) -> Any:
+    """The object ``module.qualname`` names (imported if need be), None when there is none."""
+    import importlib
+
+    try:
+        found: Any = importlib.import_module(module)
+        for part in qualname.split("."):
+            found = getattr(found, part)
+    except (ImportError, AttributeError):
+        return None
+    return found
+
+
 def _signal(process: Any, signum: int) -> None:
     try:
         os.kill(process.pid, signum)
@@ -211,11 +245,12 @@ _WORKER: dict[str, Any] = {}
 """What :func:`_start_worker` received: the sweep's Hydra context, config and task function."""
 
 
-def _start_worker(instances: dict[Any, Any], hydra_context: Any, config: Any, task_function: Any) -> None:
-    """A worker's start (the pool's initializer): Hydra's singletons as the main process has them
-    (its config store, sources, version), OmegaConf's resolvers registered here as the main process
-    registers them (they are local functions, which do not pickle), and stop signals recorded, not
-    raised, so a job stops between ticks and writes what it has."""
+def _start_worker(sweep: bytes) -> None:
+    """A worker's start (the pool's initializer), from :func:`dumps` of Hydra's singletons, the
+    Hydra context, the sweep's config and the task function: the singletons as the main process
+    has them (its config store, sources, version), OmegaConf's resolvers registered here as the
+    main process registers them (they are local functions, which do not pickle), and stop signals
+    recorded, not raised, so a job stops between ticks and writes what it has."""
     from hydra.core.singleton import Singleton
     from hydra.core.utils import setup_globals
 
@@ -223,13 +258,16 @@ def _start_worker(instances: dict[Any, Any], hydra_context: Any, config: Any, ta
 
     register_search_path()  # swarmscene's search path, sweeper, launcher and resolvers
     setup_globals()  # Hydra's resolvers (now, hydra, python_version)
+    instances, hydra_context, config, task_function = pickle.loads(sweep)
     Singleton.set_state({"instances": instances, "omegaconf_resolvers": Singleton.get_state()["omegaconf_resolvers"]})
     interrupts.install()
     _WORKER.update(hydra_context=hydra_context, config=config, task_function=task_function)
 
 
-def _run_task(idx: int, overrides: list[str]) -> Any:
-    """One task in a worker, as Hydra's joblib launcher runs one: composed, numbered, run."""
+def _run_task(idx: int, overrides: list[str]) -> bytes:
+    """One task in a worker, as Hydra's joblib launcher runs one: composed, numbered, run; its
+    ``JobReturn`` pickled by :func:`dumps` (it holds the job's config, whose nodes name their
+    structured config classes)."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.core.utils import run_job
     from omegaconf import open_dict
@@ -240,5 +278,5 @@ def _run_task(idx: int, overrides: list[str]) -> Any:
         sweep_config.hydra.job.id = f"{sweep_config.hydra.job.name}_{idx}"
         sweep_config.hydra.job.num = idx
     HydraConfig.instance().set_config(sweep_config)
-    return run_job(hydra_context=hydra_context, config=sweep_config, task_function=_WORKER["task_function"],
-                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
+    return dumps(run_job(hydra_context=hydra_context, config=sweep_config, task_function=_WORKER["task_function"],
+                         job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir"))

@@ -34,7 +34,7 @@ def warm(scenario: str | None) -> None:
     data["output"] = {**data["output"], "plots": False, "animation": False, "rerun": False, "live": "off"}
     try:
         api.run(data)
-    except Exception:  # noqa: S110  (the job reports it, in its own run directory)
+    except Exception:  # the job reports it, in its own run directory
         pass
 
 
