@@ -49,12 +49,13 @@ def take_exit_status() -> int | None:
     return _outcome.pop("status", None)
 
 
-def _load_table_libraries() -> None:
-    """Import, in a background thread while the jobs run, what the tables import at the sweep's
-    end (pyarrow, which imports pandas at its first array, and ``scipy.special``): ~0.4 s that
-    would otherwise come after the last job, serial. The main thread then finds them imported (or
-    waits on the import lock for the one still being imported); a failure here only means the
-    tables import it themselves."""
+def load_table_libraries() -> None:
+    """Import, in a background thread while the jobs run (the sweeper calls it at its first
+    launch, once the grid is checked), what the tables import at the sweep's end (pyarrow, which
+    imports pandas at its first array, and ``scipy.special``): ~0.4 s that would otherwise come
+    after the last job, serial. The main thread then finds them imported (or waits on the import
+    lock for the one still being imported); a failure here only means the tables import it
+    themselves."""
     import threading
 
     def load() -> None:
@@ -103,7 +104,6 @@ class SweepSummary(Callback):
         _outcome.pop("status", None)
         _written.clear()
         self._replace_basic_sweeper(config)
-        _load_table_libraries()
         from .progress import SweepProgress
 
         try:

@@ -133,7 +133,7 @@ class SwarmsceneSweeper(Sweeper):
         from omegaconf import OmegaConf
 
         from ..outputs import atomic_write_bytes
-        from .callback import summary_wanted, write_under_lock
+        from .callback import load_table_libraries, summary_wanted, write_under_lock
         from .chunks import jobs_per_task, tasks
         from .records import SweepLock, check_grid_owner, record_grid
 
@@ -151,6 +151,8 @@ class SwarmsceneSweeper(Sweeper):
             # Hydra's basic sweeper writes it with OmegaConf.save, which follows a planted link
             atomic_write_bytes(sweep_dir / "multirun.yaml", OmegaConf.to_yaml(self.config).encode("utf-8"))
             returns = []
+            if summary_wanted(self.config):
+                load_table_libraries()
             for start, stop in batches(len(jobs), self.max_batch_size, whole):
                 if not whole:
                     checker.check(start, stop)
