@@ -99,6 +99,16 @@ def _group(pid: int) -> list[int]:
     return [int(line.split()[0]) for line in out.splitlines() if not line.split()[1].startswith("Z")]
 
 
+def _workers(pid: int) -> list[int]:
+    """The pool's workers in the sweep's process group: the fork server's children."""
+    out = subprocess.run(["ps", "-o", "pid=,ppid=,args=", "-g", str(pid)], capture_output=True, text=True).stdout
+    rows = [line.split(None, 2) for line in out.splitlines()]
+    server = [int(r[0]) for r in rows if len(r) == 3 and "multiprocessing.forkserver" in r[2]]
+    workers = [int(r[0]) for r in rows if server and int(r[1]) == server[0]]
+    assert workers, out
+    return workers
+
+
 def test_sigterm_to_the_main_process_stops_the_workers_jobs_between_ticks_with_143(tmp_path):
     sw = tmp_path / "sw"
     proc = _long_sweep(sw)
@@ -109,15 +119,16 @@ def test_sigterm_to_the_main_process_stops_the_workers_jobs_between_ticks_with_1
     assert stopped  # the jobs running were written, marked incomplete, with the reason
     assert all(json.loads((job.parent / "metrics.json").read_text())["stop_reason"] == "interrupted"
                for job in stopped)
-    time.sleep(1.0)
+    deadline = time.monotonic() + 30  # the fork server and the tracker end when they see the command gone
+    while _group(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
     assert _group(proc.pid) == []  # no worker, fork server or tracker left behind
 
 
 def test_a_killed_worker_is_one_line_and_the_same_command_resumes(tmp_path):
     sw = tmp_path / "sw"
     proc = _long_sweep(sw, seeds=6, wait=0.5)
-    workers = [p for p in _group(proc.pid) if p != proc.pid]
-    os.kill(max(workers), signal.SIGKILL)  # the newest process of the group: a worker
+    os.kill(_workers(proc.pid)[0], signal.SIGKILL)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 1, err
     assert err.strip().splitlines()[-1] == (f"swarmscene: {sw}: a worker process died (killed, or out of memory); "
