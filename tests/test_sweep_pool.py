@@ -101,9 +101,9 @@ def _group(pid: int) -> list[int]:
 
 def _workers(pid: int) -> list[int]:
     """The pool's workers in the sweep's process group: the fork server's children."""
-    out = subprocess.run(["ps", "-o", "pid=,ppid=,args=", "-g", str(pid)], capture_output=True, text=True).stdout
+    out = subprocess.run(["ps", "-ww", "-o", "pid=,ppid=,args=", "-g", str(pid)], capture_output=True, text=True).stdout
     rows = [line.split(None, 2) for line in out.splitlines()]
-    server = [int(r[0]) for r in rows if len(r) == 3 and "multiprocessing.forkserver" in r[2]]
+    server = [int(r[0]) for r in rows if len(r) == 3 and int(r[1]) == pid and "multiprocessing.forkserver" in r[2]]
     workers = [int(r[0]) for r in rows if server and int(r[1]) == server[0]]
     assert workers, out
     return workers
