@@ -131,8 +131,7 @@ def _main() -> None:
     except Exception as exc:  # every user-fixable problem becomes one line
         if debug:
             raise
-        _report_died(exc)
-        _report(_error_lines(exc))
+        _report(_error_lines(exc), _error_status(exc))
     finally:
         if before is None:
             os.environ.pop("HYDRA_FULL_ERROR", None)
@@ -152,35 +151,34 @@ def _multirun_status() -> int | None:
     return callback.take_exit_status() if callback is not None else None
 
 
-def _report_died(exc: BaseException) -> None:
-    """A pool launcher's worker died (:class:`~swarmscene.sweeps.pool.WorkerDied`): its line, and
-    status 1, as for a job that did not complete (the jobs written are kept; a re-run resumes)."""
-    died = sys.modules.get("swarmscene.sweeps.pool")
-    cause = _cause_of(exc, (died.WorkerDied,)) if died is not None else None
-    if cause is not None:
-        print(f"swarmscene: {cause}", file=sys.stderr)
-        sys.exit(1)
-
-
-def _report(lines: list[str]) -> None:
+def _report(lines: list[str], status: int = EXIT_CONFIG) -> None:
     for line in lines:
         print(f"swarmscene: {line}", file=sys.stderr)
-    sys.exit(EXIT_CONFIG)
+    sys.exit(status)
+
+
+def _error_status(exc: BaseException) -> int:
+    """The exit status of an error: 1 when a pool launcher's worker died (the jobs written are kept
+    and a re-run resumes, as after a job that did not complete), else :data:`EXIT_CONFIG`."""
+    from .sweeps.pool import WorkerDied
+
+    return 1 if _cause_of(exc, (WorkerDied,)) is not None else EXIT_CONFIG
 
 
 def _error_lines(exc: BaseException) -> list[str]:
     from .core.errors import ConfigError
     from .hydra_errors import hydra_error_line
     from .rundir import RunFileError
+    from .sweeps.pool import WorkerDied
 
     if isinstance(exc, ConfigError):
         return exc.lines
     if isinstance(exc, RunFailed):  # its message is the engine's own line (the first non-finite state)
         return [str(exc)]
-    cause = _cause_of(exc, (ConfigError, RunFileError))
+    cause = _cause_of(exc, (ConfigError, RunFileError, WorkerDied))
     if isinstance(cause, ConfigError):  # raised inside Hydra (swarmscene.dir_name, scenario_files)
         return cause.lines
-    if isinstance(cause, RunFileError):
+    if isinstance(cause, (RunFileError, WorkerDied)):
         return [str(cause)]
     line = hydra_error_line(exc)
     if line is not None:
