@@ -22,12 +22,17 @@ import time
 from pathlib import Path
 
 import pytest
-from test_sweep_launchers import GRID, assert_identical, basic, swarmscene  # noqa: F401  (basic: a fixture)
+from test_sweep_launchers import GRID, TIMING, assert_identical, basic, swarmscene  # noqa: F401  (basic: a fixture)
 
 from swarmscene.rundir import RunDir
-from swarmscene.sweeps import pool, tables
+from swarmscene.sweeps import chunks, pool, tables
 
 POOL = ["hydra/launcher=pool", "hydra.launcher.n_jobs=2"]
+
+
+def table(sweep_dir: Path) -> list[dict]:
+    """A sweep's summary rows without their wall-clock columns."""
+    return [{k: v for k, v in row.items() if k not in TIMING} for row in tables.collect_rows(sweep_dir)]
 
 
 @pytest.mark.parametrize("per_task", ["auto", "1"], ids=["tasks", "job-by-job"])
@@ -39,21 +44,17 @@ def test_the_pool_gives_the_basic_launchers_numbers_bit_for_bit(basic, tmp_path,
     assert_identical(basic, tmp_path / "pool")
     manifest = RunDir(tmp_path / "pool" / "3").manifest()
     assert manifest["command"][1:] == args
-    keep = lambda rows: [{k: v for k, v in r.items() if k not in {"wall_time", "realtime_factor", "step_ms_median"}}  # noqa: E731
-                         for r in rows]
-    assert keep(tables.collect_rows(tmp_path / "pool")) == keep(tables.collect_rows(basic))
+    assert table(tmp_path / "pool") == table(basic)
 
 
 def test_an_optuna_sweep_on_the_pool_gives_the_basic_launchers_trials(tmp_path):
     """The falsifier (Hydra's Optuna sweeper): Hydra's plugin scan re-imports the sweeper's config
     class, which plain pickle refuses; the pool pickles it by name, both ways."""
-    keep = lambda rows: [{k: v for k, v in r.items() if k not in {"wall_time", "realtime_factor", "step_ms_median"}}  # noqa: E731
-                         for r in rows]
     args = ["+sweep=falsify", "hydra.sweeper.n_trials=4", "hydra.sweeper.n_jobs=2"]
     for name, launcher in (("basic", []), ("pool", POOL)):
         proc = swarmscene(*args, *launcher, f"hydra.sweep.dir={tmp_path}/{name}", cwd=tmp_path)
         assert proc.returncode == 0, proc.stderr
-    assert keep(tables.collect_rows(tmp_path / "pool")) == keep(tables.collect_rows(tmp_path / "basic"))
+    assert table(tmp_path / "pool") == table(tmp_path / "basic")
     assert len(tables.collect_rows(tmp_path / "pool")) == 4
 
 
@@ -144,10 +145,10 @@ def test_a_killed_worker_is_one_line_and_the_same_command_resumes(tmp_path):
 
 def test_n_jobs_counts_as_joblib_and_a_bad_value_is_one_line(tmp_path):
     cores = len(os.sched_getaffinity(0))
-    assert pool.resolve_workers(None) == cores
-    assert pool.resolve_workers(-1) == cores
-    assert pool.resolve_workers(-cores - 5) == 1
-    assert pool.resolve_workers(3) == 3
+    assert chunks.workers_for(None) == cores
+    assert chunks.workers_for(-1) == cores
+    assert chunks.workers_for(-cores - 5) == 1
+    assert chunks.workers_for(3) == 3
     proc = swarmscene("--multirun", "seed=0,1", "hydra/launcher=pool", "hydra.launcher.n_jobs=0",
                       f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
     assert proc.returncode == 2

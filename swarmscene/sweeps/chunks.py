@@ -83,13 +83,21 @@ def refusal(launcher: Any, config: Any) -> str | None:
 
 
 def _workers(config: Any, cores: int | None) -> int:
-    cores = cores or os.cpu_count() or 1
     n_jobs = config.hydra.launcher.get("n_jobs") if "launcher" in config.hydra else None
-    if isinstance(n_jobs, int) and n_jobs > 0:
-        return n_jobs
-    if isinstance(n_jobs, int) and n_jobs < 0:  # joblib's count: -1 all cores, -2 all but one
+    return workers_for(n_jobs if isinstance(n_jobs, int) and n_jobs != 0 else None, cores)
+
+
+def workers_for(n_jobs: int | None, cores: int | None = None) -> int:
+    """A launcher's ``n_jobs`` as a count of workers, as joblib counts it (the pool launcher's and
+    joblib's): None every core, -1 all of them, -2 all but one; ``cores`` by default those this
+    process may use."""
+    if cores is None:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if n_jobs is None:
+        return cores
+    if n_jobs < 0:
         return max(1, cores + 1 + n_jobs)
-    return cores
+    return n_jobs
 
 
 def tasks(jobs: Sequence[Sequence[str]], start: int, stop: int, per_task: int) -> list[list[str]]:

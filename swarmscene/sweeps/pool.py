@@ -95,7 +95,9 @@ class PoolLauncher(Launcher):
 
     def workers(self) -> int:
         """The number of worker processes (``n_jobs`` resolved against this process's cores)."""
-        return resolve_workers(self.n_jobs)
+        from .chunks import workers_for
+
+        return workers_for(self.n_jobs)
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[Any]:
         """Run a batch of tasks on the pool; their ``JobReturn`` in the batch's order."""
@@ -153,16 +155,6 @@ class PoolLauncher(Launcher):
         for process in workers:
             if process.is_alive():
                 _signal(process, signal.SIGKILL)
-
-
-def resolve_workers(n_jobs: int | None) -> int:
-    """``n_jobs`` as a count of workers: None every core this process may use, -k all but k-1."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    if n_jobs is None:
-        return cores
-    if n_jobs < 0:
-        return max(1, cores + 1 + n_jobs)
-    return n_jobs
 
 
 def warm_scenario(config: Any) -> str | None:
