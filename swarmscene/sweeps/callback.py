@@ -49,27 +49,6 @@ def take_exit_status() -> int | None:
     return _outcome.pop("status", None)
 
 
-def load_table_libraries() -> None:
-    """Import, in a background thread while the jobs run (the sweeper calls it at its first
-    launch, once the grid is checked), what the tables import at the sweep's end (pyarrow, which
-    imports pandas at its first array, and ``scipy.special``): ~0.4 s that would otherwise come
-    after the last job, serial. The main thread then finds them imported (or waits on the import
-    lock for the one still being imported); a failure here only means the tables import it
-    themselves."""
-    import threading
-
-    def load() -> None:
-        try:
-            import pyarrow
-
-            pyarrow.array([0])
-            import scipy.special  # noqa: F401
-        except Exception:  # pyarrow is an extra; the tables do without it
-            pass
-
-    threading.Thread(target=load, name="swarmscene-table-libraries", daemon=True).start()
-
-
 class SweepSummary(Callback):
     """Hydra callback of every multirun.
 

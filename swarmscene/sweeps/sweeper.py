@@ -133,9 +133,10 @@ class SwarmsceneSweeper(Sweeper):
         from omegaconf import OmegaConf
 
         from ..outputs import atomic_write_bytes
-        from .callback import load_table_libraries, summary_wanted, write_under_lock
+        from .callback import summary_wanted, write_under_lock
         from .chunks import jobs_per_task, tasks
         from .records import SweepLock, check_grid_owner, record_grid
+        from .tables import load_table_libraries
 
         loader = self.hydra_context.config_loader
         grid, jobs = expand(self.params, arguments, OverridesParser.create(config_loader=loader), self.cases)

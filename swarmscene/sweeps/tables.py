@@ -185,6 +185,28 @@ def csv_text(rows: list[dict[str, Any]]) -> str:
     return buffer.getvalue()
 
 
+def load_table_libraries() -> None:
+    """Import, in a background thread while the jobs run (the sweeper calls it at its first
+    launch, once the grid is checked), what these tables import at the sweep's end (pyarrow, which
+    imports pandas at its first array, in :func:`parquet_bytes`; ``scipy.special`` in the
+    intervals): ~0.4 s that would otherwise come
+    after the last job, serial. The main thread then finds them imported (or waits on the import
+    lock for the one still being imported); a failure here only means the tables import it
+    themselves."""
+    import threading
+
+    def load() -> None:
+        try:
+            import pyarrow
+
+            pyarrow.array([0])
+            import scipy.special  # noqa: F401
+        except Exception:  # pyarrow is an extra; the tables do without it
+            pass
+
+    threading.Thread(target=load, name="swarmscene-table-libraries", daemon=True).start()
+
+
 def parquet_bytes(rows: list[dict[str, Any]]) -> bytes | None:
     """The table as Parquet, or None when pyarrow is not importable."""
     try:

@@ -18,6 +18,8 @@ from __future__ import annotations
 import json
 import os
 
+from .pool import WARM_ENV
+
 
 def warm(scenario: str | None) -> None:
     """Import the engine; run ``scenario`` (JSON of a composed config) briefly if given."""
@@ -38,4 +40,4 @@ def warm(scenario: str | None) -> None:
         pass
 
 
-warm(os.environ.pop("SWARMSCENE_POOL_WARM", None))  # read once: the workers' jobs do not inherit it
+warm(os.environ.pop(WARM_ENV, None))  # read once: the workers' jobs do not inherit it
