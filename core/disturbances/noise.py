@@ -32,12 +32,6 @@ from ..fields import MAX_DURATION
 from ..state import WorldState
 from .base import Disturbance, DisturbanceContext, DisturbanceParams
 
-Std3 = tuple[float, float, float]
-
-
-def _std3(description: str, default: Std3):
-    return Field(default, description=description)
-
 
 class SensingNoise(Disturbance):
     """Truth + bias + Gauss-Markov position error, white velocity error, dropouts."""

@@ -231,13 +231,6 @@ def _swept_keys(jobs: Sequence[Sequence[str]]) -> set[str]:
     return {k for k, v in values.items() if len(v) > 1}
 
 
-def check_jobs(
-    check: JobCheck, jobs: Sequence[Sequence[str]], validate: str = "each_value", on_invalid: str = "stop"
-) -> None:
-    """Check every job of ``jobs`` (:class:`GridCheck` over all of them at once)."""
-    GridCheck(check, jobs, validate, on_invalid).check(0, len(jobs))
-
-
 class GridCheck:
     """The checks of one grid, job range by job range; an override checked once is not checked again.
 

@@ -19,7 +19,6 @@ read here may be damaged or planted: it is read through :mod:`swarmscene.rundir`
 from __future__ import annotations
 
 import os
-import sys
 import traceback
 from pathlib import Path
 from typing import Any
@@ -397,9 +396,3 @@ def job_dirs(directory: Path) -> list[Path]:
 
 def _is_run(path: Path) -> bool:
     return (path / MANIFEST).is_file() or (path / ".hydra" / "overrides.yaml").is_file()
-
-
-def stop_line(lines: list[str]) -> None:
-    """Print problem lines as the command line does."""
-    for line in lines:
-        print(f"swarmscene: {line}", file=sys.stderr)
