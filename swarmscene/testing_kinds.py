@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
 
@@ -19,6 +20,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ValidationError
 
+from .contract import Outcome, Subject, promise, run
 from .core import hookspecs
 from .core.disturbances import Disturbances
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceParams
@@ -145,41 +147,50 @@ def _disturbances(cls: type[Disturbance], params: DisturbanceParams, key: str, s
     return runner
 
 
-def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS) -> list[list[np.ndarray]]:
-    """Each runner's outputs over ``ticks`` guidance ticks (picture and own estimate, wind), the
-    runners taking their turns tick by tick on worlds of their own."""
+@dataclass
+class _DisturbedTick:
+    """One guidance tick of a runner: the truth before and after its phases, and what it gave."""
+
+    truth_before: dict[str, np.ndarray]
+    truth_after: dict[str, np.ndarray]
+    outputs: dict[str, np.ndarray]  # picture pos/vel, own pos/vel, and the wind of each physics step
+
+
+def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS) -> list[list[_DisturbedTick]]:
+    """Each runner's ticks over ``ticks`` guidance ticks, the runners taking their turns tick by
+    tick on worlds of their own (the world moves on the truth's velocity)."""
     worlds = [_world() for _ in runners]
-    out: list[list[np.ndarray]] = [[] for _ in runners]
+    out: list[list[_DisturbedTick]] = [[] for _ in runners]
     env = Environment()
     for _ in range(ticks):
         for world, runner, record in zip(worlds, runners, out, strict=True):
-            truth = {k: np.array(getattr(world, k), copy=True) for k in ("pos", "vel", "healthy", "comm_ok")}
+            truth = _truth(world)
             try:
                 seen = runner.perceive(world, Sensing(world, env, 10.0))
             except (ValueError, TypeError, IndexError) as exc:  # e.g. outputs of the wrong shape
                 raise AssertionError(
                     f"{runner_name(runner)}: the kernel's sense/communicate phase failed on its outputs "
                     f"(each must be (N, 3) m or m/s): {type(exc).__name__}: {exc}") from None
-            for k, v in truth.items():
-                assert np.array_equal(getattr(world, k), v), (
-                    f"{runner_name(runner)}: modified world.{k} "
-                    "(a model returns new arrays; the truth is the kernel's)")
-            for label, arr in (("picture pos", seen.world.pos), ("picture vel", seen.world.vel),
-                               ("own pos", seen.own.pos), ("own vel", seen.own.vel)):
-                assert np.shape(arr) == (N_AGENTS, 3), (
-                    f"{runner_name(runner)}: {label} has shape {np.shape(arr)}, expected (N, 3)")
-                assert np.isfinite(arr).all(), f"{runner_name(runner)}: {label} is not finite"
-            record += [np.array(seen.world.pos), np.array(seen.own.vel)]
+            outputs = {"picture pos": np.array(seen.world.pos), "picture vel": np.array(seen.world.vel),
+                       "own pos": np.array(seen.own.pos), "own vel": np.array(seen.own.vel)}
+            after = _truth(world)
             for j in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
                 runner.blow(world, world.t + j * PHYSICS_STEP)
                 if runner.has_wind:
-                    wind = np.asarray(world.wind)
-                    assert wind.shape == (N_AGENTS, 3) and np.isfinite(wind).all(), (
-                        f"{runner_name(runner)}: air() must return finite (N, 3) m/s (got shape {wind.shape})")
-                    record.append(np.array(wind))
+                    outputs[f"wind {j}"] = np.array(world.wind)
                 world.pos += PHYSICS_STEP * world.vel
             world.t += GUIDANCE_PERIOD
+            record.append(_DisturbedTick(truth, after, outputs))
     return out
+
+
+def _truth(world: WorldState) -> dict[str, np.ndarray]:
+    return {k: np.array(getattr(world, k), copy=True) for k in ("pos", "vel", "healthy", "comm_ok")}
+
+
+def _flat(ticks: list[_DisturbedTick]) -> list[np.ndarray]:
+    """A runner's outputs in order (what two runs are compared on)."""
+    return [value for tick in ticks for value in tick.outputs.values()]
 
 
 def runner_name(runner: Disturbances) -> str:
@@ -187,8 +198,9 @@ def runner_name(runner: Disturbances) -> str:
 
 
 def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = None,
-                      refused: dict[str, dict[str, Any]] | None = None) -> None:
-    """Run a disturbance model through the kernel's phases (:class:`~swarmscene.core.disturbances.Disturbances`).
+                      refused: dict[str, dict[str, Any]] | None = None) -> list[Outcome]:
+    """Run a disturbance model through the kernel's phases (:class:`~swarmscene.core.disturbances.Disturbances`)
+    and its named checks (``swarmscene.testing.list_checks("disturbance")``).
 
     Rules: ``name``, ``phase`` (one of sense, communicate, wind) and its method (``sense``,
     ``communicate`` or ``air``); Params as every kind's (refused options named
@@ -199,29 +211,83 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
     """
     params = _check_declaration(cls, Disturbance, DisturbanceParams, "disturbances.<key>.kind",
                                 options, refused, f"disturbances.{getattr(cls, 'name', '?')}")
-    name = cls.name
-    phase = getattr(cls, "phase", None)
-    assert phase in PHASES, f"{name}: phase must be one of {', '.join(PHASES)} (got {phase!r})"
-    method = PHASE_METHOD[cls.phase]
-    builtin_channel = issubclass(cls, (CommDelay, PacketLoss))
-    assert builtin_channel or callable(getattr(cls, method, None)), (
-        f"{name}: a {cls.phase}-phase model must define {method}() (the kernel calls it)")
-    state = _class_state(cls, Disturbance)
-    alone = _disturbed_ticks([_disturbances(cls, params, "a", 0)])[0]
-    _assert_class_untouched(name, cls, Disturbance, state)
-    again = _disturbed_ticks([_disturbances(cls, params, "a", 0)])[0]
-    for x, y in zip(alone, again, strict=True):
-        assert np.array_equal(x, y), f"{name}: not deterministic under a seed (draw only from ctx.rng)"
-    beside = _disturbed_ticks([_disturbances(cls, params, "a", 0), _disturbances(cls, params, "b", 1)])[0]
-    for x, y in zip(alone, beside, strict=True):
+    return run("disturbance", Subject(cls, params, class_state=_class_state(cls, Disturbance)))
+
+
+def _alone(s: Subject) -> list[_DisturbedTick]:
+    """The model alone in a run seeded 0 (after its phase is known: the kernel needs its method)."""
+    _disturbance_phase(s)
+    return s.memo("alone", lambda: _disturbed_ticks([_disturbances(s.cls, s.params, "a", 0)])[0])
+
+
+@promise("disturbance", "params")
+def _disturbance_params(s: Subject) -> None:
+    """``name`` set; ``Params`` derive from ``DisturbanceParams``, refuse unknown keys, describe every
+    option, round-trip through YAML; refused options named ``disturbances.<name>.<key>``."""
+
+
+@promise("disturbance", "phase")
+def _disturbance_phase(s: Subject) -> None:
+    """A ``phase`` (sense, communicate or wind) and the method the kernel calls in it
+    (``sense``, ``communicate`` or ``air``)."""
+    phase = getattr(s.cls, "phase", None)
+    assert phase in PHASES, f"{s.name}: phase must be one of {', '.join(PHASES)} (got {phase!r})"
+    method = PHASE_METHOD[phase]
+    builtin_channel = issubclass(s.cls, (CommDelay, PacketLoss))
+    assert builtin_channel or callable(getattr(s.cls, method, None)), (
+        f"{s.name}: a {phase}-phase model must define {method}() (the kernel calls it)")
+
+
+@promise("disturbance", "truth_untouched")
+def _disturbance_truth_untouched(s: Subject) -> None:
+    """The truth it is handed (positions, velocities, health, links) is never modified."""
+    for tick in _alone(s):
+        for k, v in tick.truth_before.items():
+            assert np.array_equal(tick.truth_after[k], v), (
+                f"{s.name}: modified world.{k} (a model returns new arrays; the truth is the kernel's)")
+
+
+@promise("disturbance", "outputs_finite")
+def _disturbance_outputs_finite(s: Subject) -> None:
+    """Its outputs (the picture, the agents' own estimates, the wind) are finite (N, 3)."""
+    for tick in _alone(s):
+        for label, arr in tick.outputs.items():
+            assert np.shape(arr) == (N_AGENTS, 3), (
+                f"{s.name}: {label} has shape {np.shape(arr)}, expected (N, 3)"
+                + (" (air() must return (N, 3) m/s)" if label.startswith("wind") else ""))
+            assert np.isfinite(arr).all(), f"{s.name}: {label} is not finite"
+
+
+@promise("disturbance", "deterministic")
+def _disturbance_deterministic(s: Subject) -> None:
+    """It draws only from its own stream (``ctx.rng``): the same seed gives the same outputs."""
+    again = _disturbed_ticks([_disturbances(s.cls, s.params, "a", 0)])[0]
+    for x, y in zip(_flat(_alone(s)), _flat(again), strict=True):
+        assert np.array_equal(x, y), f"{s.name}: not deterministic under a seed (draw only from ctx.rng)"
+
+
+@promise("disturbance", "no_shared_state")
+def _disturbance_no_shared_state(s: Subject) -> None:
+    """Two instances share no state: one run beside another gives what it gives alone, and running
+    an instance changes no class attribute."""
+    alone = _alone(s)
+    _assert_class_untouched(s.name, s.cls, Disturbance, s.class_state)
+    beside = _disturbed_ticks([_disturbances(s.cls, s.params, "a", 0), _disturbances(s.cls, s.params, "b", 1)])[0]
+    for x, y in zip(_flat(alone), _flat(beside), strict=True):
         assert np.array_equal(x, y), (
-            f"{name}: two instances share state (one ran differently beside another): keep state on "
+            f"{s.name}: two instances share state (one ran differently beside another): keep state on "
             "the instance, not the class or the module")
-    model = next(iter(_disturbances(cls, params, "a", 0).models.values()))
+
+
+@promise("disturbance", "metrics_json")
+def _disturbance_metrics(s: Subject) -> None:
+    """``metrics()`` is flat, finite JSON, its keys without the ``disturbances.<key>.`` prefix."""
+    _disturbance_phase(s)
+    model = next(iter(_disturbances(s.cls, s.params, "a", 0).models.values()))
     metrics = model.metrics()
-    _assert_json_metrics(name, metrics, "metrics()")
+    _assert_json_metrics(s.name, metrics, "metrics()")
     bad = [k for k in metrics if k.startswith("disturbances.")]
-    assert not bad, f"{name}: metrics() keys are unprefixed (the engine adds disturbances.<key>.): {bad}"
+    assert not bad, f"{s.name}: metrics() keys are unprefixed (the engine adds disturbances.<key>.): {bad}"
 
 
 # -- event kinds ---------------------------------------------------------------------------------
@@ -238,8 +304,9 @@ class _OneKind:
 
 
 def check_event_kind(cls: type[EventKindPlugin], options: dict[str, Any] | None = None,
-                     refused: dict[str, dict[str, Any]] | None = None) -> None:
-    """Run an event kind through ``EventConfig`` (validation, the run record) and ``EventQueue``.
+                     refused: dict[str, dict[str, Any]] | None = None) -> list[Outcome]:
+    """Run an event kind through ``EventConfig`` (validation, the run record) and ``EventQueue``, and
+    its named checks (``swarmscene.testing.list_checks("event")``).
 
     Rules: ``name``; ``Params`` derive from ``EventParams`` (each field described: a required one's
     description completes ``a <kind> event needs <description>``), no field named like an event's
@@ -251,24 +318,72 @@ def check_event_kind(cls: type[EventKindPlugin], options: dict[str, Any] | None 
     """
     params = _check_declaration(cls, EventKindPlugin, EventParams, "event kind", options, refused,
                                 "events.0")
-    name = cls.name
-    clash = sorted(set(cls.Params.model_fields) & {"at", "agents", "kind"})
-    assert not clash, f"{name}: Params fields {clash} clash with every event's own keys"
-    assert isinstance(cls.failure, bool), f"{name}: failure must be True or False (got {cls.failure!r})"
-    assert isinstance(cls.motion, Motion), f"{name}: motion must be a Motion (got {cls.motion!r})"
-    data = {"at": 0.3, "agents": [1, 2], "kind": name, **params.model_dump(mode="json", exclude_none=True)}
-    context = {"registry": _OneKind(cls)}
+    return run("event", Subject(cls, params, class_state=_class_state(cls, EventKindPlugin)))
+
+
+def _event(s: Subject) -> Any:
+    """An event of the kind on agents 1 and 2 at 0.3 s, validated as a scenario's and drawn."""
+    _event_declares(s)
+    data = {"at": 0.3, "agents": [1, 2], "kind": s.name, **s.params.model_dump(mode="json", exclude_none=True)}
+    context = {"registry": _OneKind(s.cls)}
     try:
         config = EventConfig.model_validate(data, context=context)
     except ValidationError as exc:
         problems = format_validation_error(exc, EventConfig, data, "events.0")
-        raise AssertionError(f"{name}: an event of this kind is refused: {problems}") from None
+        raise AssertionError(f"{s.name}: an event of this kind is refused: {problems}") from None
+    return config, context
+
+
+@promise("event", "params")
+def _event_params(s: Subject) -> None:
+    """``name`` set; ``Params`` derive from ``EventParams``, refuse unknown keys, describe every field,
+    round-trip through YAML; refused options named ``events.0.<key>``."""
+
+
+@promise("event", "own_keys_free")
+def _event_own_keys(s: Subject) -> None:
+    """No field is named like an event's own keys (``at``, ``agents``, ``kind``)."""
+    clash = sorted(set(s.cls.Params.model_fields) & {"at", "agents", "kind"})
+    assert not clash, f"{s.name}: Params fields {clash} clash with every event's own keys"
+
+
+@promise("event", "declares")
+def _event_declares(s: Subject) -> None:
+    """``failure`` is True or False and ``motion`` a :class:`Motion`."""
+    assert isinstance(s.cls.failure, bool), f"{s.name}: failure must be True or False (got {s.cls.failure!r})"
+    assert isinstance(s.cls.motion, Motion), f"{s.name}: motion must be a Motion (got {s.cls.motion!r})"
+
+
+@promise("event", "record_round_trip")
+def _event_record(s: Subject) -> None:
+    """An event of the kind validates, and its run record validates again to the same record."""
+    config, context = _event(s)
     record = config.model_dump(mode="json")
     again = EventConfig.model_validate(record, context=context).model_dump(mode="json")
-    assert again == record, f"{name}: an event's record does not validate to itself ({record} -> {again})"
-    event = draw_event(config, 0, N_AGENTS, 0)
-    _check_apply(name, cls, event)
-    _check_motion(name, cls, event)
+    assert again == record, f"{s.name}: an event's record does not validate to itself ({record} -> {again})"
+
+
+@promise("event", "apply")
+def _event_apply(s: Subject) -> None:
+    """``apply`` changes only its agents, never a position; a failure drops ``healthy`` (keeping
+    ``comm_ok``), any other kind ``comm_ok`` (keeping ``healthy``); velocities stay finite."""
+    config, _ = _event(s)
+    _check_apply(s.name, s.cls, draw_event(config, 0, N_AGENTS, 0))
+
+
+@promise("event", "motion")
+def _event_motion(s: Subject) -> None:
+    """The queue then moves its agents by the kind's ``motion``: states stay finite, HOLD holds them."""
+    config, _ = _event(s)
+    _check_motion(s.name, s.cls, draw_event(config, 0, N_AGENTS, 0))
+
+
+@promise("event", "no_shared_state")
+def _event_no_shared_state(s: Subject) -> None:
+    """Applying events of the kind changes no class attribute."""
+    config, _ = _event(s)
+    _check_apply(s.name, s.cls, draw_event(config, 0, N_AGENTS, 0))
+    _assert_class_untouched(s.name, s.cls, EventKindPlugin, s.class_state)
 
 
 def _check_apply(name: str, cls: type[EventKindPlugin], event: Any) -> None:
@@ -309,8 +424,8 @@ def _check_motion(name: str, cls: type[EventKindPlugin], event: Any) -> None:
 
 # -- map generators ------------------------------------------------------------------------------
 def check_generator(cls: type[MapGenerator], options: dict[str, Any] | None = None,
-                    refused: dict[str, dict[str, Any]] | None = None) -> None:
-    """Build a map generator's obstacles.
+                    refused: dict[str, dict[str, Any]] | None = None) -> list[Outcome]:
+    """Build a map generator's obstacles, through its named checks (``list_checks("generator")``).
 
     Rules: ``name``; ``Params`` refuse unknown keys, describe each parameter and use none of the
     environment section's own keys (``name``, ``generator``, ``obstacles``: the parameters sit beside
@@ -318,29 +433,75 @@ def check_generator(cls: type[MapGenerator], options: dict[str, Any] | None = No
     shapely polygons with finite vertices within the engine's length limit, the same for the same
     parameters, leaving the parameters as they were.
     """
-    import shapely
-
     params = _check_declaration(cls, MapGenerator, BaseModel, "environment.generator", options, refused,
                                 "environment")
-    name = cls.name
-    clash = sorted(set(cls.Params.model_fields) & set(ENVIRONMENT_KEYS))
-    assert not clash, f"{name}: parameters {clash} clash with the environment section's own keys"
+    return run("generator", Subject(cls, params, class_state=_class_state(cls, MapGenerator)))
+
+
+def _maps(s: Subject) -> tuple[Any, Any, dict[str, Any], dict[str, Any]]:
+    """Two builds from the same parameters, and the parameters' dumps before and after them."""
+    _generator_builds(s)
+
+    def build() -> tuple[Any, Any, dict[str, Any], dict[str, Any]]:
+        before = s.params.model_dump(mode="json")
+        first, second = s.cls.build(s.params), s.cls.build(s.params)
+        return first, second, before, s.params.model_dump(mode="json")
+
+    return s.memo("maps", build)
+
+
+@promise("generator", "params")
+def _generator_params(s: Subject) -> None:
+    """``name`` set; ``Params`` refuse unknown keys, describe every parameter, round-trip through YAML;
+    refused options named ``environment.<key>``."""
+
+
+@promise("generator", "own_keys_free")
+def _generator_own_keys(s: Subject) -> None:
+    """No parameter is named like the environment section's own keys (``name``, ``generator``, ``obstacles``)."""
+    clash = sorted(set(s.cls.Params.model_fields) & set(ENVIRONMENT_KEYS))
+    assert not clash, f"{s.name}: parameters {clash} clash with the environment section's own keys"
+
+
+@promise("generator", "builds")
+def _generator_builds(s: Subject) -> None:
+    """The class defines ``build(params)``."""
     # build is a classmethod: mypy types the bound method without its __func__
-    overridden = cls.build.__func__ is not MapGenerator.build.__func__  # type: ignore[attr-defined]
-    assert overridden, f"{name}: define build(params)"
-    dump = params.model_dump(mode="json")
-    first, second = cls.build(params), cls.build(params)
-    assert params.model_dump(mode="json") == dump, f"{name}: build() changed its parameters"
-    assert isinstance(first, list) and first, f"{name}: build() must return a non-empty list of polygons"
+    overridden = s.cls.build.__func__ is not MapGenerator.build.__func__  # type: ignore[attr-defined]
+    assert overridden, f"{s.name}: define build(params)"
+
+
+@promise("generator", "polygons_valid")
+def _generator_polygons(s: Subject) -> None:
+    """``build`` returns a non-empty list of valid, non-empty polygons with finite vertices within the
+    engine's length limit."""
+    import shapely
+
+    first, *_ = _maps(s)
+    assert isinstance(first, list) and first, f"{s.name}: build() must return a non-empty list of polygons"
     for k, poly in enumerate(first):
-        assert isinstance(poly, shapely.Polygon), f"{name}: obstacle {k} is a {type(poly).__name__}, not a Polygon"
+        assert isinstance(poly, shapely.Polygon), f"{s.name}: obstacle {k} is a {type(poly).__name__}, not a Polygon"
         assert poly.is_valid and not poly.is_empty and poly.area > 0, (
-            f"{name}: obstacle {k} is not a valid, non-empty polygon")
+            f"{s.name}: obstacle {k} is not a valid, non-empty polygon")
         bounds = np.asarray(poly.bounds)
         assert np.isfinite(bounds).all() and np.abs(bounds).max() <= MAX_LENGTH, (
-            f"{name}: obstacle {k} reaches beyond {MAX_LENGTH:g} m or is not finite")
+            f"{s.name}: obstacle {k} reaches beyond {MAX_LENGTH:g} m or is not finite")
+
+
+@promise("generator", "params_untouched")
+def _generator_params_untouched(s: Subject) -> None:
+    """``build`` leaves its parameters as they were."""
+    _, _, before, after = _maps(s)
+    assert after == before, f"{s.name}: build() changed its parameters"
+
+
+@promise("generator", "deterministic")
+def _generator_deterministic(s: Subject) -> None:
+    """The same parameters build the same map."""
+    first, second, *_ = _maps(s)
+    assert isinstance(first, list) and isinstance(second, list), f"{s.name}: build() must return a list"
     assert len(first) == len(second) and all(a.equals_exact(b, 0.0) for a, b in zip(first, second, strict=True)), (
-        f"{name}: not deterministic (the same parameters must build the same map)")
+        f"{s.name}: not deterministic (the same parameters must build the same map)")
 
 
 # -- policies ------------------------------------------------------------------------------------
@@ -352,43 +513,87 @@ def _observations(layout: Any) -> np.ndarray:
 
 
 def check_policy(cls: type[Policy], options: dict[str, Any] | None = None,
-                 refused: dict[str, dict[str, Any]] | None = None) -> None:
-    """Call a policy on the observations :mod:`swarmscene.env` would give it.
+                 refused: dict[str, dict[str, Any]] | None = None) -> list[Outcome]:
+    """Call a policy on the observations :mod:`swarmscene.env` would give it, through its named
+    checks (``list_checks("policy")``).
 
     Rules: ``name``; Params as every kind's (refused options named ``avoidance.policy_options.<key>``);
     for velocity and acceleration actions, ``policy(obs)`` returns finite (N, 3) actions in [-1, 1],
     leaves ``obs`` as it was, is the same for the same input, and two instances do not share state.
     """
+    params = _check_declaration(cls, Policy, PluginParams, "avoidance.policy", options, refused,
+                                "avoidance.policy_options")
+    return run("policy", Subject(cls, params, class_state=_class_state(cls, Policy)))
+
+
+@dataclass
+class _Acting:
+    """One action kind's calls: the observations handed in (after the calls), three actions of one
+    instance alone, and three of a fresh one called in turn with a second instance on other inputs."""
+
+    given: np.ndarray
+    alone: list[np.ndarray]
+    beside: list[np.ndarray]
+
+
+def _acting(s: Subject) -> tuple[np.ndarray, list[_Acting]]:
+    """The observations, and each action kind's calls (velocity, acceleration)."""
     from .methods.policy.actions import ActionSpec
     from .methods.policy.observation import ObservationLayout
 
-    params = _check_declaration(cls, Policy, PluginParams, "avoidance.policy", options, refused,
-                                "avoidance.policy_options")
-    name = cls.name
-    layout = ObservationLayout(4)
-    obs = _observations(layout)
-    state = _class_state(cls, Policy)
-    for kind in ("velocity", "acceleration"):
-        spec = ActionSpec(kind, 2.0, 2.0, GUIDANCE_PERIOD)
-        first, second = cls(params, layout, spec), cls(params, layout, spec)
-        given = obs.copy()
-        alone = [np.array(first(given)) for _ in range(3)]
-        _assert_class_untouched(name, cls, Policy, state)
-        assert np.array_equal(given, obs), f"{name}: modified the observations it was handed"
-        for act in alone:
-            assert act.shape == (N_AGENTS, 3), f"{name}: actions have shape {act.shape}, expected (N, 3)"
-            assert np.isfinite(act).all() and np.abs(act).max() <= 1.0, f"{name}: actions must be finite, in [-1, 1]"
-        other = obs * 0.5
-        fresh = cls(params, layout, spec)
-        beside = []
-        for _ in range(3):
-            beside.append(np.array(fresh(obs)))
-            second(other)
-        for a, b in zip(alone, beside, strict=True):
+    def act() -> tuple[np.ndarray, list[_Acting]]:
+        layout = ObservationLayout(4)
+        obs = _observations(layout)
+        found = []
+        for kind in ("velocity", "acceleration"):
+            spec = ActionSpec(kind, 2.0, 2.0, GUIDANCE_PERIOD)
+            first, second, fresh = (s.cls(s.params, layout, spec) for _ in range(3))
+            given = obs.copy()
+            alone = [np.array(first(given)) for _ in range(3)]
+            beside = []
+            for _ in range(3):
+                beside.append(np.array(fresh(obs.copy())))
+                second(obs * 0.5)
+            found.append(_Acting(given, alone, beside))
+        return obs, found
+
+    return s.memo("acting", act)
+
+
+@promise("policy", "params")
+def _policy_params(s: Subject) -> None:
+    """``name`` set; ``Params`` derive from ``PluginParams``, refuse unknown keys, describe every option,
+    round-trip through YAML; refused options named ``avoidance.policy_options.<key>``."""
+
+
+@promise("policy", "actions_valid")
+def _policy_actions(s: Subject) -> None:
+    """For velocity and acceleration actions, ``policy(obs)`` returns finite (N, 3) actions in [-1, 1]."""
+    for acting in _acting(s)[1]:
+        for act in acting.alone:
+            assert act.shape == (N_AGENTS, 3), f"{s.name}: actions have shape {act.shape}, expected (N, 3)"
+            assert np.isfinite(act).all() and np.abs(act).max() <= 1.0, f"{s.name}: actions must be finite, in [-1, 1]"
+
+
+@promise("policy", "observations_untouched")
+def _policy_observations(s: Subject) -> None:
+    """The observations it is handed are left as they were."""
+    obs, found = _acting(s)
+    for acting in found:
+        assert np.array_equal(acting.given, obs), f"{s.name}: modified the observations it was handed"
+
+
+@promise("policy", "no_shared_state")
+def _policy_no_shared_state(s: Subject) -> None:
+    """The same input gives the same actions, whatever another instance does meanwhile, and acting
+    changes no class attribute."""
+    found = _acting(s)[1]
+    _assert_class_untouched(s.name, s.cls, Policy, s.class_state)
+    for acting in found:
+        for a, b in zip(acting.alone, acting.beside, strict=True):
             assert np.array_equal(a, b), (
-                f"{name}: not deterministic, or two instances share state (one acted differently beside "
+                f"{s.name}: not deterministic, or two instances share state (one acted differently beside "
                 "another): keep state on the instance")
-    _assert_class_untouched(name, cls, Policy, state)
 
 
 # -- observers -----------------------------------------------------------------------------------
@@ -407,8 +612,9 @@ def _run(observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], n
     return result.metrics, np.array(sim.world.pos)
 
 
-def check_observer(cls: type, overrides: list[str] | None = None) -> None:
-    """Run a short scenario with and without an observer.
+def check_observer(cls: type, overrides: list[str] | None = None) -> list[Outcome]:
+    """Run a short scenario with and without an observer, through its named checks
+    (``list_checks("observer")``).
 
     Rules: a class whose every ``swarmscene_*`` method is a lifecycle hook (run start, event, step
     end, run end) marked with ``hookimpl``, at least one; built as ``cls(sim)``; it changes nothing
@@ -416,6 +622,12 @@ def check_observer(cls: type, overrides: list[str] | None = None) -> None:
     finite JSON; a fresh instance in a second run gives the same metrics (no state kept across runs).
     """
     assert isinstance(cls, type), f"{cls!r}: observers are classes"
+    _observer_hooks_of(cls)
+    overrides = [*SHORT_RUN, "events=lead_fails", "events.0.at=0.5", *(overrides or [])]
+    return run("observer", Subject(cls, overrides))
+
+
+def _observer_hooks_of(cls: type) -> None:
     name = cls.__name__
     hooks = [a for a in dir(cls) if a.startswith("swarmscene_")]
     assert hooks, f"{name}: implements no lifecycle hook ({', '.join(LIFECYCLE_HOOKS)})"
@@ -423,21 +635,62 @@ def check_observer(cls: type, overrides: list[str] | None = None) -> None:
         assert attr in LIFECYCLE_HOOKS, (
             f"{name}: {attr} is not a lifecycle hook (valid: {', '.join(LIFECYCLE_HOOKS)})")
         assert hasattr(getattr(cls, attr), f"{hookspecs.PROJECT}_impl"), f"{name}: {attr} is not marked @hookimpl"
-    overrides = [*SHORT_RUN, "events=lead_fails", "events.0.at=0.5", *(overrides or [])]
+
+
+def _observed(s: Subject) -> tuple[tuple[dict[str, Any], np.ndarray], tuple[dict[str, Any], np.ndarray]]:
+    """The short run without the observer and with it (metrics, final positions)."""
     from .api import plugins
 
-    base = [c for c in plugins()[1].observers if c is not cls]
-    without, traj_without = _run(base, overrides)
-    with_it, traj_with = _run([*base, cls], overrides)
-    assert np.array_equal(traj_without, traj_with), f"{name}: the run moved differently with it (observers only read)"
+    def runs() -> tuple[tuple[dict[str, Any], np.ndarray], tuple[dict[str, Any], np.ndarray]]:
+        base = [c for c in plugins()[1].observers if c is not s.cls]
+        return _run(base, s.params), _run([*base, s.cls], s.params)
+
+    return s.memo("runs", runs)
+
+
+def _added(s: Subject) -> dict[str, Any]:
+    """The metrics the observer adds to the run's."""
+    (without, _), (with_it, _) = _observed(s)
+    return {k: v for k, v in with_it.items() if k not in without and k not in TIMING}
+
+
+@promise("observer", "hooks")
+def _observer_hooks(s: Subject) -> None:
+    """Every ``swarmscene_*`` method is a lifecycle hook (run start, event, step end, run end) marked
+    with ``hookimpl``, and there is at least one (checked before the run: nothing runs without it)."""
+
+
+@promise("observer", "reads_only")
+def _observer_reads_only(s: Subject) -> None:
+    """The run moves exactly as it does without the observer (observers only read)."""
+    (_, traj_without), (_, traj_with) = _observed(s)
+    assert np.array_equal(traj_without, traj_with), f"{s.name}: the run moved differently with it (observers only read)"
+
+
+@promise("observer", "metrics_kept")
+def _observer_metrics_kept(s: Subject) -> None:
+    """Every metric the run has without it keeps its value (it adds keys under its own prefix)."""
+    (without, _), (with_it, _) = _observed(s)
     changed = sorted(k for k, v in without.items() if k not in TIMING and k in with_it and not _same(with_it[k], v))
-    assert not changed, f"{name}: changed the run's metrics {changed} (add keys under your own prefix)"
-    added = {k: v for k, v in with_it.items() if k not in without and k not in TIMING}
-    _assert_json_metrics(name, added, "its swarmscene_run_end")
-    again, _ = _run([*base, cls], overrides)
-    second = {k: again.get(k) for k in added}
-    assert all(_same(second[k], v) for k, v in added.items()), (
-        f"{name}: a second run gave other metrics: keep state on the instance (built per run), not the class")
+    assert not changed, f"{s.name}: changed the run's metrics {changed} (add keys under your own prefix)"
+
+
+@promise("observer", "metrics_json")
+def _observer_metrics_json(s: Subject) -> None:
+    """The metrics it adds are finite JSON."""
+    _assert_json_metrics(s.name, _added(s), "its swarmscene_run_end")
+
+
+@promise("observer", "fresh_per_run")
+def _observer_fresh(s: Subject) -> None:
+    """A fresh instance in a second run gives the same metrics (no state kept on the class)."""
+    from .api import plugins
+
+    added = _added(s)
+    base = [c for c in plugins()[1].observers if c is not s.cls]
+    again, _ = _run([*base, s.cls], s.params)
+    assert all(_same(again.get(k), v) for k, v in added.items()), (
+        f"{s.name}: a second run gave other metrics: keep state on the instance (built per run), not the class")
 
 
 def _same(a: Any, b: Any) -> bool:

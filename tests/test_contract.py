@@ -319,3 +319,102 @@ def test_the_packaged_example_is_the_avoidance_template_renamed():
     code = template[template.index("from __future__"):]
     assert example[example.index("from __future__"):] == code.replace("MyAvoidance", "Slowdown").replace(
         "my_avoidance", "slowdown")
+
+
+def test_each_promise_is_a_named_check_reported_by_name():
+    """The checks are listed by kind, one per promise, and a broken promise is reported under its
+    name: an avoidance that edits its input fails ``avoidance.input_untouched`` and nothing else."""
+    from swarmscene.core.plugin import Avoidance
+    from swarmscene.testing import ContractError, check_avoidance, list_checks
+
+    names = [name for name, _ in list_checks("avoidance")]
+    assert names[0] == "avoidance.params"  # the gate
+    assert {"avoidance.input_untouched", "avoidance.failed_rows_kept", "avoidance.deterministic",
+            "avoidance.no_shared_state"} <= set(names)
+    for kind in ("formation", "avoidance", "dynamics", "disturbance", "event", "generator", "policy", "observer"):
+        listed = list_checks(kind)
+        assert len(listed) >= 4 and all(n.startswith(f"{kind}.") and promise for n, promise in listed), kind
+
+    class HalvesInPlace(Avoidance):
+        name = "halves_in_place"
+
+        def adjust(self, world, sensing, sp):
+            out = sp.copy()
+            sp.vel *= 0.5
+            return out
+
+    with pytest.raises(ContractError) as caught:
+        check_avoidance(HalvesInPlace)
+    failed = [o.check for o in caught.value.outcomes if o.status == "failed"]
+    assert failed == ["avoidance.input_untouched"]
+    assert "[avoidance.input_untouched] halves_in_place: adjust() modified its input setpoints" in str(caught.value)
+    outcomes = check_avoidance(REGISTRY.get("avoidance", "none"))
+    assert [o.check for o in outcomes] == names and {o.status for o in outcomes} == {"passed"}
+
+
+def test_a_plugin_declares_an_expected_failure_with_its_reason():
+    """``xfail_checks`` (check name -> reason), as scikit-learn's ``_xfail_checks``: the check still
+    runs and its failure is reported as expected; a listed check that passes, an unknown name or a
+    missing reason fail the run."""
+    from swarmscene.core.plugin import Avoidance
+    from swarmscene.testing import ContractError, check_avoidance
+
+    class Jitter(Avoidance):
+        """Adds unseeded noise on purpose (a hardware-in-the-loop stand-in)."""
+
+        name = "jitter"
+        xfail_checks = {"avoidance.deterministic": "adds the radio's own noise, not drawn from ctx.rng"}
+
+        def adjust(self, world, sensing, sp):
+            out = sp.copy()
+            out.vel[world.healthy] += np.random.default_rng().normal(size=(int(world.healthy.sum()), 3))
+            return out
+
+    outcomes = {o.check: o for o in check_avoidance(Jitter)}
+    assert outcomes["avoidance.deterministic"].status == "xfailed"
+    assert "adds the radio's own noise" in outcomes["avoidance.deterministic"].message
+    assert outcomes["avoidance.rows_valid"].status == "passed"
+
+    class Honest(Avoidance):
+        name = "honest"
+        xfail_checks = {"avoidance.deterministic": "thought it was random"}
+
+        def adjust(self, world, sensing, sp):
+            return sp.copy()
+
+    with pytest.raises(ContractError, match=r"\[avoidance.deterministic\] honest: listed in xfail_checks "
+                                            r"\(thought it was random\) but it passes: remove it"):
+        check_avoidance(Honest)
+    Honest.xfail_checks = {"avoidance.determinstic": "typo"}
+    with pytest.raises(ContractError, match=r"names \['avoidance.determinstic'\].*valid: avoidance.rows_valid"):
+        check_avoidance(Honest)
+    Honest.xfail_checks = {"avoidance.params": "the gate"}
+    with pytest.raises(ContractError, match="not checks that can be expected to fail"):
+        check_avoidance(Honest)
+    Honest.xfail_checks = {"avoidance.deterministic": " "}
+    with pytest.raises(ContractError, match="must map check names to their reasons"):
+        check_avoidance(Honest)
+
+
+def test_a_plugin_that_raises_fails_the_check_that_called_it_by_name():
+    from swarmscene.core.plugin import Formation
+    from swarmscene.testing import ContractError, check_formation
+
+    class Crashes(Formation):
+        name = "crashes"
+
+        def setpoints(self, world, sensing):
+            raise ZeroDivisionError("spacing 0")
+
+    with pytest.raises(ContractError) as caught:
+        check_formation(Crashes)
+    failed = {o.check: o.message for o in caught.value.outcomes if o.status == "failed"}
+    assert "formation.setpoints_valid" in failed
+    assert "crashes: raised ZeroDivisionError: spacing 0" in failed["formation.setpoints_valid"]
+
+
+def test_the_plugin_guide_lists_every_named_check():
+    """docs/plugins.md's table of checks is the list the checks register (python -m swarmscene.docgen --checks)."""
+    from swarmscene.docgen import checks_table
+
+    assert checks_table() in (ROOT / "docs" / "plugins.md").read_text(), "run: python -m swarmscene.docgen --checks"
