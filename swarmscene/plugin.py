@@ -37,7 +37,8 @@ import numpy as np
 
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
-from .core.events import Event, EventKindPlugin, EventParams, Motion
+from .core.errors import format_validation_error
+from .core.events import Event, EventKind, EventKindPlugin, EventParams, Motion
 from .core.fields import StrictModel
 from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl
@@ -55,13 +56,16 @@ from .core.plugin import (
 from .core.run_view import RunView
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
-from .core.state import WorldState
+from .core.state import Role, WorldState
+from .core.vectors import clip_norm, every, min_distance_between, min_pair_distance, rows_of, wrap
 
 __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
-    "Environment", "Event", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
-    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "RunView", "SHARED", "Sensing", "Setpoints",
+    "Environment", "Event", "EventKind", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
+    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "Role", "RunView", "SHARED", "Sensing", "Setpoints",
     "StrictModel", "WorldState", "build_context", "choose", "disturbance_context", "hookimpl",
+    # helpers the built-ins use (core/vectors.py, core/errors.py), as stable as the names above
+    "clip_norm", "every", "format_validation_error", "min_distance_between", "min_pair_distance", "rows_of", "wrap",
 ]
 
 

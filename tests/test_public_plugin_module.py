@@ -38,6 +38,26 @@ def test_templates_and_the_packaged_example_import_only_the_public_module(path):
     assert ours == {"swarmscene.plugin"}
 
 
+PUBLIC_API_KINDS = ("formation", "avoidance", "dynamics", "policy", "observer")
+"""The kinds whose built-ins are worked examples of the public API (issue #35). The disturbance,
+event and generator folders still register classes whose numerics live in core/ (the kernel's
+phases call them); they join this list when those classes move into their plugin folders."""
+
+
+@pytest.mark.parametrize(
+    "path", [p for kind in PUBLIC_API_KINDS for p in sorted((ROOT / "plugins" / kind).glob("*.py"))
+             if p.name != "__init__.py"], ids=lambda p: str(p.relative_to(ROOT)))
+def test_a_builtin_plugin_imports_the_engine_only_through_the_public_module(path):
+    """A built-in imports what a third-party plugin may (``swarmscene.plugin``) and its own
+    numerics (``swarmscene.methods``), never the engine's internals."""
+    engine = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = [node.module or ""] if isinstance(node, ast.ImportFrom) else (
+            [a.name for a in node.names] if isinstance(node, ast.Import) else [])
+        engine.update(n for n in names if n == "swarmscene.core" or n.startswith("swarmscene.core."))
+    assert not engine, f"{path.relative_to(ROOT)} imports {sorted(engine)}: import them from swarmscene.plugin"
+
+
 def test_build_context_is_what_a_small_scenario_gives():
     ctx = plugin.build_context(n=4, seed=3)
     assert ctx.n == 4 and ctx.guidance_period == 0.1 and ctx.physics_step == 0.01

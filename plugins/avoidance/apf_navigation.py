@@ -29,11 +29,8 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import Role, WorldState
 from swarmscene.methods.outdoor.apf_navigation import apf_navigation
+from swarmscene.plugin import Avoidance, BuildContext, Mode, PluginParams, Role, Setpoints, WorldState, hookimpl
 
 
 class ApfNavigation(Avoidance):

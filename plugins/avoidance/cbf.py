@@ -57,9 +57,6 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext
-from swarmscene.core.setpoint import Setpoints
 from swarmscene.methods.baselines.cbf import influence_range, safe_velocities
 from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
@@ -69,6 +66,7 @@ from swarmscene.methods.baselines.common import (
     velocity_setpoints,
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
+from swarmscene.plugin import Avoidance, BuildContext, Setpoints, hookimpl
 
 
 class BarrierCertificates(Avoidance):

@@ -124,16 +124,23 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 from pydantic import Field, model_validator
 
-from swarmscene.core.events import Event, EventKind
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import min_distance_between, min_pair_distance
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
+from swarmscene.plugin import (
+    Avoidance,
+    BuildContext,
+    Event,
+    EventKind,
+    Mode,
+    PluginParams,
+    Setpoints,
+    WorldState,
+    hookimpl,
+    min_distance_between,
+    min_pair_distance,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from swarmscene.core.sensing import Sensing
+    from swarmscene.plugin import Sensing
 
 
 _TRACK = int(Mode.TRACK)

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance
-from swarmscene.core.setpoint import Setpoints
+from swarmscene.plugin import Avoidance, Setpoints, hookimpl
 
 
 class NoAvoidance(Avoidance):

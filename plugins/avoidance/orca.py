@@ -55,9 +55,6 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext
-from swarmscene.core.setpoint import Setpoints
 from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
     nearest_obstacles,
@@ -67,6 +64,7 @@ from swarmscene.methods.baselines.common import (
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
 from swarmscene.methods.baselines.orca import new_velocities, obstacle_lines
+from swarmscene.plugin import Avoidance, BuildContext, Setpoints, hookimpl
 
 
 class Orca(Avoidance):

@@ -25,15 +25,20 @@ from typing import Any, cast
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
 
-from swarmscene.core.errors import format_validation_error
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams, choose
-from swarmscene.core.setpoint import Setpoints
-from swarmscene.core.state import WorldState
 from swarmscene.methods.policy.actions import ActionKind, ActionSpec, action_setpoints
 from swarmscene.methods.policy.observation import ObservationLayout, observe
 from swarmscene.methods.policy.policies import make_policy
-from swarmscene.plugin import Policy
+from swarmscene.plugin import (
+    Avoidance,
+    BuildContext,
+    PluginParams,
+    Policy,
+    Setpoints,
+    WorldState,
+    choose,
+    format_validation_error,
+    hookimpl,
+)
 
 
 class PolicyAvoidance(Avoidance):

@@ -18,10 +18,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.vectors import clip_norm, every
+from swarmscene.plugin import Avoidance, Mode, PluginParams, Setpoints, clip_norm, every, hookimpl
 
 
 def barrier(d: np.ndarray, d_safe: float, d_range: float) -> np.ndarray:

@@ -31,12 +31,9 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Avoidance, BuildContext
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import Role, WorldState
 from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, avoidance_terms, barrier_command
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
+from swarmscene.plugin import Avoidance, BuildContext, Mode, Role, Setpoints, WorldState, hookimpl
 
 
 class PotentialBarrier(Avoidance):

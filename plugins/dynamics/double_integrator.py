@@ -38,17 +38,13 @@ import math
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import every
 from swarmscene.methods.quadrotor.thesis_controllers import (
     ThesisController,
     position_gains,
     tracker_gains,
     velocity_gains,
 )
+from swarmscene.plugin import BuildContext, Dynamics, Mode, PluginParams, Setpoints, WorldState, every, hookimpl
 
 
 class DoubleIntegrator(Dynamics):

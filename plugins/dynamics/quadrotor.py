@@ -41,13 +41,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Dynamics, PluginParams
-from swarmscene.core.setpoint import Setpoints
-from swarmscene.core.state import WorldState
 from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.methods.quadrotor.model import AIRFRAMES, quat_to_rotmat, yaw_to_quat
 from swarmscene.methods.quadrotor.se3_controller import se3_gains
+from swarmscene.plugin import BuildContext, Dynamics, PluginParams, Setpoints, WorldState, hookimpl
 
 
 class Quadrotor(Dynamics):

@@ -18,11 +18,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import Dynamics, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import clip_norm
+from swarmscene.plugin import Dynamics, Mode, PluginParams, Setpoints, WorldState, clip_norm, hookimpl
 
 _VELOCITY, _HOLD = int(Mode.VELOCITY), int(Mode.HOLD)
 """As ints: numpy compares an array with an enum member several times slower."""

@@ -26,11 +26,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import clip_norm
+from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, clip_norm, hookimpl
 
 
 class AntipodalSwap(Formation):

@@ -37,12 +37,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
 from swarmscene.methods.outdoor.hex_pattern import assign_offsets, hex_pattern
 from swarmscene.methods.paths import WaypointPath
+from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl
 
 
 class HexLattice(Formation):

@@ -77,16 +77,13 @@ import shapely
 from pydantic import Field
 from shapely.geometry import Polygon
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
 from swarmscene.methods.indoor.control import TABLE_5_1, IndoorGains, IndoorSnapshot, formation_step
 from swarmscene.methods.indoor.graphs import initial_rank_estimate, mean_degree
 from swarmscene.methods.indoor.graphs import max_rank as max_rank_of
 from swarmscene.methods.indoor.maps import resample_path
 from swarmscene.methods.indoor.sensing import saturate
 from swarmscene.methods.indoor.shared import GraphParams, shared_snapshot
+from swarmscene.plugin import BuildContext, Formation, Mode, Setpoints, WorldState, hookimpl
 
 Point2 = tuple[float, float]
 _VELOCITY = int(Mode.VELOCITY)

@@ -21,15 +21,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
-from swarmscene.core.setpoint import Setpoints
-from swarmscene.core.state import WorldState
 from swarmscene.methods.outdoor.mission import LeaderLogic, MissionWorkflow, Task, WorkflowParameters
+from swarmscene.plugin import BuildContext, Formation, PluginParams, Setpoints, WorldState, hookimpl
 
 if TYPE_CHECKING:  # pragma: no cover
-    from swarmscene.core.sensing import Sensing
-    from swarmscene.core.simulation import Simulation
+    from swarmscene.plugin import RunView, Sensing
 
 __all__ = ["LeaderLogic", "OutdoorMission", "Task"]  # the workflow's names, re-exported for callers
 
@@ -89,7 +85,7 @@ class OutdoorMission(Formation):
         return self.mission.complete(world)
 
     @hookimpl
-    def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
         """``outdoor.*`` metrics: the mission's milestones and the thesis' figures 4.21-4.24."""
         mission = self.mission
         s, lead = mission.stats, mission.leader

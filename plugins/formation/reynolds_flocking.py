@@ -34,12 +34,6 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
-from swarmscene.core.sensing import Sensing
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import wrap
 from swarmscene.methods.flocking.steering import (
     boundary_steer,
     current_headings,
@@ -48,9 +42,20 @@ from swarmscene.methods.flocking.steering import (
     turn_headings,
 )
 from swarmscene.methods.flocking.torus import in_box, minimum_image, pair_offsets, periodic_shifts, torus_neighbours
+from swarmscene.plugin import (
+    BuildContext,
+    Formation,
+    Mode,
+    PluginParams,
+    Sensing,
+    Setpoints,
+    WorldState,
+    hookimpl,
+    wrap,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from swarmscene.core.simulation import Simulation
+    from swarmscene.plugin import RunView
 
 Point3 = tuple[float, float, float]
 __all__ = ["FlockingParams", "ReynoldsFlocking", "minimum_image", "params_from_mesa", "periodic_shifts"]
@@ -220,7 +225,7 @@ class ReynoldsFlocking(Formation):
         return self.lo[: self.axes].copy(), self.size[: self.axes].copy()
 
     @hookimpl
-    def swarmscene_run_end(self, sim: Simulation, metrics: dict[str, Any]) -> None:
+    def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
         """``flocking.*`` metrics: polarization of the healthy boids' headings, mean |N_i|."""
         heading = self.heading[sim.world.healthy]
         unit = heading / np.maximum(np.linalg.norm(heading, axis=1, keepdims=True), 1e-12)

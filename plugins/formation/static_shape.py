@@ -18,14 +18,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
-from swarmscene.core.vectors import rows_of
 from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
+from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl, rows_of
 
 _TRACK, _HOLD = int(Mode.TRACK), int(Mode.HOLD)
 

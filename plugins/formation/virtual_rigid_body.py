@@ -38,10 +38,6 @@ import numpy as np
 import scipy  # its submodules load on first use: registering this plugin must not import them
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from swarmscene.core.hookspecs import hookimpl
-from swarmscene.core.plugin import BuildContext, Formation, PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
-from swarmscene.core.state import WorldState
 from swarmscene.methods.shapes import shape_offsets
 from swarmscene.methods.vrb.airshow import airshow_keyframes, airshow_sequence
 from swarmscene.methods.vrb.trajectory import ORDER, Keyframes, VRBTrajectory
@@ -52,6 +48,7 @@ from swarmscene.methods.vrb.transform import (
     robot_flat_outputs,
     switch_jumps,
 )
+from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl
 
 Point3 = tuple[float, float, float]
 _PLANE_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
