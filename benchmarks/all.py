@@ -73,6 +73,7 @@ def argv(command: str) -> tuple[list[str], dict[str, str]]:
 
 
 def run(name: str, command: str) -> tuple[bool, float]:
+    """Run one entry's command from the repository root into its log: (whether it succeeded, wall seconds)."""
     words, extra = argv(command)
     RESULTS.mkdir(parents=True, exist_ok=True)
     log = RESULTS / f"{name}.log"
@@ -85,6 +86,7 @@ def run(name: str, command: str) -> tuple[bool, float]:
 
 
 def main() -> None:
+    """Run the chosen entries one after the other (or list them); exit status 1 if any failed."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--list", action="store_true", help="print the commands and exit")
     parser.add_argument("--only", help="comma-separated entry names")

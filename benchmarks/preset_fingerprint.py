@@ -22,10 +22,12 @@ WALL_CLOCK = {"wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_med
 
 
 def presets() -> list[str]:
+    """The names of the shipped presets (``scenarios/scenario/*.yaml``), sorted."""
     return sorted(p.stem for p in (ROOT / "scenarios" / "scenario").glob("*.yaml"))
 
 
 def fingerprint(name: str) -> dict:
+    """One preset's metrics (wall-clock ones left out) and the SHA-256 of its whole trajectory."""
     from swarmscene import api
 
     result = api.run([f"scenario={name}"])
@@ -50,6 +52,7 @@ def _rel(a, b) -> float:
 
 
 def compare(old: dict, new: dict, rtol: float) -> tuple[bool, str]:
+    """Whether ``new`` keeps ``old``'s metric keys and values within ``rtol``, and a line saying how they differ."""
     keys = set(old["metrics"]) | set(new["metrics"])
     missing = sorted(k for k in keys if (k in old["metrics"]) != (k in new["metrics"]))
     worst, worst_key = 0.0, ""
@@ -68,6 +71,7 @@ def compare(old: dict, new: dict, rtol: float) -> tuple[bool, str]:
 
 
 def main() -> int:
+    """Write every preset's fingerprint (``--write``) or check them against a file (``--check``); the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--write", type=Path, help="write the fingerprint of every preset to this file")

@@ -1,6 +1,6 @@
 """The lint habits (issue #27): ruff (pycodestyle, pyflakes, isort, bugbear, pyupgrade and the
-Google docstring rules) over the package and tests/, and mypy over the package, both without a
-finding. The rules and their few ignores, each with its reason, are in pyproject.toml.
+Google docstring rules) over the package, tests/ and benchmarks/, and mypy over the package, both
+without a finding. The rules and their few ignores, each with its reason, are in pyproject.toml.
 
 mypy cannot check the source tree as it stands: setup.py maps folders to modules (``core/`` ->
 ``swarmscene.core``), so :func:`link_tree` builds that layout from links and mypy checks the links.
@@ -17,7 +17,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-RUFF_PATHS = ("core", "methods", "plugins", "swarmscene", "scenarios", "hydra_plugins", "tests")
+# benchmarks/ too: unlinted, it hid an UnboundLocalError (bench_sweep.py --jobs-per-task, issue #35).
+RUFF_PATHS = ("core", "methods", "plugins", "swarmscene", "scenarios", "hydra_plugins", "tests", "benchmarks")
 
 
 def package_roots() -> dict[str, str]:
@@ -62,7 +63,7 @@ def source_path(line: str, links: dict[Path, Path]) -> str:
 
 
 def ruff_findings() -> list[str]:
-    """Every ruff finding over the package and tests/, one line each (no cache written)."""
+    """Every ruff finding over :data:`RUFF_PATHS`, one line each (no cache written)."""
     proc = subprocess.run(
         [sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise", *RUFF_PATHS],
         cwd=ROOT, capture_output=True, text=True, check=False,

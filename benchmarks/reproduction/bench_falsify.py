@@ -12,7 +12,8 @@ the same seed draws them), how many of its trials violated, and its wall time; t
 scenario and sampler, over the seeds, the median and range of the worst case and how many seeds
 found a violation.
 
-    python benchmarks/reproduction/bench_falsify.py              # 2 spaces x 2 scenarios x 3 seeds x 2 samplers x 100 trials
+    # 2 spaces x 2 scenarios x 3 seeds x 2 samplers x 100 trials:
+    python benchmarks/reproduction/bench_falsify.py
     python benchmarks/reproduction/bench_falsify.py --spaces failure --seeds 0 --trials 20 --scenarios cem_six_vehicle
     python benchmarks/reproduction/bench_falsify.py --json results.json      # the rows, for docs/benchmarks.md
 
@@ -81,7 +82,8 @@ def summary(rows: list[dict]) -> list[dict]:
     return out
 
 
-SHORT = {"disturbances.constant_wind.speed": "wind {:.2f} m/s", "disturbances.constant_wind.heading": "toward {:.0f} deg",
+SHORT = {"disturbances.constant_wind.speed": "wind {:.2f} m/s",
+         "disturbances.constant_wind.heading": "toward {:.0f} deg",
          "disturbances.packet_loss.p": "loss {:.1%}", "events.0.agents.0": "agent {:.0f} fails",
          "events.0.at": "at {:.2f} s"}
 
@@ -95,25 +97,30 @@ def worst_case_text(overrides: list[str]) -> str:
 
 
 def markdown(rows: list[dict], groups: list[dict]) -> str:
-    lines = ["| space | scenario | sampler | seed | worst min separation (mm) | robustness (m) | trials to the first violation "
-             "| violating trials | worst case | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    """The table of every study and the table of their groups (:func:`summary`), in markdown."""
+    lines = ["| space | scenario | sampler | seed | worst min separation (mm) | robustness (m) "
+             "| trials to the first violation | violating trials | worst case | wall (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         first = "-" if r["first_violating_trial"] is None else str(r["first_violating_trial"] + 1)
         lines.append(f"| {r['space']} | {r['scenario']} | {r['sampler']} | {r['seed']} "
                      f"| {1e3 * r['worst_min_separation']:.3g} | {r['robustness']:+.4f} | {first} "
-                     f"| {r['violating_trials']}/{r['trials']} | {worst_case_text(r['worst_overrides'])} | {r['wall_s']:.0f} |")
+                     f"| {r['violating_trials']}/{r['trials']} | {worst_case_text(r['worst_overrides'])} "
+                     f"| {r['wall_s']:.0f} |")
     lines += ["", "| space | scenario | sampler | seeds | worst min separation: median (range), mm "
               "| seeds with a violation | median trials to the first violation | mean violating trials |",
               "|---|---|---|---|---|---|---|---|"]
     for g in groups:
         first = "-" if g["median_trials_to_violation"] is None else f"{g['median_trials_to_violation']:g}"
-        lines.append(f"| {g['space']} | {g['scenario']} | {g['sampler']} | {g['seeds']} | {1e3 * g['median_worst']:.3g} "
-                     f"({1e3 * g['min_worst']:.3g} - {1e3 * g['max_worst']:.3g}) | {g['seeds_violated']}/{g['seeds']} "
+        lines.append(f"| {g['space']} | {g['scenario']} | {g['sampler']} | {g['seeds']} "
+                     f"| {1e3 * g['median_worst']:.3g} ({1e3 * g['min_worst']:.3g} - {1e3 * g['max_worst']:.3g}) "
+                     f"| {g['seeds_violated']}/{g['seeds']} "
                      f"| {first} | {g['mean_violating_trials']:.1f} |")
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Run every study (space x scenario x seed x sampler), print the markdown tables, write ``--json``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--spaces", nargs="+", default=list(SPACES), choices=list(SPACES))
     parser.add_argument("--scenarios", nargs="+", default=["cem_six_vehicle", "outdoor_square"])

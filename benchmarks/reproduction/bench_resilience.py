@@ -30,6 +30,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from reproduce import Job, run_jobs  # noqa: E402  (the report's runner: one process per worker)
+
 from swarmscene.sweeps.stats import mean_ci, wilson  # noqa: E402
 
 DYNAMICS = ("single_integrator", "quadrotor")
@@ -85,6 +86,7 @@ def _mean(ci: tuple[float, float, int], digits: int = 3) -> str:
 
 
 def markdown(table: str, rows: list[dict]) -> str:
+    """One case table's rows (:func:`row`) as a markdown table headed by the table's name."""
     lines = [f"| {table} | runs | safe (95 % CI) | success | worst min sep (m) | mean min sep (m) | "
              "tracking error max (m), mean ± CI | worst tracking (m) | completion (s) |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -98,6 +100,7 @@ def markdown(table: str, rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run every case's seeds (cached, in parallel) and print each table; the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--only", nargs="*", default=[], choices=["wind", "loss", "delay"])
     parser.add_argument("--seeds", type=int, default=30)

@@ -36,10 +36,12 @@ DURATION = 120.0
 
 
 def ring_radius(n: int) -> float:
+    """The start ring's radius (m) for ``n`` agents: a wider ring above 32."""
     return 6.0 if n <= 32 else 16.0
 
 
 def run(avoidance: str, dynamics: str, n: int) -> dict:
+    """One swap run's metrics and its wall time (``wall``), or its ``error`` when the method cannot run it."""
     overrides = ["scenario=swap", f"avoidance={avoidance}", f"dynamics={dynamics}", f"swarm.n={n}",
                  f"swarm.start.radius={ring_radius(n)}", f"clock.duration={DURATION}",
                  "output.progress=off", "output.trajectory=false"]
@@ -53,6 +55,7 @@ def run(avoidance: str, dynamics: str, n: int) -> dict:
 
 
 def row(avoidance: str, dynamics: str, n: int, m: dict) -> str:
+    """The swap table's markdown row of one run: its outcome, or why it could not run."""
     if "error" in m:
         return f"| {avoidance} | {dynamics} | {n} | {ring_radius(n):g} | cannot run: {m['error']} | | | | |"
     done = f"{m['duration']:.1f}" if m["stop_reason"] == "complete" else "no"
@@ -95,6 +98,7 @@ def time_adjust(avoidance: str, n: int, calls: int = 50) -> tuple[float, float]:
 
 
 def main() -> None:
+    """Print the swap table over methods, dynamics and sizes (or only the adjust() timings, ``--adjust-only``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, nargs="+", default=[8, 16, 32, 100])
     parser.add_argument("--avoidance", nargs="+", default=list(AVOIDANCES))

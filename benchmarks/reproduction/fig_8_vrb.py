@@ -94,6 +94,7 @@ def table() -> list[tuple[str, float, float, float, float]]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print Fig. 8's table: per setting, the side, B and the distance d with the field off and on."""
     argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args(argv)
     print("setting       side (m)  B (m/s)  d field off (m)  d field on (m)   [paper: 0.55 / 0.65]")
     for name, side, gain, off, on in table():

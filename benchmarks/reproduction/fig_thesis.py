@@ -121,6 +121,7 @@ def fig_4_8_cells(seed: int, which: str = "m", n: str = "40") -> float:
 
 
 def main() -> int:
+    """Print the gains and every thesis figure's reading for seed 0, one ``name = value`` line each."""
     for name in GAINS:
         print(f"{name} = {gain(0, name):.5g}")
     for f in (fig_3_5_settling, fig_3_8_settling, fig_3_8_overshoot, fig_3_11_undershoot, fig_3_11_settling,

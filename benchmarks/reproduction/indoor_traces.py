@@ -76,7 +76,7 @@ def fly(overrides: list[str], seed: int, width: float) -> Trace:
         snap = formation.snapshot
         r = snap.r
         rho = rank_before[-1]
-        l, has = virtual_leader(r, snap.g_sigma, rho)
+        l, has = virtual_leader(r, snap.g_sigma, rho)  # noqa: E741 (l_i, eq. 5.24-5.25)
         pg = snap.pair_geometry
         terms = np.stack([w_obs(r, snap.o, gains), w_col(r, pg, gains),
                           pg.sum(psi_con(pg.length, gains)), pg.sum(psi_com(pg.length, gains)),
@@ -92,7 +92,7 @@ def fly(overrides: list[str], seed: int, width: float) -> Trace:
         tr.scale.append(scale)
         tr.g_n.append((snap.g_n.i, snap.g_n.j))
         src, dst = snap.g_sigma.directed()
-        tr.g_sigma.append(set(zip(src.tolist(), dst.tolist())))
+        tr.g_sigma.append(set(zip(src.tolist(), dst.tolist(), strict=True)))
         tr.rank.append(rho)
         tr.clearance.append(np.minimum(snap.obstacle_distance, 10.0))
         tr.connected.append(max_rank(snap.g_n, formation.leader)[0] < len(r))
@@ -103,6 +103,7 @@ def fly(overrides: list[str], seed: int, width: float) -> Trace:
 
 
 def inner_corner(width: float) -> np.ndarray:
+    """The L corridor's inner corner (x, y), m, for a corridor ``width`` m wide."""
     return np.array([CORRIDOR_AXIS - width / 2, width / 2])
 
 
@@ -197,7 +198,7 @@ def split_report(tr: Trace, window: float) -> dict | None:
         "a_pos": r_now[a].round(3).tolist(), "b_pos": r_now[b].round(3).tolist(),
         "a_inner_offset": offset(a), "b_inner_offset": offset(b),
         "a_sigma_neighbours": sorted(d for s, d in ahead if s == a),
-        "closing_by_term": dict(zip([*TERMS, "leader"], share.round(4).tolist())),
+        "closing_by_term": dict(zip([*TERMS, "leader"], share.round(4).tolist(), strict=True)),
         "a_terms": {n: tr.terms[prev][m, a].round(4).tolist() for m, n in enumerate(TERMS)},
         "b_terms": {n: tr.terms[prev][m, b].round(4).tolist() for m, n in enumerate(TERMS)},
         "a_g_n_degree": int(((i == a) | (j == a)).sum()),
@@ -293,6 +294,7 @@ def pair_history(tr: Trace, a: int, b: int, start: float, end: float, every: int
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Fly the L corridor per width and seed and print one JSON line per run (split, safety or pair)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("what", choices=["split", "safety", "pair"])
     parser.add_argument("--agents", type=int, nargs=2, default=[0, 5], help="pair: a b")

@@ -89,7 +89,7 @@ class Claim(BaseModel):
     decided by the metric's name (swarmscene.sweeps.stats.lower_bound), False for a function claim."""
 
     @model_validator(mode="after")
-    def _renamed_metric(self) -> "Claim":
+    def _renamed_metric(self) -> Claim:
         """A metric renamed this release still reads (metrics.json keeps the old key), with a warning."""
         new = renamed_metrics().get(self.metric or "")
         if new is not None:
@@ -100,7 +100,7 @@ class Claim(BaseModel):
         return self
 
     @model_validator(mode="after")
-    def _one_source(self) -> "Claim":
+    def _one_source(self) -> Claim:
         if self.expect == "misses" and not self.note.strip():
             raise ValueError(f"{self.id}: expect: misses needs a note saying why the default reading misses")
         if (self.metric is None) == (self.function is None):
@@ -109,7 +109,8 @@ class Claim(BaseModel):
             raise ValueError(f"{self.id}: readings: at least one (the default reading first)")
         unknown = set(self.reading_seeds) - set(self.readings)
         if unknown or self.default_reading in self.reading_seeds:
-            raise ValueError(f"{self.id}: reading_seeds: only for readings other than the default (got {sorted(self.reading_seeds)})")
+            raise ValueError(f"{self.id}: reading_seeds: only for readings other than the default "
+                             f"(got {sorted(self.reading_seeds)})")
         return self
 
     def n_seeds(self, reading: str) -> int:
@@ -118,9 +119,10 @@ class Claim(BaseModel):
 
     @property
     def default_reading(self) -> str:
+        """The first reading listed: the one the claim's ``expect`` and the report's verdict are about."""
         return next(iter(self.readings))
 
-    def jobs(self, reading: str) -> list["Job"]:
+    def jobs(self, reading: str) -> list[Job]:
         """The runs this claim needs for one reading: one per seed."""
         extra = tuple(self.readings[reading])
         if self.function is not None:
@@ -160,6 +162,7 @@ class Job:
 
     @property
     def key(self) -> str:
+        """The run's identity (a hash of overrides, function, arguments and seed), its file name in the cache."""
         text = json.dumps([self.overrides, self.function, self.args, self.seed])
         return hashlib.sha256(text.encode()).hexdigest()[:20]
 
@@ -261,6 +264,7 @@ class Outcome:
     run: str = ""  # the commit the runs were made at
 
     def as_dict(self) -> dict[str, Any]:
+        """This outcome as a record of the JSON report."""
         return {
             "id": self.claim.id, "reading": self.reading, "n": len(self.values), "rate": self.rate,
             "mean": self.mean, "ci95": [self.low, self.high], "worst": self.worst,
@@ -331,7 +335,8 @@ def kept_outcomes(path: Path, claims: list[Claim], label: str | None = None) -> 
             continue
         raw: list[Any] = [bool(v) if entry.get("rate") else v for v in entry.get("values", [])]
         raw += [None] * int(entry.get("missing", 0))
-        out[(claim.id, entry["reading"])] = evaluate_values(claim, entry["reading"], raw, entry.get("run") or default_run)
+        run = entry.get("run") or default_run
+        out[(claim.id, entry["reading"])] = evaluate_values(claim, entry["reading"], raw, run)
     return out
 
 
@@ -423,7 +428,8 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
         "",
         f"Run: {meta['date']}, commit `{meta['commit']}`, {meta['runs']} runs ({meta['cached']} of them read "
         f"from `--cache`, run earlier by this command) in {meta['minutes']:.1f} min on {meta['jobs']} worker "
-        "process(es). Numbers: `benchmarks/reproduction/results/reproduction.json`." + (f" {meta['note']}" if meta.get("note") else "")
+        "process(es). Numbers: `benchmarks/reproduction/results/reproduction.json`."
+        + (f" {meta['note']}" if meta.get("note") else "")
         + (f" Re-run at this commit: {', '.join(f'`{i}`' for i in meta['rerun'])}; every other row is kept from the "
            "earlier report (its \"run at\" column), re-evaluated but not re-run." if meta.get("rerun") else ""),
         "",
@@ -488,19 +494,22 @@ def _dirty_beyond_report() -> bool:
 
 
 def select(claims: list[Claim], only: list[str]) -> list[Claim]:
+    """The claims whose id contains, or whose paper is, one of the words ``only`` (every claim when empty)."""
     if not only:
         return claims
     return [c for c in claims if any(word in c.id or word == c.paper for word in only)]
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the chosen claims' jobs, evaluate them and write the markdown report and its JSON; the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--only", nargs="*", default=[], help="claims whose id contains, or paper is, a word")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
     parser.add_argument("--cache", type=Path, default=None, help="directory keeping finished runs (resume)")
     parser.add_argument("--markdown", type=Path, default=ROOT / "docs" / "reproduction.md")
     parser.add_argument("--json", type=Path, default=HERE / "results" / "reproduction.json")
-    parser.add_argument("--note", default="", help="a line for the report on the runs (e.g. where cached runs came from)")
+    parser.add_argument("--note", default="",
+                        help="a line for the report on the runs (e.g. where cached runs came from)")
     parser.add_argument("--keep", type=Path, default=None,
                         help="an earlier report's JSON: the claims --only leaves out are taken from it, "
                              "re-evaluated (not re-run), and the report still lists every claim")

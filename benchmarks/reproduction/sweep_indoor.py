@@ -1,4 +1,4 @@
-"""Fig. 5.13 / Appendix A sweeps of the indoor swarm (thesis ch. 5), per reading, one command.
+r"""Fig. 5.13 / Appendix A sweeps of the indoor swarm (thesis ch. 5), per reading, one command.
 
 Runs every (shape, width, reading, seed) through the engine (``swarmscene.api.run``) and prints
 per case: the success rate (every agent in the exit room, G_n connected throughout, eq. 5.2 and
@@ -20,7 +20,7 @@ report); ``--n-jobs`` runs seeds in parallel (joblib; 1 = in this process).
 
     python benchmarks/reproduction/sweep_indoor.py                       # straight + L, w 0.5..0.9, seeds 0..29
     python benchmarks/reproduction/sweep_indoor.py --shapes l --widths 070 080 --seeds 10
-    python benchmarks/reproduction/sweep_indoor.py --shapes straight l --seeds 100 \\
+    python benchmarks/reproduction/sweep_indoor.py --shapes straight l --seeds 100 \
         --candidates neighbours common directed --json out/indoor_corridors.json --n-jobs 2
     python benchmarks/reproduction/sweep_indoor.py --shapes building --seeds 30 --doors closed open
     python benchmarks/reproduction/sweep_indoor.py --markdown            # tables for docs/benchmarks.md
@@ -76,12 +76,12 @@ def summarise(label: str, runs: list[dict], seeds: list[int]) -> dict:
         "min_sep": min(m["min_separation"] for m in runs),
         "min_clear": min(m["min_clearance"] for m in runs),
         "unsafe": unsafe,
-        "unsafe_seeds": [s for s, m in zip(seeds, runs)
+        "unsafe_seeds": [s for s, m in zip(seeds, runs, strict=True)
                          if m["collisions"] > 0 or m["clearance_violations"] > 0],
         "nb_n": float(np.mean([m["indoor.mean_neighbours"] for m in runs])),
         "nb_sigma": float(np.mean([m["indoor.mean_neighbours_sigma"] for m in runs])),
-        "failed": [s for s, good in zip(seeds, ok) if not good],
-        "causes": [cause(m) for m, good in zip(runs, ok) if not good],
+        "failed": [s for s, good in zip(seeds, ok, strict=True) if not good],
+        "causes": [cause(m) for m, good in zip(runs, ok, strict=True) if not good],
     }
 
 
@@ -92,6 +92,7 @@ def causes(names: list[str]) -> str:
 
 
 def print_table(title: str, rows: list[dict], markdown: bool) -> None:
+    """Print one shape's case summaries as a plain text table, or a markdown one with ``markdown``."""
     head = ("case", "runs", "success % (95 % CI)", "worst min sep (m)", "worst min clearance (m)",
             "unsafe runs", "mean nb G_n", "mean nb G_sigma", "failed seeds", "causes")
     cells = [(r["label"], str(r["runs"]),
@@ -107,9 +108,9 @@ def print_table(title: str, rows: list[dict], markdown: bool) -> None:
             print("| " + " | ".join(c) + " |")
     else:
         widths = [max(len(h), *(len(c[k]) for c in cells)) for k, h in enumerate(head)]
-        print("  ".join(h.ljust(w) for h, w in zip(head, widths)))
+        print("  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)))
         for c in cells:
-            print("  ".join(v.ljust(w) for v, w in zip(c, widths)))
+            print("  ".join(v.ljust(w) for v, w in zip(c, widths, strict=True)))
     sys.stdout.flush()
 
 
@@ -155,6 +156,7 @@ def run_case(case: dict, seeds: list[int], n_jobs: int, verbose: bool) -> list[d
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Run every case of each chosen shape over its seeds, print a table per shape, write ``--json`` as it goes."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--shapes", nargs="+", default=["straight", "l"], choices=list(SHAPES))
     parser.add_argument("--widths", nargs="+", default=list(WIDTHS), help="e.g. 070 080")

@@ -121,6 +121,7 @@ def tree(rev: str, where: Path) -> Path:
 
 
 def measure(root: Path, cases: dict[str, list[str]]) -> dict:
+    """One round of ``cases`` timed in a child process on the source tree ``root`` (its JSON figures)."""
     env = dict(os.environ, PYTHONPATH=str(root))
     done = subprocess.run([sys.executable, __file__, "--worker", json.dumps(cases)], env=env, cwd=root,
                           check=True, capture_output=True, text=True)
@@ -128,6 +129,7 @@ def measure(root: Path, cases: dict[str, list[str]]) -> dict:
 
 
 def first_disturbance_commit() -> str:
+    """The parent of the commit that added core/disturbances/ (the default baseline)."""
     log = subprocess.run(["git", "-C", str(ROOT), "log", "--diff-filter=A", "--format=%H", "--",
                           "core/disturbances/__init__.py"], check=True, capture_output=True, text=True)
     first = log.stdout.split()[-1]
@@ -137,6 +139,7 @@ def first_disturbance_commit() -> str:
 
 
 def main() -> None:
+    """Time both trees alternately without disturbances, then each disturbance, and print the markdown tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--baseline", default=None, help="git revision before the disturbances")
@@ -159,7 +162,8 @@ def main() -> None:
     report = {"baseline": baseline, "candidate": args.candidate, "rounds": args.rounds, "none": {}, "disturbed": {}}
     print(f"No disturbances declared: {baseline[:12]} (before) vs {args.candidate} (after), "
           f"median of {args.rounds} alternating rounds\n")
-    print("| scenario | ticks | tick ms before | tick ms after | ratio | wall s before | wall s after | bit-identical |")
+    print("| scenario | ticks | tick ms before | tick ms after | ratio | wall s before | wall s after "
+          "| bit-identical |")
     print("|---|---|---|---|---|---|---|---|")
     for name in SCENARIOS:
         a = [r[name] for r in runs["baseline"]]

@@ -27,6 +27,7 @@ SIZES = [10, 100, 1_000]
 
 
 def overrides(n: int, steps: int) -> list[str]:
+    """The overrides of a grid of ``n`` agents on the open map that lasts ``steps`` environment steps."""
     return ["swarm=grid", f"swarm.n={n}", "environment=open", "formation=static_shape",
             "formation.shape=grid", f"clock.duration={(steps + 1) * 0.1:.1f}"]
 
@@ -48,7 +49,7 @@ def measure(kind: str, n: int, steps: int) -> dict:
         env = make_env(overrides(n, WARM + steps))
         env.reset(seed=0)
         names = list(env.possible_agents)
-        batches = [dict(zip(names, a)) for a in actions]
+        batches = [dict(zip(names, a, strict=True)) for a in actions]
         step = env.step
     else:
         env = make_gym_env(overrides(n, WARM + steps))
@@ -65,6 +66,7 @@ def measure(kind: str, n: int, steps: int) -> dict:
 
 
 def pinned(cmd: list[str]) -> list[str]:
+    """``cmd`` pinned to core 0 with taskset, where taskset is installed."""
     has_taskset = subprocess.run(["which", "taskset"], capture_output=True).returncode == 0
     return ["taskset", "-c", "0", *cmd] if has_taskset else cmd
 
@@ -83,10 +85,12 @@ def run_child(kind: str, n: int, steps: int) -> dict:
 
 
 def default_steps(n: int) -> int:
+    """Steps per run for ``n`` agents: fewer for larger swarms, so each size takes a similar time."""
     return 500 if n <= 10 else 200 if n <= 100 else 50
 
 
 def main() -> None:
+    """Print the best steps/s of ParallelEnv and Gymnasium per size (or one ``--json`` measurement)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("n", nargs="*", type=int, default=SIZES)
     parser.add_argument("--steps", type=int, default=0, help="steps per run (default: by N)")

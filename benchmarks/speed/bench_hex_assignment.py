@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -40,7 +42,8 @@ def configurations(n: int, pattern, rng: np.random.Generator) -> dict[str, tuple
     }
 
 
-def best_of(repeat: int, fn) -> tuple[float, object]:
+def best_of(repeat: int, fn: Callable[[], object]) -> tuple[float, object]:
+    """The shortest wall time (s) of ``repeat`` calls of ``fn`` and the last call's result."""
     times, out = [], None
     for _ in range(repeat):
         t0 = time.perf_counter()
@@ -50,6 +53,7 @@ def best_of(repeat: int, fn) -> tuple[float, object]:
 
 
 def main() -> None:
+    """Time assign_offsets and plain scipy on each starting configuration and print whether their costs agree."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1000, help="swarm size N (leader included)")
     parser.add_argument("--repeat", type=int, default=5, help="timed repetitions (best is reported)")
@@ -62,10 +66,10 @@ def main() -> None:
     print(f"N = {args.n}: M = {pattern.m} offsets, rho_max = {pattern.rho_max}; best of {args.repeat}")
     print(f"{'configuration':58s} {'assign_offsets':>14s} {'plain scipy':>12s}  same cost")
     for name, (xy, leader) in configurations(args.n, pattern, rng).items():
-        t_ours, slots = best_of(args.repeat, lambda: assign_offsets(pattern, ids, xy, leader))
+        t_ours, slots = best_of(args.repeat, partial(assign_offsets, pattern, ids, xy, leader))
         cost = assignment_cost(pattern, xy, leader)
         square = np.vstack([cost - penalty, np.tile(-penalty, (pattern.m - cost.shape[0], 1))])
-        t_plain, (rows, cols) = best_of(min(args.repeat, 2), lambda: linear_sum_assignment(square))
+        t_plain, (rows, cols) = best_of(min(args.repeat, 2), partial(linear_sum_assignment, square))
         real = rows < cost.shape[0]
         same = cost[np.arange(cost.shape[0]), slots].sum() == cost[rows[real], cols[real]].sum()
         print(f"{name:58s} {t_ours * 1e3:11.1f} ms {t_plain * 1e3:9.1f} ms  {same}")

@@ -17,7 +17,8 @@ processes share the cores) are both reported; run it pinned to one core (``tasks
 Each case runs ``--repeat`` times (the same seeded run) and the run with the lowest median is
 shown, with every run's median beside it.
 
-    python benchmarks/speed/bench_indoor.py [--building-steps 3000] [--steps 300] [--warmup 300] [--cases engine,engine-open]
+    python benchmarks/speed/bench_indoor.py [--building-steps 3000] [--steps 300] [--warmup 300]
+        [--cases engine,engine-open]
 
 Issue 20 (compiled kernels, methods/indoor/kernels.py) set the engine cases' goals to 30x real
 time for the building tick (<= 0.33 ms, the engine's monitor included) and 5x for N = 1,000 in the
@@ -27,9 +28,8 @@ open map (<= 2 ms); the algorithm-alone cases keep the issue-6 goals above.
 from __future__ import annotations
 
 import argparse
-import time
-
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -104,6 +104,7 @@ def bench_engine(name: str, overrides: list[str], steps: int, warmup: int, seed:
 
 
 def main() -> None:
+    """Run each chosen case ``--repeat`` times and print its fastest run's tick times against the goal."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--building-steps", type=int, default=3000)
     parser.add_argument("--steps", type=int, default=300)

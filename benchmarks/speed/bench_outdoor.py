@@ -22,6 +22,7 @@ from swarmscene import api
 
 
 def main() -> None:
+    """Fly outdoor_square once and print its mission times, safety figures and real-time factor."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=100)
     parser.add_argument("--comm-range", type=float, default=200.0)

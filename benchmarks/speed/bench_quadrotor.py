@@ -9,9 +9,9 @@ in one process, alternating tick by tick, and are timed separately in CPU time (
 the machine is shared, and a preempted tick would otherwise be charged to whichever ran). Prints,
 per swarm size and guidance rate: drone-steps per CPU second of each, their ratio, the kernel's
 real-time factor (simulated / CPU seconds) and the largest kernel - oracle position difference at
-the end; then the physics step alone (best of 7 blocks, per CPU second); then, each in a fresh interpreter, the CPU time of importing the kernels (numba) and of
-the first control() + step() with an empty numba cache (compile) and with the cache it wrote
-(load). Single core, single thread:
+the end; then the physics step alone (best of 7 blocks, per CPU second); then, each in a fresh
+interpreter, the CPU time of importing the kernels (numba) and of the first control() + step()
+with an empty numba cache (compile) and with the cache it wrote (load). Single core, single thread:
 
     taskset -c 1 python benchmarks/speed/bench_quadrotor.py [--seconds 2] [--sizes 1 100 1000]
 
@@ -56,6 +56,7 @@ def circles(n: int, t: float, centres: np.ndarray) -> Setpoints:
 
 
 def build(cls, n: int, guidance: float):
+    """A ``cls`` dynamics for ``n`` quadrotors on a 3 m grid, initialised: (dynamics, world, circle centres)."""
     side = int(np.ceil(np.sqrt(n)))
     grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:n] * 3.0
     centres = np.column_stack([grid, np.full(n, 2.0)])
@@ -86,7 +87,7 @@ def compare(n: int, seconds: float, guidance: float) -> dict[str, float]:
     """The same flight with the kernel and with the oracle, alternating tick by tick."""
     substeps = int(round(guidance / PHYSICS))
     runs = {"kernel": build(Quadrotor, n, guidance), "oracle": build(QuadrotorOracle, n, guidance)}
-    for name, (dyn, world, centres) in runs.items():  # warm-up tick (kernels loaded / compiled)
+    for dyn, world, centres in runs.values():  # warm-up tick (kernels loaded / compiled)
         tick(dyn, world, centres, substeps, 0, guidance)
     cpu = {"kernel": 0.0, "oracle": 0.0}
     ticks = int(round(seconds / guidance))
@@ -109,7 +110,7 @@ def step_only(n: int, repeats: int = 7) -> dict[str, float]:
     runs = {"kernel": build(Quadrotor, n, 0.1), "oracle": build(QuadrotorOracle, n, 0.1)}
     block = max(5, 20_000 // n)
     best = {}
-    for name, (dyn, world, centres) in runs.items():
+    for dyn, world, centres in runs.values():
         dyn.control(world, circles(n, 0.0, centres))
         dyn.step(world, PHYSICS)
     for _ in range(repeats):
@@ -157,6 +158,7 @@ def first_call() -> dict[str, float]:
 
 
 def main() -> None:
+    """Print the kernel and oracle rates per size and guidance rate, the step alone, and the first call's cost."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[1, 100, 1000])
     ap.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per size and rate")

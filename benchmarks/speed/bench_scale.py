@@ -58,8 +58,9 @@ m = result.metrics
 world = sim.world
 state = sum(a.nbytes for a in (world.pos, world.vel, world.healthy, world.comm_ok, world.role))
 scratch = sim.formation.heading.nbytes + sim.dynamics.u.nbytes
-out = {"n": n, "steps": m["steps"], "wall": wall, "median_ms": m["step_ms_median"], "neighbours": m["flocking.mean_neighbours"],
-       "state": state / n, "scratch": scratch / n, "min_separation": m["min_separation"],
+out = {"n": n, "steps": m["steps"], "wall": wall, "median_ms": m["step_ms_median"],
+       "neighbours": m["flocking.mean_neighbours"], "state": state / n, "scratch": scratch / n,
+       "min_separation": m["min_separation"],
        "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "rss0": rss0,
        "collisions": m["collisions"]}
 if record:
@@ -91,6 +92,7 @@ def steps_for(n: int) -> int:
 
 
 def run_case(n: int, steps: int, record: bool = False) -> dict:
+    """One size's figures, measured in a fresh child process (pinned to core 0, one thread)."""
     cmd = [sys.executable, "-c", CHILD, str(n), str(steps), "1" if record else "0"]
     if subprocess.run(["which", "taskset"], capture_output=True).returncode == 0:
         cmd = ["taskset", "-c", "0", *cmd]
@@ -100,6 +102,7 @@ def run_case(n: int, steps: int, record: bool = False) -> dict:
 
 
 def table(sizes: list[int]) -> None:
+    """Print one row per swarm size: step rates, memory per agent and the goal's verdict."""
     print(f"{'N':>7} {'steps':>5} {'steps/s':>8} {'median':>8} {'ms/step':>8} {'agent-steps/s':>13} {'neighbours':>10} "
           f"{'state B/ag':>10} {'scratch B/ag':>12} {'tick peak B/ag':>14} {'RSS MiB':>8}  goal")
     for n in sizes:
@@ -108,8 +111,9 @@ def table(sizes: list[int]) -> None:
         typical = 1e3 / r["median_ms"]
         goal = GOALS.get(n)
         verdict = f">= {goal:g} steps/s: {'met' if min(rate, typical) >= goal else 'NOT met'}" if goal else ""
-        print(f"{n:7d} {r['steps']:5d} {rate:8.1f} {typical:8.1f} {r['median_ms']:8.2f} {rate * n:13.3g} {r['neighbours']:10.1f} "
-              f"{r['state']:10.0f} {r['scratch']:12.0f} {r['tick_peak']:14.0f} {r['rss']:8.0f}  {verdict}",
+        print(f"{n:7d} {r['steps']:5d} {rate:8.1f} {typical:8.1f} {r['median_ms']:8.2f} {rate * n:13.3g} "
+              f"{r['neighbours']:10.1f} {r['state']:10.0f} {r['scratch']:12.0f} {r['tick_peak']:14.0f} "
+              f"{r['rss']:8.0f}  {verdict}",
               flush=True)
 
 
@@ -126,6 +130,7 @@ def recorder_case(n: int = 100_000, steps: int = 200) -> None:
 
 
 def main() -> None:
+    """Print the load average, then the table of sizes (or the streaming recorder case, ``--recorder``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("n", nargs="*", type=int, default=SIZES)
     parser.add_argument("--recorder", action="store_true", help="the streaming recorder case only")

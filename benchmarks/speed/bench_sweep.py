@@ -85,7 +85,8 @@ def reap() -> None:
 LAUNCHERS: list[str] = ["pool", "joblib"]
 """The launchers each part measures (``--launchers``)."""
 PER_TASK: list[str] = []
-"""``hydra/sweeper=swarmscene hydra.sweeper.jobs_per_task=K`` when ``--jobs-per-task`` is given (default: the sweeper's auto)."""
+"""``hydra/sweeper=swarmscene hydra.sweeper.jobs_per_task=K`` when ``--jobs-per-task`` is given (default: the
+sweeper's auto)."""
 
 
 def run(args: list[str], directory: Path) -> tuple[float, float]:
@@ -103,7 +104,7 @@ def run(args: list[str], directory: Path) -> tuple[float, float]:
 def first_start(args: list[str], directory: Path, limit: float = 600.0) -> float:
     """Seconds from the command to its first job's start; the command is then ended."""
     epoch = time.time()
-    proc = subprocess.Popen([*EXE, "--multirun", *args, f"hydra.sweep.dir={directory}"], env=ENV,
+    proc = subprocess.Popen([*EXE, "--multirun", *args, *PER_TASK, f"hydra.sweep.dir={directory}"], env=ENV,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     marker = directory / "0" / ".hydra" / "overrides.yaml"
     try:
@@ -144,15 +145,18 @@ def main_process_work(jobs: int) -> float:
 
 
 def table(directory: Path) -> list[dict[str, str]]:
+    """A sweep's summary.csv rows without the wall-clock columns and overrides (to compare across runs)."""
     with open(directory / "summary.csv", newline="") as fh:
         return [{k: v for k, v in row.items() if k not in TIMING and k != "overrides"} for row in csv.DictReader(fh)]
 
 
 def verdict(ok: bool) -> str:
+    """``met`` or ``NOT met``, for the printed goals."""
     return "met" if ok else "NOT met"
 
 
 def part_main(root: Path) -> None:
+    """Print the main process's work per job and the first job's start for grids of 100 to 10,000 seeds."""
     print("main process")
     for jobs in (100, 1_000, 10_000):
         per_job = main_process_work(jobs)
@@ -163,6 +167,7 @@ def part_main(root: Path) -> None:
 
 
 def part_fixed(root: Path) -> None:
+    """Print the per-job fixed cost (one-tick jobs, job by job), then 200 jobs of 50 ticks per launcher."""
     print("per-job fixed cost")
     jobs = 100
     empty, empty_cpu = run(["scenario=cem_six_vehicle", "clock.duration=0.01", "seed=0"], root / "empty")
@@ -181,6 +186,7 @@ def part_fixed(root: Path) -> None:
 
 
 def part_cem(root: Path, seeds: int, rounds: int) -> None:
+    """Print each launcher's median wall time of the full cem_six_vehicle sweep, alternated, and their ratio."""
     goal = 8.0 if seeds <= 100 else 75.0 * seeds / 1000
     print(f"full cem_six_vehicle, {seeds} seeds, 2 workers ({', '.join(LAUNCHERS)} alternated, {rounds} rounds)")
     times: dict[str, list[tuple[float, float]]] = {name: [] for name in LAUNCHERS}
@@ -195,10 +201,12 @@ def part_cem(root: Path, seeds: int, rounds: int) -> None:
     if len(times) == 2:
         (a, ra), (b, rb) = times.items()
         ratios = sorted(wa / wb for (wa, _), (wb, _) in zip(ra, rb, strict=True))
-        print(f"  {a} / {b} wall, pair by pair: median {ratios[len(ratios) // 2]:.2f} of {[round(r, 2) for r in ratios]}")
+        print(f"  {a} / {b} wall, pair by pair: median {ratios[len(ratios) // 2]:.2f} "
+              f"of {[round(r, 2) for r in ratios]}")
 
 
 def part_scaling(root: Path, jobs: int) -> None:
+    """Print each launcher's speed-up and efficiency from 1 worker to every core, tables compared."""
     cores = os.cpu_count() or 1
     counts = sorted({1, *[2**k for k in range(1, 8) if 2**k < cores], cores})
     args = ["scenario=cem_six_vehicle", "clock.duration=6", f"seed=range(0,{jobs})"]
@@ -225,13 +233,15 @@ def part_cold(root: Path) -> None:
         with tempfile.TemporaryDirectory() as cache:
             ENV["NUMBA_CACHE_DIR"] = cache
             try:
-                wall, cpu = run(["scenario=cem_six_vehicle", "seed=range(0,8)", *launcher(name, 2)], root / f"cold_{name}")
+                wall, cpu = run(["scenario=cem_six_vehicle", "seed=range(0,8)", *launcher(name, 2)],
+                                root / f"cold_{name}")
             finally:
                 ENV.pop("NUMBA_CACHE_DIR")
         print(f"  {name}: {wall:.1f} s, {cpu:.1f} s of CPU (the kernels compiled in each worker, or once)")
 
 
 def main() -> None:
+    """Run the chosen parts (``--part``) in a temporary directory, then print the load average."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "cold", "all"), default="all")
     parser.add_argument("--seeds", type=int, default=100, help="seeds of the full cem_six_vehicle sweep")
@@ -248,7 +258,9 @@ def main() -> None:
     LAUNCHERS[:] = args.launchers.split(",")
     adopt_orphans()
     if args.jobs_per_task is not None:
-        PER_TASK += ["hydra/sweeper=swarmscene", f"hydra.sweeper.jobs_per_task={args.jobs_per_task}"]
+        # In place, as LAUNCHERS above: run() and first_start() read the module's list (``PER_TASK += ...``
+        # here made the name local to main, and the flag raised UnboundLocalError).
+        PER_TASK[:] = ["hydra/sweeper=swarmscene", f"hydra.sweeper.jobs_per_task={args.jobs_per_task}"]
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         if args.part in ("main", "all"):

@@ -98,6 +98,7 @@ def baseline_tree(rev: str, into: Path) -> Path:
 
 
 def run_worker(cases: list[str], ticks: int, pythonpath: Path | None) -> dict[str, dict[str, float]]:
+    """The median tick figures of ``cases`` from a worker process on ``pythonpath`` (None: this checkout)."""
     env = dict(os.environ)
     if pythonpath is not None:  # found before the editable install's finder, which comes last
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(pythonpath), env.get("PYTHONPATH")]))
@@ -199,6 +200,7 @@ def phases(case: str, ticks: int) -> dict[str, float]:
 
 
 def table(rows: dict[str, dict[str, list[float]]], baseline: str | None) -> str:
+    """The markdown table of each case's median tick over the rounds, the baseline's beside it, and the goal."""
     head = "| case | ticks | median tick, us (min-max over rounds) |"
     rule = "|---|---|---|"
     if baseline:
@@ -221,6 +223,7 @@ def table(rows: dict[str, dict[str, list[float]]], baseline: str | None) -> str:
 
 
 def main() -> None:
+    """Print the cases' tick times (this tree and ``--baseline`` alternated), one case's phases, or its profile."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5, help="rounds (fresh processes) per tree")
     ap.add_argument("--ticks", type=int, default=1_000_000, help="at most this many timed ticks per case "

@@ -57,6 +57,7 @@ def timings(fn, repeat: int) -> tuple[list[float], float]:
 
 
 def report(name: str, measured: tuple[list[float], float], goal_ms: float | None = None) -> None:
+    """Print one timing line: wall median, min and p90, CPU time, and the goal's verdict when one is given."""
     ts, cpu = measured
     ms = np.array(ts) * 1e3
     med = statistics.median(ms)
@@ -70,6 +71,7 @@ def report(name: str, measured: tuple[list[float], float], goal_ms: float | None
 
 
 def main() -> None:
+    """Time the VRB planning and flat outputs for 3 and 100 robots, then the 100-quadrotor flight."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=2000)
     ap.add_argument("--flight", type=float, default=30.0,

@@ -45,6 +45,7 @@ print(json.dumps({
 
 
 def run_case(overrides: list[str]) -> dict:
+    """One case's figures (steps/s, real-time factor, peak memory), measured in a child process."""
     cmd = [sys.executable, "-c", CHILD, json.dumps(overrides)]
     if hasattr(os, "sched_setaffinity"):
         cmd = ["taskset", "-c", "0", *cmd] if _has_taskset() else cmd
@@ -62,7 +63,8 @@ def cli_start_to_summary(repeats: int = 3) -> float:
     for _ in range(repeats):
         start = time.perf_counter()
         subprocess.run(
-            [sys.executable, "-c", "from swarmscene.cli import main; main()", "hydra.run.dir=/tmp/swarmscene-bench-run"],
+            [sys.executable, "-c", "from swarmscene.cli import main; main()",
+             "hydra.run.dir=/tmp/swarmscene-bench-run"],
             check=True, capture_output=True,
         )
         best = min(best, time.perf_counter() - start)
@@ -70,7 +72,9 @@ def cli_start_to_summary(repeats: int = 3) -> float:
 
 
 def main(selected: list[str]) -> None:
-    header = f"{'case':48} {'agents':>7} {'steps/s':>9} {'agent-steps/s':>14} {'RTF':>8} {'ms/step':>8} {'peak MiB':>9}  goal"
+    """Print a row per case whose name contains a ``selected`` word (all when empty), then the CLI's time."""
+    header = (f"{'case':48} {'agents':>7} {'steps/s':>9} {'agent-steps/s':>14} {'RTF':>8} {'ms/step':>8} "
+              f"{'peak MiB':>9}  goal")
     print(header)
     for name, (overrides, goal) in CASES.items():
         if selected and not any(s in name for s in selected):
@@ -81,7 +85,8 @@ def main(selected: list[str]) -> None:
             f"{r['realtime_factor']:8.1f} {r['step_ms_median']:8.3f} {r['peak_mib']:9.0f}  {goal}"
         )
     if not selected or any("cli" in s for s in selected):
-        print(f"swarmscene (default scenario), command to summary: {cli_start_to_summary():.2f} s  (goal < 3 s, issue 2)")
+        print(f"swarmscene (default scenario), command to summary: {cli_start_to_summary():.2f} s  "
+              "(goal < 3 s, issue 2)")
 
 
 if __name__ == "__main__":

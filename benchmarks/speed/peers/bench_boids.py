@@ -34,7 +34,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
 import peerlib
 from bench_mesa import MESA_CHILD, mesa_python
 from peerlib import HERE, alternate, child_json
@@ -155,6 +154,7 @@ def compare(quick: bool = False, repeat: int = 3, log=print) -> dict:
 
 
 def main() -> None:
+    """Print the comparison with the numpy reference and Mesa (:func:`compare`) as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--repeat", type=int, default=3)

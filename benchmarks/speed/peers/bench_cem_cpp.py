@@ -57,10 +57,12 @@ POOL = 4096  # normals handed to the C++ step per tick (a noisy tick draws at mo
 
 
 def compiler() -> str | None:
+    """The C++ compiler (``$CXX``, else g++, c++ or clang++), or None when there is none."""
     return shutil.which(os.environ.get("CXX", "g++")) or shutil.which("c++") or shutil.which("clang++")
 
 
 def build(cxx: str) -> Path:
+    """The C++ reference's executable, built with ``cxx`` unless it is newer than its source."""
     BUILD.mkdir(exist_ok=True)
     exe = BUILD / "cem_reference"
     if not exe.exists() or exe.stat().st_mtime < SOURCE.stat().st_mtime:
@@ -82,6 +84,7 @@ def _bench_cem():
 
 
 def navigator(seed: int = SEED, sigma: float = 1e-3):
+    """A fresh CEM navigator of the six-vehicle case (K = 2, n = 20) seeded with ``seed``."""
     from swarmscene.methods.cem.flow import CEMNavigator
 
     failed, healthy = six_vehicle()
@@ -182,6 +185,7 @@ def plugin_stepper():
 
 
 def numpy_stepper():
+    """The step of the former NumPy navigator (tests/oracles/cem.py) on the same problem."""
     sys.path.insert(0, str(ROOT / "tests"))
     from oracles.cem import NumpyNavigator
 
@@ -189,6 +193,7 @@ def numpy_stepper():
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Time the C++ reference, the plugin, the navigator and the NumPy step alternately; print the figures."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=15, help="alternating timing rounds")
     ap.add_argument("--json", action="store_true", help="print one JSON object with the measured figures")

@@ -107,7 +107,8 @@ print(json.dumps({"n": n, "steps": steps, "seconds": seconds, "steps_per_s": ste
 
 CRAZYFLOW_CHILD = r"""
 import json, sys, time
-mode, variant, positions, warm, steps, cache = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
+mode, variant, positions, cache = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[6]
+warm, steps = int(sys.argv[4]), int(sys.argv[5])
 command_hz = int(sys.argv[7]) if len(sys.argv) > 7 else 240
 k = 240 // command_hz  # physics steps per command
 t_start = time.perf_counter()
@@ -166,6 +167,7 @@ print(json.dumps(out))
 
 
 def crazyflow_python() -> Path:
+    """The interpreter of Crazyflow's own virtual environment (built on first use)."""
     return ensure_venv("crazyflow", REQUIREMENTS)
 
 
@@ -260,13 +262,14 @@ def first_result(quick: bool = False, repeat: int = 3, n: int = FIRST_N, log=pri
                     best[name] = wall
                     if name.startswith("crazyflow"):
                         detail[name] = json.loads(out.strip().splitlines()[-1])
-    log("  first result N = {:,}: ".format(n) + ", ".join(f"{k} {v:.2f} s" for k, v in best.items()))
+    log(f"  first result N = {n:,}: " + ", ".join(f"{k} {v:.2f} s" for k, v in best.items()))
     shown = [a if "[" not in a else f"'{a}'" for a in swarmscene_command(n, "...")[1:-1]]
     return {"n": n, "repeat": repeat, "seconds": best, "crazyflow_detail": detail, "errors": errors,
             "swarmscene_command": "swarmscene " + " ".join(shown)}
 
 
 def main() -> None:
+    """Print the steady-state and first-result comparisons with Crazyflow as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--repeat", type=int, default=3)

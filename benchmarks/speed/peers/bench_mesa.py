@@ -3,14 +3,15 @@
     python benchmarks/speed/peers/bench_mesa.py              # N = 100 and N = 1,000
     python benchmarks/speed/peers/bench_mesa.py 100 300      # N = 100 and 300 (steps: --steps 200)
 
-Mesa runs in its own virtual environment, ``benchmarks/speed/peers/.venv-mesa`` (created on first use with
-``pip install "mesa>=3.1,<4" networkx`` from PyPI; git ignores it), swarmscene in the interpreter running this
-script. Both models get Mesa's default parameters (100 x 100 torus, speed 1 per step, vision 10,
-separation 2, cohere 0.03, separate 0.015, match 0.05) and the same initial positions and headings
-(drawn here, written into both models after they are built), then run the same number of steps,
-each timed per step (the first ``WARM`` = 3 left out) in a fresh process pinned to one core (``taskset -c 0``
-when available; ``peerlib``); the two alternate ``--repeat`` times (default 3) and the fastest run of each counts
-(the machine is shared: the fastest run is the least disturbed one). One Mesa step is one swarmscene guidance tick of 1 s (``params_from_mesa``).
+Mesa runs in its own virtual environment, ``benchmarks/speed/peers/.venv-mesa`` (created on first use
+with ``pip install "mesa>=3.1,<4" networkx`` from PyPI; git ignores it), swarmscene in the interpreter
+running this script. Both models get Mesa's default parameters (100 x 100 torus, speed 1 per step,
+vision 10, separation 2, cohere 0.03, separate 0.015, match 0.05) and the same initial positions and
+headings (drawn here, written into both models after they are built), then run the same number of
+steps, each timed per step (the first ``WARM`` = 3 left out) in a fresh process pinned to one core
+(``taskset -c 0`` when available; ``peerlib``); the two alternate ``--repeat`` times (default 3) and
+the fastest run of each counts (the machine is shared: the fastest run is the least disturbed one).
+One Mesa step is one swarmscene guidance tick of 1 s (``params_from_mesa``).
 
 What differs, on purpose: Mesa moves its boids one at a time in random order, each seeing the ones
 already moved (``shuffle_do``); swarmscene moves all boids at once from one snapshot; and swarmscene
@@ -29,7 +30,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
 import peerlib
 from peerlib import child_json, ensure_venv
 
@@ -117,6 +117,7 @@ def initial_state(n: int, seed: int) -> dict[str, np.ndarray]:
 
 
 def main() -> None:
+    """Print Mesa's and swarmscene's steps/s and polarization per size, alternated from the same start."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("n", nargs="*", type=int, default=[100, 1000], help="swarm sizes")
     parser.add_argument("--steps", type=int, default=0, help="steps per run (default: by N)")

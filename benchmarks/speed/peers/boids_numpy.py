@@ -140,6 +140,7 @@ class Monitor:
         self.connected = True
 
     def observe(self, pos: np.ndarray, tree: cKDTree, pairs: np.ndarray, d2: np.ndarray) -> None:
+        """Fold one step into the figures: the smallest separation, the colliding pairs, connectivity."""
         if len(pairs):
             closest = float(np.sqrt(d2.min()))
         else:  # nobody within range: the 2-nearest query
@@ -154,6 +155,7 @@ class Monitor:
             self.connected = False
 
     def collisions(self) -> int:
+        """The number of distinct pairs that came closer than the limit."""
         return int(np.unique(np.concatenate(self.collision_keys)).size) if self.collision_keys else 0
 
 
@@ -207,6 +209,7 @@ def run(pos2d: np.ndarray, dir2d: np.ndarray, steps: int, p: BoidParams) -> dict
 
 
 def main(argv: list[str]) -> None:
+    """Run the reference from argv (start .npz, steps, parameters as JSON) and print its figures as JSON."""
     start = np.load(argv[0])
     params = BoidParams(**json.loads(argv[2]))
     print(json.dumps(run(start["pos"], start["dir"], int(argv[1]), params)))

@@ -16,8 +16,8 @@ import subprocess
 import sys
 import time
 import venv
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[2]  # benchmarks/speed/peers -> the repository
@@ -117,6 +117,7 @@ def ensure_venv(name: str, requirements: list[str]) -> Path:
 
 
 def load_average() -> float:
+    """The 1-minute load average (NaN where the platform has none)."""
     return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
 
 

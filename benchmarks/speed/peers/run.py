@@ -26,7 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import peerlib
@@ -39,6 +39,7 @@ COMMAND = "python benchmarks/speed/peers/run.py"
 
 # -- the sections -----------------------------------------------------------------------
 def run_crazyflow(quick: bool, repeat: int) -> dict:
+    """The Crazyflow section: steady-state and first-result figures, and the requirements installed."""
     import bench_crazyflow
 
     return {"steady": bench_crazyflow.steady(quick, repeat),
@@ -66,12 +67,14 @@ def run_pybullet(quick: bool, repeat: int) -> dict:
 
 
 def run_boids(quick: bool, repeat: int) -> dict:
+    """The boids section (bench_boids.py's comparison)."""
     import bench_boids
 
     return bench_boids.compare(quick, repeat)
 
 
 def run_vmas(quick: bool, repeat: int) -> dict:
+    """The VMAS section: best steps/s of each case per size (navigation only up to N = 100)."""
     import bench_vmas
 
     rows = []
@@ -102,22 +105,27 @@ RUNNERS = {"crazyflow": run_crazyflow, "pybullet": run_pybullet, "boids": run_bo
 
 # -- the record -------------------------------------------------------------------------
 def git(*args: str) -> str:
+    """The output of a git command run in the repository (empty when it fails)."""
     proc = subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True)
     return proc.stdout.strip()
 
 
 def provenance() -> dict:
-    cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
-                if ln.startswith("model name")), platform.processor()) if Path("/proc/cpuinfo").exists() else platform.processor()
+    """Where and when the figures were measured: commit, date, CPU, Python, the pinned core."""
+    cpu = platform.processor()
+    if Path("/proc/cpuinfo").exists():
+        cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                    if ln.startswith("model name")), cpu)
     return {"commit": git("rev-parse", "--short", "HEAD"),
             "uncommitted_changes": bool(git("status", "--porcelain", "--untracked-files=no")),
-            "date_utc": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"),
+            "date_utc": datetime.now(UTC).strftime("%Y-%m-%d %H:%M"),
             "cpu": cpu, "python": platform.python_version(), "core": peerlib.CORE,
             "one_thread_env": peerlib.ONE_THREAD}
 
 
 # -- the markdown ----------------------------------------------------------------------
 def fmt_rate(x: float | None) -> str:
+    """A rate for the tables: three significant digits, thousands separated from 100, ``-`` when missing."""
     if x is None:
         return "-"
     if x >= 1e5:
@@ -126,39 +134,45 @@ def fmt_rate(x: float | None) -> str:
 
 
 def fmt_ratio(x: float | None) -> str:
+    """A ratio for the tables (``2.35x``, one decimal from 10x), ``-`` when missing."""
     if x is None:
         return "-"
     return f"{x:.2f}x" if x < 10 else f"{x:.1f}x"
 
 
 def verdict(ratio: float | None, goal: float) -> str:
+    """The goal cell of a ratio: whether it reaches ``goal``, or that it was not measured."""
     if ratio is None:
         return f">= {goal:g}x: not measured"
     return f">= {goal:g}x: {'met' if ratio >= goal else 'not met'}"
 
 
 def fmt_seconds(x: float | None) -> str:
+    """Seconds for the tables, ``failed`` when the run gave none."""
     return "failed" if x is None else f"{x:.2f}"
 
 
 def within(x: float | None, goal: float) -> str:
+    """The goal cell of a time: whether ``x`` seconds is within ``goal``, or that it was not measured."""
     return f"<= {goal:g} s: " + ("not measured" if x is None else "met" if x <= goal else "not met")
 
 
 def md_crazyflow(sec: dict) -> list[str]:
+    """The Crazyflow section in markdown: the steady-state table and the time to the first result."""
     steady, first = sec["steady"], sec["first"]
+    default = first["crazyflow_detail"].get("crazyflow_default", {})
     goals_default = {100: 1.5, 1000: 1.2}
     out = ["### Quadrotor swarms hovering, physics at 240 Hz, beside Crazyflow (issue #20)", "",
-           f"`{COMMAND} --only crazyflow` (Crazyflow {first['crazyflow_detail'].get('crazyflow_default', {}).get('version', '0.4.0')}, "
-           f"JAX {first['crazyflow_detail'].get('crazyflow_default', {}).get('jax', '?')} CPU, in "
+           f"`{COMMAND} --only crazyflow` (Crazyflow {default.get('version', '0.4.0')}, "
+           f"JAX {default.get('jax', '?')} CPU, in "
            "`benchmarks/speed/peers/.venv-crazyflow`; bench_crazyflow.py). N drones 2 m apart at 2 m, each holding "
            "its point under state control, physics at 240 Hz, the position command at 10 Hz (the engine's "
            "default guidance period, T_s = 0.1 s; Crazyflow `state_freq=10`, 24 physics steps per command) "
            "or at 240 Hz (a command every physics step). Drone-steps/s (physics steps) in steady state "
            f"({steady['rows'][0]['warm']} physics steps of warm-up, then {steady['rows'][0]['steps']} timed), "
            f"best of {steady['repeat']} alternated runs:", "",
-           "| command rate | N | swarmscene (whole tick, monitor on) | Crazyflow default (Euler, float32) | ratio | goal | "
-           "Crazyflow RK4 float64 | ratio | goal | Crazyflow fused `step(K)`: default / RK4 float64 |",
+           "| command rate | N | swarmscene (whole tick, monitor on) | Crazyflow default (Euler, float32) "
+           "| ratio | goal | Crazyflow RK4 float64 | ratio | goal | Crazyflow fused `step(K)`: default / RK4 float64 |",
            "|---:|---:|---:|---:|---:|---|---:|---:|---|---:|"]
     failures = []
     for row in steady["rows"]:
@@ -170,8 +184,9 @@ def md_crazyflow(sec: dict) -> list[str]:
         failures += [f"N = {n:,}, {side}: {row[side]['error']}" for side in rate if "error" in row[side]]
         g = goals_default.get(n)
         rd, rr = row.get("ratio_default"), row.get("ratio_rk4_f64")
-        out.append(f"| {row.get('command_hz', 240)} Hz | {n:,} | {rate['swarmscene']} | {rate['crazyflow_default']} | {fmt_ratio(rd)} | "
-                   f"{verdict(rd, g) if g else '-'} | {rate['crazyflow_rk4_f64']} | {fmt_ratio(rr)} | {verdict(rr, 2.0)} | "
+        out.append(f"| {row.get('command_hz', 240)} Hz | {n:,} | {rate['swarmscene']} "
+                   f"| {rate['crazyflow_default']} | {fmt_ratio(rd)} | {verdict(rd, g) if g else '-'} "
+                   f"| {rate['crazyflow_rk4_f64']} | {fmt_ratio(rr)} | {verdict(rr, 2.0)} | "
                    f"{fused['crazyflow_default']} / {fused['crazyflow_rk4_f64']} |")
     out += ["", "Failed runs: " + "; ".join(failures) + "."] if failures else []
     s = first["seconds"]
@@ -180,7 +195,8 @@ def md_crazyflow(sec: dict) -> list[str]:
     out += ["", f"Time from command to first result, N = {first['n']:,} (wall time of a fresh process until it exits "
             f"after its first simulated step, best of {first['repeat']}):", "",
             "| | seconds | goal |", "|---|---:|---|",
-            f"| swarmscene, numba cache warm | {fmt_seconds(s.get('swarmscene_warm'))} | {within(s.get('swarmscene_warm'), 2)} |",
+            f"| swarmscene, numba cache warm | {fmt_seconds(s.get('swarmscene_warm'))} "
+            f"| {within(s.get('swarmscene_warm'), 2)} |",
             f"| swarmscene, numba cache cold (empty `NUMBA_CACHE_DIR`) | {fmt_seconds(s.get('swarmscene_cold'))} | "
             f"{within(s.get('swarmscene_cold'), 8)} |",
             f"| Crazyflow default (no persistent cache: import {det.get('import_s', nan):.1f} s, `Sim` built "
@@ -188,7 +204,8 @@ def md_crazyflow(sec: dict) -> list[str]:
             f"| {fmt_seconds(s.get('crazyflow_default'))} | - |",
             f"| Crazyflow with its persistent JAX cache warm (`crazyflow.utils.enable_cache`) | "
             f"{fmt_seconds(s.get('crazyflow_cached'))} | - |"]
-    out += ["", "Failed: " + "; ".join(f"{k}: {v}" for k, v in first["errors"].items()) + "."] if first.get("errors") else []
+    if first.get("errors"):
+        out += ["", "Failed: " + "; ".join(f"{k}: {v}" for k, v in first["errors"].items()) + "."]
     out += [
         "", f"The swarmscene command: `{first['swarmscene_command']}`.", "",
         "What each side does per tick. swarmscene, the whole engine tick through `swarmscene.api` (the "
@@ -214,6 +231,7 @@ def md_crazyflow(sec: dict) -> list[str]:
 
 
 def md_pybullet(sec: dict) -> list[str]:
+    """The gym-pybullet-drones section in markdown: why it has no figures."""
     return ["### gym-pybullet-drones", "", sec["line"] + ". Its README installs it from a clone of its "
             "repository (`git clone ...` then `pip3 install -e .`, pybullet compiled from source beyond Python "
             "3.10); these comparisons take peers from the package index only, so it is not built from a "
@@ -221,6 +239,7 @@ def md_pybullet(sec: dict) -> list[str]:
 
 
 def md_boids(sec: dict) -> list[str]:
+    """The boids section in markdown: the table and how each side is built."""
     p = sec["params"]
     out = ["### Boids beside a numpy reference and Mesa (issue #20)", "",
            f"`{COMMAND} --only boids` (bench_boids.py; Mesa {sec.get('mesa_version') or '?'} in "
@@ -240,8 +259,10 @@ def md_boids(sec: dict) -> list[str]:
         mesa_cells = (f"{fmt_rate(mesa['steps_per_s'])} ({row['mesa_steps']}) | {fmt_ratio(row['ratio_mesa'])} | "
                       f"{verdict(row['ratio_mesa'], 30) if row['note'] == 'preset density' else '-'}"
                       if mesa else "- | - | -")
-        pol = f"{ours['polarization']:.4f} / {ref['polarization']:.4f} / " + (f"{mesa['polarization']:.4f}" if mesa else "-")
-        out.append(f"| {row['n']:,} | {row['box_m']:.0f}{'' if row['note'] == 'preset density' else ' (Mesa default)'} | "
+        pol = (f"{ours['polarization']:.4f} / {ref['polarization']:.4f} / "
+               + (f"{mesa['polarization']:.4f}" if mesa else "-"))
+        box = f"{row['box_m']:.0f}{'' if row['note'] == 'preset density' else ' (Mesa default)'}"
+        out.append(f"| {row['n']:,} | {box} | "
                    f"{row['steps']} | {fmt_rate(ours['steps_per_s'])} | {fmt_rate(ref['steps_per_s'])} | "
                    f"{fmt_ratio(row['ratio_numpy'])} | {goal_ref} | {mesa_cells} | {pol} |")
     gaps = ", ".join(f"{r['polarization_gap']:.1e}" for r in sec["rows"])
@@ -260,7 +281,8 @@ def md_boids(sec: dict) -> list[str]:
             "`query_pairs` at the comm range, shared by the flock (filtered to vision, the torus' seam pairs from "
             "the images of the boids near a face) and its monitor (smallest distance, colliding pairs, "
             "`connected_components` of the pairs within comm range, exact every step), each pair feeding both ends "
-            "through `np.bincount`; swarmscene's monitor reaches the same verdicts by its own means. Mesa's `BoidFlockers` (bench_mesa.py's child) moves its boids one at a time in random "
+            "through `np.bincount`; swarmscene's monitor reaches the same verdicts by its own means. "
+            "Mesa's `BoidFlockers` (bench_mesa.py's child) moves its boids one at a time in random "
             "order and has no monitor; at N = 10,000 it is not run (its cost grows as N^2).", "",
             "L = 10 sqrt(N) m is the preset's density (100 boids per 100 m x 100 m, as its comment scales "
             "it); the last row keeps Mesa's default 100 m box at N = 1,000 (ten times denser: more "
@@ -270,6 +292,7 @@ def md_boids(sec: dict) -> list[str]:
 
 
 def md_vmas(sec: dict) -> list[str]:
+    """The VMAS section in markdown: steps/s of each case per size."""
     import bench_vmas
 
     keys = list(bench_vmas.NAMES)
@@ -287,6 +310,7 @@ def md_vmas(sec: dict) -> list[str]:
 
 
 def md_cem_cpp(sec: dict) -> list[str]:
+    """The section of CEM beside its C++ reference in markdown (or why it was skipped)."""
     if "skipped" in sec:
         return ["### CEM beside its C++ reference", "", f"Skipped: {sec['skipped']}."]
     r = sec["result"]
@@ -326,9 +350,11 @@ MARKDOWN = {"crazyflow": md_crazyflow, "pybullet": md_pybullet, "boids": md_boid
 
 
 def markdown(record: dict) -> str:
+    """The page of every section measured, headed by how and where the figures were taken."""
     prov = record["provenance"]
     lines = ["## Side by side with peer simulators (issue #20)", "",
-             f"`{record.get('command', COMMAND)}`{' (a smoke run: short, one pass; not for the record)' if record['quick'] else ''}; "
+             f"`{record.get('command', COMMAND)}`"
+             f"{' (a smoke run: short, one pass; not for the record)' if record['quick'] else ''}; "
              f"measured {prov['date_utc']} UTC at commit {prov['commit']}"
              f"{' with uncommitted changes in the tree' if prov['uncommitted_changes'] else ''}, {prov['cpu']}, "
              f"every process pinned to core {prov['core']} with one thread (BLAS, OpenMP; XLA "
@@ -345,6 +371,7 @@ def markdown(record: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Run the chosen sections (one failing keeps the others' figures) and write peers.json and peers.md."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a short smoke run: fewer steps, one pass")
     parser.add_argument("--only", default=",".join(SECTIONS), help=f"comma-separated subset of {', '.join(SECTIONS)}")
@@ -359,8 +386,8 @@ def main(argv: list[str] | None = None) -> None:
     peerlib.CORE = args.core
     repeat = 1 if args.quick else args.repeat
     shown = " ".join(sys.argv[1:] if argv is None else argv)
-    record = {"command": f"{COMMAND} {shown}".strip(), "quick": args.quick, "repeat": repeat, "load_start": load_average(), "provenance": provenance(),
-              "sections": {}}
+    record = {"command": f"{COMMAND} {shown}".strip(), "quick": args.quick, "repeat": repeat,
+              "load_start": load_average(), "provenance": provenance(), "sections": {}}
     start = time.perf_counter()
     for name in chosen:
         print(f"{name}:", flush=True)
