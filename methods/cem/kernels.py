@@ -492,7 +492,7 @@ def _min_to_failed(x, y, n, failed):
 
 @njit(**JIT)
 def measure_formation(healthy, pos, mode, sp_pos, failed, track, position, out):
-    """The ``cem`` plugin's per-tick safety quantities after a hand-back (its ``_measure_formation``):
+    """The ``cem`` plugin's per-tick safety quantities after a hand-back (``handback.SafetyRecord.measure_formation``):
     over healthy agents' actual x-y, out[F_CLEAR] = min distance to a failed vehicle and out[F_PAIR]
     = min pair distance; over the setpoints of TRACK and POSITION rows, out[F_MARGIN] and
     out[F_PAIR_CMD] the same. Returns (healthy agents, placed setpoints); the caller uses

@@ -7,7 +7,9 @@ uniform flow along the flight direction, each healthy agent's (phi, psi) is fixe
 and every guidance tick the healthy agents slide along their streamlines (Algorithm 1, CalcXY of
 Algorithm 2) as TRACK setpoints (position and first-difference velocity; altitude from the
 formation). The math lives in :mod:`swarmscene.methods.cem.flow`; each tick is one compiled call
-(:mod:`swarmscene.methods.cem.kernels`, loaded at the first activation, not at import).
+(:mod:`swarmscene.methods.cem.kernels`, loaded at the first activation, not at import). The
+hand-back rules and the safety record behind the metrics are :mod:`swarmscene.methods.cem.handback`'s;
+this class adapts them to the plugin contract (options, events, the tick, the metrics).
 
 Choices (the paper leaves these open):
 
@@ -125,6 +127,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
+from swarmscene.methods.cem.handback import HandBack, SafetyRecord
 from swarmscene.plugin import (
     Avoidance,
     BuildContext,
@@ -135,8 +138,6 @@ from swarmscene.plugin import (
     Setpoints,
     WorldState,
     hookimpl,
-    min_distance_between,
-    min_pair_distance,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -144,9 +145,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 _TRACK = int(Mode.TRACK)
-_VELOCITY, _HOLD, _POSITION = int(Mode.VELOCITY), int(Mode.HOLD), int(Mode.POSITION)
-HANDBACK_RULES = ("clear_path", "passed")
-"""``hand_back_rule`` (module docstring): the default first."""
 
 
 class CEM(Avoidance):
@@ -220,7 +218,9 @@ class CEM(Avoidance):
         p = self.params
         self.a_f = p.a_f if p.a_f is not None else p.eps + p.delta
         self.a_p = planned_exclusion_radius(self.a_f, p.delta, p.eps)
-        self.handback_distance = p.handback_distance if p.handback_distance is not None else 2 * self.a_p
+        distance = p.handback_distance if p.handback_distance is not None else 2 * self.a_p
+        self.hand_back = HandBack(p.hand_back, p.hand_back_rule, distance, self.a_p, p.v_des)
+        self.record = SafetyRecord(ctx.n, self.a_f, self.a_p, p.delta, p.eps)
         self.nav: CEMNavigator | None = None
         self.active = False
         self.healthy_idx = np.zeros(0, dtype=int)  # agents under CEM, in navigator order
@@ -228,20 +228,8 @@ class CEM(Avoidance):
         self.theorem1: list[Any] = []
         self.theorem2: list[Any] = []
         self.handback_time: float | None = None
-        self.handback_blocked_time: float | None = None  # first tick all had passed but the path was not clear
         self._last_sp: Setpoints | None = None  # the formation's setpoints of this tick (measured after hand-back)
-        self._first: dict[str, tuple[float, list[int]]] = {}  # condition -> (first violation time, agents)
         self.start_inside = 0  # healthy agents found inside a_p at an activation
-        n = ctx.n
-        self._psi_drift = np.zeros(n)
-        self._margin = math.inf
-        self._clearance = math.inf
-        self._pair = math.inf
-        self._pair_cmd = math.inf
-        self._speed = 0.0
-        self._speed_actual = 0.0
-        self._track_err = 0.0
-        self._dphi_min = math.inf
         self._step_s: list[float] = []
         self._iters_done = (0, 0)  # (Newton iterations, ticks) of navigators replaced by a re-activation
         self._commanded = False  # CEM produced this tick's commands (measure at step end)
@@ -290,7 +278,7 @@ class CEM(Avoidance):
         self._failed_xy = np.ascontiguousarray(failed_xy, dtype=float)  # (F, 2) world x-y z_f
         self._measured = np.empty(self._k.N_MEAS)
         self._formation = np.empty(self._k.N_FORM)
-        self._handback_at = float(self.nav.centres.real.max() + self.handback_distance)  # flow frame, m
+        self.hand_back.arm(self.nav)
         self.active = True
         self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
         self.theorem1.append(self.nav.theorem1(p.delta, p.eps))
@@ -326,33 +314,9 @@ class CEM(Avoidance):
 
     # ---- guidance ---------------------------------------------------------------------------
 
-    def passed(self) -> bool:
-        """Along-track test: every agent is handback_distance past the most downstream failure."""
-        # asked only once a navigator exists (hands_back runs while active; cast: no work per tick)
-        return cast(CEMNavigator, self.nav).along_track_min >= self._handback_at
-
     def formation_clear(self, world: WorldState, sp: Setpoints) -> bool:
-        """Each healthy agent's formation setpoint, and the straight path from it to that setpoint,
-        at least a_p from every failed vehicle (the ``clear_path`` hand-back test). The target: the
-        setpoint's position (TRACK, POSITION), the agent's own position (HOLD), or for VELOCITY the
-        point it reaches flying the commanded velocity for handback_distance / v_des seconds (the
-        time CEM takes to clear a failure). One compiled call (``kernels.path_clear``:
-        ``flow.segment_clearance`` operation for operation), as it runs every tick after a hand-back."""
-        if not self.failed or not world.healthy.any():
-            return True
-        lookahead = self.handback_distance / self.params.v_des
-        return bool(self._k.path_clear(world.healthy, world.pos, sp.mode, sp.pos, sp.vel, self._failed_xy,
-                                       _HOLD, _VELOCITY, lookahead, self.a_p))
-
-    def hands_back(self, world: WorldState, sp: Setpoints) -> bool:
-        """The hand-back decision of this tick (``hand_back_rule``, module docstring)."""
-        if not (self.params.hand_back and self.passed()):
-            return False
-        if self.params.hand_back_rule == "passed" or self.formation_clear(world, sp):
-            return True
-        if self.handback_blocked_time is None:
-            self.handback_blocked_time = world.t
-        return False
+        """The ``clear_path`` test on this tick's formation setpoints (:meth:`HandBack.formation_clear`)."""
+        return self.hand_back.formation_clear(self._k, world, sp, self._failed_xy)
 
     def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Pass ``sp`` through while inactive; else TRACK setpoints along the streamlines."""
@@ -366,7 +330,7 @@ class CEM(Avoidance):
             if not self.active:  # no healthy agent left to navigate
                 return sp
             self.handback_time = None
-        elif self.hands_back(world, sp):
+        elif self.hand_back.decide(cast(CEMNavigator, self.nav), self._k, world, sp, self._failed_xy):
             self.active = False
             self.handback_time = world.t
             return sp
@@ -388,80 +352,11 @@ class CEM(Avoidance):
         if self.nav is None:
             return
         if self._commanded:
-            self._measure_cem(sim.world)
+            self.record.measure_cem(self.nav, self._k, sim.world, self._failed_xy, self.healthy_idx,
+                                    bool(self.failed), self._measured)
         elif self._last_sp is not None:
-            self._measure_formation(sim.world, self._last_sp)
-        self._note_violations(sim.world)
-
-    def _measure_cem(self, world: WorldState) -> None:
-        """A tick under CEM's commands (one compiled call)."""
-        nav, out, k = cast(CEMNavigator, self.nav), self._measured, self._k  # step_end checked nav
-        # an agent may have failed during this tick's events (counted live no more)
-        live_n = nav.measure_tick(world.healthy, world.pos, world.vel, self._failed_xy, self._psi_drift, out)
-        self._margin = min(self._margin, float(out[k.M_MARGIN]))
-        if self.failed:
-            self._clearance = min(self._clearance, float(out[k.M_CLEAR]) - self.a_f - self.params.eps)
-        pair, pair_cmd = float(out[k.M_PAIR]), float(out[k.M_PAIR_CMD])
-        if live_n > k.DENSE_PAIRS_MAX:  # a large swarm: the engine's cell list beats the O(N^2) loop
-            live = world.healthy[self.healthy_idx]
-            pair = min_pair_distance(world.pos[self.healthy_idx[live], :2])
-            pair_cmd = min_pair_distance(nav.positions[live])
-        self._pair = min(self._pair, pair)
-        self._pair_cmd = min(self._pair_cmd, pair_cmd)
-        self._speed = max(self._speed, float(out[k.M_SPEED]))
-        if live_n:
-            self._speed_actual = max(self._speed_actual, float(out[k.M_SPEED_ACT]))
-            self._track_err = max(self._track_err, float(out[k.M_TRACK_ERR]))
-        self._dphi_min = min(self._dphi_min, nav.dphi_used)
-
-    def _measure_formation(self, world: WorldState, sp: Setpoints) -> None:
-        """A tick after hand-back: the formation's commands (TRACK and POSITION rows) and the healthy
-        agents' actual positions, against the failed vehicles: one compiled call
-        (``kernels.measure_formation``, core.vectors' arithmetic), NumPy above its point limit."""
-        k, out = self._k, self._formation
-        n, placed_n = k.measure_formation(world.healthy, world.pos, sp.mode, sp.pos, self._failed_xy,
-                                          _TRACK, _POSITION, out)
-        if n == 0:
-            return
-        if n > k.FORMATION_POINTS_MAX:
-            self._measure_formation_numpy(world, sp)
-            return
-        self._clearance = min(self._clearance, float(out[k.F_CLEAR]) - self.a_f - self.params.eps)
-        self._pair = min(self._pair, float(out[k.F_PAIR]))
-        if placed_n:
-            self._margin = min(self._margin, float(out[k.F_MARGIN]) - self.a_p)
-            self._pair_cmd = min(self._pair_cmd, float(out[k.F_PAIR_CMD]))
-
-    def _measure_formation_numpy(self, world: WorldState, sp: Setpoints) -> None:
-        """:meth:`_measure_formation` for a large swarm (the engine's cell list for the pairs)."""
-        agents = np.flatnonzero(world.healthy)
-        xy = world.pos[agents, :2]
-        self._clearance = min(self._clearance, min_distance_between(xy, self._failed_xy) - self.a_f - self.params.eps)
-        self._pair = min(self._pair, min_pair_distance(xy))
-        placed = agents[(sp.mode[agents] == _TRACK) | (sp.mode[agents] == _POSITION)]
-        if placed.size:
-            cmd = sp.pos[placed, :2]
-            self._margin = min(self._margin, min_distance_between(cmd, self._failed_xy) - self.a_p)
-            self._pair_cmd = min(self._pair_cmd, min_pair_distance(cmd))
-
-    def _note_violations(self, world: WorldState) -> None:
-        """The first tick of each violated condition, with its agents (the running minima tell when;
-        the agents are looked up only on that tick: this runs every tick)."""
-        bound = 2.0 * (self.params.delta + self.params.eps)
-        if self._pair < bound and "separation" not in self._first:
-            healthy = np.flatnonzero(world.healthy)
-            xy = world.pos[healthy, :2]
-            d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
-            np.fill_diagonal(d, np.inf)
-            i, j = np.nonzero(np.triu(d < bound))
-            self._first["separation"] = (float(world.t), sorted({*healthy[i].tolist(), *healthy[j].tolist()}))
-        if self._clearance < 0.0 and "clearance" not in self._first:
-            healthy = np.flatnonzero(world.healthy)
-            d = np.linalg.norm(world.pos[healthy, None, :2] - self._failed_xy[None], axis=-1)
-            near = d < self.a_f + self.params.eps
-            failed = np.array(list(self.failed))
-            agents = healthy[near.any(axis=1)].tolist() + failed[near.any(axis=0)].tolist()
-            self._first["clearance"] = (float(world.t), agents)
+            self.record.measure_formation(self._k, sim.world, self._last_sp, self._failed_xy, self._formation)
+        self.record.note_violations(sim.world, self.failed, self._failed_xy)
 
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
@@ -483,7 +378,6 @@ class CEM(Avoidance):
             return None if not math.isfinite(x) else float(x)
 
         t1, t2 = self.theorem1, self.theorem2
-        bound = 2.0 * (self.params.delta + self.params.eps)
         last1, last2 = (t1[-1] if t1 else None), (t2[-1] if t2 else None)
         met1, met2 = bool(t1) and all(c.holds for c in t1), bool(t2) and all(c.holds for c in t2)
         return {
@@ -491,7 +385,7 @@ class CEM(Avoidance):
             "cem.a_p": float(self.a_p),
             "cem.activations": len(t1),
             "cem.handback_time": self.handback_time,
-            "cem.handback_blocked_time": self.handback_blocked_time,
+            "cem.handback_blocked_time": self.hand_back.blocked_time,
             "cem.start_inside_exclusion": self.start_inside,
             "cem.theorem1_precondition_met": met1,
             "cem.theorem2_precondition_met": met2,
@@ -504,26 +398,11 @@ class CEM(Avoidance):
             "cem.theorem1_rhs": num(last1.rhs) if last1 else None,
             "cem.theorem2_d_min0": num(last2.d_min0) if last2 else None,
             "cem.theorem2_bound": num(last2.bound) if last2 else None,
-            "cem.psi_drift_max": float(self._psi_drift.max()) if self._psi_drift.size else 0.0,
-            "cem.psi_drift_per_agent": [float(x) for x in self._psi_drift],
-            "cem.min_exclusion_margin": num(self._margin),
-            "cem.min_actual_clearance": num(self._clearance),
-            "cem.clearance_bound": float(self.a_f + self.params.eps),
-            "cem.clearance_holds": bool(self._clearance >= 0.0) if math.isfinite(self._clearance) else True,
-            "cem.min_pair_distance": num(self._pair),
-            "cem.min_pair_distance_commanded": num(self._pair_cmd),
-            "cem.pair_bound": bound,
-            "cem.separation_holds": bool(self._pair >= bound) if math.isfinite(self._pair) else True,
-            "cem.max_speed": float(self._speed),
-            "cem.max_speed_actual": float(self._speed_actual),
-            "cem.tracking_error_max": float(self._track_err),
-            "cem.dphi_min": num(self._dphi_min),
+            **self.record.metrics(),
             "cem.step_ms_median": float(np.median(self._step_s) * 1e3) if self._step_s else None,
             "cem.newton_iterations_mean": self._iterations_mean(),
-            **{f"cem.violations.{c}.{part}": v for c, (t, agents) in sorted(self._first.items())
-               for part, v in (("first_time", t), ("agents", agents))},
+            **self.record.violation_metrics(),
         }
-
 
     @staticmethod
     def describe_verdict(key: str, m: dict[str, Any]) -> str | None:

@@ -96,7 +96,7 @@ def test_params_defaults_are_the_papers_and_validate():
     assert (p.saddle_noise, p.multi_failure_flow) == ("printed", "ring_streamlines")  # the readings
     plugin, _, _ = build(six_vehicle_positions())
     assert plugin.a_f == pytest.approx(0.68) and plugin.a_p == pytest.approx(1.36)
-    assert plugin.handback_distance == pytest.approx(2.72)
+    assert plugin.hand_back.distance == pytest.approx(2.72)
     for bad in ({"K": 0}, {"newton_iterations": 0}, {"sigma": -1.0}, {"v_des": 0.0}, {"direction": "north"}, {"speed": 1.0},
                 {"saddle_noise": "always"}, {"multi_failure_flow": "sum"}):
         with pytest.raises(ValidationError):
@@ -198,7 +198,7 @@ def test_hand_back_returns_the_formations_setpoints_once_all_have_passed(six_run
     assert out is sp
     assert m["cem.handback_time"] == pytest.approx(first_off * DT)
     healthy_x = record[first_off - 1][1].pos[1:, 0]
-    assert healthy_x.min() >= 0.0 + plugin.handback_distance - 0.02  # all past the failed lead
+    assert healthy_x.min() >= 0.0 + plugin.hand_back.distance - 0.02  # all past the failed lead
 
 
 def test_printed_saddle_noise_through_the_plugin_keeps_theorem_2_within_its_measured_bounds():

@@ -51,12 +51,12 @@ def test_compiled_measurements_equal_the_numpy_ones_tick_by_tick(rule):
         if not plugin._commanded:
             plugin.swarmscene_step_end(sim=sim)
             continue
-        drift = plugin._psi_drift.copy()  # the kernel raises it in place
+        drift = plugin.record.psi_drift.copy()  # the kernel raises it in place
         ref = numpy_measure(plugin.nav, plugin.healthy_idx, world.healthy, world.pos, world.vel,
                             np.array(list(plugin.failed.values())))
         got = np.empty(plugin._k.N_MEAS)
         live_n = plugin.nav.measure_tick(world.healthy, world.pos, world.vel, plugin._failed_xy, drift, got)
-        expected_drift = plugin._psi_drift.copy()
+        expected_drift = plugin.record.psi_drift.copy()
         np.maximum.at(expected_drift, plugin.healthy_idx, ref["drift"])
         np.testing.assert_array_equal(drift, expected_drift)
         k_ = plugin._k
