@@ -207,18 +207,19 @@ def _task(cfg: Any) -> Any:
     sweep table shows the error; a job whose directory already holds a complete manifest with the
     same config hash is skipped (resume). A Ctrl-C writes what the run has, marked incomplete, and
     ends the process with status 130. A launcher task of several sweep jobs
-    (:mod:`swarmscene.sweeps.chunks`) runs them one after another, each as a job of its own.
+    (:mod:`swarmscene.sweeps.chunks`) runs them one after another, each as a job of its own
+    (:mod:`swarmscene.sweeps.task`).
     """
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    from .sweeps import chunks
+    from .sweeps import task
 
     if HydraConfig.get().mode != RunMode.MULTIRUN:
         return _one(cfg)
-    chunks.renumber_first()  # a launcher task of several jobs: this job's number, not the task's
+    task.renumber_first()  # a launcher task of several jobs: this job's number, not the task's
     result = _one(cfg)
-    chunks.run_rest(lambda job_cfg, run_dir: _one(job_cfg), cfg)  # the task's other jobs, if any
+    task.run_rest(lambda job_cfg, run_dir: _one(job_cfg), cfg)  # the task's other jobs, if any
     return result
 
 

@@ -122,3 +122,52 @@ def test_the_engine_imports_nothing_of_the_application_layer(folder):
             assert not (parts[0] == "swarmscene" and len(parts) > 1 and parts[1] not in engine), (
                 f"{path.relative_to(ROOT)} imports {name}, which belongs to the application layer"
             )
+
+
+def _import_graph(folder: str) -> dict[str, set[str]]:
+    """Each module of ``folder`` (a package root of setup.py) and the modules of the same root it
+    imports anywhere: at the top, inside functions and under ``TYPE_CHECKING`` alike."""
+    mods = {}
+    for path in sources(folder):
+        rel = path.relative_to(ROOT / folder).with_suffix("").parts
+        base = "swarmscene" if folder == "swarmscene" else PACKAGES[folder]
+        mods[".".join((base, *(rel[:-1] if rel[-1] == "__init__" else rel)))] = path
+    graph = {}
+    for name, path in mods.items():
+        package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(parts + ([base] if base else []))
+                found.update([base, *(f"{base}.{a.name}" for a in node.names)])
+            elif isinstance(node, ast.Import):
+                found.update(a.name for a in node.names)
+        graph[name] = {m for m in found if m in mods and m != name}
+    return graph
+
+
+@pytest.mark.parametrize("folder", ["methods", "plugins"])
+def test_no_import_circle(folder):
+    """No module of these packages imports itself through others (issue #35; core/ and the
+    application join this list once their circles are broken: see the issue's notes)."""
+    import networkx as nx
+
+    graph = nx.DiGraph([(a, b) for a, targets in _import_graph(folder).items() for b in targets])
+    circles = [sorted(c) for c in nx.strongly_connected_components(graph) if len(c) > 1]
+    assert not circles, f"import circles: {circles}"
+
+
+def test_no_import_circle_in_the_sweeps_package():
+    """swarmscene.sweeps: chunks encodes a launcher task, task runs it, compose composes its jobs;
+    none imports back the module that imports it."""
+    import networkx as nx
+
+    graph = _import_graph("swarmscene")
+    sweeps = {a: {b for b in t if b.startswith("swarmscene.sweeps.")} for a, t in graph.items()
+              if a.startswith("swarmscene.sweeps.")}
+    g = nx.DiGraph([(a, b) for a, targets in sweeps.items() for b in targets])
+    circles = [sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1]
+    assert not circles, f"import circles: {circles}"

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from swarmscene.sweeps import chunks
+from swarmscene.sweeps import chunks, task
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 TIMING = {"wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median"}
@@ -125,9 +125,9 @@ def test_a_tasks_later_jobs_take_the_lean_path_unless_the_config_reads_hydra(tmp
     from swarmscene import cli
 
     calls = []
-    as_lean = chunks._as_lean_job
+    as_lean = task._as_lean_job
     seen = []  # the task's payload is no longer in the environment a job (and its subprocesses) sees
-    monkeypatch.setattr(chunks, "_as_lean_job",
+    monkeypatch.setattr(task, "_as_lean_job",
                         lambda *a: calls.append(a[2]) or seen.append(os.environ.get(chunks.CHUNK_ENV)) or as_lean(*a))
     extra = [DESCRIBED] if described else ["description=lean"]
     monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "clock.duration=0.2", "seed=0,1,2", *extra,

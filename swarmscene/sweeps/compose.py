@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import copy
 import json
-import re
 from collections import OrderedDict
 from collections.abc import Sequence
 from typing import Any, cast
@@ -273,18 +272,11 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     from omegaconf import open_dict
 
     from ..outputs import COMMAND_ENV
+    from .chunks import literal
 
     with open_dict(cfg.hydra.job.env_set):
         cfg.hydra.job.env_set[COMMAND_ENV] = literal(json.dumps(list(command)))
     cfg.hydra.output_subdir = None
-
-
-def literal(text: str) -> str:
-    """``text`` as a config value that OmegaConf reads back unchanged: every ``${`` escaped (with
-    the backslashes before it doubled). Hydra resolves ``hydra.job.env_set`` when it sets the job's
-    environment: the command as typed ``description='${hydra:job.num}'`` must reach the manifest as
-    typed, not as the first job's value."""
-    return re.sub(r"(\\*)\$\{", lambda m: m.group(1) * 2 + "\\${", text)
 
 
 def _apply_values(values: Sequence[Any], cfg: Any) -> None:
