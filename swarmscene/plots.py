@@ -171,11 +171,13 @@ class RunData:
 def _obstacles(config: dict[str, Any]) -> list[Any]:
     """The run's obstacles, rebuilt from its environment section with the installed registry, so
     a run whose map came from a plugin's generator reads back like a built-in's."""
-    from .api import plugins
+    from .builtins import BUILTIN_PLUGINS
     from .core.config import EnvironmentConfig
     from .core.geometry import build_obstacles
+    from .core.registry import make_plugin_manager
 
-    env = EnvironmentConfig.model_validate(config.get("environment") or {}, context={"registry": plugins()[1]})
+    registry = make_plugin_manager(BUILTIN_PLUGINS)[1]  # the installed plugins, as api.plugins()
+    env = EnvironmentConfig.model_validate(config.get("environment") or {}, context={"registry": registry})
     obstacles, _ = build_obstacles(env)
     return obstacles
 

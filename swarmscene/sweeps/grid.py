@@ -2,9 +2,10 @@
 
 Before a job starts, the overrides it brings are checked, so that a mistake stops the sweep with one
 line instead of showing up as a failed job half-way through: every distinct override of the grid,
-numbers included, is composed *and* validated by the engine's schema (``swarmscene.api.load``) in
-the first job that has it. In Hydra's grid order that job is the first job with only this one
-override changed, so the line names the job and the override:
+numbers included, is composed *and* validated by the engine's schema
+(``swarmscene.core.config.validate``, as ``api.load``) in the first job that has it. In Hydra's grid
+order that job is the first job with only this one override changed, so the line names the job and
+the override:
 ``job 1 (avoidance.K=0): avoidance.K: must be >= 1 (got 0)``.
 
 It stays fast because composition is the expensive part (~70 ms for this config tree; Hydra's own
@@ -117,13 +118,14 @@ class JobCheck:
     def __init__(self, config_loader: Any, master: Any) -> None:
         from hydra.core.override_parser.overrides_parser import OverridesParser
 
-        from .. import api
+        from ..builtins import BUILTIN_PLUGINS
+        from ..core.registry import make_plugin_manager
         from .compose import extends_search_path
 
         self.loader = config_loader
         self.master = master
         self.parser = OverridesParser.create(config_loader=config_loader)
-        self.registry = api.plugins()[1]
+        self.registry = make_plugin_manager(BUILTIN_PLUGINS)[1]  # the installed plugins, as api.plugins()
         self.composed: dict[tuple[str, ...], Any] = {}
         self._groups: dict[str, bool] = {}
         self.whole = extends_search_path(master)  # groups the repository cannot tell: Hydra composes
@@ -172,7 +174,7 @@ class JobCheck:
 
     def problems(self, overrides: Sequence[str]) -> tuple[str, list[str]]:
         """(``"compose"`` or ``"invalid"`` or ``""``, the problem lines) of one job."""
-        from .. import api
+        from ..core.config import validate
         from ..core.errors import ConfigError
         from ..hydra_errors import hydra_error_line
 
@@ -181,7 +183,7 @@ class JobCheck:
         except Exception as exc:  # Hydra's composition errors, reworded
             return "compose", [hydra_error_line(exc) or " ".join(f"{type(exc).__name__}: {exc}".split())]
         try:
-            api.load(data, self.registry)
+            validate({k: v for k, v in data.items() if k != "hydra"}, self.registry)  # as api.load
         except ConfigError as exc:
             return "invalid", exc.lines
         return "", []
