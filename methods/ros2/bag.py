@@ -37,8 +37,8 @@ POSE_FIELDS = {
 """Where each pose message type keeps its position."""
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 EXAMPLE_FLIGHT = Path(__file__).with_name("example_flight")
-"""A rosbag2 folder shipped with the package: four Crazyflies ``cf1``..``cf4`` circling (1.5 m radius, 20 s a turn, 1.0 +- 0.3 m high),
-TF in a ``world`` frame at 20 Hz for 20 s, written by rosbags (docs/examples/ros/make_example_flight.py)."""
+"""A rosbag2 folder shipped with the package: eight Crazyflies ``cf1``..``cf8`` circling (2 m radius, 20 s a turn, 1.0 +- 0.3 m high),
+TF in a ``world`` frame at 10 Hz for 20 s, written by rosbags (docs/examples/ros/make_example_flight.py)."""
 
 
 class BagError(ValueError):

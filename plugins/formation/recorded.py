@@ -11,8 +11,8 @@ Mapping: on TF (``topic``, default ``/tf``) each vehicle is a child frame of ``w
 ``swarm.n``). With ``topics`` (pose topics, one per agent: PoseStamped, Odometry or
 TransformStamped) TF is not read. ``start`` / ``end`` choose the time window (s after the
 recording's first sample) and ``offset`` shifts the recorded positions into the scenario's world.
-``bag: null`` plays the example flight shipped with the package (four Crazyflies ``cf1``..``cf4``
-circling (1.5 m radius, 20 s a turn, 1.0 +- 0.3 m high), recorded by rosbags with TF in a ``world`` frame).
+``bag: null`` plays the example flight shipped with the package (eight Crazyflies ``cf1``..``cf8``
+circling (2 m radius, 20 s a turn, 1.0 +- 0.3 m high), recorded by rosbags with TF in a ``world`` frame).
 
 Choices: the heading is not played (yaw 0); orientation in the recording is ignored. A recording
 with more vehicles than ``swarm.n`` plays the first ``swarm.n``; fewer is an error naming the

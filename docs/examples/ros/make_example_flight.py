@@ -1,8 +1,8 @@
 """Write the example flight the ``recorded`` formation plays by default (methods/ros2/example_flight).
 
 A stand-in for a lab's flight log, written the way a lab's tools write one (rosbags' rosbag2
-writer, MCAP storage, metadata version 9), not by swarmscene: four Crazyflies ``cf1``..``cf4``
-a quarter turn apart on a 1.5 m circle (20 s a turn), rising and falling 0.3 m about 1.0 m, TF
+writer, MCAP storage, metadata version 9), not by swarmscene: eight Crazyflies ``cf1``..``cf8``
+an eighth of a turn apart on a 2 m circle (20 s a turn), rising and falling 0.3 m about 1.0 m, TF
 ``world`` -> ``cfK`` at 50 Hz for 20 s, one TFMessage per vehicle per sample as Crazyswarm2's
 motion-capture node publishes them.
 
@@ -16,19 +16,19 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-RATE = 20.0  # Hz
+RATE = 10.0  # Hz
 DURATION = 20.0  # s
 PERIOD = 20.0  # s, one turn
-N = 4
+N = 8
 EPOCH = 1_700_000_000  # s: stamps as a lab's clock gives them (2023-11-14), not from 0
 
 
 def circle_wave(t: np.ndarray, k: int) -> np.ndarray:
-    """(T, 3) m: vehicle k's position, a quarter turn ahead of vehicle k - 1 on a 1.5 m circle,
+    """(T, 3) m: vehicle k's position, an eighth of a turn ahead of vehicle k - 1 on a 2 m circle,
     rising and falling 0.3 m about 1.0 m twice a turn."""
     w = 2 * np.pi / PERIOD
-    phase = w * t + k * np.pi / 2
-    return np.stack([1.5 * np.cos(phase), 1.5 * np.sin(phase), 1.0 + 0.3 * np.sin(2 * phase)], axis=1)
+    phase = w * t + k * 2 * np.pi / N
+    return np.stack([2.0 * np.cos(phase), 2.0 * np.sin(phase), 1.0 + 0.3 * np.sin(2 * phase)], axis=1)
 
 
 def main(out: Path) -> None:
