@@ -173,10 +173,10 @@ class BagWriter:
         self.channel: dict[str, int] = {}
         topics = [t for t in TOPICS if t != "odom" and (slots or t != "/swarmscene/formation_slots")]
         topics[2:2] = [odom_topic(i) for i in range(n)]  # after /clock and /tf
-        for topic in topics:
-            kind = TOPICS["odom"] if topic.endswith("/odom") and topic not in TOPICS else TOPICS[topic]
-            self.channel[topic] = self.mcap.add_channel(topic, schemas[kind], "cdr")
-        self.types = {topic: (TOPICS["odom"] if topic not in TOPICS else TOPICS[topic]) for topic in self.channel}
+        self.types = {topic: TOPICS.get(topic, TOPICS["odom"]) for topic in topics}
+        for topic in topics:  # the channel's QoS as rosbag2 records it (readers match it to metadata.yaml's)
+            qos = {"offered_qos_profiles": _latched_qos() if topic in LATCHED else ""}
+            self.channel[topic] = self.mcap.add_channel(topic, schemas[self.types[topic]], "cdr", qos)
         pose_cov, twist_cov = covariances(config)
         limit = float((config.get("safety") or {}).get("separation_limit", 0.0))
         frames = [child_frame(i) for i in range(n)]

@@ -105,7 +105,7 @@ class McapWriter:
         self.schemas: list[bytes] = []
         self.channels: list[bytes] = []
         self.chunk_indexes: list[bytes] = []
-        self.counts = np.zeros(0, dtype=np.int64)  # messages per channel id
+        self.counts = np.zeros(1, dtype=np.int64)  # messages per channel id (0 unused)
         self.message_count = 0
         self.start_time: int | None = None
         self.end_time = 0
@@ -128,8 +128,8 @@ class McapWriter:
         return schema_id
 
     def add_channel(self, topic: str, schema_id: int, encoding: str, metadata: dict[str, str] | None = None) -> int:
-        """A Channel record; its id (from 0)."""
-        channel_id = len(self.channels)
+        """A Channel record; its id (from 1, as rosbag2 numbers them: rosbags takes the ids for its own)."""
+        channel_id = len(self.channels) + 1
         pairs = [(_string(k), _string(v)) for k, v in sorted((metadata or {}).items())]
         content = struct.pack("<HH", channel_id, schema_id) + _string(topic) + _string(encoding) + _map(pairs)
         record = _record("channel", content)
@@ -204,7 +204,7 @@ class McapWriter:
         self.flush_chunk()
         self.fh.write(_record("data_end", struct.pack("<I", 0)))
         summary_start = self.fh.tell()
-        counts = _map([(struct.pack("<H", ch), struct.pack("<Q", k)) for ch, k in enumerate(self.counts.tolist())])
+        counts = _map([(struct.pack("<H", ch), struct.pack("<Q", k)) for ch, k in enumerate(self.counts.tolist()) if ch])
         statistics = _record("statistics", struct.pack(
             "<QHIIIIQQ", self.message_count, len(self.schemas), len(self.channels), 0, self.metadata_count,
             len(self.chunk_indexes), self.start_time or 0, self.end_time) + counts)
