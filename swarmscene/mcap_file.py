@@ -204,7 +204,8 @@ class McapWriter:
         self.flush_chunk()
         self.fh.write(_record("data_end", struct.pack("<I", 0)))
         summary_start = self.fh.tell()
-        counts = _map([(struct.pack("<H", ch), struct.pack("<Q", k)) for ch, k in enumerate(self.counts.tolist()) if ch])
+        counts = _map([(struct.pack("<H", ch), struct.pack("<Q", k))
+                       for ch, k in enumerate(self.counts.tolist()) if ch])  # ids from 1
         statistics = _record("statistics", struct.pack(
             "<QHIIIIQQ", self.message_count, len(self.schemas), len(self.channels), 0, self.metadata_count,
             len(self.chunk_indexes), self.start_time or 0, self.end_time) + counts)
@@ -228,7 +229,7 @@ def _compressor(name: str) -> Any:
 
         return zstandard.ZstdCompressor(level=1).compress
     if name == "lz4":
-        import lz4.frame
+        import lz4.frame  # type: ignore[import-untyped]  # (no stubs)
 
         return lz4.frame.compress
     if name == "":

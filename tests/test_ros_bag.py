@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
-from mcap_ros2.reader import read_ros2_messages
+from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
@@ -49,7 +49,10 @@ def _mcap(run_dir):
 
 def _decoded(path, topics=None):
     """(topic, log time ns, decoded message) by mcap-ros2-support, in file order."""
-    return [(m.channel.topic, m.log_time_ns, m.ros_msg) for m in read_ros2_messages(str(path), topics=topics)]
+    with open(path, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        return [(c.topic, m.log_time, msg) for _, c, m, msg in reader.iter_decoded_messages(topics=topics,
+                                                                                              log_time_order=False)]
 
 
 def _tf(path):
@@ -177,14 +180,14 @@ def test_formation_slots_are_the_formations_setpoints(tmp_path):
     writers = api.extra_writers(sim)
     seen = []
     original = sim.formation.setpoints  # the recorder's wrapper: what it records is what the kernel gets
-    sim.formation.setpoints = lambda world, sensing: seen.append(original(world, sensing)) or seen[-1]
+    sim.formation.setpoints = lambda world, sensing: seen.append((world.t, original(world, sensing))) or seen[-1][1]
     result = sim.run()
     api.write_outputs(sim, result, tmp_path, [lambda d, w=w: w(d, sim=sim, result=result) for w in writers])
     slots = _decoded(_mcap(tmp_path), ["/swarmscene/formation_slots"])
     assert len(slots) == len(seen) == 5
-    for (_, ns, msg), sp in zip(slots, seen, strict=True):
+    for (_, ns, msg), (t, sp) in zip(slots, seen, strict=True):
         points = np.array([[p.x, p.y, p.z] for p in msg.markers[0].points])
-        assert np.array_equal(points, sp.pos)
+        assert np.array_equal(points, sp.pos) and ns == round(t * 1e9)  # stamped when the tick began
 
 
 def test_rerun_opens_the_mcap_and_reads_the_same_transforms(failing, tmp_path):

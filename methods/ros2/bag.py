@@ -37,7 +37,8 @@ POSE_FIELDS = {
 """Where each pose message type keeps its position."""
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 EXAMPLE_FLIGHT = Path(__file__).with_name("example_flight")
-"""A rosbag2 folder shipped with the package: eight Crazyflies ``cf1``..``cf8`` circling (2 m radius, 20 s a turn, 1.0 +- 0.3 m high),
+"""A rosbag2 folder shipped with the package: eight Crazyflies ``cf1``..``cf8`` circling (2 m radius,
+20 s a turn, 1.0 +- 0.3 m high),
 TF in a ``world`` frame at 10 Hz for 20 s, written by rosbags (docs/examples/ros/make_example_flight.py)."""
 
 
@@ -55,7 +56,7 @@ class Track:
 
     Attributes:
         name: its frame id (TF) or topic.
-        t: (K,) s, the header stamps, increasing.
+        t: (K,) s, the header stamps from the recording's earliest one, increasing.
         pos: (K, 3) m, in the recording's world frame.
     """
 
@@ -139,15 +140,16 @@ def read_messages(path: Path | str, topics: list[str]) -> list[tuple[str, str, A
         except BagError:
             raise
         except ImportError as exc:
-            raise BagError(file, f"reading a bag needs the 'ros' extra: pip install 'swarmscene[ros]' ({exc})") from None
+            raise BagError(file, f"reading it needs the 'ros' extra: pip install 'swarmscene[ros]' ({exc})") from None
         except Exception as exc:  # noqa: BLE001 - whatever a damaged file makes the reader raise
             first = " ".join(str(exc).split())[:160] or type(exc).__name__
             raise BagError(file, f"not a readable MCAP recording ({type(exc).__name__}: {first})") from None
     return out
 
 
-def _stamp(header: Any) -> float:
-    return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
+def _stamp(header: Any) -> int:
+    """The header's stamp in integer ns (a lab clock's ~1.7e9 s as a float keeps only ~0.2 us)."""
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
 def _position(message: Any, fields: tuple[str, ...]) -> tuple[float, float, float]:
@@ -163,7 +165,7 @@ def natural_key(name: str) -> list[Any]:
 
 def tf_tracks(path: Path | str, topic: str, world_frame: str) -> dict[str, Track]:
     """Every child frame of ``world_frame`` on the TF ``topic``, by frame id (a leading ``/`` dropped)."""
-    samples: dict[str, list[tuple[float, float, float, float]]] = {}
+    samples: dict[str, list[tuple[int, float, float, float]]] = {}
     world = world_frame.lstrip("/")
     for _topic, schema, msg in read_messages(path, [topic]):
         if schema != TF_TYPE:
@@ -172,25 +174,32 @@ def tf_tracks(path: Path | str, topic: str, world_frame: str) -> dict[str, Track
             if tf.header.frame_id.lstrip("/") == world:
                 samples.setdefault(tf.child_frame_id.lstrip("/"), []).append(
                     (_stamp(tf.header), *_position(tf, ("transform", "translation"))))
-    return {name: _track(name, rows) for name, rows in samples.items()}
+    return _tracks(samples)
 
 
 def pose_tracks(path: Path | str, topics: list[str]) -> dict[str, Track]:
     """The positions on each pose topic (module docstring), by topic."""
-    samples: dict[str, list[tuple[float, float, float, float]]] = {t: [] for t in topics}
+    samples: dict[str, list[tuple[int, float, float, float]]] = {t: [] for t in topics}
     for topic, schema, msg in read_messages(path, topics):
         fields = POSE_FIELDS.get(schema)
         if fields is None:
             raise BagError(path, f"topic {topic} holds {schema}: a pose topic is one of {', '.join(POSE_FIELDS)}")
         samples[topic].append((_stamp(msg.header), *_position(msg, fields)))
-    return {name: _track(name, rows) for name, rows in samples.items() if rows}
+    return _tracks({name: rows for name, rows in samples.items() if rows})
 
 
-def _track(name: str, rows: list[tuple[float, float, float, float]]) -> Track:
-    """Samples in time order, one per stamp (the last one written for a repeated stamp)."""
-    data = np.asarray(rows, float).reshape(-1, 4)
-    order = np.argsort(data[:, 0], kind="stable")
-    data = data[order]
-    keep = np.append(np.diff(data[:, 0]) > 0, True)  # the last of equal stamps
-    data = data[keep]
-    return Track(name, data[:, 0], data[:, 1:])
+def _tracks(samples: dict[str, list[tuple[int, float, float, float]]]) -> dict[str, Track]:
+    """Each vehicle's samples in time order, one per stamp (the last written for a repeated stamp),
+    times in s from the earliest stamp of them all (subtracted in integer ns: exact)."""
+    if not samples:
+        return {}
+    origin = min(min(row[0] for row in rows) for rows in samples.values())
+    out = {}
+    for name, rows in samples.items():
+        ns = np.array([row[0] for row in rows], dtype=np.int64) - origin
+        pos = np.array([row[1:] for row in rows], dtype=float).reshape(-1, 3)
+        order = np.argsort(ns, kind="stable")
+        ns, pos = ns[order], pos[order]
+        keep = np.append(np.diff(ns) > 0, True)  # the last of equal stamps
+        out[name] = Track(name, ns[keep] * 1e-9, pos[keep])
+    return out

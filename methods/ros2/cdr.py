@@ -75,11 +75,11 @@ class CdrBuilder:
         """uint32."""
         self.put("I", [value])
 
-    def f64(self, values: Sequence[float], slot: str | None = None) -> None:
+    def f64(self, values: Sequence[float] | np.ndarray, slot: str | None = None) -> None:
         """float64 fields (or a fixed array of them)."""
         self.put("d", values, slot)
 
-    def f32(self, values: Sequence[float]) -> None:
+    def f32(self, values: Sequence[float] | np.ndarray) -> None:
         """float32 fields."""
         self.put("f", values)
 

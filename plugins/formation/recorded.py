@@ -31,6 +31,7 @@ from swarmscene.methods.ros2.bag import EXAMPLE_FLIGHT, BagError, natural_key, p
 from swarmscene.methods.ros2.playback import Playback
 from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl
 
+
 class Recorded(Formation):
     """Each agent tracks a recorded vehicle's path (a ROS 2 recording's TF or pose topics)."""
 
