@@ -185,7 +185,8 @@ class BagWriter:
         order = ["/clock", "/tf", *(odom_topic(i) for i in range(n)), "/swarmscene/min_separation",
                  "/swarmscene/separation_limit"]
         self.block = RecordBlock([self.channel[t] for t in order], CdrTemplate(tick))
-        self.stamps = 1 + 2 * n  # the clock's, each transform's, each odometry's
+        self.pose = np.concatenate([np.zeros((n, 3)), quat_xyzw(None, n)], axis=1)  # point masses: identity
+        self.twist = np.zeros((n, 6))  # ... and no body rates
         self.slot_block: RecordBlock | None = None
         if slots:
             b = CdrBuilder()
@@ -199,13 +200,15 @@ class BagWriter:
     def frame(self, t: float, pos: np.ndarray, vel: np.ndarray, quat: np.ndarray | None, min_separation: float,
               omega: np.ndarray | None = None) -> None:
         """The tick's clock, transforms, odometry and separation (one block)."""
-        stamp = np.tile(np.asarray(split_time(t), np.int32), self.stamps)
-        pos = np.asarray(pos, float)
-        rotation = quat_xyzw(quat, self.n)
-        angular = np.zeros((self.n, 3)) if omega is None else omega
-        self.mcap.write_block(self.block, _ns(t), stamp=stamp, translation=pos, rotation=rotation, position=pos,
-                              orientation=rotation, linear=body_velocity(vel, quat), angular=angular,
-                              data=[min_separation])
+        pose, twist = self.pose, self.twist  # (N, 7) position and attitude, (N, 6) body twist
+        pose[:, :3] = pos
+        if quat is not None:
+            pose[:, 3:] = quat_xyzw(quat, self.n)
+        twist[:, :3] = body_velocity(vel, quat)
+        if omega is not None:
+            twist[:, 3:] = omega
+        self.mcap.write_block(self.block, _ns(t), stamp=split_time(t), transform=pose, pose=pose, twist=twist,
+                              data=min_separation)
 
     def slots(self, t: float, positions: np.ndarray) -> None:
         """The formation's reference positions (N, 3) at ``t``."""

@@ -10,7 +10,8 @@ bytes; maps a uint32 byte length and their pairs.
 Why not the ``mcap`` package's ``Writer``: it builds each message record in Python (about 15 us a
 message), so a tick of 100 vehicles' odometry costs 1.5 ms, several times a swarm's own tick. Here
 the messages of a tick are laid out once (:class:`RecordBlock`: channels and payload layouts fixed
-for the run) and each tick fills that block in one NumPy assignment; message indexes are built per
+for the run) and each tick fills that block with a few strided copies; each full chunk is
+compressed and written by a writer thread while the run goes on; message indexes are built per
 chunk from arrays. The CRC fields are left 0, "not computed", which the specification allows. The
 files are read back in the tests by four independent readers: ``mcap``, mcap-ros2-support,
 rosbags and Rerun (tests/test_ros_bag.py).
@@ -76,13 +77,46 @@ class RecordBlock:
         times = (self.offsets[:, None] + 15 + np.arange(16)).reshape(-1)  # log_time, publish_time
         self.slots["_times"] = ("<u8", times)
 
-    def fill(self, t_ns: int, **values: Any) -> bytes:
-        """The records' bytes at log and publish time ``t_ns`` with the template's slots set."""
-        out = self.base.copy()
-        values["_times"] = np.full(2 * len(self.channels), t_ns, dtype=np.uint64)
-        for name, (dtype, index) in self.slots.items():
-            out[index] = np.ascontiguousarray(values[name], dtype=dtype).reshape(-1).view(np.uint8)
-        return out.tobytes()
+        self.out = self.base.copy()  # filled in place each time: the bytes outside the slots never change
+        self.views = {name: _strided_views(self.out, index) for name, (dtype, index) in self.slots.items()}
+        self.counts = np.bincount(self.channels)  # messages per channel id in one block
+
+    def fill(self, t_ns: int, **values: Any) -> np.ndarray:
+        """The records (a buffer reused by the next call) at log and publish time ``t_ns`` with the
+        template's slots set. A slot's value is all its numbers, or one run's worth (the ``stamp``
+        of a tick): that run is then written into every run of the slot."""
+        values["_times"] = np.array([t_ns, t_ns], dtype=np.uint64)
+        for name, (dtype, _) in self.slots.items():
+            raw = np.ascontiguousarray(values[name], dtype=dtype).reshape(-1).view(np.uint8)
+            for view, start, length in self.views[name]:
+                view[...] = raw if raw.size == view.shape[1] else raw[start:start + length].reshape(view.shape)
+        return self.out
+
+
+def _strided_views(out: np.ndarray, index: np.ndarray) -> list[tuple[np.ndarray, int, int]]:
+    """A slot's bytes ``index`` (in value order) as few 2-D strided views of ``out`` (runs of equal
+    length at a constant stride: the same field of messages of one layout), each with where its
+    bytes start in the slot's value and how many there are: the fill is then a handful of strided
+    copies instead of a gather of every byte."""
+    from numpy.lib.stride_tricks import as_strided
+
+    breaks = np.flatnonzero(np.diff(index) != 1) + 1
+    starts = np.concatenate([[0], breaks])  # positions in index where a contiguous run starts
+    lengths = np.diff(np.concatenate([starts, [len(index)]]))
+    views: list[tuple[np.ndarray, int, int]] = []
+    k = 0
+    while k < len(starts):  # the longest progression from run k: same length, constant stride
+        j = k + 1
+        stride = int(index[starts[j]] - index[starts[k]]) if j < len(starts) else 0
+        while (j < len(starts) and lengths[j] == lengths[k]
+               and index[starts[j]] - index[starts[j - 1]] == stride and stride > 0):
+            j += 1
+        count, length = j - k, int(lengths[k])
+        first = int(index[starts[k]])
+        view = as_strided(out[first:], shape=(count, length), strides=(stride if count > 1 else length, 1))
+        views.append((view, int(starts[k]), count * length))
+        k = j
+    return views
 
 
 class McapWriter:
@@ -110,9 +144,12 @@ class McapWriter:
         self.start_time: int | None = None
         self.end_time = 0
         self.metadata_count = 0
-        self._chunk: list[bytes] = []
+        self._chunk = np.zeros(chunk_bytes + 1024 * 1024, dtype=np.uint8)  # grown when a block does not fit
+        self._spare: np.ndarray | None = None  # the other buffer, while one is compressed and written
         self._chunk_size = 0
-        self._index: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (channels, times, offsets)
+        self._index: list[tuple[np.ndarray, int, np.ndarray]] = []  # (channels, time, offsets in the chunk)
+        self._pool: Any = None
+        self._pending: Any = None
         self._chunk_times: tuple[int, int] | None = None
         fh.write(MAGIC)
         fh.write(_record("header", _string(profile) + _string(library)))
@@ -141,20 +178,27 @@ class McapWriter:
     # -- messages -----------------------------------------------------------------------------------
     def write_block(self, block: RecordBlock, t_ns: int, **values: Any) -> None:
         """``block``'s messages at time ``t_ns`` (ns), slots from ``values``."""
-        self._append(block.fill(t_ns, **values), block.channels, block.offsets, t_ns)
+        self._append(block.fill(t_ns, **values), block.channels, block.offsets, t_ns, block.counts)
 
     def write_message(self, channel_id: int, t_ns: int, data: bytes) -> None:
         """One message (a rare one: a log line, a marker) at time ``t_ns``."""
         head = _MESSAGE_HEAD.pack(OP["message"], 22 + len(data), channel_id, 0, t_ns, t_ns)
-        self._append(head + data, np.array([channel_id], np.uint16), np.zeros(1, np.int64), t_ns)
+        record = np.frombuffer(head + data, dtype=np.uint8)
+        self._append(record, np.array([channel_id], np.uint16), np.zeros(1, np.int64), t_ns,
+                     np.bincount([channel_id]))
 
-    def _append(self, records: bytes, channels: np.ndarray, offsets: np.ndarray, t_ns: int) -> None:
-        self._index.append((channels, np.full(len(channels), t_ns, np.uint64), offsets + self._chunk_size))
-        self._chunk.append(records)
-        self._chunk_size += len(records)
+    def _append(self, records: np.ndarray, channels: np.ndarray, offsets: np.ndarray, t_ns: int,
+                counts: np.ndarray) -> None:
+        end = self._chunk_size + len(records)
+        if end > len(self._chunk):
+            self._chunk = np.concatenate([self._chunk[:self._chunk_size], np.zeros(2 * len(records), np.uint8),
+                                          np.zeros(len(self._chunk), np.uint8)])
+        self._chunk[self._chunk_size:end] = records  # one copy of the tick's bytes
+        self._index.append((channels, t_ns, offsets + self._chunk_size))
+        self._chunk_size = end
         lo, hi = self._chunk_times or (t_ns, t_ns)
         self._chunk_times = (min(lo, t_ns), max(hi, t_ns))
-        np.add.at(self.counts, channels, 1)
+        self.counts[:len(counts)] += counts
         self.message_count += len(channels)
         self.start_time = t_ns if self.start_time is None else min(self.start_time, t_ns)
         self.end_time = max(self.end_time, t_ns)
@@ -162,39 +206,72 @@ class McapWriter:
             self.flush_chunk()
 
     def flush_chunk(self) -> None:
-        """Write the gathered messages as a Chunk and its Message Index records."""
-        if not self._chunk:
+        """Hand the gathered messages to the writer thread, which compresses them and writes the
+        Chunk and its Message Index records (one chunk in flight at most: memory stays two chunks)."""
+        if not self._chunk_size:
             return
-        raw = b"".join(self._chunk)
+        self.wait()
+        job = (self._chunk, self._chunk_size, self._index, self._chunk_times or (0, 0))
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-chunks")
+        self._pending = self._pool.submit(self._write_chunk, *job)
+        self._chunk, self._spare = self._spare if self._spare is not None else np.zeros_like(self._chunk), self._chunk
+        self._chunk_size, self._index, self._chunk_times = 0, [], None
+
+    def wait(self) -> None:
+        """Wait for the chunk in flight (its error, if any, is raised here)."""
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            pending.result()
+
+    def _write_chunk(self, buffer: np.ndarray, size: int, index: list[tuple[np.ndarray, int, np.ndarray]],
+                     times: tuple[int, int]) -> None:
+        """Compress (zstandard and lz4 release the GIL: the run goes on meanwhile) and write one chunk."""
+        raw = memoryview(buffer)[:size]
         data = self._compress(raw)
-        lo, hi = self._chunk_times or (0, 0)
-        content = (struct.pack("<QQQI", lo, hi, len(raw), 0) + _string(self.compression)
+        lo, hi = times
+        content = (struct.pack("<QQQI", lo, hi, size, 0) + _string(self.compression)
                    + struct.pack("<Q", len(data)) + data)
         chunk_start = self.fh.tell()
         self.fh.write(_record("chunk", content))
         chunk_length = self.fh.tell() - chunk_start
         index_offsets = []
         index_start = self.fh.tell()
-        channels = np.concatenate([c for c, _, _ in self._index])
-        times = np.concatenate([t for _, t, _ in self._index])
-        offsets = np.concatenate([o for _, _, o in self._index]).astype(np.uint64)
+        channels = np.concatenate([c for c, _, _ in index])
+        stamps = np.repeat(np.array([t for _, t, _ in index], dtype=np.uint64), [len(c) for c, _, _ in index])
+        offsets = np.concatenate([o for _, _, o in index]).astype(np.uint64)
         order = np.argsort(channels, kind="stable")  # per channel, in the order written (time order)
-        channels, times, offsets = channels[order], times[order], offsets[order]
-        cuts = np.flatnonzero(np.diff(channels)) + 1
-        for ch, t, off in zip(np.split(channels, cuts), np.split(times, cuts), np.split(offsets, cuts), strict=True):
-            pairs = np.column_stack([t, off]).astype("<u8").tobytes()
-            index_offsets.append((int(ch[0]), self.fh.tell()))
-            self.fh.write(_record("message_index", struct.pack("<HI", int(ch[0]), len(pairs)) + pairs))
+        channels = channels[order]
+        pairs = np.empty((len(order), 2), dtype="<u8")
+        pairs[:, 0], pairs[:, 1] = stamps[order], offsets[order]
+        ids, first = np.unique(channels, return_index=True)
+        last = np.append(first[1:], len(channels))
+        records, at = [], index_start
+        for ch, a, b in zip(ids.tolist(), first.tolist(), last.tolist(), strict=True):
+            body = pairs[a:b].tobytes()
+            record = _record("message_index", struct.pack("<HI", ch, len(body)) + body)
+            index_offsets.append((ch, at))
+            records.append(record)
+            at += len(record)
+        self.fh.write(b"".join(records))
         index_length = self.fh.tell() - index_start
         offset_map = _map([(struct.pack("<H", ch), struct.pack("<Q", off)) for ch, off in index_offsets])
         self.chunk_indexes.append(_record("chunk_index", (
             struct.pack("<QQQQ", lo, hi, chunk_start, chunk_length) + offset_map + struct.pack("<Q", index_length)
-            + _string(self.compression) + struct.pack("<QQ", len(data), len(raw)))))
-        self._chunk, self._chunk_size, self._index, self._chunk_times = [], 0, [], None
+            + _string(self.compression) + struct.pack("<QQ", len(data), size))))
+
+    def close(self) -> None:
+        """Stop the writer thread (after :meth:`finish`, or to abandon the file)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     def add_metadata(self, name: str, values: dict[str, str]) -> None:
         """A Metadata record (outside chunks)."""
         self.flush_chunk()
+        self.wait()
         pairs = [(_string(k), _string(v)) for k, v in sorted(values.items())]
         self.fh.write(_record("metadata", _string(name) + _map(pairs)))
         self.metadata_count += 1
@@ -202,6 +279,8 @@ class McapWriter:
     def finish(self) -> None:
         """The last chunk, Data End, the summary section, the Footer and the closing magic."""
         self.flush_chunk()
+        self.wait()
+        self.close()
         self.fh.write(_record("data_end", struct.pack("<I", 0)))
         summary_start = self.fh.tell()
         counts = _map([(struct.pack("<H", ch), struct.pack("<Q", k))
@@ -227,11 +306,11 @@ def _compressor(name: str) -> Any:
     if name == "zstd":
         import zstandard
 
-        return zstandard.ZstdCompressor(level=1).compress
+        return zstandard.ZstdCompressor(level=-1).compress  # a fast level: half level 1's time, as small here
     if name == "lz4":
         import lz4.frame  # type: ignore[import-untyped]  # (no stubs)
 
         return lz4.frame.compress
     if name == "":
-        return bytes
+        return lambda raw: bytes(raw)
     raise ValueError(f"compression: must be zstd, lz4 or '' (got {name!r})")

@@ -120,30 +120,27 @@ def float64_message(value: float = 0.0, slot: str | None = "data") -> CdrBuilder
 
 def tf_message(parent: str, children: Sequence[str]) -> CdrBuilder:
     """tf2_msgs/msg/TFMessage: one transform ``parent`` -> each child; slots ``stamp`` (per
-    transform), ``translation`` (x, y, z) and ``rotation`` (x, y, z, w)."""
+    transform) and ``transform`` (translation x, y, z, then rotation x, y, z, w)."""
     b = CdrBuilder()
     b.sequence(len(children))
     for child in children:
         b.header(parent, slot="stamp")
         b.string(child)
-        b.f64([0.0, 0.0, 0.0], "translation")
-        b.f64([0.0, 0.0, 0.0, 1.0], "rotation")
+        b.f64([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], "transform")
     return b
 
 
 def odometry_message(parent: str, child: str, pose_covariance: np.ndarray | None = None,
                      twist_covariance: np.ndarray | None = None) -> CdrBuilder:
-    """nav_msgs/msg/Odometry; slots ``stamp``, ``position`` (x, y, z), ``orientation`` (x, y, z,
-    w), ``linear`` and ``angular`` (the twist, in the child frame); the 6 x 6 covariances are fixed,
-    zero when not given."""
+    """nav_msgs/msg/Odometry; slots ``stamp``, ``pose`` (position x, y, z, orientation x, y, z, w)
+    and ``twist`` (linear, angular, in the child frame); the 6 x 6 covariances are fixed, zero when
+    not given."""
     b = CdrBuilder()
     b.header(parent, slot="stamp")
     b.string(child)
-    b.f64([0.0, 0.0, 0.0], "position")
-    b.f64([0.0, 0.0, 0.0, 1.0], "orientation")
+    b.f64([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], "pose")
     b.f64(np.zeros(36) if pose_covariance is None else np.asarray(pose_covariance, float).reshape(36))
-    b.f64([0.0] * 3, "linear")
-    b.f64([0.0] * 3, "angular")
+    b.f64([0.0] * 6, "twist")
     b.f64(np.zeros(36) if twist_covariance is None else np.asarray(twist_covariance, float).reshape(36))
     return b
 
