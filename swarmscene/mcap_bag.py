@@ -325,7 +325,8 @@ class BagFolder:
             raise ValueError(f"{target}: the bag folder is named {self.folder.name!r}")
         writer.finish()
         self.fh.close()
-        text = yaml.safe_dump(writer.metadata(self.file_name), sort_keys=False)
+        dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)  # libyaml: PyYAML's own takes 0.3 s for 100 topics
+        text = yaml.dump(writer.metadata(self.file_name), Dumper=dumper, sort_keys=False)
         atomic_write_bytes(self.folder / "metadata.yaml", text.encode())
         mode = user_file_mode()
         os.chmod(self.folder / self.file_name, mode)
