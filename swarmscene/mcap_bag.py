@@ -270,6 +270,30 @@ class BagWriter:
         }}
 
 
+def yaml_text(value: Any, indent: int = 0) -> str:
+    """Block-style YAML of plain data (mappings, lists of mappings, strings, numbers), strings as
+    JSON strings (valid YAML double-quoted scalars): metadata.yaml without PyYAML's emitter, which
+    takes 0.1-0.3 s for a hundred topics, a fixed cost of every run."""
+    import json
+
+    pad = " " * indent
+    lines = []
+    for key, item in value.items():
+        if isinstance(item, dict):
+            lines.append(f"{pad}{key}:\n" + yaml_text(item, indent + 2).rstrip("\n"))
+        elif isinstance(item, list):
+            lines.append(f"{pad}{key}:")
+            for entry in item:
+                if isinstance(entry, dict):
+                    body = yaml_text(entry, indent + 4)
+                    lines.append(f"{pad}  - " + body[indent + 4:].rstrip("\n"))
+                else:
+                    lines.append(f"{pad}  - {json.dumps(entry)}")
+        else:
+            lines.append(f"{pad}{key}: {json.dumps(item)}")
+    return "\n".join(lines) + "\n"
+
+
 def _latched_qos() -> str:
     """rosbag2's offered_qos_profiles (a YAML string, rmw enum values): keep last 1, reliable,
     transient local, automatic liveliness, default deadline and lifespan."""
@@ -316,8 +340,6 @@ class BagFolder:
     def publish(self, writer: BagWriter, target: Path) -> Path:
         """Finish the bag, write metadata.yaml and move the folder to ``target`` (named as the
         folder; a directory or a link already there is replaced, never followed)."""
-        import yaml
-
         from .outputs import atomic_write_bytes, user_file_mode
 
         target = Path(target)
@@ -325,8 +347,7 @@ class BagFolder:
             raise ValueError(f"{target}: the bag folder is named {self.folder.name!r}")
         writer.finish()
         self.fh.close()
-        dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)  # libyaml: PyYAML's own takes 0.3 s for 100 topics
-        text = yaml.dump(writer.metadata(self.file_name), Dumper=dumper, sort_keys=False)
+        text = yaml_text(writer.metadata(self.file_name))
         atomic_write_bytes(self.folder / "metadata.yaml", text.encode())
         mode = user_file_mode()
         os.chmod(self.folder / self.file_name, mode)
