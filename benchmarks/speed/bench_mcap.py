@@ -83,11 +83,12 @@ def writer_per_tick(n: int, ticks: int = 2000) -> float:
         return (time.perf_counter() - start) / ticks * 1e6
 
 
-def peak_memory(n: int, duration: float, bag: bool) -> int:
-    """tracemalloc's peak during one run (trajectory off), bytes."""
+def peak_memory(n: int, duration: float, bag: bool) -> tuple[int, int]:
+    """(tracemalloc's peak during one run (trajectory off), bytes; the bag's size, bytes)."""
     from swarmscene import api
 
     overrides = ["scenario=swap", f"swarm.n={n}", "swarm.start.radius=30", f"clock.duration={duration}",
+                 "termination.on_complete=false",  # the whole duration, however soon the swap ends
                  "output.summary=false", "output.progress=off", "output.trajectory=false",
                  f"output.mcap={str(bag).lower()}"]
     with tempfile.TemporaryDirectory() as tmp:
@@ -95,7 +96,8 @@ def peak_memory(n: int, duration: float, bag: bool) -> int:
         api.run(overrides, output_dir=Path(tmp) / "run")
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
-    return peak
+        size = sum(p.stat().st_size for p in (Path(tmp) / "run" / "bag").glob("*")) if bag else 0
+    return peak, size
 
 
 def main() -> None:
@@ -113,9 +115,9 @@ def main() -> None:
     memory = {}
     peak_memory(args.n, 5.0, True)  # compiled, imported
     for duration in (60.0, 240.0):
-        with_bag, without = peak_memory(args.n, duration, True), peak_memory(args.n, duration, False)
+        (with_bag, size), (without, _) = peak_memory(args.n, duration, True), peak_memory(args.n, duration, False)
         memory[f"{duration:g} s"] = {"with_bag_mib": with_bag / 2**20, "without_mib": without / 2**20,
-                                     "bag_share_mib": (with_bag - without) / 2**20}
+                                     "bag_share_mib": (with_bag - without) / 2**20, "bag_file_mib": size / 2**20}
         print(f"peak memory, {duration:g} s: {memory[f'{duration:g} s']}", file=sys.stderr)
     out["memory"] = memory
     out["load_after"] = os.getloadavg()
@@ -129,7 +131,7 @@ def main() -> None:
                   f"(x{r['cpu_ratio']:.3f})")  # type: ignore[index]
         for duration, m in memory.items():
             print(f"peak memory {duration}: {m['with_bag_mib']:.1f} MiB with the bag, {m['without_mib']:.1f} without "
-                  f"(the bag's share {m['bag_share_mib']:.1f} MiB)")
+                  f"(the bag's share {m['bag_share_mib']:.1f} MiB; the bag {m['bag_file_mib']:.0f} MiB on disk)")
 
 
 if __name__ == "__main__":
