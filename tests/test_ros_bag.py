@@ -19,6 +19,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from swarmscene import api, mcap_bag, plots, replay
 from swarmscene.core.errors import ConfigError
+from swarmscene.core.hookspecs import hookimpl
 from swarmscene.methods.ros2 import messages
 from swarmscene.rundir import RunDir
 
@@ -310,3 +311,38 @@ def test_the_bag_changes_no_number_of_the_run_nor_its_config_hash(failing, tmp_p
     ours, plain = np.load(failing / "trajectory.npz"), np.load(tmp_path / "plain" / "trajectory.npz")
     assert all(np.array_equal(ours[k], plain[k]) for k in ("t", "pos", "vel", "healthy"))
     assert RunDir(failing).manifest()["config_hash"] == RunDir(tmp_path / "plain").manifest()["config_hash"]
+
+
+class StopAt:
+    """Asks the run to stop (as Ctrl-C does) at its fifth tick."""
+
+    @hookimpl
+    def swarmscene_step_end(self, sim):
+        from swarmscene.core import interrupts
+
+        if sim.step_count == 5:
+            interrupts.request()
+
+
+def test_a_run_stopped_early_leaves_no_bag_and_no_spill(tmp_path):
+    """Ctrl-C mid-run: the directory is marked incomplete, the extras (the bag among them) are left
+    out, and the bag's private spill directory goes with the recorder."""
+    import gc
+
+    from swarmscene.core import interrupts
+
+    spill = tmp_path / "spill"
+    sim = api.build(["clock.duration=2.0", "output.mcap=true", "output.summary=false",
+                     f"output.trajectory_spill_dir={spill}"])
+    (publish,) = api.extra_writers(sim)
+    sim.pm.register(StopAt(), name="stop_at")
+    try:
+        result = sim.run()
+        api.write_outputs(sim, result, tmp_path / "run", [lambda d: publish(d, sim=sim, result=result)])
+    finally:
+        interrupts.clear()
+    assert RunDir(tmp_path / "run").manifest()["complete"] is False
+    assert not (tmp_path / "run" / "bag").exists()
+    del sim, publish
+    gc.collect()
+    assert list(spill.iterdir()) == []
