@@ -324,25 +324,27 @@ class StopAt:
             interrupts.request()
 
 
-def test_a_run_stopped_early_leaves_no_bag_and_no_spill(tmp_path):
-    """Ctrl-C mid-run: the directory is marked incomplete, the extras (the bag among them) are left
-    out, and the bag's private spill directory goes with the recorder."""
-    import gc
-
+def _stopped_run(run_dir, spill):
     from swarmscene.core import interrupts
 
-    spill = tmp_path / "spill"
     sim = api.build(["clock.duration=2.0", "output.mcap=true", "output.summary=false",
                      f"output.trajectory_spill_dir={spill}"])
     (publish,) = api.extra_writers(sim)
     sim.pm.register(StopAt(), name="stop_at")
     try:
         result = sim.run()
-        api.write_outputs(sim, result, tmp_path / "run", [lambda d: publish(d, sim=sim, result=result)])
+        api.write_outputs(sim, result, run_dir, [lambda d: publish(d, sim=sim, result=result)])
     finally:
         interrupts.clear()
+
+
+def test_a_run_stopped_early_leaves_no_bag_and_no_spill(tmp_path):
+    """Ctrl-C mid-run: the directory is marked incomplete, the extras (the bag among them) are left
+    out, and the bag's private spill directory goes with the recorder."""
+    import gc
+
+    _stopped_run(tmp_path / "run", tmp_path / "spill")
     assert RunDir(tmp_path / "run").manifest()["complete"] is False
     assert not (tmp_path / "run" / "bag").exists()
-    del sim, publish
     gc.collect()
-    assert list(spill.iterdir()) == []
+    assert list((tmp_path / "spill").iterdir()) == []
