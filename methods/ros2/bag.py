@@ -19,6 +19,7 @@ chunk larger than :data:`MAX_CHUNK_BYTES`, a message its schema does not decode)
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -115,7 +116,7 @@ def _metadata(meta: Path) -> dict[str, Any]:
     return info
 
 
-def _decoded(file: Path, topics: list[str]) -> Any:
+def _decoded(file: Path, topics: list[str]) -> Iterator[tuple[str, str, Any]]:
     """(channel topic, schema name, decoded message) of ``topics`` in ``file``, in file order."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
@@ -131,12 +132,12 @@ def _decoded(file: Path, topics: list[str]) -> Any:
             yield channel.topic, schema.name if schema is not None else "", decoded
 
 
-def read_messages(path: Path | str, topics: list[str]) -> list[tuple[str, str, Any]]:
-    """Every message of ``topics`` in the recording, decoded (one :class:`BagError` line for any damage)."""
-    out = []
+def read_messages(path: Path | str, topics: list[str]) -> Iterator[tuple[str, str, Any]]:
+    """Every message of ``topics`` in the recording, decoded, one at a time (a long recording is not
+    held in memory); any damage is one :class:`BagError` line naming the file."""
     for file in mcap_files(path):
         try:
-            out.extend(_decoded(file, topics))
+            yield from _decoded(file, topics)
         except BagError:
             raise
         except ImportError as exc:
@@ -144,7 +145,6 @@ def read_messages(path: Path | str, topics: list[str]) -> list[tuple[str, str, A
         except Exception as exc:  # noqa: BLE001 - whatever a damaged file makes the reader raise
             first = " ".join(str(exc).split())[:160] or type(exc).__name__
             raise BagError(file, f"not a readable MCAP recording ({type(exc).__name__}: {first})") from None
-    return out
 
 
 def _stamp(header: Any) -> int:
