@@ -229,7 +229,7 @@ class McapWriter:
     def _write_chunk(self, buffer: np.ndarray, size: int, index: list[tuple[np.ndarray, int, np.ndarray]],
                      times: tuple[int, int]) -> None:
         """Compress (zstandard and lz4 release the GIL: the run goes on meanwhile) and write one chunk."""
-        raw = memoryview(buffer)[:size]
+        raw = buffer[:size]  # an ndarray: both compressors take any buffer
         data = self._compress(raw)
         lo, hi = times
         content = (struct.pack("<QQQI", lo, hi, size, 0) + _string(self.compression)
