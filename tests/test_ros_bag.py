@@ -348,3 +348,35 @@ def test_a_run_stopped_early_leaves_no_bag_and_no_spill(tmp_path):
     assert not (tmp_path / "run" / "bag").exists()
     gc.collect()
     assert list((tmp_path / "spill").iterdir()) == []
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_the_mcap_writer_makes_files_the_mcap_reader_and_rosbags_read_in_each_compression(tmp_path, compression):
+    from swarmscene.mcap_file import McapWriter, RecordBlock
+    from swarmscene.methods.ros2.cdr import CdrTemplate, split_time
+
+    frames = ["a/base_link", "bb/base_link"]
+    (tmp_path / "b").mkdir()
+    with open(tmp_path / "b" / "b_0.mcap", "wb") as fh:
+        writer = McapWriter(fh, "ros2", "test", compression, chunk_bytes=2000)  # many chunks
+        schema = writer.add_schema("tf2_msgs/msg/TFMessage", "ros2msg", messages.msgdef("tf2_msgs/msg/TFMessage").encode())
+        channel = writer.add_channel("/tf", schema, "cdr")
+        block = RecordBlock([channel], CdrTemplate([messages.tf_message("world", frames)]))
+        expected = []
+        for k in range(50):
+            pose = np.column_stack([np.full((2, 3), k + 0.5) + [[0, 1, 2]], np.tile([0.0, 0.0, 0.0, 1.0], (2, 1))])
+            writer.write_block(block, k * 10**8, stamp=split_time(k * 0.1), transform=pose)
+            expected.append(pose[:, :3].copy())
+        writer.finish()
+    got = np.array([[[t.transform.translation.x, t.transform.translation.y, t.transform.translation.z]
+                     for t in msg.transforms] for _, _, msg in _decoded(tmp_path / "b" / "b_0.mcap")])
+    assert np.array_equal(got, np.array(expected))
+    with open(tmp_path / "b" / "b_0.mcap", "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert len(summary.chunk_indexes) > 5 and {c.compression for c in summary.chunk_indexes} == {compression}
+    from rosbags.rosbag2.storage_mcap import McapReader
+
+    reader = McapReader(tmp_path / "b" / "b_0.mcap")  # rosbags' own MCAP reader
+    reader.open()
+    assert sum(1 for _ in reader.messages(reader.connections)) == 50
+    reader.close()
