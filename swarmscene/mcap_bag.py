@@ -41,8 +41,8 @@ itself is the true state, as on /tf: the covariance says how well a vehicle's ow
 Streaming: the bag is written tick by tick into a private spill directory
 (``output.trajectory_spill_dir`` or the system's temporary directory; memory stays two 4 MiB
 chunks, one filling while the other is compressed, whatever the run's length) and moved into the
-run directory with the other outputs, before the manifest, which lists it. A run stopped early leaves no bag (its manifest is marked
-incomplete); its spill directory is removed.
+run directory with the other outputs, before the manifest, which lists it. A run stopped early
+leaves no bag (its manifest is marked incomplete); its spill directory is removed.
 """
 
 from __future__ import annotations
