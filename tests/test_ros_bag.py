@@ -233,6 +233,12 @@ def test_the_converter_writes_the_same_tf_and_odometry_from_the_run_directory(fa
     live = _tf(_mcap(failing))
     for a, b in zip(ours, live, strict=True):
         assert np.array_equal(np.asarray(a), np.asarray(b)) if not isinstance(a, set) else a == b
+    for topic in ("/agent_1/odom", "/clock"):
+        converted, streamed = _decoded(out / "converted_0.mcap", [topic]), _decoded(_mcap(failing), [topic])
+        assert [ns for _, ns, _ in converted] == [ns for _, ns, _ in streamed]
+    pose = [[(m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z, m.twist.twist.linear.x)
+             for _, _, m in _decoded(path, ["/agent_1/odom"])] for path in (out / "converted_0.mcap", _mcap(failing))]
+    assert pose[0] == pose[1]
     lines = {msg.msg for _, _, msg in _decoded(out / "converted_0.mcap", ["/rosout"])}
     assert "agent 0: failed (hovers in place)" in lines
     assert any(line.startswith("OK separation: min") for line in lines)
