@@ -182,6 +182,10 @@ class OutputConfig(_Strict):
     )
     comm_edges: bool = Field(False, description="draw communication edges (within comm.range) in the animation")
     rerun: bool = Field(False, description="write replay.rrd for the Rerun viewer (needs the rerun extra)")
+    mcap: bool = Field(
+        False, description="write bag/, a ROS 2 bag (MCAP and metadata.yaml) streamed while the run goes: "
+        "/tf, odometry, markers, events and verdicts (needs the ros extra; docs/ros.md)"
+    )
     live: str = Field(
         "off",
         description="stream the run to a Rerun viewer as it is simulated (rerun extra): off; spawn[:PORT] "

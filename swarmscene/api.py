@@ -110,7 +110,7 @@ def run(
     """Run a scenario; write its run directory when ``output_dir`` is given.
 
     Every output option is honoured as on the command line: with ``output_dir``, ``output.plots``,
-    ``output.animation`` and ``output.rerun`` write their files (a missing extra is a one-line
+    ``output.animation``, ``output.rerun`` and ``output.mcap`` write their files (a missing extra is a one-line
     ConfigError before the run); without one, asking for files is a one-line ConfigError.
     ``output.progress`` shows the progress line (``auto``: only on a terminal) unless ``progress``
     is given; ``output.summary`` prints the run's summary (set it false to keep a notebook quiet).
@@ -120,7 +120,7 @@ def run(
     sim = build(config)
     output = sim.config.output
     if output_dir is None:
-        asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun") if getattr(output, key)]
+        asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
         if asked:
             raise ConfigError([f"{asked[0]}: writes files, so it needs a run directory: api.run(..., output_dir=...)"])
     writers = extra_writers(sim)
@@ -142,7 +142,7 @@ def run(
 
 
 def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
-    """The optional outputs asked for (plots, animation, Rerun replay), as writer functions; a
+    """The optional outputs asked for (plots, animation, Rerun replay, ROS 2 bag), as writer functions; a
     missing optional package is a one-line ConfigError now, not after the run. A live view
     (``output.live``) is attached to ``sim`` here, before its run (swarmscene.live)."""
     output = sim.config.output
@@ -157,6 +157,11 @@ def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
         from .replay import export_rerun
 
         writers.append(export_rerun)
+    if output.mcap:  # streams during the run: an observer, whose writer publishes the bag
+        _require("zstandard", "output.mcap", "ros")
+        from .mcap_bag import attach as attach_bag
+
+        writers.append(attach_bag(sim))
     if output.live != "off":  # streams during the run: an observer on this run's plugin manager
         from .live import attach
 

@@ -17,6 +17,7 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.formation.outdoor_mission",
     "swarmscene.plugins.formation.reynolds_flocking",
     "swarmscene.plugins.formation.antipodal_swap",
+    "swarmscene.plugins.formation.recorded",
     # avoidance: how they stay safe
     "swarmscene.plugins.avoidance.none",
     "swarmscene.plugins.avoidance.potential",

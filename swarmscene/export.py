@@ -891,7 +891,14 @@ def main(argv: list[str] | None = None) -> None:
                              "instead of refusing it with exit status 1")
     parser.add_argument("--force", action="store_true",
                         help="export a run that failed, collided or did not complete (a warning, not a refusal)")
+    parser.add_argument("--mcap", type=Path, metavar="OUT", help="write the run as a ROS 2 bag folder (docs/ros.md)")
     args = parser.parse_args(argv)
+    if args.mcap is not None:  # the bag is a view of any run, failed or not: swarmscene/mcap_bag.py
+        from .mcap_bag import export_main
+
+        export_main(parser, args.run_dir, args.mcap)
+        if args.csv is None and args.crazyflie is None:
+            return
     if args.csv is None and args.crazyflie is None:
         parser.error("nothing to do: give --csv DIR and/or --crazyflie DIR")
     from .rundir import RunFileError
