@@ -22,7 +22,6 @@ from pydantic import BaseModel, ValidationError
 from .core import hookspecs
 from .core.disturbances import Disturbances
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceParams
-from .core.disturbances.comm import CommDelay, PacketLoss
 from .core.environment import Environment
 from .core.errors import format_validation_error
 from .core.events import EventConfig, EventKindPlugin, EventParams, EventQueue, Motion, draw_event
@@ -38,7 +37,7 @@ N_AGENTS = 6
 GUIDANCE_PERIOD = 0.1  # s
 PHYSICS_STEP = 0.01  # s
 TICKS = 10
-PHASE_METHOD = {"sense": "sense", "communicate": "communicate", "wind": "air"}
+PHASE_METHOD = {"sense": "sense", "communicate": "communicate", "wind": "air", "force": "force"}
 """The method the kernel calls on a model of each phase (:class:`~swarmscene.core.disturbances.base.Disturbance`)."""
 ENVIRONMENT_KEYS = ("name", "generator", "obstacles")
 LIFECYCLE_HOOKS = ("swarmscene_run_start", "swarmscene_event", "swarmscene_step_end", "swarmscene_run_end")
@@ -134,13 +133,14 @@ class _IntegratedDynamics:
     """A stand-in dynamics for the wind phase: it integrates the wind itself (the kernel adds nothing)."""
 
     wind_coupling = "integrated"
+    force_coupling = "integrated"
 
 
 def _disturbances(cls: type[Disturbance], params: DisturbanceParams, key: str, seed: int) -> Disturbances:
     """The kernel's own phase runner around one model, as a run seeded ``seed`` builds it."""
     env = Environment()
     runner = Disturbances({key: (cls, params)}, seed, N_AGENTS, GUIDANCE_PERIOD, PHYSICS_STEP, 10.0,
-                          lambda world, previous: Sensing(world, env, 10.0, previous))
+                          lambda world, previous: Sensing(world, env, 10.0, previous), floor=0.0)
     runner.attach(SimpleNamespace(models_communication=False), _IntegratedDynamics())
     return runner
 
@@ -177,6 +177,11 @@ def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS) -> list[li
                     assert wind.shape == (N_AGENTS, 3) and np.isfinite(wind).all(), (
                         f"{runner_name(runner)}: air() must return finite (N, 3) m/s (got shape {wind.shape})")
                     record.append(np.array(wind))
+                if runner.has_force:
+                    force = np.asarray(world.force)
+                    assert force.shape == (N_AGENTS, 3) and np.isfinite(force).all(), (
+                        f"{runner_name(runner)}: force() must return finite (N, 3) m/s^2 (got shape {force.shape})")
+                    record.append(np.array(force))
                 world.pos += PHYSICS_STEP * world.vel
             world.t += GUIDANCE_PERIOD
     return out
@@ -190,8 +195,8 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
                       refused: dict[str, dict[str, Any]] | None = None) -> None:
     """Run a disturbance model through the kernel's phases (:class:`~swarmscene.core.disturbances.Disturbances`).
 
-    Rules: ``name``, ``phase`` (one of sense, communicate, wind) and its method (``sense``,
-    ``communicate`` or ``air``); Params as every kind's (refused options named
+    Rules: ``name``, ``phase`` (one of sense, communicate, wind, force) and its method (``sense``,
+    ``communicate``, ``air`` or ``force``; a channel model, ``delays`` or ``lost``); Params as every kind's (refused options named
     ``disturbances.<name>.<key>``); the truth it is handed is never modified; its outputs are finite
     (N, 3); it draws only from its own stream (``ctx.rng``: the same seed gives the same outputs);
     two instances do not share state; ``metrics()`` is flat, finite JSON without the
@@ -203,8 +208,8 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
     phase = getattr(cls, "phase", None)
     assert phase in PHASES, f"{name}: phase must be one of {', '.join(PHASES)} (got {phase!r})"
     method = PHASE_METHOD[cls.phase]
-    builtin_channel = issubclass(cls, (CommDelay, PacketLoss))
-    assert builtin_channel or callable(getattr(cls, method, None)), (
+    channel = cls.phase == "communicate" and any(callable(getattr(cls, m, None)) for m in ("delays", "lost"))
+    assert channel or callable(getattr(cls, method, None)), (
         f"{name}: a {cls.phase}-phase model must define {method}() (the kernel calls it)")
     state = _class_state(cls, Disturbance)
     alone = _disturbed_ticks([_disturbances(cls, params, "a", 0)])[0]
