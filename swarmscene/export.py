@@ -462,15 +462,20 @@ class ShowExport:
                 continue
             f = c["first"]
             who = " and ".join(f["vehicles"])
+            # the first breach, and the worst of the show where it is worse
+            worse = c["value"] is not None and round(c["value"], 3) < round(f["value"], 3)
             if c["name"].startswith("height"):
+                worst = f" ({c['value']:.3f} m at the lowest)" if worse else ""
                 phrases.append(f"{who} flies {f['value']:.3f} m above the floor (z = {self.floor:g} m) at "
-                               f"t = {f['time']:.2f} s, under the floor clearance {c['limit']:g} m")
+                               f"t = {f['time']:.2f} s{worst}, under the floor clearance {c['limit']:g} m")
             elif c["name"].startswith("keep-out"):
+                worst = f", {c['value']:.2f} at the worst" if worse else ""
                 phrases.append(f"{who} come inside each other's keep-out ellipsoid at t = {f['time']:.2f} s "
-                               f"(||E^-1 (p_i - p_j)|| = {f['value']:.2f} < 1)")
+                               f"(||E^-1 (p_i - p_j)|| = {f['value']:.2f} < 1{worst})")
             else:
-                phrases.append(f"{who} come {f['value']:.3f} m apart at t = {f['time']:.2f} s, under the run's "
-                               f"separation limit {c['limit']:g} m")
+                worst = f" ({c['value']:.3f} m at the closest)" if worse else ""
+                phrases.append(f"{who} come {f['value']:.3f} m apart at t = {f['time']:.2f} s{worst}, under the "
+                               f"run's separation limit {c['limit']:g} m")
         return phrases
 
     def write(self, out_dir: Path) -> None:

@@ -295,7 +295,7 @@ def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, c
     box = ["--fit-box", "-0.5", "-0.5", "0", "0.5", "0.5", "1"]
     code, err = _main(str(short_show), "--crazyflie", str(out), *box, capsys=capsys)
     assert code == 1 and not out.exists()
-    assert err == ["python -m swarmscene.export: cf_0 and cf_1 come 0.359 m apart at t = 0.00 s, under the run's "
+    assert err == ["python -m swarmscene.export: cf_0 and cf_1 come 0.359 m apart at t = 0.00 s (0.337 m at the closest), under the run's "
                    "separation limit 0.6 m (scale 0.514, offset (0.124995, 0.0774017, 0.01) m, time scale 1); "
                    "refused, nothing written (--allow-exceed writes it anyway)"]
     code, err = _main(str(short_show), "--crazyflie", str(out), *box, "--allow-exceed", capsys=capsys)
@@ -334,7 +334,7 @@ def test_scaling_applies_before_the_limits(short_show, tmp_path, capsys):
                       "--scale", "0.5", "--offset", "0", "0", "0.2", "--allow-exceed", capsys=capsys)
     # at half size the vehicles stand closer than the run's separation limit: written only with a warning
     assert code == 0 and err == [
-        "python -m swarmscene.export: warning: cf_0 and cf_1 come 0.350 m apart at t = 0.00 s, under the run's "
+        "python -m swarmscene.export: warning: cf_0 and cf_1 come 0.350 m apart at t = 0.00 s (0.328 m at the closest), under the run's "
         "separation limit 0.6 m (scale 0.5, offset (0, 0, 0.2) m, time scale 0.5); written because of --allow-exceed"]
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["placement"] == {"scale": 0.5, "offset": [0.0, 0.0, 0.2]}

@@ -53,7 +53,7 @@ def test_the_readme_fit_of_cem_six_vehicle_is_refused_naming_the_scale(cem_six, 
     out = tmp_path / "cf"
     code, stdout, err = _main(str(cem_six), "--crazyflie", str(out), *README_BOX, capsys=capsys)
     assert code == 1 and stdout == [] and not out.exists()
-    assert err == [f"{PROG}: cf_0 and cf_1 come 0.412 m apart at t = 0.00 s, under the run's separation limit "
+    assert err == [f"{PROG}: cf_0 and cf_1 come 0.412 m apart at t = 0.00 s (0.202 m at the closest), under the run's separation limit "
                    "0.56 m (scale 0.151, offset (-1.75285, 0, -0.0370237) m, time scale 1); refused, nothing "
                    "written (--allow-exceed writes it anyway)"]
 
