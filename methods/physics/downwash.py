@@ -21,8 +21,8 @@ Regularisation (the published fit is singular twice):
 
 Reach: vehicles farther than ``reach_z`` above or ``reach_r`` aside are left out (the default
 3 m and 1 m leave out at most α(3 m) = 0.0084 N, 3 % of a Crazyflie's weight). The neighbours
-are found in compiled code (numba) on a grid of x-y cells of side ``reach_r``, so the cost is
-O(N) for a swarm that is not stacked in one column.
+are found in compiled code (numba) on a dense grid of x-y cells at least ``reach_r`` wide, filled
+by a counting sort, so the cost is O(N) for a swarm that is not stacked in one column.
 
 Strength: at Δz = 0.5 m straight below the fit gives 0.30 N, more than a Crazyflie's weight
 (0.26 N); Neural-Swarm's measurements (Shi et al., ICRA 2020, Fig. 3) show about 0.1 N at 0.2 m.
@@ -42,6 +42,8 @@ import math
 import numba
 import numpy as np
 
+from .cells import xy_cells
+
 
 def downwash_force(dz, r, c1: float, c2: float, c3: float, rotor_radius: float,
                    min_width: float = 0.0, min_height: float = 0.0):
@@ -51,26 +53,6 @@ def downwash_force(dz, r, c1: float, c2: float, c3: float, rotor_radius: float,
     alpha = c1 * (rotor_radius / (4.0 * dz)) ** 2
     beta2 = (c2 * dz + c3) ** 2 + min_width**2
     return alpha * np.exp(-0.5 * np.asarray(r, dtype=float) ** 2 / beta2)
-
-
-@numba.njit(cache=True)
-def _cells(pos, side):
-    """Each point's x-y cell key and the points sorted by key, with the sorted keys."""
-    n = pos.shape[0]
-    x0, y0 = np.inf, np.inf
-    y1 = -np.inf
-    for i in range(n):
-        x0 = min(x0, pos[i, 0])
-        y0 = min(y0, pos[i, 1])
-        y1 = max(y1, pos[i, 1])
-    rows = int(math.floor((y1 - y0) / side)) + 3  # a border row on each side: no wrap-around
-    key = np.empty(n, np.int64)
-    for i in range(n):
-        cx = int(math.floor((pos[i, 0] - x0) / side)) + 1
-        cy = int(math.floor((pos[i, 1] - y0) / side)) + 1
-        key[i] = cx * rows + cy
-    order = np.argsort(key, kind="mergesort")
-    return key, order, key[order], rows
 
 
 @numba.njit(cache=True)
@@ -94,16 +76,14 @@ def downwash_field(pos, c1, c2, c3, rotor_radius, min_width, min_height, reach_r
     best = np.inf
     if n < 2:
         return force, best, conflicts
-    key, order, sorted_keys, rows = _cells(pos, reach_r)
+    cx, cy, nx, ny, order, start, _ = xy_cells(pos, reach_r)
     found = []
     r2_reach = reach_r * reach_r
     for i in range(n):
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                k = key[i] + dx * rows + dy
-                lo = np.searchsorted(sorted_keys, k, side="left")
-                hi = np.searchsorted(sorted_keys, k, side="right")
-                for s in range(lo, hi):
+        for x in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
+            for y in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
+                q = x * ny + y
+                for s in range(start[q], start[q + 1]):
                     j = order[s]
                     dz = pos[j, 2] - pos[i, 2]
                     if dz < 0.0 or (dz == 0.0 and j <= i) or dz > reach_z:

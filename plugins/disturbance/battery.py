@@ -18,7 +18,6 @@ from pydantic import Field, model_validator
 
 from swarmscene.methods.physics import battery as cell
 from swarmscene.methods.physics import crazyflie as cf
-from swarmscene.methods.physics.thrust import thrust_per_mass
 from swarmscene.plugin import Disturbance, DisturbanceParams, Event, hookimpl
 
 
@@ -52,6 +51,10 @@ class Battery(Disturbance):
 
     def __init__(self, params: Battery.Params, ctx) -> None:
         super().__init__(params, ctx)
+        from swarmscene.methods.physics.kernels import battery_step  # numba: imported when built
+        from swarmscene.methods.physics.thrust import thrust_per_mass
+
+        self._thrust, self._step = thrust_per_mass, battery_step
         self.dt = ctx.physics_step
         self.weight = params.mass * cf.GRAVITY
         self.charge = np.full(ctx.n, float(params.charge))
@@ -62,27 +65,17 @@ class Battery(Disturbance):
         self.first: float | None = None
 
     def force(self, world, t):
-        """The thrust the cells cannot give, per mass (N, 3), m/s^2; the charge drawn."""
+        """The thrust the cells cannot give, per mass (N, 3), m/s^2; the charge drawn (one compiled
+        pass, :func:`swarmscene.methods.physics.kernels.battery_step`)."""
         p = self.params
-        tau = thrust_per_mass(world, p.k_T, p.mass)
-        thrust = p.mass * np.sqrt(np.einsum("ij,ij->i", tau, tau))
-        v_oc = cell.open_circuit_voltage(self.charge, p.v_full, p.v_empty)
-        cap = cell.power_cap(v_oc, p.cutoff, p.resistance)
-        amps = cell.current(v_oc, np.minimum(cell.power(thrust, p.hover_power, self.weight), cap), p.resistance)
-        amps[self.depleted] = 0.0
-        self.voltage = v_oc - amps * p.resistance
+        tau = np.ascontiguousarray(self._thrust(world, p.k_T, p.mass), dtype=np.float64)
+        self.voltage, cut, out = self._step(
+            self.charge, self.depleted, tau, self.dt, p.mass, self.weight, p.capacity, p.v_full, p.v_empty,
+            p.resistance, p.cutoff, p.hover_power, p.thrust_to_weight)
         self.lowest = min(self.lowest, float(self.voltage.min(initial=p.v_full)))
-        self.charge = np.maximum(self.charge - amps * self.dt / (3600.0 * p.capacity), 0.0)
-        out = ~self.depleted & ((self.charge <= 0.0) | (v_oc <= p.cutoff))
         if out.any():
-            self.depleted |= out
             self._new += np.flatnonzero(out).tolist()
-        available = np.minimum(cell.max_thrust(self.voltage, p.thrust_to_weight, self.weight, p.v_full),
-                               cell.thrust_at_power(cap, p.hover_power, self.weight))
-        available[self.depleted] = 0.0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cut = np.where(thrust > available, (thrust - available) / thrust, 0.0)
-        return -cut[:, None] * tau
+        return cut
 
     def raised(self, world, t):
         """A ``battery_depleted`` event for the vehicles that ran out during this tick."""

@@ -16,7 +16,6 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.physics import crazyflie as cf
-from swarmscene.methods.physics.downwash import downwash_field
 from swarmscene.plugin import Disturbance, DisturbanceParams, hookimpl
 
 
@@ -49,6 +48,10 @@ class Downwash(Disturbance):
 
     def __init__(self, params: Downwash.Params, ctx) -> None:
         super().__init__(params, ctx)
+        # numba is imported here, not at module level: listing plugins must not pay for it
+        from swarmscene.methods.physics.downwash import downwash_field
+
+        self._field = downwash_field
         self._radii = np.asarray(params.keep_out, dtype=float)
         if np.any(self._radii <= 0):
             raise ValueError("keep_out: the ellipsoid's radii must be > 0")
@@ -60,7 +63,7 @@ class Downwash(Disturbance):
     def force(self, world, t):
         """-scale F / m e_3 per vehicle (N, 3), m/s^2."""
         p = self.params
-        push, best, conflicts = downwash_field(
+        push, best, conflicts = self._field(
             np.ascontiguousarray(world.pos, dtype=np.float64), p.c1, p.c2, p.c3, p.rotor_radius, p.min_width,
             p.min_height, p.reach_r, p.reach_z, self._radii)
         acc = np.zeros((world.n, 3))

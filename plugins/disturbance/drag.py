@@ -14,9 +14,6 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.physics import crazyflie as cf
-from swarmscene.methods.physics.drag import body_drag, rotor_drag
-from swarmscene.methods.physics.thrust import rotor_speed_sum
-from swarmscene.methods.quadrotor.model import quat_to_rotmat
 from swarmscene.plugin import Disturbance, DisturbanceParams, hookimpl
 
 
@@ -40,6 +37,9 @@ class Drag(Disturbance):
 
     def __init__(self, params: Drag.Params, ctx) -> None:
         super().__init__(params, ctx)
+        from swarmscene.methods.physics import drag, thrust  # numba: imported when built
+
+        self._drag, self._thrust = drag, thrust
         if any(k < 0 for k in params.k_aero):
             raise ValueError("k_aero: must be >= 0")
         self.peak = 0.0
@@ -47,10 +47,8 @@ class Drag(Disturbance):
     def force(self, world, t):
         """The drag's acceleration (N, 3), m/s^2."""
         p = self.params
-        rot = quat_to_rotmat(world.quat) if world.quat is not None else None
-        acc = rotor_drag(world.vel, rot, rotor_speed_sum(world, p.hover_speed), p.k_aero, p.mass)
-        if p.body:
-            acc += body_drag(world.vel, p.body, p.mass)
+        acc = self._drag.drag_acceleration(world.vel, world.quat, self._thrust.rotor_speed_sum(world, p.hover_speed),
+                                           p.k_aero, p.mass, p.body)
         if world.n:
             self.peak = max(self.peak, float(np.sqrt(np.einsum("ij,ij->i", acc, acc)).max()))
         return acc

@@ -15,7 +15,6 @@ from pydantic import Field
 
 from swarmscene.methods.physics import crazyflie as cf
 from swarmscene.methods.physics.ground_effect import thrust_ratio
-from swarmscene.methods.physics.thrust import thrust_per_mass
 from swarmscene.plugin import Disturbance, DisturbanceParams, hookimpl
 
 
@@ -42,6 +41,9 @@ class GroundEffect(Disturbance):
         if params.min_height <= params.rotor_radius / 4:
             raise ValueError(f"min_height: must be above rotor_radius / 4 = {params.rotor_radius / 4:g} m, "
                              f"where the ratio is singular (got {params.min_height})")
+        from swarmscene.methods.physics.thrust import thrust_per_mass  # numba: imported when built
+
+        self._thrust = thrust_per_mass
         self.floor = float(ctx.floor)
         self.peak = 1.0
 
@@ -50,7 +52,7 @@ class GroundEffect(Disturbance):
         p = self.params
         ratio = thrust_ratio(world.pos[:, 2] - self.floor, p.rotor_radius, p.min_height)
         self.peak = max(self.peak, float(ratio.max(initial=1.0)))
-        return (ratio - 1.0)[:, None] * thrust_per_mass(world, p.k_T, p.mass)
+        return (ratio - 1.0)[:, None] * self._thrust(world, p.k_T, p.mass)
 
     def metrics(self):
         return {"peak_ratio": self.peak}

@@ -58,6 +58,9 @@ class Radio(Disturbance):
 
     def __init__(self, params: Radio.Params, ctx) -> None:
         super().__init__(params, ctx)
+        from swarmscene.methods.physics.cells import nearest_distance  # numba: imported when built
+
+        self._nearest = nearest_distance
         self.range = params.range if params.range is not None else ctx.comm_range
         self.T_s = ctx.guidance_period
         self.max_ticks = links.fixed_delay_ticks(params.latency, self.T_s)
@@ -81,7 +84,7 @@ class Radio(Disturbance):
     def lost(self, world, sensing):
         """Each sender's broadcast lost this tick, (N,) bool (module docstring)."""
         n = world.n
-        d = sensing.nearest[0] if n > 1 else np.full(n, np.inf)
+        d = self._nearest(np.ascontiguousarray(world.pos, dtype=np.float64))  # to the nearest other agent
         prr = self.reception(d)
         within = np.isfinite(d) & (d <= self.range)
         if within.any():

@@ -110,8 +110,7 @@ def test_rotor_drag_is_foerster_and_body_drag_quadratic():
         quats.append([c / n for c in q])
         vels.append([rng.uniform(-3, 3) for _ in range(3)])
         sums.append(rng.uniform(4000, 8000))
-    rots = np.array([_quat_to_r(q) for q in quats])
-    got = drag.rotor_drag(np.array(vels), rots, np.array(sums), k, m)
+    got = drag.rotor_drag(np.array(vels), np.array(quats), np.array(sums), k, m)
     for i in range(8):
         R = _quat_to_r(quats[i])
         v_body = [sum(R[r][c] * vels[i][r] for r in range(3)) for c in range(3)]  # R^T v
@@ -181,3 +180,54 @@ def test_radio_budget_keeps_the_nearest_senders():
     assert kept.sum(axis=1).tolist() == [2, 2, 2, 2]
     assert kept[0].tolist() == [False, False, True, True]
     assert kept[1].tolist() == [True, False, False, True]
+
+
+# -- the compiled forms against the NumPy functions above ------------------------------------------
+def test_compiled_battery_step_is_the_cell_functions_composed():
+    from swarmscene.methods.physics.kernels import battery_step
+
+    rng = np.random.default_rng(4)
+    n, w, m = 50, crazyflie.MASS * 9.81, crazyflie.MASS
+    charge = rng.uniform(0.0, 1.0, n)
+    charge[:3] = [0.0, 1e-6, 1.0]
+    tau = rng.normal(0, 4, (n, 3)) + [0, 0, 9.81]
+    args = (0.02, m, w, 0.25, 4.2, 3.0, 0.2, 2.8, 5.88, 2.25)
+    depleted = np.zeros(n, bool)
+    new_charge = charge.copy()
+    voltage, cut, out = battery_step(new_charge, depleted, tau, *args)
+    thrust = m * np.linalg.norm(tau, axis=1)
+    v_oc = battery.open_circuit_voltage(charge, 4.2, 3.0)
+    cap = battery.power_cap(v_oc, 2.8, 0.2)
+    amps = battery.current(v_oc, np.minimum(battery.power(thrust, 5.88, w), cap), 0.2)
+    np.testing.assert_allclose(voltage, v_oc - amps * 0.2, rtol=1e-12)
+    want_charge = np.maximum(charge - amps * 0.02 / 900.0, 0.0)
+    np.testing.assert_allclose(new_charge, want_charge, rtol=1e-12, atol=1e-300)
+    gone = (want_charge <= 0) | (v_oc <= 2.8)
+    assert out.tolist() == gone.tolist() == depleted.tolist() and gone[0]
+    available = np.minimum(battery.max_thrust(v_oc - amps * 0.2, 2.25, w, 4.2),
+                           battery.thrust_at_power(cap, 5.88, w))
+    available[gone] = 0.0
+    factor = np.where(thrust > available, (thrust - available) / thrust, 0.0)
+    np.testing.assert_allclose(cut, -factor[:, None] * tau, rtol=1e-12, atol=1e-300)
+
+
+def test_compiled_drag_is_rotor_plus_body_drag():
+    rng = np.random.default_rng(5)
+    q = rng.normal(size=(30, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    vel, sums = rng.normal(0, 3, (30, 3)), rng.uniform(4000, 8000, 30)
+    k, m = crazyflie.K_AERO, crazyflie.MASS
+    np.testing.assert_allclose(drag.drag_acceleration(vel, q, sums, k, m, 1.08e-3),
+                               drag.rotor_drag(vel, q, sums, k, m) + drag.body_drag(vel, 1.08e-3, m),
+                               rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("seed, spread", [(0, (30, 30, 30)), (1, (100, 0.01, 1)), (2, (1, 1, 50))])
+def test_compiled_nearest_distance_is_the_k_d_trees(seed, spread):
+    from scipy.spatial import cKDTree
+
+    from swarmscene.methods.physics.cells import nearest_distance
+
+    pos = np.random.default_rng(seed).normal(0, 1, (700, 3)) * spread
+    assert np.array_equal(nearest_distance(pos), cKDTree(pos).query(pos, k=2)[0][:, 1])
+    assert nearest_distance(pos[:1]).tolist() == [np.inf]

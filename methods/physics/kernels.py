@@ -1,0 +1,48 @@
+"""Compiled per-step forms of :mod:`.battery` (numba): one pass over the vehicles, no temporaries.
+
+:func:`battery_step` is :mod:`.battery`'s functions composed for one physics step, loop by loop
+(tests/methods/physics compare the two to 1e-12); the NumPy functions stay the documented form.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def battery_step(charge, depleted, tau, dt, mass, weight, capacity, v_full, v_empty, resistance, cutoff,
+                 hover_power, thrust_to_weight):
+    """Draw one step of thrust ``tau`` (N, 3) m/s^2 from the cells: update ``charge`` (N,) and
+    ``depleted`` (N,) bool in place; return the terminal voltages (N,), the cut acceleration
+    (N, 3) m/s^2 (-the thrust the cells cannot give, per mass, along tau) and which vehicles ran out
+    in this step (N,) bool."""
+    n = charge.shape[0]
+    voltage = np.empty(n)
+    cut = np.zeros((n, 3))
+    out = np.zeros(n, np.bool_)
+    for i in range(n):
+        tx, ty, tz = tau[i, 0], tau[i, 1], tau[i, 2]
+        thrust = mass * math.sqrt(tx * tx + ty * ty + tz * tz)
+        v_oc = v_empty + (v_full - v_empty) * charge[i]
+        v_c = max(cutoff, 0.5 * v_oc)
+        cap = v_c * (v_oc - v_c) / resistance if v_oc > cutoff else 0.0
+        p = min(hover_power * (max(thrust, 0.0) / weight) ** 1.5, cap)
+        amps = 0.0
+        if not depleted[i]:
+            amps = (v_oc - math.sqrt(max(v_oc * v_oc - 4.0 * resistance * p, 0.0))) / (2.0 * resistance)
+        voltage[i] = v_oc - amps * resistance
+        charge[i] = max(charge[i] - amps * dt / (3600.0 * capacity), 0.0)
+        if not depleted[i] and (charge[i] <= 0.0 or v_oc <= cutoff):
+            depleted[i] = True
+            out[i] = True
+        available = 0.0
+        if not depleted[i]:
+            available = min(thrust_to_weight * weight * (voltage[i] / v_full) ** 2,
+                            weight * (max(cap, 0.0) / hover_power) ** (2.0 / 3.0))
+        if thrust > available:
+            f = (thrust - available) / thrust
+            cut[i, 0], cut[i, 1], cut[i, 2] = -f * tx, -f * ty, -f * tz
+    return voltage, cut, out
