@@ -196,7 +196,8 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
     """Run a disturbance model through the kernel's phases (:class:`~swarmscene.core.disturbances.Disturbances`).
 
     Rules: ``name``, ``phase`` (one of sense, communicate, wind, force) and its method (``sense``,
-    ``communicate``, ``air`` or ``force``; a channel model, ``delays`` or ``lost``); Params as every kind's (refused options named
+    ``communicate``, ``air`` or ``force``; a channel model, ``delays`` or ``lost``); Params as every
+    kind's (refused options named
     ``disturbances.<name>.<key>``); the truth it is handed is never modified; its outputs are finite
     (N, 3); it draws only from its own stream (``ctx.rng``: the same seed gives the same outputs);
     two instances do not share state; ``metrics()`` is flat, finite JSON without the

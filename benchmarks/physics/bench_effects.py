@@ -4,9 +4,10 @@
 of 1/240 s) hold a 32 x 32 grid 1 m apart at 2 m over a floor at z = 0; no avoidance, no events.
 The tick is timed (``Simulation.step``: sense/communicate, the controller and the physics
 sub-steps) without disturbances ("bare") and with all five (``downwash``, ``ground_effect``,
-``drag``, ``battery``, ``radio``), in pairs alternately in one process (the machine's load drifts
-alike on both), ``--rounds`` pairs of ``--ticks`` ticks each after a warm-up; the ratio is the
-median of the "all" tick times over the median of the "bare" ones. Also per effect alone.
+``drag``, ``battery``, ``radio``), in pairs in one process: each round runs ``--ticks`` bare ticks
+and right after them ``--ticks`` ticks of the case (the machine's load drifts alike on both), after
+a warm-up; a pair's ratio is its case's median tick over its bare median, and the figure is the
+median of the pairs' ratios over ``--rounds`` rounds. Also per effect alone.
 
     OMP_NUM_THREADS=1 python benchmarks/physics/bench_effects.py [--rounds 7] [--ticks 20]
 
@@ -67,15 +68,20 @@ def main() -> None:
     sims = {label: build(effects, args.n) for label, effects in cases.items()}
     for sim in sims.values():  # warm-up: compile and fill caches
         tick_times(sim, 3)
-    times: dict[str, list[float]] = {label: [] for label in cases}
-    for _ in range(args.rounds):  # pairs alternately: bare, then each case
-        for label, sim in sims.items():
-            times[label] += tick_times(sim, args.ticks)
-    bare = statistics.median(times["bare"])
-    print(f"N = {args.n}, {args.rounds} rounds x {args.ticks} ticks, median tick (ms) and ratio to bare:")
-    for label in cases:
-        med = statistics.median(times[label])
-        print(f"  {label:14s} {med * 1e3:8.3f} ms  x{med / bare:.3f}")
+    ratios: dict[str, list[float]] = {label: [] for label in cases if label != "bare"}
+    medians: dict[str, list[float]] = {label: [] for label in cases}
+    for _ in range(args.rounds):  # pairs: bare, then the case, right after each other
+        for label in ratios:
+            bare = statistics.median(tick_times(sims["bare"], args.ticks))
+            case = statistics.median(tick_times(sims[label], args.ticks))
+            ratios[label].append(case / bare)
+            medians["bare"].append(bare)
+            medians[label].append(case)
+    print(f"N = {args.n}, {args.rounds} rounds of pairs (bare, case) x {args.ticks} ticks each; median tick (ms) "
+          "and the median over rounds of each pair's ratio of medians:")
+    print(f"  {'bare':14s} {statistics.median(medians['bare']) * 1e3:8.3f} ms")
+    for label in ratios:
+        print(f"  {label:14s} {statistics.median(medians[label]) * 1e3:8.3f} ms  x{statistics.median(ratios[label]):.3f}")
 
 
 if __name__ == "__main__":

@@ -296,9 +296,10 @@ class Disturbances:
         return out
 
     def push(self, world: WorldState, dt: float) -> None:
-        """After a physics step: the forces' and the wind's effect on models that do not integrate
-        them themselves. The force phase's ``world.force`` a: v += a dt, p += a dt^2 / 2 unless the
-        dynamics integrates it (``Dynamics.force_coupling``). The wind, by ``wind_coupling``:
+        """After a physics step: the forces' and the wind's effect where the model does not integrate them.
+
+        The force phase's ``world.force`` a: v += a dt, p += a dt^2 / 2 unless the dynamics
+        integrates it (``Dynamics.force_coupling``). The wind, by ``wind_coupling``:
 
         force:   v += a dt, p += a dt^2 / 2 with a = D w (held over the step; exact for a point mass
                  whose own input is held too, by superposition);

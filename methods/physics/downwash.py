@@ -61,8 +61,14 @@ def downwash_field(pos, c1, c2, c3, rotor_radius, min_width, min_height, reach_r
 
     Args:
         pos: (N, 3) positions, m.
-        c1, c2, c3, rotor_radius, min_width, min_height: the model's constants (module docstring).
-        reach_r, reach_z: the neighbourhood, m (horizontal radius, height above).
+        c1: C_1, N.
+        c2: C_2.
+        c3: C_3, m.
+        rotor_radius: R_p, m.
+        min_width: β_min, m (0: the published fit).
+        min_height: the least Δz, m.
+        reach_r: the plume's horizontal reach, m.
+        reach_z: its vertical reach, m.
         radii: (3,) the keep-out ellipsoid's radii, m.
 
     Returns:

@@ -51,7 +51,9 @@ def within_budget(dist: np.ndarray, arrived: np.ndarray, budget: int) -> np.ndar
     if budget >= dist.shape[1]:
         return arrived
     ranked = np.where(arrived, dist, np.inf)
-    kth = np.partition(ranked, budget - 1, axis=1)[:, budget - 1 : budget] if budget > 0 else np.full((dist.shape[0], 1), -np.inf)
+    if budget <= 0:
+        return np.zeros_like(arrived)
+    kth = np.partition(ranked, budget - 1, axis=1)[:, budget - 1 : budget]
     keep = arrived & (ranked <= kth)
     # ties at the k-th distance: keep the lowest sender indices up to the budget
     over = keep.sum(axis=1) > budget

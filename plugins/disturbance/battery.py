@@ -3,9 +3,10 @@
 Numerics and sources: :mod:`swarmscene.methods.physics.battery`. A force phase model: each
 physics step it draws the power of each vehicle's thrust τ (:mod:`swarmscene.methods.physics.thrust`)
 from its cell, and returns the thrust the cell cannot give, -max(0, m|τ| - T_max(V)) / m along τ
-(the rotors' thrust capped at what the sagging voltage allows). A vehicle whose charge or voltage
-runs out (charge 0, or an open-circuit voltage at the cut-off) loses its thrust: a ``battery_depleted`` event (a failure) at the end of that tick, and it
-falls under its dynamics (onto ``environment.floor`` when there is one).
+(the rotors' thrust capped at what the sagging voltage allows). A vehicle whose cell runs out
+(charge 0, or an open-circuit voltage at the cut-off) loses its thrust: a ``battery_depleted``
+event (a failure) at the end of that tick, and it falls under its dynamics (onto
+``environment.floor`` when there is one).
 
 Metrics: ``min_charge`` (the lowest state of charge, 0..1), ``min_voltage`` (V),
 ``depleted`` (vehicles that ran out), ``first_depleted_time`` (s, after one ran out).
@@ -31,9 +32,12 @@ class Battery(Disturbance):
         capacity: float = Field(cf.BATTERY_CAPACITY, gt=0, le=1e4, description="Q, Ah (Crazyflie 2.1: 0.25)")
         charge: float = Field(1.0, ge=0, le=1, description="state of charge at t = 0, 0..1")
         v_full: float = Field(cf.BATTERY_FULL, gt=0, le=1e3, description="V_f: open-circuit voltage full, V (4.2)")
-        v_empty: float = Field(cf.BATTERY_EMPTY, gt=0, le=1e3, description="V_e: open-circuit voltage empty, V (3.0)")
-        resistance: float = Field(cf.BATTERY_RESISTANCE, gt=0, le=1e3, description="R_i: internal resistance, Ohm (0.2)")
-        cutoff: float = Field(cell.CUTOFF, ge=0, le=1e3, description="terminal voltage under which the vehicle is cut off, V")
+        v_empty: float = Field(cf.BATTERY_EMPTY, gt=0, le=1e3,
+                               description="V_e: open-circuit voltage empty, V (3.0)")
+        resistance: float = Field(cf.BATTERY_RESISTANCE, gt=0, le=1e3,
+                                  description="R_i: internal resistance, Ohm (0.2)")
+        cutoff: float = Field(cell.CUTOFF, ge=0, le=1e3,
+                              description="V_c: the terminal voltage never drawn under, V (2.8)")
         hover_power: float = Field(
             cell.HOVER_POWER, gt=0, le=1e6, description="P_h: electrical power at hover, W (Crazyflie 5.88: "
             "a full cell then hovers the datasheet's 7 min)")
@@ -87,6 +91,7 @@ class Battery(Disturbance):
         return [Event(float(t), agents, cell.BatteryDepleted.name, kind_class=cell.BatteryDepleted)]
 
     def metrics(self):
+        """``min_charge``, ``min_voltage`` (V), ``depleted`` and ``first_depleted_time`` (s)."""
         out = {"min_charge": float(self.charge.min(initial=1.0)),
                "min_voltage": self.lowest,
                "depleted": int(self.depleted.sum())}

@@ -77,6 +77,7 @@ class Downwash(Disturbance):
         return acc
 
     def metrics(self):
+        """``peak_acceleration`` (m/s^2) and the keep-out ellipsoid's (module docstring)."""
         out = {"peak_acceleration": self.peak,
                "min_keep_out": self.min_keep_out if np.isfinite(self.min_keep_out) else None,
                "keep_out_conflicts": len(self.conflicts)}

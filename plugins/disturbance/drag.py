@@ -54,6 +54,7 @@ class Drag(Disturbance):
         return acc
 
     def metrics(self):
+        """``peak_acceleration``, m/s^2."""
         return {"peak_acceleration": self.peak}
 
 

@@ -10,7 +10,6 @@ Metrics: ``peak_ratio`` (the largest T_IGE / T_OGE applied).
 
 from __future__ import annotations
 
-import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.physics import crazyflie as cf
@@ -55,6 +54,7 @@ class GroundEffect(Disturbance):
         return (ratio - 1.0)[:, None] * self._thrust(world, p.k_T, p.mass)
 
     def metrics(self):
+        """``peak_ratio``: the largest T_IGE / T_OGE applied."""
         return {"peak_ratio": self.peak}
 
 

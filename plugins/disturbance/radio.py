@@ -117,6 +117,7 @@ class Radio(Disturbance):
         return ~arrived
 
     def metrics(self):
+        """``mean_reception`` and, with a budget, ``budget_dropped``."""
         out = {"mean_reception": self.prr_sum / self.prr_count if self.prr_count else None}
         if self.per_tick is not None:
             out["budget_dropped"] = self.dropped

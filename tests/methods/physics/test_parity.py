@@ -12,7 +12,7 @@ import random
 import numpy as np
 import pytest
 
-from swarmscene.methods.physics import battery, crazyflie, drag, downwash, ground_effect, radio
+from swarmscene.methods.physics import battery, crazyflie, downwash, drag, ground_effect, radio
 
 C1, C2, C3 = 2267.18, 0.16, -0.11  # gym-pybullet-drones cf2x.urdf dw_coeff_1..3
 R_P = 2.31348e-2  # cf2x.urdf prop_radius
