@@ -82,7 +82,8 @@ def main() -> None:
         fig, ax = plt.subplots(figsize=(7, 4))
         for label, style in zip(MODELS, ("k:", "C0-o", "C1-s"), strict=True):
             err = np.array([e for e, _ in table[label]])
-            ax.semilogy(gaps, np.maximum(err, 1e-4), style, label=label, markersize=4)
+            shown = label if err.max() >= 1e-4 else f"{label} (< 1e-4 m, drawn at 1e-4)"
+            ax.semilogy(gaps, np.maximum(err, 1e-4), style, label=shown, markersize=4)
             crash = [g for g, (_, c) in zip(gaps, table[label], strict=True) if c]
             if crash:
                 ax.semilogy(crash, np.maximum(err[np.isin(gaps, crash)], 1e-4), "rx", markersize=8)
