@@ -63,7 +63,9 @@ the time and the scale applied; ``--allow-exceed`` writes it anyway):
     floor clearance: a vehicle in the air lower than ``--floor-clearance`` (0.25 m) above the floor
         (its take-off before it first reaches that height and its landing after it last leaves it
         excepted), or under the floor. The lab's floor is ``--floor``, else the fitted box's (its
-        zmin + 2 x tolerance), else z = 0.
+        zmin + 2 x tolerance), else the run's ``environment.floor`` for a show not placed (z = 0
+        for one placed with ``--scale`` / ``--offset``, or a run without a floor). ``--takeoff`` and
+        ``--land`` start and end on it.
 ``--fit-box`` puts a show that starts in the air (its lowest point more than 5 cm above the run's
 ground, ``environment.floor`` or z = 0) with its lowest point at the floor clearance, so its script
 takes off to it; a show that starts on the ground starts on the box's floor. The scale applied is
@@ -805,8 +807,9 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
         geofence = geofence or fit_box
         if segments is not None and segments.floor is None:  # land where the placed show's lowest point is
             segments = Segments(segments.takeoff, segments.land, fit_box.lo[2] + 2 * tolerance)
+    lab_floor = ground if placement is None else 0.0  # unplaced, the run's ground is the lab's floor
     if segments is not None and segments.floor is None:
-        segments = Segments(segments.takeoff, segments.land, 0.0)
+        segments = Segments(segments.takeoff, segments.land, lab_floor)
     if placement is not None:  # before the time scale and the fit: the limits are the placed show's
         samples = placement.apply(samples)
     scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
@@ -823,8 +826,8 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
         floor = float(segments.floor)
     elif fit_box is not None:
         floor = fit_box.lo[2] + 2 * tolerance
-    else:  # the lab's floor: z = 0 (--scale and --offset place the show above it)
-        floor = 0.0
+    else:  # the run's ground (environment.floor, else z = 0); with --scale or --offset, z = 0
+        floor = lab_floor
     safety = safety_checks(fits, dense, floor, floor_clearance, keep_out, separation_limit, tolerance)
     result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach, segments,
                         tuple(safety), floor)
@@ -1057,8 +1060,8 @@ def main(argv: list[str] | None = None) -> None:
                         "vehicle's first point to its first state, in SECONDS before the show")
     parser.add_argument("--land", metavar="SECONDS", help="add a landing: from each vehicle's last state to rest on "
                         "the floor below its last point, in SECONDS")
-    parser.add_argument("--floor", metavar="Z", help="the floor's height, m (default 0; with --fit-box its "
-                        "zmin + 2 x --tolerance)")
+    parser.add_argument("--floor", metavar="Z", help="the floor's height, m (default: the run's environment.floor, "
+                        "else 0; with --fit-box its zmin + 2 x --tolerance; with --scale/--offset 0)")
     parser.add_argument("--floor-clearance", metavar="M", default=str(FLOOR_CLEARANCE),
                         help=f"least height above the floor of a vehicle in the air, m (default {FLOOR_CLEARANCE}; "
                              "take-off and landing excepted)")

@@ -123,3 +123,21 @@ def test_a_non_finite_position_names_the_file_and_the_vehicle(stacked, tmp_path,
     assert code == 2 and not (tmp_path / "cf").exists()
     assert err == [f"{PROG}: {broken / 'trajectory.npz'}: vehicle 1 has a non-finite position [0.0, 0.0, inf] at "
                    "t = 0.3 s (1 vehicles); nothing written"]
+
+
+def test_the_runs_floor_is_where_an_unplaced_take_off_starts(tmp_path, capsys):
+    import yaml
+
+    run_dir = tmp_path / "run"
+    sim = api.build(["swarm.n=2", "swarm.leader=null", "swarm.start.kind=explicit",
+                     "swarm.start.positions=[[0,0,1.5],[1,0,1.5]]", "environment.floor=0.5", "avoidance=none",
+                     "dynamics=single_integrator", "clock.duration=2", "output.summary=false"])
+    target = sim.world.pos.copy()
+    sim.formation.setpoints = lambda world, sensing: Setpoints.hold(target)
+    api.write_outputs(sim, sim.run(), run_dir)
+    out = tmp_path / "cf"
+    code, stdout, err = _main(str(run_dir), "--crazyflie", str(out), "--takeoff", "3", capsys=capsys)
+    assert code == 0 and err == []
+    config = yaml.safe_load((out / "crazyflies.yaml").read_text())
+    assert config["robots"]["cf_0"]["initial_position"] == pytest.approx([0.0, 0.0, 0.5], abs=1e-6)
+    assert "floor z = 0.5 m" in next(line for line in stdout if "placed:" in line)
