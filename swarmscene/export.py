@@ -982,9 +982,10 @@ def _run_limits(run_dir: Path) -> tuple[float | None, float | None]:
     from .rundir import RunDir, finite_or_none
 
     config = RunDir(run_dir).config()
-    safety = config.get("safety") if isinstance(config.get("safety"), dict) else {}
-    environment = config.get("environment") if isinstance(config.get("environment"), dict) else {}
-    return finite_or_none(safety.get("separation_limit")), finite_or_none(environment.get("floor"))
+    safety, environment = config.get("safety"), config.get("environment")
+    limit = safety.get("separation_limit") if isinstance(safety, dict) else None
+    floor = environment.get("floor") if isinstance(environment, dict) else None
+    return finite_or_none(limit), finite_or_none(floor)
 
 
 def _tolerance(value: float) -> float:

@@ -40,7 +40,7 @@ from ..hookspecs import hookimpl
 from ..state import WorldState
 from .base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams, model_rng
 from .comm import MODELS as _COMM
-from .comm import ChannelModels
+from .comm import ChannelModels, DelayModel, LossModel
 from .noise import MODELS as _NOISE
 from .wind import MODELS as _WIND
 
@@ -187,7 +187,8 @@ class Disturbances:
         self.moment_arm = max(arms, key=abs, default=0.0)
         comm = self.by_phase["communicate"]
         # The channel's models by what they offer (Disturbance's docstring), built-in or a plugin's.
-        self.channel = ChannelModels([m for m in comm if _has(m, "delays")], [m for m in comm if _has(m, "lost")])
+        self.channel = ChannelModels(cast(list[DelayModel], [m for m in comm if _has(m, "delays")]),
+                                     cast(list[LossModel], [m for m in comm if _has(m, "lost")]))
         # A communicate model that is no channel model acts after the channel.
         self.relays = cast(list[_RelayModel], [m for m in comm if not (_has(m, "delays") or _has(m, "lost"))])
         self._acc: np.ndarray | None = None
@@ -207,7 +208,7 @@ class Disturbances:
     def link_delay(self) -> Any:
         """``hops (N, N) -> ticks (N, N)``: the declared delay models per link, summed (-1 where
         unreachable); ``None`` when no ``comm_delay`` is declared (``BuildContext.link_delay``)."""
-        models = [m for m in self.by_phase["communicate"] if _has(m, "link_delay")]
+        models = cast(list[Any], [m for m in self.by_phase["communicate"] if _has(m, "link_delay")])
         if not models:
             return None
 
@@ -222,7 +223,7 @@ class Disturbances:
         """``(world, sensing) -> lost (N, N) bool``: the declared loss models per link and tick
         (a message lost by any is lost); ``None`` when no ``packet_loss`` is declared
         (``BuildContext.link_loss``)."""
-        models = [m for m in self.by_phase["communicate"] if _has(m, "link_lost")]
+        models = cast(list[Any], [m for m in self.by_phase["communicate"] if _has(m, "link_lost")])
         if not models:
             return None
 
