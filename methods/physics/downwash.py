@@ -72,7 +72,7 @@ def downwash_field(pos, c1, c2, c3, rotor_radius, min_width, min_height, reach_r
         radii: (3,) the keep-out ellipsoid's radii, m.
 
     Returns:
-        force (N,) N downward on each vehicle (summed over the vehicles above it), the smallest
+        force (N,) N downward on each vehicle (summed over the vehicles above it), its largest, the smallest
         ellipsoid norm ||E^-1 (p_i - p_j)|| over the pairs visited (inf: none), and the pairs
         (M, 2) with a norm below 1 (i < j).
     """
@@ -81,7 +81,7 @@ def downwash_field(pos, c1, c2, c3, rotor_radius, min_width, min_height, reach_r
     conflicts = np.empty((0, 2), np.int64)
     best = np.inf
     if n < 2:
-        return force, best, conflicts
+        return force, 0.0, best, conflicts
     cx, cy, nx, ny, order, start, _ = xy_cells(pos, reach_r)
     found = []
     r2_reach = reach_r * reach_r
@@ -112,7 +112,7 @@ def downwash_field(pos, c1, c2, c3, rotor_radius, min_width, min_height, reach_r
         conflicts = np.empty((len(found), 2), np.int64)
         for m in range(len(found)):
             conflicts[m, 0], conflicts[m, 1] = found[m]
-    return force, best, conflicts
+    return force, force.max(), best, conflicts
 
 
 def keep_out_norm(d, radii) -> np.ndarray:

@@ -1,7 +1,9 @@
-"""Compiled per-step forms of :mod:`.battery` (numba): one pass over the vehicles, no temporaries.
+"""Compiled per-step forms of :mod:`.battery` and :mod:`.ground_effect` (numba): one pass over the
+vehicles, no temporaries.
 
-:func:`battery_step` is :mod:`.battery`'s functions composed for one physics step, loop by loop
-(tests/methods/physics compare the two to 1e-12); the NumPy functions stay the documented form.
+:func:`battery_step` is :mod:`.battery`'s functions composed for one physics step, loop by loop,
+and :func:`ground_lift` :func:`.ground_effect.thrust_ratio` applied to the thrust (tests/methods/physics
+compare them to 1e-12); the NumPy functions stay the documented form.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ def battery_step(charge, depleted, tau, dt, mass, weight, capacity, v_full, v_em
     voltage = np.empty(n)
     cut = np.zeros((n, 3))
     out = np.zeros(n, np.bool_)
+    lowest = v_full
     for i in range(n):
         tx, ty, tz = tau[i, 0], tau[i, 1], tau[i, 2]
         thrust = mass * math.sqrt(tx * tx + ty * ty + tz * tz)
@@ -34,6 +37,7 @@ def battery_step(charge, depleted, tau, dt, mass, weight, capacity, v_full, v_em
         if not depleted[i]:
             amps = (v_oc - math.sqrt(max(v_oc * v_oc - 4.0 * resistance * p, 0.0))) / (2.0 * resistance)
         voltage[i] = v_oc - amps * resistance
+        lowest = min(lowest, voltage[i])
         charge[i] = max(charge[i] - amps * dt / (3600.0 * capacity), 0.0)
         if not depleted[i] and (charge[i] <= 0.0 or v_oc <= cutoff):
             depleted[i] = True
@@ -45,4 +49,21 @@ def battery_step(charge, depleted, tau, dt, mass, weight, capacity, v_full, v_em
         if thrust > available:
             f = (thrust - available) / thrust
             cut[i, 0], cut[i, 1], cut[i, 2] = -f * tx, -f * ty, -f * tz
-    return voltage, cut, out
+    return voltage, cut, out, lowest
+
+
+@numba.njit(cache=True)
+def ground_lift(z, tau, floor, rotor_radius, min_height):
+    """(T_IGE / T_OGE - 1) tau per vehicle (N, 3) m/s^2 at heights ``z`` (N,) above ``floor``, and the
+    largest ratio applied."""
+    n = z.shape[0]
+    out = np.empty((n, 3))
+    peak = 1.0
+    for i in range(n):
+        h = max(z[i] - floor, min_height)
+        q = rotor_radius / (4.0 * h)
+        ratio = 1.0 / (1.0 - q * q)
+        peak = max(peak, ratio)
+        for j in range(3):
+            out[i, j] = (ratio - 1.0) * tau[i, j]
+    return out, peak

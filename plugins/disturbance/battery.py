@@ -73,10 +73,10 @@ class Battery(Disturbance):
         pass, :func:`swarmscene.methods.physics.kernels.battery_step`)."""
         p = self.params
         tau = np.ascontiguousarray(self._thrust(world, p.k_T, p.mass), dtype=np.float64)
-        self.voltage, cut, out = self._step(
+        self.voltage, cut, out, lowest = self._step(
             self.charge, self.depleted, tau, self.dt, p.mass, self.weight, p.capacity, p.v_full, p.v_empty,
             p.resistance, p.cutoff, p.hover_power, p.thrust_to_weight)
-        self.lowest = min(self.lowest, float(self.voltage.min(initial=p.v_full)))
+        self.lowest = min(self.lowest, lowest)
         if out.any():
             self._new += np.flatnonzero(out).tolist()
         return cut

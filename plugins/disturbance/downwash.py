@@ -63,12 +63,12 @@ class Downwash(Disturbance):
     def force(self, world, t):
         """-scale F / m e_3 per vehicle (N, 3), m/s^2."""
         p = self.params
-        push, best, conflicts = self._field(
+        push, strongest, best, conflicts = self._field(
             np.ascontiguousarray(world.pos, dtype=np.float64), p.c1, p.c2, p.c3, p.rotor_radius, p.min_width,
             p.min_height, p.reach_r, p.reach_z, self._radii)
         acc = np.zeros((world.n, 3))
         acc[:, 2] = -p.scale / p.mass * push
-        self.peak = max(self.peak, float((-acc[:, 2]).max(initial=0.0)))
+        self.peak = max(self.peak, p.scale / p.mass * strongest)
         self.min_keep_out = min(self.min_keep_out, best)
         if conflicts.shape[0]:
             self.conflicts.update(map(tuple, conflicts.tolist()))

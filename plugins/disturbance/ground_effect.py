@@ -3,17 +3,18 @@
 Numerics and sources: :mod:`swarmscene.methods.physics.ground_effect`. A force phase model: the
 extra thrust per mass (T_IGE / T_OGE - 1) τ along each vehicle's thrust τ
 (:mod:`swarmscene.methods.physics.thrust`), at its height above ``environment.floor`` (which it
-needs: a scenario without a floor is refused).
+needs: a scenario without a floor is refused); compiled,
+:func:`swarmscene.methods.physics.kernels.ground_lift`.
 
 Metrics: ``peak_ratio`` (the largest T_IGE / T_OGE applied).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.physics import crazyflie as cf
-from swarmscene.methods.physics.ground_effect import thrust_ratio
 from swarmscene.plugin import Disturbance, DisturbanceParams, hookimpl
 
 
@@ -40,18 +41,21 @@ class GroundEffect(Disturbance):
         if params.min_height <= params.rotor_radius / 4:
             raise ValueError(f"min_height: must be above rotor_radius / 4 = {params.rotor_radius / 4:g} m, "
                              f"where the ratio is singular (got {params.min_height})")
-        from swarmscene.methods.physics.thrust import thrust_per_mass  # numba: imported when built
+        # numba: imported when built
+        from swarmscene.methods.physics.kernels import ground_lift
+        from swarmscene.methods.physics.thrust import thrust_per_mass
 
-        self._thrust = thrust_per_mass
+        self._thrust, self._lift = thrust_per_mass, ground_lift
         self.floor = float(ctx.floor)
         self.peak = 1.0
 
     def force(self, world, t):
         """(ratio - 1) τ per vehicle (N, 3), m/s^2."""
         p = self.params
-        ratio = thrust_ratio(world.pos[:, 2] - self.floor, p.rotor_radius, p.min_height)
-        self.peak = max(self.peak, float(ratio.max(initial=1.0)))
-        return (ratio - 1.0)[:, None] * self._thrust(world, p.k_T, p.mass)
+        tau = np.ascontiguousarray(self._thrust(world, p.k_T, p.mass), dtype=np.float64)
+        lift, peak = self._lift(np.ascontiguousarray(world.pos[:, 2]), tau, self.floor, p.rotor_radius, p.min_height)
+        self.peak = max(self.peak, peak)
+        return lift
 
     def metrics(self):
         """``peak_ratio``: the largest T_IGE / T_OGE applied."""

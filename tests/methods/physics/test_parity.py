@@ -47,8 +47,9 @@ def _stack(seed, n=14):
 def test_downwash_kernel_is_the_published_fit_without_regularisation(seed):
     pts = _stack(seed)
     expected = gym_downwash(pts)
-    force, _, _ = downwash.downwash_field(np.array(pts), C1, C2, C3, R_P, 0.0, 0.0, 10.0, 1e3,
+    force, strongest, _, _ = downwash.downwash_field(np.array(pts), C1, C2, C3, R_P, 0.0, 0.0, 10.0, 1e3,
                                           np.array(crazyflie.KEEP_OUT_RADII))
+    assert strongest == force.max()
     for got, want in zip(-force, expected, strict=True):
         assert got == pytest.approx(want, rel=1e-12, abs=1e-300)
     assert any(f < -1e-3 for f in expected)  # the stacks are close enough to feel it
@@ -77,7 +78,7 @@ def test_keep_out_norm_and_conflicts_match_every_pair():
     radii = (0.12, 0.12, 0.3)
     norms = {(i, j): math.sqrt(sum(((pts[j][k] - pts[i][k]) / radii[k]) ** 2 for k in range(3)))
              for i in range(5) for j in range(i + 1, 5)}
-    _, best, conflicts = downwash.downwash_field(pts, C1, C2, C3, R_P, 0.0, 0.1, 1.0, 3.0, np.array(radii))
+    _, _, best, conflicts = downwash.downwash_field(pts, C1, C2, C3, R_P, 0.0, 0.1, 1.0, 3.0, np.array(radii))
     near = {k: v for k, v in norms.items() if math.hypot(*(pts[k[1]] - pts[k[0]])[:2]) <= 1.0}
     assert best == pytest.approx(min(near.values()), rel=1e-12)
     assert sorted(map(tuple, conflicts.tolist())) == sorted(k for k, v in norms.items() if v < 1)
@@ -194,7 +195,8 @@ def test_compiled_battery_step_is_the_cell_functions_composed():
     args = (0.02, m, w, 0.25, 4.2, 3.0, 0.2, 2.8, 5.88, 2.25)
     depleted = np.zeros(n, bool)
     new_charge = charge.copy()
-    voltage, cut, out = battery_step(new_charge, depleted, tau, *args)
+    voltage, cut, out, lowest = battery_step(new_charge, depleted, tau, *args)
+    assert lowest == voltage.min()
     thrust = m * np.linalg.norm(tau, axis=1)
     v_oc = battery.open_circuit_voltage(charge, 4.2, 3.0)
     cap = battery.power_cap(v_oc, 2.8, 0.2)
@@ -231,3 +233,14 @@ def test_compiled_nearest_distance_is_the_k_d_trees(seed, spread):
     pos = np.random.default_rng(seed).normal(0, 1, (700, 3)) * spread
     assert np.array_equal(nearest_distance(pos), cKDTree(pos).query(pos, k=2)[0][:, 1])
     assert nearest_distance(pos[:1]).tolist() == [np.inf]
+
+
+def test_compiled_ground_lift_is_the_ratio_times_the_thrust():
+    from swarmscene.methods.physics.kernels import ground_lift
+
+    rng = np.random.default_rng(6)
+    z, tau = rng.uniform(0.0, 0.3, 40), rng.normal(0, 3, (40, 3)) + [0, 0, 9.81]
+    lift, peak = ground_lift(z, tau, 0.01, R_P, R_P / 2)
+    ratio = ground_effect.thrust_ratio(z - 0.01, R_P, R_P / 2)
+    np.testing.assert_allclose(lift, (ratio - 1)[:, None] * tau, rtol=1e-12, atol=1e-300)
+    assert peak == ratio.max()
