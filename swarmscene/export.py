@@ -797,8 +797,8 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     else:
         t, samples, used = show_samples(Path(source), kind)
     ground = 0.0 if source_floor is None else float(source_floor)
-    _refuse_non_finite("samples" if isinstance(source, tuple) else Path(source) / "trajectory.npz",
-                       t, samples[..., :3])
+    names = {"samples": "samples", "plan": f"{source}: the formation's plan"}
+    _refuse_non_finite(names.get(used, Path(str(source)) / "trajectory.npz"), t, samples[..., :3])
     if fit_box is not None:
         in_air = bool(samples[..., 2].min() > ground + ON_FLOOR)
         # lifted by the fit's tolerance too, so the fitted polynomials keep the clearance
