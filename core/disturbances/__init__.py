@@ -208,7 +208,7 @@ class Disturbances:
     def link_delay(self) -> Any:
         """``hops (N, N) -> ticks (N, N)``: the declared delay models per link, summed (-1 where
         unreachable); ``None`` when no ``comm_delay`` is declared (``BuildContext.link_delay``)."""
-        models = cast(list[Any], [m for m in self.by_phase["communicate"] if _has(m, "link_delay")])
+        models: list[Any] = [m for m in self.by_phase["communicate"] if _has(m, "link_delay")]
         if not models:
             return None
 
@@ -223,7 +223,7 @@ class Disturbances:
         """``(world, sensing) -> lost (N, N) bool``: the declared loss models per link and tick
         (a message lost by any is lost); ``None`` when no ``packet_loss`` is declared
         (``BuildContext.link_loss``)."""
-        models = cast(list[Any], [m for m in self.by_phase["communicate"] if _has(m, "link_lost")])
+        models: list[Any] = [m for m in self.by_phase["communicate"] if _has(m, "link_lost")]
         if not models:
             return None
 
