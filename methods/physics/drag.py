@@ -33,13 +33,15 @@ def rotor_drag(vel, quat, rotor_sum, k_aero, mass: float) -> np.ndarray:
     rotor_sum = np.ascontiguousarray(rotor_sum, dtype=np.float64)
     if quat is None:
         return -(rotor_sum / mass)[:, None] * (vel * k)
-    return _rotor_drag(vel, np.ascontiguousarray(quat, dtype=np.float64), rotor_sum, k, mass, 0.0)
+    return _rotor_drag(vel, np.ascontiguousarray(quat, dtype=np.float64), rotor_sum, k, mass, 0.0)[0]
 
 
-def drag_acceleration(vel, quat, rotor_sum, k_aero, mass: float, c_body: float) -> np.ndarray:
-    """:func:`rotor_drag` + :func:`body_drag` in one compiled pass (``quat`` None: level)."""
+def drag_acceleration(vel, quat, rotor_sum, k_aero, mass: float, c_body: float) -> tuple[np.ndarray, float]:
+    """:func:`rotor_drag` + :func:`body_drag` in one compiled pass (``quat`` None: level), and the
+    largest magnitude of it (m/s^2)."""
     if quat is None:
-        return rotor_drag(vel, None, rotor_sum, k_aero, mass) + body_drag(vel, c_body, mass)
+        acc = rotor_drag(vel, None, rotor_sum, k_aero, mass) + body_drag(vel, c_body, mass)
+        return acc, float(np.sqrt(np.einsum("ij,ij->i", acc, acc)).max(initial=0.0))
     return _rotor_drag(np.ascontiguousarray(vel, dtype=np.float64), np.ascontiguousarray(quat, dtype=np.float64),
                        np.ascontiguousarray(rotor_sum, dtype=np.float64),
                        np.ascontiguousarray(k_aero, dtype=np.float64), mass, c_body)
@@ -48,6 +50,7 @@ def drag_acceleration(vel, quat, rotor_sum, k_aero, mass: float, c_body: float) 
 @numba.njit(cache=True)
 def _rotor_drag(vel, quat, rotor_sum, k, mass, c_body):
     out = np.empty_like(vel)
+    peak = 0.0
     for i in range(vel.shape[0]):
         w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
         r = ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
@@ -62,7 +65,8 @@ def _rotor_drag(vel, quat, rotor_sum, k, mass, c_body):
             out[i, j] = r[j][0] * b0 + r[j][1] * b1 + r[j][2] * b2
             if c_body != 0.0:
                 out[i, j] += q * vel[i, j]
-    return out
+        peak = max(peak, math.sqrt(out[i, 0] ** 2 + out[i, 1] ** 2 + out[i, 2] ** 2))
+    return out, peak
 
 
 def body_drag(vel, c_body: float, mass: float) -> np.ndarray:

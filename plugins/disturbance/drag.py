@@ -10,7 +10,6 @@ Metrics: ``peak_acceleration`` (m/s^2).
 
 from __future__ import annotations
 
-import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.physics import crazyflie as cf
@@ -47,10 +46,9 @@ class Drag(Disturbance):
     def force(self, world, t):
         """The drag's acceleration (N, 3), m/s^2."""
         p = self.params
-        acc = self._drag.drag_acceleration(world.vel, world.quat, self._thrust.rotor_speed_sum(world, p.hover_speed),
-                                           p.k_aero, p.mass, p.body)
-        if world.n:
-            self.peak = max(self.peak, float(np.sqrt(np.einsum("ij,ij->i", acc, acc)).max()))
+        rotors = self._thrust.rotor_speed_sum(world, p.hover_speed)
+        acc, peak = self._drag.drag_acceleration(world.vel, world.quat, rotors, p.k_aero, p.mass, p.body)
+        self.peak = max(self.peak, peak)
         return acc
 
     def metrics(self):

@@ -219,9 +219,10 @@ def test_compiled_drag_is_rotor_plus_body_drag():
     q /= np.linalg.norm(q, axis=1)[:, None]
     vel, sums = rng.normal(0, 3, (30, 3)), rng.uniform(4000, 8000, 30)
     k, m = crazyflie.K_AERO, crazyflie.MASS
-    np.testing.assert_allclose(drag.drag_acceleration(vel, q, sums, k, m, 1.08e-3),
-                               drag.rotor_drag(vel, q, sums, k, m) + drag.body_drag(vel, 1.08e-3, m),
-                               rtol=1e-12, atol=1e-14)
+    acc, peak = drag.drag_acceleration(vel, q, sums, k, m, 1.08e-3)
+    want = drag.rotor_drag(vel, q, sums, k, m) + drag.body_drag(vel, 1.08e-3, m)
+    np.testing.assert_allclose(acc, want, rtol=1e-12, atol=1e-14)
+    assert peak == pytest.approx(np.linalg.norm(want, axis=1).max(), rel=1e-12)
 
 
 @pytest.mark.parametrize("seed, spread", [(0, (30, 30, 30)), (1, (100, 0.01, 1)), (2, (1, 1, 50))])
