@@ -32,7 +32,9 @@ def battery_step(charge, depleted, tau, dt, mass, weight, capacity, v_full, v_em
         v_oc = v_empty + (v_full - v_empty) * charge[i]
         v_c = max(cutoff, 0.5 * v_oc)
         cap = v_c * (v_oc - v_c) / resistance if v_oc > cutoff else 0.0
-        p = min(hover_power * (max(thrust, 0.0) / weight) ** 1.5, cap)
+        x = max(thrust, 0.0) / weight
+        demand = hover_power * x * math.sqrt(x)  # P_h x^(3/2)
+        p = min(demand, cap)
         amps = 0.0
         if not depleted[i]:
             amps = (v_oc - math.sqrt(max(v_oc * v_oc - 4.0 * resistance * p, 0.0))) / (2.0 * resistance)
@@ -42,13 +44,17 @@ def battery_step(charge, depleted, tau, dt, mass, weight, capacity, v_full, v_em
         if not depleted[i] and (charge[i] <= 0.0 or v_oc <= cutoff):
             depleted[i] = True
             out[i] = True
-        available = 0.0
-        if not depleted[i]:
-            available = min(thrust_to_weight * weight * (voltage[i] / v_full) ** 2,
-                            weight * (max(cap, 0.0) / hover_power) ** (2.0 / 3.0))
-        if thrust > available:
-            f = (thrust - available) / thrust
-            cut[i, 0], cut[i, 1], cut[i, 2] = -f * tx, -f * ty, -f * tz
+        v = voltage[i] / v_full
+        t_max = thrust_to_weight * weight * v * v
+        # the thrust is cut where it exceeds T_max or needs more power than the cap (T_c < T exactly
+        # when P(T) > P_c, P increasing): T_c, a cube root, only then
+        if depleted[i] or thrust > t_max or demand > cap:
+            available = 0.0
+            if not depleted[i]:
+                available = min(t_max, weight * (max(cap, 0.0) / hover_power) ** (2.0 / 3.0))
+            if thrust > available:
+                f = (thrust - available) / thrust
+                cut[i, 0], cut[i, 1], cut[i, 2] = -f * tx, -f * ty, -f * tz
     return voltage, cut, out, lowest
 
 
