@@ -496,6 +496,13 @@ class EventQueue:
                 self._set_motion(world, event)
         return applied
 
+    def apply_now(self, world: WorldState, event: Event) -> None:
+        """Apply an event raised during the tick (a crash on the floor, a battery run down) to
+        ``world`` as a due one is applied: its flags, and the motion :meth:`hold` gives its agents."""
+        event.apply(world)
+        if event.failure:
+            self._set_motion(world, event)
+
     def _set_motion(self, world: WorldState, event: Event) -> None:
         """Record how :meth:`hold` moves the event's agents from now on (the last event decides)."""
         if self._motion is None:

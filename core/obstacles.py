@@ -80,6 +80,16 @@ class _EnvironmentBase(StrictModel):
     obstacles: list[Obstacle] = Field(
         default_factory=list, description="obstacle footprints (added to the generator's)"
     )
+    floor: float | None = Field(
+        None, ge=-MAX_LENGTH, le=MAX_LENGTH,
+        description="height of the ground, m (null: no ground, vehicles may fly at any z and a falling "
+        "one falls forever); a vehicle meeting it lands, or crashes above touchdown_speed "
+        "(core/floor.py)",
+    )
+    touchdown_speed: float = Field(
+        0.5, gt=0, le=MAX_LENGTH, description="fastest a vehicle may meet the floor and land, m/s "
+        "(faster: a crash, a failure)",
+    )
 
     _generator: Any = PrivateAttr(None)
     _params: Any = PrivateAttr(None)

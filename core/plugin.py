@@ -90,6 +90,8 @@ class BuildContext:
         link_loss: the declared per-link packet loss (``packet_loss`` disturbances):
             ``link_loss(world, sensing) -> lost`` (N, N) bool, the messages (receiver, sender) lost
             this tick (call it once per tick); ``None`` when none is declared.
+        floor: the ground's height, m (``environment.floor``): a take-off starts from it and a
+            landing ends on it; ``None``: the scenario has no ground (vehicles may fly at any z).
     """
 
     n: int
@@ -104,6 +106,7 @@ class BuildContext:
     initial: WorldState
     link_delay: Callable[[np.ndarray], np.ndarray] | None = None
     link_loss: Callable[[WorldState, Any], np.ndarray] | None = None
+    floor: float | None = None
 
     @property
     def min_separation(self) -> float:
@@ -192,6 +195,10 @@ class Dynamics(Plugin):
     * ``carried``: a kinematic model flies relative to the air: the kernel adds p += w dt, v += w;
     * ``integrated``: ``step`` reads ``world.wind`` and integrates the force itself.
     """
+    force_coupling: ClassVar[Literal["added", "integrated"]] = "added"
+    """How the ``disturbances`` force phase's ``world.force`` a (m/s^2) acts on the model: ``added``,
+    the kernel adds v += a dt, p += a dt^2 / 2 after each ``step`` (exact for a point mass whose
+    input is held over the step); ``integrated``, ``step`` reads ``world.force`` itself."""
     drag_coefficient: ClassVar[float] = 0.21
     """D, 1/s: linear drag per unit mass, a = D (w - v) (rotor drag, linear in airspeed: Martin and
     Salaun 2010). The models carry no still-air drag (their controllers' tuning absorbs it), so the

@@ -3,14 +3,17 @@
 Each guidance tick (period T_s = ``clock.guidance_period``)::
 
     events -> sense -> communicate -> formation -> avoidance -> dynamics.control
-        -> physics sub-steps (wind -> dynamics.step) -> hold failed -> wrap (periodic space)
-        -> finite check -> observers
+        -> physics sub-steps (wind, forces -> dynamics.step) -> hold failed -> raised events
+        -> floor -> wrap (periodic space) -> finite check -> observers
 
 sense and communicate (the ``disturbances`` group, :mod:`swarmscene.core.disturbances`) turn the
 true state into what the plugins read: formation and avoidance get the swarm's picture (each agent's
 estimate of itself as the others received it), the controller the agent's own estimate; the wind
-acts on the plant each physics step. Without declared disturbances these phases pass the truth
-through and draw nothing. Events, hold, the finite check and every observer read the truth.
+acts on the plant each physics step, with the other forces (downwash, ground effect, drag, a
+battery's limit). Without declared disturbances these phases pass the truth through and draw
+nothing. Events a model raises (a battery run down) and the floor's (``environment.floor``,
+:mod:`swarmscene.core.floor`: a landing or a crash) are applied after the hold, like scheduled
+ones. Events, hold, the floor, the finite check and every observer read the truth.
 
 The physics step divides T_s; the dynamics model's controller runs once per tick (zero-order hold)
 and its plant ``T_s / physics_step`` times. Observers (monitors, metrics, recorders, and any chosen
@@ -33,6 +36,7 @@ from .disturbances import Disturbances
 from .environment import Environment
 from .errors import ConfigError
 from .events import EventQueue
+from .floor import Floor
 from .monitors import SafetyMonitor
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
 from .recorder import TrajectoryRecorder
@@ -78,10 +82,14 @@ class Simulation:
         self.environment = Environment(scenario.obstacles, name=cfg.environment.name)
         self.world = WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader)
         self.events = EventQueue.from_scenario(cfg)  # random parts drawn from their own streams
+        floor = cfg.environment.floor
+        self.floor = None if floor is None else Floor(floor, cfg.environment.touchdown_speed, self.guidance_period)
+        self._refuse_start_below_floor()
         self.disturbances = Disturbances(
             scenario.disturbances, cfg.seed, cfg.swarm.n, self.guidance_period, self.physics_step,
             cfg.comm.range,
             lambda world, previous: Sensing(world, self.environment, cfg.comm.range, previous),
+            floor,
         )
         ctx = BuildContext(
             n=cfg.swarm.n,
@@ -96,6 +104,7 @@ class Simulation:
             initial=WorldState.at_rest(self.world.pos, leader=cfg.swarm.leader),
             link_delay=self.disturbances.link_delay(),
             link_loss=self.disturbances.link_loss(),
+            floor=floor,
         )
         self.formation: Formation = self._build("formation", ctx)
         self.avoidance: Avoidance = self._build("avoidance", ctx)
@@ -108,6 +117,8 @@ class Simulation:
         self.disturbances.attach(self.formation, self.dynamics)
         if self.disturbances.active:
             self.pm.register(self.disturbances, name="disturbances")
+        if self.floor is not None:
+            self.pm.register(self.floor, name="floor")
         self.step_seconds = np.zeros(self.total_steps)
         self.view = RunView(self)  # what hooks and observers see of the run
         self.observers = [cls(self.view) for cls in observers]
@@ -142,6 +153,10 @@ class Simulation:
             self.dynamics.step(self.world, self.physics_step)
             self.disturbances.push(self.world, self.physics_step)
         self.events.hold(self.world)
+        if self.disturbances.raisers:
+            self._apply_raised(self.disturbances.raised(self.world, self.world.t + self.guidance_period))
+        if self.floor is not None:
+            self._apply_raised(self.floor.meet(self.world))
         self._wrap_periodic()
         self._check_finite()
         self.step_count += 1
@@ -173,6 +188,18 @@ class Simulation:
         for event in self.events.apply_due(self.world):
             self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
             self.hook.swarmscene_event(sim=self.view, event=event)
+
+    def _apply_raised(self, events: list[Any]) -> None:
+        """Events raised by the tick's physics (a crash, a battery run down), applied like scheduled
+        ones: the world changed, the motion recorded, the ``swarmscene_event`` hook called."""
+        for event in events:
+            self.events.apply_now(self.world, event)
+            self.hook.swarmscene_event(sim=self.view, event=event)
+
+    def _refuse_start_below_floor(self) -> None:
+        if self.floor is not None and (below := self.floor.below_at_start(self.world.pos)):
+            raise ConfigError([f"swarm.start: agents {below} start below environment.floor = "
+                               f"{self.floor.height:g} m"])
 
     def _check_finite(self) -> None:
         """Stop at the first non-finite position or velocity, naming the agent and the tick."""
@@ -289,7 +316,8 @@ class Simulation:
 
     def default_success(self, metrics: dict[str, Any]) -> bool:
         """Safe throughout, and the mission complete where the formation defines one."""
-        safe = metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
+        safe = (metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
+                and metrics.get("floor.crashes", 0) == 0)
         done = self.formation.complete(self.world)
         return bool(safe and done is not False and self.stop_reason != "interrupted")
 

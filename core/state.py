@@ -49,6 +49,9 @@ class WorldState:
             no wind model is declared. A model with ``wind_coupling = "integrated"`` reads it.
         wind_moment_arm: height of the centre of pressure above the centre of gravity, m (the
             wind models' ``moment_arm``): models with attitude take the wind force's moment there.
+        force: (N, 3) m/s^2, world frame: the force per unit mass of the ``disturbances`` force
+            phase (downwash, ground effect, drag, a battery's limit) during the current physics
+            step; ``None`` when no force model is declared.
     """
 
     t: float
@@ -63,6 +66,7 @@ class WorldState:
     acc: np.ndarray | None = None
     wind: np.ndarray | None = None
     wind_moment_arm: float = 0.0
+    force: np.ndarray | None = None
 
     @classmethod
     def at_rest(cls, pos: np.ndarray, leader: int | None = None) -> WorldState:

@@ -34,6 +34,11 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.disturbance.sensing_noise",
     "swarmscene.plugins.disturbance.comm_delay",
     "swarmscene.plugins.disturbance.packet_loss",
+    "swarmscene.plugins.disturbance.downwash",
+    "swarmscene.plugins.disturbance.ground_effect",
+    "swarmscene.plugins.disturbance.drag",
+    "swarmscene.plugins.disturbance.battery",
+    "swarmscene.plugins.disturbance.radio",
     # event: what an event does to its agents (semantics in core/events.py)
     "swarmscene.plugins.event.hover",
     "swarmscene.plugins.event.comm_loss",

@@ -52,6 +52,25 @@ controller's limits.
 The command line refuses a show that exceeds a limit (one line, exit status 1, nothing written);
 ``--allow-exceed`` writes it anyway with a warning line.
 
+Safety of the placed show (:func:`safety_checks`, on the fitted polynomials as flown, after any
+``--fit-box``, ``--scale`` or ``--time-scale``), refused the same way (one line naming the vehicles,
+the time and the scale applied; ``--allow-exceed`` writes it anyway):
+    keep-out ellipsoid: two vehicles with ||E^-1 (p_i - p_j)|| < 1, E = diag(0.12, 0.12, 0.3) m
+        (``--keep-out``; Preiss et al. 2017, the Crazyswarm planners': the rotors' downwash reaches
+        farther below a vehicle than beside it);
+    separation limit: two vehicles closer than the run's ``safety.separation_limit`` (the distance
+        its safety verdicts were judged at; a show scaled down keeps its shape, not its margins);
+    floor clearance: a vehicle in the air lower than ``--floor-clearance`` (0.25 m) above the floor
+        (its take-off before it first reaches that height and its landing after it last leaves it
+        excepted), or under the floor. The lab's floor is ``--floor``, else the fitted box's (its
+        zmin + 2 x tolerance), else the run's ``environment.floor`` for a show not placed (z = 0
+        for one placed with ``--scale`` / ``--offset``, or a run without a floor). ``--takeoff`` and
+        ``--land`` start and end on it.
+``--fit-box`` puts a show that starts in the air (its lowest point more than 5 cm above the run's
+ground, ``environment.floor`` or z = 0) with its lowest point at the floor clearance, so its script
+takes off to it; a show that starts on the ground starts on the box's floor. The scale applied is
+printed.
+
 Placement in a lab (:class:`Placement`, :class:`Box`): ``--scale S`` and ``--offset X Y Z``
 (p' = S p + offset) or ``--fit-box`` (the largest uniform S <= 1 and the shift that fit the show into
 a box, a margin of twice the tolerance inside each face) act on the samples before the fit, so the
@@ -112,6 +131,14 @@ CRAZYFLIE = {
     "mellinger": Limits("mellinger", 4 * _THRUST_MAX / _CF_MASS),
     "pid": Limits("pid", 4 * _THRUST_MAX / _CF_MASS, max_axis_speed=1.0, max_tilt_deg=20.0),
 }
+
+
+KEEP_OUT = (0.12, 0.12, 0.3)
+"""m: radii x, y, z of the Crazyflie's keep-out ellipsoid (Preiss, Hönig, Ayanian, Sukhatme,
+"Downwash-aware trajectory planning for large quadrotor teams", IROS 2017)."""
+FLOOR_CLEARANCE = 0.25
+"""m: the least height above the floor of a vehicle in the air (ground effect and the motion
+capture's view of the floor make lower flight unreliable; Crazyswarm's examples fly at 0.5-1 m)."""
 
 
 @dataclass(frozen=True)
@@ -275,8 +302,18 @@ def show_samples(run_dir: Path, source: str = "auto") -> tuple[np.ndarray, np.nd
         if source == "plan":
             name = (run.config.get("formation") or {}).get("name")
             raise ValueError(f"formation {name!r} flies no open-loop plan: use source 'flown'")
+    _refuse_non_finite(Path(run_dir) / "trajectory.npz", run.t, run.pos)
     yaw = yaw_from_quat(run.quat) if run.quat is not None else np.zeros(run.pos.shape[:2])
     return np.asarray(run.t, float), np.concatenate([run.pos, yaw[..., None]], axis=-1), "flown"
+
+
+def _refuse_non_finite(where: Any, t: np.ndarray, pos: np.ndarray) -> None:
+    """A ValueError naming ``where``, the first vehicle and the time of a non-finite position."""
+    bad = ~np.isfinite(np.asarray(pos, float)).all(axis=-1)  # (T, N)
+    if bad.any():
+        k, i = (int(v[0]) for v in np.nonzero(bad))  # row-major: the earliest time, then the lowest index
+        raise ValueError(f"{where}: vehicle {i} has a non-finite position {np.asarray(pos)[k, i].tolist()} at "
+                         f"t = {float(np.asarray(t)[k]):g} s ({int(bad.any(axis=0).sum())} vehicles); nothing written")
 
 
 # -- limits -------------------------------------------------------------------------------------
@@ -320,6 +357,57 @@ def _auto_time_scale(samples: np.ndarray, t: np.ndarray, limits: Limits) -> floa
     raise ValueError(f"no time scale up to 5 brings the show within the {limits.controller} limits")
 
 
+def safety_checks(fits: list[Fit], t: np.ndarray, floor: float, clearance: float,
+                  keep_out: tuple[float, float, float], separation_limit: float | None,
+                  tolerance: float) -> list[dict[str, Any]]:
+    """The placed show's safety over times ``t`` (module docstring): each check with its worst value,
+    its limit, whether it holds and, where it does not, the first breach (vehicles, time)."""
+    pos = np.stack([fit.poly.evaluate(t)[:, :3] for fit in fits], axis=1)  # (T, N, 3), float32 as flown
+    checks = [_floor_check(pos, t, floor, clearance, tolerance),
+              _pair_check(pos, t, "keep-out ellipsoid ||E^-1 (p_i - p_j)||", np.asarray(keep_out, float), 1.0)]
+    if separation_limit is not None and separation_limit > 0:
+        checks.append(_pair_check(pos, t, "separation (m)", np.ones(3), separation_limit))
+    return checks
+
+
+def _floor_check(pos: np.ndarray, t: np.ndarray, floor: float, clearance: float, tolerance: float) -> dict[str, Any]:
+    """The least height above the floor of a vehicle in the air: below ``clearance`` only before its
+    first reaching it (take-off) and after its last leaving it (landing); never under the floor."""
+    height = pos[..., 2] - floor  # (T, N)
+    worst, first = np.inf, None
+    for i in range(height.shape[1]):
+        h = height[:, i]
+        up = np.flatnonzero(h >= clearance - 1e-9)
+        flying = np.zeros(h.size, bool)
+        if up.size:
+            flying[up[0]: up[-1] + 1] = True
+        low = (flying & (h < clearance - 1e-9)) | (h < -2 * tolerance) | (not up.size)
+        value = float(h[flying].min()) if up.size else float(h.max())
+        worst = min(worst, value)
+        if low.any():
+            k = int(np.flatnonzero(low)[0])
+            if first is None or t[k] < first["time"]:
+                first = {"vehicles": [f"cf_{i}"], "time": float(t[k]), "value": float(h[k])}
+    return {"name": "height above the floor in the air (m)", "value": float(worst), "limit": clearance,
+            "min": True, "holds": first is None, "first": first}
+
+
+def _pair_check(pos: np.ndarray, t: np.ndarray, name: str, radii: np.ndarray, limit: float) -> dict[str, Any]:
+    """The smallest ||(p_i - p_j) / radii|| over pairs and times against ``limit``, and its first breach."""
+    n = pos.shape[1]
+    worst, first = np.inf, None
+    for i in range(n - 1):  # one vehicle against the later ones: (T, n - i - 1) at a time
+        norm = np.sqrt((((pos[:, i + 1:] - pos[:, i: i + 1]) / radii) ** 2).sum(axis=-1))
+        worst = min(worst, float(norm.min()))
+        low = np.argwhere(norm < limit)
+        if low.size:
+            k, j = (int(v) for v in low[np.argmin(t[low[:, 0]])])
+            if first is None or t[k] < first["time"]:
+                first = {"vehicles": [f"cf_{i}", f"cf_{i + 1 + j}"], "time": float(t[k]), "value": float(norm[k, j])}
+    return {"name": name, "value": float(worst) if np.isfinite(worst) else None, "limit": limit, "min": True,
+            "holds": first is None, "first": first}
+
+
 @dataclass(frozen=True)
 class ShowExport:
     """The fitted trajectories of every vehicle and the checks (what ``crazyflie.json`` holds)."""
@@ -333,6 +421,8 @@ class ShowExport:
     geofence: Box | None = None
     breach: dict[str, Any] | None = None  # the first exit from the geofence, None: inside
     segments: Segments | None = None
+    safety: tuple[dict[str, Any], ...] = ()  # safety_checks of the placed show
+    floor: float = 0.0  # m, the lab's floor the show was checked against
 
     def summary(self) -> dict[str, Any]:
         """What the export records of itself: format, source, time scale, placement, memory limits, checks."""
@@ -346,6 +436,7 @@ class ShowExport:
                                                              "land": self.segments.land, "floor": self.segments.floor},
             "geofence": None if self.geofence is None else {
                 "min": list(self.geofence.lo), "max": list(self.geofence.hi), "breach": self.breach},
+            "floor": self.floor, "safety": list(self.safety),
             "vehicles": [
                 {"file": f"cf_{i}.csv", "pieces": fit.poly.pieces, "bytes": fit.poly.nbytes,
                  "duration": fit.poly.duration, "start_time": fit.poly.t0,
@@ -363,6 +454,30 @@ class ShowExport:
             bad = [f"{c['name']} {c['value']:.3g} > {c['limit']:.3g}" for c in checks if not c["holds"]]
             if bad:
                 phrases.append(f"cf_{i}: " + ", ".join(bad))
+        return phrases
+
+    def unsafe(self) -> list[str]:
+        """One phrase per safety check that fails, naming its first breach (empty when safe)."""
+        phrases = []
+        for c in self.safety:
+            if c["holds"]:
+                continue
+            f = c["first"]
+            who = " and ".join(f["vehicles"])
+            # the first breach, and the worst of the show where it is worse
+            worse = c["value"] is not None and round(c["value"], 3) < round(f["value"], 3)
+            if c["name"].startswith("height"):
+                worst = f" ({c['value']:.3f} m at the lowest)" if worse else ""
+                phrases.append(f"{who} flies {f['value']:.3f} m above the floor (z = {self.floor:g} m) at "
+                               f"t = {f['time']:.2f} s{worst}, under the floor clearance {c['limit']:g} m")
+            elif c["name"].startswith("keep-out"):
+                worst = f", {c['value']:.2f} at the worst" if worse else ""
+                phrases.append(f"{who} come inside each other's keep-out ellipsoid at t = {f['time']:.2f} s "
+                               f"(||E^-1 (p_i - p_j)|| = {f['value']:.2f} < 1{worst})")
+            else:
+                worst = f" ({c['value']:.3f} m at the closest)" if worse else ""
+                phrases.append(f"{who} come {f['value']:.3f} m apart at t = {f['time']:.2f} s{worst}, under the "
+                               f"run's separation limit {c['limit']:g} m")
         return phrases
 
     def write(self, out_dir: Path) -> None:
@@ -411,13 +526,15 @@ class Placement:
         return placed
 
     @classmethod
-    def into(cls, samples: np.ndarray, box: Box, margin: float) -> Placement:
+    def into(cls, samples: np.ndarray, box: Box, margin: float, lift: float = 0.0) -> Placement:
         """The largest uniform scale <= 1 (a show is never enlarged) that fits every position of
         ``samples`` (T, N, >=3) into ``box`` shrunk by ``margin`` on every face, and the shift that
-        centres the show in x and y and puts its lowest point on the shrunk floor (a show that
-        starts on the ground starts on the lab's floor)."""
+        centres the show in x and y and puts its lowest point ``lift`` m above the shrunk floor
+        (0: a show that starts on the ground starts on the lab's floor; a show that starts in the
+        air is lifted to the floor clearance)."""
         lo, hi = samples[..., :3].min(axis=(0, 1)), samples[..., :3].max(axis=(0, 1))
         room_lo, room_hi = np.asarray(box.lo) + margin, np.asarray(box.hi) - margin
+        room_lo[2] += lift
         room, extent = room_hi - room_lo, hi - lo
         if np.any(room <= 0):
             raise ValueError(f"--fit-box: the box leaves no room inside its {margin * 100:g} cm margin")
@@ -544,8 +661,8 @@ that the controller does not press into a floor the motion capture sees a little
 
 
 def _floor(show: ShowExport) -> float:
-    """The floor of the show's lab (m): that of its take-off and landing segments, else z = 0."""
-    return float(show.segments.floor) if show.segments is not None and show.segments.floor is not None else 0.0
+    """The floor of the show's lab (m), the one its safety was checked against (ShowExport.floor)."""
+    return float(show.floor)
 
 
 def crazyswarm2_script(show: ShowExport) -> str:
@@ -659,7 +776,9 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
                            controller: str = "mellinger", time_scale: float | str = 1.0,
                            tolerance: float = 0.005, kind: str = "auto", placement: Placement | None = None,
                            fit_box: Box | None = None, geofence: Box | None = None,
-                           segments: Segments | None = None) -> ShowExport:
+                           segments: Segments | None = None, floor_clearance: float = FLOOR_CLEARANCE,
+                           keep_out: tuple[float, float, float] = KEEP_OUT,
+                           separation_limit: float | None = None, source_floor: float | None = None) -> ShowExport:
     """Fit every vehicle's path (a run directory, or (t (T,), samples (T, N, 4))) and write
     ``cf_<i>.csv`` and ``crazyflie.json`` into ``out_dir`` when given (module docstring).
 
@@ -667,20 +786,30 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     into a box (a margin of twice the tolerance on every face, for the fit's error) and is then the
     geofence unless ``geofence`` is given. The geofence is checked on the fitted polynomials
     (``breach``); nothing here refuses: the command line does. ``segments`` adds a take-off before
-    and a landing after each path (:class:`Segments`); the limits and the geofence cover them."""
+    and a landing after each path (:class:`Segments`); the limits and the geofence cover them.
+    The placed show's safety (:func:`safety_checks`: keep-out, ``separation_limit``, the floor
+    clearance) is checked on the fitted polynomials; ``source_floor`` is the run's ground (z = 0 when
+    None): a show whose lowest point is above it starts in the air (``--fit-box`` lifts it)."""
     limits = CRAZYFLIE[controller]
     if isinstance(source, tuple):
         t, samples = (np.asarray(a, float) for a in source)
         used = "samples"
     else:
         t, samples, used = show_samples(Path(source), kind)
+    ground = 0.0 if source_floor is None else float(source_floor)
+    names = {"samples": "samples", "plan": f"{source}: the formation's plan"}
+    _refuse_non_finite(names.get(used, Path(str(source)) / "trajectory.npz"), t, samples[..., :3])
     if fit_box is not None:
-        placement = Placement.into(samples, fit_box, margin=2 * tolerance)
+        in_air = bool(samples[..., 2].min() > ground + ON_FLOOR)
+        # lifted by the fit's tolerance too, so the fitted polynomials keep the clearance
+        lift = floor_clearance + tolerance if in_air else 0.0
+        placement = Placement.into(samples, fit_box, margin=2 * tolerance, lift=lift)
         geofence = geofence or fit_box
         if segments is not None and segments.floor is None:  # land where the placed show's lowest point is
             segments = Segments(segments.takeoff, segments.land, fit_box.lo[2] + 2 * tolerance)
+    lab_floor = ground if placement is None else 0.0  # unplaced, the run's ground is the lab's floor
     if segments is not None and segments.floor is None:
-        segments = Segments(segments.takeoff, segments.land, 0.0)
+        segments = Segments(segments.takeoff, segments.land, lab_floor)
     if placement is not None:  # before the time scale and the fit: the limits are the placed show's
         samples = placement.apply(samples)
     scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
@@ -693,7 +822,15 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     dense = np.linspace(start, end, 4 * int(round((end - start) / (ts[-1] - ts[0]) * len(ts))))
     checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
     breach = geofence_breach(fits, geofence, dense) if geofence is not None else None
-    result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach, segments)
+    if segments is not None and segments.floor is not None:
+        floor = float(segments.floor)
+    elif fit_box is not None:
+        floor = fit_box.lo[2] + 2 * tolerance
+    else:  # the run's ground (environment.floor, else z = 0); with --scale or --offset, z = 0
+        floor = lab_floor
+    safety = safety_checks(fits, dense, floor, floor_clearance, keep_out, separation_limit, tolerance)
+    result = ShowExport(fits, used, scale, controller, checks, placement, geofence, breach, segments,
+                        tuple(safety), floor)
     if out_dir is not None:
         result.write(out_dir)
     return result
@@ -704,6 +841,8 @@ def trajectory_csv(source: Any, out_dir: Path) -> list[Path]:
     from .plots import RunData, load_run
 
     run = source if isinstance(source, RunData) else load_run(Path(source))
+    where = "trajectory" if isinstance(source, RunData) else Path(source) / "trajectory.npz"
+    _refuse_non_finite(where, run.t, run.pos)
     columns = ["t", "x", "y", "z", "vx", "vy", "vz", "healthy"]
     t = np.broadcast_to(np.asarray(run.t, float)[:, None], run.pos.shape[:2])
     blocks = [t[..., None], np.asarray(run.pos, float), np.asarray(run.vel, float),
@@ -824,6 +963,31 @@ def _segments(args: argparse.Namespace) -> Segments | None:
     return Segments(seconds.get("--takeoff"), seconds.get("--land"), floor)
 
 
+def _safety_options(args: argparse.Namespace) -> tuple[float, tuple[float, float, float]]:
+    """``--floor-clearance`` (finite, >= 0) and ``--keep-out`` (three finite radii > 0)."""
+    clearance = _number(args.floor_clearance)
+    if not (math.isfinite(clearance) and clearance >= 0):
+        raise ValueError(f"--floor-clearance: must be a finite number of metres >= 0 (got {args.floor_clearance!r})")
+    if args.keep_out is None:
+        return clearance, KEEP_OUT
+    radii = _finite_numbers("--keep-out", args.keep_out)
+    if min(radii) <= 0:
+        raise ValueError(f"--keep-out: each radius must be > 0 m (got {' '.join(args.keep_out)})")
+    return clearance, _xyz(radii)
+
+
+def _run_limits(run_dir: Path) -> tuple[float | None, float | None]:
+    """The run's ``safety.separation_limit`` and ``environment.floor`` (None where its config has none),
+    read through :mod:`swarmscene.rundir`."""
+    from .rundir import RunDir, finite_or_none
+
+    config = RunDir(run_dir).config()
+    safety, environment = config.get("safety"), config.get("environment")
+    limit = safety.get("separation_limit") if isinstance(safety, dict) else None
+    floor = environment.get("floor") if isinstance(environment, dict) else None
+    return finite_or_none(limit), finite_or_none(floor)
+
+
 def _tolerance(value: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"--tolerance: must be a finite number of metres > 0 (got {value!r})")
@@ -843,6 +1007,12 @@ def _refuse_or_warn(show: ShowExport, allow_exceed: bool) -> None:
         raise Unflyable(f"{b['vehicle']} leaves the geofence at t = {b['time']:.2f} s through the {b['face']} face "
                         f"({b['face'][0]} = {b['value']:.3f} m {sign} {b['bound']:g} m); refused, nothing written "
                         "(--fit-box scales the show into a box)")
+    unsafe = show.unsafe()
+    if unsafe:
+        what = f"{'; '.join(unsafe)} ({_placed(show)})"
+        if not allow_exceed:
+            raise Unflyable(f"{what}; refused, nothing written (--allow-exceed writes it anyway)")
+        print(f"{PROG}: warning: {what}; written because of --allow-exceed", file=sys.stderr)
     exceeded = show.exceeded()
     if not exceeded:
         return
@@ -852,6 +1022,13 @@ def _refuse_or_warn(show: ShowExport, allow_exceed: bool) -> None:
         raise Unflyable(f"{what}; refused, nothing written ({slower} slows it down; "
                         "--allow-exceed writes it anyway)")
     print(f"{PROG}: warning: {what}; written because of --allow-exceed", file=sys.stderr)
+
+
+def _placed(show: ShowExport) -> str:
+    """The placement and time scale the show was checked at, as a phrase."""
+    placement = show.placement or Placement()
+    offset = ", ".join(f"{v:g}" for v in placement.offset)
+    return f"scale {placement.scale:.3g}, offset ({offset}) m, time scale {show.time_scale:g}"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -884,11 +1061,18 @@ def main(argv: list[str] | None = None) -> None:
                         "vehicle's first point to its first state, in SECONDS before the show")
     parser.add_argument("--land", metavar="SECONDS", help="add a landing: from each vehicle's last state to rest on "
                         "the floor below its last point, in SECONDS")
-    parser.add_argument("--floor", metavar="Z", help="the floor's height, m (default 0; with --fit-box its "
-                        "zmin + 2 x --tolerance)")
+    parser.add_argument("--floor", metavar="Z", help="the floor's height, m (default: the run's environment.floor, "
+                        "else 0; with --fit-box its zmin + 2 x --tolerance; with --scale/--offset 0)")
+    parser.add_argument("--floor-clearance", metavar="M", default=str(FLOOR_CLEARANCE),
+                        help=f"least height above the floor of a vehicle in the air, m (default {FLOOR_CLEARANCE}; "
+                             "take-off and landing excepted)")
+    parser.add_argument("--keep-out", nargs=3, metavar=("RX", "RY", "RZ"),
+                        help="radii of the keep-out ellipsoid no two vehicles may enter, m (default "
+                             f"{' '.join(map(str, KEEP_OUT))}, Crazyswarm's)")
     parser.add_argument("--allow-exceed", action="store_true",
-                        help="write a show that exceeds the controller's limits (a warning, exit 0), "
-                             "instead of refusing it with exit status 1")
+                        help="write a show that exceeds the controller's limits or breaks the keep-out, "
+                             "separation or floor clearance (a warning, exit 0), instead of refusing it "
+                             "with exit status 1")
     parser.add_argument("--force", action="store_true",
                         help="export a run that failed, collided or did not complete (a warning, not a refusal)")
     parser.add_argument("--mcap", type=Path, metavar="OUT", help="write the run as a ROS 2 bag folder (docs/ros.md)")
@@ -917,8 +1101,11 @@ def main(argv: list[str] | None = None) -> None:
         if args.csv is not None:
             print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
         if args.crazyflie is not None:
+            clearance, keep_out = _safety_options(args)
+            separation, ground = _run_limits(args.run_dir)
             show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source,
-                                          placement, fit_box, geofence, segments)
+                                          placement, fit_box, geofence, segments, clearance, keep_out,
+                                          separation, ground)
             _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
             show.write(args.crazyflie)
     except Unflyable as exc:  # the show itself: a limit exceeded (status 1, not a bad input's 2)
@@ -937,6 +1124,9 @@ def main(argv: list[str] | None = None) -> None:
             print(f"  cf_{i}.csv: {fit.poly.pieces} pieces ({fit.poly.nbytes} of {TRAJECTORY_MEMORY_BYTES} bytes), "
                   f"max error {fit.max_position_error * 1000:.1f} mm, {fit.max_yaw_error:.4f} rad; "
                   + ("limits hold" if not bad else "EXCEEDS " + "; ".join(bad)))
+        print(f"  placed: {_placed(show)}; floor z = {show.floor:g} m, "
+              + "; ".join(f"{c['name']} {c['value']:.3g} (limit {c['limit']:g})" for c in show.safety
+                          if c["value"] is not None))
         print(f"  crazyflies.yaml and {LAUNCH_SCRIPT} (Crazyswarm2: the show lasts {show.fits[0].poly.duration:.2f} s)")
 
 

@@ -24,7 +24,6 @@ from .contract import Outcome, Subject, promise, run
 from .core import hookspecs
 from .core.disturbances import Disturbances
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceParams
-from .core.disturbances.comm import CommDelay, PacketLoss
 from .core.environment import Environment
 from .core.errors import format_validation_error
 from .core.events import EventConfig, EventKindPlugin, EventParams, EventQueue, Motion, draw_event
@@ -40,7 +39,7 @@ N_AGENTS = 6
 GUIDANCE_PERIOD = 0.1  # s
 PHYSICS_STEP = 0.01  # s
 TICKS = 10
-PHASE_METHOD = {"sense": "sense", "communicate": "communicate", "wind": "air"}
+PHASE_METHOD = {"sense": "sense", "communicate": "communicate", "wind": "air", "force": "force"}
 """The method the kernel calls on a model of each phase (:class:`~swarmscene.core.disturbances.base.Disturbance`)."""
 ENVIRONMENT_KEYS = ("name", "generator", "obstacles")
 LIFECYCLE_HOOKS = ("swarmscene_run_start", "swarmscene_event", "swarmscene_step_end", "swarmscene_run_end")
@@ -136,13 +135,14 @@ class _IntegratedDynamics:
     """A stand-in dynamics for the wind phase: it integrates the wind itself (the kernel adds nothing)."""
 
     wind_coupling = "integrated"
+    force_coupling = "integrated"
 
 
 def _disturbances(cls: type[Disturbance], params: DisturbanceParams, key: str, seed: int) -> Disturbances:
     """The kernel's own phase runner around one model, as a run seeded ``seed`` builds it."""
     env = Environment()
     runner = Disturbances({key: (cls, params)}, seed, N_AGENTS, GUIDANCE_PERIOD, PHYSICS_STEP, 10.0,
-                          lambda world, previous: Sensing(world, env, 10.0, previous))
+                          lambda world, previous: Sensing(world, env, 10.0, previous), floor=0.0)
     runner.attach(SimpleNamespace(models_communication=False), _IntegratedDynamics())
     return runner
 
@@ -178,6 +178,8 @@ def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS) -> list[li
                 runner.blow(world, world.t + j * PHYSICS_STEP)
                 if runner.has_wind:
                     outputs[f"wind {j}"] = np.array(world.wind)
+                if runner.has_force:
+                    outputs[f"force {j}"] = np.array(world.force)
                 world.pos += PHYSICS_STEP * world.vel
             world.t += GUIDANCE_PERIOD
             record.append(_DisturbedTick(truth, after, outputs))
@@ -202,12 +204,12 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
     """Run a disturbance model through the kernel's phases (:class:`~swarmscene.core.disturbances.Disturbances`)
     and its named checks (``swarmscene.testing.list_checks("disturbance")``).
 
-    Rules: ``name``, ``phase`` (one of sense, communicate, wind) and its method (``sense``,
-    ``communicate`` or ``air``); Params as every kind's (refused options named
-    ``disturbances.<name>.<key>``); the truth it is handed is never modified; its outputs are finite
-    (N, 3); it draws only from its own stream (``ctx.rng``: the same seed gives the same outputs);
-    two instances do not share state; ``metrics()`` is flat, finite JSON without the
-    ``disturbances.<key>.`` prefix (the engine adds it).
+    Rules: ``name``, ``phase`` (one of sense, communicate, wind, force) and its method (``sense``,
+    ``communicate``, ``air`` or ``force``; a channel model, ``delays`` or ``lost``); Params as every
+    kind's (refused options named ``disturbances.<name>.<key>``); the truth it is handed is never
+    modified; its outputs are finite (N, 3); it draws only from its own stream (``ctx.rng``: the
+    same seed gives the same outputs); two instances do not share state; ``metrics()`` is flat,
+    finite JSON without the ``disturbances.<key>.`` prefix (the engine adds it).
     """
     params = _check_declaration(cls, Disturbance, DisturbanceParams, "disturbances.<key>.kind",
                                 options, refused, f"disturbances.{getattr(cls, 'name', '?')}")
@@ -228,13 +230,13 @@ def _disturbance_params(s: Subject) -> None:
 
 @promise("disturbance", "phase")
 def _disturbance_phase(s: Subject) -> None:
-    """A ``phase`` (sense, communicate or wind) and the method the kernel calls in it
-    (``sense``, ``communicate`` or ``air``)."""
+    """A ``phase`` (sense, communicate, wind or force) and the method the kernel calls in it
+    (``sense``, ``communicate``, ``air`` or ``force``; a channel model, ``delays`` or ``lost``)."""
     phase = getattr(s.cls, "phase", None)
     assert phase in PHASES, f"{s.name}: phase must be one of {', '.join(PHASES)} (got {phase!r})"
     method = PHASE_METHOD[phase]
-    builtin_channel = issubclass(s.cls, (CommDelay, PacketLoss))
-    assert builtin_channel or callable(getattr(s.cls, method, None)), (
+    channel = phase == "communicate" and any(callable(getattr(s.cls, m, None)) for m in ("delays", "lost"))
+    assert channel or callable(getattr(s.cls, method, None)), (
         f"{s.name}: a {phase}-phase model must define {method}() (the kernel calls it)")
 
 
@@ -249,12 +251,13 @@ def _disturbance_truth_untouched(s: Subject) -> None:
 
 @promise("disturbance", "outputs_finite")
 def _disturbance_outputs_finite(s: Subject) -> None:
-    """Its outputs (the picture, the agents' own estimates, the wind) are finite (N, 3)."""
+    """Its outputs (the picture, the agents' own estimates, the wind, the force) are finite (N, 3)."""
     for tick in _alone(s):
         for label, arr in tick.outputs.items():
             assert np.shape(arr) == (N_AGENTS, 3), (
                 f"{s.name}: {label} has shape {np.shape(arr)}, expected (N, 3)"
-                + (" (air() must return (N, 3) m/s)" if label.startswith("wind") else ""))
+                + (" (air() must return (N, 3) m/s)" if label.startswith("wind") else "")
+                + (" (force() must return (N, 3) m/s^2)" if label.startswith("force") else ""))
             assert np.isfinite(arr).all(), f"{s.name}: {label} is not finite"
 
 

@@ -288,11 +288,18 @@ def test_a_show_leaving_the_geofence_is_refused_naming_vehicle_time_and_face(sho
 
 def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, capsys):
     """Box 1 m x 1 m x 1 m; margin 2 x 5 mm: room 0.98 m per axis. The show spans 1.908 m in x,
-    0.310 m in y, 1.499 m in z, so x sets the scale 0.98 / 1.908; x, y centred, the floor on zmin + 1 cm."""
+    0.310 m in y, 1.499 m in z, so x sets the scale 0.98 / 1.908; x, y centred, the floor on zmin + 1 cm
+    (the show starts on the ground). At that scale the vehicles, 0.7 m apart on the ground, stand
+    0.36 m apart, under the run's 0.6 m separation limit: refused, written only with --allow-exceed."""
     out = tmp_path / "cf"
-    code, err = _main(str(short_show), "--crazyflie", str(out), "--fit-box", "-0.5", "-0.5", "0", "0.5", "0.5", "1",
-                      capsys=capsys)
-    assert code == 0 and err == []
+    box = ["--fit-box", "-0.5", "-0.5", "0", "0.5", "0.5", "1"]
+    code, err = _main(str(short_show), "--crazyflie", str(out), *box, capsys=capsys)
+    assert code == 1 and not out.exists()
+    assert err == ["python -m swarmscene.export: cf_0 and cf_1 come 0.359 m apart at t = 0.00 s (0.337 m at the closest), under the run's "
+                   "separation limit 0.6 m (scale 0.514, offset (0.124995, 0.0774017, 0.01) m, time scale 1); "
+                   "refused, nothing written (--allow-exceed writes it anyway)"]
+    code, err = _main(str(short_show), "--crazyflie", str(out), *box, "--allow-exceed", capsys=capsys)
+    assert code == 0 and len(err) == 1 and err[0].endswith("written because of --allow-exceed")
     t, samples, _ = export.show_samples(short_show)
     lo, hi = samples[..., :3].min(axis=(0, 1)), samples[..., :3].max(axis=(0, 1))
     scale = 0.98 / (hi[0] - lo[0])
@@ -316,15 +323,19 @@ def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, c
 
 def test_scaling_applies_before_the_limits(short_show, tmp_path, capsys):
     """Twice as fast (--time-scale 0.5) the take-off needs 1.67 m/s along an axis, beyond the PID
-    controller's 1.0 m/s cap; the same show at half size needs half: 0.83 m/s, within it."""
+    controller's 1.0 m/s cap; the same show at half size needs half: 0.83 m/s, within it (and its
+    vehicles stand 0.35 m apart, under the run's 0.6 m: the separation alone is warned of)."""
     out = tmp_path / "cf"
     code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
                       capsys=capsys)
     assert code == 1 and err[0].startswith("python -m swarmscene.export: the show exceeds the pid controller's limits "
                                            "(cf_0: axis speed max(|vx|, |vy|, |vz|) (m/s) 1.67 > 1")
     code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
-                      "--scale", "0.5", "--offset", "0", "0", "0.2", capsys=capsys)
-    assert code == 0 and err == []
+                      "--scale", "0.5", "--offset", "0", "0", "0.2", "--allow-exceed", capsys=capsys)
+    # at half size the vehicles stand closer than the run's separation limit: written only with a warning
+    assert code == 0 and err == [
+        "python -m swarmscene.export: warning: cf_0 and cf_1 come 0.350 m apart at t = 0.00 s (0.328 m at the closest), under the run's "
+        "separation limit 0.6 m (scale 0.5, offset (0, 0, 0.2) m, time scale 0.5); written because of --allow-exceed"]
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["placement"] == {"scale": 0.5, "offset": [0.0, 0.0, 0.2]}
     speed = [c for c in summary["vehicles"][0]["limits"] if c["name"].startswith("axis speed")][0]

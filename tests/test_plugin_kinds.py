@@ -50,8 +50,8 @@ def test_every_kind_registers_through_its_own_hook():
                           "generator", "policy"}
     for kind, spec in KINDS.items():
         assert spec.hook.startswith("swarmscene_register_") and hasattr(hookspecs, spec.hook), kind
-    assert REGISTRY.names("disturbance") == ["comm_delay", "constant_wind", "dryden", "gust", "packet_loss",
-                                             "sensing_noise"]
+    assert REGISTRY.names("disturbance") == ["battery", "comm_delay", "constant_wind", "downwash", "drag", "dryden",
+                                             "ground_effect", "gust", "packet_loss", "radio", "sensing_noise"]
     assert REGISTRY.names("event") == ["comm_loss", "drift", "hover", "motor_failure", "stuck"]
     assert REGISTRY.names("generator") == ["building", "corridor", "obstacle_field"]
     assert REGISTRY.names("policy") == ["seek_reference"]
@@ -61,7 +61,8 @@ def test_every_kind_registers_through_its_own_hook():
 @pytest.mark.parametrize("overrides, line", [
     (["formation.name=spiral"], "formation.name: unknown formation 'spiral' (valid: antipodal_swap, "),
     (["+disturbances.x.kind=hurricane"], "disturbances.x.kind: unknown disturbance model 'hurricane' (valid: "
-                                         "comm_delay, constant_wind, dryden, gust, packet_loss, sensing_noise)"),
+                                         "battery, comm_delay, constant_wind, downwash, drag, dryden, ground_effect, "
+                                         "gust, packet_loss, radio, sensing_noise)"),
     (["events=drift", "events.0.kind=explode"], "events.0.kind: unknown event kind 'explode' (valid: comm_loss, "
                                                 "drift, hover, motor_failure, stuck)"),
     (["+environment.generator=maze"], "environment.generator: unknown map generator 'maze' (valid: building, "

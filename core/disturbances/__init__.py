@@ -14,7 +14,9 @@ Where in the tick (``Simulation.step``)::
     -> dynamics.control          reads the agent's own estimate (its controller's feedback)
     -> per physics step: wind    the air's velocity at each agent (constant_wind, gust, dryden),
                     summed, acts as a force on the plant: dynamics.step integrates it
-    -> hold, wrap, finite check, observers   on the truth
+                    force   any other force per mass (downwash, ground_effect, drag, battery),
+                    summed into ``world.force``, integrated with the step
+    -> hold, raised events (a battery run down), floor, wrap, finite check, observers   on the truth
 
 Models are registered plugins (hook ``swarmscene_register_disturbances``): the built-in classes
 are here and in this package's modules (the phases below call them), registered by
@@ -33,12 +35,12 @@ from typing import Any, Protocol, cast
 import numpy as np
 from pydantic import ValidationError
 
-from ..errors import format_validation_error
+from ..errors import ConfigError, format_validation_error
 from ..hookspecs import hookimpl
 from ..state import WorldState
 from .base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams, model_rng
 from .comm import MODELS as _COMM
-from .comm import ChannelModels, CommDelay, PacketLoss
+from .comm import ChannelModels, DelayModel, LossModel
 from .noise import MODELS as _NOISE
 from .wind import MODELS as _WIND
 
@@ -65,6 +67,16 @@ class _RelayModel(Protocol):
 class _WindModel(Protocol):
     def air(self, world: WorldState, t: float) -> np.ndarray:
         """The air's velocity at each agent at time ``t`` (N, 3), m/s."""
+
+
+class _ForceModel(Protocol):
+    def force(self, world: WorldState, t: float) -> np.ndarray:
+        """A force per unit mass on each vehicle (N, 3), m/s^2, for the physics step starting at ``t``."""
+
+
+def _has(model: Any, method: str) -> bool:
+    """Whether ``model`` offers ``method`` (the channel's protocol, Disturbance's docstring)."""
+    return callable(getattr(model, method, None))
 
 
 def validate_disturbances(
@@ -146,16 +158,24 @@ class Disturbances:
 
     def __init__(self, models: dict[str, tuple[type[Disturbance], DisturbanceParams]], seed: int, n: int,
                  guidance_period: float, physics_step: float, comm_range: float,
-                 make_sensing: Any) -> None:
+                 make_sensing: Any, floor: float | None = None) -> None:
         self.models: dict[str, Disturbance] = {}
         for key, (cls, params) in models.items():
-            ctx = DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))
-            self.models[key] = cls(params, ctx)
+            ctx = DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key),
+                                     floor)
+            try:
+                self.models[key] = cls(params, ctx)
+            except ValueError as exc:  # a model refusing the scenario: its key (and option) named
+                raise ConfigError([_refusal(key, params, str(exc))]) from exc
         self.by_phase = {phase: [m for m in self.models.values() if m.phase == phase] for phase in PHASES}
         self.sensors = cast(list[_SenseModel], self.by_phase["sense"])  # the same lists, typed by phase
         self.winds = cast(list[_WindModel], self.by_phase["wind"])
+        self.forces = cast(list[_ForceModel], self.by_phase["force"])
         self.active = bool(self.models)
         self.has_wind = bool(self.by_phase["wind"])
+        self.has_force = bool(self.forces)
+        # models that may raise events (a battery run down): those overriding Disturbance.raised
+        self.raisers = [m for m in self.models.values() if type(m).raised is not Disturbance.raised]
         self.perceives = bool(self.by_phase["sense"] or self.by_phase["communicate"])
         self.dynamics: Any = None
         self.shared_picture = True
@@ -166,10 +186,11 @@ class Disturbances:
         arms = [getattr(m.params, "moment_arm", 0.0) for m in self.by_phase["wind"]]
         self.moment_arm = max(arms, key=abs, default=0.0)
         comm = self.by_phase["communicate"]
-        self.channel = ChannelModels([m for m in comm if isinstance(m, CommDelay)],
-                                     [m for m in comm if isinstance(m, PacketLoss)])
-        # A plugin's communicate model (neither built-in channel model) acts after the channel.
-        self.relays = cast(list[_RelayModel], [m for m in comm if not isinstance(m, (CommDelay, PacketLoss))])
+        # The channel's models by what they offer (Disturbance's docstring), built-in or a plugin's.
+        self.channel = ChannelModels(cast(list[DelayModel], [m for m in comm if _has(m, "delays")]),
+                                     cast(list[LossModel], [m for m in comm if _has(m, "lost")]))
+        # A communicate model that is no channel model acts after the channel.
+        self.relays = cast(list[_RelayModel], [m for m in comm if not (_has(m, "delays") or _has(m, "lost"))])
         self._acc: np.ndarray | None = None
         self.wind_peak = 0.0
         self.wind_sum = 0.0
@@ -187,7 +208,7 @@ class Disturbances:
     def link_delay(self) -> Any:
         """``hops (N, N) -> ticks (N, N)``: the declared delay models per link, summed (-1 where
         unreachable); ``None`` when no ``comm_delay`` is declared (``BuildContext.link_delay``)."""
-        models = [m for m in self.by_phase["communicate"] if isinstance(m, CommDelay)]
+        models: list[Any] = [m for m in self.by_phase["communicate"] if _has(m, "link_delay")]
         if not models:
             return None
 
@@ -202,7 +223,7 @@ class Disturbances:
         """``(world, sensing) -> lost (N, N) bool``: the declared loss models per link and tick
         (a message lost by any is lost); ``None`` when no ``packet_loss`` is declared
         (``BuildContext.link_loss``)."""
-        models = [m for m in self.by_phase["communicate"] if isinstance(m, PacketLoss)]
+        models: list[Any] = [m for m in self.by_phase["communicate"] if _has(m, "link_lost")]
         if not models:
             return None
 
@@ -242,8 +263,11 @@ class Disturbances:
 
     # -- wind -----------------------------------------------------------------------------
     def blow(self, world: WorldState, t: float) -> None:
-        """The wind phase, before a physics step starting at ``t``: ``world.wind``, the air's
-        velocity at each agent (N, 3) m/s, summed over the wind models."""
+        """The wind and force phases, before a physics step starting at ``t``: ``world.wind``, the
+        air's velocity at each agent (N, 3) m/s, summed over the wind models; ``world.force``, the
+        other forces per mass (N, 3) m/s^2, summed over the force models."""
+        if self.has_force:
+            self._exert(world, t)
         if not self.has_wind:
             return
         air = self.winds[0].air(world, t)
@@ -258,14 +282,35 @@ class Disturbances:
         if self.dynamics.wind_coupling == "force":
             self._acc = self.dynamics.wind_acceleration(world)
 
+    def _exert(self, world: WorldState, t: float) -> None:
+        """The force phase: ``world.force`` for the step starting at ``t``."""
+        acc = self.forces[0].force(world, t)
+        for model in self.forces[1:]:
+            acc = acc + model.force(world, t)
+        world.force = np.array(acc, dtype=float)
+
+    def raised(self, world: WorldState, t: float) -> list[Any]:
+        """The events the models raise at the end of the tick ending at ``t`` (Disturbance.raised)."""
+        out: list[Any] = []
+        for model in self.raisers:
+            out += model.raised(world, t)
+        return out
+
     def push(self, world: WorldState, dt: float) -> None:
-        """After a physics step: the wind's effect on models that do not integrate it themselves.
+        """After a physics step: the forces' and the wind's effect where the model does not integrate them.
+
+        The force phase's ``world.force`` a: v += a dt, p += a dt^2 / 2 unless the dynamics
+        integrates it (``Dynamics.force_coupling``). The wind, by ``wind_coupling``:
 
         force:   v += a dt, p += a dt^2 / 2 with a = D w (held over the step; exact for a point mass
                  whose own input is held too, by superposition);
         carried: p += w dt, v += w (a kinematic model flies relative to the air);
         integrated: nothing (the model read ``world.wind`` in its step).
         """
+        if self.has_force and getattr(self.dynamics, "force_coupling", "added") == "added":
+            a = cast(np.ndarray, world.force)  # _exert() set it before this step
+            world.pos += 0.5 * dt * dt * a
+            world.vel += dt * a
         if not self.has_wind:
             return
         coupling = self.dynamics.wind_coupling
@@ -298,6 +343,14 @@ class Disturbances:
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
         """Add each model's ``disturbances.<key>.*`` metrics to the run's."""
         metrics.update(self.metrics())
+
+
+def _refusal(key: str, params: DisturbanceParams, message: str) -> str:
+    """``disturbances.<key>.<option>: ...`` when the message starts with one of the model's options,
+    else ``disturbances.<key>: ...`` (as the kernel names a plugin refusing the scenario)."""
+    option = message.split(": ", 1)[0]
+    sep = "." if option in type(params).model_fields else ": "
+    return f"disturbances.{key}{sep}{message}"
 
 
 def _view(world: WorldState, pos: np.ndarray, vel: np.ndarray) -> WorldState:

@@ -21,9 +21,10 @@ import numpy as np
 
 from ..fields import StrictModel
 
-PHASES = ("sense", "communicate", "wind")
+PHASES = ("sense", "communicate", "wind", "force")
 """sense: what each agent measures of itself; communicate: what the others receive of it;
-wind: the air's force on every vehicle, each physics step."""
+wind: the air's force on every vehicle, each physics step; force: any other force on every
+vehicle (downwash, ground effect, drag, a battery's limit), each physics step."""
 
 STREAM = 0x18D15
 """Spawn key of the disturbances' random streams: model ``key`` draws from
@@ -47,6 +48,7 @@ class DisturbanceContext:
         physics_step: s.
         comm_range: m.
         rng: the model's own generator (see :data:`STREAM`).
+        floor: the ground's height, m (``environment.floor``); None: the scenario has no ground.
     """
 
     key: str
@@ -55,6 +57,7 @@ class DisturbanceContext:
     physics_step: float
     comm_range: float
     rng: np.random.Generator
+    floor: float | None = None
 
 
 def model_rng(seed: int, key: str) -> np.random.Generator:
@@ -76,6 +79,14 @@ class Disturbance:
                   (what the others received of it), from the agents' own estimates.
     wind:         ``air(world, t) -> (N, 3)``: the air's velocity at each agent at time ``t``, m/s,
                   for the physics step starting then (summed over the wind models).
+    force:        ``force(world, t) -> (N, 3)``: a force per unit mass on each vehicle, m/s^2,
+                  world frame, for the physics step starting at ``t`` (summed over the force
+                  models; the dynamics integrates it, ``Dynamics.force_coupling``).
+    A communicate model joins the broadcast channel by its methods (core/disturbances/comm.py):
+    ``delays(world, sensing) -> (N,) ticks`` with ``max_ticks``, and/or
+    ``lost(world, sensing) -> (N,) bool``; and the per-link layer with
+    ``link_delay(hops) -> (N, N) ticks`` and/or ``link_lost(world) -> (N, N) bool``. One with none
+    of them is a relay: ``communicate(world, pos, vel)`` after the channel.
     Every model may add metrics (``metrics() -> dict``, keys without prefix; the engine prefixes
     ``disturbances.<key>.``).
     """
@@ -103,3 +114,9 @@ class Disturbance:
     def metrics(self) -> dict[str, Any]:
         """The model's own metrics, keys without prefix (none by default)."""
         return {}
+
+    def raised(self, world: Any, t: float) -> list[Any]:
+        """Events the model raises at the end of the tick ending at ``t`` (failures it causes, e.g.
+        a battery run down): :class:`~swarmscene.core.events.Event` objects, applied by the kernel
+        like scheduled ones (none by default)."""
+        return []

@@ -13,7 +13,7 @@ delay (``Formation.models_communication``). Numerics: :mod:`~swarmscene.core.dis
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from pydantic import Field
@@ -215,11 +215,27 @@ class Channel:
         return self.pos.copy(), self.vel.copy()
 
 
+class DelayModel(Protocol):
+    """A delay model of the channel (``CommDelay``, a plugin's): what the channel calls."""
+
+    max_ticks: int
+
+    def delays(self, world: WorldState, sensing: Any) -> np.ndarray:
+        """Ticks each agent's message of this tick takes, (N,) int."""
+
+
+class LossModel(Protocol):
+    """A loss model of the channel (``PacketLoss``, a plugin's): what the channel calls."""
+
+    def lost(self, world: WorldState, sensing: Any) -> np.ndarray:
+        """Which agents' messages of this tick are lost, (N,) bool."""
+
+
 class ChannelModels:
     """The communicate phase's models of one run, combined into one channel (delays add, a message
     lost by any loss model is lost)."""
 
-    def __init__(self, delays: list[CommDelay], losses: list[PacketLoss]) -> None:
+    def __init__(self, delays: list[DelayModel], losses: list[LossModel]) -> None:
         self.delays, self.losses = delays, losses
         self.channel: Channel | None = None
 

@@ -368,15 +368,16 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
                feedforward, tau, h, substeps,
                mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
                mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
-               wind, has_wind, arm, drag):
+               wind, has_wind, arm, drag, force, has_force):
     """``substeps`` internal steps of length h for every agent, state written in place
     (``Quadrotor.step``); returns τ after them (time since the tick, accumulated step by step).
 
     Per sub-step and agent: the reference at τ (:func:`reference`), the SE(3) law
     (:func:`se3_control`), allocation with limits (eq. 3.16, :func:`allocate`), the rotors' real
     wrench (eq. 3.15) at ``rotor_gain`` = sqrt(health) times the commanded speeds, the wind's force
-    and moment when ``has_wind`` (:func:`wind_load`), then RK4 (:func:`rk4`). ``rotor_speed``
-    receives the last commanded speeds.
+    and moment when ``has_wind`` (:func:`wind_load`), the force per mass ``force`` when
+    ``has_force`` (the disturbances' force phase, held over the step), then RK4 (:func:`rk4`).
+    ``rotor_speed`` receives the last commanded speeds.
     """
     x = np.empty(13)
     work = np.empty((5, 13))
@@ -400,6 +401,8 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
             if has_wind:
                 ext, moment = wind_load(R, _row(wind, i), drag, mass, arm)
                 torque = _add(torque, moment)
+            if has_force:
+                ext = _add(ext, _row(force, i))
             rk4(x, thrust, torque, ext, mass, J, gyro, h, work)
         for k in range(3):
             pos[i, k], vel[i, k], omega[i, k] = x[k], x[3 + k], x[10 + k]

@@ -30,7 +30,9 @@ spins as the remaining wrench makes it (a dead rotor leaves the yaw drag torques
 Wind (``disturbances``): the model integrates it (``wind_coupling = "integrated"``): at each
 internal step the force per mass R diag(D) R^T w (the airframe's rotor-drag coefficients D, see
 methods/quadrotor/model.py) joins the RK4 right-hand side, and with ``moment_arm`` h the moment
-(0, 0, h) x F_body joins the rotors' torque.
+(0, 0, h) x F_body joins the rotors' torque. The force phase's ``world.force`` (downwash, ground
+effect, drag, a battery's limit) joins the RK4 right-hand side the same way
+(``force_coupling = "integrated"``), held over the physics step.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ class Quadrotor(Dynamics):
     name = "quadrotor"
     has_attitude = True
     wind_coupling = "integrated"
+    force_coupling = "integrated"
     rotors = 4
 
     class Params(PluginParams):
@@ -155,14 +158,16 @@ class Quadrotor(Dynamics):
         """Advance the rigid bodies by ``dt`` (in sub-steps of at most ``max_step``), all agents in
         one compiled call (:func:`kernels.step_swarm`)."""
         substeps = max(1, math.ceil(dt / self.params.max_step - 1e-9))
-        wind = world.wind
+        wind, force = world.wind, world.force
         self._tau = self._kernels.step_swarm(
             world.pos, world.vel, world.quat, world.omega, world.rotor_speed,
             self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._heading,
             self._position_mask, self._omega_d, self._alpha_d, self._feedforward,
             self._tau, dt / substeps, substeps, rotor_gain=self._rotor_gain,
             wind=self._zeros if wind is None else _floats(wind), has_wind=wind is not None,
-            arm=float(world.wind_moment_arm), drag=self._drag, **self._constants)
+            arm=float(world.wind_moment_arm), drag=self._drag,
+            force=self._zeros if force is None else _floats(force), has_force=force is not None,
+            **self._constants)
 
     @hookimpl
     def swarmscene_event(self, sim, event) -> None:

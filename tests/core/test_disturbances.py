@@ -49,8 +49,9 @@ def test_none_declared_leaves_the_record_as_it_was():
     ({"dryden": {"speed": 1000}}, "disturbances.dryden.speed: must be <= 100.0 (got 1000)"),
     ({"dryden": {"sped": 1}}, "disturbances.dryden.sped: unknown key (valid keys: heading, moment_arm, "
                               "speed, mean, intensity, field) (got 1)"),
-    ({"windy": {}}, "disturbances.windy: unknown disturbance model 'windy' (valid: comm_delay, "
-                    "constant_wind, dryden, gust, packet_loss, sensing_noise)"),
+    ({"windy": {}}, "disturbances.windy: unknown disturbance model 'windy' (valid: battery, comm_delay, "
+                    "constant_wind, downwash, drag, dryden, ground_effect, gust, packet_loss, radio, "
+                    "sensing_noise)"),
     ({"w": {"kind": "breeze"}}, "disturbances.w.kind: unknown disturbance model 'breeze'"),
     ({"gps": {"kind": "sensing_noise", "pos_std": [1, -1, 1]}},
      "disturbances.gps.pos_std: each must be in [0, 1000] (got [1.0, -1.0, 1.0])"),
@@ -186,11 +187,11 @@ def test_every_model_option_is_documented():
     """docs/disturbances.md carries each model's option table as the docgen renders it."""
     from pathlib import Path
 
-    from swarmscene.core.disturbances import BUILTIN_MODELS
     from swarmscene.docgen import model_table
 
     doc = (Path(__file__).parents[2] / "docs" / "disturbances.md").read_text()
-    for kind, cls in ((m.name, m) for m in BUILTIN_MODELS):
+    registry = api.plugins()[1]  # every built-in model, core/disturbances' and plugins/disturbance's
+    for kind, cls in registry.classes["disturbance"].items():
         assert f"### `{kind}`" in doc
         for row in model_table(cls.Params, "disturbances.<name>."):
             assert row in doc, f"docs/disturbances.md: {kind}'s table is out of date ({row})"
