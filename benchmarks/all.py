@@ -51,6 +51,7 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("swap_adjust", "python benchmarks/reproduction/bench_swap.py --adjust-only", 2),
     ("vmas", "python benchmarks/speed/peers/bench_vmas.py", 10),
     ("disturbances", "python benchmarks/speed/bench_disturbances.py", 5),
+    ("physics_effects", "python benchmarks/physics/bench_effects.py --rounds 11 --ticks 10", 3),
     ("resilience", "python benchmarks/reproduction/bench_resilience.py --markdown", 40),
     ("falsify", "python benchmarks/reproduction/bench_falsify.py", 30),
     ("tick", "python benchmarks/speed/bench_tick.py --baseline af87771", 2),
