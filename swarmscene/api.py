@@ -22,6 +22,7 @@ from typing import Any, cast
 from .builtins import BUILTIN_PLUGINS
 from .core.config import Scenario, validate
 from .core.errors import ConfigError
+from .core.raised import PluginRaised, RunFailed
 from .core.registry import Registry, make_plugin_manager
 from .core.result import RunResult
 from .core.simulation import Simulation
@@ -126,8 +127,11 @@ def run(
     writers = extra_writers(sim)
     shown = Progress.maybe(output.progress) if progress is None else None
     started_at = utc_now()
+    raised: PluginRaised | None = None
     try:
         result = sim.run(progress=progress or shown)
+    except PluginRaised as exc:  # what the run recorded is written, then the error is raised
+        result, raised = exc.result, exc
     finally:
         if shown is not None:
             shown.close()
@@ -136,6 +140,12 @@ def run(
         extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
         write_outputs(sim, result, run_dir, extras, started_at=started_at)
         result.run_dir = run_dir
+        if result.error is not None:
+            from .sweeps.records import record_failure
+
+            record_failure(run_dir, RunFailed.of(result, raised and raised.__cause__), sim.scenario.data)
+    if raised is not None:
+        raise raised
     if output.summary:
         print(summary_text(sim, result, result.run_dir))
     return result

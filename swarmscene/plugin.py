@@ -37,6 +37,7 @@ import numpy as np
 
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
+from .core.errors import SwarmsceneDeprecationWarning, validate_renamed
 from .core.events import Event, EventKindPlugin, EventParams, Motion
 from .core.fields import StrictModel
 from .core.generators import MapGenerator
@@ -61,7 +62,8 @@ __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
     "Environment", "Event", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
     "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "RunView", "SHARED", "Sensing", "Setpoints",
-    "StrictModel", "WorldState", "build_context", "choose", "disturbance_context", "hookimpl",
+    "StrictModel", "SwarmsceneDeprecationWarning", "WorldState", "build_context", "choose",
+    "disturbance_context", "hookimpl", "validate_renamed",
 ]
 
 

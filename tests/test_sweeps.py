@@ -155,17 +155,25 @@ def test_recorded_invalid_jobs_and_failed_jobs_set_the_exit_status(tmp_path):
 
 
 def test_runtime_exception_in_one_job_does_not_stop_the_others(tmp_path, monkeypatch):
-    """A plugin raising mid-run (here: non-finite numbers in seed 1) fails only its own job."""
-    from swarmscene.core.simulation import Simulation
+    """A plugin raising mid-run (here: non-finite numbers in seed 1) fails only its own job, and
+    its record names the plugin, its method and the time."""
+    from swarmscene.plugins.formation.static_shape import StaticShape
 
-    original = Simulation.step
+    original = StaticShape.setpoints
 
-    def step(self):
-        if self.config.seed == 1 and self.step_count == 5:
+    def setpoints(self, world, sensing):
+        if self.seed_one and world.t >= 0.5:
             raise FloatingPointError("non-finite setpoint for agent 3")
-        original(self)
+        return original(self, world, sensing)
 
-    monkeypatch.setattr(Simulation, "step", step)
+    init = StaticShape.__init__
+
+    def remember_seed(self, params, ctx):
+        init(self, params, ctx)
+        self.seed_one = ctx.rng.bit_generator.seed_seq.entropy == 1  # the run's `seed`
+
+    monkeypatch.setattr(StaticShape, "setpoints", setpoints)
+    monkeypatch.setattr(StaticShape, "__init__", remember_seed)
     monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "seed=0,1,2", "clock.duration=2.0",
                                       f"hydra.sweep.dir={tmp_path}/sw"])
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
@@ -174,7 +182,8 @@ def test_runtime_exception_in_one_job_does_not_stop_the_others(tmp_path, monkeyp
     assert exit_info.value.code == 1  # one job failed: the sweep's status says so
     rows = read_csv(tmp_path / "sw" / "summary.csv")
     assert [(r["seed"], r["status"]) for r in rows] == [("0", "complete"), ("1", "failed"), ("2", "complete")]
-    assert rows[1]["error"] == "FloatingPointError: non-finite setpoint for agent 3"
+    assert rows[1]["error"] == ("RunFailed: formation 'static_shape' raised in setpoints at t = 0.5 s: "
+                                "FloatingPointError: non-finite setpoint for agent 3")
     error = json.loads((tmp_path / "sw" / "1" / "error.json").read_text())
     assert "Traceback" in error["traceback"] and "FloatingPointError" in error["traceback"]
 

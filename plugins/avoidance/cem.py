@@ -118,7 +118,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
@@ -130,6 +129,7 @@ from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import min_distance_between, min_pair_distance
+from swarmscene.plugin import validate_renamed
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -195,16 +195,11 @@ class CEM(Avoidance):
             None, gt=0.0, description="along-track distance past the last failure to hand back, m (None: 2 a_p)"
         )
 
-        @model_validator(mode="before")
+        @model_validator(mode="wrap")
         @classmethod
-        def _deprecated_n(cls, data: Any) -> Any:
+        def _deprecated_n(cls, data: Any, handler: Any) -> Any:
             """``n`` (the paper's symbol, easily read as swarm.n) works for one release, with a warning."""
-            if isinstance(data, dict) and "n" in data:
-                warnings.warn("avoidance.n is deprecated: write avoidance.newton_iterations",
-                              DeprecationWarning, stacklevel=2)
-                data = {**data, "newton_iterations": data["n"]}
-                del data["n"]
-            return data
+            return validate_renamed(data, handler, {"n": "newton_iterations"}, "avoidance")
 
     params: Params
 
