@@ -671,3 +671,15 @@ def test_sweep_progress_counts_failed_jobs_and_is_quiet_off_a_terminal(tmp_path)
     assert progress_counts(proc.stderr)[-1] == "2/2 jobs done, 1 failed"
     quiet = swarmscene("-m", "clock.duration=1.0", "seed=0,1", f"hydra.sweep.dir={tmp_path}/quiet", cwd=tmp_path)
     assert quiet.returncode == 0 and progress_counts(quiet.stderr) == []
+
+
+def test_an_interpolated_value_follows_each_jobs_seed(tmp_path):
+    """docs/faults_and_maps.md: `environment.seed='${seed}'` varies the map with the run's seed; the
+    grid's check set the text '${seed}' itself, unresolved, and refused every job."""
+    import yaml
+
+    proc = swarmscene("--multirun", "environment=obstacle_field", "environment.seed=${seed}", "seed=3,4",
+                      "clock.duration=0.2", "output.trajectory=false", f"hydra.sweep.dir={tmp_path}/m", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    configs = [yaml.safe_load((tmp_path / "m" / job / "config.yaml").read_text()) for job in ("0", "1")]
+    assert [(c["seed"], c["environment"]["seed"]) for c in configs] == [(3, 3), (4, 4)]
