@@ -41,6 +41,8 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
 
     Every documented option is set with plain ``key=value`` (rewritten to ``++key=value``,
     :func:`swarmscene.searchpath.plain_overrides`), whether or not the composed YAML holds it.
+    A composition that fails (an unknown option, a value that does not parse or resolve) raises
+    :class:`~swarmscene.core.errors.ConfigError` with the command line's one-line wording.
     """
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
@@ -49,9 +51,19 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
     from .searchpath import plain_overrides, register_search_path
 
     register_search_path()
-    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
-        cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
-    return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
+    try:
+        with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+            cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
+        return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
+    except ConfigError:
+        raise
+    except Exception as exc:  # Hydra's multi-line wording: the command line's one line instead
+        from .hydra_errors import hydra_error_line, resolution_error_line
+
+        line = resolution_error_line(exc) or hydra_error_line(exc)
+        if line is None:
+            raise
+        raise ConfigError([line]) from exc
 
 
 def load(config: Sequence[str] | dict[str, Any] = (), registry: Registry | None = None) -> Scenario:

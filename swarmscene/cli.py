@@ -113,7 +113,12 @@ def _main() -> None:
     _show_deprecations()
     # Plain `key=value` for every documented option, before Hydra parses the command line
     # (searchpath.plain_overrides: `a.b=v` -> `++a.b=v`).
-    sys.argv[1:] = plain_command_line(sys.argv[1:])
+    from .core.errors import ConfigError
+
+    try:
+        sys.argv[1:] = plain_command_line(sys.argv[1:])
+    except ConfigError as exc:  # an override without a key
+        _report(exc.lines)
     debug = bool(os.environ.get(DEBUG_ENV)) or bool(os.environ.get("HYDRA_FULL_ERROR"))
     if debug:
         os.environ[DEBUG_ENV] = "1"  # the task reads it too

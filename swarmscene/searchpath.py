@@ -120,7 +120,8 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
     ``swarmscene --config-path <run dir> --config-name config``.
 
     Shell completion (``-sc``) is left alone: its ``query=...`` words are not the app's overrides.
-    ``--info`` takes an optional word, never of the form ``key=value``.
+    ``--info`` takes an optional word, never of the form ``key=value``. An override without a key
+    (``=3``) is a :class:`~swarmscene.core.errors.ConfigError` naming it.
     """
     args = list(argv)
     if any(a in ("-sc", "--shell-completion") for a in args):
@@ -136,6 +137,10 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
         elif arg.startswith("-"):
             out.append(arg)
             option = arg if arg in OPTIONS_WITH_VALUE else None
+        elif arg.lstrip("+~").startswith("="):  # Hydra: "Config group override must be a string or a list"
+            from .core.errors import ConfigError
+
+            raise ConfigError([f"{arg}: an override needs a key before '=' (key=value; got {arg!r})"])
         else:
             out.extend(plain_overrides([arg]))
     return out

@@ -47,6 +47,7 @@ def test_default_scenario_writes_run_directory(tmp_path):
         (["formation=nope"], "swarmscene: formation: unknown option 'nope' (valid: "),
         (["bogus=1"], "swarmscene: bogus: unknown key (got '1')"),
         (["avoidance.K=0"], "swarmscene: avoidance.K: unknown key (valid keys: v_max, influence, obstacle_influence, lookahead) (got 0)"),
+        (["=3"], "swarmscene: =3: an override needs a key before '=' (key=value; got '=3')"),
         (["+swarm.n=3"], "swarmscene: Could not append to config. An item is already at 'swarm.n'. Either remove + prefix: 'swarm.n=3' Or add a second + to add or override 'swarm.n': '++swarm.n=3'"),
         (["scenario=cem_six_vehicle", "avoidance.K=0"], "swarmscene: avoidance.K: must be >= 1 (got 0)"),
         (["swarm.n=0"], "swarmscene: swarm.n: must be >= 1 (got 0)"),
