@@ -138,6 +138,9 @@ def _main() -> None:
     except BrokenPipeError:
         raise
     except Exception as exc:  # every user-fixable problem becomes one line
+        ended = _sweep_end_after(exc)
+        if ended is not None:  # a sweeper that stopped after its jobs ran: their tables are written
+            sys.exit(ended)
         if debug:
             raise
         _report(_error_lines(exc), _error_status(exc))
@@ -164,6 +167,13 @@ def _show_deprecations() -> None:
 
     if not sys.warnoptions:
         warnings.filterwarnings("once", category=SwarmsceneDeprecationWarning)
+
+
+def _sweep_end_after(exc: BaseException) -> int | None:
+    """The exit status of a multirun whose sweeper raised after its jobs ran (Optuna when every
+    trial failed), once the end-of-sweep callbacks it skipped have run; None for any other error."""
+    callback = sys.modules.get("swarmscene.sweeps.callback")
+    return callback.end_after_sweeper_error(exc) if callback is not None else None
 
 
 def _multirun_status() -> int | None:
