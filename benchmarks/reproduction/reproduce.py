@@ -322,7 +322,7 @@ def evaluate_values(claim: Claim, reading: str, raw: list[Any], run: str = "") -
     if rel == "=" and out.reach is not None:  # one flight: judged on the share of seeds, not the mean
         out.worst = float(x.max() if abs(x.max() - paper) > abs(x.min() - paper) else x.min())
         out.holds = 2 * out.reach >= len(x) and out.missing == 0
-        out.contains_paper = x.min() - 1e-12 <= paper <= x.max() + 1e-12
+        out.contains_paper = bool(x.min() - 1e-12 <= paper <= x.max() + 1e-12)
     elif rel == "=":
         out.worst = float(x.max() if abs(x.max() - paper) > abs(x.min() - paper) else x.min())
         out.holds = abs(out.mean - paper) <= tol + 1e-12 and out.missing == 0
