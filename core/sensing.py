@@ -10,7 +10,8 @@ end of the tick and the formation/avoidance plugins read the same object at the 
 one, so the agents' pairs are listed once per guidance step (a dense pass for a few agents, a
 compiled cell list for more: ``core.vectors.pairs_within``); a k-d tree is built only for a plugin
 that asks for :attr:`Sensing.tree`. Queries are lazy and cached: a plugin that never asks for the
-communication graph does not pay for it.
+communication graph does not pay for it. Their arrays are shared by every reader of the tick, so
+they are handed out read-only (:func:`read_only`): copy one to edit it.
 """
 
 from __future__ import annotations
@@ -84,8 +85,25 @@ class per_tick(Generic[T]):
     def __get__(self, obj: Any, cls: type | None = None) -> T:
         if obj is None:
             return self  # type: ignore[return-value]
-        value = obj.__dict__[self.name] = self.func(obj)
+        value = obj.__dict__[self.name] = read_only(self.func(obj))
         return value
+
+
+def read_only(value: T) -> T:
+    """``value`` with every array in it (itself, or the items of a tuple) as a read-only view.
+
+    A tick's answers are shared: the safety monitor and every plugin read the same arrays, so a
+    plugin that edited one in place (``dist, _ = sensing.nearest; dist[dist > r] = r``) would
+    silently change what the others see and what the monitor judges. A read-only view makes that
+    edit fail at once (``ValueError: assignment destination is read-only``); copy to edit.
+    """
+    if isinstance(value, np.ndarray):
+        view = value.view()
+        view.flags.writeable = False
+        return cast("T", view)
+    if type(value) is tuple:
+        return cast("T", tuple(read_only(item) for item in value))
+    return value
 
 
 def _dense_connected(pos: np.ndarray, radius: float) -> bool:
@@ -210,7 +228,7 @@ class Sensing:
         query lists the pairs at the widest radius the previous tick was asked for.
         """
         self.asked["pairs"] = max(self.asked["pairs"], radius)
-        return self._listed_pairs(radius)
+        return read_only(self._listed_pairs(radius))
 
     def _listed_pairs(self, radius: float) -> np.ndarray:
         """:meth:`pairs` without recording the request (a prefetch must not feed its own hint)."""
@@ -297,7 +315,7 @@ class Sensing:
         nearby obstacles matter (repulsion ranges, safety checks)."""
         if "clearance" in self.__dict__:
             full = self.clearance
-            return np.where(full <= radius, full, np.inf)
+            return read_only(np.where(full <= radius, full, np.inf))
         return self.obstacle_nearest(radius)[1]
 
     def obstacle_nearest(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -311,6 +329,10 @@ class Sensing:
         (:class:`ObstacleCandidates`) instead of walking the obstacle tree.
         """
         self.asked["obstacles"] = max(self.asked["obstacles"], radius)
+        return read_only(self._obstacle_nearest(radius))
+
+    def _obstacle_nearest(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`obstacle_nearest` on the snapshot's own (writable) arrays."""
         if radius <= self._none_within:  # nothing within a wider range: nothing within this one
             return self._nearest[self._none_within]
         if radius not in self._nearest:
@@ -325,10 +347,10 @@ class Sensing:
                 if candidates is None or candidates[0].size == 0:  # open space, or none in reach
                     self._none_within = reach
                     index, clearance = _nothing_near(self._n)
-                    self._nearest[reach] = (index.copy(), clearance.copy())  # callers' own arrays
+                    self._nearest[reach] = (index.copy(), clearance.copy())
                     return self._nearest[reach]
                 self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach, candidates)
-                return self.obstacle_nearest(radius)
+                return self._obstacle_nearest(radius)
         return self._nearest[radius]
 
     def _obstacle_candidates(self, reach: float) -> tuple[np.ndarray, np.ndarray] | None:
