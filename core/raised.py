@@ -65,9 +65,28 @@ def origin(exc: BaseException, observers: list[Any], hook_modules: dict[str, str
             if module in hook_modules:
                 named = f"plugin {hook_modules[module]!r}"
         if named is not None:
-            return f"{named} raised in {method}"
+            return f"{named} raised in {method}" + zero_options(exc, owner)
         tb = tb.tb_next
     return None
+
+
+ARITHMETIC = (ZeroDivisionError, FloatingPointError, OverflowError)
+
+
+def zero_options(exc: BaseException, plugin: Any, prefix: str | None = None) -> str:
+    """`` (with formation.spacing = 0)`` naming the plugin's numeric options set to zero (whose
+    default is not zero) when ``exc`` is arithmetic (a division by zero, an overflow): the likely
+    cause is an option the user set, which the plugin's name alone does not tell; '' otherwise."""
+    params = getattr(plugin, "params", None)
+    fields = getattr(type(params), "model_fields", None)
+    if not isinstance(exc, ARITHMETIC) or not fields:
+        return ""
+    if prefix is None:
+        prefix = next((kind for base, kind in _KINDS[:3] if isinstance(plugin, base)), "option")
+    zero = [f"{prefix}.{name} = 0" for name, field in fields.items()
+            if isinstance(getattr(params, name, None), (int, float)) and not isinstance(getattr(params, name), bool)
+            and getattr(params, name) == 0 and field.default != 0]  # set so, not a default of 0
+    return f" (with {', '.join(zero)})" if zero else ""
 
 
 def _named(owner: Any, observers: list[Any]) -> str | None:

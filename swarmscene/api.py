@@ -103,6 +103,8 @@ def build(
 def build_error_line(scenario: Scenario, exc: BaseException) -> str:
     """One line for an exception raised while building a run: the plugin kind whose code raised
     it (the first plugin module in the traceback), its name, and the exception."""
+    from .core.raised import zero_options
+
     reason = f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0]}"
     modules = {cls.__module__: kind for kind, cls in scenario.plugin_classes.items()}
     tb = exc.__traceback__
@@ -110,9 +112,19 @@ def build_error_line(scenario: Scenario, exc: BaseException) -> str:
         kind = modules.get(tb.tb_frame.f_globals.get("__name__"))
         if kind is not None:
             name = scenario.plugin_classes[kind].name
-            return f"{kind}: {name!r} cannot be built for this scenario (swarm.n = {scenario.config.swarm.n}): {reason}"
+            options = zero_options(exc, tb.tb_frame.f_locals.get("self"), kind) or zero_options(
+                exc, _Holder(scenario.plugin_params.get(kind)), kind)
+            return (f"{kind}: {name!r} cannot be built for this scenario (swarm.n = {scenario.config.swarm.n})"
+                    f"{options}: {reason}")
         tb = tb.tb_next
     return f"scenario: cannot be built: {reason}"
+
+
+class _Holder:
+    """A plugin's ``params`` before the plugin exists (a constructor that raised)."""
+
+    def __init__(self, params: Any) -> None:
+        self.params = params
 
 
 def run(

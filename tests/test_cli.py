@@ -303,3 +303,40 @@ def test_output_piped_into_a_reader_that_leaves_is_not_an_error_line(tmp_path):
     proc.stdout.close()  # the reader is gone before the help is written (start-up takes far longer)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 141 and err == ""
+
+
+def test_a_division_by_zero_names_the_options_set_to_zero(monkeypatch):
+    """A numeric option that makes a plugin divide by zero: the line names the option, not only
+    the plugin, at run time and when the plugin is built."""
+    from swarmscene import api
+    from swarmscene.core.errors import ConfigError
+    from swarmscene.core.raised import PluginRaised
+    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+    control, init = DoubleIntegrator.control, DoubleIntegrator.__init__
+
+    def control_dividing(self, world, setpoints):
+        control(self, world, setpoints)
+        return 1.0 / self.params.K_Wv
+
+    control_dividing.__code__ = control_dividing.__code__.replace(co_name="control")
+    monkeypatch.setattr(DoubleIntegrator, "control", control_dividing)
+    with pytest.raises(PluginRaised) as raised:
+        api.build(["dynamics.K_Wv=0", "clock.duration=0.3"]).run()
+    assert str(raised.value) == ("dynamics 'double_integrator' raised in control (with dynamics.K_Wv = 0) "
+                                 "at t = 0 s: ZeroDivisionError: float division by zero")
+
+    def init_dividing(self, params, ctx):
+        init(self, params, ctx)
+        1.0 / params.K_Wv
+
+    import types
+
+    plugin_module = sys.modules[DoubleIntegrator.__module__].__dict__  # raised from the plugin's own module
+    init_dividing = types.FunctionType(init_dividing.__code__, plugin_module, "__init__", None,
+                                       init_dividing.__closure__)
+    monkeypatch.setattr(DoubleIntegrator, "__init__", init_dividing)
+    with pytest.raises(ConfigError) as err:
+        api.build(["dynamics.K_Wv=0"])
+    assert err.value.lines == ["dynamics: 'double_integrator' cannot be built for this scenario (swarm.n = 5) "
+                               "(with dynamics.K_Wv = 0): ZeroDivisionError: float division by zero"]
