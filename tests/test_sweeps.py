@@ -683,3 +683,34 @@ def test_an_interpolated_value_follows_each_jobs_seed(tmp_path):
     assert proc.returncode == 0, proc.stderr
     configs = [yaml.safe_load((tmp_path / "m" / job / "config.yaml").read_text()) for job in ("0", "1")]
     assert [(c["seed"], c["environment"]["seed"]) for c in configs] == [(3, 3), (4, 4)]
+
+
+def test_a_full_disk_while_the_records_are_written_names_the_file(tmp_path, monkeypatch):
+    """ENOSPC names no file; the sweep's records said "No space left on device" and nothing else."""
+    import errno
+
+    from swarmscene import outputs
+
+    real_fdopen = outputs.os.fdopen
+
+    class Full:
+        def __init__(self, fd, mode):
+            self.fh = real_fdopen(fd, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    job = tmp_path / "sw" / "0"
+    job.mkdir(parents=True)
+    monkeypatch.setattr(outputs.os, "fdopen", Full)
+    with pytest.raises(OSError) as full:
+        outputs.atomic_write_json(job / "error.json", {"error": "x"})
+    assert full.value.filename == str(job / "error.json") and full.value.errno == errno.ENOSPC
+    assert cli._error_lines(full.value) == [f"{job / 'error.json'}: cannot be written (No space left on device)"]
+    assert list(job.iterdir()) == []  # no temporary file left behind
