@@ -714,3 +714,22 @@ def test_a_full_disk_while_the_records_are_written_names_the_file(tmp_path, monk
     assert full.value.filename == str(job / "error.json") and full.value.errno == errno.ENOSPC
     assert cli._error_lines(full.value) == [f"{job / 'error.json'}: cannot be written (No space left on device)"]
     assert list(job.iterdir()) == []  # no temporary file left behind
+
+
+@pytest.mark.parametrize(("group", "option", "extra"), [
+    ("hydra/launcher", "joblib", "joblib"), ("hydra/launcher", "ray", "ray"),
+    ("hydra/launcher", "submitit_slurm", "submitit"), ("hydra/sweeper", "optuna", "optuna"),
+])
+def test_a_launcher_whose_extra_is_missing_gives_the_install_line(group, option, extra):
+    """Without the extra, Hydra has no such option: the line read "unknown option 'joblib'"."""
+    from hydra.errors import MissingConfigException
+
+    from swarmscene.hydra_errors import hydra_error_line
+
+    exc = MissingConfigException(f"In 'hydra/config': Could not find '{group}/{option}'",
+                                 missing_cfg_file=f"{group}/{option}", options=["basic", "pool"])
+    assert hydra_error_line(exc) == (f"{group}={option} needs the {extra!r} extra (Hydra's {option} plugin is not "
+                                     f"installed): pip install 'swarmscene[{extra}]'")
+    unknown = MissingConfigException(f"In 'hydra/config': Could not find '{group}/nope'",
+                                     missing_cfg_file=f"{group}/nope", options=["basic", "pool"])
+    assert hydra_error_line(unknown) == f"{group.replace('/', '.')}: unknown option 'nope' (valid: basic, pool)"
