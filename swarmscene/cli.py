@@ -119,6 +119,7 @@ def _main() -> None:
         sys.argv[1:] = plain_command_line(sys.argv[1:])
     except ConfigError as exc:  # an override without a key
         _report(exc.lines)
+    sys.argv[1:] = [*sys.argv[1:], *_named_output_dirs(sys.argv[1:])]
     debug = bool(os.environ.get(DEBUG_ENV)) or bool(os.environ.get("HYDRA_FULL_ERROR"))
     if debug:
         os.environ[DEBUG_ENV] = "1"  # the task reads it too
@@ -154,6 +155,49 @@ def _main() -> None:
     sweep_status = _multirun_status()
     if sweep_status:
         sys.exit(sweep_status)
+
+
+def _named_output_dirs(argv: list[str]) -> list[str]:
+    """``hydra.run.dir`` and ``hydra.sweep.dir`` as the shipped config names them (outputs/<name>/
+    <time>, multirun/<name>/<time>) for a primary config that sets neither: a recorded run's
+    ``config.yaml`` or the falsifier's ``worst_case.yaml`` (``--config-path DIR --config-name
+    NAME``) holds no ``hydra`` node, and Hydra's own default wrote to outputs/<date>/<time>. Left
+    alone when the file sets its own or the command line names them."""
+    import re
+
+    path, name = _option(argv, ("-cp", "--config-path")), _option(argv, ("-cn", "--config-name"))
+    if path is None or name is None:
+        return []
+    file = Path(path) / (name if name.endswith(".yaml") else f"{name}.yaml")
+    try:
+        if not file.is_file() or re.search(r"^hydra:", file.read_text(errors="replace"), flags=re.M):
+            return []
+    except OSError:
+        return []  # Hydra says what is wrong with it
+    shipped = _shipped_hydra_dirs()
+    given = {a.split("=", 1)[0].lstrip("+") for a in argv if "=" in a}
+    return [f"++{key}='{value}'" for key, value in shipped.items() if key not in given]  # quoted: interpolations
+
+
+def _shipped_hydra_dirs() -> dict[str, str]:
+    """The shipped config's run and sweep directory patterns (scenarios/config.yaml)."""
+    from importlib.resources import files
+
+    import yaml
+
+    hydra = yaml.safe_load(files("swarmscene.scenarios").joinpath("config.yaml").read_text())["hydra"]
+    return {"hydra.run.dir": hydra["run"]["dir"], "hydra.sweep.dir": hydra["sweep"]["dir"]}
+
+
+def _option(argv: list[str], names: tuple[str, ...]) -> str | None:
+    """The value of a ``-x value`` / ``--xx=value`` option of ``argv``, else None."""
+    for k, arg in enumerate(argv):
+        if arg in names and k + 1 < len(argv):
+            return argv[k + 1]
+        for name in names:
+            if arg.startswith(f"{name}="):
+                return arg.split("=", 1)[1]
+    return None
 
 
 def _show_deprecations() -> None:

@@ -340,3 +340,20 @@ def test_a_division_by_zero_names_the_options_set_to_zero(monkeypatch):
         api.build(["dynamics.K_Wv=0"])
     assert err.value.lines == ["dynamics: 'double_integrator' cannot be built for this scenario (swarm.n = 5) "
                                "(with dynamics.K_Wv = 0): ZeroDivisionError: float division by zero"]
+
+
+def test_a_recorded_config_run_again_writes_under_the_scenarios_name(tmp_path):
+    """`--config-path <run dir> --config-name config` (and the falsifier's worst_case.yaml): the
+    recorded file has no hydra node, and Hydra's default wrote to outputs/<date>/<time>."""
+    first = swarmscene("scenario=cem_two_vehicle", "clock.duration=0.3", "output.summary=false",
+                       f"hydra.run.dir={tmp_path}/first", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    work = tmp_path / "work"
+    work.mkdir()
+    again = swarmscene("--config-path", str(tmp_path / "first"), "--config-name", "config", cwd=work)
+    assert again.returncode == 0, again.stderr
+    runs = list((work / "outputs").iterdir())
+    assert [p.name for p in runs] == ["cem_two_vehicle"] and len(list(runs[0].iterdir())) == 1
+    chosen = swarmscene("--config-path", str(tmp_path / "first"), "--config-name", "config",
+                        f"hydra.run.dir={tmp_path}/mine", cwd=work)
+    assert chosen.returncode == 0 and (tmp_path / "mine" / "metrics.json").is_file()  # the user's own wins
