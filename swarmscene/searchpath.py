@@ -31,14 +31,22 @@ from hydra.core.config_search_path import ConfigSearchPath
 from hydra.core.plugins import Plugins
 from hydra.plugins.search_path_plugin import SearchPathPlugin
 
-CONF_GROUP = "swarmscene.conf"
+CONF_GROUP = "swarmscene.conf"  # = core.registry.CONF_ENTRY_POINT_GROUP (not imported: a light start)
 
 
 def third_party_config_paths() -> list[tuple[str, str]]:
-    """(provider, search-path entry) of every installed ``swarmscene.conf`` entry point."""
+    """(provider, search-path entry) of every installed ``swarmscene.conf`` entry point that
+    ``SWARMSCENE_DISABLE_PLUGINS`` does not name (``name`` or ``dist:name``, as for plugins)."""
+    import os
+
+    from .core.registry import DISABLE_ENV
+
+    blocked = {b.strip() for b in os.environ.get(DISABLE_ENV, "").split(",") if b.strip()}
     found = []
     for ep in entry_points(group=CONF_GROUP):
         dist = ep.dist.name if ep.dist is not None else ep.name
+        if ep.name in blocked or f"{dist}:{ep.name}" in blocked:
+            continue
         path = ep.value if "://" in ep.value else f"pkg://{ep.value}"
         found.append((f"swarmscene-{dist}", path))
     return sorted(found)

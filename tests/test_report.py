@@ -192,3 +192,17 @@ def test_run_pictures_that_draw_nothing_exit_non_zero(tmp_path, capsys):
     assert report.main([str(sweep_dir), "--run-plots"]) == 1
     err = capsys.readouterr().err.splitlines()
     assert err[-1] == "swarmscene-report: run pictures written for 0 of 1 runs (1 skipped, named above)"
+
+
+def test_plotting_against_a_parameter_with_one_value_is_refused_naming_those_that_vary():
+    """docs/sweeps.md's corridor example plotted `--against environment`, which the preset holds at
+    one value while it sweeps environment.width: one category and five overlapping lines."""
+    rows = [{"job": str(k), "status": "complete", "seed": k % 2, "environment": "indoor_corridor",
+             "environment.width": [0.5, 0.6, 0.7][k // 2], "indoor.success": bool(k % 3),
+             "overrides": f"environment=indoor_corridor environment.width={[0.5, 0.6, 0.7][k // 2]} seed={k % 2}"}
+            for k in range(6)]
+    with pytest.raises(ValueError, match=r"^'environment' takes one value in this sweep \(indoor_corridor\): "
+                                         r"plot against one that varies \(environment.width\)$"):
+        report.metric_against(rows, "indoor.success", "environment")
+    data = report.metric_against(rows, "indoor.success", "environment.width")
+    assert data["x"] == [0.5, 0.6, 0.7] and list(data["lines"]) == ["indoor.success"]

@@ -50,6 +50,9 @@ def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[
     bounded = lower_bound(metric) is not None
     x = sorted({r.get(param) for r in rows}, key=_order)
     others = [k for k in tables.swept_parameters(rows) if k not in (param, "seed")]
+    if len(x) == 1 and others:  # one category, the sweep's real axis drawn as overlapping lines
+        raise ValueError(f"{param!r} takes one value in this sweep ({x[0]}): plot against one that varies "
+                         f"({', '.join(others)})")
     lines: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for key, members in tables.groups(done, others):
         label = ", ".join(f"{k}={v}" for k, v in zip(others, key, strict=True)) or metric  # a value per key
