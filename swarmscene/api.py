@@ -48,9 +48,10 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
     from hydra import initialize_config_module
     from omegaconf import OmegaConf
 
-    from .searchpath import plain_overrides, register_search_path
+    from .searchpath import plain_overrides, refuse_events_a_preset_replaces, register_search_path
 
     register_search_path()
+    refuse_events_a_preset_replaces(overrides)
     try:
         with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
             cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))

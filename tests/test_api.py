@@ -86,3 +86,17 @@ def test_a_composition_error_is_one_line_as_on_the_command_line(overrides, line)
         api.run(overrides)
     assert len(err.value.lines) == 1 and err.value.lines[0].startswith(line), err.value.lines
     assert "\n" not in str(err.value)
+
+
+def test_an_events_choice_a_preset_would_replace_is_refused_not_ignored():
+    """cem_six_vehicle sets its own events after the groups: `events=none` ran it with them."""
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        api.compose(["scenario=cem_six_vehicle", "events=none"])
+    assert err.value.lines == [
+        "events=none: scenario 'cem_six_vehicle' sets its own events, which replace the events group's choice "
+        "(the preset comes after the groups); change them key by key instead (events.0.at=5, "
+        "events.0.kind=stuck, events.0.agents=[1])"]
+    assert api.compose(["scenario=cem_six_vehicle", "events.0.at=5"])["events"][0]["at"] == 5
+    assert api.compose(["scenario=default", "events=lead_fails"])["events"][0]["at"] == 10.0
