@@ -108,6 +108,7 @@ class Simulation:
         self._refuse_start_outside_periodic_box()
         self._wrap_periodic()
         self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
+        self.sensing.periodic = self._periodic  # connectivity by minimum image on a torus (kept each tick)
         self.disturbances.attach(self.formation, self.dynamics)
         if self.disturbances.active:
             self.pm.register(self.disturbances, name="disturbances")
