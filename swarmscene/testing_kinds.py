@@ -407,6 +407,21 @@ def _run(observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], n
     return result.metrics, np.array(sim.world.pos)
 
 
+def _run_checked(name: str, observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], np.ndarray]:
+    """:func:`_run`, an observer's exception turned into the check's failure: a metric written
+    outside its namespace is the rule "changed the run's metrics" (the engine refuses the write)."""
+    from .core.metric_keys import MetricKeyError
+    from .core.raised import PluginRaised
+
+    try:
+        return _run(observers, overrides)
+    except PluginRaised as exc:
+        if isinstance(exc.__cause__, MetricKeyError):
+            raise AssertionError(f"{name}: changed the run's metrics: {exc.__cause__} (add keys under your own "
+                                 "prefix)") from exc
+        raise AssertionError(f"{name}: raised during the run: {exc}") from exc
+
+
 def check_observer(cls: type, overrides: list[str] | None = None) -> None:
     """Run a short scenario with and without an observer.
 
@@ -428,13 +443,13 @@ def check_observer(cls: type, overrides: list[str] | None = None) -> None:
 
     base = [c for c in plugins()[1].observers if c is not cls]
     without, traj_without = _run(base, overrides)
-    with_it, traj_with = _run([*base, cls], overrides)
+    with_it, traj_with = _run_checked(name, [*base, cls], overrides)
     assert np.array_equal(traj_without, traj_with), f"{name}: the run moved differently with it (observers only read)"
     changed = sorted(k for k, v in without.items() if k not in TIMING and k in with_it and not _same(with_it[k], v))
     assert not changed, f"{name}: changed the run's metrics {changed} (add keys under your own prefix)"
     added = {k: v for k, v in with_it.items() if k not in without and k not in TIMING}
     _assert_json_metrics(name, added, "its swarmscene_run_end")
-    again, _ = _run([*base, cls], overrides)
+    again, _ = _run_checked(name, [*base, cls], overrides)
     second = {k: again.get(k) for k in added}
     assert all(_same(second[k], v) for k, v in added.items()), (
         f"{name}: a second run gave other metrics: keep state on the instance (built per run), not the class")
