@@ -130,7 +130,6 @@ def test_a_ticks_shared_arrays_are_read_only_so_an_in_place_edit_fails_at_once()
     distances in place changed what the others saw. Now the edit raises; a copy edits freely."""
     import numpy as np
     import pytest
-
     import shapely
 
     from swarmscene.core.environment import Environment
