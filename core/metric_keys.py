@@ -65,6 +65,7 @@ class RunMetrics(dict[str, Any]):
         super().__setitem__(key, value)
 
     def update(self, *args: Any, **kwargs: Any) -> None:
+        """``dict.update``, each key checked as :meth:`__setitem__` checks it."""
         items = dict(*args, **kwargs)
         frame = sys._getframe(1)
         for key in items:
@@ -72,6 +73,7 @@ class RunMetrics(dict[str, Any]):
         super().update(items)
 
     def setdefault(self, key: str, default: Any = None) -> Any:
+        """``dict.setdefault``, a new key checked as :meth:`__setitem__` checks it."""
         if key not in self:
             self._check(key, sys._getframe(1))
         return super().setdefault(key, default)
