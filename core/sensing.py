@@ -101,8 +101,9 @@ def read_only(value: T) -> T:
         view = value.view()
         view.flags.writeable = False
         return cast("T", view)
-    if type(value) is tuple:
-        return cast("T", tuple(read_only(item) for item in value))
+    if isinstance(value, tuple) and type(value) is tuple:  # not a named tuple: its own fields stay
+        items: tuple[Any, ...] = value
+        return cast("T", tuple(read_only(item) for item in items))
     return value
 
 

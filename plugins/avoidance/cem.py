@@ -129,8 +129,8 @@ from swarmscene.core.plugin import Avoidance, BuildContext, PluginParams
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import min_distance_between, min_pair_distance
-from swarmscene.plugin import validate_renamed
 from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
+from swarmscene.plugin import validate_renamed
 
 if TYPE_CHECKING:  # pragma: no cover
     from swarmscene.core.sensing import Sensing
