@@ -99,5 +99,13 @@ def resolution_error_line(exc: BaseException | None) -> str | None:
         exc = exc.__cause__
     if exc is None or not getattr(exc, "full_key", None):
         return None
-    reason = " ".join((getattr(exc, "msg", None) or str(exc)).splitlines()[0].split())
-    return f"{exc.full_key}: cannot resolve the value: {reason}"
+    reason = _first_line(getattr(exc, "msg", None) or str(exc))
+    if reason.endswith(":"):  # "KeyError raised while resolving interpolation: " and nothing after
+        reason = reason[:-1] + " (the resolver gave no message)"
+    return f"{exc.full_key}: cannot resolve the value: {reason or type(exc).__name__ + ' (no message)'}"
+
+
+def _first_line(text: str) -> str:
+    """The first line of ``text`` with its spaces collapsed ('' for no text)."""
+    lines = text.splitlines()
+    return " ".join(lines[0].split()) if lines else ""

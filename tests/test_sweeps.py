@@ -733,3 +733,23 @@ def test_a_launcher_whose_extra_is_missing_gives_the_install_line(group, option,
     unknown = MissingConfigException(f"In 'hydra/config': Could not find '{group}/nope'",
                                      missing_cfg_file=f"{group}/nope", options=["basic", "pool"])
     assert hydra_error_line(unknown) == f"{group.replace('/', '.')}: unknown option 'nope' (valid: basic, pool)"
+
+
+def test_an_interpolation_error_with_no_message_still_names_its_key_and_why():
+    """A resolver that raises with no message gave "key: cannot resolve the value: KeyError raised
+    while resolving interpolation: " and nothing after it."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import InterpolationResolutionError
+
+    from swarmscene.hydra_errors import resolution_error_line
+
+    OmegaConf.register_new_resolver("swarmscene_test_silent", lambda: (_ for _ in ()).throw(KeyError()), replace=True)
+    cfg = OmegaConf.create({"name": "${swarmscene_test_silent:}"})
+    with pytest.raises(InterpolationResolutionError) as err:
+        OmegaConf.to_container(cfg, resolve=True)
+    line = resolution_error_line(err.value)
+    assert line == ("name: cannot resolve the value: KeyError raised while resolving interpolation (the resolver "
+                    "gave no message)")
+    silent = InterpolationResolutionError("")
+    silent.full_key = "environment.seed"
+    assert resolution_error_line(silent) == "environment.seed: cannot resolve the value: InterpolationResolutionError (no message)"
