@@ -57,8 +57,8 @@ Choices (the paper leaves these open):
   ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s). The cost, stated plainly:
   where a slot is clear of the failed vehicle but the straight path back to it crosses a_p, CEM
   never hands back and the mission never completes. In ``cem_six_vehicle`` every failure of the
-  lead from 19.0 to 22.3 s ends so: ``success False`` at 40 s, the healthy agents at x = 35-37 m
-  (CEM flies them on downstream), the hovering lead at 22-25 m beside its formation's slots; the
+  lead from 18.0 to 22.3 s ends so: ``success False`` at 40 s, the healthy agents at x = 35-37 m
+  (CEM flies them on downstream), the hovering lead at 21-25 m beside its formation's slots; the
   summary's ``mission`` line says why. No option routes the agents back around the failed vehicle
   yet (``"passed"`` completes those missions by flying through it).
   ``"passed"`` is that along-track rule alone (the rule shipped before). ``hand_back: false`` keeps
