@@ -79,16 +79,22 @@ class RunMetrics(dict[str, Any]):
         return super().setdefault(key, default)
 
     def _writer(self, frame: FrameType | None) -> tuple[bool, str | None, str]:
-        """(restricted, prefix, who) of the plugin writing from ``frame`` or a frame above it."""
+        """(restricted, prefix, who) of the plugin writing from ``frame`` or a frame above it: a
+        plugin object's method first (a chosen plugin's helper function writes for it), else a
+        hook module's function."""
+        module: str | None = None
         for _ in range(SEARCH_DEPTH):
             if frame is None or str(frame.f_globals.get("__name__")).startswith("pluggy"):
                 break  # the hook caller: no plugin's frame below it wrote this
             owner = frame.f_locals.get("self")
-            key: Any = id(owner) if owner is not None else frame.f_globals.get("__name__")
-            if key in self._prefixes:
-                who = type(owner).__name__ if owner is not None else str(key)
-                return True, self._prefixes[key], who
+            if owner is not None and id(owner) in self._prefixes:
+                return True, self._prefixes[id(owner)], type(owner).__name__
+            name = frame.f_globals.get("__name__")
+            if module is None and owner is None and name in self._prefixes:
+                module = name
             frame = frame.f_back
+        if module is not None:
+            return True, self._prefixes[module], module
         return False, None, "the engine"
 
     def _check(self, key: Any, frame: FrameType | None) -> None:
