@@ -13,12 +13,12 @@ working.
 
 from __future__ import annotations
 
-import warnings
 from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from .errors import validate_renamed
 from .events import EventConfig
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
@@ -119,22 +119,13 @@ class SafetyConfig(_Strict):
         "scenario starts that way on purpose (thesis 4.5.2)",
     )
 
-    @model_validator(mode="before")
+    @model_validator(mode="wrap")
     @classmethod
-    def _deprecated_names(cls, data: Any) -> Any:
-        """``safety.min_separation``/``min_clearance`` still work for one release, with a warning;
-        an old key given (e.g. on the command line) wins over the new one's default."""
-        if not isinstance(data, dict):
-            return data
-        data = dict(data)
-        for old, new in DEPRECATED_SAFETY_KEYS.items():
-            if old in data:
-                warnings.warn(
-                    f"safety.{old} is deprecated: write safety.{new} (the limit; {old} is the "
-                    "measured metric)", DeprecationWarning, stacklevel=2,
-                )
-                data[new] = data.pop(old)
-        return data
+    def _deprecated_names(cls, data: Any, handler: Any) -> Any:
+        """``safety.min_separation``/``min_clearance`` still work for one release, with a warning
+        (they name the limits, not the measured metrics of the same names); an old key given (e.g. on
+        the command line) wins over the new one's default, and an error in its value names it."""
+        return validate_renamed(data, handler, DEPRECATED_SAFETY_KEYS, "safety")
 
 
 class CommConfig(_Strict):

@@ -6,6 +6,8 @@ command line prints the lines and exits with status 2, without a traceback.
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
@@ -22,6 +24,44 @@ class ConfigError(ValueError):
 
 class PluginError(RuntimeError):
     """A plugin could not be loaded or registered (duplicate name, bad class)."""
+
+
+class SwarmsceneDeprecationWarning(DeprecationWarning):
+    """A name of swarmscene's that works for one more release (an option, an attribute a hook
+    reads). Python hides DeprecationWarnings outside ``__main__``; the command line shows this
+    category, each distinct warning once, so a user meets it before the name is removed."""
+
+
+def validate_renamed(data: Any, handler: Callable[[Any], Any], renames: dict[str, str], prefix: str) -> Any:
+    """Validate ``data`` (a pydantic ``wrap`` model validator's input) whose deprecated keys are
+    renamed first (``renames``: old -> new), each with a :class:`SwarmsceneDeprecationWarning`; an
+    old key given wins over the new one's default. A value given under an old name that does not
+    validate is reported under the name the user typed, with the new one
+    (``avoidance.n (now avoidance.newton_iterations): must be >= 1``), not under a key they never wrote."""
+    if not isinstance(data, dict) or not any(old in data for old in renames):
+        return handler(data)
+    data, typed = dict(data), {}
+    for old, new in renames.items():
+        if old in data:
+            warnings.warn(f"{prefix}.{old} is deprecated: write {prefix}.{new}", SwarmsceneDeprecationWarning,
+                          stacklevel=4)
+            data[new] = data.pop(old)
+            typed[new] = old
+    try:
+        return handler(data)
+    except ValidationError as exc:
+        errors: list[Any] = []
+        for err in exc.errors(include_url=False):
+            loc = tuple(err["loc"])
+            if loc and loc[0] in typed:
+                loc = (f"{typed[str(loc[0])]} (now {prefix}.{loc[0]})", *loc[1:])
+            errors.append({"type": err["type"], "loc": loc, "input": err["input"],
+                           **({"ctx": err["ctx"]} if "ctx" in err else {})})
+        try:
+            renamed = ValidationError.from_exception_data(exc.title, errors)
+        except Exception:  # an error type pydantic cannot rebuild (a custom one): keep the original
+            raise exc from None
+        raise renamed from None
 
 
 _BOUNDS = {

@@ -118,8 +118,13 @@ class EventConfig(StrictModel):
         if isinstance(data, dict):
             kind_cls = _kind_class(data.get("kind"), info.context)
             if kind_cls is not None:
-                own = {k: v for k, v in data.items()
-                       if k in kind_cls.Params.model_fields and k not in cls.model_fields}
+                takes = kind_cls.Params.model_fields
+                unknown = [k for k in data if k not in cls.model_fields and k not in takes]
+                if unknown:  # this kind's keys, not the built-in kinds' (velocity, rotor, fraction)
+                    valid = ["at", "agents", "kind", *(k for k in takes if k not in ("at", "agents", "kind"))]
+                    raise key_error(unknown[0], f"unknown key of a {data.get('kind')} event (valid keys: "
+                                    f"{', '.join(valid)})", data[unknown[0]])
+                own = {k: v for k, v in data.items() if k in takes and k not in cls.model_fields}
                 data = {k: v for k, v in data.items() if k not in own}
         model = handler(data)
         return model._checked(own, info.context) if isinstance(model, EventConfig) else model

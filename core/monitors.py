@@ -64,8 +64,8 @@ class ConnectivityCertificate:
     def connected(self, sensing: Any) -> bool:
         """Whether the communication graph of this tick is connected (exact: a kept tree's links
         all in range prove it, else the exact test runs)."""
-        if sensing.world.n <= DENSE_POINTS:  # the dense test is cheaper than keeping a tree
-            return bool(sensing.comm_connected)
+        if sensing.world.n <= DENSE_POINTS or sensing.periodic is not None:  # a tree's plain lengths
+            return bool(sensing.comm_connected)  # would not see links across a torus' seam
         if self.links is not None:
             if self._holds(sensing, self.links):
                 self.life += 1

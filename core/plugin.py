@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, field_validator
 
+from .errors import SwarmsceneDeprecationWarning
 from .setpoint import Setpoints
 from .state import WorldState
 
@@ -112,14 +113,14 @@ class BuildContext:
     def min_separation(self) -> float:
         """Deprecated name of :attr:`separation_limit` (kept for one release)."""
         warnings.warn("BuildContext.min_separation is deprecated: use separation_limit",
-                      DeprecationWarning, stacklevel=2)
+                      SwarmsceneDeprecationWarning, stacklevel=2)
         return self.separation_limit
 
     @property
     def min_clearance(self) -> float:
         """Deprecated name of :attr:`clearance_limit` (kept for one release)."""
         warnings.warn("BuildContext.min_clearance is deprecated: use clearance_limit",
-                      DeprecationWarning, stacklevel=2)
+                      SwarmsceneDeprecationWarning, stacklevel=2)
         return self.clearance_limit
 
 

@@ -32,7 +32,10 @@ from .plugin import Avoidance, Dynamics, Formation, PluginParams, Policy
 ENTRY_POINT_GROUP = "swarmscene"
 """Entry-point group through which third-party packages add plugin modules."""
 DISABLE_ENV = "SWARMSCENE_DISABLE_PLUGINS"
-"""Comma-separated entry-point names (or ``dist:name``) to skip, e.g. to bisect a broken plugin."""
+"""Comma-separated entry-point names (or ``dist:name``) to skip, e.g. to bisect a broken plugin; it
+skips a package's config folder (group ``swarmscene.conf``) the same way."""
+CONF_ENTRY_POINT_GROUP = "swarmscene.conf"
+"""Entry-point group through which third-party packages add YAML options to Hydra's search path."""
 CORE_OBSERVERS = ("swarmscene.core.monitors", "swarmscene.core.recorder")
 
 
@@ -243,6 +246,8 @@ def _load_entry_points(pm: pluggy.PluginManager) -> dict[str, tuple[str, str]]:
                 RuntimeWarning,
                 stacklevel=2,
             )
+    for ep in entry_points(group=CONF_ENTRY_POINT_GROUP):  # config folders are named the same way
+        seen.update((ep.name, f"{ep.dist.name if ep.dist is not None else 'unknown'}:{ep.name}"))
     for name in sorted(blocked - seen):  # a misspelt name would otherwise block nothing, silently
         warnings.warn(
             f"swarmscene: {DISABLE_ENV} names {name!r}, which no installed plugin is "

@@ -19,10 +19,12 @@ class RunResult:
 
     Attributes:
         metrics: flat dotted keys in SI units (see docs/outputs.md).
-        stop_reason: ``duration``, ``complete``, ``collision``, ``interrupted`` or ``non_finite``.
+        stop_reason: ``duration``, ``complete``, ``collision``, ``interrupted``, ``non_finite`` or
+            ``plugin_error`` (a plugin raised: :class:`~swarmscene.core.raised.PluginRaised`).
         complete: False when the run was interrupted before its end.
         error: why the run failed (one line), or ``None``; a run stopped by a non-finite state
-            names the first agent and tick here, and its ``success`` is False.
+            names the first agent and tick here, one stopped by a plugin's exception the plugin's
+            kind, name and method and the time; its ``success`` is False.
         recorder: this run's trajectory recorder (``None`` when ``output.trajectory`` is off).
         monitor: this run's safety monitor (its time series).
         observers: every observer instance of this run (third-party ones included).

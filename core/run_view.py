@@ -22,6 +22,8 @@ from __future__ import annotations
 import warnings
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from .errors import SwarmsceneDeprecationWarning
+
 if TYPE_CHECKING:
     from .config import ScenarioConfig
     from .environment import Environment
@@ -95,7 +97,7 @@ class RunView:
         warnings.warn(
             f"swarmscene: a hook read sim.{name}, which is not part of the run's view (world, sensing, "
             "environment, config, t, step_count, total_steps, has_attitude, request_stop); the next "
-            "minor release refuses it", DeprecationWarning, stacklevel=2)
+            "minor release refuses it", SwarmsceneDeprecationWarning, stacklevel=2)
         return value
 
     def __setattr__(self, name: str, value: Any) -> NoReturn:

@@ -10,7 +10,8 @@ end of the tick and the formation/avoidance plugins read the same object at the 
 one, so the agents' pairs are listed once per guidance step (a dense pass for a few agents, a
 compiled cell list for more: ``core.vectors.pairs_within``); a k-d tree is built only for a plugin
 that asks for :attr:`Sensing.tree`. Queries are lazy and cached: a plugin that never asks for the
-communication graph does not pay for it.
+communication graph does not pay for it. Their arrays are shared by every reader of the tick, so
+they are handed out read-only (:func:`read_only`): copy one to edit it.
 """
 
 from __future__ import annotations
@@ -84,8 +85,26 @@ class per_tick(Generic[T]):
     def __get__(self, obj: Any, cls: type | None = None) -> T:
         if obj is None:
             return self  # type: ignore[return-value]
-        value = obj.__dict__[self.name] = self.func(obj)
+        value = obj.__dict__[self.name] = read_only(self.func(obj))
         return value
+
+
+def read_only(value: T) -> T:
+    """``value`` with every array in it (itself, or the items of a tuple) as a read-only view.
+
+    A tick's answers are shared: the safety monitor and every plugin read the same arrays, so a
+    plugin that edited one in place (``dist, _ = sensing.nearest; dist[dist > r] = r``) would
+    silently change what the others see and what the monitor judges. A read-only view makes that
+    edit fail at once (``ValueError: assignment destination is read-only``); copy to edit.
+    """
+    if isinstance(value, np.ndarray):
+        view = value.view()
+        view.flags.writeable = False
+        return cast("T", view)
+    if isinstance(value, tuple) and type(value) is tuple:  # not a named tuple: its own fields stay
+        items: tuple[Any, ...] = value
+        return cast("T", tuple(read_only(item) for item in items))
+    return value
 
 
 def _dense_connected(pos: np.ndarray, radius: float) -> bool:
@@ -169,6 +188,8 @@ class Sensing:
         self._members_memo: tuple[bytes, int, np.ndarray, np.ndarray | None] | None = (
             previous._members_memo if previous is not None else None)
         self._shared: dict[str, tuple[Hashable, Any]] = {}
+        # (lo, size) of the formation's periodic box (a torus), kept from tick to tick; None: plain space
+        self.periodic: tuple[np.ndarray, np.ndarray] | None = previous.periodic if previous is not None else None
 
     def shared(self, name: str, params: Hashable, compute: Callable[[], T]) -> T:
         """Derived data several plugins need this tick, computed once by the first caller.
@@ -210,7 +231,7 @@ class Sensing:
         query lists the pairs at the widest radius the previous tick was asked for.
         """
         self.asked["pairs"] = max(self.asked["pairs"], radius)
-        return self._listed_pairs(radius)
+        return read_only(self._listed_pairs(radius))
 
     def _listed_pairs(self, radius: float) -> np.ndarray:
         """:meth:`pairs` without recording the request (a prefetch must not feed its own hint)."""
@@ -297,7 +318,7 @@ class Sensing:
         nearby obstacles matter (repulsion ranges, safety checks)."""
         if "clearance" in self.__dict__:
             full = self.clearance
-            return np.where(full <= radius, full, np.inf)
+            return read_only(np.where(full <= radius, full, np.inf))
         return self.obstacle_nearest(radius)[1]
 
     def obstacle_nearest(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -311,6 +332,10 @@ class Sensing:
         (:class:`ObstacleCandidates`) instead of walking the obstacle tree.
         """
         self.asked["obstacles"] = max(self.asked["obstacles"], radius)
+        return read_only(self._obstacle_nearest(radius))
+
+    def _obstacle_nearest(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`obstacle_nearest` on the snapshot's own (writable) arrays."""
         if radius <= self._none_within:  # nothing within a wider range: nothing within this one
             return self._nearest[self._none_within]
         if radius not in self._nearest:
@@ -325,10 +350,10 @@ class Sensing:
                 if candidates is None or candidates[0].size == 0:  # open space, or none in reach
                     self._none_within = reach
                     index, clearance = _nothing_near(self._n)
-                    self._nearest[reach] = (index.copy(), clearance.copy())  # callers' own arrays
+                    self._nearest[reach] = (index.copy(), clearance.copy())
                     return self._nearest[reach]
                 self._nearest[reach] = self.environment.nearest_obstacle(self.world.pos, reach, candidates)
-                return self.obstacle_nearest(radius)
+                return self._obstacle_nearest(radius)
         return self._nearest[radius]
 
     def _obstacle_candidates(self, reach: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -377,6 +402,8 @@ class Sensing:
         that leaves a single component (1,000 boids in a 20 m range: ~0.2 ms, against ~6 ms for
         listing the ~60,000 links and labelling the components of a sparse matrix).
         """
+        if self.periodic is not None:
+            return self._periodic_connected()
         if self._every_pair is not None:
             return self._few_connected()
         members = np.flatnonzero(self.comm_members)
@@ -388,6 +415,29 @@ class Sensing:
         from .cells import disk_graph_connected  # imports numba: only swarms this large pay for it
 
         return bool(disk_graph_connected(np.ascontiguousarray(self.world.pos[members]), self.comm_range))
+
+    def _periodic_connected(self) -> bool:
+        """:attr:`comm_connected` in a periodic space (a torus): links by the minimum-image distance,
+        so two agents a range apart across a seam of the box are linked, as they are in the space
+        the formation flies (Euclidean distance inside the box split a flock that crossed a seam)."""
+        members = np.flatnonzero(self.comm_members)
+        if members.size <= 1:
+            return True
+        lo, size = cast("tuple[np.ndarray, np.ndarray]", self.periodic)
+        pos = np.array(self.world.pos[members], dtype=float)
+        a = lo.size
+        wrapped = np.mod(pos[:, :a] - lo, size)
+        pos[:, :a] = np.where(wrapped >= size, 0.0, wrapped)  # rounding can reach size itself
+        box = np.empty(pos.shape[1])
+        box[:a] = size
+        if a < pos.shape[1]:  # the axes that do not wrap: a box too wide to ever fold a link
+            pos[:, a:] -= pos[:, a:].min(axis=0)
+            box[a:] = pos[:, a:].max(axis=0) + 2.0 * self.comm_range + 1.0
+        links = scipy.spatial.cKDTree(pos, boxsize=box).query_pairs(self.comm_range, output_type="ndarray")
+        graph = scipy.sparse.coo_matrix((np.ones(len(links)), (links[:, 0], links[:, 1])),
+                                        shape=(members.size, members.size))
+        count, _ = scipy.sparse.csgraph.connected_components(graph, directed=False)
+        return bool(count == 1)
 
     def _few_connected(self) -> bool:
         """:attr:`comm_connected` of a few agents, from :attr:`_every_pair`: a complete graph at once

@@ -25,20 +25,23 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 import pluggy
 
-from . import interrupts
+from . import interrupts, raised
 from .config import Scenario
 from .disturbances import Disturbances
 from .environment import Environment
 from .errors import ConfigError
 from .events import EventQueue
 from .floor import Floor
+from .metric_keys import RunMetrics, is_engine_code
 from .monitors import SafetyMonitor
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
+from .raised import PluginRaised
 from .recorder import TrajectoryRecorder
 from .result import RunResult
 from .run_view import RunView
@@ -114,6 +117,7 @@ class Simulation:
         self._refuse_start_outside_periodic_box()
         self._wrap_periodic()
         self.sensing = Sensing(self.world, self.environment, cfg.comm.range)
+        self.sensing.periodic = self._periodic  # connectivity by minimum image on a torus (kept each tick)
         self.disturbances.attach(self.formation, self.dynamics)
         if self.disturbances.active:
             self.pm.register(self.disturbances, name="disturbances")
@@ -259,10 +263,16 @@ class Simulation:
         in a tick (Python's own SIGINT handler) ends the run the same way. A position or velocity that
         becomes NaN or infinite stops the run before that tick is observed: ``stop_reason``
         ``"non_finite"``, ``error`` names the first such agent and the tick, ``success`` is False.
+        An exception raised by a plugin (or an observer's hook) stops the run the same way
+        (``stop_reason`` ``"plugin_error"``, ``error`` naming its kind, name, method and the
+        simulated time) and is raised as :class:`~swarmscene.core.raised.PluginRaised`, which
+        carries this result (what was recorded before the tick that failed) and has the plugin's
+        exception as its cause.
         """
-        self.hook.swarmscene_run_start(sim=self.view)
         wall_start = time.perf_counter()
+        failure: Exception | None = None
         try:
+            self.hook.swarmscene_run_start(sim=self.view)
             while self.step_count < self.total_steps and self.stop_reason is None:
                 if interrupts.requested() is not None:  # between ticks: nothing half-stepped
                     self.stop_reason = "interrupted"
@@ -279,14 +289,23 @@ class Simulation:
         except NonFiniteState as exc:  # the tick is not recorded: observers keep finite data
             self.stop_reason = "non_finite"
             self.error = str(exc)
+        except Exception as exc:  # a plugin raised: the run stops there, named, its records kept
+            failure = self._plugin_raised(exc)
         wall = time.perf_counter() - wall_start
         metrics = self._engine_metrics(wall)
         metrics.update(self.events.metrics())  # the drawn times and agents of random events
-        self.hook.swarmscene_run_end(sim=self.view, metrics=metrics)
-        metrics.setdefault("success", self.default_success(metrics))
+        guarded = RunMetrics(metrics, self._metric_prefixes())  # each plugin writes its own keys only
+        try:
+            self.hook.swarmscene_run_end(sim=self.view, metrics=guarded)
+        except Exception as exc:
+            failure = failure or self._plugin_raised(exc)
+        metrics = dict(guarded)
+        metrics["stop_reason"] = self.stop_reason or "duration"
         if self.error is not None:
             metrics["success"] = False
-        return RunResult(
+        else:
+            metrics.setdefault("success", self.default_success(metrics))
+        result = RunResult(
             metrics=metrics,
             stop_reason=self.stop_reason or "duration",
             complete=self.stop_reason != "interrupted",
@@ -295,6 +314,31 @@ class Simulation:
             monitor=self._observer_of(SafetyMonitor),
             observers=self.observers,
         )
+        if failure is not None:
+            raise PluginRaised(self.error or "", result) from failure
+        return result
+
+    def _plugin_raised(self, exc: Exception) -> Exception:
+        """Record a plugin's exception as the run's error: kind, name, method, simulated time."""
+        modules = {plugin.__name__: name for name, plugin in self.pm.list_name_plugin()
+                   if isinstance(plugin, ModuleType)}
+        where = raised.origin(exc, self.observers, modules)
+        self.stop_reason = "plugin_error"
+        self.error = raised.describe(exc, where, self.world.t)
+        return exc
+
+    def _metric_prefixes(self) -> dict[Any, str | None]:
+        """Who writes which metrics (:mod:`~swarmscene.core.metric_keys`): each chosen plugin its
+        ``metric_prefix``, every other observer or hook module a prefix of its own."""
+        prefixes: dict[Any, str | None] = {
+            id(obj): obj.metric_prefix or obj.name for obj in (self.formation, self.avoidance, self.dynamics)}
+        for obj in self.observers:
+            if not is_engine_code(obj):
+                prefixes.setdefault(id(obj), getattr(type(obj), "metric_prefix", None))
+        for _, plugin in self.pm.list_name_plugin():
+            if isinstance(plugin, ModuleType) and not is_engine_code(plugin):
+                prefixes[plugin.__name__] = None
+        return prefixes
 
     def _observer_of(self, cls: type) -> Any:
         """This run's observer of class ``cls`` (or a subclass), if one was registered."""

@@ -22,6 +22,7 @@ from typing import Any, cast
 from .builtins import BUILTIN_PLUGINS
 from .core.config import Scenario, validate
 from .core.errors import ConfigError
+from .core.raised import PluginRaised, RunFailed
 from .core.registry import Registry, make_plugin_manager
 from .core.result import RunResult
 from .core.simulation import Simulation
@@ -40,17 +41,30 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
 
     Every documented option is set with plain ``key=value`` (rewritten to ``++key=value``,
     :func:`swarmscene.searchpath.plain_overrides`), whether or not the composed YAML holds it.
+    A composition that fails (an unknown option, a value that does not parse or resolve) raises
+    :class:`~swarmscene.core.errors.ConfigError` with the command line's one-line wording.
     """
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
     from omegaconf import OmegaConf
 
-    from .searchpath import plain_overrides, register_search_path
+    from .searchpath import plain_overrides, refuse_events_a_preset_replaces, register_search_path
 
     register_search_path()
-    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
-        cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
-    return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
+    refuse_events_a_preset_replaces(overrides)
+    try:
+        with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+            cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
+        return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
+    except ConfigError:
+        raise
+    except Exception as exc:  # Hydra's multi-line wording: the command line's one line instead
+        from .hydra_errors import hydra_error_line, resolution_error_line
+
+        line = resolution_error_line(exc) or hydra_error_line(exc)
+        if line is None:
+            raise
+        raise ConfigError([line]) from exc
 
 
 def load(config: Sequence[str] | dict[str, Any] = (), registry: Registry | None = None) -> Scenario:
@@ -90,6 +104,8 @@ def build(
 def build_error_line(scenario: Scenario, exc: BaseException) -> str:
     """One line for an exception raised while building a run: the plugin kind whose code raised
     it (the first plugin module in the traceback), its name, and the exception."""
+    from .core.raised import zero_options
+
     reason = f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0]}"
     modules = {cls.__module__: kind for kind, cls in scenario.plugin_classes.items()}
     tb = exc.__traceback__
@@ -97,9 +113,19 @@ def build_error_line(scenario: Scenario, exc: BaseException) -> str:
         kind = modules.get(tb.tb_frame.f_globals.get("__name__"))
         if kind is not None:
             name = scenario.plugin_classes[kind].name
-            return f"{kind}: {name!r} cannot be built for this scenario (swarm.n = {scenario.config.swarm.n}): {reason}"
+            options = zero_options(exc, tb.tb_frame.f_locals.get("self"), kind) or zero_options(
+                exc, _Holder(scenario.plugin_params.get(kind)), kind)
+            return (f"{kind}: {name!r} cannot be built for this scenario (swarm.n = {scenario.config.swarm.n})"
+                    f"{options}: {reason}")
         tb = tb.tb_next
     return f"scenario: cannot be built: {reason}"
+
+
+class _Holder:
+    """A plugin's ``params`` before the plugin exists (a constructor that raised)."""
+
+    def __init__(self, params: Any) -> None:
+        self.params = params
 
 
 def run(
@@ -126,8 +152,11 @@ def run(
     writers = extra_writers(sim)
     shown = Progress.maybe(output.progress) if progress is None else None
     started_at = utc_now()
+    raised: PluginRaised | None = None
     try:
         result = sim.run(progress=progress or shown)
+    except PluginRaised as exc:  # what the run recorded is written, then the error is raised
+        result, raised = exc.result, exc
     finally:
         if shown is not None:
             shown.close()
@@ -136,6 +165,12 @@ def run(
         extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
         write_outputs(sim, result, run_dir, extras, started_at=started_at)
         result.run_dir = run_dir
+        if result.error is not None:
+            from .sweeps.records import record_failure
+
+            record_failure(run_dir, RunFailed.of(result, raised and raised.__cause__), sim.scenario.data)
+    if raised is not None:
+        raise raised
     if output.summary:
         print(summary_text(sim, result, result.run_dir))
     return result

@@ -21,9 +21,12 @@ import os
 import shutil
 import sys
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 from .core import interrupts
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .core.raised import RunFailed
 
 # A launcher's worker process (joblib, ray, submitit) imports this module to run `_task`, with
 # Hydra already loaded, and then resolves the job's directory and writes its `.hydra/` files
@@ -107,9 +110,16 @@ def _main() -> None:
     from .searchpath import plain_command_line, register_search_path
 
     register_search_path()
+    _show_deprecations()
     # Plain `key=value` for every documented option, before Hydra parses the command line
     # (searchpath.plain_overrides: `a.b=v` -> `++a.b=v`).
-    sys.argv[1:] = plain_command_line(sys.argv[1:])
+    from .core.errors import ConfigError
+
+    try:
+        sys.argv[1:] = plain_command_line(sys.argv[1:])
+    except ConfigError as exc:  # an override without a key
+        _report(exc.lines)
+    sys.argv[1:] = [*sys.argv[1:], *_named_output_dirs(sys.argv[1:])]
     debug = bool(os.environ.get(DEBUG_ENV)) or bool(os.environ.get("HYDRA_FULL_ERROR"))
     if debug:
         os.environ[DEBUG_ENV] = "1"  # the task reads it too
@@ -129,6 +139,9 @@ def _main() -> None:
     except BrokenPipeError:
         raise
     except Exception as exc:  # every user-fixable problem becomes one line
+        ended = _sweep_end_after(exc)
+        if ended is not None:  # a sweeper that stopped after its jobs ran: their tables are written
+            sys.exit(ended)
         if debug:
             raise
         _report(_error_lines(exc), _error_status(exc))
@@ -142,6 +155,69 @@ def _main() -> None:
     sweep_status = _multirun_status()
     if sweep_status:
         sys.exit(sweep_status)
+
+
+def _named_output_dirs(argv: list[str]) -> list[str]:
+    """``hydra.run.dir`` and ``hydra.sweep.dir`` as the shipped config names them (outputs/<name>/
+    <time>, multirun/<name>/<time>) for a primary config that sets neither: a recorded run's
+    ``config.yaml`` or the falsifier's ``worst_case.yaml`` (``--config-path DIR --config-name
+    NAME``) holds no ``hydra`` node, and Hydra's own default wrote to outputs/<date>/<time>. Left
+    alone when the file sets its own or the command line names them."""
+    import re
+
+    path, name = _option(argv, ("-cp", "--config-path")), _option(argv, ("-cn", "--config-name"))
+    if path is None or name is None:
+        return []
+    file = Path(path) / (name if name.endswith(".yaml") else f"{name}.yaml")
+    try:
+        if not file.is_file() or re.search(r"^hydra:", file.read_text(errors="replace"), flags=re.M):
+            return []
+    except OSError:
+        return []  # Hydra says what is wrong with it
+    shipped = _shipped_hydra_dirs()
+    given = {a.split("=", 1)[0].lstrip("+") for a in argv if "=" in a}
+    return [f"++{key}='{value}'" for key, value in shipped.items() if key not in given]  # quoted: interpolations
+
+
+def _shipped_hydra_dirs() -> dict[str, str]:
+    """The shipped config's run and sweep directory patterns (scenarios/config.yaml)."""
+    from importlib.resources import files
+
+    import yaml
+
+    hydra = yaml.safe_load(files("swarmscene.scenarios").joinpath("config.yaml").read_text())["hydra"]
+    return {"hydra.run.dir": hydra["run"]["dir"], "hydra.sweep.dir": hydra["sweep"]["dir"]}
+
+
+def _option(argv: list[str], names: tuple[str, ...]) -> str | None:
+    """The value of a ``-x value`` / ``--xx=value`` option of ``argv``, else None."""
+    for k, arg in enumerate(argv):
+        if arg in names and k + 1 < len(argv):
+            return argv[k + 1]
+        for name in names:
+            if arg.startswith(f"{name}="):
+                return arg.split("=", 1)[1]
+    return None
+
+
+def _show_deprecations() -> None:
+    """Show swarmscene's deprecation warnings (an old option name, a hook reading a removed attribute
+    of the run view), each distinct one once: Python hides DeprecationWarnings raised outside
+    ``__main__``, so a command-line user would otherwise meet the removal unwarned. A ``-W`` or
+    ``PYTHONWARNINGS`` setting of the user's is left to decide."""
+    import warnings
+
+    from .core.errors import SwarmsceneDeprecationWarning
+
+    if not sys.warnoptions:
+        warnings.filterwarnings("once", category=SwarmsceneDeprecationWarning)
+
+
+def _sweep_end_after(exc: BaseException) -> int | None:
+    """The exit status of a multirun whose sweeper raised after its jobs ran (Optuna when every
+    trial failed), once the end-of-sweep callbacks it skipped have run; None for any other error."""
+    callback = sys.modules.get("swarmscene.sweeps.callback")
+    return callback.end_after_sweeper_error(exc) if callback is not None else None
 
 
 def _multirun_status() -> int | None:
@@ -167,6 +243,7 @@ def _error_status(exc: BaseException) -> int:
 
 def _error_lines(exc: BaseException) -> list[str]:
     from .core.errors import ConfigError
+    from .core.raised import RunFailed
     from .hydra_errors import hydra_error_line
     from .rundir import RunFileError
     from .sweeps.pool import WorkerDied
@@ -293,7 +370,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         raise
     _stop_if_requested(run_dir)  # a signal while the plugins were built (and kernels compiled)
     try:
-        result = _run_and_write(sim, run_dir, writers, sweep=False)
+        result, failed = _run_and_write(sim, run_dir, writers, sweep=False)
     except OSError as exc:  # a full disk, a read-only directory: its files were removed (outputs.py)
         _remove_unfinished(run_dir)
         if os.environ.get(DEBUG_ENV):
@@ -316,10 +393,10 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
             complete = False
         marked = "complete (the request came after the last file)" if complete else "marked incomplete"
         _exit_interrupted(f"while the outputs were written; they are {marked} in {run_dir}")
-    if result.error is not None:
+    if failed is not None:
         from .sweeps.records import record_failure
 
-        record_failure(run_dir, RunFailed(result.error), sim.scenario.data)
+        record_failure(run_dir, failed, sim.scenario.data)
         print(f"swarmscene: {result.error}; outputs up to then (marked failed) in {run_dir}", file=sys.stderr)
         sys.exit(EXIT_FAILED)
     return _objective(sim, result)
@@ -330,12 +407,6 @@ def _stop_if_requested(run_dir: Path) -> None:
     if interrupts.requested() is not None:
         _remove_unfinished(run_dir)
         _exit_interrupted("before the run started (no run directory written)")
-
-
-class RunFailed(RuntimeError):
-    """A run stopped by a non-finite state: its outputs up to then are written, marked failed."""
-
-    reason = "non-finite"
 
 
 def _job(data: dict[str, Any], run_dir: Path) -> Any:
@@ -356,31 +427,42 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
     if interrupts.requested() is not None:  # came while the job was set up: stop before building
         raise KeyboardInterrupt
     sim = api.build(scenario, plugin_set)
-    result = _run_and_write(sim, run_dir, api.extra_writers(sim), sweep=True)
+    result, failed = _run_and_write(sim, run_dir, api.extra_writers(sim), sweep=True)
     if not result.complete or interrupts.requested() is not None:
         raise KeyboardInterrupt  # outputs are written (marked incomplete if the run was cut); stop the sweep
-    if result.error is not None:
-        raise RunFailed(result.error)  # recorded as a failed job (error.json, manifest), outputs kept
+    if failed is not None:
+        raise failed  # recorded as a failed job (error.json, manifest), outputs kept
     return _objective(sim, result)
 
 
-def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> Any:
+def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> tuple[Any, RunFailed | None]:
+    """Run, write the run directory, print the summary of a run that flew; return the result and,
+    for a run that failed (a non-finite state, a plugin's exception), the error to record."""
     from . import api
-    from .summary import Progress, summary_text
+    from .core.raised import PluginRaised, RunFailed
+    from .summary import Progress, RunWarnings, summary_text
 
     output = sim.config.output
     progress = Progress.maybe(output.progress, enabled=not sweep)
     started_at = api.utc_now()
-    try:
-        result = sim.run(progress=progress)
-    finally:
-        if progress is not None:
-            progress.close()
+    cause: BaseException | None = None
+    with RunWarnings() as seen:
+        try:
+            result = sim.run(progress=progress)
+        except PluginRaised as exc:  # what the run recorded is written below, marked failed
+            result, cause = exc.result, exc.__cause__
+        finally:
+            if progress is not None:
+                progress.close()
+    seen.show(failed=result.error is not None)
     extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
     api.write_outputs(sim, result, run_dir, extras, started_at=started_at)  # the manifest, last, lists them
-    if output.summary and not sweep:
-        print(summary_text(sim, result, run_dir))
-    return result
+    if result.error is None:
+        if output.summary and not sweep:
+            print(summary_text(sim, result, run_dir))
+        return result, None
+    # A run that did not fly to its end gets no verdicts: its one line (the caller prints it) says why.
+    return result, RunFailed.of(result, cause)
 
 
 def _objective(sim: Any, result: Any) -> Any:

@@ -285,6 +285,9 @@ class WorstCase(_Callback):
         if problem is not None:
             print(f"swarmscene: {problem}", file=sys.stderr)
             raise SystemExit(2)
+        from .sweeps import callback
+
+        callback.started(self, config)  # its end runs even when every trial failed
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
         """After the search: write the worst trial (``worst_case.yaml``, ``.json``) and print its verdict."""
@@ -292,7 +295,9 @@ class WorstCase(_Callback):
         sampler = str(config.hydra.sweeper.sampler.get("_target_", "")).rpartition(".")[2]
         record = write_worst_case(sweep_dir, sampler)
         if record is None:
-            print(f"swarmscene: falsify: no trial completed in {sweep_dir}", file=sys.stderr)
+            failed = sum(t.status != "complete" for t in read_trials(sweep_dir))
+            print(f"swarmscene: falsify: no trial completed in {sweep_dir} ({failed} failed: their error.json "
+                  "says why); no worst case to write", file=sys.stderr)
             return
         when = (f"separation first violated at t = {record['first_violation']:.2f} s by agents "
                 f"{record['violation_agents']}" if record["violated"] else "separation held in every trial")

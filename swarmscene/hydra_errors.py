@@ -11,6 +11,14 @@ _MERGING = re.compile(r"Error merging override (\S+)")
 _MISSING_GROUP_OPTION = re.compile(r"Could not find '([^'/]+(?:/[^'/]+)*)/([^'/]+)'")
 
 
+PLUGIN_EXTRAS = {
+    ("hydra/launcher", "joblib"): "joblib", ("hydra/launcher", "ray"): "ray",
+    ("hydra/launcher", "submitit_local"): "submitit", ("hydra/launcher", "submitit_slurm"): "submitit",
+    ("hydra/sweeper", "optuna"): "optuna",
+}
+"""Hydra plugins that an extra of swarmscene installs: (group, option) -> the extra. Without it
+Hydra reads the option as unknown; the line gives the install command instead."""
+
 ADDED_GROUPS = ("sweep",)
 """Config groups a command adds (``+sweep=cem_k``) rather than chooses: not in the defaults list."""
 
@@ -34,6 +42,10 @@ def hydra_error_line(exc: BaseException) -> str | None:
         match = _MISSING_GROUP_OPTION.search(message)
         if match:
             group, option = match.groups()
+            extra = PLUGIN_EXTRAS.get((group, option))
+            if extra is not None:  # a launcher or sweeper whose Hydra plugin is not installed
+                return (f"{group}={option} needs the {extra!r} extra (Hydra's {option} plugin is not "
+                        f"installed): pip install 'swarmscene[{extra}]'")
             valid = ", ".join(sorted(exc.options or ()))
             return f"{group.replace('/', '.')}: unknown option {option!r} (valid: {valid})"
         return message.splitlines()[0]
@@ -87,5 +99,13 @@ def resolution_error_line(exc: BaseException | None) -> str | None:
         exc = exc.__cause__
     if exc is None or not getattr(exc, "full_key", None):
         return None
-    reason = " ".join((getattr(exc, "msg", None) or str(exc)).splitlines()[0].split())
-    return f"{exc.full_key}: cannot resolve the value: {reason}"
+    reason = _first_line(getattr(exc, "msg", None) or str(exc))
+    if reason.endswith(":"):  # "KeyError raised while resolving interpolation: " and nothing after
+        reason = reason[:-1] + " (the resolver gave no message)"
+    return f"{exc.full_key}: cannot resolve the value: {reason or type(exc).__name__ + ' (no message)'}"
+
+
+def _first_line(text: str) -> str:
+    """The first line of ``text`` with its spaces collapsed ('' for no text)."""
+    lines = text.splitlines()
+    return " ".join(lines[0].split()) if lines else ""

@@ -37,7 +37,7 @@ import numpy as np
 
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
-from .core.errors import format_validation_error
+from .core.errors import SwarmsceneDeprecationWarning, format_validation_error, validate_renamed
 from .core.events import Event, EventKind, EventKindPlugin, EventParams, Motion
 from .core.fields import StrictModel
 from .core.generators import MapGenerator
@@ -63,7 +63,8 @@ __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
     "Environment", "Event", "EventKind", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
     "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "Role", "RunView", "SHARED", "Sensing", "Setpoints",
-    "StrictModel", "WorldState", "build_context", "choose", "disturbance_context", "hookimpl",
+    "StrictModel", "SwarmsceneDeprecationWarning", "WorldState", "build_context", "choose", "disturbance_context",
+    "hookimpl", "validate_renamed",
     # helpers the built-ins use (core/vectors.py, core/errors.py), as stable as the names above
     "clip_norm", "every", "format_validation_error", "min_distance_between", "min_pair_distance", "rows_of", "wrap",
 ]

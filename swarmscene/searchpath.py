@@ -31,14 +31,22 @@ from hydra.core.config_search_path import ConfigSearchPath
 from hydra.core.plugins import Plugins
 from hydra.plugins.search_path_plugin import SearchPathPlugin
 
-CONF_GROUP = "swarmscene.conf"
+CONF_GROUP = "swarmscene.conf"  # = core.registry.CONF_ENTRY_POINT_GROUP (not imported: a light start)
 
 
 def third_party_config_paths() -> list[tuple[str, str]]:
-    """(provider, search-path entry) of every installed ``swarmscene.conf`` entry point."""
+    """(provider, search-path entry) of every installed ``swarmscene.conf`` entry point that
+    ``SWARMSCENE_DISABLE_PLUGINS`` does not name (``name`` or ``dist:name``, as for plugins)."""
+    import os
+
+    from .core.registry import DISABLE_ENV
+
+    blocked = {b.strip() for b in os.environ.get(DISABLE_ENV, "").split(",") if b.strip()}
     found = []
     for ep in entry_points(group=CONF_GROUP):
         dist = ep.dist.name if ep.dist is not None else ep.name
+        if ep.name in blocked or f"{dist}:{ep.name}" in blocked:
+            continue
         path = ep.value if "://" in ep.value else f"pkg://{ep.value}"
         found.append((f"swarmscene-{dist}", path))
     return sorted(found)
@@ -106,6 +114,47 @@ def plain_overrides(overrides: Sequence[str]) -> list[str]:
     return rewritten
 
 
+def refuse_events_a_preset_replaces(overrides: Sequence[str]) -> None:
+    """An ``events=...`` choice beside a scenario preset that sets its own ``events`` did nothing:
+    the preset comes after the groups in the defaults list, so its list replaces the choice's.
+    Refused in one line (a ConfigError) rather than run silently with the preset's events."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import OverrideType
+    from hydra.errors import OverrideParseException
+
+    choices: dict[str, tuple[str, list[str]]] = {}  # group -> (the override as typed, its options)
+    parser = OverridesParser.create()
+    for text in overrides:
+        try:
+            (override,) = parser.parse_overrides([text])
+        except OverrideParseException:
+            continue
+        key = override.key_or_group
+        if key in ("scenario", "events") and override.type == OverrideType.CHANGE and override.package is None:
+            options = (list(override.sweep_string_iterator()) if override.is_sweep_override()
+                       else [str(override.value())])
+            choices[key] = (text, options)
+    if "events" not in choices or "scenario" not in choices:
+        return
+    from importlib.resources import files
+
+    import yaml
+
+    from .core.errors import ConfigError
+
+    for name in choices["scenario"][1]:
+        preset = files("swarmscene.scenarios") / "scenario" / f"{name}.yaml"
+        try:
+            body = yaml.safe_load(preset.read_text()) if preset.is_file() else None
+        except (OSError, yaml.YAMLError):
+            continue  # composition reports what is wrong with it
+        if isinstance(body, dict) and "events" in body:
+            raise ConfigError([
+                f"{choices['events'][0]}: scenario {name!r} sets its own events, which replace the events "
+                "group's choice (the preset comes after the groups); change them key by key instead "
+                "(events.0.at=5, events.0.kind=stuck, events.0.agents=[1])"])
+
+
 OPTIONS_WITH_VALUE = frozenset(
     {"-cp", "--config-path", "-cn", "--config-name", "-cd", "--config-dir", "-c", "--cfg",
      "-p", "--package", "--experimental-rerun"}
@@ -120,12 +169,14 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
     ``swarmscene --config-path <run dir> --config-name config``.
 
     Shell completion (``-sc``) is left alone: its ``query=...`` words are not the app's overrides.
-    ``--info`` takes an optional word, never of the form ``key=value``.
+    ``--info`` takes an optional word, never of the form ``key=value``. An override without a key
+    (``=3``) is a :class:`~swarmscene.core.errors.ConfigError` naming it.
     """
     args = list(argv)
     if any(a in ("-sc", "--shell-completion") for a in args):
         return args
     out: list[str] = []
+    overrides: list[str] = []
     option = None  # the flag whose value comes next
     for arg in args:
         if option is not None:
@@ -136,8 +187,14 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
         elif arg.startswith("-"):
             out.append(arg)
             option = arg if arg in OPTIONS_WITH_VALUE else None
+        elif arg.lstrip("+~").startswith("="):  # Hydra: "Config group override must be a string or a list"
+            from .core.errors import ConfigError
+
+            raise ConfigError([f"{arg}: an override needs a key before '=' (key=value; got {arg!r})"])
         else:
+            overrides.append(arg)
             out.extend(plain_overrides([arg]))
+    refuse_events_a_preset_replaces(overrides)
     return out
 
 

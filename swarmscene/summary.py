@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
 
@@ -159,6 +161,9 @@ def summary_text(sim: Any, result: Any, run_dir: Path | None) -> str:
     """The lines printed after a run: the scenario, the verdicts on its safety limits, its metrics
     and where its outputs are."""
     m = result.metrics
+    if result.error is not None:  # it did not fly to its end: no verdict would be true of it
+        where = f"; outputs up to then (marked failed) in {run_dir}" if run_dir is not None else ""
+        return f"swarmscene: scenario {sim.config.name!r} failed: {result.error}{where}"
     lines = verdicts(sim, m)
     out = [
         f"swarmscene: scenario {sim.config.name!r} ({sim.formation.name} / {sim.avoidance.name} / "
@@ -280,3 +285,35 @@ def _in_multirun() -> bool:
         return HydraConfig.initialized() and HydraConfig.get().mode == RunMode.MULTIRUN
     except Exception:  # pragma: no cover - a Hydra without these names: no progress policy change
         return False
+
+
+class RunWarnings:
+    """The warnings raised during a run, held until it ends and then shown, each distinct one once.
+
+    A run that stops on a non-finite state has already said so in one line naming the agent and the
+    tick: numpy's floating-point warnings on the way there (``overflow encountered``, ``invalid
+    value encountered``, ``divide by zero encountered``) only repeat it in less precise words, so
+    they are dropped for such a run and shown for any other.
+    """
+
+    NUMERIC = ("overflow encountered", "invalid value encountered", "divide by zero encountered")
+
+    def __enter__(self) -> RunWarnings:
+        self._catch = warnings.catch_warnings(record=True)
+        self.records = self._catch.__enter__()
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self._catch.__exit__(kind, exc, tb)
+
+    def show(self, failed: bool) -> None:
+        """Show what was recorded (after :meth:`__exit__`), the numeric ones only if not ``failed``."""
+        shown: set[tuple[type[Warning], str]] = set()
+        for record in self.records:
+            key = (record.category, str(record.message))
+            numeric = issubclass(record.category, RuntimeWarning) and key[1].startswith(self.NUMERIC)
+            if key in shown or (failed and numeric):
+                continue
+            shown.add(key)
+            warnings.showwarning(record.message, record.category, record.filename, record.lineno)

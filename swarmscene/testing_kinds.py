@@ -615,6 +615,21 @@ def _run(observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], n
     return result.metrics, np.array(sim.world.pos)
 
 
+def _run_checked(name: str, observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], np.ndarray]:
+    """:func:`_run`, an observer's exception turned into the check's failure: a metric written
+    outside its namespace is the rule "changed the run's metrics" (the engine refuses the write)."""
+    from .core.metric_keys import MetricKeyError
+    from .core.raised import PluginRaised
+
+    try:
+        return _run(observers, overrides)
+    except PluginRaised as exc:
+        if isinstance(exc.__cause__, MetricKeyError):
+            raise AssertionError(f"{name}: changed the run's metrics: {exc.__cause__} (add keys under your own "
+                                 "prefix)") from exc
+        raise AssertionError(f"{name}: raised during the run: {exc}") from exc
+
+
 def check_observer(cls: type, overrides: list[str] | None = None) -> list[Outcome]:
     """Run a short scenario with and without an observer, through its named checks
     (``list_checks("observer")``).
@@ -646,7 +661,7 @@ def _observed(s: Subject) -> tuple[tuple[dict[str, Any], np.ndarray], tuple[dict
 
     def runs() -> tuple[tuple[dict[str, Any], np.ndarray], tuple[dict[str, Any], np.ndarray]]:
         base = [c for c in plugins()[1].observers if c is not s.cls]
-        return _run(base, s.params), _run([*base, s.cls], s.params)
+        return _run(base, s.params), _run_checked(s.name, [*base, s.cls], s.params)
 
     return s.memo("runs", runs)
 
@@ -691,7 +706,7 @@ def _observer_fresh(s: Subject) -> None:
 
     added = _added(s)
     base = [c for c in plugins()[1].observers if c is not s.cls]
-    again, _ = _run([*base, s.cls], s.params)
+    again, _ = _run_checked(s.name, [*base, s.cls], s.params)
     assert all(_same(again.get(k), v) for k, v in added.items()), (
         f"{s.name}: a second run gave other metrics: keep state on the instance (built per run), not the class")
 

@@ -21,8 +21,26 @@ END_TO_END = (
     "test_inputs_property.py", "test_cli.py", "test_api.py", "test_falsify.py", "test_export.py",
     "test_replay.py", "test_plots.py", "test_report.py", "test_compile.py", "test_packaging.py",
     "test_rl_train.py", "test_rl_supersuit.py", "test_live.py", "test_export_crazyswarm2.py", "test_export_cflib.py",
+    "test_sweep_pool.py", "test_sweep_tasks.py", "test_lint.py",
 )
-"""Test modules that run whole commands, sweeps, clusters or installs: left out by ``--quick``."""
+"""Test modules that run whole commands, sweeps, clusters, installs or the linters and type checker
+(ruff and mypy over the whole package: test_lint.py): left out by ``--quick``."""
+
+
+def builtins_only_env() -> dict[str, str]:
+    """``os.environ`` for a subprocess that must see the built-in plugins and config tree only:
+    every installed third-party entry point (plugins and config folders, such as the tutorial's
+    package a user installed in the same environment) named in ``SWARMSCENE_DISABLE_PLUGINS``."""
+    from importlib.metadata import entry_points
+
+    from swarmscene.core.registry import CONF_ENTRY_POINT_GROUP, DISABLE_ENV, ENTRY_POINT_GROUP
+
+    names = sorted({f"{ep.dist.name if ep.dist is not None else 'unknown'}:{ep.name}"
+                    for group in (ENTRY_POINT_GROUP, CONF_ENTRY_POINT_GROUP) for ep in entry_points(group=group)})
+    env = {**os.environ}
+    if names:
+        env[DISABLE_ENV] = ",".join(filter(None, [env.get(DISABLE_ENV, ""), *names]))
+    return env
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

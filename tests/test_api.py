@@ -70,3 +70,33 @@ def test_sweep_names_an_unknown_launcher_in_one_line():
     with pytest.raises(ConfigError) as err:
         api.sweep({"seed": [0]}, launcher="slurm")
     assert err.value.lines == ["launcher: must be one of basic, pool, joblib, ray, submitit_slurm (got 'slurm')"]
+
+
+@pytest.mark.parametrize(("overrides", "line"), [
+    (["formation=nope"], "formation: unknown option 'nope' (valid: "),
+    (["swarm.n=[1"], "swarm.n: cannot parse override: "),
+    (["name=${nope}"], "name: cannot resolve the value: Interpolation key 'nope' not found"),
+])
+def test_a_composition_error_is_one_line_as_on_the_command_line(overrides, line):
+    """api.run raised Hydra's multi-line exception (the options list, the search path) where
+    api.sweep and the command line give one line."""
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        api.run(overrides)
+    assert len(err.value.lines) == 1 and err.value.lines[0].startswith(line), err.value.lines
+    assert "\n" not in str(err.value)
+
+
+def test_an_events_choice_a_preset_would_replace_is_refused_not_ignored():
+    """cem_six_vehicle sets its own events after the groups: `events=none` ran it with them."""
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        api.compose(["scenario=cem_six_vehicle", "events=none"])
+    assert err.value.lines == [
+        "events=none: scenario 'cem_six_vehicle' sets its own events, which replace the events group's choice "
+        "(the preset comes after the groups); change them key by key instead (events.0.at=5, "
+        "events.0.kind=stuck, events.0.agents=[1])"]
+    assert api.compose(["scenario=cem_six_vehicle", "events.0.at=5"])["events"][0]["at"] == 5
+    assert api.compose(["scenario=default", "events=lead_fails"])["events"][0]["at"] == 10.0

@@ -47,6 +47,7 @@ def test_default_scenario_writes_run_directory(tmp_path):
         (["formation=nope"], "swarmscene: formation: unknown option 'nope' (valid: "),
         (["bogus=1"], "swarmscene: bogus: unknown key (got '1')"),
         (["avoidance.K=0"], "swarmscene: avoidance.K: unknown key (valid keys: v_max, influence, obstacle_influence, lookahead) (got 0)"),
+        (["=3"], "swarmscene: =3: an override needs a key before '=' (key=value; got '=3')"),
         (["+swarm.n=3"], "swarmscene: Could not append to config. An item is already at 'swarm.n'. Either remove + prefix: 'swarm.n=3' Or add a second + to add or override 'swarm.n': '++swarm.n=3'"),
         (["scenario=cem_six_vehicle", "avoidance.K=0"], "swarmscene: avoidance.K: must be >= 1 (got 0)"),
         (["swarm.n=0"], "swarmscene: swarm.n: must be >= 1 (got 0)"),
@@ -170,19 +171,122 @@ def test_a_non_finite_state_ends_the_run_as_failed_in_one_line(tmp_path, monkeyp
         if world.t >= 0.5:
             world.pos[3, 0] = np.inf
 
-    monkeypatch.setattr(DoubleIntegrator, "step", failing_step)
+    def overflowing_step(self, world, dt):
+        failing_step(self, world, dt)
+        if world.t >= 0.5:
+            world.vel[3] = np.array([1e308]) * 10.0  # numpy warns "overflow encountered"
+
+    monkeypatch.setattr(DoubleIntegrator, "step", overflowing_step)
     monkeypatch.setattr(sys, "argv", ["swarmscene", "clock.duration=2", f"hydra.run.dir={tmp_path}/run"])
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
     with pytest.raises(SystemExit) as exit_:
         cli.main()
     assert exit_.value.code == cli.EXIT_FAILED
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1].startswith("swarmscene: non-finite state of agent 3 at tick 6 (t = 0.6 s; 1 agents)")
+    out, err = capsys.readouterr()
+    # One line, and no summary: a run that did not fly gets no "OK separation" verdict, and numpy's
+    # overflow warning on the way there is not repeated.
+    assert out == "", out
+    err = err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("swarmscene: non-finite state of agent 3 at tick 6 (t = 0.6 s; 1 agents)")
+    assert err[0].endswith(f"outputs up to then (marked failed) in {tmp_path / 'run'}")
     manifest = json.loads((tmp_path / "run" / "manifest.json").read_text())
     assert manifest["status"] == "failed" and manifest["error"].startswith("RunFailed: non-finite state of agent 3")
     assert json.loads((tmp_path / "run" / "error.json").read_text())["reason"] == "non-finite"
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert metrics["stop_reason"] == "non_finite" and metrics["success"] is False and metrics["steps"] == 5
+
+
+def test_an_exception_in_a_plugin_names_it_exits_1_and_keeps_the_run(tmp_path, monkeypatch, capsys):
+    """A plugin's exception 0.5 s into a run: one line naming the kind, the plugin, the method and
+    the time; exit 1 (the run started and failed, not bad input); the outputs up to then written,
+    marked failed, with the plugin's traceback in error.json."""
+    import sys
+
+    import numpy as np
+
+    from swarmscene import cli
+    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+    step = DoubleIntegrator.step
+
+    def dividing_step(self, world, dt):
+        step(self, world, dt)
+        if world.t >= 0.5:
+            world.pos[0, 0] = 1 / 0
+
+    dividing_step.__code__ = dividing_step.__code__.replace(co_name="step")  # as the plugin names it
+    monkeypatch.setattr(DoubleIntegrator, "step", dividing_step)
+    monkeypatch.setattr(sys, "argv", ["swarmscene", "clock.duration=2", f"hydra.run.dir={tmp_path}/run"])
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    with pytest.raises(SystemExit) as exit_:
+        cli.main()
+    assert exit_.value.code == cli.EXIT_FAILED == 1
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.splitlines() == [
+        "swarmscene: dynamics 'double_integrator' raised in step at t = 0.5 s: ZeroDivisionError: division by zero; "
+        f"outputs up to then (marked failed) in {tmp_path / 'run'}"]
+    run = tmp_path / "run"
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["complete"] is False and manifest["status"] == "failed"
+    error = json.loads((run / "error.json").read_text())
+    assert error["reason"] == "plugin-error" and "world.pos[0, 0] = 1 / 0" in error["traceback"]
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["stop_reason"] == "plugin_error" and metrics["success"] is False and metrics["steps"] == 5
+    assert np.load(run / "trajectory.npz")["t"][-1] == pytest.approx(0.5)
+
+
+def test_an_observer_hook_that_raises_is_named_with_its_hook(tmp_path):
+    """An observer's ``swarmscene_step_end`` raising: named as the observer and the hook."""
+    from swarmscene import api
+    from swarmscene.core.raised import PluginRaised
+    from swarmscene.plugin import hookimpl
+
+    class Faulty:
+        def __init__(self, sim):
+            pass
+
+        @hookimpl
+        def swarmscene_step_end(self, sim):
+            if sim.t >= 0.3:
+                raise KeyError("agent")
+
+    pm, registry = api.plugins()
+    registry.observers.append(Faulty)
+    sim = api.build(["clock.duration=1"], (pm, registry))
+    with pytest.raises(PluginRaised) as raised:
+        sim.run()
+    assert str(raised.value) == "observer 'Faulty' raised in swarmscene_step_end at t = 0.3 s: KeyError: 'agent'"
+    assert isinstance(raised.value.__cause__, KeyError)
+    assert raised.value.result.metrics["steps"] == 3 and raised.value.result.stop_reason == "plugin_error"
+
+
+def test_a_deprecation_reaches_a_command_line_user_once(tmp_path):
+    """A hook reading a removed attribute of the run view every tick: the warning is shown, once."""
+    plugin = tmp_path / "reader.py"
+    plugin.write_text(
+        "from swarmscene.plugin import hookimpl\n"
+        "class Reader:\n"
+        "    def __init__(self, sim):\n        pass\n"
+        "    @hookimpl\n"
+        "    def swarmscene_step_end(self, sim):\n        sim.formation\n"
+        "@hookimpl\n"
+        "def swarmscene_register_observers(register):\n    register(Reader)\n")
+    code = (f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
+            "from swarmscene.core import registry\n"
+            "from swarmscene import builtins\n"
+            "builtins.BUILTIN_PLUGINS = (*builtins.BUILTIN_PLUGINS, 'reader')\n"
+            "from swarmscene import api\n"
+            "api.BUILTIN_PLUGINS = builtins.BUILTIN_PLUGINS\n"
+            "from swarmscene.cli import main; main()\n")
+    env = {**os.environ}
+    env.pop("HYDRA_FULL_ERROR", None)
+    env.pop("PYTHONWARNINGS", None)
+    proc = subprocess.run([sys.executable, "-c", code, "clock.duration=1", f"hydra.run.dir={tmp_path}/run"],
+                          cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("SwarmsceneDeprecationWarning: swarmscene: a hook read sim.formation") == 1, proc.stderr
 
 
 def test_a_sweep_preset_chosen_without_a_plus_gets_the_plus_hint(tmp_path):
@@ -199,3 +303,57 @@ def test_output_piped_into_a_reader_that_leaves_is_not_an_error_line(tmp_path):
     proc.stdout.close()  # the reader is gone before the help is written (start-up takes far longer)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 141 and err == ""
+
+
+def test_a_division_by_zero_names_the_options_set_to_zero(monkeypatch):
+    """A numeric option that makes a plugin divide by zero: the line names the option, not only
+    the plugin, at run time and when the plugin is built."""
+    from swarmscene import api
+    from swarmscene.core.errors import ConfigError
+    from swarmscene.core.raised import PluginRaised
+    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+    control, init = DoubleIntegrator.control, DoubleIntegrator.__init__
+
+    def control_dividing(self, world, setpoints):
+        control(self, world, setpoints)
+        return 1.0 / self.params.K_Wv
+
+    control_dividing.__code__ = control_dividing.__code__.replace(co_name="control")
+    monkeypatch.setattr(DoubleIntegrator, "control", control_dividing)
+    with pytest.raises(PluginRaised) as raised:
+        api.build(["dynamics.K_Wv=0", "clock.duration=0.3"]).run()
+    assert str(raised.value) == ("dynamics 'double_integrator' raised in control (with dynamics.K_Wv = 0) "
+                                 "at t = 0 s: ZeroDivisionError: float division by zero")
+
+    def init_dividing(self, params, ctx):
+        init(self, params, ctx)
+        1.0 / params.K_Wv
+
+    import types
+
+    plugin_module = sys.modules[DoubleIntegrator.__module__].__dict__  # raised from the plugin's own module
+    init_dividing = types.FunctionType(init_dividing.__code__, plugin_module, "__init__", None,
+                                       init_dividing.__closure__)
+    monkeypatch.setattr(DoubleIntegrator, "__init__", init_dividing)
+    with pytest.raises(ConfigError) as err:
+        api.build(["dynamics.K_Wv=0"])
+    assert err.value.lines == ["dynamics: 'double_integrator' cannot be built for this scenario (swarm.n = 5) "
+                               "(with dynamics.K_Wv = 0): ZeroDivisionError: float division by zero"]
+
+
+def test_a_recorded_config_run_again_writes_under_the_scenarios_name(tmp_path):
+    """`--config-path <run dir> --config-name config` (and the falsifier's worst_case.yaml): the
+    recorded file has no hydra node, and Hydra's default wrote to outputs/<date>/<time>."""
+    first = swarmscene("scenario=cem_two_vehicle", "clock.duration=0.3", "output.summary=false",
+                       f"hydra.run.dir={tmp_path}/first", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    work = tmp_path / "work"
+    work.mkdir()
+    again = swarmscene("--config-path", str(tmp_path / "first"), "--config-name", "config", cwd=work)
+    assert again.returncode == 0, again.stderr
+    runs = list((work / "outputs").iterdir())
+    assert [p.name for p in runs] == ["cem_two_vehicle"] and len(list(runs[0].iterdir())) == 1
+    chosen = swarmscene("--config-path", str(tmp_path / "first"), "--config-name", "config",
+                        f"hydra.run.dir={tmp_path}/mine", cwd=work)
+    assert chosen.returncode == 0 and (tmp_path / "mine" / "metrics.json").is_file()  # the user's own wins

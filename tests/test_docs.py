@@ -97,3 +97,18 @@ def test_each_benchmark_folder_readme_names_every_script():
         scripts = {p.name for p in (ROOT / "benchmarks" / folder).glob("*.py")}
         assert len(scripts) >= 8
         assert {s for s in scripts if f"`{s}`" not in readme} == set(), folder
+
+
+def test_the_keys_docs_outputs_lists_as_always_present_are_in_every_runs_metrics():
+    """docs/outputs.md's "Engine keys (always present)" table against a run's metrics.json: it
+    listed `violations.*`, which a run writes only for a condition it violated."""
+    import re
+
+    from swarmscene import api
+
+    text = (ROOT / "docs" / "outputs.md").read_text()
+    table = text.split("Engine keys (always present):", 1)[1].split("\n\n", 2)[1]
+    keys = re.findall(r"^\| `([^`]+)` \|", table, flags=re.M)
+    assert "success" in keys and "wall_time" in keys
+    metrics = api.run(["clock.duration=0.5", "output.summary=false"]).metrics
+    assert sorted(k for k in keys if k not in metrics) == []

@@ -9,6 +9,7 @@ its scenario file must reproduce that run to the bit.
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import subprocess
@@ -241,3 +242,41 @@ def test_a_damaged_trial_is_not_complete_and_a_planted_link_is_replaced(tmp_path
     assert record["trial"] == 1 and record["robustness"] == pytest.approx(0.4)
     assert victim.read_text() == "precious" and not (study / falsify.WORST_CASE_FILE).is_symlink()
     assert yaml.safe_load((study / falsify.WORST_CASE_FILE).read_text()) == {"safety": {"separation_limit": 0.5}}
+
+
+def test_a_study_whose_every_trial_fails_ends_with_its_tables_not_a_bad_input_line(tmp_path, monkeypatch, capsys):
+    """Optuna's sweeper raised "No trials are completed yet" after the last trial: exit 2 (bad
+    input) and no table. Now the tables are written and the falsifier says no trial completed."""
+    import numpy as np
+
+    from swarmscene import cli
+    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+    step = DoubleIntegrator.step
+
+    def failing_step(self, world, dt):
+        step(self, world, dt)
+        if world.t >= 0.5:
+            world.pos[1, 0] = np.nan
+
+    study = tmp_path / "study"
+    monkeypatch.setattr(DoubleIntegrator, "step", failing_step)
+    monkeypatch.setattr(sys, "argv", [
+        "swarmscene", "+sweep=falsify_failure", "hydra/sweeper/sampler=random", "scenario=cem_six_vehicle",
+        "avoidance=none", "dynamics=double_integrator", "hydra.sweeper.n_trials=2", "clock.duration=1",
+        "output.trajectory=false", "hydra.callbacks.swarmscene_summary.allow_failed=false",
+        f"hydra.sweep.dir={study}"])
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    with pytest.raises(SystemExit) as stop:
+        cli.main()
+    assert stop.value.code == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("swarmscene: ")]
+    assert err[-3:] == [
+        "swarmscene: the sweeper stopped: every trial failed, so no best one (Optuna); the sweep's end follows",
+        f"swarmscene: 2 of 2 jobs failed; summary in {study / 'summary.md'}",
+        f"swarmscene: falsify: no trial completed in {study} (2 failed: their error.json says why); "
+        "no worst case to write",
+    ]
+    rows = list(csv.DictReader((study / "summary.csv").open()))
+    assert [r["status"] for r in rows] == ["failed", "failed"]
+    assert not (study / falsify.WORST_CASE_FILE).exists()

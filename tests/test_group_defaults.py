@@ -139,3 +139,17 @@ def test_the_default_scenario_runs_the_double_integrator_params_defaults(data):
     scenario = api.load(data)
     assert scenario.plugin_params["dynamics"] == DoubleIntegrator.Params()
     assert (scenario.plugin_params["dynamics"].k_v, scenario.plugin_params["dynamics"].u_sat) == (12.04, 3.4)
+
+
+def test_the_example_package_holds_only_commented_deviations_too():
+    """docs/examples/swarmscene-slowdown is what a plugin author copies: its group file repeated
+    both of its Params' defaults, against the rule docs/plugins.md states."""
+    import importlib.util
+
+    package = SCENARIOS.parent / "docs" / "examples" / "swarmscene-slowdown" / "swarmscene_slowdown"
+    spec = importlib.util.spec_from_file_location("swarmscene_slowdown_example", package / "plugin.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    for path in sorted((package / "conf").rglob("*.yaml")):
+        text = path.read_text()
+        assert problems(module.Slowdown.Params, yaml.safe_load(text) or {}, text, "") == [], path

@@ -37,8 +37,10 @@ def test_group_options_are_the_yaml_files_of_the_folder():
 
 
 def test_help_is_short_and_lists_no_internal_groups():
+    from conftest import builtins_only_env
+
     out = subprocess.run([sys.executable, "-c", "from swarmscene.cli import main; main()", "--help"], capture_output=True, text=True,
-                         timeout=120, cwd=ROOT)
+                         timeout=120, cwd=ROOT, env=builtins_only_env())  # whatever else is installed here
     assert out.returncode == 0, out.stderr
     assert "tuning/" not in out.stdout
     assert groups.help_groups(groups.group_options) in out.stdout  # built-ins, no third party here

@@ -121,3 +121,34 @@ def test_a_plugin_generator_run_directory_reads_back_with_its_posts(registry, tm
     api.run(scenario, output_dir=tmp_path / "run")
     back = plots.load_run(tmp_path / "run")
     assert _coordinates(back.obstacles) == _coordinates(scenario.obstacles)
+
+
+def test_a_check_across_a_generators_parameters_is_one_line_at_the_field_it_names(monkeypatch):
+    """A third-party generator's model validator (`ValueError("a: must be < b")`, as the docs ask)
+    was reported at the whole environment with the dict of parameters as its value."""
+    from pydantic import Field, model_validator
+
+    from swarmscene.plugin import MapGenerator, StrictModel
+
+    class Strip(MapGenerator):
+        name = "strip"
+
+        class Params(StrictModel):
+            a: float = Field(1.0, gt=0, description="m")
+            b: float = Field(2.0, gt=0, description="m")
+
+            @model_validator(mode="after")
+            def _ordered(self):
+                if self.a >= self.b:
+                    raise ValueError(f"a: must be < b = {self.b} m")
+                return self
+
+        @classmethod
+        def build(cls, params):
+            return [shapely.box(0.0, 10.0, params.a, 11.0)]
+
+    _, registry = api.plugins()
+    registry.register("generator", Strip)
+    with pytest.raises(ConfigError) as err:
+        api.load([*BASE, "environment.generator=strip", "++environment.a=5"], registry)
+    assert err.value.lines == ["environment.a: must be < b = 2.0 m (got 5)"]

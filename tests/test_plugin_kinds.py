@@ -502,3 +502,18 @@ def test_the_plugin_guide_has_a_section_per_kind_naming_its_hook_check_and_templ
         check = "check_event_kind" if kind == "event" else f"check_{kind}"
         assert check in text, check
         assert (ROOT / "plugins" / kind / "README.md").is_file(), kind
+
+
+def test_a_misspelt_field_of_a_plugin_event_kind_lists_that_kinds_fields(allkinds):
+    """It listed the built-in kinds' fields (velocity, rotor, fraction), not the kind's own."""
+    from swarmscene.core.errors import ConfigError
+
+    _, registry = allkinds
+    with pytest.raises(ConfigError) as err:
+        api.load(["events=lead_fails", "events.0.kind=ak_freeze", "++events.0.kep=0.5"], registry)
+    assert err.value.lines == ["events.0.kep: unknown key of a ak_freeze event (valid keys: at, agents, kind, keep) "
+                               "(got 0.5)"]
+    with pytest.raises(ConfigError) as err:
+        api.load(["events=drift", "++events.0.velocty=[1,0,0]"], registry)
+    assert err.value.lines == ["events.0.velocty: unknown key of a drift event (valid keys: at, agents, kind, "
+                               "velocity) (got [1, 0, 0])"]

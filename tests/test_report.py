@@ -154,3 +154,55 @@ def test_a_key_one_case_does_not_set_is_left_out_of_its_label():
         "| outdoor_square | 100 % · 1.30 m · 20.0 s |",
         "| indoor_corridor / indoor_corridor_w070 | 100 % · 0.30 m · 20.0 s |",
     ]
+
+
+def _short_runs(sweep_dir, count):
+    import shutil
+
+    from swarmscene import api
+
+    api.run(["clock.duration=0.5", "output.summary=false"], output_dir=sweep_dir / "0")
+    for k in range(1, count):
+        shutil.copytree(sweep_dir / "0", sweep_dir / str(k))
+
+
+def test_the_console_names_each_damaged_job_and_what_the_pictures_skipped(tmp_path, capsys):
+    """The table marks a damaged job: the console names it too, with the file. --run-plots says
+    which runs it skipped and why, and counts what it drew, never "written" for what it could not read."""
+    sweep_dir = tmp_path / "sw"
+    _short_runs(sweep_dir, 3)
+    (sweep_dir / "1" / "metrics.json").write_text("{not json")
+    (sweep_dir / "2" / "trajectory.npz").unlink()
+    assert report.main([str(sweep_dir), "--run-plots"]) == 0
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert lines[0].startswith(f"swarmscene-report: job 1 damaged, left out of the statistics: {sweep_dir / '1' / 'metrics.json'}: ")
+    assert f"swarmscene-report: {sweep_dir / '2'}: no trajectory.npz (skipped)" in lines
+    assert any(line.startswith(f"swarmscene-report: {sweep_dir / '1' / 'metrics.json'}") and line.endswith("(skipped)")
+               for line in lines), lines
+    assert out.splitlines()[-1] == "swarmscene-report: run pictures written for 1 of 3 runs (2 skipped, named above)"
+    assert (sweep_dir / "0" / "trajectory.png").is_file() or any((sweep_dir / "0").glob("*.png"))
+    assert not any((sweep_dir / "1").glob("*.png"))
+
+
+def test_run_pictures_that_draw_nothing_exit_non_zero(tmp_path, capsys):
+    sweep_dir = tmp_path / "sw"
+    _short_runs(sweep_dir, 1)
+    (sweep_dir / "0" / "trajectory.npz").write_bytes(b"PK\x03\x04 truncated")
+    assert report.main([str(sweep_dir), "--run-plots"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err[-1] == "swarmscene-report: run pictures written for 0 of 1 runs (1 skipped, named above)"
+
+
+def test_plotting_against_a_parameter_with_one_value_is_refused_naming_those_that_vary():
+    """docs/sweeps.md's corridor example plotted `--against environment`, which the preset holds at
+    one value while it sweeps environment.width: one category and five overlapping lines."""
+    rows = [{"job": str(k), "status": "complete", "seed": k % 2, "environment": "indoor_corridor",
+             "environment.width": [0.5, 0.6, 0.7][k // 2], "indoor.success": bool(k % 3),
+             "overrides": f"environment=indoor_corridor environment.width={[0.5, 0.6, 0.7][k // 2]} seed={k % 2}"}
+            for k in range(6)]
+    with pytest.raises(ValueError, match=r"^'environment' takes one value in this sweep \(indoor_corridor\): "
+                                         r"plot against one that varies \(environment.width\)$"):
+        report.metric_against(rows, "indoor.success", "environment")
+    data = report.metric_against(rows, "indoor.success", "environment.width")
+    assert data["x"] == [0.5, 0.6, 0.7] and list(data["lines"]) == ["indoor.success"]

@@ -74,3 +74,28 @@ def test_non_negative_metrics(metric):
                                     "value", "outdoor.heading_error"])
 def test_signed_metrics_get_no_bound(metric):
     assert lower_bound(metric) is None
+
+
+def test_a_signed_heavy_tailed_quantity_gets_an_interval_within_its_values():
+    """Nine seeds at 0 and one far out: Student t reaches below every value observed (a mean of these
+    runs cannot), so the interval is the percentile bootstrap, inside [min, max]."""
+    from swarmscene.sweeps.stats import mean_ci, mean_interval
+
+    values = [0.0] * 9 + [1.0e-3]
+    mean, half, _ = mean_ci(values)
+    assert mean - half < min(values)  # what the table printed before
+    mean, low, high, n = mean_interval(values, within_values=True)
+    assert n == 10 and min(values) <= low <= mean <= high <= max(values)
+    spread = list(np.linspace(0.0, 1.0, 30))  # a t interval inside the values stays Student t
+    m, h, _ = mean_ci(spread)
+    assert mean_interval(spread, within_values=True) == (m, m - h, m + h, 30)
+
+
+def test_the_grouped_table_shows_a_renamed_metric_under_its_new_name_only():
+    from swarmscene.sweeps import tables
+
+    assert "cem.theorem1_holds" in tables.renamed_metrics()
+    rows = [{"job": str(k), "status": "complete", "seed": k, "success": True, "cem.theorem1_holds": False,
+             "cem.theorem1_precondition_met": False, "min_separation": 1.0 + k} for k in range(2)]
+    text = tables.markdown(rows, "t")
+    assert "cem.theorem1_precondition_met (rate)" in text and "cem.theorem1_holds" not in text

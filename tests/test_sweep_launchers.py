@@ -172,3 +172,22 @@ def test_the_slurm_path_through_submitits_local_executor(basic, tmp_path):
     assert_identical(basic, tmp_path / "slurm")
     manifest = json.loads((tmp_path / "slurm" / "0" / "manifest.json").read_text())
     assert manifest["command"][1:4] == GRID[:3]
+
+
+def test_the_pool_launcher_ends_its_workers_when_the_sweep_ends(tmp_path):
+    """Left to the interpreter's exit, the executor's manager thread could write to a closed
+    wake-up pipe: `OSError: [Errno 9] Bad file descriptor` after a successful sweep. The sweeper
+    closes the launcher after its last batch; close() shuts the pool down once."""
+    from swarmscene.sweeps.pool import PoolLauncher
+
+    calls = []
+
+    class Executor:
+        def shutdown(self, wait):
+            calls.append(wait)
+
+    launcher = PoolLauncher(n_jobs=1)
+    launcher._executor = Executor()
+    launcher.close()
+    launcher.close()  # idempotent: nothing left to end
+    assert calls == [True] and launcher._executor is None

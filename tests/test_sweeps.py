@@ -155,17 +155,25 @@ def test_recorded_invalid_jobs_and_failed_jobs_set_the_exit_status(tmp_path):
 
 
 def test_runtime_exception_in_one_job_does_not_stop_the_others(tmp_path, monkeypatch):
-    """A plugin raising mid-run (here: non-finite numbers in seed 1) fails only its own job."""
-    from swarmscene.core.simulation import Simulation
+    """A plugin raising mid-run (here: non-finite numbers in seed 1) fails only its own job, and
+    its record names the plugin, its method and the time."""
+    from swarmscene.plugins.formation.static_shape import StaticShape
 
-    original = Simulation.step
+    original = StaticShape.setpoints
 
-    def step(self):
-        if self.config.seed == 1 and self.step_count == 5:
+    def setpoints(self, world, sensing):
+        if self.seed_one and world.t >= 0.5:
             raise FloatingPointError("non-finite setpoint for agent 3")
-        original(self)
+        return original(self, world, sensing)
 
-    monkeypatch.setattr(Simulation, "step", step)
+    init = StaticShape.__init__
+
+    def remember_seed(self, params, ctx):
+        init(self, params, ctx)
+        self.seed_one = ctx.rng.bit_generator.seed_seq.entropy == 1  # the run's `seed`
+
+    monkeypatch.setattr(StaticShape, "setpoints", setpoints)
+    monkeypatch.setattr(StaticShape, "__init__", remember_seed)
     monkeypatch.setattr(sys, "argv", ["swarmscene", "--multirun", "seed=0,1,2", "clock.duration=2.0",
                                       f"hydra.sweep.dir={tmp_path}/sw"])
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
@@ -174,7 +182,8 @@ def test_runtime_exception_in_one_job_does_not_stop_the_others(tmp_path, monkeyp
     assert exit_info.value.code == 1  # one job failed: the sweep's status says so
     rows = read_csv(tmp_path / "sw" / "summary.csv")
     assert [(r["seed"], r["status"]) for r in rows] == [("0", "complete"), ("1", "failed"), ("2", "complete")]
-    assert rows[1]["error"] == "FloatingPointError: non-finite setpoint for agent 3"
+    assert rows[1]["error"] == ("RunFailed: formation 'static_shape' raised in setpoints at t = 0.5 s: "
+                                "FloatingPointError: non-finite setpoint for agent 3")
     error = json.loads((tmp_path / "sw" / "1" / "error.json").read_text())
     assert "Traceback" in error["traceback"] and "FloatingPointError" in error["traceback"]
 
@@ -662,3 +671,85 @@ def test_sweep_progress_counts_failed_jobs_and_is_quiet_off_a_terminal(tmp_path)
     assert progress_counts(proc.stderr)[-1] == "2/2 jobs done, 1 failed"
     quiet = swarmscene("-m", "clock.duration=1.0", "seed=0,1", f"hydra.sweep.dir={tmp_path}/quiet", cwd=tmp_path)
     assert quiet.returncode == 0 and progress_counts(quiet.stderr) == []
+
+
+def test_an_interpolated_value_follows_each_jobs_seed(tmp_path):
+    """docs/faults_and_maps.md: `environment.seed='${seed}'` varies the map with the run's seed; the
+    grid's check set the text '${seed}' itself, unresolved, and refused every job."""
+    import yaml
+
+    proc = swarmscene("--multirun", "environment=obstacle_field", "environment.seed=${seed}", "seed=3,4",
+                      "clock.duration=0.2", "output.trajectory=false", f"hydra.sweep.dir={tmp_path}/m", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    configs = [yaml.safe_load((tmp_path / "m" / job / "config.yaml").read_text()) for job in ("0", "1")]
+    assert [(c["seed"], c["environment"]["seed"]) for c in configs] == [(3, 3), (4, 4)]
+
+
+def test_a_full_disk_while_the_records_are_written_names_the_file(tmp_path, monkeypatch):
+    """ENOSPC names no file; the sweep's records said "No space left on device" and nothing else."""
+    import errno
+
+    from swarmscene import outputs
+
+    real_fdopen = outputs.os.fdopen
+
+    class Full:
+        def __init__(self, fd, mode):
+            self.fh = real_fdopen(fd, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    job = tmp_path / "sw" / "0"
+    job.mkdir(parents=True)
+    monkeypatch.setattr(outputs.os, "fdopen", Full)
+    with pytest.raises(OSError) as full:
+        outputs.atomic_write_json(job / "error.json", {"error": "x"})
+    assert full.value.filename == str(job / "error.json") and full.value.errno == errno.ENOSPC
+    assert cli._error_lines(full.value) == [f"{job / 'error.json'}: cannot be written (No space left on device)"]
+    assert list(job.iterdir()) == []  # no temporary file left behind
+
+
+@pytest.mark.parametrize(("group", "option", "extra"), [
+    ("hydra/launcher", "joblib", "joblib"), ("hydra/launcher", "ray", "ray"),
+    ("hydra/launcher", "submitit_slurm", "submitit"), ("hydra/sweeper", "optuna", "optuna"),
+])
+def test_a_launcher_whose_extra_is_missing_gives_the_install_line(group, option, extra):
+    """Without the extra, Hydra has no such option: the line read "unknown option 'joblib'"."""
+    from hydra.errors import MissingConfigException
+
+    from swarmscene.hydra_errors import hydra_error_line
+
+    exc = MissingConfigException(f"In 'hydra/config': Could not find '{group}/{option}'",
+                                 missing_cfg_file=f"{group}/{option}", options=["basic", "pool"])
+    assert hydra_error_line(exc) == (f"{group}={option} needs the {extra!r} extra (Hydra's {option} plugin is not "
+                                     f"installed): pip install 'swarmscene[{extra}]'")
+    unknown = MissingConfigException(f"In 'hydra/config': Could not find '{group}/nope'",
+                                     missing_cfg_file=f"{group}/nope", options=["basic", "pool"])
+    assert hydra_error_line(unknown) == f"{group.replace('/', '.')}: unknown option 'nope' (valid: basic, pool)"
+
+
+def test_an_interpolation_error_with_no_message_still_names_its_key_and_why():
+    """A resolver that raises with no message gave "key: cannot resolve the value: KeyError raised
+    while resolving interpolation: " and nothing after it."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import InterpolationResolutionError
+
+    from swarmscene.hydra_errors import resolution_error_line
+
+    OmegaConf.register_new_resolver("swarmscene_test_silent", lambda: (_ for _ in ()).throw(KeyError()), replace=True)
+    cfg = OmegaConf.create({"name": "${swarmscene_test_silent:}"})
+    with pytest.raises(InterpolationResolutionError) as err:
+        OmegaConf.to_container(cfg, resolve=True)
+    line = resolution_error_line(err.value)
+    assert line == ("name: cannot resolve the value: KeyError raised while resolving interpolation (the resolver "
+                    "gave no message)")
+    silent = InterpolationResolutionError("")
+    silent.full_key = "environment.seed"
+    assert resolution_error_line(silent) == "environment.seed: cannot resolve the value: InterpolationResolutionError (no message)"

@@ -59,8 +59,8 @@ Choices (the paper leaves these open):
   ``"clear_path"`` (20 of its trials fail the lead between 19 and 22.3 s). The cost, stated plainly:
   where a slot is clear of the failed vehicle but the straight path back to it crosses a_p, CEM
   never hands back and the mission never completes. In ``cem_six_vehicle`` every failure of the
-  lead from 19.0 to 22.3 s ends so: ``success False`` at 40 s, the healthy agents at x = 35-37 m
-  (CEM flies them on downstream), the hovering lead at 22-25 m beside its formation's slots; the
+  lead from 18.0 to 22.3 s ends so: ``success False`` at 40 s, the healthy agents at x = 35-37 m
+  (CEM flies them on downstream), the hovering lead at 21-25 m beside its formation's slots; the
   summary's ``mission`` line says why. No option routes the agents back around the failed vehicle
   yet (``"passed"`` completes those missions by flying through it).
   ``"passed"`` is that along-track rule alone (the rule shipped before). ``hand_back: false`` keeps
@@ -120,7 +120,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
@@ -138,6 +137,7 @@ from swarmscene.plugin import (
     Setpoints,
     WorldState,
     hookimpl,
+    validate_renamed,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -200,16 +200,11 @@ class CEM(Avoidance):
             None, gt=0.0, description="along-track distance past the last failure to hand back, m (None: 2 a_p)"
         )
 
-        @model_validator(mode="before")
+        @model_validator(mode="wrap")
         @classmethod
-        def _deprecated_n(cls, data: Any) -> Any:
+        def _deprecated_n(cls, data: Any, handler: Any) -> Any:
             """``n`` (the paper's symbol, easily read as swarm.n) works for one release, with a warning."""
-            if isinstance(data, dict) and "n" in data:
-                warnings.warn("avoidance.n is deprecated: write avoidance.newton_iterations",
-                              DeprecationWarning, stacklevel=2)
-                data = {**data, "newton_iterations": data["n"]}
-                del data["n"]
-            return data
+            return validate_renamed(data, handler, {"n": "newton_iterations"}, "avoidance")
 
     params: Params
 

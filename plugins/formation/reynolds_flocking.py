@@ -20,9 +20,11 @@ Space (``space``): ``open`` (no walls), ``bounded`` (steered back into the box `
 (:func:`~swarmscene.methods.flocking.torus.torus_neighbours`, exact minimum image while ``vision``
 < half the box). The plugin declares the box (:meth:`periodic_box`) and the kernel folds
 positions back into it in its ``wrap`` phase, after every physics update and before any observer
-reads them, so monitors, recorders and the next tick see positions in the box, as in Mesa. Note the
-engine's safety monitor measures Euclidean distance in the box: pairs close across a seam are not
-seen by it. Distances are 3-D (equal to Mesa's 2-D ones while the flock shares one altitude).
+reads them, so monitors, recorders and the next tick see positions in the box, as in Mesa. The
+engine's connectivity check links agents by their minimum-image distance on the torus (a flock
+across a seam stays one graph); its separation check still measures Euclidean distance in the
+box, so pairs close across a seam are not seen by it. Distances are 3-D (equal to Mesa's 2-D ones
+while the flock shares one altitude).
 
 Memory per boid (plugin scratch): the heading (3 float64) plus, per tick, O(neighbours) pair arrays.
 """

@@ -42,6 +42,37 @@ def write_under_lock(sweep_dir: Path) -> None:
         _written[str(sweep_dir)] = exc
 
 
+_started: list[tuple[Any, Any]] = []
+"""(callback, config) of the running multirun's end-of-sweep callbacks, for :func:`end_after_sweeper_error`."""
+NO_COMPLETED_TRIAL = "No trials are completed yet"
+"""Optuna's error when a study's best trial is asked for and every trial failed."""
+
+
+def end_after_sweeper_error(exc: BaseException) -> int | None:
+    """Hydra's Optuna sweeper asks for the study's best trial after the last one and raises
+    ``ValueError: No trials are completed yet`` when every trial failed, before any callback's
+    end: no table, and a bad-input exit status for jobs that did run. For that error, run the
+    end-of-sweep callbacks it skipped (the tables, the falsifier's record) and return the exit
+    status they set (1 when jobs failed, unless ``allow_failed``); None for any other exception."""
+    if not (isinstance(exc, ValueError) and str(exc).startswith(NO_COMPLETED_TRIAL) and _started):
+        return None
+    ended, _started[:] = list(_started), []
+    print("swarmscene: the sweeper stopped: every trial failed, so no best one (Optuna); the sweep's "
+          "end follows", file=sys.stderr)
+    for callback, config in ended:
+        try:
+            callback.on_multirun_end(config)
+        except Exception as err:  # one callback's failure must not hide the others' outputs
+            print(f"swarmscene: {type(callback).__name__}: {err}", file=sys.stderr)
+    status = _outcome.pop("status", None)
+    return 1 if status is None else status  # the tables' own status (allow_failed may keep it 0)
+
+
+def started(callback: Any, config: Any) -> None:
+    """Record an end-of-sweep callback of the multirun now starting (:func:`end_after_sweeper_error`)."""
+    _started.append((callback, config))
+
+
 def take_exit_status() -> int | None:
     """The exit status of the multirun that just ended (None: none ended since the last call),
     for the command line to end with: a callback reports, it does not end the process (a
@@ -82,6 +113,8 @@ class SweepSummary(Callback):
         line starts (``progress``)."""
         _outcome.pop("status", None)
         _written.clear()
+        _started[:] = []
+        started(self, config)
         self._replace_basic_sweeper(config)
         from .progress import SweepProgress
 
@@ -110,6 +143,7 @@ class SweepSummary(Callback):
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
         """After the last job: the summary tables, the outcome line and the command's exit status."""
+        _started[:] = [(c, cfg) for c, cfg in _started if c is not self]
         if self.progress is not None:
             self.progress.stop()
         sweep_dir = Path(config.hydra.sweep.dir)

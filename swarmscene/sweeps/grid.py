@@ -196,8 +196,11 @@ def _settable(override: Any, plain: dict[str, Any]) -> bool:
 
     if override.package is not None or override.type not in (OverrideType.CHANGE, OverrideType.FORCE_ADD):
         return False
-    if isinstance(override.value(), (dict, list)) or override.is_sweep_override():
+    value = override.value()
+    if isinstance(value, (dict, list)) or override.is_sweep_override():
         return False
+    if isinstance(value, str) and "${" in value:  # an interpolation (environment.seed='${seed}'): the
+        return False  # config resolves it, the data would keep its text
     node: Any = plain
     for part in override.key_or_group.split("."):
         if not isinstance(node, dict):

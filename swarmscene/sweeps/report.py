@@ -50,6 +50,9 @@ def metric_against(rows: list[dict[str, Any]], metric: str, param: str) -> dict[
     bounded = lower_bound(metric) is not None
     x = sorted({r.get(param) for r in rows}, key=_order)
     others = [k for k in tables.swept_parameters(rows) if k not in (param, "seed")]
+    if len(x) == 1 and others:  # one category, the sweep's real axis drawn as overlapping lines
+        raise ValueError(f"{param!r} takes one value in this sweep ({x[0]}): plot against one that varies "
+                         f"({', '.join(others)})")
     lines: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for key, members in tables.groups(done, others):
         label = ", ".join(f"{k}={v}" for k, v in zip(others, key, strict=True)) or metric  # a value per key
@@ -203,6 +206,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"swarmscene-report: {directory}: no run directories found", file=sys.stderr)
         return 1
     print(f"swarmscene-report: {len(rows)} jobs -> {directory / 'summary.csv'}, {directory / 'summary.md'}")
+    for row in rows:  # the table marks them; the console names them, with the file and its problem
+        if row["status"] == "damaged":
+            print(f"swarmscene-report: job {row['job']} damaged, left out of the statistics: {row['error']}",
+                  file=sys.stderr)
     if args.plot:
         try:
             title = f"{directory.name}: {args.plot} against {args.against}"
@@ -229,24 +236,41 @@ def main(argv: list[str] | None = None) -> int:
         print(table, end="")
         print(f"swarmscene-report: methods table -> {directory / 'methods.md'}")
     if args.run_plots or args.rerun:
-        from ..rundir import RunFileError
-
-        for run_dir in job_dirs(directory):
-            if not (run_dir / "trajectory.npz").is_file():
-                continue
-            try:
-                if args.run_plots:
-                    from ..plots import write_run_plots
-
-                    write_run_plots(run_dir, plots=True, animation=args.animation)
-                if args.rerun:
-                    from ..replay import export_rerun
-
-                    export_rerun(run_dir)
-            except RunFileError as exc:  # a damaged run: named, skipped, the others drawn
-                print(f"swarmscene-report: {exc} (skipped)", file=sys.stderr)
-        print("swarmscene-report: run pictures written")
+        return _redraw_runs(directory, args.run_plots, args.animation, args.rerun)
     return 0
+
+
+def _redraw_runs(directory: Path, plots: bool, animation: bool, rerun: bool) -> int:
+    """Each run's pictures (and replay): every run skipped is named with why, and the last line
+    counts what was made; status 1 when nothing was (every run skipped, or none to draw)."""
+    from ..rundir import RunFileError
+
+    made, skipped = 0, 0
+    runs = job_dirs(directory)
+    for run_dir in runs:
+        if not (run_dir / "trajectory.npz").is_file():
+            print(f"swarmscene-report: {run_dir}: no trajectory.npz (skipped)", file=sys.stderr)
+            skipped += 1
+            continue
+        try:
+            if plots:
+                from ..plots import write_run_plots
+
+                write_run_plots(run_dir, plots=True, animation=animation)
+            if rerun:
+                from ..replay import export_rerun
+
+                export_rerun(run_dir)
+        except RunFileError as exc:  # a damaged run: named, skipped, the others drawn
+            print(f"swarmscene-report: {exc} (skipped)", file=sys.stderr)
+            skipped += 1
+            continue
+        made += 1
+    what = " and ".join(w for w, asked in (("pictures", plots), ("replays", rerun)) if asked)
+    line = f"swarmscene-report: run {what} written for {made} of {len(runs)} runs" + (
+        f" ({skipped} skipped, named above)" if skipped else "")
+    print(line, file=sys.stdout if made else sys.stderr)
+    return 0 if made else 1
 
 
 def entry() -> None:

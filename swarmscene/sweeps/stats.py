@@ -6,8 +6,11 @@ distance, a count, a time) it can reach below zero, which no run could give (a s
 of ``0.00015 [-0.00023, 0.00053]`` m). For those quantities (:func:`lower_bound`) the interval is
 the percentile bootstrap of the mean: the 2.5 and 97.5 percentiles of the means of ``BOOTSTRAP``
 resamples drawn with replacement, from a fixed seed so the same runs give the same table. Its ends
-are means of the observed values, so they stay inside what the quantity can take. Like every
-interval of a handful of seeds it is approximate; with few seeds it is narrower than Student-t.
+are means of the observed values, so they stay inside what the quantity can take. On request
+(``within_values``: the reproduction report, 30 or more seeds) a signed quantity gets the bootstrap
+too where its Student-t interval reaches past the smallest or largest value observed (a heavy
+tail: one seed far from the others), so no interval lies outside every run. Like every interval
+of a handful of seeds it is approximate; with few seeds it is narrower than Student-t.
 """
 
 from __future__ import annotations
@@ -61,9 +64,11 @@ def mean_ci(values: Iterable[float | None], level: float = 0.95) -> tuple[float,
 
 
 def mean_interval(values: Iterable[float | None], bounded: bool = False,
-                  level: float = 0.95) -> tuple[float, float, float, int]:
+                  level: float = 0.95, within_values: bool = False) -> tuple[float, float, float, int]:
     """``(mean, low, high, n)`` over the finite values: Student-t, or with ``bounded`` (a quantity
-    that cannot be negative) the percentile bootstrap. NaN ends for n < 2; both ends equal the mean
+    that cannot be negative) the percentile bootstrap; with ``within_values`` the bootstrap too where
+    the t interval would reach past the smallest or largest value (a signed, heavy-tailed quantity
+    over many seeds, as in the reproduction report). NaN ends for n < 2; both ends equal the mean
     when every value is the same."""
     x = _finite(values)
     n = len(x)
@@ -75,7 +80,10 @@ def mean_interval(values: Iterable[float | None], bounded: bool = False,
         return mean, mean, mean, n
     if not bounded:
         _, half, _ = mean_ci(x, level)
-        return mean, mean - half, mean + half, n
+        if not within_values or (x.min() <= mean - half and mean + half <= x.max()):
+            return mean, mean - half, mean + half, n
+        # A heavy tail (one seed far out) widens the t interval past every value observed, which no
+        # mean of these runs could reach: the percentile bootstrap's ends stay within them.
     rng = np.random.default_rng(BOOTSTRAP_SEED)
     means = x[rng.integers(0, n, size=(BOOTSTRAP, n))].mean(axis=1)
     low, high = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])

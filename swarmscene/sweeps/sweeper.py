@@ -169,6 +169,9 @@ class SwarmsceneSweeper(Sweeper):
                 write_under_lock(sweep_dir)
             return returns
         finally:
+            close = getattr(self.launcher, "close", None)  # a launcher that keeps workers (pool) ends them
+            if callable(close):
+                close()
             lock.release()
 
 

@@ -27,6 +27,7 @@ import io
 import json
 import math
 from collections.abc import Iterable
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, TypeGuard
 
@@ -243,11 +244,24 @@ def groups(rows: list[dict[str, Any]], by: list[str]) -> list[tuple[tuple[Any, .
                   key=lambda g: tuple((isinstance(v, str), str(v) if isinstance(v, str) else v or 0) for v in g[0]))
 
 
+@lru_cache(maxsize=1)
+def renamed_metrics() -> frozenset[str]:
+    """The old keys of metrics a registered plugin renamed (its ``RENAMED_METRICS``): metrics.json
+    and summary.csv keep them for one release, the grouped tables show the new key only."""
+    from ..builtins import BUILTIN_PLUGINS
+    from ..core.registry import make_plugin_manager
+
+    _, registry = make_plugin_manager(BUILTIN_PLUGINS)
+    return frozenset(old for classes in registry.classes.values() for cls in classes.values()
+                     for old in getattr(cls, "RENAMED_METRICS", {}))
+
+
 def metric_names(rows: list[dict[str, Any]]) -> tuple[list[str], list[str]]:
-    """(rate metrics: booleans, numeric metrics) over the table's metric columns."""
+    """(rate metrics: booleans, numeric metrics) over the table's metric columns (a renamed key's
+    old name left out)."""
     rates: set[str] = set()
     numbers: set[str] = set()
-    fixed = {*BASE_COLUMNS, *TAIL_COLUMNS, *param_columns(rows)}
+    fixed = {*BASE_COLUMNS, *TAIL_COLUMNS, *param_columns(rows), *renamed_metrics()}
     for row in rows:
         for key, value in row.items():
             if key in fixed or value is None:

@@ -227,3 +227,19 @@ def test_the_old_names_of_the_safety_limits_still_work_for_one_release_with_a_wa
     with pytest.warns(DeprecationWarning, match="BuildContext.min_clearance is deprecated"):
         sim = api.build(["safety.clearance_limit=0.4"])
         assert sim.formation.ctx.min_clearance == 0.4
+
+
+@pytest.mark.parametrize(("overrides", "line"), [
+    (["safety.min_separation=-1"], "safety.min_separation (now safety.separation_limit): must be >= 0.0 (got -1)"),
+    (["scenario=cem_six_vehicle", "avoidance.n=0"],
+     "avoidance.n (now avoidance.newton_iterations): must be >= 1 (got 0)"),
+])
+def test_a_bad_value_under_a_deprecated_name_is_reported_under_the_name_typed(overrides, line):
+    """The error names the key the user wrote, with its new name; not only the new name, which the
+    user never typed. The deprecation is a SwarmsceneDeprecationWarning (shown on the command line)."""
+    from swarmscene import api
+    from swarmscene.plugin import SwarmsceneDeprecationWarning
+
+    with pytest.warns(SwarmsceneDeprecationWarning), pytest.raises(ConfigError) as err:
+        api.load(overrides)
+    assert err.value.lines == [line]

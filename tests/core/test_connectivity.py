@@ -123,3 +123,50 @@ def test_both_cell_walks_of_the_union_find_agree_with_networkx(seed):
             assert _connected_by_pairs(pos, radius, radius) == want
     chain = np.column_stack([np.arange(40) * 1.0, np.zeros(40), np.zeros(40)])  # links of exactly 1 m
     assert disk_graph_connected(chain, 1.0) and not disk_graph_connected(chain, 1.0 - 1e-12)
+
+
+def test_a_ticks_shared_arrays_are_read_only_so_an_in_place_edit_fails_at_once():
+    """Every plugin and the safety monitor read the same arrays of a tick: one plugin clipping its
+    distances in place changed what the others saw. Now the edit raises; a copy edits freely."""
+    import numpy as np
+    import pytest
+    import shapely
+
+    from swarmscene.core.environment import Environment
+    from swarmscene.core.sensing import Sensing
+    from swarmscene.core.state import WorldState
+
+    pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [5.0, 0.0, 1.0]])
+    env = Environment([shapely.Point(0.0, 3.0).buffer(1.0)])
+    sensing = Sensing(WorldState.at_rest(pos), env, comm_range=4.5)
+    dist, idx = sensing.nearest
+    for array in (dist, idx, sensing.pairs(2.0), sensing.clearance, sensing.clearance_within(3.0),
+                  *sensing.obstacle_nearest(3.0), sensing.comm_members, sensing.comm_edges, *sensing.knn):
+        with pytest.raises(ValueError, match="read-only"):
+            array[...] = 0
+    mine = dist.copy()
+    mine[:] = 0.0
+    assert sensing.nearest[0].tolist() == [1.0, 1.0, 4.0]  # the shared answer is untouched
+    assert sensing.pairs(2.0).tolist() == [[0, 1]] and sensing.world.pos.flags.writeable  # the truth is not frozen
+
+
+def test_on_a_torus_agents_across_a_seam_are_linked():
+    """The flocking preset's connectivity FAIL at 1 s: a flock crossing the seam of its 100 m torus
+    looked split by plain distances. With the formation's periodic box, links use the minimum image."""
+    import numpy as np
+
+    from swarmscene.core.environment import Environment
+    from swarmscene.core.sensing import Sensing
+    from swarmscene.core.state import WorldState
+
+    pos = np.array([[1.0, 50.0, 2.0], [98.0, 50.0, 2.0], [94.0, 50.0, 2.5], [99.5, 53.0, 2.0]])
+    plain = Sensing(WorldState.at_rest(pos), Environment(), comm_range=5.0)
+    assert not plain.comm_connected
+    torus = Sensing(WorldState.at_rest(pos), Environment(), comm_range=5.0)
+    torus.periodic = (np.zeros(2), np.full(2, 100.0))
+    assert torus.comm_connected  # x = 1 and 98 are 3 m apart across the seam
+    apart = pos.copy()
+    apart[2] = [50.0, 20.0, 2.0]  # now alone in the middle: the graph is split, torus or not
+    split = Sensing(WorldState.at_rest(apart), Environment(), comm_range=5.0)
+    split.periodic = torus.periodic
+    assert not split.comm_connected
