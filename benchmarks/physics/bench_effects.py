@@ -28,6 +28,7 @@ EFFECTS = ("downwash", "ground_effect", "drag", "battery", "radio")
 
 
 def build(effects: tuple[str, ...], n: int):
+    """A hovering swarm of ``n`` quadrotors with the named physics effects declared, built."""
     import numpy as np
 
     from swarmscene import api
@@ -36,7 +37,8 @@ def build(effects: tuple[str, ...], n: int):
     side = int(np.ceil(np.sqrt(n)))
     k = np.arange(n)
     start = np.column_stack([k % side - side / 2, k // side - side / 2, np.full(n, 2.0)]).tolist()
-    overrides = ["scenario=default", "environment=open", f"swarm.n={n}", "swarm.leader=null", "swarm.start.kind=explicit",
+    overrides = ["scenario=default", "environment=open", f"swarm.n={n}", "swarm.leader=null",
+                 "swarm.start.kind=explicit",
                  f"swarm.start.positions={start}", "avoidance=none", "dynamics=quadrotor", "events=none",
                  "environment.floor=0", "clock.physics_step=0.02", "clock.guidance_period=0.1",
                  "clock.duration=1000", "output.summary=false", "output.progress=off", "comm.range=5",
@@ -50,6 +52,7 @@ def build(effects: tuple[str, ...], n: int):
 
 
 def tick_times(sim, ticks: int) -> list[float]:
+    """Wall time of each of ``ticks`` guidance ticks of ``sim``, s."""
     out = []
     for _ in range(ticks):
         t0 = time.perf_counter()
@@ -59,6 +62,7 @@ def tick_times(sim, ticks: int) -> list[float]:
 
 
 def main() -> None:
+    """Time the bare tick against each effect and all five, pairs alternately, and print the ratios."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1000)
     parser.add_argument("--rounds", type=int, default=7)
@@ -81,7 +85,8 @@ def main() -> None:
           "and the median over rounds of each pair's ratio of medians:")
     print(f"  {'bare':14s} {statistics.median(medians['bare']) * 1e3:8.3f} ms")
     for label in ratios:
-        print(f"  {label:14s} {statistics.median(medians[label]) * 1e3:8.3f} ms  x{statistics.median(ratios[label]):.3f}")
+        median, ratio = statistics.median(medians[label]), statistics.median(ratios[label])
+        print(f"  {label:14s} {median * 1e3:8.3f} ms  x{ratio:.3f}")
 
 
 if __name__ == "__main__":

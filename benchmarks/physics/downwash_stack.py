@@ -50,6 +50,7 @@ def lower_error(gap: float, scale: float | None, duration: float) -> tuple[float
 
 
 def main() -> None:
+    """Fly the stacked pair at each vertical gap, with and without downwash, and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gaps", nargs=3, type=float, default=[0.2, 1.5, 0.05], metavar=("FROM", "TO", "STEP"))
     parser.add_argument("--duration", type=float, default=5.0)
@@ -91,7 +92,8 @@ def main() -> None:
         ax.text(gaps[-1], args.track * 1.15, f"track lost ({args.track} m)", ha="right", color="0.4", fontsize=8)
         ax.set_xlabel("vertical separation Δz of the stacked pair (m)")
         ax.set_ylabel("lower vehicle's largest position error (m)")
-        ax.set_title("Two Crazyflies stacked: the lower one under the upper one's downwash\n(red x: crashed on the floor)",
+        ax.set_title("Two Crazyflies stacked: the lower one under the upper one's downwash\n"
+                     "(red x: crashed on the floor)",
                      fontsize=10)
         ax.legend(fontsize=8)
         ax.grid(True, which="both", alpha=0.3)

@@ -21,10 +21,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def presets() -> list[str]:
+    """Every shipped preset's name."""
     return sorted(p.stem for p in (ROOT / "scenarios" / "scenario").glob("*.yaml"))
 
 
 def export_row(name: str, box: list[str], work: Path) -> str:
+    """Run preset ``name``, export it fitted into ``box``, and return its table row (exit, first line)."""
     from swarmscene import api, export
 
     run_dir = work / name
@@ -44,6 +46,7 @@ def export_row(name: str, box: list[str], work: Path) -> str:
 
 
 def main() -> int:
+    """Print the export's verdict on every preset fitted into the box, as a Markdown table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--box", nargs=6, default=["-2", "-2", "0", "2", "2", "2"])
     parser.add_argument("--only", action="append")

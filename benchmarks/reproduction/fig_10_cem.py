@@ -34,6 +34,7 @@ def peak_speed_below(seed: int, k_low: str, k_high: str) -> bool:
 
 
 def main() -> None:
+    """Count the seeds in which each of Fig. 10's orderings holds."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("seeds", type=int, nargs="?", default=10)
     n = parser.parse_args().seeds

@@ -455,7 +455,8 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
         "\"ours\" is the mean over seeds with its 95 % interval: Student t; the percentile bootstrap of the",
         "mean (10,000 resamples, fixed seed), whose ends stay within the values, for a quantity that",
         "cannot be negative (a distance, a speed, a time) and, from 10 seeds, wherever Student t would",
-        "reach past every value observed (a signed quantity with a heavy tail); Wilson for rates. \"det.\" means every seed",
+        "reach past every value observed (a signed quantity with a heavy tail); Wilson for rates. "
+        "\"det.\" means every seed",
         "gave the same value. Where the paper's number is one run (a figure of one flight), it is judged",
         "on the share of our seeds that meet it (within tolerance; for a bound, at or past it), shown with",
         "its Wilson interval, never on our mean: such a value \"holds\" when at least half the seeds are",
@@ -478,7 +479,8 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
         if not rows:
             continue
         lines += [f"## {title}", "",
-                  "| claim | where | paper | tolerance | reading | seeds | ours | worst | holds | in interval | run at |",
+                  "| claim | where | paper | tolerance | reading | seeds | ours | worst | holds | in interval "
+                  "| run at |",
                   "|---|---|---|---|---|---|---|---|---|---|---|"]
         for o in rows:
             c = o.claim

@@ -3,8 +3,8 @@
 Overhead: the same scenario run with and without ``output.mcap=true`` (``api.run`` into a fresh run
 directory, outputs written: the run's wall time as a user sees it), in alternating pairs so a noisy
 neighbour hits both alike; the ratio of the medians, of wall time and of the process's CPU time
-(every thread: the bag's writer thread included; steadier than wall time on a loaded machine). /tf, /clock, every vehicle's odometry and the
-separation go into the bag at every guidance tick. Also the bag writer's own cost per tick
+(every thread: the bag's writer thread included; steadier than wall time on a loaded machine).
+/tf, /clock, every vehicle's odometry and the separation go into the bag at every guidance tick. Also the bag writer's own cost per tick
 (``BagWriter.frame`` alone, N vehicles).
 
 Memory: Python's peak allocations (tracemalloc) of a run with and without the bag, for two run
@@ -101,6 +101,7 @@ def peak_memory(n: int, duration: float, bag: bool) -> tuple[int, int]:
 
 
 def main() -> None:
+    """Time runs with and without ``output.mcap``, pairs alternately, and measure memory over run length."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=5)
     parser.add_argument("--n", type=int, default=100)
