@@ -4,8 +4,8 @@ Overhead: the same scenario run with and without ``output.mcap=true`` (``api.run
 directory, outputs written: the run's wall time as a user sees it), in alternating pairs so a noisy
 neighbour hits both alike; the ratio of the medians, of wall time and of the process's CPU time
 (every thread: the bag's writer thread included; steadier than wall time on a loaded machine).
-/tf, /clock, every vehicle's odometry and the separation go into the bag at every guidance tick. Also the bag writer's own cost per tick
-(``BagWriter.frame`` alone, N vehicles).
+/tf, /clock, every vehicle's odometry and the separation go into the bag at every guidance tick.
+Also the bag writer's own cost per tick (``BagWriter.frame`` alone, N vehicles).
 
 Memory: Python's peak allocations (tracemalloc) of a run with and without the bag, for two run
 lengths (the trajectory off, so the record does not grow either): the bag's share must not grow
