@@ -181,6 +181,37 @@ def adjacency(hood: Neighbourhood) -> csr_matrix:
     return a
 
 
+def graph_metrics(hood: Neighbourhood, dense_limit: int = DENSE_EIGEN_LIMIT) -> tuple[float, float, int]:
+    """Union, lambda_2 / N and the component count of the graph (M + M^T) > 0: for at most
+    ``dense_limit`` agents from a dense boolean matrix (reachability sweeps, LAPACK's eigenvalues,
+    no sparse construction: a hundred agents' sparse matrices cost more than the answer), above
+    from the sparse graph (:func:`union_and_connectivity`)."""
+    n = hood.n
+    if n > dense_limit:
+        return union_and_connectivity(adjacency(hood), dense_limit)
+    if n < 2:
+        return 1.0, 0.0, n
+    a = np.zeros((n, n), dtype=bool)
+    a[hood.source, hood.target] = True
+    a |= a.T
+    unseen = np.ones(n, dtype=bool)
+    n_cc = 0
+    while unseen.any():
+        reached = np.zeros(n, dtype=bool)
+        reached[int(np.argmax(unseen))] = True
+        count = 0
+        while (new := int(reached.sum())) != count:
+            count = new
+            reached |= a[reached].any(axis=0)
+        unseen &= ~reached
+        n_cc += 1
+    union = (n - n_cc) / (n - 1)
+    if n_cc > 1:
+        return union, 0.0, n_cc
+    lap = np.diag(a.sum(axis=1).astype(float)) - a
+    return union, float(np.linalg.eigvalsh(lap)[1]) / n, n_cc
+
+
 def union_and_connectivity(a: csr_matrix, dense_limit: int = DENSE_EIGEN_LIMIT) -> tuple[float, float, int]:
     """Union U = (N - n_cc) / (N - 1), algebraic connectivity lambda_2(L) / N and n_cc of graph ``a``.
 

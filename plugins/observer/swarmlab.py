@@ -33,12 +33,11 @@ from swarmscene.methods.swarmlab.metrics import (
     MAX_NEIG_DEFAULT,
     R_COLL_DEFAULT,
     R_DEFAULT,
-    adjacency,
+    graph_metrics,
     neighbourhood,
     obstacle_safety,
     order,
     safety,
-    union_and_connectivity,
 )
 from swarmscene.plugin import RunView, StrictModel, hookimpl
 
@@ -88,7 +87,7 @@ class SwarmLab:
         pos, vel = sim.world.pos, sim.world.vel
         tree = sim.sensing.tree  # the tick's shared k-d tree (all agents)
         hood = neighbourhood(pos, p.r, p.max_neig, tree)
-        union, alg_conn, _ = union_and_connectivity(adjacency(hood))
+        union, alg_conn, _ = graph_metrics(hood)
         row = self.samples
         row["t"].append(sim.t)
         row["safety"].append(safety(pos, p.r_coll, tree))

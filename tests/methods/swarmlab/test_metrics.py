@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 
 from swarmscene.methods.swarmlab.metrics import (
     adjacency,
+    graph_metrics,
     neighbourhood,
     obstacle_safety,
     order,
@@ -26,7 +27,9 @@ TOL = 1e-9
 def fast(pos, vel, r, max_neig, r_coll, dense_limit=400):
     tree = cKDTree(pos)
     hood = neighbourhood(pos, r, max_neig, tree)
-    union, alg_conn, _ = union_and_connectivity(adjacency(hood), dense_limit)
+    union, alg_conn, n_cc = graph_metrics(hood, dense_limit)
+    sparse = union_and_connectivity(adjacency(hood), 0)  # the sparse path, whatever the size
+    assert sparse[2] == n_cc and abs(sparse[0] - union) <= TOL and abs(sparse[1] - alg_conn) <= TOL
     return safety(pos, r_coll, tree), order(vel, hood), union, alg_conn
 
 
