@@ -117,7 +117,7 @@ def neighbourhood(pos: np.ndarray, r: float, max_neig: int, tree: cKDTree | None
     source, target = safe[:, :keep][listed & ~tie[:, None]], target[listed & ~tie[:, None]]
     tied = np.flatnonzero(tie)
     if tied.size:
-        extra = [_full_sort_row(pos, j, r, max_neig) for j in tied]
+        extra = [_full_sort_row(pos, int(j), r, max_neig) for j in tied]
         source = np.concatenate([source, *extra])
         target = np.concatenate([target, *[np.full(len(e), j) for e, j in zip(extra, tied, strict=True)]])
     return Neighbourhood(n, source.astype(np.intp), target.astype(np.intp))

@@ -67,7 +67,7 @@ class SwarmLab:
     def __init__(self, sim: RunView) -> None:
         self.params: SwarmLab.Params | None = sim.config.observers.get(self.name)
         self.samples: dict[str, list[float]] = {key: [] for key in ("t", *SERIES)}
-        self.obstacles = len(sim.environment.obstacles)
+        self.obstacles = len(sim.environment.obstacles)  # >= 1 wherever safety_obs is sampled
 
     @hookimpl
     def swarmscene_run_start(self, sim: RunView) -> None:
@@ -97,7 +97,7 @@ class SwarmLab:
         if self.obstacles:
             clearance = sim.sensing.clearance  # signed: negative inside an obstacle
             inside = _inside_pairs(sim, pos, clearance)
-            row["safety_obs"].append(obstacle_safety(inside, len(pos), self.obstacles))
+            row["safety_obs"].append(float(obstacle_safety(inside, len(pos), self.obstacles) or 0.0))
             row["min_d_obs"].append(float(clearance.min()))
 
     @hookimpl

@@ -121,13 +121,13 @@ def score_run(run_dir: Path) -> RunScore | Unscored:
     if differs is not None:
         return Unscored(str(run_dir), f"{differs}: differs from task {task_id!r} of {version}")
     seed = config.get("seed")
-    if seed not in task["seeds"]:
+    if not isinstance(seed, int) or seed not in task["seeds"]:
         return Unscored(str(run_dir), f"seed {seed} is not one of task {task_id!r}'s seeds")
     score = task["score"]
     success = bool(metrics.get("success"))
     raw, normalised, passed = normalised_score(finite_or_none(metrics.get(score["metric"])), score, success)
     method = (config.get("avoidance") or {}).get("name", "?")
-    return RunScore(SUITE, version, task_id, task["family"], method, int(seed), raw, normalised, passed,
+    return RunScore(SUITE, str(version), str(task_id), task["family"], method, seed, raw, normalised, passed,
                     success, Path(run_dir).name)
 
 
