@@ -55,6 +55,8 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("resilience", "python benchmarks/reproduction/bench_resilience.py --markdown", 40),
     ("falsify", "python benchmarks/reproduction/bench_falsify.py", 30),
     ("tick", "python benchmarks/speed/bench_tick.py --baseline af87771", 2),
+    ("swarmlab", "OMP_NUM_THREADS=1 python benchmarks/speed/bench_swarmlab.py", 2),
+    ("suite_v1", "swarmscene --multirun +sweep=suite_v1", 30),
 ]
 QUICK_MINUTES = 10.0
 """--quick runs the entries expected to take at most this long."""

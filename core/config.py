@@ -30,6 +30,7 @@ from .resources import (  # the resource checks under their old module name
     machine_memory,
     memory_checks,
 )
+from .task import TaskConfig
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
 
@@ -263,6 +264,18 @@ class ScenarioConfig(_Strict):
     comm: CommConfig = Field(default_factory=CommConfig)
     termination: TerminationConfig = Field(default_factory=TerminationConfig)
     output: OutputConfig = Field(default_factory=OutputConfig)
+    observers: dict[str, Any] = Field(
+        default_factory=dict,
+        exclude=True,  # dumped validated, by effective_config (each observer's Params)
+        description="options of the observers that take some, by name (observers=[swarmlab]: "
+        "SwarmLab's metrics); each validated by that observer's Params",
+    )
+    task: TaskConfig | None = Field(
+        None,
+        exclude=True,  # dumped by effective_config when a task is declared
+        description="the benchmark task this scenario is (task=<name>: its score, horizon and seeds; "
+        "docs/suite.md)",
+    )
 
     @field_validator("name")
     @classmethod

@@ -21,7 +21,7 @@ import warnings
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from .config import MAX_LENGTH, MAX_SUBSTEPS, MAX_TICKS, Scenario, ScenarioConfig
 from .disturbances import validate_disturbances
@@ -37,9 +37,10 @@ def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: di
                      disturbances: dict[str, Any] | None = None) -> dict[str, Any]:
     """The configuration a run uses, every default resolved, as plain data (JSON types) in the
     nested shape of the composed config: the engine schema's fields, then for each plugin kind its
-    ``name`` and every field of its Params, then each declared disturbance with every option.
-    ``disturbances`` is left out when none is declared, so the record (and its hash) of such a run
-    is the one it had before disturbances existed."""
+    ``name`` and every field of its Params, then each declared disturbance with every option, each
+    observer's options (``config.observers``, validated) and the benchmark task.
+    ``disturbances``, ``observers`` and ``task`` are left out when none is declared, so the record
+    (and its hash) of such a run is the one it had before they existed."""
     from .disturbances import effective
 
     data = config.model_dump(mode="json")
@@ -47,7 +48,16 @@ def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: di
         data[kind] = {"name": classes[kind].name, **params[kind].model_dump(mode="json")}
     if disturbances:
         data["disturbances"] = effective(disturbances)
+    if config.observers:
+        data["observers"] = {name: _dump(options) for name, options in config.observers.items()}
+    if config.task is not None:
+        data["task"] = config.task.model_dump(mode="json")
     return data
+
+
+def _dump(options: Any) -> Any:
+    """An observer's validated options as plain data."""
+    return options.model_dump(mode="json") if isinstance(options, BaseModel) else options
 
 
 def validate(data: dict[str, Any], registry: Any) -> Scenario:
@@ -70,6 +80,9 @@ def validate(data: dict[str, Any], registry: Any) -> Scenario:
         errors += format_validation_error(exc, ScenarioConfig, data)
         config = None
     classes, params = _validate_plugins(data, registry, errors)
+    observers = _validate_observers(data.get("observers"), registry, errors)
+    if config is not None and observers:
+        config = config.model_copy(update={"observers": observers})
     disturbances = validate_disturbances(data.get("disturbances"), errors, registry)
     errors += shared_option_conflicts(params)  # e.g. the thesis' graph parameters, declared twice
     world = None
@@ -130,6 +143,28 @@ def _validate_event_kinds(events: Any, registry: Any, errors: list[str]) -> None
     for k, event in enumerate(events):
         if isinstance(event, dict) and "kind" in event:
             validate_choice(registry, "event", event["kind"], f"events.{k}.kind", errors)
+
+
+def _validate_observers(node: Any, registry: Any, errors: list[str]) -> dict[str, BaseModel]:
+    """``observers.<name>``: the options of a registered observer that declares a ``name`` and a
+    ``Params`` model (observers without options run in every run and take none)."""
+    if not isinstance(node, dict) or not node:
+        return {}  # a non-mapping is reported by ScenarioConfig
+    known = {cls.name: cls for cls in registry.observers
+             if isinstance(getattr(cls, "name", None), str) and isinstance(getattr(cls, "Params", None), type)}
+    validated: dict[str, BaseModel] = {}
+    for name, options in node.items():
+        cls = known.get(name)
+        if cls is None:
+            errors.append(f"observers.{name}: unknown observer with options "
+                          f"(valid: {', '.join(sorted(known)) or 'none installed'})")
+            continue
+        options = {} if options is None else options
+        try:
+            validated[name] = cls.Params.model_validate(options)
+        except ValidationError as exc:
+            errors += format_validation_error(exc, cls.Params, options, prefix=f"observers.{name}")
+    return validated
 
 
 def _validate_plugins(data: dict, registry: Any, errors: list[str]) -> tuple[dict, dict]:

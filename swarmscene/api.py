@@ -227,12 +227,13 @@ def write_outputs(
     started_at: str | None = None,
 ) -> None:
     """Write config, trajectory, metrics and manifest of a finished run into ``run_dir``;
-    ``extras(run_dir)`` (plots, replay) write theirs before the manifest, which lists them.
+    ``extras(run_dir)`` (plots, replay) write theirs before the manifest, which lists them, after
+    the files observers hand back (``run_files()``, :func:`~swarmscene.outputs.write_observer_files`).
 
     ``config.yaml`` is the effective configuration (``sim.scenario.data``); ``started_at`` is the
     run's start (UTC, ISO 8601) for the manifest.
     """
-    from .outputs import write_run_dir
+    from .outputs import write_observer_files, write_run_dir
 
     write_run_dir(
         run_dir,
@@ -241,7 +242,8 @@ def write_outputs(
         trajectory=result.trajectory,
         complete=result.complete,
         seed=sim.config.seed,
-        extras=extras,
+        # each observer's own files (its run_files(): swarmlab.npz), then the pictures asked for
+        extras=[lambda directory: write_observer_files(directory, result.observers), *extras],
         started_at=started_at,
     )
     result.run_dir = run_dir

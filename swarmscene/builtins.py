@@ -52,4 +52,6 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     # policy: observations to actions (avoidance.policy; numerics in methods/policy/)
     "swarmscene.plugins.policy.seek_reference",
     "swarmscene.plugins.policy.entry_point_group",
+    # observer: metrics a scenario asks for by name (observers=[swarmlab]; numerics in methods/)
+    "swarmscene.plugins.observer.swarmlab",
 )

@@ -17,6 +17,7 @@ from pydantic import BaseModel
 
 from .api import plugins
 from .core import config as schema
+from .core.task import ScoreConfig, TaskConfig
 from .groups import README_BEGIN, README_END, readme_groups
 
 
@@ -61,6 +62,8 @@ SECTIONS: list[tuple[str, type[BaseModel]]] = [
     ("termination", schema.TerminationConfig),
     ("output", schema.OutputConfig),
     ("events[]", schema.EventConfig),
+    ("task", TaskConfig),
+    ("task.score", ScoreConfig),
 ]
 
 
@@ -86,6 +89,12 @@ def render() -> str:
             doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
             lines += ["", f"### `{kind}={name}`", "", doc, ""]
             lines += model_table(cls.Params, f"{kind}.")
+    lines += ["", "## Observers with options (observers=[NAME])"]
+    for cls in registry.observers:
+        if isinstance(getattr(cls, "name", None), str) and isinstance(getattr(cls, "Params", None), type):
+            doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
+            lines += ["", f"### `observers=[{cls.name}]`", "", doc, ""]
+            lines += model_table(cls.Params, f"observers.{cls.name}.")
     return "\n".join(lines) + "\n"
 
 

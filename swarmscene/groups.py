@@ -19,7 +19,9 @@ GROUPS = (
     ("dynamics", "controller + plant"),
     ("events", "scheduled or random failures and faults"),
     ("disturbances", "what the world does to them (a list: `disturbances=[dryden,gps]`)"),
+    ("observers", "metrics asked for by name (a list: `observers=[swarmlab]`)"),
     ("scenario", "presets reproducing the papers (docs/reproduction.md, docs/gallery.md)"),
+    ("task", "a swarmscene-bench task: a scenario and its score (docs/suite.md)"),
     ("sweep", "multirun presets, added with a plus: `swarmscene +sweep=cem_k`"),
 )
 """The config groups a user chooses from, in the order of the primary config's defaults list."""

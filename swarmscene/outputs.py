@@ -22,6 +22,7 @@ import json
 import math
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -368,6 +369,34 @@ def write_run_dir(
     except OSError as exc:
         _remove_written(run_dir, before if "before" in locals() else set())
         raise OSError(exc.errno, exc.strerror or str(exc), str(run_dir)) from exc
+
+
+OBSERVER_FILE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\.npz")
+"""What an observer may name a file of its own (one plain ``.npz`` name in the run directory)."""
+
+
+def write_observer_files(run_dir: Path, observers: Sequence[Any]) -> None:
+    """Write the files each observer hands back from its ``run_files()`` (name -> arrays, an
+    ``.npz`` each), through :func:`write_npz` (atomic; a planted link is replaced, never followed).
+
+    A name that is not one plain ``.npz`` file name, or that is one of the engine's own files or
+    another observer's, is a ValueError naming the observer: the file would land outside the
+    directory or over a record.
+    """
+    written: dict[str, str] = {}
+    for observer in observers:
+        files = getattr(observer, "run_files", None)
+        if not callable(files):
+            continue
+        who = type(observer).__qualname__
+        for name, arrays in files().items():
+            if not (isinstance(name, str) and OBSERVER_FILE.fullmatch(name)) or name in RUN_FILES:
+                raise ValueError(f"observer {who}: run_files() names {name!r}; a file of its own is one "
+                                 "plain name ending in .npz, not one of the engine's files")
+            if name in written:
+                raise ValueError(f"observer {who}: run_files() names {name!r}, already written by {written[name]}")
+            written[name] = who
+            write_npz(Path(run_dir) / name, arrays)
 
 
 def remove_stale_temps(run_dir: Path) -> list[str]:

@@ -155,10 +155,13 @@ class RunData:
         bound it (an event at the start of a tick shows in the frame recorded at its end).
         """
         scheduled: dict[int, list[float]] = {}
-        for event in self.config.get("events") or []:
-            if event.get("kind") == "hover":
-                for agent in event.get("agents", []):
-                    scheduled.setdefault(int(agent), []).append(float(event["at"]))
+        for k, event in enumerate(self.config.get("events") or []):
+            # a random event's time and agents are the run's draws (metrics events.<k>.*)
+            agents = self.metrics.get(f"events.{k}.agents", event.get("agents", []))
+            at = self.metrics.get(f"events.{k}.at", event.get("at"))
+            if event.get("kind") == "hover" and isinstance(agents, list) and isinstance(at, (int, float)):
+                for agent in agents:
+                    scheduled.setdefault(int(agent), []).append(float(at))
         out = []
         for agent in np.flatnonzero(~self.healthy.all(axis=0)):
             k = int(np.argmax(~self.healthy[:, agent]))

@@ -1,0 +1,79 @@
+"""The cost of the ``swarmlab`` observer (issue #38): a flocking run at N = 100 with and without it.
+
+The flocking preset (100 boids in Mesa's 100 m torus, 300 ticks) runs alternately without and with
+``observers=[swarmlab]`` (SwarmLab's defaults: r = 150 m, max_neig = 10, so each tick lists every
+agent's ten nearest and takes lambda_2 of a 100-node graph), ``--rounds`` pairs in one process after
+a warm-up pair. Printed: the median wall time of the stepping loop (the ``wall_time`` metric) of
+each, their ratio and the observer's share, against the goal (<= 10 % of the run); and the same
+for the straightforward transcription of the definition (all pairs, a dense neighbourhood matrix,
+every eigenvalue: tests/oracles/swarmlab.py) computed over the same recorded states, per tick.
+
+    OMP_NUM_THREADS=1 python benchmarks/speed/bench_swarmlab.py [--rounds 7] [--n 100]
+
+Not a timed test: numbers depend on the machine; read the ratio of medians, measured in one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+ROOT = Path(__file__).resolve().parents[2]
+GOAL = 0.10
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=7, help="pairs of runs (without, with), alternating")
+    parser.add_argument("--n", type=int, default=100, help="boids")
+    args = parser.parse_args()
+    import warnings
+
+    import numpy as np
+
+    from swarmscene import api
+
+    warnings.simplefilter("ignore")
+    base = ["scenario=flocking", f"swarm.n={args.n}", "output.summary=false", "output.progress=off"]
+    cases = {"without": base, "with": [*base, "observers=[swarmlab]"]}
+    for overrides in cases.values():  # warm-up: numba's cache, scipy's submodules
+        api.run(overrides)
+    walls: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(args.rounds):
+        for name, overrides in cases.items():
+            walls[name].append(api.run(overrides).metrics["wall_time"])
+    without, with_it = statistics.median(walls["without"]), statistics.median(walls["with"])
+    share = with_it / without - 1.0
+    load = os.getloadavg()
+    print(f"flocking, N = {args.n}, 300 ticks, {args.rounds} alternating pairs; load {load[0]:.2f} {load[1]:.2f}")
+    print(f"  stepping loop without the observer: median {without:.3f} s ({', '.join(f'{w:.3f}' for w in walls['without'])})")
+    print(f"  with observers=[swarmlab]:          median {with_it:.3f} s ({', '.join(f'{w:.3f}' for w in walls['with'])})")
+    print(f"  ratio {with_it / without:.3f}: the observer costs {100 * share:.1f} % of the run "
+          f"(goal <= {100 * GOAL:.0f} %: {'met' if share <= GOAL else 'NOT met'})")
+    # the definition, transcribed, over the same states (one run's trajectory)
+    sys.path.insert(0, str(ROOT / "tests"))
+    from oracles.swarmlab import swarm_performance
+
+    from swarmscene.plugins.observer.swarmlab import SwarmLab
+
+    traj = api.run(base).trajectory
+    p = SwarmLab.Params()
+    start = time.perf_counter()
+    for k in range(len(traj["t"])):
+        swarm_performance(np.asarray(traj["pos"][k]), np.asarray(traj["vel"][k]), p.r, p.max_neig, p.r_coll)
+    per_tick = (time.perf_counter() - start) / len(traj["t"])
+    ticks = len(traj["t"])
+    print(f"  the definition transcribed (all pairs, dense matrices, every eigenvalue): {1e3 * per_tick:.2f} ms "
+          f"per tick, {per_tick * ticks:.3f} s over the run's {ticks} states; the observer: "
+          f"{1e3 * (with_it - without) / ticks:.2f} ms per tick")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,139 @@
+"""The ``swarmlab`` observer: SwarmLab's swarm performance metrics of every guidance tick.
+
+Source: E. Soria, F. Schiano, D. Floreano, "SwarmLab: a Matlab drone swarm simulator", IROS 2020,
+section IV-C (``compute_swarm_performance.m``); the definitions and where this follows or departs
+from the MATLAB are in :mod:`swarmscene.methods.swarmlab.metrics`. Asked for by name,
+``observers=[swarmlab]`` (options: ``observers.swarmlab.r=20``); without it the observer adds
+nothing to a run and costs nothing but a hook call.
+
+Each sample (the start, then every ``every``-th guidance tick) measures, over every agent (failed
+vehicles included: SwarmLab has no failures, and a failed vehicle is still a body in the air):
+
+* ``safety``: 1 - the share of pairs closer than 2 r_coll (1: no pair that close);
+* ``order``: the mean over agents of the mean cosine between its velocity and its neighbours';
+* ``union``: (N - components) / (N - 1) of the undirected neighbour graph (1: one component);
+* ``alg_conn``: lambda_2 of that graph's Laplacian, divided by N;
+* ``safety_obs``: 1 - the share of (agent, obstacle) pairs with the agent inside the obstacle;
+* ``min_d_obs``: the smallest signed distance from an agent to an obstacle, m.
+
+Metrics (``metrics.json``): ``swarmlab.<name>`` the mean of each series over the samples, and
+``swarmlab.safety_min``, ``swarmlab.union_min`` and ``swarmlab.min_d_obs_min`` the worst sample
+(the obstacle keys only on a map with obstacles). The series are written to ``swarmlab.npz`` in the
+run directory (``t`` in s and one (T,) array per metric; ``numpy.load``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from swarmscene.methods.swarmlab.metrics import (
+    MAX_NEIG_DEFAULT,
+    R_COLL_DEFAULT,
+    R_DEFAULT,
+    graph_metrics,
+    neighbourhood,
+    obstacle_safety,
+    order,
+    safety,
+)
+from swarmscene.plugin import RunView, StrictModel, hookimpl
+
+SERIES = ("safety", "order", "union", "alg_conn", "safety_obs", "min_d_obs")
+"""The per-sample metrics, in the order of SwarmLab's outputs."""
+WORST = ("safety", "union", "min_d_obs")
+"""The metrics whose worst sample is reported beside the mean (``swarmlab.<name>_min``)."""
+
+
+class SwarmLab:
+    """SwarmLab's safety, order, union, algebraic connectivity and obstacle metrics, per tick."""
+
+    name = "swarmlab"
+
+    class Params(StrictModel):
+        """SwarmLab's parameters (``parameters/param_swarm/param_swarm.m``), its defaults."""
+
+        r: float = Field(R_DEFAULT, gt=0, description="r: metric radius of a neighbourhood, m (SwarmLab: 150)")
+        max_neig: int = Field(
+            MAX_NEIG_DEFAULT, ge=1, description="max_neig: most neighbours, the nearest (SwarmLab: 10)")
+        r_coll: float = Field(
+            R_COLL_DEFAULT, gt=0,
+            description="r_coll: radius of the sphere around one drone, m; a pair closer than 2 r_coll "
+            "collides (SwarmLab: 0.5)")
+        every: int = Field(1, ge=1, description="sample every k-th guidance tick (SwarmLab: every logged step)")
+
+    def __init__(self, sim: RunView) -> None:
+        self.params: SwarmLab.Params | None = sim.config.observers.get(self.name)
+        self.samples: dict[str, list[float]] = {key: [] for key in ("t", *SERIES)}
+        self.obstacles = len(sim.environment.obstacles)  # >= 1 wherever safety_obs is sampled
+
+    @hookimpl
+    def swarmscene_run_start(self, sim: RunView) -> None:
+        """The first sample: the swarm at t = 0 (SwarmLab's history starts there)."""
+        if self.params is not None:
+            self._sample(sim)
+
+    @hookimpl
+    def swarmscene_step_end(self, sim: RunView) -> None:
+        """A sample at every ``every``-th guidance tick."""
+        if self.params is not None and sim.step_count % self.params.every == 0:
+            self._sample(sim)
+
+    def _sample(self, sim: RunView) -> None:
+        p = self.params
+        assert p is not None
+        pos, vel = sim.world.pos, sim.world.vel
+        tree = sim.sensing.tree  # the tick's shared k-d tree (all agents)
+        hood = neighbourhood(pos, p.r, p.max_neig, tree)
+        union, alg_conn, _ = graph_metrics(hood)
+        row = self.samples
+        row["t"].append(sim.t)
+        row["safety"].append(safety(pos, p.r_coll, tree))
+        row["order"].append(order(vel, hood))
+        row["union"].append(union)
+        row["alg_conn"].append(alg_conn)
+        if self.obstacles:
+            clearance = sim.sensing.clearance  # signed: negative inside an obstacle
+            inside = _inside_pairs(sim, pos, clearance)
+            row["safety_obs"].append(float(obstacle_safety(inside, len(pos), self.obstacles) or 0.0))
+            row["min_d_obs"].append(float(clearance.min()))
+
+    @hookimpl
+    def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
+        """The means over the samples (and the worst sample of safety, union, min_d_obs)."""
+        if self.params is None or not self.samples["t"]:
+            return
+        for key in SERIES:
+            values = self.samples[key]
+            if values:
+                metrics[f"swarmlab.{key}"] = float(np.mean(values))
+                if key in WORST:
+                    metrics[f"swarmlab.{key}_min"] = float(np.min(values))
+
+    def run_files(self) -> dict[str, dict[str, np.ndarray]]:
+        """``swarmlab.npz``: the per-sample series (none when the observer was not asked for)."""
+        if self.params is None:
+            return {}
+        return {"swarmlab.npz": {key: np.asarray(values, dtype=float)
+                                 for key, values in self.samples.items() if values}}
+
+
+def _inside_pairs(sim: RunView, pos: np.ndarray, clearance: np.ndarray) -> int:
+    """(agent, obstacle) pairs with the agent strictly inside the obstacle: only agents inside the
+    obstacles' union (negative clearance) are tested, one by each obstacle holding it."""
+    inside = np.flatnonzero(clearance < 0)
+    if not inside.size:
+        return 0
+    import shapely
+
+    points = shapely.points(pos[inside, :2])
+    hits, _ = sim.environment.tree.query(points, predicate="within")
+    return int(len(hits))
+
+
+@hookimpl
+def swarmscene_register_observers(register: Any) -> None:
+    """Add :class:`SwarmLab` to the observers every run builds (it measures when asked for)."""
+    register(SwarmLab)
