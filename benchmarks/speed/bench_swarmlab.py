@@ -30,6 +30,7 @@ GOAL = 0.10
 
 
 def main() -> None:
+    """Time flocking runs with and without the observer, pairs alternately, and the definition transcribed."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=7, help="pairs of runs (without, with), alternating")
     parser.add_argument("--n", type=int, default=100, help="boids")
@@ -53,8 +54,9 @@ def main() -> None:
     share = with_it / without - 1.0
     load = os.getloadavg()
     print(f"flocking, N = {args.n}, 300 ticks, {args.rounds} alternating pairs; load {load[0]:.2f} {load[1]:.2f}")
-    print(f"  stepping loop without the observer: median {without:.3f} s ({', '.join(f'{w:.3f}' for w in walls['without'])})")
-    print(f"  with observers=[swarmlab]:          median {with_it:.3f} s ({', '.join(f'{w:.3f}' for w in walls['with'])})")
+    listed = {name: ", ".join(f"{w:.3f}" for w in times) for name, times in walls.items()}
+    print(f"  stepping loop without the observer: median {without:.3f} s ({listed['without']})")
+    print(f"  with observers=[swarmlab]:          median {with_it:.3f} s ({listed['with']})")
     print(f"  ratio {with_it / without:.3f}: the observer costs {100 * share:.1f} % of the run "
           f"(goal <= {100 * GOAL:.0f} %: {'met' if share <= GOAL else 'NOT met'})")
     # the definition, transcribed, over the same states (one run's trajectory)
