@@ -129,13 +129,18 @@ class _EnvironmentBase(StrictModel):
     @model_serializer(mode="wrap")
     def _recorded(self, handler: Any, info: SerializationInfo) -> dict[str, Any]:
         """As a user writes it: the generator's parameters only (no other generator's nulls), and
-        no ``generator: null`` for a listed map; a plugin generator's parameters after them."""
+        no ``generator: null`` for a listed map; a plugin generator's parameters after them; no
+        ``floor: null`` (nor its default touchdown speed) for a map without a ground."""
         own = type(self._params).model_fields if self._params is not None else {}
         data = {k: v for k, v in handler(self).items()
                 if (k not in GENERATOR_KEYS and (k != "generator" or v is not None)) or k in own}
         if self._params is not None:
             mode = "json" if info.mode_is_json() else "python"
             data.update({k: v for k, v in self._params.model_dump(mode=mode).items() if k not in data})
+        if self.floor is None:  # no ground: the record (and config hash) of a run before the floor
+            data.pop("floor", None)
+            if self.touchdown_speed == type(self).model_fields["touchdown_speed"].default:
+                data.pop("touchdown_speed", None)
         return data
 
     def generated(self) -> tuple[list, list[str]]:
