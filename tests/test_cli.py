@@ -153,40 +153,41 @@ def test_a_yaml_file_that_does_not_parse_is_one_line_with_file_and_line(tmp_path
     assert not (tmp_path / "run").exists()
 
 
-def test_a_non_finite_state_ends_the_run_as_failed_in_one_line(tmp_path, monkeypatch, capsys):
+NON_FINITE_RUN = """
+import numpy as np
+from swarmscene import cli
+from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+step = DoubleIntegrator.step
+
+def overflowing_step(self, world, dt):
+    step(self, world, dt)
+    if world.t >= 0.5:
+        world.pos[3, 0] = np.inf
+        world.vel[3] = np.array([1e308]) * 10.0  # numpy warns "overflow encountered"
+
+DoubleIntegrator.step = overflowing_step
+cli.main()
+"""
+"""The command line with a double integrator that turns non-finite 0.5 s into the run."""
+
+
+def test_a_non_finite_state_ends_the_run_as_failed_in_one_line(tmp_path):
     """The kernel stops at the first non-finite state; the command prints that one line, keeps the
-    outputs up to then, marks the run failed (error.json, manifest status) and exits with 1."""
-    import json
-    import sys
+    outputs up to then, marks the run failed (error.json, manifest status) and exits with 1.
 
-    import numpy as np
-
+    Run as a user runs it, in a process of its own: the test process's warnings filters (a test
+    module's library may set DeprecationWarnings to "always" at collection) are not a user's."""
     from swarmscene import cli
-    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
 
-    step = DoubleIntegrator.step
-
-    def failing_step(self, world, dt):
-        step(self, world, dt)
-        if world.t >= 0.5:
-            world.pos[3, 0] = np.inf
-
-    def overflowing_step(self, world, dt):
-        failing_step(self, world, dt)
-        if world.t >= 0.5:
-            world.vel[3] = np.array([1e308]) * 10.0  # numpy warns "overflow encountered"
-
-    monkeypatch.setattr(DoubleIntegrator, "step", overflowing_step)
-    monkeypatch.setattr(sys, "argv", ["swarmscene", "clock.duration=2", f"hydra.run.dir={tmp_path}/run"])
-    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
-    with pytest.raises(SystemExit) as exit_:
-        cli.main()
-    assert exit_.value.code == cli.EXIT_FAILED
-    out, err = capsys.readouterr()
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTHONWARNINGS")}
+    proc = subprocess.run([sys.executable, "-c", NON_FINITE_RUN, "clock.duration=2", f"hydra.run.dir={tmp_path}/run"],
+                          cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == cli.EXIT_FAILED, proc.stderr
     # One line, and no summary: a run that did not fly gets no "OK separation" verdict, and numpy's
     # overflow warning on the way there is not repeated.
-    assert out == "", out
-    err = err.strip().splitlines()
+    assert proc.stdout == "", proc.stdout
+    err = proc.stderr.strip().splitlines()
     assert len(err) == 1, err
     assert err[0].startswith("swarmscene: non-finite state of agent 3 at tick 6 (t = 0.6 s; 1 agents)")
     assert err[0].endswith(f"outputs up to then (marked failed) in {tmp_path / 'run'}")
