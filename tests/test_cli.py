@@ -198,34 +198,41 @@ def test_a_non_finite_state_ends_the_run_as_failed_in_one_line(tmp_path):
     assert metrics["stop_reason"] == "non_finite" and metrics["success"] is False and metrics["steps"] == 5
 
 
-def test_an_exception_in_a_plugin_names_it_exits_1_and_keeps_the_run(tmp_path, monkeypatch, capsys):
+DIVIDING_RUN = """
+from swarmscene import cli
+from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+
+step = DoubleIntegrator.step
+
+def dividing_step(self, world, dt):
+    step(self, world, dt)
+    if world.t >= 0.5:
+        world.pos[0, 0] = 1 / 0
+
+dividing_step.__code__ = dividing_step.__code__.replace(co_name="step")  # as the plugin names it
+DoubleIntegrator.step = dividing_step
+cli.main()
+"""
+"""The command line with a double integrator that divides by zero 0.5 s into the run."""
+
+
+def test_an_exception_in_a_plugin_names_it_exits_1_and_keeps_the_run(tmp_path):
     """A plugin's exception 0.5 s into a run: one line naming the kind, the plugin, the method and
     the time; exit 1 (the run started and failed, not bad input); the outputs up to then written,
-    marked failed, with the plugin's traceback in error.json."""
-    import sys
-
+    marked failed, with the plugin's traceback in error.json. Run in a process of its own, as a
+    user runs it (see the non-finite test)."""
     import numpy as np
 
     from swarmscene import cli
-    from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
 
-    step = DoubleIntegrator.step
-
-    def dividing_step(self, world, dt):
-        step(self, world, dt)
-        if world.t >= 0.5:
-            world.pos[0, 0] = 1 / 0
-
-    dividing_step.__code__ = dividing_step.__code__.replace(co_name="step")  # as the plugin names it
-    monkeypatch.setattr(DoubleIntegrator, "step", dividing_step)
-    monkeypatch.setattr(sys, "argv", ["swarmscene", "clock.duration=2", f"hydra.run.dir={tmp_path}/run"])
-    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
-    with pytest.raises(SystemExit) as exit_:
-        cli.main()
-    assert exit_.value.code == cli.EXIT_FAILED == 1
-    out, err = capsys.readouterr()
-    assert out == ""
-    assert err.splitlines() == [
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTHONWARNINGS")}
+    script = tmp_path / "dividing_run.py"  # a file, so the traceback quotes the plugin's line
+    script.write_text(DIVIDING_RUN)
+    proc = subprocess.run([sys.executable, str(script), "clock.duration=2", f"hydra.run.dir={tmp_path}/run"],
+                          cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == cli.EXIT_FAILED == 1, proc.stderr
+    assert proc.stdout == ""
+    assert proc.stderr.splitlines() == [
         "swarmscene: dynamics 'double_integrator' raised in step at t = 0.5 s: ZeroDivisionError: division by zero; "
         f"outputs up to then (marked failed) in {tmp_path / 'run'}"]
     run = tmp_path / "run"
