@@ -50,6 +50,18 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
 
 
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """absl (rliable's logging, imported by test_suite.py) makes a stream handler at import, bound
+    to the stream sys.stderr is then: pytest's capture. Hydra's in-process logging set-up closes
+    every handler, so a later in-process run closed pytest's own stderr and the session died
+    ("lost sys.stderr"). The handler is pointed at the process's stderr, which absl never closes."""
+    import sys
+
+    absl_logging = sys.modules.get("absl.logging")
+    if absl_logging is not None:
+        absl_logging.get_absl_handler().python_handler.setStream(sys.__stderr__)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if not config.getoption("--quick"):
         return
