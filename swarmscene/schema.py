@@ -60,6 +60,9 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
     models = [(ScenarioConfig, "validation")] + [
         (cls.Params, "validation") for classes in plugins_by_kind.values() for cls in classes
     ] + [(cls.Params, "validation") for cls in (*disturbance_models, *event_kinds, *generators)]
+    observers = [cls for cls in registry.observers if getattr(cls, "Params", None) is not None
+                 and isinstance(getattr(cls, "name", None), str)]  # the observers that take options
+    models += [(cls.Params, "validation") for cls in observers]
     with warnings.catch_warnings():  # a default JSON cannot hold (a function) is left out: said here
         warnings.simplefilter("ignore", PydanticJsonSchemaWarning)
         refs, top = models_json_schema(models, ref_template=REF, schema_generator=_Generator)
@@ -92,6 +95,7 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
         root["properties"]["disturbances"], [c.name for c in disturbance_models], partial)
     _event_kinds(root, defs, event_kinds, refs, partial)
     _map_generators(defs, generators, refs)
+    _observers(root, defs, observers, refs)
     schema = {
         "$schema": DIALECT,
         "title": "swarmscene scenario" + (" file" if partial else " (composed)"),
@@ -267,6 +271,16 @@ def _map_generators(defs: dict[str, Any], generators: list[Any], refs: dict[Any,
         defs.pop(name, None)
 
 
+def _observers(root: dict[str, Any], defs: dict[str, Any], observers: list[Any], refs: Any) -> None:
+    """``observers``: each observer that takes options, by name, with its ``Params``."""
+    section = root["properties"]["observers"]
+    section["properties"] = {}
+    for cls in observers:
+        key = f"observers.{cls.name}"
+        defs[key] = defs.pop(_name(refs[(cls.Params, "validation")]))
+        section["properties"][cls.name] = {"$ref": REF.format(model=key)}
+
+
 def _event(cls: Any, base: dict[str, Any], params: dict[str, Any]) -> dict[str, Any]:
     """An event kind: ``at`` and ``agents`` (every event's), its ``kind`` as a const, its Params."""
     doc = (cls.__doc__ or "").strip().splitlines()
@@ -318,12 +332,17 @@ def _partial(schema: dict[str, Any]) -> dict[str, Any]:
         "items": {"type": ["string", "object"]},
     }
     out["properties"]["hydra"] = {"description": "Hydra's own settings (sweeps, run directories)", "type": "object"}
+    task = out.get("definitions", {}).get("TaskConfig")
+    if task is not None:  # a task file states its horizon as the run's duration: horizon: ${clock.duration}
+        horizon = task["properties"]["horizon"]
+        task["properties"]["horizon"] = {"description": horizon.get("description", "horizon"), "anyOf": [
+            horizon, {"type": "string", "pattern": r"^\$\{clock\.duration\}$"}]}
     return out
 
 
-GLOBAL_GROUPS = ("scenario", "sweep", "events")
+GLOBAL_GROUPS = ("scenario", "sweep", "events", "task")
 """Groups whose files are ``# @package _global_``: they hold top-level keys (the partial schema)."""
-SECTION_GROUPS = ("swarm", "environment", "formation", "avoidance", "dynamics", "disturbances")
+SECTION_GROUPS = ("swarm", "environment", "formation", "avoidance", "dynamics", "disturbances", "observers")
 """Groups whose files hold one section's node (``scenarios/config.yaml``'s defaults list)."""
 TUNING_GROUPS = tuple(f"tuning/{kind}" for kind in PLUGIN_KINDS)
 """A preset's tuning of one method (``tuning/<kind>/<preset>/<method>.yaml``): the kind's node."""
