@@ -172,12 +172,27 @@ class JobCheck:
             self.composed[groups] = (cfg, None if "${" in repr(task) else task)
         return self.composed[groups]
 
+    def reads_hydra(self, overrides: Sequence[str]) -> bool:
+        """Whether the job's config reads ``${hydra:...}`` (description='job ${hydra:job.num}'):
+        such a value resolves in the job alone, whose launch sets ``HydraConfig``, so the job is
+        checked when it runs, not here."""
+        from .compose import parse
+
+        parsed = parse(list(overrides))
+        if any("${hydra:" in str(o.value()) for o in parsed if not self._is_group(o)):
+            return True
+        groups = tuple(o.input_line for o in parsed if self._is_group(o))
+        cfg, _ = self._compose(groups)
+        return "${hydra:" in repr({k: v for k, v in cfg.items_ex(resolve=False) if k != "hydra"})
+
     def problems(self, overrides: Sequence[str]) -> tuple[str, list[str]]:
         """(``"compose"`` or ``"invalid"`` or ``""``, the problem lines) of one job."""
         from ..core.config import validate
         from ..core.errors import ConfigError
         from ..hydra_errors import hydra_error_line
 
+        if self.reads_hydra(overrides):
+            return "", []
         try:
             data = self.data(overrides)
         except Exception as exc:  # Hydra's composition errors, reworded
