@@ -114,47 +114,6 @@ def plain_overrides(overrides: Sequence[str]) -> list[str]:
     return rewritten
 
 
-def refuse_events_a_preset_replaces(overrides: Sequence[str]) -> None:
-    """An ``events=...`` choice beside a scenario preset that sets its own ``events`` did nothing:
-    the preset comes after the groups in the defaults list, so its list replaces the choice's.
-    Refused in one line (a ConfigError) rather than run silently with the preset's events."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.core.override_parser.types import OverrideType
-    from hydra.errors import OverrideParseException
-
-    choices: dict[str, tuple[str, list[str]]] = {}  # group -> (the override as typed, its options)
-    parser = OverridesParser.create()
-    for text in overrides:
-        try:
-            (override,) = parser.parse_overrides([text])
-        except OverrideParseException:
-            continue
-        key = override.key_or_group
-        if key in ("scenario", "events") and override.type == OverrideType.CHANGE and override.package is None:
-            options = (list(override.sweep_string_iterator()) if override.is_sweep_override()
-                       else [str(override.value())])
-            choices[key] = (text, options)
-    if "events" not in choices or "scenario" not in choices:
-        return
-    from importlib.resources import files
-
-    import yaml
-
-    from .core.errors import ConfigError
-
-    for name in choices["scenario"][1]:
-        preset = files("swarmscene.scenarios") / "scenario" / f"{name}.yaml"
-        try:
-            body = yaml.safe_load(preset.read_text()) if preset.is_file() else None
-        except (OSError, yaml.YAMLError):
-            continue  # composition reports what is wrong with it
-        if isinstance(body, dict) and "events" in body:
-            raise ConfigError([
-                f"{choices['events'][0]}: scenario {name!r} sets its own events, which replace the events "
-                "group's choice (the preset comes after the groups); change them key by key instead "
-                "(events.0.at=5, events.0.kind=stuck, events.0.agents=[1])"])
-
-
 OPTIONS_WITH_VALUE = frozenset(
     {"-cp", "--config-path", "-cn", "--config-name", "-cd", "--config-dir", "-c", "--cfg",
      "-p", "--package", "--experimental-rerun"}
@@ -194,7 +153,6 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
         else:
             overrides.append(arg)
             out.extend(plain_overrides([arg]))
-    refuse_events_a_preset_replaces(overrides)
     return out
 
 

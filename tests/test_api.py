@@ -76,6 +76,7 @@ def test_sweep_names_an_unknown_launcher_in_one_line():
     (["formation=nope"], "formation: unknown option 'nope' (valid: "),
     (["swarm.n=[1"], "swarm.n: cannot parse override: "),
     (["name=${nope}"], "name: cannot resolve the value: Interpolation key 'nope' not found"),
+    (["nokey=1"], "nokey: unknown key (got '1')"),
 ])
 def test_a_composition_error_is_one_line_as_on_the_command_line(overrides, line):
     """api.run raised Hydra's multi-line exception (the options list, the search path) where
@@ -88,15 +89,12 @@ def test_a_composition_error_is_one_line_as_on_the_command_line(overrides, line)
     assert "\n" not in str(err.value)
 
 
-def test_an_events_choice_a_preset_would_replace_is_refused_not_ignored():
-    """cem_six_vehicle sets its own events after the groups: `events=none` ran it with them."""
-    from swarmscene.core.errors import ConfigError
-
-    with pytest.raises(ConfigError) as err:
-        api.compose(["scenario=cem_six_vehicle", "events=none"])
-    assert err.value.lines == [
-        "events=none: scenario 'cem_six_vehicle' sets its own events, which replace the events group's choice "
-        "(the preset comes after the groups); change them key by key instead (events.0.at=5, "
-        "events.0.kind=stuck, events.0.agents=[1])"]
+def test_an_events_choice_replaces_a_presets_events():
+    """cem_six_vehicle's failure is its defaults list's events choice (events/cem_six_vehicle.yaml),
+    so `events=none` on the command line replaces it; it used to be the preset's own key, which
+    came after the groups and silently won (then a refusal)."""
+    assert api.compose(["scenario=cem_six_vehicle"])["events"] == [{"at": 2.0, "agents": [0], "kind": "hover"}]
+    assert api.compose(["scenario=cem_six_vehicle", "events=none"])["events"] == []
+    assert api.compose(["scenario=cem_six_vehicle", "events=lead_fails"])["events"][0]["at"] == 10.0
     assert api.compose(["scenario=cem_six_vehicle", "events.0.at=5"])["events"][0]["at"] == 5
     assert api.compose(["scenario=default", "events=lead_fails"])["events"][0]["at"] == 10.0

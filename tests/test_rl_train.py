@@ -85,7 +85,7 @@ def test_sb3_check_env_passes_on_the_flat_env_and_warns_without_the_wrapper(exam
 @pytest.mark.parametrize("args, message", [
     (["--env-id", "swarmscene/nope-v0"], "--env-id: Environment `nope` doesn't exist in namespace swarmscene."),
     (["--set", "swarm.n=abc"], "--set: swarm.n: must be an integer (got 'abc')"),
-    (["--set", "nokey=1"], "--set: Could not override 'nokey'. To append to your config use +nokey=1"),
+    (["--set", "nokey=1"], "--set: nokey: unknown key (got '1')"),
 ])
 def test_a_bad_id_or_override_exits_in_one_line_before_training(example, args, message, tmp_path):
     out = tmp_path / "policy.zip"
