@@ -19,16 +19,16 @@ from __future__ import annotations
 
 import warnings
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Self
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, field_validator
 
 from .errors import SwarmsceneDeprecationWarning
 from .setpoint import Setpoints
-from .state import WorldState
+from .state import WorldBatch, WorldState
 
 if TYPE_CHECKING:  # pragma: no cover
     from .environment import Environment
@@ -225,6 +225,22 @@ class Dynamics(Plugin):
 
         Failed agents may be moved here; the kernel restores them afterwards (they hover in place).
         """
+
+    @classmethod
+    def step_batch(cls, models: Sequence[Self], batch: WorldBatch, dt: float) -> object:
+        """Advance the B worlds of ``batch`` by one physics step ``dt``; ``models[b]`` is world b's
+        instance (built with that world's options and controlled by that world's ``control``).
+
+        This default steps each world with its own instance, so every model works in a batch.
+        A model overrides it to update the batch's (B, N, k) arrays at once (the world axis,
+        docs/batched.md); the result must equal the per-world steps bit for bit (the contract
+        check ``dynamics.batch_equals_worlds``). An override may return ``NotImplemented`` for a
+        batch it cannot take whole (instances whose options differ): the worlds are then
+        stepped one by one.
+        """
+        for model, world in zip(models, batch.worlds, strict=True):
+            model.step(world, dt)
+        return None
 
 
 class Policy(ABC):

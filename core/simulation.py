@@ -147,15 +147,34 @@ class Simulation:
     # -- the tick ---------------------------------------------------------------------------
     def step(self) -> None:
         """One guidance tick, phases in order."""
+        self.guide()
+        for j in range(self.substeps):
+            self.blow(j)
+            self.dynamics.step(self.world, self.physics_step)
+            self.push()
+        self.settle()
+
+    # The tick's three parts, apart so that a batch of worlds (core/batch.py) can step the
+    # physics of all its worlds in one call between them.
+    def guide(self) -> None:
+        """Events, sense, communicate, formation, avoidance, the controller: up to the physics."""
         self._apply_due_events()
         seen = self.disturbances.perceive(self.world, self.sensing)  # sense, communicate
         setpoints = self.formation.setpoints(seen.formation_world, seen.formation_sensing)
         setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
         self.dynamics.control(seen.own, setpoints)
-        for j in range(self.substeps):
-            self.disturbances.blow(self.world, self.world.t + j * self.physics_step)  # wind
-            self.dynamics.step(self.world, self.physics_step)
-            self.disturbances.push(self.world, self.physics_step)
+
+    def blow(self, j: int) -> None:
+        """The wind of physics sub-step ``j`` (before ``dynamics.step``)."""
+        self.disturbances.blow(self.world, self.world.t + j * self.physics_step)
+
+    def push(self) -> None:
+        """The force phase of a physics sub-step (after ``dynamics.step``)."""
+        self.disturbances.push(self.world, self.physics_step)
+
+    def settle(self) -> None:
+        """After the physics: hold failed agents, raised events, the floor, the wrap, the finite
+        check, the clock, the new snapshot and the observers."""
         self.events.hold(self.world)
         if self.disturbances.raisers:
             self._apply_raised(self.disturbances.raised(self.world, self.world.t + self.guidance_period))
@@ -273,25 +292,50 @@ class Simulation:
         failure: Exception | None = None
         try:
             self.hook.swarmscene_run_start(sim=self.view)
-            while self.step_count < self.total_steps and self.stop_reason is None:
+            while self.going():
                 if interrupts.requested() is not None:  # between ticks: nothing half-stepped
                     self.stop_reason = "interrupted"
                     break
                 tick_start = time.perf_counter()
                 self.step()
-                self.step_seconds[self.step_count - 1] = time.perf_counter() - tick_start
-                if self.config.termination.on_complete and self.formation.complete(self.world):
-                    self.request_stop("complete")
-                if progress is not None:
-                    progress(self)
-        except KeyboardInterrupt:
+                self.ticked(time.perf_counter() - tick_start, progress)
+        except BaseException as exc:
+            failure = self.stopped_by(exc)
+        result, failure = self.finish(time.perf_counter() - wall_start, failure)
+        if failure is not None:
+            raise PluginRaised(self.error or "", result) from failure
+        return result
+
+    def going(self) -> bool:
+        """True while the run has ticks left and nothing asked it to stop."""
+        return self.step_count < self.total_steps and self.stop_reason is None
+
+    def ticked(self, seconds: float, progress: Callable[[Simulation], None] | None = None) -> None:
+        """After a tick: its wall time recorded, the mission's completion, the progress callback."""
+        self.step_seconds[self.step_count - 1] = seconds
+        if self.config.termination.on_complete and self.formation.complete(self.world):
+            self.request_stop("complete")
+        if progress is not None:
+            progress(self)
+
+    def stopped_by(self, exc: BaseException) -> Exception | None:
+        """How an exception raised in a tick ends the run: a Ctrl-C is an interruption, a
+        non-finite state a stop named by its agent (the tick is not recorded: observers keep
+        finite data), anything else a plugin's error (returned, to be raised with the result)."""
+        if isinstance(exc, KeyboardInterrupt):
             self.stop_reason = "interrupted"
-        except NonFiniteState as exc:  # the tick is not recorded: observers keep finite data
+        elif isinstance(exc, NonFiniteState):
             self.stop_reason = "non_finite"
             self.error = str(exc)
-        except Exception as exc:  # a plugin raised: the run stops there, named, its records kept
-            failure = self._plugin_raised(exc)
-        wall = time.perf_counter() - wall_start
+        elif isinstance(exc, Exception):  # a plugin raised: the run stops there, named, its records kept
+            return self._plugin_raised(exc)
+        else:
+            raise exc
+        return None
+
+    def finish(self, wall: float, failure: Exception | None = None) -> tuple[RunResult, Exception | None]:
+        """The run's end: its metrics, the ``swarmscene_run_end`` hook, its result; with the
+        plugin exception that stopped it (or the run-end hook's), if any."""
         metrics = self._engine_metrics(wall)
         metrics.update(self.events.metrics())  # the drawn times and agents of random events
         guarded = RunMetrics(metrics, self._metric_prefixes())  # each plugin writes its own keys only
@@ -314,9 +358,7 @@ class Simulation:
             monitor=self._observer_of(SafetyMonitor),
             observers=self.observers,
         )
-        if failure is not None:
-            raise PluginRaised(self.error or "", result) from failure
-        return result
+        return result, failure
 
     def _plugin_raised(self, exc: Exception) -> Exception:
         """Record a plugin's exception as the run's error: kind, name, method, simulated time."""

@@ -11,8 +11,10 @@ for the whole run and equal the agent ids used in config (0 .. N-1).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
 
@@ -95,3 +97,95 @@ class WorldState:
         """Index of the leader, or ``None`` when the swarm has none."""
         idx = np.flatnonzero(self.role == Role.LEADER)
         return int(idx[0]) if idx.size else None
+
+
+BATCHED_FIELDS = ("pos", "vel", "quat", "omega", "rotor_speed")
+"""The per-agent fields a :class:`WorldBatch` holds along its world axis."""
+
+
+class WorldBatch:
+    """B worlds of one composition, their per-agent state stored along a leading world axis.
+
+    Each field of :data:`BATCHED_FIELDS` that the worlds have is one C-contiguous array of shape
+    (B, N, k), and every world's own field is its slice ``array[b]``, a view: a plugin written for
+    one world reads and writes its world as before, and a plugin's batched form
+    (:meth:`~swarmscene.core.plugin.Dynamics.step_batch`) updates all B worlds with one array
+    operation. ``models`` holds each world's instance of a plugin, in the worlds' order.
+
+    A batch is built over the worlds that are still running; when one ends, the engine builds a
+    new batch over the others (the ended world keeps its last state in the old arrays).
+
+    Attributes:
+        worlds: the B worlds (their ``pos`` etc. are views into this batch's arrays).
+        pos, vel: (B, N, 3); ``quat`` (B, N, 4), ``omega`` (B, N, 3), ``rotor_speed`` (B, N, 4)
+            when the worlds have them, else ``None``.
+    """
+
+    def __init__(self, worlds: list[WorldState]) -> None:
+        self.worlds = list(worlds)
+        # pack(): per names, the instances packed and, per name, the stacked array and its slices
+        self._tick_memo: dict[str, Any] = {}
+        self._packed: dict[tuple[str, ...], tuple[list[Any], dict[str, tuple[np.ndarray, list[np.ndarray]]]]] = {}
+        for name in BATCHED_FIELDS:
+            arrays = [getattr(world, name) for world in self.worlds]
+            if any(a is None for a in arrays):
+                setattr(self, name, None)
+                continue
+            stacked = np.stack(arrays)  # a copy: from now on the worlds' fields are its slices
+            setattr(self, name, stacked)
+            for world, view in zip(self.worlds, stacked, strict=True):
+                setattr(world, name, view)
+
+    pos: np.ndarray
+    vel: np.ndarray
+    quat: np.ndarray | None
+    omega: np.ndarray | None
+    rotor_speed: np.ndarray | None
+
+    def controlled(self) -> None:
+        """Say that every world's ``control`` ran (a new guidance tick): what batched forms keep
+        per tick (:meth:`per_tick`) is made again at their next step. The engine calls it each
+        tick; code that drives a batch itself (a test, a benchmark) calls it after the controllers."""
+        self._tick_memo.clear()
+
+    def per_tick(self, key: str, make: Callable[[], Any]) -> Any:
+        """``make()`` once per guidance tick (until :meth:`controlled`): what a batched form reads
+        of the instances after their ``control`` (their commands stacked, whether their options
+        agree), so that the physics sub-steps of a tick pay for it once, not B times per sub-step."""
+        if key not in self._tick_memo:
+            self._tick_memo[key] = make()
+        return self._tick_memo[key]
+
+    @property
+    def size(self) -> int:
+        """B, the number of worlds."""
+        return len(self.worlds)
+
+    def stack(self, name: str) -> np.ndarray:
+        """A world field that the batch does not hold (``wind``, ``force``), stacked (B, N, k): a copy."""
+        return np.stack([getattr(world, name) for world in self.worlds])
+
+    def pack(self, models: list[Any], names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """The per-agent arrays ``names`` of the worlds' plugin instances ``models``, as (B, N, k)
+        arrays whose slices the instances then hold (like the worlds' fields).
+
+        The first call stacks them and rebinds each instance's attribute to its slice, so an
+        instance that writes its arrays in place (a controller latching references) writes into
+        the batch; a later call returns the same arrays unless an instance has rebound one of
+        them (reallocated it), in which case that name is stacked and rebound again.
+        """
+        known = self._packed.get(names)
+        if known is None or known[0] != models:
+            known = self._packed[names] = (list(models), {})
+        packed = known[1]
+        for name in names:
+            arrays = [getattr(model, name) for model in models]
+            held = packed.get(name)
+            if held is not None and all(a is view for a, view in zip(arrays, held[1], strict=True)):
+                continue  # every instance still holds the slice this batch gave it
+            stacked = np.stack(arrays)
+            views = list(stacked)
+            for model, view in zip(models, views, strict=True):
+                setattr(model, name, view)
+            packed[name] = (stacked, views)
+        return {name: packed[name][0] for name in names}

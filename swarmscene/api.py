@@ -48,10 +48,9 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
     from hydra import initialize_config_module
     from omegaconf import OmegaConf
 
-    from .searchpath import plain_overrides, refuse_events_a_preset_replaces, register_search_path
+    from .searchpath import plain_overrides, register_search_path
 
     register_search_path()
-    refuse_events_a_preset_replaces(overrides)
     try:
         with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
             cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
@@ -59,9 +58,9 @@ def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
     except ConfigError:
         raise
     except Exception as exc:  # Hydra's multi-line wording: the command line's one line instead
-        from .hydra_errors import hydra_error_line, resolution_error_line
+        from .hydra_errors import hydra_error_line
 
-        line = resolution_error_line(exc) or hydra_error_line(exc)
+        line = hydra_error_line(exc)  # the command line's reading (an unresolvable value included)
         if line is None:
             raise
         raise ConfigError([line]) from exc
@@ -174,6 +173,63 @@ def run(
     if output.summary:
         print(summary_text(sim, result, result.run_dir))
     return result
+
+
+def run_batch(
+    config: Sequence[str] | dict[str, Any] = (),
+    seeds: Sequence[int] = (0,),
+    output_dir: str | Path | None = None,
+    progress: Callable[[Any], None] | None = None,
+) -> list[RunResult]:
+    """Run one composition under several seeds as one batch of worlds (docs/batched.md).
+
+    The worlds are stepped together (:class:`~swarmscene.core.batch.BatchSimulation`): the
+    dynamics model advances every world's physics in one call where it has a batched form. Each
+    world's result equals ``run(config + [f"seed={seed}"])``'s, bit for bit, except the timing
+    metrics (``wall_time``, ``realtime_factor``, ``step_ms_median``), which are the batch's.
+
+    Args:
+        config: overrides or composed data, as for :func:`run` (composed once).
+        seeds: one world per seed, in this order.
+        output_dir: when given, world ``b`` writes its run directory to ``output_dir/<b>`` (the
+            numbering of a sweep's jobs), as :func:`run` writes one.
+        progress: called after every tick of the batch with the
+            :class:`~swarmscene.core.batch.BatchSimulation`.
+
+    Returns:
+        One result per seed. A world a plugin's exception stopped has its ``error`` set (its
+        records up to then are kept) and does not stop the others; nothing is raised for it.
+    """
+    from .core.batch import BatchSimulation
+
+    if isinstance(config, Scenario):
+        raise TypeError("run_batch takes overrides or composed data (each world validates its own seed)")
+    seeds = [int(seed) for seed in seeds]
+    if not seeds:
+        raise ConfigError(["seeds: a batch needs at least one seed"])
+    data = config if isinstance(config, dict) else compose(config)
+    sims = [build({**data, "seed": seed}) for seed in seeds]
+    for sim in sims:
+        output = sim.config.output
+        asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
+        asked += [f"output.live={output.live}"] if output.live != "off" else []
+        if asked:
+            raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
+    started_at = utc_now()
+    try:
+        outcomes = BatchSimulation(sims).run(progress)
+    except ValueError as exc:
+        raise ConfigError([f"batch: {exc}"]) from exc
+    results = [outcome.result for outcome in outcomes]
+    if output_dir is not None:
+        for b, (sim, outcome) in enumerate(zip(sims, outcomes, strict=True)):
+            run_dir = Path(output_dir) / str(b)
+            write_outputs(sim, outcome.result, run_dir, started_at=started_at)
+            if outcome.result.error is not None:
+                from .sweeps.records import record_failure
+
+                record_failure(run_dir, RunFailed.of(outcome.result, outcome.failure), sim.scenario.data)
+    return results
 
 
 def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:

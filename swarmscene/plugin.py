@@ -56,14 +56,15 @@ from .core.plugin import (
 from .core.run_view import RunView
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
-from .core.state import Role, WorldState
+from .core.state import Role, WorldBatch, WorldState
 from .core.vectors import clip_norm, every, min_distance_between, min_pair_distance, rows_of, wrap
 
 __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
     "Environment", "Event", "EventKind", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
     "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "Role", "RunView", "SHARED", "Sensing", "Setpoints",
-    "StrictModel", "SwarmsceneDeprecationWarning", "WorldState", "build_context", "choose", "disturbance_context",
+    "StrictModel", "SwarmsceneDeprecationWarning", "WorldBatch", "WorldState", "build_context", "choose",
+    "disturbance_context",
     "hookimpl", "validate_renamed",
     # helpers the built-ins use (core/vectors.py, core/errors.py), as stable as the names above
     "clip_norm", "every", "format_validation_error", "min_distance_between", "min_pair_distance", "rows_of", "wrap",

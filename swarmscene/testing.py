@@ -62,7 +62,7 @@ from .core.errors import format_validation_error
 from .core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
 from .core.sensing import Sensing
 from .core.setpoint import Mode, Setpoints
-from .core.state import WorldState
+from .core.state import WorldBatch, WorldState
 from .plugin import build_context
 from .testing_kinds import (  # the kinds beside the three algorithms, rules listed above
     _assert_class_untouched,
@@ -478,6 +478,13 @@ def _dynamics_instances_apart(s: Subject) -> None:
     _check_dynamics_instances_apart(s.cls, s.params)
 
 
+@promise("dynamics", "batch_equals_worlds")
+def _dynamics_batch_equals_worlds(s: Subject) -> None:
+    """``step_batch`` over three worlds flying apart equals each world's own ``step``, bit for bit
+    (the default steps world by world; a batched form must give the same numbers)."""
+    _check_dynamics_batch_equals_worlds(s.cls, s.params)
+
+
 @promise("dynamics", "no_shared_state")
 def _dynamics_no_shared_state(s: Subject) -> None:
     """Flying an instance changes no class attribute (two instances share no state)."""
@@ -597,6 +604,49 @@ def _check_dynamics_instances_apart(cls: type[Dynamics], params: PluginParams) -
         f"{cls.name}: two instances share state (one flew differently beside another): keep state on the "
         f"instance, not the class or the module"
     )
+
+
+def _check_dynamics_batch_equals_worlds(cls: type[Dynamics], params: PluginParams) -> None:
+    """Three worlds (agents shifted apart, each with its own target: a move, a climb, a hold)
+    flown 2 s alone, then together as a :class:`~swarmscene.core.state.WorldBatch`."""
+    shifts = ([0.0, 0.0, 0.0], [5.0, -2.0, 1.0], [-3.0, 4.0, 0.5])
+    moves = ([1.0, 0.0, 0.0], [0.0, 0.5, 1.0], [0.0, 0.0, 0.0])
+
+    def worlds() -> list[tuple[WorldState, Dynamics, Setpoints]]:
+        out = []
+        for shift, move in zip(shifts, moves, strict=True):
+            world = example_world(failed=False)
+            world.pos += shift
+            model = _build(cls, params, None, world)
+            model.initialize(world)
+            target = Setpoints.hold(world.pos + move)
+            target.mode[:] = Mode.POSITION
+            out.append((world, model, target))
+        return out
+
+    alone = worlds()
+    for world, model, target in alone:
+        _flight(model, world, target, seconds=2.0)
+    together = worlds()
+    batch = WorldBatch([world for world, _, _ in together])
+    models = [model for _, model, _ in together]
+    for _ in range(int(round(2.0 / GUIDANCE_PERIOD))):
+        for world, model, target in together:
+            model.control(world, target)
+        batch.controlled()
+        for _ in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
+            if cls.step_batch(models, batch, PHYSICS_STEP) is NotImplemented:
+                for world, model, _ in together:
+                    model.step(world, PHYSICS_STEP)
+        for world, _, _ in together:
+            world.t += GUIDANCE_PERIOD
+    for b, ((one, _, _), (batched, _, _)) in enumerate(zip(alone, together, strict=True)):
+        for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
+            a, c = getattr(one, field), getattr(batched, field)
+            assert (a is None) == (c is None) and (a is None or np.array_equal(a, c)), (
+                f"{cls.name}: step_batch gave world {b} another {field} than its own step() "
+                f"(largest difference {np.abs(np.asarray(a) - np.asarray(c)).max():.3g}): a batched form "
+                f"must repeat the per-world arithmetic (docs/batched.md)")
 
 
 def _fresh(cls: type[Dynamics], params: PluginParams) -> tuple[WorldState, Dynamics]:

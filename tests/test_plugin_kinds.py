@@ -452,6 +452,21 @@ def test_the_package_flies_its_components_by_name(allkinds):
     assert again.data == scenario.data  # the run's record validates to itself
 
 
+def test_the_package_flies_in_a_batch_of_worlds_as_alone(allkinds):
+    """ak_point has no batched form (docs/batched.md): a batch steps its worlds one by one with
+    their own instances, and each world is its single run (every kind of the package in play)."""
+    data = _composed(formation={"name": "ak_climb", "height": 0.0}, avoidance={"name": "ak_damped"},
+                     dynamics={"name": "ak_point"}, disturbances={"up": {"kind": "ak_updraft", "speed": 0.5}},
+                     events=[{"at": 0.5, "agents": [1], "kind": "ak_freeze", "keep": 0.0}],
+                     swarm={"n": 3, "start": {"kind": "random", "extent": 6.0}})
+    batched = api.run_batch(data, [3, 4])
+    for seed, result in zip([3, 4], batched, strict=True):
+        alone = api.run(api.load({**data, "seed": seed}, allkinds[1]))
+        assert result.metrics["ak_altitude.top"] == alone.metrics["ak_altitude.top"]
+        np.testing.assert_array_equal(result.trajectory["pos"], alone.trajectory["pos"])
+    assert not np.array_equal(batched[0].trajectory["pos"], batched[1].trajectory["pos"])  # two seeds
+
+
 def test_the_package_policy_flies_the_agents(allkinds):
     """ak_up at rate 0.25 with 4 m/s velocity actions: every agent climbs at exactly 1 m/s."""
     data = _composed(formation={"name": "ak_climb"}, dynamics={"name": "ak_point"},

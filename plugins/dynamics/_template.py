@@ -7,10 +7,13 @@ and check it with ``swarmscene.testing.check_dynamics(MyDynamics)`` in your test
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Self
+
 import numpy as np
 from pydantic import Field
 
-from swarmscene.plugin import Dynamics, Mode, PluginParams, Setpoints, WorldState, hookimpl
+from swarmscene.plugin import Dynamics, Mode, PluginParams, Setpoints, WorldBatch, WorldState, hookimpl
 
 
 class MyDynamics(Dynamics):
@@ -41,6 +44,15 @@ class MyDynamics(Dynamics):
     def step(self, world: WorldState, dt: float) -> None:
         world.pos += self.u * dt  # once per physics step, in place
         world.vel[:] = self.u
+
+    # Optional (docs/batched.md): the same step for B worlds at once. Without it the engine steps a
+    # batch's worlds one by one with step(); with it, the (B, N, 3) arrays are updated in one go.
+    # It must give each world the bits step() gives it (check_dynamics tests that).
+    @classmethod
+    def step_batch(cls, models: Sequence[Self], batch: WorldBatch, dt: float) -> None:
+        u = batch.per_tick("my_dynamics.u", lambda: np.stack([m.u for m in models]))  # (B, N, 3)
+        batch.pos += u * dt
+        batch.vel[:] = u
 
 
 @hookimpl

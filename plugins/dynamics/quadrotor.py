@@ -38,7 +38,8 @@ effect, drag, a battery's limit) joins the RK4 right-hand side the same way
 from __future__ import annotations
 
 import math
-from typing import Literal
+from collections.abc import Sequence
+from typing import Literal, Self
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -46,7 +47,7 @@ from pydantic import Field, model_validator
 from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.methods.quadrotor.model import AIRFRAMES, quat_to_rotmat, yaw_to_quat
 from swarmscene.methods.quadrotor.se3_controller import se3_gains
-from swarmscene.plugin import BuildContext, Dynamics, PluginParams, Setpoints, WorldState, hookimpl
+from swarmscene.plugin import BuildContext, Dynamics, PluginParams, Setpoints, WorldBatch, WorldState, hookimpl
 
 
 class Quadrotor(Dynamics):
@@ -168,6 +169,56 @@ class Quadrotor(Dynamics):
             arm=float(world.wind_moment_arm), drag=self._drag,
             force=self._zeros if force is None else _floats(force), has_force=force is not None,
             **self._constants)
+
+    _REFERENCES = ("_p", "_v", "_a", "_dv", "_da", "_dj", "_ds", "_heading", "_position_mask",
+                   "_omega_d", "_alpha_d", "_rotor_gain")
+    """The per-agent arrays ``step`` hands the kernel besides the state (latched by ``control``)."""
+
+    @classmethod
+    def step_batch(cls, models: Sequence[Self], batch: WorldBatch, dt: float) -> object:
+        """``step`` of B worlds in one compiled call over their B x N agents (docs/batched.md).
+
+        The kernel steps agents independently, so B worlds of N agents are one swarm of B N
+        agents: the state is the batch's, the references each instance latched are packed along
+        the world axis (:meth:`WorldBatch.pack`), and each agent's arithmetic is its single
+        run's. Worlds whose instances differ in options, or whose ticks are not in step (their
+        time since the tick, or feed-forward, differs), are left to the per-world steps."""
+        first = models[0]
+        b, n = batch.pos.shape[:2]
+        ref = batch.per_tick("quadrotor.references", lambda: cls._references(models, batch))
+        if ref is None:
+            return NotImplemented
+        assert batch.quat is not None and batch.omega is not None and batch.rotor_speed is not None
+        zeros = ref["zeros"]
+        worlds = batch.worlds
+        has_wind, has_force = worlds[0].wind is not None, worlds[0].force is not None
+        substeps = max(1, math.ceil(dt / first.params.max_step - 1e-9))
+        tau = first._kernels.step_swarm(
+            batch.pos.reshape(b * n, 3), batch.vel.reshape(b * n, 3), batch.quat.reshape(b * n, 4),
+            batch.omega.reshape(b * n, 3), batch.rotor_speed.reshape(b * n, 4),
+            ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_heading"],
+            ref["_position_mask"], ref["_omega_d"], ref["_alpha_d"], first._feedforward,
+            first._tau, dt / substeps, substeps, rotor_gain=ref["_rotor_gain"],
+            wind=_floats(batch.stack("wind")).reshape(b * n, 3) if has_wind else zeros, has_wind=has_wind,
+            arm=float(worlds[0].wind_moment_arm), drag=first._drag,
+            force=_floats(batch.stack("force")).reshape(b * n, 3) if has_force else zeros, has_force=has_force,
+            **first._constants)
+        for model in models:
+            model._tau = tau
+        return None
+
+    @classmethod
+    def _references(cls, models: Sequence[Self], batch: WorldBatch) -> dict[str, np.ndarray] | None:
+        """The tick's latched references of every world as (B N, k) arrays, or None when the
+        worlds cannot be one swarm (their options, time since the tick or feed-forward differ)."""
+        first = models[0]
+        if any(m.params != first.params or m._tau != first._tau or m._feedforward != first._feedforward
+               for m in models):
+            return None
+        b, n = batch.pos.shape[:2]
+        packed = batch.pack(list(models), cls._REFERENCES)
+        return {"zeros": np.zeros((b * n, 3)),
+                **{name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}}
 
     @hookimpl
     def swarmscene_event(self, sim, event) -> None:

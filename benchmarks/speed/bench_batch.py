@@ -1,0 +1,144 @@
+"""Many worlds in one step (issue #34): B worlds' physics in one batched call against the same
+worlds stepped one by one, and whole batched runs against single runs.
+
+Part 1, the physics: B worlds of N ``quadrotor`` (6-DOF rigid bodies, SE(3) control, mixer, one
+RK4 step per physics step, float64) or ``double_integrator`` agents, each world's agents holding
+their own points 2 m apart, physics at 240 Hz, the controller latched once per 10 Hz tick. Per
+world: ``model.step(world, dt)`` for each world (today's engine); batched: one
+``Model.step_batch(models, batch, dt)`` (:class:`~swarmscene.core.state.WorldBatch`). The two
+sides fly the same worlds alternately, block by block, timed in CPU time; drone-steps per CPU
+second of each and their ratio. Both sides end in the same state, bit for bit (checked).
+
+Part 2, whole runs: ``api.run_batch(data, seeds)`` against ``api.run`` once per seed from the
+same composed data (every phase of every tick: events, sensing, formation, avoidance, the
+monitor, the recorder; building each world), in CPU time, alternately; runs per CPU second of
+each and their ratio.
+
+One core, one thread::
+
+    taskset -c 1 python benchmarks/speed/bench_batch.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core (before numpy and numba are imported)
+
+import numpy as np  # noqa: E402
+
+from swarmscene import api  # noqa: E402
+from swarmscene.core.setpoint import Setpoints  # noqa: E402
+from swarmscene.core.state import WorldBatch, WorldState  # noqa: E402
+from swarmscene.plugin import build_context  # noqa: E402
+from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator  # noqa: E402
+from swarmscene.plugins.dynamics.quadrotor import Quadrotor  # noqa: E402
+
+PHYSICS_STEP = 1.0 / 240.0
+GUIDANCE_PERIOD = 0.1
+SUBSTEPS = 24
+"""Physics steps per guidance tick (240 Hz physics, 10 Hz guidance)."""
+
+GRID = [(1, 100), (1, 1000), (16, 10), (64, 16), (256, 6), (4096, 1)]
+"""(B worlds, N agents per world): the issue's grid points."""
+
+
+def worlds(model_cls: type, b: int, n: int) -> tuple[list[WorldState], list, list[Setpoints]]:
+    """B worlds of N agents on a grid 2 m apart at 2 m altitude, each holding its points."""
+    side = int(np.ceil(np.sqrt(n)))
+    k = np.arange(n)
+    pos = np.column_stack([2.0 * (k % side), 2.0 * (k // side), np.full(n, 2.0)])
+    out_worlds, models, targets = [], [], []
+    for _ in range(b):
+        world = WorldState.at_rest(pos)
+        ctx = build_context(positions=pos, guidance_period=GUIDANCE_PERIOD, physics_step=PHYSICS_STEP)
+        model = model_cls(model_cls.Params(), ctx)
+        model.initialize(world)
+        out_worlds.append(world)
+        models.append(model)
+        targets.append(Setpoints.hold(pos.copy()))
+    return out_worlds, models, targets
+
+
+def tick(models: list, the_worlds: list[WorldState], targets: list[Setpoints], step, batch=None) -> None:
+    """One guidance tick: every world's controller latched, then ``SUBSTEPS`` physics steps."""
+    for model, world, target in zip(models, the_worlds, targets, strict=True):
+        model.control(world, target)
+    if batch is not None:
+        batch.controlled()
+    for _ in range(SUBSTEPS):
+        step()
+
+
+def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int) -> tuple[float, float]:
+    """Drone-steps per CPU second, per world and batched (the best block of each)."""
+    alone_worlds, alone_models, alone_targets = worlds(model_cls, b, n)
+    batch_worlds, batch_models, batch_targets = worlds(model_cls, b, n)
+    batch = WorldBatch(batch_worlds)
+
+    def per_world() -> None:
+        for model, world in zip(alone_models, alone_worlds, strict=True):
+            model.step(world, PHYSICS_STEP)
+
+    def batched() -> None:
+        model_cls.step_batch(batch_models, batch, PHYSICS_STEP)
+
+    best = {"world": np.inf, "batch": np.inf}
+    tick(alone_models, alone_worlds, alone_targets, per_world)  # compile and warm both sides
+    tick(batch_models, batch_worlds, batch_targets, batched, batch)
+    for _ in range(blocks):
+        for side, args in (("world", (alone_models, alone_worlds, alone_targets, per_world)),
+                           ("batch", (batch_models, batch_worlds, batch_targets, batched, batch))):
+            start = time.process_time()
+            for _ in range(ticks):
+                tick(*args)
+            best[side] = min(best[side], time.process_time() - start)
+    for a, c in zip(alone_worlds, batch_worlds, strict=True):
+        assert np.array_equal(a.pos, c.pos) and np.array_equal(a.vel, c.vel), "the batch left its worlds' bits"
+    steps = b * n * ticks * SUBSTEPS
+    return steps / best["world"], steps / best["batch"]
+
+
+def whole_runs(config: list[str], seeds: list[int], blocks: int) -> tuple[float, float]:
+    """Runs per CPU second, one by one and as one batch (the best block of each); both sides
+    start from the same composed data (Hydra composes once), so the ratio is the stepping's."""
+    data = api.compose(config)
+    best = {"runs": np.inf, "batch": np.inf}
+    api.run_batch(data, seeds[:1])  # compile and warm
+    for _ in range(blocks):
+        start = time.process_time()
+        for seed in seeds:
+            api.run({**data, "seed": seed})
+        best["runs"] = min(best["runs"], time.process_time() - start)
+        start = time.process_time()
+        api.run_batch(data, seeds)
+        best["batch"] = min(best["batch"], time.process_time() - start)
+    return len(seeds) / best["runs"], len(seeds) / best["batch"]
+
+
+def main() -> None:
+    """Both parts, printed as tables."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer ticks and blocks (a check, not a measurement)")
+    args = parser.parse_args()
+    ticks, blocks = (1, 1) if args.quick else (5, 5)
+    print("physics, drone-steps per CPU second (240 Hz, 10 Hz control), one core")
+    print(f"{'model':<18}{'B x N':>12}{'per world':>14}{'batched':>14}{'ratio':>8}")
+    for model_cls in (Quadrotor, DoubleIntegrator):
+        for b, n in GRID:
+            world_rate, batch_rate = physics(model_cls, b, n, ticks, blocks)
+            print(f"{model_cls.name:<18}{f'{b} x {n}':>12}{world_rate:>14.3g}{batch_rate:>14.3g}"
+                  f"{batch_rate / world_rate:>8.2f}")
+    print("\nwhole runs, runs per CPU second, one core")
+    seeds = list(range(4 if args.quick else 32))
+    for config in (["scenario=swap", "output.summary=false"], ["output.summary=false"]):
+        one, batched = whole_runs(config, seeds, 1 if args.quick else 3)
+        print(f"{' '.join(config[:-1]) or 'default':<18}{len(seeds):>4} seeds  one by one {one:8.2f}  "
+              f"batch {batched:8.2f}  ratio {batched / one:5.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,118 @@
+"""Many worlds in one step (issue #34, docs/batched.md): a world of a batch is its single run.
+
+``api.run_batch(config, seeds)`` steps B worlds of one composition together, the dynamics of every
+world in one call where the model has a batched form. Each world's result must be the single run's
+bit for bit: every preset at B = 3, worlds that end early, a model without a batched form, and the
+quadrotor's compiled batched step (one kernel call for all worlds' agents)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmscene import api, testing
+from swarmscene.core.batch import BatchSimulation
+from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+from swarmscene.plugins.dynamics.single_integrator import SingleIntegrator
+
+from .test_composition import PRESETS
+
+WALL_CLOCK = {"wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median", "vrb.planning_ms"}
+"""Metrics that time the computer, not the flight (the batch's own, in a batch)."""
+
+SEEDS = [0, 1, 2]
+
+
+def assert_world_is_its_single_run(config, seed, batched):
+    alone = api.run([*config, f"seed={seed}", "output.summary=false"])
+    flight = {k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}
+    assert {k: v for k, v in batched.metrics.items() if k not in WALL_CLOCK} == flight, seed
+    assert (alone.stop_reason, alone.error) == (batched.stop_reason, batched.error)
+    assert alone.trajectory.keys() == batched.trajectory.keys()
+    for key, value in alone.trajectory.items():
+        np.testing.assert_array_equal(batched.trajectory[key], value, err_msg=f"seed {seed}: {key}")
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_preset_in_a_batch_of_three_is_its_single_runs(preset):
+    """3 s of each preset (every phase of a tick, events from t = 0); the whole flights: -m slow."""
+    config = [f"scenario={preset}", "clock.duration=3", "output.summary=false"]
+    for seed, result in zip(SEEDS, api.run_batch(config, SEEDS), strict=True):
+        assert_world_is_its_single_run(config, seed, result)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_whole_preset_in_a_batch_of_three_is_its_single_runs(preset):
+    config = [f"scenario={preset}", "output.summary=false"]
+    for seed, result in zip(SEEDS, api.run_batch(config, SEEDS), strict=True):
+        assert_world_is_its_single_run(config, seed, result)
+
+
+def test_worlds_that_end_early_are_masked_and_the_others_go_on(monkeypatch):
+    """swap (single integrator, ends when complete): world 1's model raises at t = 1 s, world 2
+    flies 2 s only; world 0 flies on to its completion, equal to its single run."""
+    step, step_batch = SingleIntegrator.step, SingleIntegrator.step_batch
+    failing = {}
+
+    def failing_step(self, world, dt):
+        if self is failing.get("model") and world.t >= 1.0:
+            raise RuntimeError("rotor on fire")
+        step(self, world, dt)
+
+    def failing_step_batch(cls, models, batch, dt):
+        if any(model is failing.get("model") for model in models):
+            return NotImplemented  # world by world, so that world 1 raises in its own step
+        return step_batch.__func__(cls, models, batch, dt)
+
+    monkeypatch.setattr(SingleIntegrator, "step", failing_step)
+    monkeypatch.setattr(SingleIntegrator, "step_batch", classmethod(failing_step_batch))
+    data = api.compose(["scenario=swap", "output.summary=false"])
+    sims = [api.build({**data, "seed": 0}), api.build({**data, "seed": 1}),
+            api.build({**data, "seed": 2, "clock": {**data["clock"], "duration": 2.0}})]
+    failing["model"] = sims[1].dynamics
+    outcomes = BatchSimulation(sims).run()
+    assert [o.result.stop_reason for o in outcomes] == ["complete", "plugin_error", "duration"]
+    assert outcomes[1].result.error.startswith("dynamics 'single_integrator' raised in failing_step at t = 1 s: RuntimeError"), (
+        outcomes[1].result.error)
+    assert isinstance(outcomes[1].failure, RuntimeError) and outcomes[0].failure is None
+    assert outcomes[2].result.metrics["duration"] == 2.0
+    monkeypatch.undo()
+    assert_world_is_its_single_run(["scenario=swap", "output.summary=false"], 0, outcomes[0].result)
+
+
+def test_the_quadrotor_steps_every_world_in_one_kernel_call(monkeypatch):
+    """vrb_airshow (quadrotor): one step_swarm call per physics step for the three worlds, and
+    each world its single run's bits; worlds whose options differ are stepped one by one."""
+    from swarmscene.methods.quadrotor import kernels
+
+    calls = []
+    kernel = kernels.step_swarm
+    monkeypatch.setattr(kernels, "step_swarm", lambda *a, **k: calls.append(a[0].shape[0]) or kernel(*a, **k))
+    config = ["scenario=vrb_airshow", "clock.duration=1", "output.summary=false"]
+    results = api.run_batch(config, SEEDS)
+    physics_step = api.compose(config)["clock"]["physics_step"]
+    assert calls == [3 * results[0].metrics["agents"]] * round(1.0 / physics_step)
+    monkeypatch.undo()
+    for seed, result in zip(SEEDS, results, strict=True):
+        assert_world_is_its_single_run(config, seed, result)
+
+
+def test_the_batch_contract_check_catches_a_batched_form_that_differs():
+    class Rounded(DoubleIntegrator):
+        name = "rounded_double_integrator"
+
+        @classmethod
+        def step_batch(cls, models, batch, dt):
+            DoubleIntegrator.step_batch.__func__(cls, models, batch, dt)
+            batch.pos[1] += 1e-12  # world 1 drifts by one part in 10^12
+
+    with pytest.raises(AssertionError, match="dynamics.batch_equals_worlds.*step_batch gave world 1 another pos"):
+        testing.check_dynamics(Rounded)
+
+
+def test_worlds_that_cannot_share_the_physics_are_refused_in_one_line():
+    data = api.compose(["scenario=swap"])
+    sims = [api.build({**data, "seed": 0}), api.build({**data, "swarm": {**data["swarm"], "n": 4}})]
+    with pytest.raises(ValueError, match=r"^world 1 cannot share the batch's physics: its swarm.n is 4, world 0's"):
+        BatchSimulation(sims)
