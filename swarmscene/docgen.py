@@ -133,18 +133,25 @@ def write_checks(root: Path) -> Path:
     return guide
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     """Write docs/options.md (or the path given), the config groups' README with ``--groups``, or
     the plugin guide's table of contract checks with ``--checks``."""
-    if sys.argv[1:] == ["--groups"]:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m swarmscene.docgen", description=main.__doc__)
+    parser.add_argument("target", nargs="?", default="docs/options.md", help="the options page to write")
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--groups", action="store_true", help="write the config groups' README table")
+    which.add_argument("--checks", action="store_true", help="write docs/plugins.md's table of contract checks")
+    args = parser.parse_args(argv)
+    if args.groups:
         print(f"wrote {write_groups(Path.cwd())}")
-        return
-    if sys.argv[1:] == ["--checks"]:
+    elif args.checks:
         print(f"wrote {write_checks(Path.cwd())}")
-        return
-    target = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/options.md")
-    target.write_text(render())
-    print(f"wrote {target}")
+    else:
+        target = Path(args.target)
+        target.write_text(render())
+        print(f"wrote {target}")
 
 
 if __name__ == "__main__":
