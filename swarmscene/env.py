@@ -41,8 +41,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from . import api
+from .core.batch import lockstep
 from .core.config import Scenario
 from .core.setpoint import Mode
+from .core.state import WorldBatch
 
 try:
     import gymnasium
@@ -118,10 +120,19 @@ class _Episode:
 
     def step(self, action: np.ndarray, active: np.ndarray) -> tuple[np.ndarray, bool, bool]:
         """Advance one tick; the rewards (N,), whether the episode terminated, was truncated."""
-        sim, weights = self.sim, self.options.reward
-        before = sim.world.pos.copy()
+        before = self.act(action, active)
+        self.sim.step()
+        return self.judge(action, before)
+
+    def act(self, action: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """Hand the tick's action to the policy avoidance; the positions before the tick."""
+        before = self.sim.world.pos.copy()
         self.policy.command(action, active)
-        sim.step()
+        return before
+
+    def judge(self, action: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, bool, bool]:
+        """After the tick: the rewards (N,), whether the episode terminated, was truncated."""
+        sim, weights = self.sim, self.options.reward
         cfg = sim.config
         complete = bool(cfg.termination.on_complete and sim.formation.complete(sim.world) is True)
         if complete:
@@ -354,12 +365,9 @@ class SwarmGymEnv(gymnasium.Env):
             raise RuntimeError("step() called before reset()")
         action = checked_action(action, (self.driver.n, 3), "action")
         reward, terminated, truncated = episode.step(action, np.ones(self.driver.n, dtype=bool))
-        healthy = episode.sim.world.healthy
-        info: dict[str, Any] = {}
-        if terminated or truncated:
-            info["metrics"] = episode.finish()
+        outcome = _swarm_outcome(episode, reward, terminated, truncated)
         self.renderer.after_step(self.driver)
-        return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
+        return outcome
 
     def render(self) -> np.ndarray | None:
         """The current top-down view (:func:`render_frame`): returned with ``render_mode="rgb_array"``,
@@ -369,6 +377,121 @@ class SwarmGymEnv(gymnasium.Env):
     def close(self) -> None:
         """Close the window, if any."""
         self.renderer.close()
+
+
+def _swarm_outcome(episode: _Episode, reward: np.ndarray, terminated: bool, truncated: bool):
+    """What the centralised environment returns for a tick: the swarm's observation, the healthy
+    vehicles' summed reward, the ends, and at the end the run's metrics and its ``success``."""
+    info: dict[str, Any] = {}
+    if terminated or truncated:
+        metrics = episode.finish()
+        info.update(metrics=metrics, success=bool(metrics["success"]))
+    healthy = episode.sim.world.healthy
+    return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
+
+
+class SwarmVectorEnv(gymnasium.vector.VectorEnv):
+    """B copies of :class:`SwarmGymEnv` stepped as one batch of worlds (docs/batched.md).
+
+    What ``gym.make_vec(id, num_envs=B)`` returns for a swarmscene id (``vectorization_mode``
+    ``"vector_entry_point"``, the default for them). Each world is the single environment's episode,
+    step for step: ``reset(seed=s)`` seeds world b with ``s + b`` (as ``SyncVectorEnv`` does) and a
+    world's later episodes draw their seeds from its own generator, as the single environment's
+    ``reset()`` does; an episode that ends is reset at the world's next step (Gymnasium's
+    next-step autoreset: that step returns the new episode's first observation, reward 0, and
+    ignores the world's action). Infos hold, for the worlds that ended, the run's ``metrics`` and
+    its ``success``, in Gymnasium's vector form (``infos["success"]`` and the mask
+    ``infos["_success"]``). The worlds' physics is one batched call per physics step
+    (:func:`swarmscene.core.batch.lockstep`); rendering is the single environment's.
+
+    Args:
+        num_envs: B, the number of worlds.
+        config, options: as for :class:`SwarmGymEnv` (one scenario for every world).
+        max_episode_steps: truncate each episode after this many steps (Gymnasium's ``TimeLimit``,
+            which ``make_vec`` passes from the id's spec).
+    """
+
+    metadata = {"autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, config: Sequence[str] | dict[str, Any] = (),
+                 options: EnvOptions | dict | None = None, max_episode_steps: int | None = None,
+                 render_mode: str | None = None) -> None:
+        if render_mode is not None:
+            raise ValueError(f"render_mode: the vector environment does not render (got {render_mode!r}); "
+                             "render one world with gym.make(id, render_mode=...)")
+        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ValueError(f"num_envs: must be an integer >= 1 (got {num_envs!r})")
+        self.num_envs = num_envs
+        self.drivers = [_Driver(config, options) for _ in range(num_envs)]
+        n, size = self.drivers[0].n, self.drivers[0].layout_size
+        self.single_observation_space = _observation_box((n, size))
+        self.single_action_space = _action_box((n, 3))
+        self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
+        self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
+        self.max_episode_steps = max_episode_steps
+        self._steps = np.zeros(num_envs, dtype=int)
+        self._ended = np.zeros(num_envs, dtype=bool)
+        self._batch: tuple[list[Any], Any] | None = None  # (the worlds, their WorldBatch)
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+        """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the stacked
+        observations and an empty info."""
+        seeds = [None] * self.num_envs if seed is None else (
+            [seed + b for b in range(self.num_envs)] if isinstance(seed, int) else list(seed))
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"seed: {len(seeds)} seeds for {self.num_envs} worlds")
+        for driver, s in zip(self.drivers, seeds, strict=True):
+            driver.reset(s)
+        self._steps[:] = 0
+        self._ended[:] = False
+        return self._observe(), {}
+
+    def step(self, actions: np.ndarray):
+        """One guidance tick of every world; observations, rewards, terminations, truncations (B,)
+        and infos. A world whose episode ended at the last step starts its next one instead."""
+        if any(driver.episode is None for driver in self.drivers):
+            raise RuntimeError("step() called before reset()")
+        actions = checked_action(actions, self.action_space.shape, "actions")
+        rewards = np.zeros(self.num_envs)
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        truncated = np.zeros(self.num_envs, dtype=bool)
+        infos: dict[str, Any] = {}
+        for b in np.flatnonzero(self._ended):  # next-step autoreset
+            self.drivers[b].reset(None)
+            self._steps[b] = 0
+        going = [b for b in range(self.num_envs) if not self._ended[b]]
+        if going:
+            episodes = [self.drivers[b].episode for b in going]
+            every = np.ones(self.drivers[0].n, dtype=bool)
+            before = [episode.act(actions[b], every) for b, episode in zip(going, episodes, strict=True)]
+            sims = [episode.sim for episode in episodes]
+            lockstep(sims, self._world_batch(sims))
+            for b, episode, was in zip(going, episodes, before, strict=True):
+                reward, term, trunc = episode.judge(actions[b], was)
+                self._steps[b] += 1
+                if self.max_episode_steps is not None and self._steps[b] >= self.max_episode_steps:
+                    trunc = not term
+                _, rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episode, reward, term, trunc)
+                if info:
+                    infos = self._add_info(infos, info, b)
+        self._ended = terminated | truncated
+        return self._observe(), rewards, terminated, truncated, infos
+
+    def _observe(self) -> np.ndarray:
+        return np.stack([driver.episode.observe() for driver in self.drivers])
+
+    def _world_batch(self, sims: list[Any]) -> Any:
+        """The running worlds' WorldBatch, made again when a world started a new episode."""
+        worlds = [sim.world for sim in sims]
+        if self._batch is None or len(self._batch[0]) != len(worlds) or any(
+                a is not c for a, c in zip(self._batch[0], worlds, strict=True)):
+            self._batch = (worlds, WorldBatch(worlds))
+        return self._batch[1]
+
+    def close(self, **kwargs: Any) -> None:
+        """Drop the episodes."""
+        for driver in self.drivers:
+            driver.episode = None
 
 
 RENDER_MODES = ("rgb_array", "human")
@@ -518,7 +641,8 @@ def register_scenario(env_id: str, config: Sequence[str] | dict[str, Any],
     kwargs: dict[str, Any] = {"config": list(config) if not isinstance(config, dict) else config}
     if options is not None:
         kwargs["options"] = options
-    gymnasium.register(id=env_id, entry_point="swarmscene.env:SwarmGymEnv", kwargs=kwargs, **spec)
+    gymnasium.register(id=env_id, entry_point="swarmscene.env:SwarmGymEnv",
+                       vector_entry_point="swarmscene.env:SwarmVectorEnv", kwargs=kwargs, **spec)
     return env_id
 
 

@@ -14,6 +14,11 @@ same composed data (every phase of every tick: events, sensing, formation, avoid
 monitor, the recorder; building each world), in CPU time, alternately; runs per CPU second of
 each and their ratio.
 
+Part 3, the vector environment: ``gym.make_vec`` on a swarmscene id, B worlds of the default
+scenario with 6 agents (double integrator, the ``policy`` avoidance, the safety monitor), the
+native vector environment (the worlds' physics batched) against Gymnasium's ``SyncVectorEnv`` of
+the single environment; random actions, agent-steps per CPU second (simulation only).
+
 One core, one thread::
 
     taskset -c 1 python benchmarks/speed/bench_batch.py [--quick]
@@ -119,6 +124,30 @@ def whole_runs(config: list[str], seeds: list[int], blocks: int) -> tuple[float,
     return len(seeds) / best["runs"], len(seeds) / best["batch"]
 
 
+def vector_env(b: int, steps: int, blocks: int) -> tuple[float, float]:
+    """Agent-steps per CPU second of B worlds x 6 agents, Gymnasium's sync vector env and ours."""
+    import gymnasium as gym
+
+    from swarmscene import env as swarm_env
+
+    env_id = swarm_env.register_scenario("bench/default6-v0", ["swarm.n=6", "dynamics=double_integrator"])
+    rates = {}
+    for mode in ("sync", "vector_entry_point"):
+        envs = gym.make_vec(env_id, num_envs=b, vectorization_mode=mode)
+        rng = np.random.default_rng(0)
+        envs.reset(seed=0)
+        best = np.inf
+        for _ in range(blocks):
+            actions = [rng.uniform(-1, 1, envs.action_space.shape) for _ in range(steps)]
+            start = time.process_time()
+            for action in actions:
+                envs.step(action)
+            best = min(best, time.process_time() - start)
+        rates[mode] = b * 6 * steps / best
+        envs.close()
+    return rates["sync"], rates["vector_entry_point"]
+
+
 def main() -> None:
     """Both parts, printed as tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -132,6 +161,10 @@ def main() -> None:
             world_rate, batch_rate = physics(model_cls, b, n, ticks, blocks)
             print(f"{model_cls.name:<18}{f'{b} x {n}':>12}{world_rate:>14.3g}{batch_rate:>14.3g}"
                   f"{batch_rate / world_rate:>8.2f}")
+    print("\nvector environment, agent-steps per CPU second, one core")
+    for b in (16, 256):
+        sync, native = vector_env(b, 3 if args.quick else 20, 1 if args.quick else 3)
+        print(f"{b} worlds x 6 agents  SyncVectorEnv {sync:10.4g}  native {native:10.4g}  ratio {native / sync:5.2f}")
     print("\nwhole runs, runs per CPU second, one core")
     seeds = list(range(4 if args.quick else 32))
     for config in (["scenario=swap", "output.summary=false"], ["output.summary=false"]):
