@@ -123,8 +123,8 @@ class WorldBatch:
 
     def __init__(self, worlds: list[WorldState]) -> None:
         self.worlds = list(worlds)
-        # pack(): per names, the instances packed and, per name, the stacked array and its slices
         self._tick_memo: dict[str, Any] = {}
+        # pack(): per names, the instances packed and, per name, the stacked array and its slices
         self._packed: dict[tuple[str, ...], tuple[list[Any], dict[str, tuple[np.ndarray, list[np.ndarray]]]]] = {}
         for name in BATCHED_FIELDS:
             arrays = [getattr(world, name) for world in self.worlds]

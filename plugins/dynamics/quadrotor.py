@@ -210,11 +210,15 @@ class Quadrotor(Dynamics):
     @classmethod
     def _references(cls, models: Sequence[Self], batch: WorldBatch) -> dict[str, np.ndarray] | None:
         """The tick's latched references of every world as (B N, k) arrays, or None when the
-        worlds cannot be one swarm (their options, time since the tick or feed-forward differ)."""
-        first = models[0]
+        worlds cannot be one swarm (their options, time since the tick, feed-forward, or wind and
+        force models differ)."""
+        first, one = models[0], batch.worlds[0]
         if any(m.params != first.params or m._tau != first._tau or m._feedforward != first._feedforward
                for m in models):
             return None
+        if any(w.wind_moment_arm != one.wind_moment_arm or (w.wind is None) != (one.wind is None)
+               or (w.force is None) != (one.force is None) for w in batch.worlds):
+            return None  # the kernel takes one moment arm and one say on wind and force for all
         b, n = batch.pos.shape[:2]
         packed = batch.pack(list(models), cls._REFERENCES)
         return {"zeros": np.zeros((b * n, 3)),
