@@ -449,36 +449,40 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
     def step(self, actions: np.ndarray):
         """One guidance tick of every world; observations, rewards, terminations, truncations (B,)
         and infos. A world whose episode ended at the last step starts its next one instead."""
-        if any(driver.episode is None for driver in self.drivers):
-            raise RuntimeError("step() called before reset()")
-        actions = checked_action(actions, self.action_space.shape, "actions")
+        episodes = [self._episode(b) for b in range(self.num_envs)]
+        actions = checked_action(actions, (self.num_envs, self.drivers[0].n, 3), "actions")
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
-        for b in np.flatnonzero(self._ended):  # next-step autoreset
-            self.drivers[b].reset(None)
+        for b in np.flatnonzero(self._ended).tolist():  # next-step autoreset
+            episodes[b] = self.drivers[b].reset(None)
             self._steps[b] = 0
         going = [b for b in range(self.num_envs) if not self._ended[b]]
         if going:
-            episodes = [self.drivers[b].episode for b in going]
             every = np.ones(self.drivers[0].n, dtype=bool)
-            before = [episode.act(actions[b], every) for b, episode in zip(going, episodes, strict=True)]
-            sims = [episode.sim for episode in episodes]
+            before = {b: episodes[b].act(actions[b], every) for b in going}
+            sims = [episodes[b].sim for b in going]
             lockstep(sims, self._world_batch(sims))
-            for b, episode, was in zip(going, episodes, before, strict=True):
-                reward, term, trunc = episode.judge(actions[b], was)
+            for b in going:
+                reward, term, trunc = episodes[b].judge(actions[b], before[b])
                 self._steps[b] += 1
                 if self.max_episode_steps is not None and self._steps[b] >= self.max_episode_steps:
                     trunc = not term
-                _, rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episode, reward, term, trunc)
+                _, rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episodes[b], reward, term, trunc)
                 if info:
                     infos = self._add_info(infos, info, b)
         self._ended = terminated | truncated
-        return self._observe(), rewards, terminated, truncated, infos
+        return np.stack([episode.observe() for episode in episodes]), rewards, terminated, truncated, infos
+
+    def _episode(self, b: int) -> _Episode:
+        episode = self.drivers[b].episode
+        if episode is None:
+            raise RuntimeError("step() called before reset()")
+        return episode
 
     def _observe(self) -> np.ndarray:
-        return np.stack([driver.episode.observe() for driver in self.drivers])
+        return np.stack([self._episode(b).observe() for b in range(self.num_envs)])
 
     def _world_batch(self, sims: list[Any]) -> Any:
         """The running worlds' WorldBatch, made again when a world started a new episode."""
