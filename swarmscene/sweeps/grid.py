@@ -178,11 +178,13 @@ class JobCheck:
         checked when it runs, not here."""
         from .compose import parse
 
-        parsed = parse(list(overrides))
-        if any("${hydra:" in str(o.value()) for o in parsed if not self._is_group(o)):
-            return True
-        groups = tuple(o.input_line for o in parsed if self._is_group(o))
-        cfg, _ = self._compose(groups)
+        try:
+            parsed = parse(list(overrides))
+            if any("${hydra:" in str(o.value()) for o in parsed if not self._is_group(o)):
+                return True
+            cfg, _ = self._compose(tuple(o.input_line for o in parsed if self._is_group(o)))
+        except Exception:  # an override or composition error: problems() reports it, naming the job
+            return False
         return "${hydra:" in repr({k: v for k, v in cfg.items_ex(resolve=False) if k != "hydra"})
 
     def problems(self, overrides: Sequence[str]) -> tuple[str, list[str]]:
