@@ -199,6 +199,7 @@ def run_batch(
     Returns:
         One result per seed. A world a plugin's exception stopped has its ``error`` set (its
         records up to then are kept) and does not stop the others; nothing is raised for it.
+        No summary is printed (``result.metrics`` holds what it would say).
     """
     from .core.batch import BatchSimulation
 
@@ -208,18 +209,15 @@ def run_batch(
     if not seeds:
         raise ConfigError(["seeds: a batch needs at least one seed"])
     data = config if isinstance(config, dict) else compose(config)
-    sims = [build({**data, "seed": seed}) for seed in seeds]
-    for sim in sims:
-        output = sim.config.output
-        asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
-        asked += [f"output.live={output.live}"] if output.live != "off" else []
-        if asked:
-            raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
+    first = build({**data, "seed": seeds[0]})
+    output = first.config.output  # the same for every world: one composition
+    asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
+    asked += [f"output.live={output.live}"] if output.live != "off" else []
+    if asked:
+        raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
+    sims = [first, *(build({**data, "seed": seed}) for seed in seeds[1:])]
     started_at = utc_now()
-    try:
-        outcomes = BatchSimulation(sims).run(progress)
-    except ValueError as exc:
-        raise ConfigError([f"batch: {exc}"]) from exc
+    outcomes = BatchSimulation(sims).run(progress)
     results = [outcome.result for outcome in outcomes]
     if output_dir is not None:
         for b, (sim, outcome) in enumerate(zip(sims, outcomes, strict=True)):

@@ -131,3 +131,27 @@ def test_quadrotor_worlds_under_wind_with_different_options_are_their_single_run
     assert not np.array_equal(outcomes[0].result.trajectory["pos"], outcomes[2].result.trajectory["pos"])
     same = api.run_batch({**data, "seed": 5}, [5, 6])  # one set of gains: batched, under the wind
     np.testing.assert_array_equal(same[1].trajectory["pos"], api.run({**data, "seed": 6}).trajectory["pos"])
+
+
+def test_a_batch_writes_each_worlds_run_directory_as_a_single_run_does(tmp_path):
+    """output_dir/<b>: config.yaml and trajectory.npz byte for byte, metrics but the timing ones."""
+    import json
+
+    config = ["scenario=swap", "clock.duration=2", "output.summary=false"]
+    api.run_batch(config, [4, 9], output_dir=tmp_path / "batch")
+    for b, seed in enumerate([4, 9]):
+        api.run([*config, f"seed={seed}"], output_dir=tmp_path / f"alone{b}")
+        batch, alone = tmp_path / "batch" / str(b), tmp_path / f"alone{b}"
+        for name in ("config.yaml", "trajectory.npz"):
+            assert (batch / name).read_bytes() == (alone / name).read_bytes(), name
+        flight = [{k: v for k, v in json.loads((d / "metrics.json").read_text()).items() if k not in WALL_CLOCK}
+                  for d in (batch, alone)]
+        assert flight[0] == flight[1]
+
+
+def test_a_batch_refuses_the_per_run_views_in_one_line():
+    from swarmscene.core.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        api.run_batch(["scenario=swap", "output.plots=true"], [0, 1])
+    assert err.value.lines == ["output.plots=true: not written by a batch of worlds (run that world alone)"]
