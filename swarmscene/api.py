@@ -145,7 +145,7 @@ def run(
     sim = build(config)
     output = sim.config.output
     if output_dir is None:
-        asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
+        asked = _files_asked(output)
         if asked:
             raise ConfigError([f"{asked[0]}: writes files, so it needs a run directory: api.run(..., output_dir=...)"])
     writers = extra_writers(sim)
@@ -211,8 +211,7 @@ def run_batch(
     data = config if isinstance(config, dict) else compose(config)
     first = build({**data, "seed": seeds[0]})
     output = first.config.output  # the same for every world: one composition
-    asked = [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
-    asked += [f"output.live={output.live}"] if output.live != "off" else []
+    asked = _files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
     if asked:
         raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
     sims = [first, *(build({**data, "seed": seed}) for seed in seeds[1:])]
@@ -228,6 +227,11 @@ def run_batch(
 
                 record_failure(run_dir, RunFailed.of(outcome.result, outcome.failure), sim.scenario.data)
     return results
+
+
+def _files_asked(output: Any) -> list[str]:
+    """The output options that write files beside the run's own (``output.plots=true``...)."""
+    return [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
 
 
 def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from .test_tutorial import shows  # the tutorial test's rule: lines in order, ``...`` skips
+
 ROOT = Path(__file__).resolve().parents[1]
 SECTION = "## 7. In ROS tools, and a flown show back in"
 _BLOCK = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
@@ -31,18 +33,6 @@ def section_commands() -> list[tuple[str, list[str]]]:
             commands[-1] = (commands[-1][0], body.splitlines())
         previous = language
     return commands
-
-
-def shows(output: str, expected: list[str]) -> bool:
-    """The tutorial test's rule: the lines in order; ``...`` skips lines, a trailing ``...`` a prefix."""
-    lines = iter(output.splitlines())
-    for want in expected:
-        if want == "...":
-            continue
-        prefix = want[:-3] if want.endswith("...") else None
-        if not any(line.startswith(prefix) if prefix is not None else line == want for line in lines):
-            return False
-    return True
 
 
 @pytest.fixture(scope="module")
