@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 from .errors import validate_renamed
 from .events import EventConfig
@@ -86,6 +86,26 @@ class SwarmConfig(_Strict):
     n: int = Field(ge=1, le=MAX_AGENTS, description="number of agents N")
     leader: int | None = Field(0, ge=0, description="index of the leader, or null for none")
     start: StartConfig = Field(default_factory=StartConfig, description="initial positions")
+    takeoff: float | None = Field(
+        None, gt=0, le=MAX_DURATION,
+        description="take-off, s: the swarm starts on environment.floor below its start positions at "
+        "t = -takeoff and climbs to them by t = 0 (null: it starts in the air; core/phases.py)",
+    )
+    land: float | None = Field(
+        None, gt=0, le=MAX_DURATION,
+        description="landing, s: when the mission ends every vehicle descends to environment.floor in "
+        "this time, then the run ends (null: it ends in the air; core/phases.py)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _recorded(self, handler: Any) -> dict[str, Any]:
+        """No ``takeoff: null`` / ``land: null``: the record (and config hash) of a run without them
+        is as before they existed."""
+        data = handler(self)
+        for key in ("takeoff", "land"):
+            if data.get(key, 0) is None:
+                data.pop(key)
+        return data
 
 
 class ClockConfig(_Strict):
@@ -293,6 +313,19 @@ class ScenarioConfig(_Strict):
                 f"swarm.start.positions: must list swarm.n = {self.swarm.n} positions "
                 f"(got {len(start.positions)})"
             )
+        return self
+
+    @model_validator(mode="after")
+    def _phases_need_a_floor(self) -> ScenarioConfig:
+        for key in ("takeoff", "land"):
+            seconds = getattr(self.swarm, key)
+            if seconds is None:
+                continue
+            if self.environment.floor is None:
+                raise ValueError(f"swarm.{key}: needs a ground: set environment.floor (e.g. environment.floor=0)")
+            if seconds < self.clock.guidance_period:
+                raise ValueError(f"swarm.{key}: {seconds:g} s is shorter than one guidance tick "
+                                 f"(clock.guidance_period = {self.clock.guidance_period:g} s)")
         return self
 
     @property

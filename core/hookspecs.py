@@ -186,8 +186,8 @@ def swarmscene_run_end(sim: RunView, metrics: dict[str, Any]) -> None:
     When: once per run, after the last tick (or an early termination). Implementations add flat,
     dotted keys in SI units. A plugin's keys start with its class's ``metric_prefix`` and a dot
     (``cem.max_speed``, ``indoor.success``; the prefix defaults to the plugin's ``name``); the
-    engine's own keys are unprefixed (``min_separation``) or under ``violations.``, ``events.`` and
-    ``disturbances.``; a plugin may also set the engine's ``success``. A key outside the writer's
+    engine's own keys are unprefixed (``min_separation``) or under ``violations.``, ``events.``,
+    ``disturbances.`` and ``phases.``; a plugin may also set the engine's ``success``. A key outside the writer's
     namespace raises at once (:mod:`swarmscene.core.metric_keys`). Values must be JSON-serialisable.
 
     Args:

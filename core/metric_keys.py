@@ -2,8 +2,8 @@
 
 ``swarmscene_run_end(sim, metrics)`` hands every observer and chosen plugin one dict. The rule
 (core/hookspecs.py, docs/plugins.md "Reserved metric names"): the engine's keys are unprefixed
-(``min_separation``, ``wall_time``) or under ``violations.``, ``events.`` and ``disturbances.``; a
-chosen plugin writes ``<metric_prefix>.<key>`` (its ``name`` by default) and may set ``success``;
+(``min_separation``, ``wall_time``) or under ``violations.``, ``events.``, ``disturbances.`` and
+``phases.``; a chosen plugin writes ``<metric_prefix>.<key>`` (its ``name`` by default) and may set ``success``;
 another observer writes dotted keys under a prefix of its own (its class's ``metric_prefix`` when
 it declares one) and may set ``success``. A plain dict let a plugin replace an engine key
 (``wall_time``) or lose its own under one the safety monitor writes later (``min_clearance``),
@@ -28,7 +28,7 @@ ENGINE_KEYS = (
     "success",
 )
 """The engine's unprefixed keys (docs/outputs.md, metrics.json); any other unprefixed key is reserved too."""
-ENGINE_PREFIXES = ("violations", "events", "disturbances")
+ENGINE_PREFIXES = ("violations", "events", "disturbances", "phases")
 """Dotted namespaces that belong to the engine."""
 SHARED_KEYS = ("success",)
 """Engine keys a plugin may set (its own definition of a successful run)."""

@@ -4,7 +4,11 @@ Each guidance tick (period T_s = ``clock.guidance_period``)::
 
     events -> sense -> communicate -> formation -> avoidance -> dynamics.control
         -> physics sub-steps (wind, forces -> dynamics.step) -> hold failed -> raised events
-        -> floor -> wrap (periodic space) -> finite check -> observers
+        -> landed vehicles at rest -> floor -> wrap (periodic space) -> finite check -> observers
+
+With a take-off or a landing (``swarm.takeoff``, ``swarm.land``, :mod:`swarmscene.core.phases`)
+the clock starts at -T_to, and during those flights their vertical profile replaces formation and
+avoidance.
 
 sense and communicate (the ``disturbances`` group, :mod:`swarmscene.core.disturbances`) turn the
 true state into what the plugins read: formation and avoidance get the swarm's picture (each agent's
@@ -40,6 +44,7 @@ from .events import EventQueue
 from .floor import Floor
 from .metric_keys import RunMetrics, is_engine_code
 from .monitors import SafetyMonitor
+from .phases import Phases
 from .plugin import Avoidance, BuildContext, Dynamics, Formation
 from .raised import PluginRaised
 from .recorder import TrajectoryRecorder
@@ -83,11 +88,16 @@ class Simulation:
         self.error: str | None = None
 
         self.environment = Environment(scenario.obstacles, name=cfg.environment.name)
-        self.world = WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader)
-        self.events = EventQueue.from_scenario(cfg)  # random parts drawn from their own streams
         floor = cfg.environment.floor
         self.floor = None if floor is None else Floor(floor, cfg.environment.touchdown_speed, self.guidance_period)
-        self._refuse_start_below_floor()
+        self._refuse_start_below_floor(scenario.initial_positions)
+        self.phases = self._phases(scenario.initial_positions)
+        start = scenario.initial_positions if self.phases is None else self.phases.start()
+        self.world = WorldState.at_rest(start, leader=cfg.swarm.leader)
+        if self.phases is not None:  # the mission's clock starts at 0, after the take-off
+            self.world.t = -self.phases.takeoff_ticks * self.guidance_period
+            self.total_steps += self.phases.takeoff_ticks + 2 * self.phases.land_ticks  # the most it may fly
+        self.events = EventQueue.from_scenario(cfg)  # random parts drawn from their own streams
         self.disturbances = Disturbances(
             scenario.disturbances, cfg.seed, cfg.swarm.n, self.guidance_period, self.physics_step,
             cfg.comm.range,
@@ -104,7 +114,7 @@ class Simulation:
             comm_range=cfg.comm.range,
             environment=self.environment,
             rng=self.rng,
-            initial=WorldState.at_rest(self.world.pos, leader=cfg.swarm.leader),
+            initial=WorldState.at_rest(scenario.initial_positions, leader=cfg.swarm.leader),
             link_delay=self.disturbances.link_delay(),
             link_loss=self.disturbances.link_loss(),
             floor=floor,
@@ -160,8 +170,11 @@ class Simulation:
         """Events, sense, communicate, formation, avoidance, the controller: up to the physics."""
         self._apply_due_events()
         seen = self.disturbances.perceive(self.world, self.sensing)  # sense, communicate
-        setpoints = self.formation.setpoints(seen.formation_world, seen.formation_sensing)
-        setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
+        if self.phases is not None and self.phases.flying(self.world.t):  # take-off, landing
+            setpoints = self.phases.setpoints(self.world.t)
+        else:
+            setpoints = self.formation.setpoints(seen.formation_world, seen.formation_sensing)
+            setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
         self.dynamics.control(seen.own, setpoints)
 
     def blow(self, j: int) -> None:
@@ -178,12 +191,18 @@ class Simulation:
         self.events.hold(self.world)
         if self.disturbances.raisers:
             self._apply_raised(self.disturbances.raised(self.world, self.world.t + self.guidance_period))
+        if self.phases is not None:
+            self.phases.keep_down(self.world)  # landed vehicles stay down, motors stopped
         if self.floor is not None:
             self._apply_raised(self.floor.meet(self.world))
+        if self.phases is not None:
+            self.phases.touch(self.world)
         self._wrap_periodic()
         self._check_finite()
         self.step_count += 1
         self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
+        if self.phases is not None:
+            self.world.t = (self.step_count - self.phases.takeoff_ticks) * self.guidance_period
         self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
         self._step_end()
 
@@ -219,8 +238,15 @@ class Simulation:
             self.events.apply_now(self.world, event)
             self.hook.swarmscene_event(sim=self.view, event=event)
 
-    def _refuse_start_below_floor(self) -> None:
-        if self.floor is not None and (below := self.floor.below_at_start(self.world.pos)):
+    def _phases(self, targets: np.ndarray) -> Phases | None:
+        """The take-off and landing flights, when the scenario has either (core/phases.py)."""
+        swarm, floor = self.config.swarm, self.config.environment.floor
+        if floor is None or (swarm.takeoff is None and swarm.land is None):
+            return None
+        return Phases(floor, swarm.takeoff, swarm.land, self.guidance_period, targets)
+
+    def _refuse_start_below_floor(self, start: np.ndarray) -> None:
+        if self.floor is not None and (below := self.floor.below_at_start(start)):
             raise ConfigError([f"swarm.start: agents {below} start below environment.floor = "
                                f"{self.floor.height:g} m"])
 
@@ -313,10 +339,27 @@ class Simulation:
     def ticked(self, seconds: float, progress: Callable[[Simulation], None] | None = None) -> None:
         """After a tick: its wall time recorded, the mission's completion, the progress callback."""
         self.step_seconds[self.step_count - 1] = seconds
-        if self.config.termination.on_complete and self.formation.complete(self.world):
+        if self.phases is not None and self.phases.land is not None:
+            self._land_when_done()
+        elif self.world.t >= 0.0 and self.config.termination.on_complete and self.formation.complete(self.world):
             self.request_stop("complete")
         if progress is not None:
             progress(self)
+
+    def _land_when_done(self) -> None:
+        """Start the landing when the mission ends (its duration, or its completion under
+        ``termination.on_complete``); end the run when the landing's time is up."""
+        phases = self.phases
+        assert phases is not None
+        if phases.land_start is None:
+            if self.world.t < 0.0:
+                return
+            done = self.formation.complete(self.world)
+            finished = self.config.termination.on_complete and done
+            if finished or self.world.t >= self.config.clock.duration - 0.5 * self.guidance_period:
+                phases.begin_landing(self.world, done, completed=bool(finished))
+        elif phases.over(self.world):
+            self.request_stop("complete" if phases.completed else "duration")
 
     def stopped_by(self, exc: BaseException) -> Exception | None:
         """How an exception raised in a tick ends the run: a Ctrl-C is an interruption, a
@@ -337,6 +380,8 @@ class Simulation:
         """The run's end: its metrics, the ``swarmscene_run_end`` hook, its result; with the
         plugin exception that stopped it (or the run-end hook's), if any."""
         metrics = self._engine_metrics(wall)
+        if self.phases is not None:
+            metrics.update(self.phases.metrics(self.world))
         metrics.update(self.events.metrics())  # the drawn times and agents of random events
         guarded = RunMetrics(metrics, self._metric_prefixes())  # each plugin writes its own keys only
         try:
@@ -389,12 +434,13 @@ class Simulation:
     def _engine_metrics(self, wall: float) -> dict[str, Any]:
         steps = self.step_count
         times = self.step_seconds[:steps]
+        flown = steps * self.guidance_period  # world.t without a take-off (the clock sets it so)
         return {
-            "duration": float(self.world.t),
+            "duration": float(flown),
             "steps": steps,
             "agents": self.world.n,
             "wall_time": wall,
-            "realtime_factor": float(self.world.t / wall) if wall > 0 else None,
+            "realtime_factor": float(flown / wall) if wall > 0 else None,
             "step_ms_median": float(np.median(times) * 1e3) if steps else None,
             "stop_reason": self.stop_reason or "duration",
             "healthy_at_end": int(self.world.healthy.sum()),
@@ -403,8 +449,11 @@ class Simulation:
     def default_success(self, metrics: dict[str, Any]) -> bool:
         """Safe throughout, and the mission complete where the formation defines one."""
         safe = (metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
-                and metrics.get("floor.crashes", 0) == 0)
-        done = self.formation.complete(self.world)
+                and metrics.get("floor.crashes", 0) == 0 and not metrics.get("phases.airborne", 0))
+        if self.phases is not None and self.phases.land_start is not None:
+            done = self.phases.mission_complete  # after a landing: the verdict when the mission ended
+        else:
+            done = self.formation.complete(self.world)
         return bool(safe and done is not False and self.stop_reason != "interrupted")
 
 
