@@ -97,15 +97,29 @@ def _describe(sim: Any, key: str, metrics: dict[str, Any]) -> str:
 
 def mission_verdict(sim: Any, metrics: dict[str, Any]) -> Verdict:
     """Whether the formation's mission completed (its ``complete``; None: it defines none)."""
-    done = sim.formation.complete(sim.world)
-    stop = metrics.get("stop_reason", "duration")
+    phases = getattr(sim, "phases", None)
+    if phases is not None and phases.land_start is not None:  # judged when the mission ended, before the landing
+        done, end, stop = phases.mission_complete, phases.land_start, "then the landing"
+    else:
+        done, end = sim.formation.complete(sim.world), metrics.get("duration")
+        stop = f"stopped by {metrics.get('stop_reason', 'duration')}"
     if done is None:
-        return ("mission", NA, f"{sim.formation.name} sets no goal; stopped by {stop}")
+        return ("mission", NA, f"{sim.formation.name} sets no goal; {stop}")
     if done:
-        return ("mission", OK, f"complete at {_fmt(metrics.get('duration'), ' s')} (stopped by {stop})")
+        return ("mission", OK, f"complete at {_fmt(end, ' s')} ({stop})")
     why = _describe(sim, "mission", metrics)
-    return ("mission", FAIL, f"not complete when the run stopped at {_fmt(metrics.get('duration'), ' s')} "
-            f"(stopped by {stop})" + (f"; {why}" if why else ""))
+    return ("mission", FAIL, f"not complete when the run stopped at {_fmt(end, ' s')} "
+            f"({stop})" + (f"; {why}" if why else ""))
+
+
+def landing_verdicts(metrics: dict[str, Any]) -> list[Verdict]:
+    """With ``swarm.land``: whether every healthy vehicle ended on the floor (core/phases.py)."""
+    if "phases.airborne" not in metrics:
+        return []
+    airborne, landed = metrics["phases.airborne"], metrics["phases.landed"]
+    detail = (f"{landed} healthy vehicle(s) on the floor at the end, {airborne} still in the air; the landing "
+              f"began at {_fmt(metrics.get('phases.land_start'), ' s')}")
+    return [("landing", OK if airborne == 0 else FAIL, detail)]
 
 
 def plugin_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
@@ -138,22 +152,24 @@ def plugin_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
 def verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
     """(name, status, detail) for the engine's safety conditions, the mission and every plugin's
     conditions and preconditions, in the order the summary prints them."""
-    return [*engine_verdicts(sim, metrics), mission_verdict(sim, metrics), *plugin_verdicts(sim, metrics)]
+    return [*engine_verdicts(sim, metrics), mission_verdict(sim, metrics), *landing_verdicts(metrics),
+            *plugin_verdicts(sim, metrics)]
 
 
 def success_reason(metrics: dict[str, Any], lines: list[Verdict]) -> str:
     """What ``success`` measured (no engine limit violated, the mission complete) and why it is what
     it is; FAIL lines that ``success`` does not count (connectivity, a plugin's ``*_holds``) are named
     beside it, so that ``success True`` never reads as "every check passed"."""
+    counted = (*ENGINE_LIMITS, "mission", "landing")
     if metrics.get("success"):
         mission = next(status for name, status, _ in lines if name == "mission")
         reason = "no engine limit violated, " + ("mission complete" if mission == OK else "no mission to complete")
     else:
-        failed = [name for name, status, _ in lines if status == FAIL and name in (*ENGINE_LIMITS, "mission")]
+        failed = [name for name, status, _ in lines if status == FAIL and name in counted]
         if metrics.get("stop_reason") in ("interrupted", "non_finite"):
             failed.append(f"stopped by {metrics['stop_reason']}")
         reason = "failed: " + ", ".join(failed) if failed else "failed (see the plugin's metrics)"
-    uncounted = [name for name, status, _ in lines if status == FAIL and name not in (*ENGINE_LIMITS, "mission")]
+    uncounted = [name for name, status, _ in lines if status == FAIL and name not in counted]
     return reason + ("; not counted by success: FAIL " + ", ".join(uncounted) if uncounted else "")
 
 

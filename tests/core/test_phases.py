@@ -152,3 +152,18 @@ def test_a_batch_of_phased_worlds_is_its_single_runs():
         alone = api.run([*config, f"seed={seed}"])
         np.testing.assert_array_equal(batched.trajectory["pos"], alone.trajectory["pos"])
         assert batched.metrics["phases.landed"] == alone.metrics["phases.landed"]
+
+
+def test_the_summary_judges_the_mission_when_it_ended_and_the_landing_by_the_vehicles_left_aloft(data):
+    from swarmscene.summary import FAIL, OK, verdicts
+
+    data = phased(data, land=0.1)
+    data["termination"]["on_complete"] = False
+    data["clock"]["duration"] = 2.0
+    sim = api.build(data)
+    lines = {name: (status, detail) for name, status, detail in verdicts(sim, sim.run().metrics)}
+    assert lines["landing"][0] == FAIL and lines["landing"][1].startswith("0 healthy vehicle(s) on the floor")
+    assert "not complete when the run stopped at 2 s (then the landing)" in lines["mission"][1]
+    landed = api.build(phased(api.compose([]), land=3.0))
+    lines = {name: (status, detail) for name, status, detail in verdicts(landed, landed.run().metrics)}
+    assert lines["landing"][0] == OK and lines["mission"][0] == OK
