@@ -200,3 +200,25 @@ def test_the_vectorised_intervals_agree_with_rliables_own_bootstrap():
     _, ci = rly.get_interval_estimates({"ca": [matrices["c"], matrices["a"]]}, rl_metrics.probability_of_improvement,
                                        reps=300, random_state=np.random.RandomState(1))
     np.testing.assert_allclose(mine_p["ci"], np.ravel(ci["ca"]), atol=0.03)
+
+
+def test_the_check_tells_identical_scores_from_close_different_and_missing_ones():
+    from swarmscene.suite.check import compare, report
+
+    reference = synthetic_rows(methods=("a", "b"))
+    same = [dict(r) for r in reference if r["method"] == "a"]  # method b was not run: not compared
+    c = compare(same, reference)
+    assert (c.compared, c.identical, c.close, c.different, c.missing) == (50, 50, [], [], [])
+    assert c.reproduced and report(c, "v1", 1e-12).endswith("0 different, 0 missing; reproduced")
+    same[0]["raw"] *= 1 + 4e-16  # its last bits: within the tolerance
+    same[1]["normalised"] = same[1]["normalised"] * (1 + 1e-9) + 1e-9  # beyond it
+    same[2]["passed"] = not same[2]["passed"]  # a verdict
+    lost = same.pop(3)
+    c = compare(same, reference)
+    assert (c.compared, c.identical, len(c.close), len(c.different), len(c.missing)) == (49, 46, 1, 2, 1)
+    assert not c.reproduced
+    text = report(c, "v1", 1e-12)
+    assert "NOT reproduced" in text and f"missing: {lost['task']} a seed {lost['seed']}" in text
+    assert f"passed {same[2]['passed']} (reference {not same[2]['passed']})" in text
+    assert compare(same, reference, partial=True).missing == []
+

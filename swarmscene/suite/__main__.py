@@ -2,7 +2,8 @@
 
 ``python -m swarmscene.suite score multirun/suite_v1`` writes multirun/suite_v1/suite/ (again);
 ``python -m swarmscene.suite page multirun/suite_v1 --reference`` writes docs/suite.md's tables,
-docs/suite/*.png, and the package's reference scores.
+docs/suite/*.png, and the package's reference scores; ``python -m swarmscene.suite check
+multirun/suite_v1`` says whether the sweep reproduces those reference scores.
 """
 
 from __future__ import annotations
@@ -24,8 +25,22 @@ def main(argv: list[str] | None = None) -> int:
     page.add_argument("--docs", default="docs/suite.md")
     page.add_argument("--reference", action="store_true",
                       help="also make these the shipped reference results (swarmscene/suite/reference_<version>.csv)")
+    check = sub.add_parser("check", help="whether SWEEP_DIR's runs reproduce the shipped reference scores "
+                           "(exit 1 if not)")
+    check.add_argument("sweep_dir")
+    check.add_argument("--version", default="v1")
+    check.add_argument("--rtol", type=float, default=1e-12,
+                       help="relative difference allowed where a score is not the same float (default 1e-12)")
+    check.add_argument("--partial", action="store_true",
+                       help="compare only the runs the sweep holds (a sweep of some tasks or seeds)")
     args = parser.parse_args(argv)
     try:
+        if args.command == "check":
+            from .check import check_sweep
+
+            reproduced, text = check_sweep(args.sweep_dir, args.version, args.rtol, args.partial)
+            print(text)
+            return 0 if reproduced else 1
         if args.command == "score":
             from .callback import score_and_write
 
