@@ -164,11 +164,11 @@ def write_page(sweep_dir: Any, docs: Any, reference: bool) -> list[str]:
     from pathlib import Path
 
     from ..outputs import atomic_write_bytes
+    from ..rundir import read_json
     from .definition import frozen
-    from .results import load_results
 
     sweep_dir, docs = Path(sweep_dir), Path(docs)
-    results = load_results(sweep_dir / "suite" / "results.json")
+    results = dict(read_json(sweep_dir / "suite" / "results.json"))  # through the checked reader
     record = frozen(results["version"])
     pictures = docs.parent / docs.stem
     pictures.mkdir(parents=True, exist_ok=True)

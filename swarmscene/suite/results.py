@@ -96,13 +96,6 @@ def write_results(out_dir: Path, rows: Sequence[dict[str, Any]], unscored: Seque
     atomic_write_bytes(out_dir / "leaderboard.md", leaderboard_markdown(results, record).encode())
 
 
-def load_results(path: Path) -> dict[str, Any]:
-    """A ``results.json`` read back (through the checked reader)."""
-    from ..rundir import read_json
-
-    return dict(read_json(path))
-
-
 def dumps(data: Any) -> str:
     """JSON as the results files write it."""
     return json.dumps(data, indent=1, sort_keys=True)
