@@ -88,6 +88,34 @@ class ConnectivityCertificate:
         return bool(np.all(np.einsum("ij,ij->i", gap, gap) <= sensing.comm_range**2))
 
 
+class DistinctPairs:
+    """The distinct agent pairs (i < j) seen over a run, as keys i * N + j in chunks merged now and
+    then: 8 bytes per pair (a set of tuples costs ~500 and grew to 1 GB over 1,000 ticks of 100,000
+    boids)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self._keys: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        self._unmerged = 0
+
+    def add(self, pairs: np.ndarray) -> None:
+        """Record ``pairs`` (M, 2), i < j."""
+        keys = pairs[:, 0].astype(np.int64) * self.n + pairs[:, 1]
+        self._keys.append(keys)
+        self._unmerged += keys.size
+        if self._unmerged > max(1_000_000, self._keys[0].size):
+            self._merge()
+
+    def count(self) -> int:
+        """How many distinct pairs were recorded."""
+        return int(self._merge().size)
+
+    def _merge(self) -> np.ndarray:
+        merged = np.unique(np.concatenate(self._keys))
+        self._keys, self._unmerged = [merged], 0
+        return merged
+
+
 class SafetyMonitor:
     """Records min separation, min clearance and connectivity at t = 0 and after every tick."""
 
@@ -105,10 +133,7 @@ class SafetyMonitor:
         self.connected = np.ones(size, dtype=bool)
         self.count = 0
         self.n = sim.world.n
-        # Pairs closer than d_sep, as keys i * N + j in chunks, merged now and then: 8 bytes per
-        # pair (a set of tuples costs ~500 and grew to 1 GB over 1,000 ticks of 100,000 boids).
-        self._collision_keys: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
-        self._unmerged = 0
+        self.collisions = DistinctPairs(self.n)  # pairs closer than d_sep
         self.clearance_agents: set[int] = set()
         self.first: dict[str, tuple[float, list[int]]] = {}
         self.certificate = ConnectivityCertificate()
@@ -126,7 +151,7 @@ class SafetyMonitor:
         separation = self.min_separation[k] = sensing.min_separation
         if separation < self.d_sep:
             pairs = sensing.pairs(self.d_sep)
-            self._add_collisions(pairs)
+            self.collisions.add(pairs)
             if "separation" not in self.first:
                 self._first("separation", t, np.unique(pairs).tolist())
             if self.stop_on_collision:
@@ -165,18 +190,6 @@ class SafetyMonitor:
             self.min_clearance[self._far_ticks] = shapely.distance(self.environment.union, points)
         self._far_ticks, self._far_xy = [], []
 
-    def _add_collisions(self, pairs: np.ndarray) -> None:
-        keys = pairs[:, 0].astype(np.int64) * self.n + pairs[:, 1]
-        self._collision_keys.append(keys)
-        self._unmerged += keys.size
-        if self._unmerged > max(1_000_000, self._collision_keys[0].size):
-            self._merge_collisions()
-
-    def _merge_collisions(self) -> np.ndarray:
-        merged = np.unique(np.concatenate(self._collision_keys))
-        self._collision_keys, self._unmerged = [merged], 0
-        return merged
-
     def _first(self, condition: str, t: float, agents: list[int]) -> None:
         self.first.setdefault(condition, (float(t), agents))
 
@@ -208,7 +221,7 @@ class SafetyMonitor:
         min_clear = float(self.min_clearance[:k].min()) if k else float("inf")
         metrics["min_separation"] = min_sep if np.isfinite(min_sep) else None
         metrics["min_clearance"] = min_clear if np.isfinite(min_clear) else None
-        metrics["collisions"] = int(self._merge_collisions().size)
+        metrics["collisions"] = self.collisions.count()
         metrics["clearance_violations"] = len(self.clearance_agents)
         metrics["connected"] = bool(self.connected[:k].all())
         for condition, (t, agents) in sorted(self.first.items()):
