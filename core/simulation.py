@@ -401,9 +401,11 @@ class Simulation:
         }
 
     def default_success(self, metrics: dict[str, Any]) -> bool:
-        """Safe throughout, and the mission complete where the formation defines one."""
+        """Safe throughout, and the mission complete where the formation defines one. Safe: no
+        collision, no clearance violation, no crash on the floor and, when ``safety.keep_out`` is
+        set, no pair inside the keep-out ellipsoid (``keep_out_conflicts`` is null when it is not)."""
         safe = (metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
-                and metrics.get("floor.crashes", 0) == 0)
+                and metrics.get("floor.crashes", 0) == 0 and not metrics.get("keep_out_conflicts"))
         done = self.formation.complete(self.world)
         return bool(safe and done is not False and self.stop_reason != "interrupted")
 
