@@ -15,6 +15,7 @@ import pytest
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.vectors import ellipsoid_norm
+from swarmscene.summary import FAIL, OK, verdicts
 
 CRAZYFLIE = [0.12, 0.12, 0.3]
 """m: the Crazyflie's keep-out radii (methods/physics/crazyflie.py KEEP_OUT_RADII)."""
@@ -134,6 +135,20 @@ def test_off_by_default_null_metrics_no_line_and_the_flight_unchanged():
     same = {k for k in off.metrics if k not in ("wall_time", "realtime_factor", "step_ms_median", "success",
                                                  "min_keep_out", "keep_out_conflicts")}
     assert {k: on.metrics[k] for k in same} == {k: off.metrics[k] for k in same}
+
+
+def test_the_summary_prints_a_keep_out_line_only_when_set(data):
+    sim = api.build(explicit(data, STACKED + SIDE_BY_SIDE, CRAZYFLIE, 0.3))
+    metrics = sim.run().metrics
+    lines = {name: (status, detail) for name, status, detail in verdicts(sim, metrics)}
+    status, detail = lines["keep_out"]
+    assert status == FAIL and detail.startswith(f"min {metrics['min_keep_out']:.3g} vs 1, ||E^-1 (p_i - p_j)|| "
+                                                "with E = diag(0.12, 0.12, 0.3) m")
+    assert detail.endswith("1 pair(s) inside; first at 0.00 s (agents 0, 1)")
+    sim = api.build(explicit(data, SIDE_BY_SIDE, CRAZYFLIE, 0.3))
+    assert verdicts(sim, sim.run().metrics)[3][:2] == ("keep_out", OK)
+    sim = api.build(explicit(data, SIDE_BY_SIDE, None, 0.3))
+    assert "keep_out" not in {name for name, _, _ in verdicts(sim, sim.run().metrics)}
 
 
 def test_the_radii_are_validated():
