@@ -125,8 +125,10 @@ DEPRECATED_SAFETY_KEYS = {"min_separation": "separation_limit", "min_clearance":
 
 
 class SafetyConfig(_Strict):
-    """The limits every run is measured against (the measured values are the metrics
-    ``min_separation`` and ``min_clearance``)."""
+    """The limits and conditions every run is measured against (core/monitors.py).
+
+    The measured values are the metrics ``min_separation``, ``min_clearance`` and, with ``keep_out``
+    set, ``min_keep_out`` (docs/outputs.md)."""
 
     separation_limit: float = Field(
         0.5, ge=0, le=MAX_LENGTH, description="safety distance between agents, m (was min_separation)"
@@ -139,6 +141,24 @@ class SafetyConfig(_Strict):
         description="agents starting closer than separation_limit: an error, or a warning where a "
         "scenario starts that way on purpose (thesis 4.5.2)",
     )
+    keep_out: tuple[float, float, float] | None = Field(
+        None,
+        description="radii [rx, ry, rz] of the keep-out ellipsoid, m: two agents with "
+        "||E^-1 (p_i - p_j)|| < 1, E = diag(radii), are in conflict (Crazyswarm's planners: 0.12, 0.12, "
+        "0.3; Preiss et al., IROS 2017); null: not checked",
+    )
+
+    @field_validator("keep_out", mode="before")
+    @classmethod
+    def _three_radii(cls, value: Any) -> Any:
+        """Three finite radii in (0, MAX_LENGTH], or null: one line naming the key, not one per item."""
+        if value is None:
+            return None
+        items = list(value) if isinstance(value, (list, tuple)) else []
+        numbers = [v for v in items if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if len(items) != 3 or len(numbers) != 3 or not all(0 < v <= MAX_LENGTH for v in numbers):
+            raise ValueError(f"must be three radii [rx, ry, rz], each > 0 and at most {MAX_LENGTH:g} m, or null")
+        return value
 
     @model_validator(mode="wrap")
     @classmethod

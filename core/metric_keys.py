@@ -25,7 +25,7 @@ from typing import Any
 ENGINE_KEYS = (
     "duration", "steps", "agents", "wall_time", "realtime_factor", "step_ms_median", "stop_reason",
     "healthy_at_end", "min_separation", "min_clearance", "collisions", "clearance_violations", "connected",
-    "success",
+    "min_keep_out", "keep_out_conflicts", "success",
 )
 """The engine's unprefixed keys (docs/outputs.md, metrics.json); any other unprefixed key is reserved too."""
 ENGINE_PREFIXES = ("violations", "events", "disturbances", "phases")

@@ -1,4 +1,4 @@
-"""Safety monitor: separation, clearance and connectivity, measured on every tick.
+"""Safety monitor: separation, clearance, connectivity and the keep-out ellipsoid, measured on every tick.
 
 A verdict is computed from the recorded states, never from an algorithm's own belief. The monitor
 uses the tick's shared :class:`~swarmscene.core.sensing.Sensing` (its one k-d tree), so it costs
@@ -11,8 +11,19 @@ Metrics (``metrics.json``):
     clearance_violations: distinct agents that came closer than ``safety.clearance_limit`` to an
         obstacle.
     connected: the communication graph was connected at every tick.
+    min_keep_out: smallest ||E^-1 (p_i - p_j)||, E = diag(``safety.keep_out``), over the pairs within
+        the largest radius of each other (null: ``safety.keep_out`` is null, or no pair came that
+        close). Every pair inside the ellipsoid is among them, so the value is exact whenever it
+        is below 1; above 1 it is the least over the pairs within reach.
+    keep_out_conflicts: distinct pairs that came inside the keep-out ellipsoid (null: not checked).
     violations.<condition>.first_time / .agents: for each violated condition (``separation``,
-        ``clearance``, ``connectivity``), when it first happened (s) and the agents involved.
+        ``clearance``, ``connectivity``, ``keep_out``), when it first happened (s) and the agents
+        involved.
+
+The keep-out ellipsoid is the one of Crazyswarm's planners (Preiss et al., "Downwash-aware
+trajectory planning for large quadrotor teams", IROS 2017: radii 0.12, 0.12, 0.3 m for a
+Crazyflie), set with ``safety.keep_out``; the ``downwash`` disturbance model reports its own
+measure of it (``disturbances.downwash.*``), only while that model runs.
 """
 
 from __future__ import annotations
@@ -23,7 +34,7 @@ import numpy as np
 import shapely
 
 from .hookspecs import hookimpl
-from .vectors import DENSE_POINTS
+from .vectors import DENSE_POINTS, ellipsoid_norm
 
 if TYPE_CHECKING:  # pragma: no cover
     from .run_view import RunView
@@ -88,8 +99,37 @@ class ConnectivityCertificate:
         return bool(np.all(np.einsum("ij,ij->i", gap, gap) <= sensing.comm_range**2))
 
 
+class DistinctPairs:
+    """The distinct agent pairs (i < j) seen over a run, as keys i * N + j in chunks merged now and
+    then: 8 bytes per pair (a set of tuples costs ~500 and grew to 1 GB over 1,000 ticks of 100,000
+    boids)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self._keys: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+        self._unmerged = 0
+
+    def add(self, pairs: np.ndarray) -> None:
+        """Record ``pairs`` (M, 2), i < j."""
+        keys = pairs[:, 0].astype(np.int64) * self.n + pairs[:, 1]
+        self._keys.append(keys)
+        self._unmerged += keys.size
+        if self._unmerged > max(1_000_000, self._keys[0].size):
+            self._merge()
+
+    def count(self) -> int:
+        """How many distinct pairs were recorded."""
+        return int(self._merge().size)
+
+    def _merge(self) -> np.ndarray:
+        merged = np.unique(np.concatenate(self._keys))
+        self._keys, self._unmerged = [merged], 0
+        return merged
+
+
 class SafetyMonitor:
-    """Records min separation, min clearance and connectivity at t = 0 and after every tick."""
+    """Records min separation, min clearance, connectivity and (with ``safety.keep_out``) the
+    keep-out ellipsoid at t = 0 and after every tick."""
 
     def __init__(self, sim: RunView) -> None:
         self.d_sep = sim.config.safety.separation_limit
@@ -105,11 +145,14 @@ class SafetyMonitor:
         self.connected = np.ones(size, dtype=bool)
         self.count = 0
         self.n = sim.world.n
-        # Pairs closer than d_sep, as keys i * N + j in chunks, merged now and then: 8 bytes per
-        # pair (a set of tuples costs ~500 and grew to 1 GB over 1,000 ticks of 100,000 boids).
-        self._collision_keys: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
-        self._unmerged = 0
+        self.collisions = DistinctPairs(self.n)  # pairs closer than d_sep
         self.clearance_agents: set[int] = set()
+        keep_out = sim.config.safety.keep_out
+        self.keep_out = None if keep_out is None else np.asarray(keep_out, dtype=float)
+        # Only pairs within the largest radius can be inside the ellipsoid: ||d|| <= max(radii) * ||E^-1 d||.
+        self.keep_out_reach = 0.0 if keep_out is None else float(max(keep_out))
+        self.min_keep_out = np.full(size if keep_out is not None else 0, np.inf)  # 8 bytes a tick, only when on
+        self.keep_out_pairs = DistinctPairs(self.n)
         self.first: dict[str, tuple[float, list[int]]] = {}
         self.certificate = ConnectivityCertificate()
         # Ticks with every agent beyond the horizon, and their x-y positions: their min_clearance
@@ -126,13 +169,15 @@ class SafetyMonitor:
         separation = self.min_separation[k] = sensing.min_separation
         if separation < self.d_sep:
             pairs = sensing.pairs(self.d_sep)
-            self._add_collisions(pairs)
+            self.collisions.add(pairs)
             if "separation" not in self.first:
                 self._first("separation", t, np.unique(pairs).tolist())
             if self.stop_on_collision:
                 sim.request_stop("collision")
         if not sensing.environment.empty:  # open space: min_clearance stays inf
             self._observe_clearance(sensing, t, k)
+        if self.keep_out is not None and separation <= self.keep_out_reach:  # else no pair within reach
+            self._observe_keep_out(sensing, t, k, self.keep_out)
         if not connected:
             self._first("connectivity", t, np.flatnonzero(sensing.comm_members).tolist())
         self.count += 1
@@ -154,6 +199,20 @@ class SafetyMonitor:
             self.clearance_agents.update(agents.tolist())
             self._first("clearance", t, agents.tolist())
 
+    def _observe_keep_out(self, sensing: Any, t: float, k: int, radii: np.ndarray) -> None:
+        """The pairs within the largest of ``radii`` (the tick's shared pair list, filtered from the
+        widest one listed), their ellipsoid norms, and those inside (norm < 1)."""
+        pairs = sensing.pairs(self.keep_out_reach)
+        if not len(pairs):
+            return
+        pos = sensing.world.pos
+        norm = ellipsoid_norm(pos[pairs[:, 1]] - pos[pairs[:, 0]], radii)
+        self.min_keep_out[k] = norm.min()
+        inside = pairs[norm < 1.0]
+        if len(inside):
+            self.keep_out_pairs.add(inside)
+            self._first("keep_out", t, np.unique(inside).tolist())
+
     def _settle_far(self) -> None:
         """The waiting ticks' min_clearance: ``Environment.distance`` of each tick's positions, one
         vectorised GEOS call for them all (the same distance of the same multipoint, to the bit:
@@ -165,18 +224,6 @@ class SafetyMonitor:
             self.min_clearance[self._far_ticks] = shapely.distance(self.environment.union, points)
         self._far_ticks, self._far_xy = [], []
 
-    def _add_collisions(self, pairs: np.ndarray) -> None:
-        keys = pairs[:, 0].astype(np.int64) * self.n + pairs[:, 1]
-        self._collision_keys.append(keys)
-        self._unmerged += keys.size
-        if self._unmerged > max(1_000_000, self._collision_keys[0].size):
-            self._merge_collisions()
-
-    def _merge_collisions(self) -> np.ndarray:
-        merged = np.unique(np.concatenate(self._collision_keys))
-        self._collision_keys, self._unmerged = [merged], 0
-        return merged
-
     def _first(self, condition: str, t: float, agents: list[int]) -> None:
         self.first.setdefault(condition, (float(t), agents))
 
@@ -187,7 +234,7 @@ class SafetyMonitor:
 
     @hookimpl
     def swarmscene_step_end(self, sim: RunView) -> None:
-        """Observe the state after this tick: separation, clearance, connectivity."""
+        """Observe the state after this tick: separation, clearance, connectivity, keep-out."""
         self._observe(sim)
 
     @hookimpl
@@ -201,16 +248,20 @@ class SafetyMonitor:
     @hookimpl
     def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
         """Add the safety metrics: min_separation, min_clearance, collisions, clearance_violations,
-        connected, and each violated condition's first time and agents."""
+        connected, min_keep_out, keep_out_conflicts, and each violated condition's first time and
+        agents."""
         self._settle_far()
         k = self.count
         min_sep = float(self.min_separation[:k].min()) if k else float("inf")
         min_clear = float(self.min_clearance[:k].min()) if k else float("inf")
         metrics["min_separation"] = min_sep if np.isfinite(min_sep) else None
         metrics["min_clearance"] = min_clear if np.isfinite(min_clear) else None
-        metrics["collisions"] = int(self._merge_collisions().size)
+        metrics["collisions"] = self.collisions.count()
         metrics["clearance_violations"] = len(self.clearance_agents)
         metrics["connected"] = bool(self.connected[:k].all())
+        min_keep_out = float(np.minimum.reduce(self.min_keep_out[:k], initial=np.inf))
+        metrics["min_keep_out"] = min_keep_out if np.isfinite(min_keep_out) else None
+        metrics["keep_out_conflicts"] = None if self.keep_out is None else self.keep_out_pairs.count()
         for condition, (t, agents) in sorted(self.first.items()):
             metrics[f"violations.{condition}.first_time"] = t
             metrics[f"violations.{condition}.agents"] = agents
@@ -219,12 +270,15 @@ class SafetyMonitor:
         """The recorded series, trimmed to the ticks that ran."""
         self._settle_far()
         k = self.count
-        return {
+        series = {
             "t": self.t[:k],
             "min_separation": self.min_separation[:k],
             "min_clearance": self.min_clearance[:k],
             "connected": self.connected[:k],
         }
+        if self.keep_out is not None:  # inf: no pair within the largest radius at that tick
+            series["min_keep_out"] = self.min_keep_out[:k]
+        return series
 
 
 @hookimpl

@@ -447,9 +447,12 @@ class Simulation:
         }
 
     def default_success(self, metrics: dict[str, Any]) -> bool:
-        """Safe throughout, and the mission complete where the formation defines one."""
+        """Safe throughout, and the mission complete where the formation defines one. Safe: no
+        collision, no clearance violation, no crash on the floor and, when ``safety.keep_out`` is
+        set, no pair inside the keep-out ellipsoid; after a landing, no healthy vehicle left in the air."""
         safe = (metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
-                and metrics.get("floor.crashes", 0) == 0 and not metrics.get("phases.airborne", 0))
+                and metrics.get("floor.crashes", 0) == 0 and not metrics.get("keep_out_conflicts")
+                and not metrics.get("phases.airborne", 0))
         if self.phases is not None and self.phases.land_start is not None:
             done = self.phases.mission_complete  # after a landing: the verdict when the mission ended
         else:

@@ -93,6 +93,16 @@ def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndar
     return listed(np.ascontiguousarray(points, dtype=float), float(radius))
 
 
+def ellipsoid_norm(d: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """||E^-1 d|| of each displacement ``d`` (M, 3), E = diag(``radii``) (3,), m: below 1 inside the
+    ellipsoid. The keep-out ellipsoid of Crazyswarm's planners (Preiss et al., "Downwash-aware
+    trajectory planning for large quadrotor teams", IROS 2017; radii 0.12, 0.12, 0.3 m). Summed
+    ((x/rx)^2 + (y/ry)^2) + (z/rz)^2, left to right, so a scalar transcription gives the same bits."""
+    s = d / radii
+    s *= s
+    return np.sqrt(s[:, 0] + s[:, 1] + s[:, 2])
+
+
 def min_distance_between(a: np.ndarray, b: np.ndarray) -> float:
     """Smallest distance between a row of ``a`` (M, 2) and a row of ``b`` (F, 2), m; ``inf`` if
     either is empty. The closest pair across two sets (agents against failed vehicles), with the

@@ -32,8 +32,9 @@ violation of ``<plugin>.<condition>_holds``, ``<plugin>.violations.<condition>.f
 ``.agents``, is appended to its line. Keys a plugin lists in ``RENAMED_METRICS`` (old -> new, kept
 in metrics.json for one release) are not printed."""
 
-ENGINE_LIMITS = ("separation", "clearance")
-"""The lines ``success`` counts, with the mission (core.simulation's default success)."""
+ENGINE_LIMITS = ("separation", "clearance", "keep_out")
+"""The lines ``success`` counts, with the mission (core.simulation's default success; ``keep_out``
+only when ``safety.keep_out`` is set, else it has no line)."""
 
 
 Verdict = tuple[str, str, str]
@@ -62,8 +63,9 @@ def _does_not_avoid(sim: Any) -> list[str]:
 
 
 def engine_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
-    """Separation, clearance and connectivity as core/monitors.py measures them, each line saying its
-    limit and scope (the engine's keys keep their names; their scope is stated here)."""
+    """Separation, clearance, connectivity and (when ``safety.keep_out`` is set) the keep-out
+    ellipsoid as core/monitors.py measures them, each line saying its limit and scope (the engine's
+    keys keep their names; their scope is stated here)."""
     safety = sim.config.safety
     collisions = metrics.get("collisions", 0)
     detail = (f"min {_fmt(metrics.get('min_separation'), ' m')} vs {safety.separation_limit} m, all pairs "
@@ -82,7 +84,21 @@ def engine_verdicts(sim: Any, metrics: dict[str, Any]) -> list[Verdict]:
     out.append(("connectivity", OK if metrics.get("connected") else FAIL,
                 f"communication graph connected, by range {sim.config.comm.range} m (line of sight not "
                 "considered), every tick" + _first(metrics, "violations.connectivity")))
-    return out
+    keep_out = _keep_out_verdict(safety.keep_out, metrics)
+    return out if keep_out is None else [*out, keep_out]
+
+
+def _keep_out_verdict(radii: tuple[float, float, float] | None, metrics: dict[str, Any]) -> Verdict | None:
+    """The keep-out ellipsoid's line (``safety.keep_out`` = ``radii``), or None when it is not set:
+    a condition the scenario did not declare is not printed (as the floor's)."""
+    if radii is None:
+        return None
+    conflicts = metrics.get("keep_out_conflicts") or 0
+    nearest = metrics.get("min_keep_out")
+    measured = f"min {_fmt(nearest)} vs 1" if nearest is not None else f"no pair within {max(radii):g} m"
+    detail = (f"{measured}, ||E^-1 (p_i - p_j)|| with E = diag({', '.join(f'{r:g}' for r in radii)}) m, all pairs "
+              f"(failed vehicles included), sampled once per guidance tick; {conflicts} pair(s) inside")
+    return ("keep_out", OK if conflicts == 0 else FAIL, detail + _first(metrics, "violations.keep_out"))
 
 
 def _describe(sim: Any, key: str, metrics: dict[str, Any]) -> str:

@@ -31,6 +31,7 @@ def assert_world_is_its_single_run(config, seed, batched):
     assert alone.trajectory.keys() == batched.trajectory.keys()
     for key, value in alone.trajectory.items():
         np.testing.assert_array_equal(batched.trajectory[key], value, err_msg=f"seed {seed}: {key}")
+    return alone
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -47,6 +48,17 @@ def test_every_whole_preset_in_a_batch_of_three_is_its_single_runs(preset):
     config = [f"scenario={preset}", "output.summary=false"]
     for seed, result in zip(SEEDS, api.run_batch(config, SEEDS), strict=True):
         assert_world_is_its_single_run(config, seed, result)
+
+
+def test_the_keep_out_condition_of_each_world_is_its_single_runs():
+    """safety.keep_out on 100 boids (the monitor's pair list from the compiled cell list): every
+    world's conflicts, first time and agents are its single run's."""
+    config = ["scenario=flocking", "clock.duration=20", "safety.keep_out=[0.12,0.12,0.3]", "output.summary=false"]
+    results = api.run_batch(config, SEEDS)
+    assert any(result.metrics["keep_out_conflicts"] for result in results)  # not vacuous
+    for seed, result in zip(SEEDS, results, strict=True):
+        alone = assert_world_is_its_single_run(config, seed, result)
+        np.testing.assert_array_equal(result.series["min_keep_out"], alone.series["min_keep_out"])
 
 
 def test_worlds_that_end_early_are_masked_and_the_others_go_on(monkeypatch):

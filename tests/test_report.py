@@ -5,6 +5,7 @@ where a combination could not run."""
 from __future__ import annotations
 
 import csv
+import io
 import os
 import subprocess
 import sys
@@ -69,6 +70,25 @@ def test_first_violation_and_completion_columns():
     assert sweep.completion_cell(runs) == "2/3: 28 s [25, 31]"
     assert sweep.violation_cell(runs[2:]) == "none in 1"
     assert sweep.completion_cell(runs[:1]) == "not complete in 1"
+
+
+def test_keep_out_columns_say_whether_a_run_checked_it(tmp_path):
+    """Every table has the keep-out column pair (core/monitors.py's conditions); a run that did not
+    set safety.keep_out leaves both cells empty, one that held it has no agents, one that broke it
+    its first time, which the first safety violation counts."""
+    from swarmscene import api
+
+    base = ["clock.duration=0.5", "output.summary=false"]
+    for job, extra in enumerate([[], ["safety.keep_out=[0.12,0.12,0.3]"], ["safety.keep_out=[2.0,2.0,0.5]"]]):
+        api.run([*base, *extra], output_dir=tmp_path / str(job))
+    rows = sweep.collect_rows(tmp_path)
+    assert {"violations.keep_out.first_time", "violations.keep_out.agents"} <= set(sweep.columns(rows))
+    assert "violations.keep_out.agents" not in rows[0] and rows[0]["keep_out_conflicts"] is None
+    assert (rows[1]["violations.keep_out.first_time"], rows[1]["violations.keep_out.agents"]) == (None, "[]")
+    assert rows[2]["violations.keep_out.first_time"] == 0.1 and rows[2]["keep_out_conflicts"] > 0
+    assert [sweep.first_violation_time(r) for r in rows] == [None, None, 0.1]
+    cells = list(csv.DictReader(io.StringIO(sweep.csv_text(rows))))
+    assert [c["violations.keep_out.agents"] for c in cells[:2]] == ["", "[]"]
 
 
 def test_methods_table_cells_and_one_word_reasons():

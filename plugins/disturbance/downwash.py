@@ -7,7 +7,10 @@ the vehicles above each one (compiled cell search) and returns -F / m e_3 per ve
 Metrics (``disturbances.<key>.``): ``peak_acceleration`` (m/s^2, the largest push on a vehicle),
 ``min_keep_out`` (the smallest ||E^-1 (p_i - p_j)|| over the pairs within reach, null: none came
 within reach), ``keep_out_conflicts`` (distinct pairs inside the ellipsoid),
-``keep_out_first_time`` and ``keep_out_agents`` (the first conflict; only after one).
+``keep_out_first_time`` and ``keep_out_agents`` (the first conflict; only after one). These are
+measured on the physics steps, as the model's own view, and judge nothing: the run's safety
+condition is the monitor's ``safety.keep_out`` (:class:`swarmscene.core.monitors.SafetyMonitor`:
+``min_keep_out``, ``keep_out_conflicts``, ``violations.keep_out.*``, counted by ``success``).
 """
 
 from __future__ import annotations

@@ -6,7 +6,8 @@ When a multirun ends (:mod:`swarmscene.sweeps.callback`) or ``swarmscene-report 
     summary.csv      one row per job: job, status, error, reason, seed, one column per overridden
                      key, the overrides as typed, the config hash, then every metric (dotted keys);
                      every ``violations.*`` column is present in every table (empty first time and
-                     ``[]`` agents for a condition a complete run never violated)
+                     ``[]`` agents for a condition a complete run never violated; both empty for
+                     the keep-out ellipsoid of a run that did not set ``safety.keep_out``)
     summary.parquet  the same table, when pyarrow is importable
     summary.md       rows grouped by the swept parameters other than the seed: runs, failures,
                      success rate with its 95 % (Wilson) interval, and per metric the mean with its
@@ -40,8 +41,11 @@ from .stats import lower_bound, mean_interval, wilson
 EXIT_FAILED_JOBS = 1
 BASE_COLUMNS = ("job", "status", "error", "reason", "seed")
 TAIL_COLUMNS = ("overrides", "config_hash")
-VIOLATION_CONDITIONS = ("separation", "clearance", "connectivity")
+VIOLATION_CONDITIONS = ("separation", "clearance", "connectivity", "keep_out")
 """The monitor's conditions (core/monitors.py): each has a column pair in every table."""
+OPT_IN_CONDITIONS = {"keep_out": "keep_out_conflicts"}
+"""Conditions a scenario may leave unchecked, and the metric that is null when it did: such a
+run's cells stay empty (not checked), not ``[]`` agents (checked, never violated)."""
 VIOLATION_COLUMNS = tuple(f"violations.{c}.{f}" for c in VIOLATION_CONDITIONS for f in ("first_time", "agents"))
 
 
@@ -121,6 +125,8 @@ def job_row(run_dir: Path, root: Path | None = None) -> dict[str, Any]:
         row[column] = json.dumps(value) if isinstance(value, (list, dict)) else value
     if status == "complete":  # a condition never violated: an empty first time, no agents
         for condition in VIOLATION_CONDITIONS:
+            if condition in OPT_IN_CONDITIONS and metrics.get(OPT_IN_CONDITIONS[condition]) is None:
+                continue
             row.setdefault(f"violations.{condition}.first_time", None)
             row.setdefault(f"violations.{condition}.agents", "[]")
     return row
@@ -287,13 +293,14 @@ def _label(by: list[str], values: tuple[Any, ...]) -> str:
 
 
 # The outcome of a run, in the overview and the methods table: safety first, then the mission.
-SAFETY_CONDITIONS = ("separation", "clearance")
+SAFETY_CONDITIONS = ("separation", "clearance", "keep_out")
 # A group is deterministic when its runs of different seeds agree on all of these to the bit.
 OUTCOME_KEYS = ("success", "min_separation", "min_clearance", "duration", "steps", "collisions")
 
 
 def first_violation_time(row: dict[str, Any]) -> float | None:
-    """The first time a safety condition (separation or clearance) was violated, s; None if never."""
+    """The first time a safety condition (separation, clearance or, when set, the keep-out
+    ellipsoid) was violated, s; None if never."""
     recorded = [row.get(f"violations.{c}.first_time") for c in SAFETY_CONDITIONS]
     times = [t for t in recorded if _is_number(t)]
     return float(min(times)) if times else None
@@ -407,7 +414,8 @@ def markdown(rows: list[dict[str, Any]], title: str) -> str:
         + f"; {len(seeds)} seed(s). Means and 95 % confidence intervals over the complete runs of "
         "each group (Student t; the percentile bootstrap for quantities that cannot be negative, "
         "so no interval reaches below zero); rates with 95 % Wilson intervals. The first safety "
-        "violation is the earliest time separation or clearance was violated, over the runs that "
+        "violation is the earliest time separation, clearance or the keep-out ellipsoid (when set) was "
+        "violated, over the runs that "
         "violated one; the completion time is over the runs that completed the mission.",
         "",
     ]
