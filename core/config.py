@@ -160,6 +160,14 @@ class SafetyConfig(_Strict):
             raise ValueError(f"must be three radii [rx, ry, rz], each > 0 and at most {MAX_LENGTH:g} m, or null")
         return value
 
+    @model_serializer(mode="wrap")
+    def _recorded(self, handler: Any) -> dict[str, Any]:
+        """No ``keep_out: null``: the record (and config hash) of a run without it is as before the option."""
+        data = handler(self)
+        if data.get("keep_out", 0) is None:
+            data.pop("keep_out")
+        return data
+
     @model_validator(mode="wrap")
     @classmethod
     def _deprecated_names(cls, data: Any, handler: Any) -> Any:

@@ -11,11 +11,12 @@ Metrics (``metrics.json``):
     clearance_violations: distinct agents that came closer than ``safety.clearance_limit`` to an
         obstacle.
     connected: the communication graph was connected at every tick.
-    min_keep_out: smallest ||E^-1 (p_i - p_j)||, E = diag(``safety.keep_out``), over the pairs within
-        the largest radius of each other (null: ``safety.keep_out`` is null, or no pair came that
-        close). Every pair inside the ellipsoid is among them, so the value is exact whenever it
-        is below 1; above 1 it is the least over the pairs within reach.
-    keep_out_conflicts: distinct pairs that came inside the keep-out ellipsoid (null: not checked).
+    min_keep_out: only with ``safety.keep_out``: smallest ||E^-1 (p_i - p_j)||, E = diag(radii),
+        over the pairs within the largest radius of each other (null: no pair came that close).
+        Every pair inside the ellipsoid is among them, so the value is exact whenever it is below
+        1; above 1 it is the least over the pairs within reach.
+    keep_out_conflicts: only with ``safety.keep_out``: distinct pairs that came inside the
+        keep-out ellipsoid.
     violations.<condition>.first_time / .agents: for each violated condition (``separation``,
         ``clearance``, ``connectivity``, ``keep_out``), when it first happened (s) and the agents
         involved.
@@ -259,9 +260,10 @@ class SafetyMonitor:
         metrics["collisions"] = self.collisions.count()
         metrics["clearance_violations"] = len(self.clearance_agents)
         metrics["connected"] = bool(self.connected[:k].all())
-        min_keep_out = float(np.minimum.reduce(self.min_keep_out[:k], initial=np.inf))
-        metrics["min_keep_out"] = min_keep_out if np.isfinite(min_keep_out) else None
-        metrics["keep_out_conflicts"] = None if self.keep_out is None else self.keep_out_pairs.count()
+        if self.keep_out is not None:  # without it, no key: the metrics of a run as before the option
+            min_keep_out = float(np.minimum.reduce(self.min_keep_out[:k], initial=np.inf))
+            metrics["min_keep_out"] = min_keep_out if np.isfinite(min_keep_out) else None
+            metrics["keep_out_conflicts"] = self.keep_out_pairs.count()
         for condition, (t, agents) in sorted(self.first.items()):
             metrics[f"violations.{condition}.first_time"] = t
             metrics[f"violations.{condition}.agents"] = agents

@@ -83,7 +83,7 @@ def test_keep_out_columns_say_whether_a_run_checked_it(tmp_path):
         api.run([*base, *extra], output_dir=tmp_path / str(job))
     rows = sweep.collect_rows(tmp_path)
     assert {"violations.keep_out.first_time", "violations.keep_out.agents"} <= set(sweep.columns(rows))
-    assert "violations.keep_out.agents" not in rows[0] and rows[0]["keep_out_conflicts"] is None
+    assert "violations.keep_out.agents" not in rows[0] and rows[0].get("keep_out_conflicts") is None
     assert (rows[1]["violations.keep_out.first_time"], rows[1]["violations.keep_out.agents"]) == (None, "[]")
     assert rows[2]["violations.keep_out.first_time"] == 0.1 and rows[2]["keep_out_conflicts"] > 0
     assert [sweep.first_violation_time(r) for r in rows] == [None, None, 0.1]

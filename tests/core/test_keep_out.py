@@ -120,14 +120,15 @@ def test_a_moving_swarm_equals_the_transcription_at_every_tick(data, n):
     assert np.isinf(expected["per_tick"]).any() or expected["min"] < 1.0
 
 
-def test_off_by_default_null_metrics_no_line_and_the_flight_unchanged():
+def test_off_by_default_no_metrics_no_record_and_the_flight_unchanged():
     """Through api.run with the option on: only the verdict changes (the same flight to the bit);
     the default scenario's closest pair, 1.54 m apart side by side, is inside a 2 m-wide ellipsoid."""
     off = api.run(["output.summary=false"])
     on = api.run(["safety.keep_out=[2.0,2.0,0.5]", "output.summary=false"])
     for key, value in off.trajectory.items():
         assert np.array_equal(on.trajectory[key], value), key
-    assert off.metrics["min_keep_out"] is None and off.metrics["keep_out_conflicts"] is None
+    assert "min_keep_out" not in off.metrics and "keep_out_conflicts" not in off.metrics
+    assert "keep_out" not in api.build(api.compose([])).config.model_dump(mode="json")["safety"]  # config_hash kept
     assert "min_keep_out" not in off.series and off.metrics["success"] is True
     assert not any(k.startswith("violations.keep_out") for k in off.metrics)
     assert on.metrics["keep_out_conflicts"] > 0 and on.metrics["success"] is False
