@@ -7,8 +7,8 @@ Split by concept (each module one thing a reader holds):
 * :mod:`.validation`, the one validation pass after Hydra composition (:func:`validate`);
 * :mod:`.resources`, what a run needs of the machine (the memory estimate, ``/proc/meminfo``).
 
-The names of both are re-exported here, so ``from swarmscene.core.config import validate`` keeps
-working.
+Both import this schema, and this module imports neither (no import circle, tests/test_layout.py):
+``validate``, ``effective_config`` and the memory checks are imported from their own modules.
 """
 
 from __future__ import annotations
@@ -23,22 +23,12 @@ from .events import EventConfig
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
 from .plugin import PluginParams
-from .resources import (  # the resource checks under their old module name
-    AGENT_WORKING_BYTES,
-    BASE_WORKING_BYTES,
-    estimated_memory,
-    machine_memory,
-    memory_checks,
-)
 from .task import TaskConfig
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
 
-# What this module binds. `validate` and `effective_config` resolve here too, but only through
-# __getattr__ at the end (.validation imports this module), so they are not listed as defined.
-__all__ = ["AGENT_WORKING_BYTES", "BASE_WORKING_BYTES", "CircleObstacle", "Coordinate", "EnvironmentConfig",
-           "EventConfig", "MAX_DURATION", "MAX_LENGTH", "Obstacle", "Point2", "PolygonObstacle", "Scenario",
-           "ScenarioConfig", "WallObstacle", "estimated_memory", "machine_memory", "memory_checks"]
+__all__ = ["CircleObstacle", "Coordinate", "EnvironmentConfig", "EventConfig", "MAX_DURATION", "MAX_LENGTH",
+           "Obstacle", "Point2", "PolygonObstacle", "Scenario", "ScenarioConfig", "WallObstacle"]
 
 MAX_AGENTS = 1_000_000
 """Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
@@ -398,12 +388,3 @@ class Scenario(BaseModel):
     rng_state: dict[str, Any]
     disturbances: dict[str, Any] = Field(default_factory=dict)
 
-
-def __getattr__(name: str) -> Any:
-    """The validation pass under its old module name (``from swarmscene.core.config import
-    validate``), imported when asked: :mod:`.validation` imports this schema."""
-    if name in ("validate", "effective_config"):
-        from . import validation
-
-        return getattr(validation, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -2,7 +2,7 @@
 
 This module knows the config only by the attributes it reads (``env.obstacles``, ``env.generator``,
 ``config.swarm``, ``config.comm.range``): it does not import :mod:`swarmscene.core.config`, which
-calls it during validation (:func:`swarmscene.core.config.validate` builds the obstacles and the
+calls it during validation (:func:`swarmscene.core.validation.validate` builds the obstacles and the
 start positions once and hands them to the simulation).
 """
 

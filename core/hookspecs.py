@@ -16,7 +16,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-import pluggy
+# the markers live in .markers (so that an implementation need not import what the specs name)
+from .markers import PROJECT as PROJECT
+from .markers import hookimpl as hookimpl
+from .markers import hookspec as hookspec
 
 if TYPE_CHECKING:  # pragma: no cover
     from .disturbances.base import Disturbance
@@ -25,9 +28,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from .plugin import Avoidance, Dynamics, Formation, Policy
     from .run_view import RunView
 
-PROJECT = "swarmscene"
-hookspec = pluggy.HookspecMarker(PROJECT)
-hookimpl = pluggy.HookimplMarker(PROJECT)
 
 FormationRegister = Callable[[type["Formation"]], None]
 AvoidanceRegister = Callable[[type["Avoidance"]], None]

@@ -20,7 +20,7 @@ DeprecationWarning naming it; the next minor release refuses it.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn, Protocol
 
 from .errors import SwarmsceneDeprecationWarning
 
@@ -28,8 +28,24 @@ if TYPE_CHECKING:
     from .config import ScenarioConfig
     from .environment import Environment
     from .sensing import Sensing
-    from .simulation import Simulation
     from .state import WorldState
+
+
+class Run(Protocol):
+    """What the view reads of a run (:class:`~swarmscene.core.simulation.Simulation` is one). A
+    protocol, not the class: the kernel imports this module, so this module does not import the
+    kernel (no import circle, tests/test_layout.py)."""
+
+    world: WorldState
+    environment: Environment
+    config: ScenarioConfig
+    sensing: Sensing
+    step_count: int
+    total_steps: int
+    dynamics: Any
+
+    def request_stop(self, reason: str) -> None:
+        """End the run after the current tick."""
 
 
 class RunView:
@@ -43,7 +59,8 @@ class RunView:
         config: the validated scenario configuration (``config.safety``, ``config.output``, ...).
         t: the simulated time, s (``world.t``).
         step_count: guidance ticks done so far.
-        total_steps: guidance ticks the run lasts (``clock.duration / clock.guidance_period``).
+        total_steps: guidance ticks the run lasts at most (``clock.duration / clock.guidance_period``,
+            plus a take-off's ticks and twice a landing's: core/phases.py).
         has_attitude: whether the dynamics model flies attitude (the recorder records ``quat``).
     """
 
@@ -53,7 +70,7 @@ class RunView:
     environment: Environment
     config: ScenarioConfig
 
-    def __init__(self, sim: Simulation) -> None:
+    def __init__(self, sim: Run) -> None:
         # The simulation sets these three once, before the view exists: plain slots read faster
         # than properties, and observers read them every tick.
         for name, value in (("_sim", sim), ("world", sim.world), ("environment", sim.environment),

@@ -59,7 +59,7 @@ class Simulation:
     """One run of a validated scenario.
 
     Args:
-        scenario: the validated scenario (:func:`swarmscene.core.config.validate`).
+        scenario: the validated scenario (:func:`swarmscene.core.validation.validate`).
         plugin_manager: the manager built by :func:`~swarmscene.core.registry.make_plugin_manager`
             with the same registry that validated ``scenario``; this simulation owns it and
             registers its observers and chosen plugins on it.

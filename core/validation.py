@@ -24,7 +24,8 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from .config import MAX_LENGTH, MAX_SUBSTEPS, MAX_TICKS, Scenario, ScenarioConfig
-from .disturbances import validate_disturbances
+from .disturbances import effective
+from .disturbances.base import Disturbance, DisturbanceParams
 from .disturbances.comm import channel_errors
 from .errors import ConfigError, format_validation_error
 from .events import check_events
@@ -41,8 +42,6 @@ def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: di
     observer's options (``config.observers``, validated) and the benchmark task.
     ``disturbances``, ``observers`` and ``task`` are left out when none is declared, so the record
     (and its hash) of such a run is the one it had before they existed."""
-    from .disturbances import effective
-
     data = config.model_dump(mode="json")
     for kind in PLUGIN_KINDS:
         data[kind] = {"name": classes[kind].name, **params[kind].model_dump(mode="json")}
@@ -117,6 +116,43 @@ def validate(data: dict[str, Any], registry: Any) -> Scenario:
         rng_state=rng_state,
         disturbances=disturbances,
     )
+
+
+def validate_disturbances(
+    data: Any, errors: list[str], registry: Any
+) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
+    """Validate the ``disturbances`` mapping; append one line per problem to ``errors``.
+
+    Args:
+        data: the composed ``disturbances`` section.
+        errors: the validation's error lines.
+        registry: the plugin :class:`~swarmscene.core.registry.Registry` (kind ``disturbance``).
+
+    Returns:
+        each key's model class and validated Params (keys sorted: the order of application).
+    """
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        errors.append(f"disturbances: must be a mapping of name to model (got {data!r})")
+        return {}
+    out: dict[str, tuple[type[Disturbance], DisturbanceParams]] = {}
+    for key in sorted(data):
+        node = data[key]
+        if not isinstance(node, dict):
+            errors.append(f"disturbances.{key}: must be a mapping of options (got {node!r})")
+            continue
+        kind = node.get("kind", key)
+        where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
+        cls = validate_choice(registry, "disturbance", kind, where, errors)
+        if cls is None:
+            continue
+        options = {k: v for k, v in node.items() if k != "kind"}
+        try:
+            out[key] = (cls, cls.Params.model_validate(options))
+        except ValidationError as exc:
+            errors += format_validation_error(exc, cls.Params, options, prefix=f"disturbances.{key}")
+    return out
 
 
 def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) -> dict[str, Any]:

@@ -20,12 +20,13 @@ from pathlib import Path
 from typing import Any, cast
 
 from .builtins import BUILTIN_PLUGINS
-from .core.config import Scenario, validate
+from .core.config import Scenario
 from .core.errors import ConfigError
 from .core.raised import PluginRaised, RunFailed
 from .core.registry import Registry, make_plugin_manager
 from .core.result import RunResult
 from .core.simulation import Simulation
+from .core.validation import validate
 
 CONFIG_MODULE = "swarmscene.scenarios"
 CONFIG_NAME = "config"

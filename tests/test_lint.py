@@ -106,16 +106,13 @@ def test_the_link_tree_is_the_installed_layout(tmp_path):
     assert source_path(line, links) == "methods/outdoor/mission.py:12: error: x  [misc]"
 
 
-def test_the_config_module_still_hands_out_the_validation_pass():
-    """F822 took ``validate`` and ``effective_config`` out of core.config's ``__all__`` (the module
-    binds them only through ``__getattr__``); the old import path still gives the same functions,
-    and every name left in ``__all__`` is bound."""
-    from swarmscene.core import config, validation
-    from swarmscene.core.config import effective_config, validate
+def test_every_name_the_config_module_lists_is_bound():
+    """``core.config`` is the schema only (the validation pass and the memory checks import it and
+    live in their own modules, issue #35): every name in its ``__all__`` is bound there."""
+    from swarmscene.core import config
 
-    assert validate is validation.validate and effective_config is validation.effective_config
     assert [name for name in config.__all__ if name not in vars(config)] == []
-    assert "validate" not in config.__all__
+    assert not hasattr(config, "validate") and not hasattr(config, "estimated_memory")
 
 
 if __name__ == "__main__":

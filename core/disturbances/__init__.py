@@ -33,10 +33,9 @@ from __future__ import annotations
 from typing import Any, Protocol, cast
 
 import numpy as np
-from pydantic import ValidationError
 
-from ..errors import ConfigError, format_validation_error
-from ..hookspecs import hookimpl
+from ..errors import ConfigError
+from ..markers import hookimpl  # not ..hookspecs: it names this package's base (an import circle)
 from ..state import WorldState
 from .base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams, model_rng
 from .comm import MODELS as _COMM
@@ -45,7 +44,7 @@ from .noise import MODELS as _NOISE
 from .wind import MODELS as _WIND
 
 __all__ = ["BUILTIN_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
-           "PHASES", "validate_disturbances"]
+           "PHASES"]
 
 BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
 """The built-in models' classes (their numerics live here; ``plugins/disturbance/`` registers each
@@ -79,46 +78,6 @@ def _has(model: Any, method: str) -> bool:
     return callable(getattr(model, method, None))
 
 
-def validate_disturbances(
-    data: Any, errors: list[str], registry: Any
-) -> dict[str, tuple[type[Disturbance], DisturbanceParams]]:
-    """Validate the ``disturbances`` mapping; append one line per problem to ``errors``.
-
-    Args:
-        data: the composed ``disturbances`` section.
-        errors: the validation's error lines.
-        registry: the plugin :class:`~swarmscene.core.registry.Registry` (kind ``disturbance``).
-
-    Returns:
-        each key's model class and validated Params (keys sorted: the order of application).
-    """
-    from ..registry import validate_choice  # the registry imports this package's base
-
-
-    if data is None:
-        return {}
-    if not isinstance(data, dict):
-        errors.append(f"disturbances: must be a mapping of name to model (got {data!r})")
-        return {}
-    out: dict[str, tuple[type[Disturbance], DisturbanceParams]] = {}
-    for key in sorted(data):
-        node = data[key]
-        if not isinstance(node, dict):
-            errors.append(f"disturbances.{key}: must be a mapping of options (got {node!r})")
-            continue
-        kind = node.get("kind", key)
-        where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
-        cls = validate_choice(registry, "disturbance", kind, where, errors)
-        if cls is None:
-            continue
-        options = {k: v for k, v in node.items() if k != "kind"}
-        try:
-            out[key] = (cls, cls.Params.model_validate(options))
-        except ValidationError as exc:
-            errors += format_validation_error(exc, cls.Params, options, prefix=f"disturbances.{key}")
-    return out
-
-
 def effective(models: dict[str, tuple[type[Disturbance], DisturbanceParams]]) -> dict[str, Any]:
     """The declared models with every option resolved, as plain data (the run record)."""
     return {key: {"kind": cls.name, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
@@ -150,7 +109,7 @@ class Disturbances:
     """The declared models of one run, by phase, and the kernel's calls into them.
 
     Args:
-        models: from :func:`validate_disturbances`.
+        models: from :func:`swarmscene.core.validation.validate_disturbances`.
         seed: the run's seed (each model draws from its own stream, :func:`~.base.model_rng`).
         n, guidance_period, physics_step, comm_range: the scenario's.
         make_sensing: builds a Sensing over a world, given the previous one (the kernel's).

@@ -3,7 +3,7 @@
 Before a job starts, the overrides it brings are checked, so that a mistake stops the sweep with one
 line instead of showing up as a failed job half-way through: every distinct override of the grid,
 numbers included, is composed *and* validated by the engine's schema
-(``swarmscene.core.config.validate``, as ``api.load``) in the first job that has it. In Hydra's grid
+(``swarmscene.core.validation.validate``, as ``api.load``) in the first job that has it. In Hydra's grid
 order that job is the first job with only this one override changed, so the line names the job and
 the override:
 ``job 1 (avoidance.K=0): avoidance.K: must be >= 1 (got 0)``.
@@ -189,8 +189,8 @@ class JobCheck:
 
     def problems(self, overrides: Sequence[str]) -> tuple[str, list[str]]:
         """(``"compose"`` or ``"invalid"`` or ``""``, the problem lines) of one job."""
-        from ..core.config import validate
         from ..core.errors import ConfigError
+        from ..core.validation import validate
         from ..hydra_errors import hydra_error_line
 
         if self.reads_hydra(overrides):
