@@ -1,7 +1,8 @@
 """Everything a plugin author imports, in one public module, for every kind: formation,
 avoidance, dynamics (``Formation``...), observer (any class with lifecycle hooks), disturbance model
 (``Disturbance``), event kind (``EventKindPlugin``), map generator (``MapGenerator``, its ``Params``
-with ``MAX_LENGTH``, ``Point2``, ``Draw``) and policy (``Policy``); docs/plugins.md has a section and a worked example for each.
+with ``MAX_LENGTH``, ``Point2``, ``Draw``) and policy (``Policy``); docs/plugins.md has a section and
+a worked example for each.
 
     from swarmscene.plugin import Avoidance, PluginParams, Setpoints, hookimpl
 
@@ -35,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
+from .core.distributions import Draw, number_adapter, parse_draw
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
 from .core.errors import SwarmsceneDeprecationWarning, format_validation_error, validate_renamed
 from .core.events import Event, EventKind, EventKindPlugin, EventParams, Motion
-from .core.distributions import Draw, number_adapter, parse_draw
 from .core.fields import MAX_LENGTH, Point2, StrictModel, key_error
 from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl

@@ -19,6 +19,8 @@ from swarmscene.core.environment import Environment
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.obstacles import EnvironmentConfig
+from swarmscene.methods.indoor.maps import building as thesis_building
+from swarmscene.methods.indoor.maps import l_corridor, straight_corridor
 from swarmscene.methods.maps import (
     building,
     building_free_space,
@@ -30,8 +32,6 @@ from swarmscene.methods.maps import (
 from swarmscene.plugins.generator.building import BuildingParams
 from swarmscene.plugins.generator.corridor import CorridorParams
 from swarmscene.plugins.generator.obstacle_field import ObstacleFieldParams
-from swarmscene.methods.indoor.maps import building as thesis_building
-from swarmscene.methods.indoor.maps import l_corridor, straight_corridor
 
 LISTED = json.loads((Path(__file__).parent / "data" / "listed_indoor_maps.json").read_text())
 """The obstacles the indoor presets listed before they became generator presets (from git 5d3625c)."""
