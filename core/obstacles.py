@@ -1,7 +1,8 @@
 """The environment section of the scenario schema: the obstacle map's footprints, listed or generated.
 
-Validated here (a generator's parameters by its own ``Params``: the registry's map generators, a
-plugin's included; the built-ins are in :mod:`swarmscene.core.generators`),
+Validated here (a generator's parameters by its own ``Params``: the registry's map generators, the
+built-ins of ``plugins/generator/`` and a third-party package's alike, see
+:mod:`swarmscene.core.generators`),
 built into shapely geometries by :func:`swarmscene.core.geometry.build_obstacles`,
 queried during a run through :class:`swarmscene.core.environment.Environment`.
 """
@@ -9,6 +10,7 @@ queried during a run through :class:`swarmscene.core.environment.Environment`.
 from __future__ import annotations
 
 import functools
+import importlib
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -19,14 +21,13 @@ from pydantic import (
     SerializationInfo,
     ValidationError,
     ValidationInfo,
-    create_model,
     field_validator,
     model_serializer,
     model_validator,
 )
 
 from .fields import MAX_LENGTH, Point2, StrictModel, key_error
-from .generators import BUILTIN_GENERATORS, MapGenerator
+from .generators import MapGenerator
 from .plugin import reject_bool_as_number
 
 
@@ -67,7 +68,7 @@ class WallObstacle(_Shape):
 Obstacle = Annotated[PolygonObstacle | CircleObstacle | WallObstacle, Field(discriminator="type")]
 
 
-class _EnvironmentBase(StrictModel):
+class EnvironmentConfig(StrictModel):
     """The obstacle map (footprints in the x-y plane, extruded over all altitudes): listed
     ``obstacles``, and those of a map ``generator`` built from its parameters (which sit beside it:
     ``environment.width``), see :mod:`swarmscene.core.generators`."""
@@ -102,9 +103,9 @@ class _EnvironmentBase(StrictModel):
         so the run's config records all of them); a parameter of another generator is an error.
 
         The generators are the registry's when one validates (``context={"registry": ...}``, as
-        :mod:`.validation` does, so a plugin's generator is chosen by name), else the built-ins.
-        A built-in's parameters are also fields of this model (``environment.width``); a plugin's
-        are held beside them (:meth:`generator_params`)."""
+        :mod:`.validation` does), else the installed plugins' (:func:`.registry.installed_registry`).
+        Their parameters are held beside the section's fields (:meth:`generator_params`), not as
+        fields: the schema names no generator."""
         if not isinstance(data, dict):
             return handler(data)
         generators = _generators(info.context)
@@ -118,22 +119,17 @@ class _EnvironmentBase(StrictModel):
             if key not in own and key not in _ENVIRONMENT_KEYS and _users(key, generators):
                 raise key_error(key, _not_a_parameter(key, name, generators), value)
         params = _validated(chosen, given) if chosen is not None else None
-        rest = {k: v for k, v in data.items() if k not in given}
-        if params is not None:  # a built-in's parameters as the flat fields, defaults filled
-            rest.update({k: v for k, v in params.model_dump(mode="json").items() if k in GENERATOR_KEYS})
-        model = handler(rest)
-        if isinstance(model, _EnvironmentBase):
+        model = handler({k: v for k, v in data.items() if k not in given})
+        if isinstance(model, EnvironmentConfig):
             model._generator, model._params = chosen, params
         return model
 
     @model_serializer(mode="wrap")
     def _recorded(self, handler: Any, info: SerializationInfo) -> dict[str, Any]:
-        """As a user writes it: the generator's parameters only (no other generator's nulls), and
-        no ``generator: null`` for a listed map; a plugin generator's parameters after them; no
-        ``floor: null`` (nor its default touchdown speed) for a map without a ground."""
-        own = type(self._params).model_fields if self._params is not None else {}
-        data = {k: v for k, v in handler(self).items()
-                if (k not in GENERATOR_KEYS and (k != "generator" or v is not None)) or k in own}
+        """As a user writes it: no ``generator: null`` for a listed map; the generator's parameters
+        after the section's fields, defaults filled; no ``floor: null`` (nor its default touchdown
+        speed) for a map without a ground."""
+        data = {k: v for k, v in handler(self).items() if k != "generator" or v is not None}
         if self._params is not None:
             mode = "json" if info.mode_is_json() else "python"
             data.update({k: v for k, v in self._params.model_dump(mode=mode).items() if k not in data})
@@ -161,9 +157,12 @@ class _EnvironmentBase(StrictModel):
 
 
 def _generators(context: Any) -> dict[str, type[MapGenerator]]:
-    """The map generators known to a validation: its registry's, else the built-ins."""
+    """The map generators known to a validation: its registry's, else the installed plugins'."""
     registry = context.get("registry") if isinstance(context, dict) else None
-    return registry.classes["generator"] if registry is not None else BUILTIN
+    if registry is None:  # the installed plugins', loaded by name at run time as every plugin is:
+        # the registry module reaches this one (its hook specs name the config), so no import of it
+        registry = importlib.import_module(f"{__package__}.registry").installed_registry()
+    return registry.classes["generator"]
 
 
 def _unknown(name: Any, generators: dict[str, type[MapGenerator]]) -> str:
@@ -199,38 +198,7 @@ def _build(generator: type[MapGenerator], params_json: str) -> tuple[tuple[Any, 
         return (), (str(exc),)
 
 
-def _generator_fields() -> dict[str, Any]:
-    """The built-in generators' parameters as optional fields of the environment section (one flat
-    namespace, so ``environment.width=0.5`` overrides a corridor's width); a name shared by two
-    generators means the same thing in both. Their own models hold the defaults and constraints.
-    A plugin generator's parameters are validated by its own model only (they are no fields here,
-    as the schema is built before any plugin loads)."""
-    owners: dict[str, list[str]] = {}
-    for name, cls in BUILTIN.items():
-        for key in cls.Params.model_fields:
-            owners.setdefault(key, []).append(name)
-    fields: dict[str, Any] = {}
-    for key, names in owners.items():
-        info = BUILTIN[names[0]].Params.model_fields[key]
-        default = info.get_default(call_default_factory=True)
-        default = "required" if info.is_required() else f"default {default!r}"
-        description = f"{', '.join(names)}: {info.description} ({default})"
-        annotation: Any = info.annotation  # a type here (a field of a built-in generator's Params)
-        fields[key] = (annotation | None, Field(None, description=description))
-    return fields
-
-
-BUILTIN: dict[str, type[MapGenerator]] = {cls.name: cls for cls in BUILTIN_GENERATORS}
-"""The built-in generators by name: the ones known where no registry validates (an
-``EnvironmentConfig`` validated on its own), and the source of the section's flat fields."""
-_ENVIRONMENT_KEYS = frozenset(_EnvironmentBase.model_fields)
-GENERATOR_KEYS = frozenset(key for cls in BUILTIN.values() for key in cls.Params.model_fields)
-"""Every built-in generator parameter's name (the environment section's optional keys)."""
-
-EnvironmentConfig = create_model(
-    "EnvironmentConfig", __base__=_EnvironmentBase, __module__=__name__,
-    __doc__=_EnvironmentBase.__doc__, **_generator_fields(),
-)
+_ENVIRONMENT_KEYS = frozenset(EnvironmentConfig.model_fields)
 
 
 def _validated(generator: type[MapGenerator], given: dict[str, Any]) -> BaseModel:

@@ -37,6 +37,9 @@ skips a package's config folder (group ``swarmscene.conf``) the same way."""
 CONF_ENTRY_POINT_GROUP = "swarmscene.conf"
 """Entry-point group through which third-party packages add YAML options to Hydra's search path."""
 CORE_OBSERVERS = ("swarmscene.core.monitors", "swarmscene.core.recorder")
+BUILTINS_MODULE = "swarmscene.builtins"
+"""The module whose ``BUILTIN_PLUGINS`` names the built-in plugin modules (the application's list:
+the engine reads it by name at run time, as it loads an entry point, and imports no plugin)."""
 
 
 @dataclass(frozen=True)
@@ -180,6 +183,15 @@ def make_plugin_manager(
     for kind, spec in KINDS.items():
         _call_registration(getattr(pm.hook, spec.hook), registry, kind, trusted)
     return pm, registry
+
+
+@lru_cache(maxsize=1)
+def installed_registry() -> Registry:
+    """The registry of the installed plugins (the built-in modules, then the entry points), built
+    once per process: what a model validated without a registry (``context={"registry": ...}``)
+    chooses from, the same classes ``swarmscene.api.plugins()`` registers."""
+    builtins = importlib.import_module(BUILTINS_MODULE).BUILTIN_PLUGINS
+    return make_plugin_manager(builtins)[1]
 
 
 def _call_registration(hook: Any, registry: Registry, kind: str, trusted: set[str]) -> None:

@@ -158,8 +158,6 @@ def validate_disturbances(
 def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) -> dict[str, Any]:
     """``environment.generator`` is a registered map generator; an unknown one is reported here
     once, and the schema then checks the map without it (its parameters unchecked)."""
-    from .obstacles import GENERATOR_KEYS
-
     env = data.get("environment")
     if not isinstance(env, dict):
         return data
@@ -167,7 +165,7 @@ def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) 
     if name is None or validate_choice(registry, "generator", name, "environment.generator", errors):
         return data
     # every known generator's parameters leave with the unknown name: one line, not one per option
-    known = GENERATOR_KEYS.union(*(cls.Params.model_fields for cls in registry.classes["generator"].values()))
+    known = set().union(*(cls.Params.model_fields for cls in registry.classes["generator"].values()))
     env = {k: v for k, v in env.items() if k != "generator" and k not in known}
     return {**data, "environment": env}
 

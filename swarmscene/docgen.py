@@ -89,6 +89,12 @@ def render() -> str:
             doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
             lines += ["", f"### `{kind}={name}`", "", doc, ""]
             lines += model_table(cls.Params, f"{kind}.")
+    lines += ["", "## Map generators (environment.generator=NAME; parameters beside it in environment)"]
+    for name in registry.names("generator"):
+        cls = registry.get("generator", name)
+        doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
+        lines += ["", f"### `environment.generator={name}`", "", doc, ""]
+        lines += model_table(cls.Params, "environment.")
     lines += ["", "## Observers with options (observers=[NAME])"]
     for cls in registry.observers:
         if isinstance(getattr(cls, "name", None), str) and isinstance(getattr(cls, "Params", None), type):

@@ -1,7 +1,8 @@
 """Everything a plugin author imports, in one public module, for every kind: formation,
 avoidance, dynamics (``Formation``...), observer (any class with lifecycle hooks), disturbance model
-(``Disturbance``), event kind (``EventKindPlugin``), map generator (``MapGenerator``) and policy
-(``Policy``); docs/plugins.md has a section and a worked example for each.
+(``Disturbance``), event kind (``EventKindPlugin``), map generator (``MapGenerator``, its ``Params``
+with ``MAX_LENGTH``, ``Point2``, ``Draw``) and policy (``Policy``); docs/plugins.md has a section and
+a worked example for each.
 
     from swarmscene.plugin import Avoidance, PluginParams, Setpoints, hookimpl
 
@@ -35,11 +36,12 @@ from typing import Any
 
 import numpy as np
 
+from .core.distributions import Draw, number_adapter, parse_draw
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
 from .core.errors import SwarmsceneDeprecationWarning, format_validation_error, validate_renamed
 from .core.events import Event, EventKind, EventKindPlugin, EventParams, Motion
-from .core.fields import StrictModel
+from .core.fields import MAX_LENGTH, Point2, StrictModel, key_error
 from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl
 from .core.plugin import (
@@ -66,6 +68,9 @@ __all__ = [
     "StrictModel", "SwarmsceneDeprecationWarning", "WorldBatch", "WorldState", "build_context", "choose",
     "disturbance_context",
     "hookimpl", "validate_renamed",
+    # what a map generator's Params declares (core/fields.py, core/distributions.py): lengths bounded
+    # by MAX_LENGTH, points, a cross-field error at the key it names, a number or a distribution
+    "Draw", "MAX_LENGTH", "Point2", "key_error", "number_adapter", "parse_draw",
     # helpers the built-ins use (core/vectors.py, core/errors.py), as stable as the names above
     "clip_norm", "every", "format_validation_error", "min_distance_between", "min_pair_distance", "rows_of", "wrap",
 ]

@@ -88,7 +88,8 @@ def test_compiled_nearest_obstacle_equals_shapelys_to_the_bit():
 
     from swarmscene.core.environment import Environment, nearest_within
     from swarmscene.core.footprints import nearest_of_candidates
-    from swarmscene.core.generators import BuildingParams, building
+    from swarmscene.methods.maps import building
+    from swarmscene.plugins.generator.building import BuildingParams
 
     rng = np.random.default_rng(5)
     ring = Polygon([(0, 0), (6, 0), (6, 6), (0, 6)], [[(2, 2), (4, 2), (4, 4), (2, 4)]])

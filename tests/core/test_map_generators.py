@@ -17,10 +17,11 @@ from swarmscene import api
 from swarmscene.core.config import ScenarioConfig
 from swarmscene.core.environment import Environment
 from swarmscene.core.errors import ConfigError
-from swarmscene.core.generators import (
-    BuildingParams,
-    CorridorParams,
-    ObstacleFieldParams,
+from swarmscene.core.geometry import build_obstacles
+from swarmscene.core.obstacles import EnvironmentConfig
+from swarmscene.methods.indoor.maps import building as thesis_building
+from swarmscene.methods.indoor.maps import l_corridor, straight_corridor
+from swarmscene.methods.maps import (
     building,
     building_free_space,
     corridor,
@@ -28,10 +29,9 @@ from swarmscene.core.generators import (
     corridor_free_space,
     obstacle_field_discs,
 )
-from swarmscene.core.geometry import build_obstacles
-from swarmscene.core.obstacles import EnvironmentConfig
-from swarmscene.methods.indoor.maps import building as thesis_building
-from swarmscene.methods.indoor.maps import l_corridor, straight_corridor
+from swarmscene.plugins.generator.building import BuildingParams
+from swarmscene.plugins.generator.corridor import CorridorParams
+from swarmscene.plugins.generator.obstacle_field import ObstacleFieldParams
 
 LISTED = json.loads((Path(__file__).parent / "data" / "listed_indoor_maps.json").read_text())
 """The obstacles the indoor presets listed before they became generator presets (from git 5d3625c)."""
