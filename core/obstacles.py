@@ -10,7 +10,6 @@ queried during a run through :class:`swarmscene.core.environment.Environment`.
 from __future__ import annotations
 
 import functools
-import importlib
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -102,8 +101,9 @@ class EnvironmentConfig(StrictModel):
         """The chosen generator's parameters are validated by its own ``Params`` (defaults filled,
         so the run's config records all of them); a parameter of another generator is an error.
 
-        The generators are the registry's when one validates (``context={"registry": ...}``, as
-        :mod:`.validation` does), else the installed plugins' (:func:`.registry.installed_registry`).
+        The generators are the registry's (``context={"registry": ...}``, as :mod:`.validation`
+        passes it); a generator named without one is refused in one line, naming the way
+        (:func:`.registry.installed_registry` is the installed plugins' registry).
         Their parameters are held beside the section's fields (:meth:`generator_params`), not as
         fields: the schema names no generator."""
         if not isinstance(data, dict):
@@ -112,6 +112,9 @@ class EnvironmentConfig(StrictModel):
         name = data.get("generator")
         chosen = generators.get(name) if isinstance(name, str) else None
         if name is not None and chosen is None:
+            if not isinstance(info.context, dict) or info.context.get("registry") is None:
+                raise key_error("generator", "a map generator is chosen from a plugin registry: validate with "
+                                "context={'registry': ...} (swarmscene.api.load does)", name)
             raise key_error("generator", _unknown(name, generators), name)
         own = chosen.Params.model_fields if chosen is not None else {}
         given = {k: v for k, v in data.items() if k in own and k not in _ENVIRONMENT_KEYS}
@@ -157,12 +160,10 @@ class EnvironmentConfig(StrictModel):
 
 
 def _generators(context: Any) -> dict[str, type[MapGenerator]]:
-    """The map generators known to a validation: its registry's, else the installed plugins'."""
+    """The map generators known to a validation: its registry's (``context={"registry": ...}``, as
+    :mod:`.validation` passes it), none without one (the engine holds no list of built-ins)."""
     registry = context.get("registry") if isinstance(context, dict) else None
-    if registry is None:  # the installed plugins', loaded by name at run time as every plugin is:
-        # the registry module reaches this one (its hook specs name the config), so no import of it
-        registry = importlib.import_module(f"{__package__}.registry").installed_registry()
-    return registry.classes["generator"]
+    return {} if registry is None else registry.classes["generator"]
 
 
 def _unknown(name: Any, generators: dict[str, type[MapGenerator]]) -> str:

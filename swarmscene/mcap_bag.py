@@ -530,10 +530,12 @@ def _recorded_verdicts(config: dict[str, Any], metrics: dict[str, Any]) -> list[
     from types import SimpleNamespace
 
     from .core.config import ScenarioConfig
+    from .core.registry import installed_registry
     from .summary import engine_verdicts, plugin_verdicts
 
+    context = {"registry": installed_registry()}  # the installed plugins choose a recorded map generator
     try:
-        engine = SimpleNamespace(config=ScenarioConfig.model_validate(config))
+        engine = SimpleNamespace(config=ScenarioConfig.model_validate(config, context=context))
     except ValueError:
         return []
     lines = [*engine_verdicts(engine, metrics)] if metrics else []

@@ -19,6 +19,7 @@ from swarmscene.core.environment import Environment
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.geometry import build_obstacles
 from swarmscene.core.obstacles import EnvironmentConfig
+from swarmscene.core.registry import installed_registry
 from swarmscene.methods.indoor.maps import building as thesis_building
 from swarmscene.methods.indoor.maps import l_corridor, straight_corridor
 from swarmscene.methods.maps import (
@@ -32,6 +33,9 @@ from swarmscene.methods.maps import (
 from swarmscene.plugins.generator.building import BuildingParams
 from swarmscene.plugins.generator.corridor import CorridorParams
 from swarmscene.plugins.generator.obstacle_field import ObstacleFieldParams
+
+INSTALLED = {"registry": installed_registry()}
+"""The context a scenario validates in (the installed plugins choose a map generator)."""
 
 LISTED = json.loads((Path(__file__).parent / "data" / "listed_indoor_maps.json").read_text())
 """The obstacles the indoor presets listed before they became generator presets (from git 5d3625c)."""
@@ -207,7 +211,7 @@ def test_effective_config_records_every_generator_parameter_and_rebuilds_the_map
     recorded = scenario.data["environment"]
     assert recorded == {"name": "indoor_l_corridor_w080", "generator": "corridor", "obstacles": [],
                         "width": 0.65, "length": 10.0, "bend": 90.0, "room": 6.0, "wall_thickness": 0.1}
-    again = EnvironmentConfig.model_validate(recorded)
+    again = EnvironmentConfig.model_validate(recorded, context=INSTALLED)
     assert [p.wkb for p in build_obstacles(again)[0]] == [p.wkb for p in scenario.obstacles]
 
 
@@ -219,7 +223,7 @@ def test_listed_maps_are_recorded_as_before():
 def test_listed_obstacles_add_to_a_generated_map():
     env = EnvironmentConfig.model_validate({
         "name": "c", "generator": "corridor", "width": 0.8,
-        "obstacles": [{"type": "circle", "center": [-3.0, 2.0], "radius": 0.5}]})
+        "obstacles": [{"type": "circle", "center": [-3.0, 2.0], "radius": 0.5}]}, context=INSTALLED)
     polygons, errors = build_obstacles(env)
     assert not errors and len(polygons) == 13
     assert polygons[:12] == corridor(CorridorParams(width=0.8))
@@ -263,7 +267,7 @@ def test_bad_generator_input_is_one_line_naming_the_key(environment, line):
 
     data = {**BASE, "environment": {"name": "x", **environment}}
     with pytest.raises(ValidationError) as exc:
-        ScenarioConfig.model_validate(data)
+        ScenarioConfig.model_validate(data, context=INSTALLED)
     assert format_validation_error(exc.value, ScenarioConfig, data) == [line]
 
 
@@ -276,7 +280,7 @@ def test_shipped_environment_files_validate():
 def test_a_cached_map_is_not_changed_by_its_users():
     env = EnvironmentConfig.model_validate({
         "name": "c", "generator": "corridor", "width": 0.7,
-        "obstacles": [{"type": "circle", "center": [-3.0, 2.0], "radius": 0.5}]})
+        "obstacles": [{"type": "circle", "center": [-3.0, 2.0], "radius": 0.5}]}, context=INSTALLED)
     first, _ = build_obstacles(env)
     second, _ = build_obstacles(env)  # the listed circle is added once, not to the cached walls
     assert len(first) == len(second) == 13

@@ -16,7 +16,7 @@ from swarmscene.builtins import BUILTIN_PLUGINS
 from swarmscene.core.config import EnvironmentConfig
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.geometry import build_obstacles
-from swarmscene.core.registry import make_plugin_manager
+from swarmscene.core.registry import installed_registry, make_plugin_manager
 from swarmscene.core.simulation import Simulation
 from swarmscene.methods.indoor.maps import building, l_corridor, straight_corridor
 
@@ -35,7 +35,8 @@ def build(overrides: list[str]) -> Simulation:
 
 def _environment(name: str) -> list:
     text = files("swarmscene.scenarios").joinpath("environment", f"{name}.yaml").read_text()
-    obstacles, errors = build_obstacles(EnvironmentConfig.model_validate(yaml.safe_load(text)))
+    env = EnvironmentConfig.model_validate(yaml.safe_load(text), context={"registry": installed_registry()})
+    obstacles, errors = build_obstacles(env)
     assert not errors
     return obstacles
 
