@@ -17,8 +17,8 @@ from shapely.geometry import LineString, Point, Polygon
 
 
 def build_obstacles(env: Any) -> tuple[list, list[str]]:
-    """Shapely polygons for an ``EnvironmentConfig``: its generator's (if it has one, see
-    :mod:`swarmscene.core.generators`), then its listed ``obstacles``; and one error line per
+    """Shapely polygons for an ``EnvironmentConfig``: its generator's (if it has one, a registered
+    :class:`~swarmscene.core.generators.MapGenerator`), then its listed ``obstacles``; and one error line per
     malformed obstacle or unbuildable map."""
     polygons, errors = env.generated() if hasattr(env, "generated") else ([], [])
     for k, obstacle in enumerate(env.obstacles):

@@ -1,8 +1,8 @@
 """The environment section of the scenario schema: the obstacle map's footprints, listed or generated.
 
 Validated here (a generator's parameters by its own ``Params``: the registry's map generators, the
-built-ins of ``plugins/generator/`` and a third-party package's alike, see
-:mod:`swarmscene.core.generators`),
+built-ins of ``plugins/generator/`` and a third-party package's alike; the interface is
+:class:`swarmscene.core.generators.MapGenerator`),
 built into shapely geometries by :func:`swarmscene.core.geometry.build_obstacles`,
 queried during a run through :class:`swarmscene.core.environment.Environment`.
 """
@@ -70,7 +70,7 @@ Obstacle = Annotated[PolygonObstacle | CircleObstacle | WallObstacle, Field(disc
 class EnvironmentConfig(StrictModel):
     """The obstacle map (footprints in the x-y plane, extruded over all altitudes): listed
     ``obstacles``, and those of a map ``generator`` built from its parameters (which sit beside it:
-    ``environment.width``), see :mod:`swarmscene.core.generators`."""
+    ``environment.width``), see ``plugins/generator/``."""
 
     name: str = Field("open", description="label of the map")
     generator: str | None = Field(

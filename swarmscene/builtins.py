@@ -45,7 +45,7 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.event.stuck",
     "swarmscene.plugins.event.drift",
     "swarmscene.plugins.event.motor_failure",
-    # generator: obstacle maps from parameters (geometry in core/generators.py)
+    # generator: obstacle maps from parameters (geometry in methods/maps/)
     "swarmscene.plugins.generator.corridor",
     "swarmscene.plugins.generator.building",
     "swarmscene.plugins.generator.obstacle_field",
