@@ -30,12 +30,17 @@ Choices where the source is silent or breaks:
   r_coll = 0.5 m; SwarmLab writes S_obs = 0 and min_d_obs = 0 when no obstacle is active, here
   they are left undefined (None) so a mean over the run is not dragged to 0.
 
-The neighbour lists come from a k-d tree query of the ``max_neig + 2`` nearest points (the agent
-itself, ``max_neig`` others, and one more that shows a tie at the cut: such an agent is listed
-by the definition's full sort instead), and the graph quantities from a sparse adjacency
-(``scipy.sparse.csgraph``; lambda_2 by shift-invert Lanczos for large connected graphs). They
-equal the definition's all-pairs matrices (tests/methods/swarmlab against
-tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
+Up to ``COMPILED_LIMIT`` agents (:func:`swarm_metrics`) one compiled pass
+(:mod:`swarmscene.methods.swarmlab.kernels`) takes every pair's distance, the neighbour lists,
+safety, order and the components, and lambda_2 comes from a Krylov space of the shift-inverted
+Laplacian started from the previous sample's Fiedler vector, with a proof (Temple's inequality and
+a Sylvester inertia count) that it is within 1e-12 ||L|| of the true value; when no proof is found
+the dense eigenvalues are taken. Above, the neighbour lists come from a k-d tree query of the
+``max_neig + 2`` nearest points (the agent itself, ``max_neig`` others, and one more that shows a
+tie at the cut: such an agent is listed by the definition's full sort instead), and the graph
+quantities from a sparse adjacency (``scipy.sparse.csgraph``; lambda_2 by shift-invert Lanczos
+for large connected graphs). Both equal the definition's all-pairs matrices (tests/methods/swarmlab
+against tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
 """
 
 from __future__ import annotations
@@ -58,6 +63,44 @@ R_COLL_DEFAULT = 0.5
 DENSE_EIGEN_LIMIT = 400
 """Up to this many agents lambda_2 is taken from the dense Laplacian (LAPACK, one eigenvalue);
 above, by shift-invert Lanczos on the sparse one (the dense cost grows as N^3)."""
+COMPILED_LIMIT = 400
+"""Up to this many agents :func:`swarm_metrics` takes the compiled pass (every pair: N^2 / 2
+distances); above, the k-d tree's neighbour lists and the sparse graph."""
+
+
+class WarmStart:
+    """What a sample hands the next (one per run; :func:`swarm_metrics` updates it): the
+    neighbour lists, whose furthest members bound the next lists, and the Fiedler vector and shift
+    lambda_2 starts from. Only the cost depends on it, never a value."""
+
+    def __init__(self) -> None:
+        self.nbr = np.zeros((0, 0), dtype=np.int64)
+        self.count = np.zeros(0, dtype=np.int64)
+        self.listed = False
+        self.x = np.zeros(0)
+        self.sigma = 0.0
+
+    def fit(self, n: int, listed: int) -> None:
+        """Empty the state unless it is for N agents of ``listed`` neighbours at most."""
+        if self.nbr.shape != (n, listed):
+            self.nbr = np.zeros((n, listed), dtype=np.int64)
+            self.count = np.zeros(n, dtype=np.int64)
+            self.listed = False
+            self.x = np.zeros(n)
+            self.sigma = 0.0
+
+
+@dataclass(frozen=True)
+class SwarmSample:
+    """One sample's metrics (SwarmLab's S, Phi, U, lambda_2 / N), the components, and whether
+    lambda_2 was certified from the warm start (False: the dense eigenvalues, or none needed)."""
+
+    safety: float
+    order: float
+    union: float
+    alg_conn: float
+    components: int
+    certified: bool = False
 
 
 @dataclass(frozen=True)
@@ -240,6 +283,45 @@ def union_and_connectivity(a: csr_matrix, dense_limit: int = DENSE_EIGEN_LIMIT) 
         values = eigsh(lap.tocsc(), k=2, sigma=-1.0, which="LM", return_eigenvectors=False, tol=0)
         lam2 = float(np.sort(values)[1])
     return union, lam2 / n, n_cc
+
+
+def swarm_metrics(pos: np.ndarray, vel: np.ndarray, r: float, max_neig: int, r_coll: float,
+                  start: WarmStart | None = None, tree: cKDTree | None = None) -> SwarmSample:
+    """S, Phi, U and lambda_2 / N of one swarm state (compute_swarm_performance.m): for at most
+    ``COMPILED_LIMIT`` agents by one compiled pass with the certified lambda_2 (starting from and
+    updating ``start``), above by :func:`neighbourhood`, :func:`safety`, :func:`order` and
+    :func:`graph_metrics` over the k-d tree ``tree`` (built when None)."""
+    n = len(pos)
+    if n > COMPILED_LIMIT:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(pos) if tree is None else tree
+        hood = neighbourhood(pos, r, max_neig, tree)
+        union, alg_conn, n_cc = graph_metrics(hood)
+        return SwarmSample(safety(pos, r_coll, tree), order(vel, hood), union, alg_conn, n_cc)
+    if n < 2:  # no pair, no neighbour: SwarmLab's values of a lone agent
+        return SwarmSample(1.0, 1.0, 1.0, 0.0, n)
+    from swarmscene.methods.swarmlab.kernels import CERTIFIED, DISCONNECTED, swarm_sample
+
+    state = WarmStart() if start is None else start
+    state.fit(n, min(max_neig, n - 1))
+    close, phi, n_cc, lam2, status, state.sigma, _, _, indptr, indices, deg = swarm_sample(
+        np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), float(r), float(r_coll),
+        state.nbr, state.count, state.listed, state.x, state.sigma)
+    state.listed = True
+    if status not in (CERTIFIED, DISCONNECTED):  # no proof: the dense eigenvalues, as the definition
+        lam2 = _dense_lambda2(indptr, indices, deg)
+    return SwarmSample(1.0 - close / (n * (n - 1) / 2), float(phi), (n - n_cc) / (n - 1), float(lam2) / n,
+                       int(n_cc), status == CERTIFIED)
+
+
+def _dense_lambda2(indptr: np.ndarray, indices: np.ndarray, deg: np.ndarray) -> float:
+    """lambda_2 of the graph's dense Laplacian (LAPACK, every eigenvalue)."""
+    n = len(deg)
+    lap = np.zeros((n, n))
+    lap[np.repeat(np.arange(n), np.diff(indptr)), indices] = -1.0
+    lap[np.diag_indices(n)] = deg
+    return float(np.linalg.eigvalsh(lap)[1])
 
 
 def obstacle_safety(inside_pairs: int, n: int, n_obstacles: int) -> float | None:

@@ -30,14 +30,13 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.swarmlab.metrics import (
+    COMPILED_LIMIT,
     MAX_NEIG_DEFAULT,
     R_COLL_DEFAULT,
     R_DEFAULT,
-    graph_metrics,
-    neighbourhood,
+    WarmStart,
     obstacle_safety,
-    order,
-    safety,
+    swarm_metrics,
 )
 from swarmscene.plugin import RunView, StrictModel, hookimpl
 
@@ -68,6 +67,7 @@ class SwarmLab:
         self.params: SwarmLab.Params | None = sim.config.observers.get(self.name)
         self.samples: dict[str, list[float]] = {key: [] for key in ("t", *SERIES)}
         self.obstacles = len(sim.environment.obstacles)  # >= 1 wherever safety_obs is sampled
+        self.warm = WarmStart()  # a sample's neighbour lists and lambda_2 start from the previous sample's
 
     @hookimpl
     def swarmscene_run_start(self, sim: RunView) -> None:
@@ -85,15 +85,15 @@ class SwarmLab:
         p = self.params
         assert p is not None
         pos, vel = sim.world.pos, sim.world.vel
-        tree = sim.sensing.tree  # the tick's shared k-d tree (all agents)
-        hood = neighbourhood(pos, p.r, p.max_neig, tree)
-        union, alg_conn, _ = graph_metrics(hood)
+        # a large swarm's neighbours come from the tick's shared k-d tree; a small one's from all pairs
+        tree = sim.sensing.tree if len(pos) > COMPILED_LIMIT else None
+        sample = swarm_metrics(pos, vel, p.r, p.max_neig, p.r_coll, self.warm, tree)
         row = self.samples
         row["t"].append(sim.t)
-        row["safety"].append(safety(pos, p.r_coll, tree))
-        row["order"].append(order(vel, hood))
-        row["union"].append(union)
-        row["alg_conn"].append(alg_conn)
+        row["safety"].append(sample.safety)
+        row["order"].append(sample.order)
+        row["union"].append(sample.union)
+        row["alg_conn"].append(sample.alg_conn)
         if self.obstacles:
             clearance = sim.sensing.clearance  # signed: negative inside an obstacle
             inside = _inside_pairs(sim, pos, clearance)
