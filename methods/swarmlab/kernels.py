@@ -23,12 +23,12 @@ bound b on lambda_3 comes from Sylvester's law of inertia: the number of negativ
 LDL^T factorisation of L - sigma I is the number of eigenvalues below sigma; two (0 and lambda_2)
 prove lambda_3 >= sigma. The factorisation is unpivoted, so its pivots are those of a nearby
 matrix: by the backward error bound of Gaussian elimination (Higham, Accuracy and Stability of
-Numerical Algorithms, 2nd ed., Theorem 9.3), L^ D^ L^T = L - sigma I + E with |E| <= gamma (|L - sigma I|
-+ |L^||D^||L^^T|), gamma = (w + 2) u / (1 - (w + 2) u) for inner products of at most w terms, u the
-unit round-off; the count is then exact for L - sigma I + E, and Weyl's inequality moves each
-eigenvalue by at most ||E||_2, which is bounded by the largest row sum of that bound and taken
-off sigma. Both bounds of lambda_2 are within ``CERT_RTOL * ||L||_inf`` of theta or the value
-is refused; the rounding of theta and of the residual themselves is allowed for on top
+Numerical Algorithms, 2nd ed., Theorem 9.3), L^ D^ L^T = L - sigma I + E with
+|E| <= gamma (|L - sigma I| + |L^||D^||L^^T|), gamma = (w + 2) u / (1 - (w + 2) u) for inner
+products of at most w terms, u the unit round-off; the count is then exact for L - sigma I + E,
+and Weyl's inequality moves each eigenvalue by at most ||E||_2, which is bounded (:func:`factor`)
+and taken off sigma. Both bounds of lambda_2 are within ``CERT_RTOL * ||L||_inf`` of theta or the
+value is refused; the rounding of theta and of the residual themselves is allowed for on top
 (``ROUNDING_ALLOWANCE`` (N + max degree) u ||L||_inf, the order of LAPACK's own error).
 
 The vector x comes from a Krylov space of the shift-inverted Laplacian, (L - sigma I)^-1, solved
@@ -60,7 +60,10 @@ CERT_RTOL = 1e-12
 ROUNDING_ALLOWANCE = 8.0
 """The rounding of theta and of the residual themselves, in units of (N + max degree) u ||L||_inf."""
 DROP_MAX = 4
-"""Up to this many candidates beyond an agent's list are dropped one by one; more are ranked by insertion."""
+"""Up to this many candidates beyond an agent's list are dropped one by one; more are first cut by a
+histogram of their distances (:func:`_tighten`), then ranked by insertion if still more."""
+TIGHTEN_BINS = 32
+"""Bins of :func:`_tighten`'s histogram."""
 KRYLOV_MAX = 10
 """The largest Krylov space per factorisation (a few steps reach the certificate from a warm start)."""
 FACTORISATIONS_MAX = 4
@@ -76,9 +79,12 @@ COLD_SHIFT = -1e-3
 """sigma for a sample without a usable previous shift, relative to ||L||_inf: just below 0, where
 (L - sigma I)^-1 is positive definite on the complement of 1 and lambda_2 is its largest eigenvalue."""
 
+JACOBI_SWEEPS_MAX = 30
+"""Sweeps of the Ritz problems' Jacobi rotations at most (they converge quadratically: a handful)."""
+
 CERTIFIED, REFUSED, DISCONNECTED = 0, 1, 2
-"""The status of lambda_2: certified within the bound, no proof found (the caller takes the dense
-eigenvalues), or 0 without computation (more than one component)."""
+"""The status of lambda_2: certified within the bound, no proof found (the dense eigenvalues are
+taken), or 0 without computation (more than one component)."""
 
 
 # ---- one sample's graph: distances, neighbour lists, safety, order, components -----------------
@@ -109,7 +115,7 @@ def square_bound(d):
 
 
 @njit(**JIT)
-def nearest_within(row, r, cut, listed, dist, out):
+def nearest_within(row, r, cut, listed, dist, bins, out):
     """compute_neighborhood.m for one agent from its sums of squares ``row``: the others within r
     (d <= r), cut to the ``len(out)`` lowest by (distance, index), into out[:count] in index
     order; returns the count (M is a set: only which agents are listed matters, not their order).
@@ -131,13 +137,49 @@ def nearest_within(row, r, cut, listed, dist, out):
         listed[within] = listed[t]
         dist[within] = d
         within += np.int64(d <= r)
-    if within - size > DROP_MAX:
-        return _insert(dist, listed, within, out)
+    if within - size > DROP_MAX:  # a far cut (the first sample, a member that wrapped around a torus)
+        within = _tighten(dist, listed, within, size, bins)
+        if within - size > DROP_MAX:
+            return _insert(dist, listed, within, out)
     while within > size:
         _drop_last(dist, listed, within)
         within -= 1
     out[:within] = listed[:within]
     return within
+
+
+@njit(**JIT)
+def _tighten(dist, listed, m, size, bins):
+    """Keep of listed[:m] (in index order) those no further than a tighter cut, and return how many:
+    the distances are counted into ``len(bins)`` equal bins between their least and greatest, and the
+    cut is the furthest member of the first bins that hold ``size`` of them (as many agents as the
+    list holds: no nearer than its last). Three passes without a data-dependent branch."""
+    lo, hi = np.inf, -np.inf
+    for t in range(m):
+        lo = min(lo, dist[t])
+        hi = max(hi, dist[t])
+    nb = len(bins)
+    if not hi > lo:
+        return m
+    scale = nb / (hi - lo)
+    bins[:] = 0
+    for t in range(m):
+        bins[min(np.int64((dist[t] - lo) * scale), nb - 1)] += 1
+    last, held = 0, bins[0]
+    while held < size:
+        last += 1
+        held += bins[last]
+    cut = lo
+    for t in range(m):
+        inside = min(np.int64((dist[t] - lo) * scale), nb - 1) <= last
+        cut = max(cut, dist[t] if inside else lo)
+    kept = 0
+    for t in range(m):
+        d = dist[t]
+        listed[kept] = listed[t]
+        dist[kept] = d
+        kept += np.int64(d <= cut)
+    return kept
 
 
 @njit(**JIT)
@@ -181,28 +223,45 @@ def neighbour_lists(pos, r, r_coll, nbr, count, listed_before):
     With ``listed_before``, nbr and count hold the previous sample's lists: while agent j's
     previous list is full, the furthest of its members now is a cut no nearer than the new list's
     last (they are as many agents as the list holds), which drops most agents before the ranking;
-    j's old list is read before its new one is written."""
+    when no other agent is within the cut (and it is within r), the members are the nearest and
+    the list stands (most agents, most samples). j's old list is read before its new one is written."""
     n = pos.shape[0]
     coords = np.ascontiguousarray(pos.T)
     row = np.empty(n)
     listed = np.empty(n, dtype=np.int64)
     dist = np.empty(n)
+    bins = np.empty(TIGHTEN_BINS, dtype=np.int64)
     limit = 2.0 * r_coll
     near = square_bound(limit)
     close = 0
     for j in range(n):
         squares_from(coords, j, row)
-        for i in range(j + 1, n):  # each pair once; a root only for the few pairs that may be close
-            if row[i] < near and math.sqrt(row[i]) < limit:
-                close += 1
+        maybe = 0
+        for i in range(j + 1, n):  # each pair once, counted without a branch (it vectorises)
+            maybe += np.int64(row[i] < near)
+        if maybe:  # a root only for the rare pairs that may be close
+            for i in range(j + 1, n):
+                if row[i] < near and math.sqrt(row[i]) < limit:
+                    close += 1
         cut = np.inf
         if listed_before and count[j] == nbr.shape[1]:
             furthest = 0.0
             for m in range(count[j]):
                 furthest = max(furthest, row[nbr[j, m]])  # NaN-free: a list never holds its own agent
             cut = math.sqrt(furthest)
-        count[j] = nearest_within(row, r, cut, listed, dist, nbr[j])
+            if cut <= r and _within_count(row, square_bound(cut)) == count[j]:
+                continue  # no other agent as near as the furthest member: the list stands as it was
+        count[j] = nearest_within(row, r, cut, listed, dist, bins, nbr[j])
     return close
+
+
+@njit(**JIT)
+def _within_count(row, limit):
+    """How many sums of squares are at most ``limit`` (without a branch: it vectorises)."""
+    c = 0
+    for i in range(len(row)):
+        c += np.int64(row[i] <= limit)
+    return c
 
 
 @njit(**JIT)
@@ -259,12 +318,15 @@ def undirected_graph(nbr, count):
     stamp = np.full(n, -1, dtype=np.int64)
     e = 0
     for i in range(n):
-        for m in range(count[i] + inptr[i + 1] - inptr[i]):
-            u = nbr[i, m] if m < count[i] else listers[inptr[i] + m - count[i]]
-            if stamp[u] != i:
-                stamp[u] = i
-                indices[e] = u
-                e += 1
+        for m in range(count[i]):  # i's own list: distinct agents
+            u = nbr[i, m]
+            stamp[u] = i
+            indices[e] = u
+            e += 1
+        for m in range(inptr[i], inptr[i + 1]):  # those listing i, less those i lists too
+            u = listers[m]
+            indices[e] = u
+            e += np.int64(stamp[u] != i)
         indptr[i + 1] = e
         deg[i] = e - indptr[i]
     return indptr, indices[:e], deg
@@ -314,18 +376,33 @@ def swarm_sample(pos, vel, r, r_coll, nbr, count, listed_before, x, sigma):
 
     Returns:
         (pairs closer than 2 r_coll, Phi, components, lambda_2, status, next sigma, factorisations,
-        Krylov vectors, indptr, indices, degrees): lambda_2 0 and status DISCONNECTED for more
-        than one component; the graph for the caller's dense eigenvalues when status is REFUSED.
+        Krylov vectors): lambda_2 0 and status DISCONNECTED for more than one component, from the
+        dense Laplacian's eigenvalues when status is REFUSED (no certificate).
     """
     close = neighbour_lists(pos, r, r_coll, nbr, count, listed_before)
     phi = order_parameter(vel, nbr, count)
     indptr, indices, deg = undirected_graph(nbr, count)
     n_cc = components(indptr, indices)
     if n_cc > 1:  # one zero eigenvalue per component: lambda_2 = 0
-        return close, phi, n_cc, 0.0, DISCONNECTED, sigma, 0, 0, indptr, indices, deg
+        return close, phi, n_cc, 0.0, DISCONNECTED, sigma, 0, 0
     _start_vector(x, pos)
     lam2, status, sigma, factorisations, vectors = certified_lambda2(indptr, indices, deg, x, sigma)
-    return close, phi, n_cc, lam2, status, sigma, factorisations, vectors, indptr, indices, deg
+    if status != CERTIFIED:
+        lam2 = dense_lambda2(indptr, indices, deg)
+    return close, phi, n_cc, lam2, status, sigma, factorisations, vectors
+
+
+@njit(**JIT)
+def dense_lambda2(indptr, indices, deg):
+    """lambda_2 of the graph's dense Laplacian (LAPACK's symmetric eigenvalues, as the definition):
+    the value when no certificate is found."""
+    n = len(deg)
+    lap = np.zeros((n, n))
+    for i in range(n):
+        lap[i, i] = deg[i]
+        for e in range(indptr[i], indptr[i + 1]):
+            lap[i, indices[e]] = -1.0
+    return np.linalg.eigvalsh(lap)[1]
 
 
 # ---- lambda_2: Laplacian products, the envelope LDL^T, the certificate ---------------------------
@@ -377,82 +454,53 @@ def envelope(indptr, indices, perm, inv, first):
 @njit(**JIT)
 def factor(indptr, indices, deg, sigma, perm, inv, first, a, d):
     """Unpivoted LDL^T of P (L - sigma I) P^T in its envelope: row i of the unit lower factor in
-    a[i, first[i]:i] (rows stay apart in memory, each contiguous), the pivots in d. Returns (negative
-    pivots, ||E||_2 bound), the bound inf when a pivot is zero (no count then).
+    a[i, first[i]:i], the pivots in d. Returns (negative pivots, ||E||_2 bound), the bound inf when
+    a pivot is zero (no count then).
 
     Row by row (bordering): with w_k = l_ik d_k kept in row i until the row is done,
-    w_j = a_ij - sum_k w_k l_jk and d_i = a_ii - sum_k w_k l_ik."""
+    w_j = a_ij - sum_k w_k l_jk and d_i = a_ii - sum_k w_k l_ik. The bound (module docstring):
+    gamma (||L - sigma I||_inf + || |L^||D^||L^^T| ||_2), the latter at most the trace
+    sum_{i,k} l_ik^2 |d_k| (|L^||D^||L^^T| = B B^T, B = |L^||D^|^(1/2), and ||B B^T||_2 <= ||B||_F^2),
+    summed as the entries come; gamma = gamma_{w+2} for inner products of at most w + 1 terms (w
+    the widest row), doubled for these sums' own rounding."""
     n = len(perm)
     norm_a = 0.0
+    trace = 0.0
+    width = 0
     for i in range(n):
         fi = first[i]
-        ai = a[i]
-        ai[fi:i] = 0.0
+        width = max(width, i - fi)
+        for k in range(fi, i):
+            a[i, k] = 0.0
         v = perm[i]
-        ai[i] = deg[v] - sigma
-        norm_a = max(norm_a, abs(ai[i]) + deg[v])
+        diag = deg[v] - sigma
+        norm_a = max(norm_a, abs(diag) + deg[v])
         for e in range(indptr[v], indptr[v + 1]):
             c = inv[indices[e]]
             if c < i:
-                ai[c] = -1.0
+                a[i, c] = -1.0
         for j in range(fi, i):
-            ai[j] -= _dot(ai, a[j], max(fi, first[j]), j)
-        s = ai[i]
+            s = a[i, j]
+            for k in range(max(fi, first[j]), j):
+                s -= a[i, k] * a[j, k]
+            a[i, j] = s
+        s = diag
         for k in range(fi, i):
-            w = ai[k]
+            w = a[i, k]
             lik = w / d[k]
             s -= w * lik
-            ai[k] = lik
+            trace += abs(w * lik)
+            a[i, k] = lik
         if s == 0.0:
             return 0, np.inf
         d[i] = s
-        ai[i] = 1.0
+        trace += abs(s)
+        a[i, i] = 1.0
     negatives = 0
     for i in range(n):
-        if d[i] < 0:
-            negatives += 1
-    return negatives, _backward_error(first, a, d, norm_a)
-
-
-@njit(**JIT)
-def _dot(u, v, start, stop):
-    """sum_{start <= k < stop} u[k] v[k] in four interleaved partial sums (independent additions
-    keep the pipeline full; the factorisation's error bound holds in any order of summation)."""
-    s0 = s1 = s2 = s3 = 0.0
-    k = start
-    while k + 4 <= stop:
-        s0 += u[k] * v[k]
-        s1 += u[k + 1] * v[k + 1]
-        s2 += u[k + 2] * v[k + 2]
-        s3 += u[k + 3] * v[k + 3]
-        k += 4
-    while k < stop:
-        s0 += u[k] * v[k]
-        k += 1
-    return (s0 + s1) + (s2 + s3)
-
-
-@njit(**JIT)
-def _backward_error(first, a, d, norm_a):
-    """gamma (||L - sigma I||_inf + || |L^||D^||L^^T| ||_inf), the latter's row sums being
-    sum_k |l_ik| |d_k| colsum_k (colsum_k = sum_j |l_jk|); a symmetric non-negative matrix's
-    2-norm is at most its largest row sum. gamma = gamma_{w+2} for inner products of at most w + 1
-    terms (w the widest row), doubled for these sums' own rounding."""
-    n = len(d)
-    colsum = np.zeros(n)
-    width = 0
-    for i in range(n):
-        width = max(width, i - first[i])
-        for k in range(first[i], i + 1):
-            colsum[k] += abs(a[i, k])
-    growth = 0.0
-    for i in range(n):
-        s = 0.0
-        for k in range(first[i], i + 1):
-            s += abs(a[i, k]) * abs(d[k]) * colsum[k]
-        growth = max(growth, s)
+        negatives += np.int64(d[i] < 0)
     m = (width + 2) * UNIT_ROUNDOFF
-    return 2.0 * m / (1.0 - m) * (norm_a + growth)
+    return negatives, 2.0 * m / (1.0 - m) * (norm_a + trace)
 
 
 @njit(**JIT)
@@ -460,14 +508,16 @@ def solve(perm, first, a, d, b, out, work):
     """out = (L - sigma I)^-1 b from the factorisation (forward by rows, the pivots, back by columns)."""
     n = len(perm)
     for i in range(n):
-        work[i] = b[perm[i]] - _dot(a[i], work, first[i], i)
+        s = b[perm[i]]
+        for k in range(first[i], i):
+            s -= a[i, k] * work[k]
+        work[i] = s
     for i in range(n):
         work[i] /= d[i]
     for i in range(n - 1, -1, -1):
-        ai = a[i]
         xi = work[i]
         for k in range(first[i], i):
-            work[k] -= ai[k] * xi
+            work[k] -= a[i, k] * xi
     for i in range(n):
         out[perm[i]] = work[i]
 
@@ -511,13 +561,60 @@ def _ritz(basis, image, gram, k, x, lx):
         x[:] = basis[0]
         lx[:] = image[0]
         return np.inf
-    values, vectors = np.linalg.eigh(gram[:k, :k].copy())
+    h = gram[:k, :k].copy()
+    vectors = _jacobi(h)
+    lowest, second = 0, 1
+    if h[1, 1] < h[0, 0]:
+        lowest, second = 1, 0
+    for q in range(2, k):
+        if h[q, q] < h[lowest, lowest]:
+            lowest, second = q, lowest
+        elif h[q, q] < h[second, second]:
+            second = q
     x[:] = 0.0
     lx[:] = 0.0
     for a in range(k):
-        x += vectors[a, 0] * basis[a]
-        lx += vectors[a, 0] * image[a]
-    return values[1]
+        x += vectors[a, lowest] * basis[a]
+        lx += vectors[a, lowest] * image[a]
+    return h[second, second]
+
+
+@njit(**JIT)
+def _jacobi(h):
+    """The eigenvectors of the small symmetric h (columns of the result), its eigenvalues left on its
+    diagonal: cyclic Jacobi rotations until the off-diagonal is negligible (Golub and Van Loan,
+    Matrix Computations, 4th ed., algorithm 8.5.3; a few sweeps for the Ritz problems here, cheaper
+    than a LAPACK call at this size). Only the Ritz values' accuracy matters, and Jacobi's is that of
+    the matrix's entries."""
+    k = h.shape[0]
+    v = np.eye(k)
+    for _ in range(JACOBI_SWEEPS_MAX):
+        off = 0.0
+        scale = 0.0
+        for p in range(k):
+            scale += h[p, p] * h[p, p]
+            for q in range(p + 1, k):
+                off += h[p, q] * h[p, q]
+        if off <= (UNIT_ROUNDOFF * UNIT_ROUNDOFF) * scale:
+            break
+        for p in range(k - 1):
+            for q in range(p + 1, k):
+                if h[p, q] == 0.0:
+                    continue
+                tau = (h[q, q] - h[p, p]) / (2.0 * h[p, q])
+                t = (1.0 if tau >= 0 else -1.0) / (abs(tau) + math.sqrt(1.0 + tau * tau))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = t * c
+                for m in range(k):  # h <- h J (columns p, q)
+                    hp, hq = h[m, p], h[m, q]
+                    h[m, p], h[m, q] = c * hp - s * hq, s * hp + c * hq
+                for m in range(k):  # h <- J^T h (rows p, q)
+                    hp, hq = h[p, m], h[q, m]
+                    h[p, m], h[q, m] = c * hp - s * hq, s * hp + c * hq
+                for m in range(k):
+                    vp, vq = v[m, p], v[m, q]
+                    v[m, p], v[m, q] = c * vp - s * vq, s * vp + c * vq
+    return v
 
 
 @njit(**JIT)

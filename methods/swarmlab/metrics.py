@@ -46,7 +46,7 @@ against tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -90,8 +90,7 @@ class WarmStart:
             self.sigma = 0.0
 
 
-@dataclass(frozen=True)
-class SwarmSample:
+class SwarmSample(NamedTuple):
     """One sample's metrics (SwarmLab's S, Phi, U, lambda_2 / N), the components, and whether
     lambda_2 was certified from the warm start (False: the dense eigenvalues, or none needed)."""
 
@@ -301,27 +300,16 @@ def swarm_metrics(pos: np.ndarray, vel: np.ndarray, r: float, max_neig: int, r_c
         return SwarmSample(safety(pos, r_coll, tree), order(vel, hood), union, alg_conn, n_cc)
     if n < 2:  # no pair, no neighbour: SwarmLab's values of a lone agent
         return SwarmSample(1.0, 1.0, 1.0, 0.0, n)
-    from swarmscene.methods.swarmlab.kernels import CERTIFIED, DISCONNECTED, swarm_sample
+    from swarmscene.methods.swarmlab import kernels  # numba: imported with the first compiled sample
 
     state = WarmStart() if start is None else start
     state.fit(n, min(max_neig, n - 1))
-    close, phi, n_cc, lam2, status, state.sigma, _, _, indptr, indices, deg = swarm_sample(
+    close, phi, n_cc, lam2, status, state.sigma, _, _ = kernels.swarm_sample(
         np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), float(r), float(r_coll),
         state.nbr, state.count, state.listed, state.x, state.sigma)
     state.listed = True
-    if status not in (CERTIFIED, DISCONNECTED):  # no proof: the dense eigenvalues, as the definition
-        lam2 = _dense_lambda2(indptr, indices, deg)
-    return SwarmSample(1.0 - close / (n * (n - 1) / 2), float(phi), (n - n_cc) / (n - 1), float(lam2) / n,
-                       int(n_cc), status == CERTIFIED)
-
-
-def _dense_lambda2(indptr: np.ndarray, indices: np.ndarray, deg: np.ndarray) -> float:
-    """lambda_2 of the graph's dense Laplacian (LAPACK, every eigenvalue)."""
-    n = len(deg)
-    lap = np.zeros((n, n))
-    lap[np.repeat(np.arange(n), np.diff(indptr)), indices] = -1.0
-    lap[np.diag_indices(n)] = deg
-    return float(np.linalg.eigvalsh(lap)[1])
+    return SwarmSample(1.0 - close / (n * (n - 1) / 2), phi, (n - n_cc) / (n - 1), lam2 / n, n_cc,
+                       status == kernels.CERTIFIED)
 
 
 def obstacle_safety(inside_pairs: int, n: int, n_obstacles: int) -> float | None:

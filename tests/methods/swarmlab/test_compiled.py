@@ -186,19 +186,16 @@ def test_no_certificate_for_a_double_lambda_2(shape):
     assert got.alg_conn == pytest.approx(2.0 / len(pos), abs=1e-12)
 
 
-def test_without_a_certificate_the_dense_eigenvalues_are_taken(monkeypatch):
-    """Every sample refused (the kernel's lambda_2 replaced by nonsense): swarm_metrics takes lambda_2
-    from the dense Laplacian of the kernel's graph, equal to the definition, and says so."""
-    real = kernels.swarm_sample
-
-    def refusing(*args):
-        out = list(real(*args))
-        if out[4] == kernels.CERTIFIED:
-            out[3], out[4] = -1.0, kernels.REFUSED
-        return tuple(out)
-
-    monkeypatch.setattr(kernels, "swarm_sample", refusing)
+def test_without_a_certificate_the_dense_eigenvalues_are_taken():
+    """A sample whose certificate fails (the 4-cycle, lambda_2 = lambda_3, from a start that is no
+    eigenvector) takes lambda_2 from the dense Laplacian, equal to the definition, and says so; so does
+    dense_lambda2 on any graph."""
+    pos = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     start = WarmStart()
-    for pos, vel in drifting_swarm(30, 3, 7):
-        got = assert_equal_to_definition(pos, vel, 150.0, 10, 0.5, start)
-        assert not got.certified and got.alg_conn > 0
+    start.fit(4, 2)
+    start.x[:] = np.random.default_rng(8).normal(size=4)
+    got = assert_equal_to_definition(pos, np.ones_like(pos), 1.0, 2, 0.1, start)
+    assert not got.certified and got.alg_conn == pytest.approx(2.0 / 4, abs=1e-12)
+    for pos, _ in drifting_swarm(30, 3, 7):
+        indptr, indices, deg, lap = graph(pos, 150.0, 5)
+        assert kernels.dense_lambda2(indptr, indices, deg) == pytest.approx(np.linalg.eigvalsh(lap)[1], abs=1e-12)
