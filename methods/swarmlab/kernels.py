@@ -4,40 +4,52 @@ Source: E. Soria, F. Schiano, D. Floreano, "SwarmLab: a Matlab drone swarm simul
 section IV-C (``math_tools/compute_swarm_performance.m``, ``compute_neighborhood.m``); the
 definitions, symbols and the departures where the MATLAB divides by zero are in
 :mod:`swarmscene.methods.swarmlab.metrics`. This module computes the same numbers without Python
-and NumPy call overhead (a hundred agents' vectorised calls cost more than their arithmetic):
+and NumPy call overhead (a hundred agents' vectorised calls cost more than their arithmetic), in
+one call per sample, :func:`swarm_sample`:
 
-* :func:`graph_sample`: all pair distances (pdist's sum of squares, then its root, so that equal
-  distances are equal here as in the definition), the pairs closer than 2 r_coll (safety), every
-  agent's neighbour list M (the others within r, the ``max_neig`` lowest by (distance, index):
-  MATLAB's stable sort), the order parameter Phi, the undirected graph A = (M + M^T) > 0 as
-  adjacency lists and its connected components;
+* :func:`neighbour_lists`: every agent's list M_j, the others within r cut to the ``max_neig``
+  lowest by (distance, index) (MATLAB's stable sort), and the pairs closer than 2 r_coll (safety).
+  The distances are pdist's: each pair's sum of squares in coordinate order, then its root, so an
+  equal distance is equal here as in the definition. The sums pre-select (a sum above
+  ``square_bound(d)`` has its root above d) and the roots decide. The previous sample's lists
+  make it cheap: the furthest of agent j's previous members, now, is a distance no nearer than its
+  new list's last (they are as many agents as the list holds), so the agents beyond it are dropped
+  without a branch; when none is left but the members, the list stands;
+* :func:`order_parameter`: Phi; :func:`undirected_graph`: A = (M + M^T) > 0 as adjacency lists;
+  :func:`components`: its connected components (union U);
 * :func:`certified_lambda2`: lambda_2 of the Laplacian L = D - A of a connected graph, with a proof
-  that it is within ``CERT_RTOL * ||L||`` of the true value, or a refusal (the caller then takes
-  the dense eigenvalues, as before).
+  that it is within ``CERT_RTOL * ||L||_inf`` of the true value, or a refusal; then
+  :func:`dense_lambda2` takes it from all of the dense Laplacian's eigenvalues, as the definition.
 
-lambda_2 (the certificate). For a unit vector x orthogonal to the constant vector 1, the Rayleigh
-quotient theta = x^T L x bounds lambda_2 from above (Courant-Fischer: lambda_2 is the minimum of
-the quotient on the complement of 1, L's null space). From below, Temple's inequality: if
-theta < b <= lambda_3, then lambda_2 >= theta - ||L x - theta x||^2 / (b - theta). The lower
-bound b on lambda_3 comes from Sylvester's law of inertia: the number of negative pivots of an
-LDL^T factorisation of L - sigma I is the number of eigenvalues below sigma; two (0 and lambda_2)
-prove lambda_3 >= sigma. The factorisation is unpivoted, so its pivots are those of a nearby
-matrix: by the backward error bound of Gaussian elimination (Higham, Accuracy and Stability of
-Numerical Algorithms, 2nd ed., Theorem 9.3), L^ D^ L^T = L - sigma I + E with
-|E| <= gamma (|L - sigma I| + |L^||D^||L^^T|), gamma = (w + 2) u / (1 - (w + 2) u) for inner
-products of at most w terms, u the unit round-off; the count is then exact for L - sigma I + E,
-and Weyl's inequality moves each eigenvalue by at most ||E||_2, which is bounded (:func:`factor`)
-and taken off sigma. Both bounds of lambda_2 are within ``CERT_RTOL * ||L||_inf`` of theta or the
-value is refused; the rounding of theta and of the residual themselves is allowed for on top
-(``ROUNDING_ALLOWANCE`` (N + max degree) u ||L||_inf, the order of LAPACK's own error).
+lambda_2 (the certificate). For x orthogonal to the constant vector 1, the Rayleigh quotient
+theta = x^T L x / x^T x bounds lambda_2 from above (Courant-Fischer: lambda_2 is the least quotient
+on the complement of 1, L's null space). From below, Temple's inequality: if theta < b <= lambda_3,
+then lambda_2 >= theta - ||L x - theta x||^2 / (b - theta) (x of unit length). The bound b on
+lambda_3 comes from Sylvester's law of inertia: the number of negative pivots of an LDL^T
+factorisation of L - sigma I is the number of eigenvalues below sigma; two (0 and lambda_2) prove
+lambda_3 >= sigma. (One proves lambda_2 >= sigma, which certifies theta directly when sigma is
+that near.) The factorisation is unpivoted, so its pivots are those of a nearby matrix: by the
+backward error bound of Gaussian elimination (Higham, Accuracy and Stability of Numerical
+Algorithms, 2nd ed., Theorem 9.3), L^ D^ L^T = L - sigma I + E with |E| <= gamma (|L - sigma I| +
+|L^||D^||L^^T|), gamma = (w + 2) u / (1 - (w + 2) u) for inner products of at most w + 1 terms, u
+the unit round-off; the count is exact for L - sigma I + E, and Weyl's inequality moves each
+eigenvalue by at most ||E||_2, which is bounded (:func:`factor`) and taken off sigma. Both bounds
+of lambda_2 are within ``CERT_RTOL * ||L||_inf`` of theta or the value is refused; the rounding
+of theta and of the residual themselves is allowed for on top (``ROUNDING_ALLOWANCE``
+(N + max degree) u ||L||_inf, the order of LAPACK's own error). A double lambda_2 (lambda_2 =
+lambda_3, as on a symmetric lattice) has no shift with exactly two eigenvalues below it and is
+refused unless the start vector is an eigenvector.
 
 The vector x comes from a Krylov space of the shift-inverted Laplacian, (L - sigma I)^-1, solved
-with the same factorisation, and a Rayleigh-Ritz projection with L; it starts from the previous
-sample's Fiedler vector (the warm start; the first sample: the positions' widest coordinate), and
-sigma from the middle of the previous sample's lambda_2 and lambda_3 (0 and lambda_2 below it:
-the shift-inverted operator has lambda_2 alone at its negative end, which Krylov spaces find in a
-few steps). The factorisation runs in the envelope of the rows ordered by x (a spectral ordering:
-neighbours in the graph are near each other in x, so the envelope is narrow).
+with the same factorisation, and a Rayleigh-Ritz projection with L (its small eigenproblems by
+Jacobi rotations). It starts from the previous sample's Fiedler vector, smoothed by a few lazy
+random-walk steps (the first sample: the positions' widest coordinate), and sigma from the middle
+of the previous sample's lambda_2 and lambda_3: with 0 and lambda_2 below it, the shift-inverted
+operator has lambda_2 alone at its negative end, which a Krylov space finds in four or five
+solves. A shift above lambda_3 is followed by the start vector's quotient, then one just below 0
+and the middle of what that finds (``FACTORISATIONS_MAX``). The factorisation runs in the
+envelope of the rows ordered by x (a spectral ordering: neighbours in the graph are near each
+other in x, so the envelope is narrow; about 7,000 multiply-adds for a hundred boids).
 
 Compiled on first use and cached beside this module (``cache=True``); plain arrays and scalars in,
 tuples out.
@@ -55,8 +67,8 @@ from swarmscene.methods.cem.numerics import JIT
 UNIT_ROUNDOFF = 2.0**-53
 """u, the unit round-off of IEEE double precision."""
 CERT_RTOL = 1e-12
-"""The certified bound on |lambda_2 - theta|, relative to ||L||_inf = 2 max degree (an absolute
-4e-11 for a hundred agents of up to twenty neighbours: a thousand times below the tests' 1e-9)."""
+"""The certified bound on |lambda_2 - theta|, relative to ||L||_inf = 2 max degree (4e-11 on
+lambda_2 for degrees up to twenty, 4e-13 on lambda_2 / N at N = 100: far below the tests' 1e-9)."""
 ROUNDING_ALLOWANCE = 8.0
 """The rounding of theta and of the residual themselves, in units of (N + max degree) u ||L||_inf."""
 DROP_MAX = 4

@@ -31,16 +31,17 @@ Choices where the source is silent or breaks:
   they are left undefined (None) so a mean over the run is not dragged to 0.
 
 Up to ``COMPILED_LIMIT`` agents (:func:`swarm_metrics`) one compiled pass
-(:mod:`swarmscene.methods.swarmlab.kernels`) takes every pair's distance, the neighbour lists,
-safety, order and the components, and lambda_2 comes from a Krylov space of the shift-inverted
-Laplacian started from the previous sample's Fiedler vector, with a proof (Temple's inequality and
-a Sylvester inertia count) that it is within 1e-12 ||L|| of the true value; when no proof is found
-the dense eigenvalues are taken. Above, the neighbour lists come from a k-d tree query of the
-``max_neig + 2`` nearest points (the agent itself, ``max_neig`` others, and one more that shows a
-tie at the cut: such an agent is listed by the definition's full sort instead), and the graph
-quantities from a sparse adjacency (``scipy.sparse.csgraph``; lambda_2 by shift-invert Lanczos
-for large connected graphs). Both equal the definition's all-pairs matrices (tests/methods/swarmlab
-against tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
+(:mod:`swarmscene.methods.swarmlab.kernels`) takes every pair's distance, the neighbour lists (cut
+by the previous sample's lists, exactly), safety, order and the components, and lambda_2 comes
+from a Krylov space of the shift-inverted Laplacian started from the previous sample's Fiedler
+vector, with a proof (Temple's inequality and a Sylvester inertia count) that it is within
+1e-12 ||L||_inf of the true value; when no proof is found, from the dense eigenvalues. Above, the
+neighbour lists come from a k-d tree query of the ``max_neig + 2`` nearest points (the agent
+itself, ``max_neig`` others, and one more that shows a tie at the cut: such an agent is listed by
+the definition's full sort instead), and the graph quantities from a sparse adjacency
+(``scipy.sparse.csgraph``; lambda_2 by shift-invert Lanczos for large connected graphs). Both
+equal the definition's all-pairs matrices (tests/methods/swarmlab against
+tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
 """
 
 from __future__ import annotations
@@ -71,7 +72,8 @@ distances); above, the k-d tree's neighbour lists and the sparse graph."""
 class WarmStart:
     """What a sample hands the next (one per run; :func:`swarm_metrics` updates it): the
     neighbour lists, whose furthest members bound the next lists, and the Fiedler vector and shift
-    lambda_2 starts from. Only the cost depends on it, never a value."""
+    lambda_2 starts from. The lists do not depend on it; lambda_2 only within its certified bound
+    (a warm start changes the last digits, never more than 1e-12 ||L||_inf); the cost does."""
 
     def __init__(self) -> None:
         self.nbr = np.zeros((0, 0), dtype=np.int64)
