@@ -94,9 +94,8 @@ COLD_SHIFT = -1e-3
 JACOBI_SWEEPS_MAX = 30
 """Sweeps of the Ritz problems' Jacobi rotations at most (they converge quadratically: a handful)."""
 
-CERTIFIED, REFUSED, DISCONNECTED = 0, 1, 2
-"""The status of lambda_2: certified within the bound, no proof found (the dense eigenvalues are
-taken), or 0 without computation (more than one component)."""
+CERTIFIED, REFUSED = 0, 1
+"""The status of :func:`certified_lambda2`: theta is lambda_2 within the bound, or no proof was found."""
 
 
 # ---- one sample's graph: distances, neighbour lists, safety, order, components -----------------
@@ -387,21 +386,24 @@ def swarm_sample(pos, vel, r, r_coll, nbr, count, listed_before, x, sigma):
         sigma: the previous sample's next shift (:func:`certified_lambda2`; <= 0: none).
 
     Returns:
-        (pairs closer than 2 r_coll, Phi, components, lambda_2, status, next sigma, factorisations,
-        Krylov vectors): lambda_2 0 and status DISCONNECTED for more than one component, from the
-        dense Laplacian's eigenvalues when status is REFUSED (no certificate).
+        (S, Phi, U, lambda_2 / N, components, certified, next sigma, factorisations, Krylov
+        vectors): lambda_2 0 for more than one component (no computation), from the dense
+        Laplacian's eigenvalues when no certificate is found (certified False).
     """
+    n = pos.shape[0]
     close = neighbour_lists(pos, r, r_coll, nbr, count, listed_before)
+    safety = 1.0 - close / (n * (n - 1) / 2)
     phi = order_parameter(vel, nbr, count)
     indptr, indices, deg = undirected_graph(nbr, count)
     n_cc = components(indptr, indices)
+    union = (n - n_cc) / (n - 1)
     if n_cc > 1:  # one zero eigenvalue per component: lambda_2 = 0
-        return close, phi, n_cc, 0.0, DISCONNECTED, sigma, 0, 0
+        return safety, phi, union, 0.0, n_cc, False, sigma, 0, 0
     _start_vector(x, pos)
     lam2, status, sigma, factorisations, vectors = certified_lambda2(indptr, indices, deg, x, sigma)
     if status != CERTIFIED:
         lam2 = dense_lambda2(indptr, indices, deg)
-    return close, phi, n_cc, lam2, status, sigma, factorisations, vectors
+    return safety, phi, union, lam2 / n, n_cc, status == CERTIFIED, sigma, factorisations, vectors
 
 
 @njit(**JIT)

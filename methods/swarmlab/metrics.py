@@ -47,6 +47,7 @@ tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -76,20 +77,16 @@ class WarmStart:
     (a warm start changes the last digits, never more than 1e-12 ||L||_inf); the cost does."""
 
     def __init__(self) -> None:
-        self.nbr = np.zeros((0, 0), dtype=np.int64)
-        self.count = np.zeros(0, dtype=np.int64)
-        self.listed = False
-        self.x = np.zeros(0)
-        self.sigma = 0.0
+        self.fit(0, 0)
 
     def fit(self, n: int, listed: int) -> None:
-        """Empty the state unless it is for N agents of ``listed`` neighbours at most."""
-        if self.nbr.shape != (n, listed):
-            self.nbr = np.zeros((n, listed), dtype=np.int64)
-            self.count = np.zeros(n, dtype=np.int64)
-            self.listed = False
-            self.x = np.zeros(n)
-            self.sigma = 0.0
+        """Empty the state for N agents of ``listed`` neighbours at most."""
+        self.n, self.listed_max = n, listed
+        self.nbr = np.zeros((n, listed), dtype=np.int64)
+        self.count = np.zeros(n, dtype=np.int64)
+        self.listed = False
+        self.x = np.zeros(n)
+        self.sigma = 0.0
 
 
 class SwarmSample(NamedTuple):
@@ -302,16 +299,29 @@ def swarm_metrics(pos: np.ndarray, vel: np.ndarray, r: float, max_neig: int, r_c
         return SwarmSample(safety(pos, r_coll, tree), order(vel, hood), union, alg_conn, n_cc)
     if n < 2:  # no pair, no neighbour: SwarmLab's values of a lone agent
         return SwarmSample(1.0, 1.0, 1.0, 0.0, n)
-    from swarmscene.methods.swarmlab import kernels  # numba: imported with the first compiled sample
-
     state = WarmStart() if start is None else start
-    state.fit(n, min(max_neig, n - 1))
-    close, phi, n_cc, lam2, status, state.sigma, _, _ = kernels.swarm_sample(
+    listed = min(max_neig, n - 1)
+    if state.n != n or state.listed_max != listed:
+        state.fit(n, listed)
+    out = (_kernels or _load_kernels()).swarm_sample(
         np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), float(r), float(r_coll),
         state.nbr, state.count, state.listed, state.x, state.sigma)
-    state.listed = True
-    return SwarmSample(1.0 - close / (n * (n - 1) / 2), phi, (n - n_cc) / (n - 1), lam2 / n, n_cc,
-                       status == kernels.CERTIFIED)
+    state.listed, state.sigma = True, out[6]
+    return SwarmSample(*out[:6])
+
+
+_kernels: ModuleType | None = None
+"""The compiled kernels, imported with the first compiled sample (numba's import is not free: a
+run without the observer, or listing the plugins, never pays it)."""
+
+
+def _load_kernels() -> ModuleType:
+    """Import :mod:`swarmscene.methods.swarmlab.kernels` and keep it in ``_kernels``."""
+    global _kernels
+    from swarmscene.methods.swarmlab import kernels
+
+    _kernels = kernels
+    return kernels
 
 
 def obstacle_safety(inside_pairs: int, n: int, n_obstacles: int) -> float | None:
