@@ -134,8 +134,8 @@ def _observer_per_tick(traj: dict, rounds: int):
             return cKDTree(self.pos)
 
     pos, vel = np.asarray(traj["pos"], dtype=float), np.asarray(traj["vel"], dtype=float)
-    views = [SimpleNamespace(world=SimpleNamespace(pos=pos[k], vel=vel[k]), t=float(traj["t"][k]), step_count=k)
-             for k in range(len(pos))]
+    views = [SimpleNamespace(world=SimpleNamespace(pos=pos[k], vel=vel[k], t=float(traj["t"][k])),
+                             t=float(traj["t"][k]), step_count=k) for k in range(len(pos))]
     setup = SimpleNamespace(config=SimpleNamespace(observers={"swarmlab": SwarmLab.Params()}),
                             environment=SimpleNamespace(obstacles=[]))
     times = np.zeros((rounds + 1, len(views)))
