@@ -199,3 +199,15 @@ def test_without_a_certificate_the_dense_eigenvalues_are_taken():
     for pos, _ in drifting_swarm(30, 3, 7):
         indptr, indices, deg, lap = graph(pos, 150.0, 5)
         assert kernels.dense_lambda2(indptr, indices, deg) == pytest.approx(np.linalg.eigvalsh(lap)[1], abs=1e-12)
+
+
+def test_above_the_compiled_limit_the_tree_path_gives_the_definition():
+    """401 agents: swarm_metrics takes the k-d tree's lists and the sparse graph (no warm start used)."""
+    from swarmscene.methods.swarmlab.metrics import COMPILED_LIMIT
+
+    rng = np.random.default_rng(9)
+    pos = rng.uniform(0, 20, (COMPILED_LIMIT + 1, 3))
+    vel = rng.normal(size=pos.shape)
+    start = WarmStart()
+    got = assert_equal_to_definition(pos, vel, 150.0, 6, 0.5, start)
+    assert not got.certified and start.n == 0
