@@ -6,10 +6,11 @@ The engine's kernels (numba, ``cache=True``) are compiled the first time a run c
 kept in numba's on-disk cache; a fresh cluster node or container image otherwise pays that compile
 in its first jobs (the tutorial's first CEM run: ~15 s). This command runs every preset briefly
 with its events moved early, so that each method's kernels (CEM's after a failure, the indoor
-rules, flocking, the quadrotor plant, the cell lists of large swarms) run once, and a swarm over
-the dense-pair limit on each dynamics model. Nothing is written but numba's cache (its default
-place: ``__pycache__`` beside each module, or the user's cache when that is read-only;
-``NUMBA_CACHE_DIR`` moves it, e.g. onto a shared file system or into the image).
+rules, flocking, the quadrotor plant, the cell lists of large swarms) run once, a swarm over
+the dense-pair limit on each dynamics model, and the ``swarmlab`` observer's compiled pass.
+Nothing is written but numba's cache (its default place: ``__pycache__`` beside each module, or
+the user's cache when that is read-only; ``NUMBA_CACHE_DIR`` moves it, e.g. onto a shared file
+system or into the image).
 
 A run that fails here is named in one line and the others go on; the exit status is 1 then.
 """
@@ -27,12 +28,13 @@ SHORT = 1.0
 
 
 def warmups() -> list[tuple[str, list[str]]]:
-    """(label, overrides) of the warm-up runs: every preset, and large swarms on each dynamics."""
+    """(label, overrides) of the warm-up runs: every preset, large swarms on each dynamics, the swarmlab observer."""
     presets = sorted(p.stem for p in (Path(__file__).parents[1] / "scenarios" / "scenario").glob("*.yaml"))
     runs = [(f"scenario={p}", [f"scenario={p}"]) for p in presets]
     for dynamics in ("single_integrator", "double_integrator", "quadrotor"):
         overrides = [f"dynamics={dynamics}", "swarm=grid", "swarm.n=64", "environment=open"]
         runs.append((" ".join(overrides), overrides))
+    runs.append(("observers=[swarmlab]", ["scenario=flocking", "observers=[swarmlab]"]))  # its compiled pass
     return runs
 
 

@@ -14,6 +14,7 @@ def test_every_preset_and_each_dynamics_with_a_large_swarm_is_warmed():
     assert {label.removeprefix("scenario=") for label in labels if label.startswith("scenario=")} == presets
     large = [overrides for label, overrides in warm.warmups() if "swarm.n=64" in overrides]
     assert sorted(o[0] for o in large) == ["dynamics=double_integrator", "dynamics=quadrotor", "dynamics=single_integrator"]
+    assert "observers=[swarmlab]" in labels  # the observer's compiled pass
 
 
 def test_events_move_to_the_first_ticks_and_the_run_ends_just_after_the_last():

@@ -7,6 +7,10 @@ a warm-up pair. Printed: the median wall time of the stepping loop (the ``wall_t
 each, their ratio and the observer's share, against the goal (<= 10 % of the run); and the same
 for the straightforward transcription of the definition (all pairs, a dense neighbourhood matrix,
 every eigenvalue: tests/oracles/swarmlab.py) computed over the same recorded states, per tick.
+The observer's own per-tick cost is also timed directly, less exposed to the machine's load than
+the difference of two runs' wall times: its samples inside the 'with' runs (the hook wrapped in a
+timer), and its sample alone over a recorded run's states (``--rounds`` passes; the tick's k-d tree
+built when asked for, as the engine does), each against the run's stepping loop without it.
 
     OMP_NUM_THREADS=1 python benchmarks/speed/bench_swarmlab.py [--rounds 7] [--n 100]
 
@@ -20,6 +24,8 @@ import os
 import statistics
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -47,9 +53,13 @@ def main() -> None:
     for overrides in cases.values():  # warm-up: numba's cache, scipy's submodules
         api.run(overrides)
     walls: dict[str, list[float]] = {k: [] for k in cases}
+    inside: list[float] = []  # each 'with' run's time in the observer's samples, s
     for _ in range(args.rounds):
         for name, overrides in cases.items():
-            walls[name].append(api.run(overrides).metrics["wall_time"])
+            with _timed_samples() as spent:
+                walls[name].append(api.run(overrides).metrics["wall_time"])
+            if name == "with":
+                inside.append(sum(spent))
     without, with_it = statistics.median(walls["without"]), statistics.median(walls["with"])
     share = with_it / without - 1.0
     load = os.getloadavg()
@@ -59,6 +69,9 @@ def main() -> None:
     print(f"  with observers=[swarmlab]:          median {with_it:.3f} s ({listed['with']})")
     print(f"  ratio {with_it / without:.3f}: the observer costs {100 * share:.1f} % of the run "
           f"(goal <= {100 * GOAL:.0f} %: {'met' if share <= GOAL else 'NOT met'})")
+    spent_in = statistics.median(inside)
+    print(f"  inside the 'with' runs, the observer's samples took median {spent_in:.3f} s, "
+          f"{1e6 * spent_in / 301:.0f} us per sample: {100 * spent_in / without:.1f} % of the run without it")
     # the definition, transcribed, over the same states (one run's trajectory)
     sys.path.insert(0, str(ROOT / "tests"))
     from oracles.swarmlab import swarm_performance
@@ -72,9 +85,68 @@ def main() -> None:
         swarm_performance(np.asarray(traj["pos"][k]), np.asarray(traj["vel"][k]), p.r, p.max_neig, p.r_coll)
     per_tick = (time.perf_counter() - start) / len(traj["t"])
     ticks = len(traj["t"])
+    per_sample = _observer_per_tick(traj, args.rounds)
+    print(f"  the observer's sample alone over the run's {ticks} recorded states: "
+          f"mean {1e6 * per_sample.mean():.0f} us, median {1e6 * np.median(per_sample):.0f} us per tick "
+          f"({args.rounds} passes); against the run's {1e3 * without / ticks:.2f} ms tick: "
+          f"{100 * per_sample.mean() * ticks / without:.1f} %")
     print(f"  the definition transcribed (all pairs, dense matrices, every eigenvalue): {1e3 * per_tick:.2f} ms "
           f"per tick, {per_tick * ticks:.3f} s over the run's {ticks} states; the observer: "
           f"{1e3 * (with_it - without) / ticks:.2f} ms per tick")
+
+
+@contextmanager
+def _timed_samples() -> Iterator[list[float]]:
+    """The seconds of each ``SwarmLab._sample`` call while the block runs (its hook wrapped)."""
+    from swarmscene.plugins.observer.swarmlab import SwarmLab
+
+    spent: list[float] = []
+    sample = SwarmLab._sample
+
+    def timed(self: SwarmLab, sim: object) -> None:
+        start = time.perf_counter()
+        sample(self, sim)  # type: ignore[arg-type]
+        spent.append(time.perf_counter() - start)
+
+    SwarmLab._sample = timed  # type: ignore[method-assign]
+    try:
+        yield spent
+    finally:
+        SwarmLab._sample = sample  # type: ignore[method-assign]
+
+
+def _observer_per_tick(traj: dict, rounds: int):
+    """Seconds of ``SwarmLab._sample`` per recorded state, the mean over ``rounds`` passes."""
+    from functools import cached_property
+    from types import SimpleNamespace
+
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    from swarmscene.plugins.observer.swarmlab import SwarmLab
+
+    class Sensing:  # the engine's lazy per-tick tree
+        def __init__(self, pos):
+            self.pos = pos
+
+        @cached_property
+        def tree(self):
+            return cKDTree(self.pos)
+
+    pos, vel = np.asarray(traj["pos"], dtype=float), np.asarray(traj["vel"], dtype=float)
+    views = [SimpleNamespace(world=SimpleNamespace(pos=pos[k], vel=vel[k], t=float(traj["t"][k])),
+                             t=float(traj["t"][k]), step_count=k) for k in range(len(pos))]
+    setup = SimpleNamespace(config=SimpleNamespace(observers={"swarmlab": SwarmLab.Params()}),
+                            environment=SimpleNamespace(obstacles=[]))
+    times = np.zeros((rounds + 1, len(views)))
+    for round_ in range(rounds + 1):  # the first pass warms up (compiles, fills caches) and is dropped
+        observer = SwarmLab(setup)
+        for k, view in enumerate(views):
+            view.sensing = Sensing(view.world.pos)
+            start = time.perf_counter()
+            observer._sample(view)
+            times[round_, k] = time.perf_counter() - start
+    return times[1:].mean(axis=0)
 
 
 if __name__ == "__main__":

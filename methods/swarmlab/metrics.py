@@ -30,10 +30,16 @@ Choices where the source is silent or breaks:
   r_coll = 0.5 m; SwarmLab writes S_obs = 0 and min_d_obs = 0 when no obstacle is active, here
   they are left undefined (None) so a mean over the run is not dragged to 0.
 
-The neighbour lists come from a k-d tree query of the ``max_neig + 2`` nearest points (the agent
-itself, ``max_neig`` others, and one more that shows a tie at the cut: such an agent is listed
-by the definition's full sort instead), and the graph quantities from a sparse adjacency
-(``scipy.sparse.csgraph``; lambda_2 by shift-invert Lanczos for large connected graphs). They
+Up to ``COMPILED_LIMIT`` agents (:func:`swarm_metrics`) one compiled pass
+(:mod:`swarmscene.methods.swarmlab.kernels`) takes every pair's distance, the neighbour lists (cut
+by the previous sample's lists, exactly), safety, order and the components, and lambda_2 comes
+from a Krylov space of the shift-inverted Laplacian started from the previous sample's Fiedler
+vector, with a proof (Temple's inequality and a Sylvester inertia count) that it is within
+1e-12 ||L||_inf of the true value; when no proof is found, from the dense eigenvalues. Above, the
+neighbour lists come from a k-d tree query of the ``max_neig + 2`` nearest points (the agent
+itself, ``max_neig`` others, and one more that shows a tie at the cut: such an agent is listed by
+the definition's full sort instead), and the graph quantities from a sparse adjacency
+(``scipy.sparse.csgraph``; lambda_2 by shift-invert Lanczos for large connected graphs). Both
 equal the definition's all-pairs matrices (tests/methods/swarmlab against
 tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
 """
@@ -41,7 +47,8 @@ tests/oracles/swarmlab.py, a line-by-line transcription of the MATLAB).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from types import ModuleType
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -58,6 +65,40 @@ R_COLL_DEFAULT = 0.5
 DENSE_EIGEN_LIMIT = 400
 """Up to this many agents lambda_2 is taken from the dense Laplacian (LAPACK, one eigenvalue);
 above, by shift-invert Lanczos on the sparse one (the dense cost grows as N^3)."""
+COMPILED_LIMIT = 400
+"""Up to this many agents :func:`swarm_metrics` takes the compiled pass (every pair: N^2 / 2
+distances); above, the k-d tree's neighbour lists and the sparse graph."""
+
+
+class WarmStart:
+    """What a sample hands the next (one per run; :func:`swarm_metrics` updates it): the
+    neighbour lists, whose furthest members bound the next lists, and the Fiedler vector and shift
+    lambda_2 starts from. The lists do not depend on it; lambda_2 only within its certified bound
+    (a warm start changes the last digits, never more than 1e-12 ||L||_inf); the cost does."""
+
+    def __init__(self) -> None:
+        self.fit(0, 0)
+
+    def fit(self, n: int, listed: int) -> None:
+        """Empty the state for N agents of ``listed`` neighbours at most."""
+        self.n, self.listed_max = n, listed
+        self.nbr = np.zeros((n, listed), dtype=np.int64)
+        self.count = np.zeros(n, dtype=np.int64)
+        self.listed = False
+        self.x = np.zeros(n)
+        self.sigma = 0.0
+
+
+class SwarmSample(NamedTuple):
+    """One sample's metrics (SwarmLab's S, Phi, U, lambda_2 / N), the components, and whether
+    lambda_2 was certified from the warm start (False: the dense eigenvalues, or none needed)."""
+
+    safety: float
+    order: float
+    union: float
+    alg_conn: float
+    components: int
+    certified: bool = False
 
 
 @dataclass(frozen=True)
@@ -240,6 +281,47 @@ def union_and_connectivity(a: csr_matrix, dense_limit: int = DENSE_EIGEN_LIMIT) 
         values = eigsh(lap.tocsc(), k=2, sigma=-1.0, which="LM", return_eigenvectors=False, tol=0)
         lam2 = float(np.sort(values)[1])
     return union, lam2 / n, n_cc
+
+
+def swarm_metrics(pos: np.ndarray, vel: np.ndarray, r: float, max_neig: int, r_coll: float,
+                  start: WarmStart | None = None, tree: cKDTree | None = None) -> SwarmSample:
+    """S, Phi, U and lambda_2 / N of one swarm state (compute_swarm_performance.m): for at most
+    ``COMPILED_LIMIT`` agents by one compiled pass with the certified lambda_2 (starting from and
+    updating ``start``), above by :func:`neighbourhood`, :func:`safety`, :func:`order` and
+    :func:`graph_metrics` over the k-d tree ``tree`` (built when None)."""
+    n = len(pos)
+    if n > COMPILED_LIMIT:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(pos) if tree is None else tree
+        hood = neighbourhood(pos, r, max_neig, tree)
+        union, alg_conn, n_cc = graph_metrics(hood)
+        return SwarmSample(safety(pos, r_coll, tree), order(vel, hood), union, alg_conn, n_cc)
+    if n < 2:  # no pair, no neighbour: SwarmLab's values of a lone agent
+        return SwarmSample(1.0, 1.0, 1.0, 0.0, n)
+    state = WarmStart() if start is None else start
+    listed = min(max_neig, n - 1)
+    if state.n != n or state.listed_max != listed:
+        state.fit(n, listed)
+    out = (_kernels or _load_kernels()).swarm_sample(
+        np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), float(r), float(r_coll),
+        state.nbr, state.count, state.listed, state.x, state.sigma)
+    state.listed, state.sigma = True, out[6]
+    return SwarmSample(*out[:6])
+
+
+_kernels: ModuleType | None = None
+"""The compiled kernels, imported with the first compiled sample (numba's import is not free: a
+run without the observer, or listing the plugins, never pays it)."""
+
+
+def _load_kernels() -> ModuleType:
+    """Import :mod:`swarmscene.methods.swarmlab.kernels` and keep it in ``_kernels``."""
+    global _kernels
+    from swarmscene.methods.swarmlab import kernels
+
+    _kernels = kernels
+    return kernels
 
 
 def obstacle_safety(inside_pairs: int, n: int, n_obstacles: int) -> float | None:

@@ -20,6 +20,12 @@ Metrics (``metrics.json``): ``swarmlab.<name>`` the mean of each series over the
 ``swarmlab.safety_min``, ``swarmlab.union_min`` and ``swarmlab.min_d_obs_min`` the worst sample
 (the obstacle keys only on a map with obstacles). The series are written to ``swarmlab.npz`` in the
 run directory (``t`` in s and one (T,) array per metric; ``numpy.load``).
+
+Up to 400 agents a sample is one compiled call (:mod:`swarmscene.methods.swarmlab.kernels`) that
+starts from the previous sample's neighbour lists and Fiedler vector (``WarmStart``, one per run),
+about 0.1 ms for a hundred boids; above, the tick's shared k-d tree and sparse graphs. The first
+run with the observer compiles its kernels (about 40 s on a loaded 2-core machine, once: numba's
+cache keeps them; ``swarmscene-compile`` does it ahead).
 """
 
 from __future__ import annotations
@@ -30,14 +36,13 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.methods.swarmlab.metrics import (
+    COMPILED_LIMIT,
     MAX_NEIG_DEFAULT,
     R_COLL_DEFAULT,
     R_DEFAULT,
-    graph_metrics,
-    neighbourhood,
+    WarmStart,
     obstacle_safety,
-    order,
-    safety,
+    swarm_metrics,
 )
 from swarmscene.plugin import RunView, StrictModel, hookimpl
 
@@ -66,8 +71,9 @@ class SwarmLab:
 
     def __init__(self, sim: RunView) -> None:
         self.params: SwarmLab.Params | None = sim.config.observers.get(self.name)
-        self.samples: dict[str, list[float]] = {key: [] for key in ("t", *SERIES)}
+        self.rows: list[tuple[float, ...]] = []  # per sample: t, then SERIES (the obstacle ones on such a map)
         self.obstacles = len(sim.environment.obstacles)  # >= 1 wherever safety_obs is sampled
+        self.warm = WarmStart()  # a sample's neighbour lists and lambda_2 start from the previous sample's
 
     @hookimpl
     def swarmscene_run_start(self, sim: RunView) -> None:
@@ -84,30 +90,32 @@ class SwarmLab:
     def _sample(self, sim: RunView) -> None:
         p = self.params
         assert p is not None
-        pos, vel = sim.world.pos, sim.world.vel
-        tree = sim.sensing.tree  # the tick's shared k-d tree (all agents)
-        hood = neighbourhood(pos, p.r, p.max_neig, tree)
-        union, alg_conn, _ = graph_metrics(hood)
-        row = self.samples
-        row["t"].append(sim.t)
-        row["safety"].append(safety(pos, p.r_coll, tree))
-        row["order"].append(order(vel, hood))
-        row["union"].append(union)
-        row["alg_conn"].append(alg_conn)
-        if self.obstacles:
-            clearance = sim.sensing.clearance  # signed: negative inside an obstacle
-            inside = _inside_pairs(sim, pos, clearance)
-            row["safety_obs"].append(float(obstacle_safety(inside, len(pos), self.obstacles) or 0.0))
-            row["min_d_obs"].append(float(clearance.min()))
+        world = sim.world
+        pos = world.pos
+        # a large swarm's neighbours come from the tick's shared k-d tree; a small one's from all pairs
+        tree = sim.sensing.tree if len(pos) > COMPILED_LIMIT else None
+        sample = swarm_metrics(pos, world.vel, p.r, p.max_neig, p.r_coll, self.warm, tree)
+        if not self.obstacles:  # one tuple a sample: little Python between two ticks
+            self.rows.append((world.t, *sample[:4]))
+            return
+        clearance = sim.sensing.clearance  # signed: negative inside an obstacle
+        inside = _inside_pairs(sim, pos, clearance)
+        self.rows.append((world.t, *sample[:4], float(obstacle_safety(inside, len(pos), self.obstacles) or 0.0),
+                          float(clearance.min())))
+
+    def series(self) -> dict[str, np.ndarray]:
+        """The per-sample series: ``t`` and each metric's (T,) array (the obstacle ones on a map with
+        obstacles)."""
+        table = np.array(self.rows, dtype=float).reshape(len(self.rows), -1)
+        return {key: table[:, column] for column, key in enumerate(("t", *SERIES)) if column < table.shape[1]}
 
     @hookimpl
     def swarmscene_run_end(self, sim: RunView, metrics: dict[str, Any]) -> None:
         """The means over the samples (and the worst sample of safety, union, min_d_obs)."""
-        if self.params is None or not self.samples["t"]:
+        if self.params is None or not self.rows:
             return
-        for key in SERIES:
-            values = self.samples[key]
-            if values:
+        for key, values in self.series().items():
+            if key != "t":
                 metrics[f"swarmlab.{key}"] = float(np.mean(values))
                 if key in WORST:
                     metrics[f"swarmlab.{key}_min"] = float(np.min(values))
@@ -116,8 +124,7 @@ class SwarmLab:
         """``swarmlab.npz``: the per-sample series (none when the observer was not asked for)."""
         if self.params is None:
             return {}
-        return {"swarmlab.npz": {key: np.asarray(values, dtype=float)
-                                 for key, values in self.samples.items() if values}}
+        return {"swarmlab.npz": self.series() if self.rows else {}}
 
 
 def _inside_pairs(sim: RunView, pos: np.ndarray, clearance: np.ndarray) -> int:
