@@ -222,3 +222,18 @@ def test_the_check_tells_identical_scores_from_close_different_and_missing_ones(
     assert f"passed {same[2]['passed']} (reference {not same[2]['passed']})" in text
     assert compare(same, reference, partial=True).missing == []
 
+
+
+def test_reference_runs_flown_again_reproduce_their_shipped_scores_bit_for_bit(tmp_path):
+    """Two reference runs flown again (one scored by a swarmlab metric, the eigenvalue path) give
+    the shipped reference's floats; ``python -m swarmscene.suite check`` says so."""
+    from swarmscene.suite.__main__ import main
+
+    for k, job in enumerate((["task=dense_swap_ring", "avoidance=orca", "seed=3"],
+                             ["task=coverage_goal_flock", "avoidance=potential", "seed=7"])):
+        api.run([*job, "output.summary=false"], output_dir=tmp_path / str(k))
+    from swarmscene.suite.check import check_sweep
+
+    reproduced, text = check_sweep(tmp_path, partial=True)
+    assert reproduced and text.startswith("swarmscene-bench v1: 2 runs compared with the reference: 2 bit for bit")
+    assert main(["check", str(tmp_path)]) == 1  # the whole reference: 998 of its runs are missing here
