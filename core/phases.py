@@ -136,10 +136,12 @@ class Phases:
             assert self.takeoff is not None
             start = self.targets.copy()
             start[:, 2] = self.floor
-            return _vertical(start, self.targets[:, 2], t + self.takeoff, self.takeoff, np.zeros(len(start)))
+            # over the whole ticks the clock gives it (from -takeoff_ticks T_s), so it starts on the floor
+            flight = self.takeoff_ticks * self.T_s
+            return _vertical(start, self.targets[:, 2], t + flight, flight, np.zeros(len(start)))
         assert self.land_from is not None and self.land is not None and self.land_yaw is not None
         return _vertical(self.land_from, np.full(len(self.land_from), self.floor - LAND_PRESS),
-                         t - self.land_start, self.land, self.land_yaw)
+                         t - self.land_start, self.land_ticks * self.T_s, self.land_yaw)
 
     def metrics(self, world: WorldState) -> dict[str, Any]:
         """``phases.*`` (module docstring)."""

@@ -167,3 +167,13 @@ def test_the_summary_judges_the_mission_when_it_ended_and_the_landing_by_the_veh
     landed = api.build(phased(api.compose([]), land=3.0))
     lines = {name: (status, detail) for name, status, detail in verdicts(landed, landed.run().metrics)}
     assert lines["landing"][0] == OK and lines["mission"][0] == OK
+
+
+def test_a_takeoff_that_is_not_whole_ticks_still_starts_its_climb_on_the_floor(data):
+    """1.04 s at T_s = 0.1 s is 10 ticks: the climb's profile spans those 1.0 s, so its first
+    reference is the floor (over 1.04 s it would start 4 cm up)."""
+    sim = api.build(phased(data, takeoff=1.04))
+    assert sim.world.t == pytest.approx(-1.0)
+    first = sim.phases.setpoints(sim.world.t)
+    np.testing.assert_array_equal(first.pos[:, 2], np.full(sim.world.n, FLOOR))
+    np.testing.assert_allclose(sim.phases.setpoints(0.0).pos, sim.phases.targets, atol=1e-12)
