@@ -39,6 +39,7 @@ import numpy as np
 
 from .setpoint import Mode, Setpoints
 from .state import WorldState
+from .vectors import quat_yaw
 
 LAND_PRESS = 0.05
 """m: how far below the floor a landing's reference ends (module docstring)."""
@@ -134,8 +135,7 @@ class Phases:
         the landing began (TRACK: position, velocity and acceleration along z)."""
         if self.land_start is None:
             assert self.takeoff is not None
-            start = self.targets.copy()
-            start[:, 2] = self.floor
+            start = self.start()
             # over the whole ticks the clock gives it (from -takeoff_ticks T_s), so it starts on the floor
             flight = self.takeoff_ticks * self.T_s
             return _vertical(start, self.targets[:, 2], t + flight, flight, np.zeros(len(start)))
@@ -158,11 +158,8 @@ class Phases:
 
 
 def yaw_of(world: WorldState) -> np.ndarray:
-    """(N,) each vehicle's heading about z, rad, from its attitude (w, x, y, z) (zeros for a point mass)."""
-    if world.quat is None:
-        return np.zeros(world.n)
-    w, x, y, z = world.quat.T
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    """(N,) each vehicle's heading about z, rad, from its attitude (zeros for a point mass)."""
+    return np.zeros(world.n) if world.quat is None else quat_yaw(world.quat)
 
 
 def _vertical(start: np.ndarray, z_end: np.ndarray, elapsed: float, duration: float, yaw: np.ndarray) -> Setpoints:

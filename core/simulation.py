@@ -94,8 +94,9 @@ class Simulation:
         self.phases = self._phases(scenario.initial_positions)
         start = scenario.initial_positions if self.phases is None else self.phases.start()
         self.world = WorldState.at_rest(start, leader=cfg.swarm.leader)
+        self.takeoff_ticks = 0 if self.phases is None else self.phases.takeoff_ticks
         if self.phases is not None:  # the mission's clock starts at 0, after the take-off
-            self.world.t = -self.phases.takeoff_ticks * self.guidance_period
+            self.world.t = -self.takeoff_ticks * self.guidance_period
             self.total_steps += self.phases.takeoff_ticks + 2 * self.phases.land_ticks  # the most it may fly
         self.events = EventQueue.from_scenario(cfg)  # random parts drawn from their own streams
         self.disturbances = Disturbances(
@@ -200,9 +201,8 @@ class Simulation:
         self._wrap_periodic()
         self._check_finite()
         self.step_count += 1
-        self.world.t = self.step_count * self.guidance_period  # no drift from summing dt
-        if self.phases is not None:
-            self.world.t = (self.step_count - self.phases.takeoff_ticks) * self.guidance_period
+        # mission time, from whole ticks (no drift from summing dt); a take-off's ticks come before 0
+        self.world.t = (self.step_count - self.takeoff_ticks) * self.guidance_period
         self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
         self._step_end()
 
@@ -453,11 +453,15 @@ class Simulation:
         safe = (metrics.get("collisions", 0) == 0 and metrics.get("clearance_violations", 0) == 0
                 and metrics.get("floor.crashes", 0) == 0 and not metrics.get("keep_out_conflicts")
                 and not metrics.get("phases.airborne", 0))
-        if self.phases is not None and self.phases.land_start is not None:
-            done = self.phases.mission_complete  # after a landing: the verdict when the mission ended
-        else:
-            done = self.formation.complete(self.world)
+        done = self.mission_complete()
         return bool(safe and done is not False and self.stop_reason != "interrupted")
+
+    def mission_complete(self) -> bool | None:
+        """The formation's verdict on its mission (None: it sets none): now, or after a landing, when
+        the mission ended (the descent moved the vehicles off their goals)."""
+        if self.phases is not None and self.phases.land_start is not None:
+            return self.phases.mission_complete
+        return self.formation.complete(self.world)
 
 
 class NonFiniteState(ArithmeticError):

@@ -93,6 +93,13 @@ def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndar
     return listed(np.ascontiguousarray(points, dtype=float), float(radius))
 
 
+def quat_yaw(quat: np.ndarray) -> np.ndarray:
+    """The heading about world z of the body x axis, rad, from attitude quaternions (w, x, y, z)
+    along the last axis (any leading shape): atan2(2 (w z + x y), 1 - 2 (y^2 + z^2))."""
+    w, x, y, z = np.moveaxis(np.asarray(quat, float), -1, 0)
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
 def ellipsoid_norm(d: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """||E^-1 d|| of each displacement ``d`` (M, 3), E = diag(``radii``) (3,), m: below 1 inside the
     ellipsoid. The keep-out ellipsoid of Crazyswarm's planners (Preiss et al., "Downwash-aware

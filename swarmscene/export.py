@@ -96,6 +96,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .core.vectors import quat_yaw
 from .outputs import atomic_write_bytes, atomic_write_json
 
 GRAVITY = 9.81
@@ -279,8 +280,7 @@ def plan_span(config: dict[str, Any]) -> tuple[float, float]:
 
 def yaw_from_quat(quat: np.ndarray) -> np.ndarray:
     """(T, N) rad, unwrapped over time: the heading of the body x axis, from (w, x, y, z)."""
-    w, x, y, z = np.moveaxis(np.asarray(quat, float), -1, 0)
-    return np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)), axis=0)
+    return np.unwrap(quat_yaw(quat), axis=0)
 
 
 def show_samples(run_dir: Path, source: str = "auto") -> tuple[np.ndarray, np.ndarray, str]:

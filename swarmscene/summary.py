@@ -113,12 +113,11 @@ def _describe(sim: Any, key: str, metrics: dict[str, Any]) -> str:
 
 def mission_verdict(sim: Any, metrics: dict[str, Any]) -> Verdict:
     """Whether the formation's mission completed (its ``complete``; None: it defines none)."""
-    phases = getattr(sim, "phases", None)
-    if phases is not None and phases.land_start is not None:  # judged when the mission ended, before the landing
-        done, end, stop = phases.mission_complete, phases.land_start, "then the landing"
+    done = sim.mission_complete()  # after a landing: judged when the mission ended
+    if metrics.get("phases.land_start") is not None:
+        end, stop = metrics["phases.land_start"], "then the landing"
     else:
-        done, end = sim.formation.complete(sim.world), metrics.get("duration")
-        stop = f"stopped by {metrics.get('stop_reason', 'duration')}"
+        end, stop = metrics.get("duration"), f"stopped by {metrics.get('stop_reason', 'duration')}"
     if done is None:
         return ("mission", NA, f"{sim.formation.name} sets no goal; {stop}")
     if done:
