@@ -30,6 +30,15 @@ _Strict = StrictModel  # the schema's sections below; other modules own theirs (
 __all__ = ["CircleObstacle", "Coordinate", "EnvironmentConfig", "EventConfig", "MAX_DURATION", "MAX_LENGTH",
            "Obstacle", "Point2", "PolygonObstacle", "Scenario", "ScenarioConfig", "WallObstacle"]
 
+def _without_unset(data: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
+    """``data`` without those of ``keys`` that are null: an option added later is recorded only when
+    set, so a run that does not set it keeps the record (and config hash) it had before."""
+    for key in keys:
+        if key in data and data[key] is None:
+            del data[key]
+    return data
+
+
 MAX_AGENTS = 1_000_000
 """Most agents in one scenario (state alone is ~100 bytes per agent; see docs/benchmarks.md)."""
 MAX_SUBSTEPS = 10_000
@@ -91,11 +100,7 @@ class SwarmConfig(_Strict):
     def _recorded(self, handler: Any) -> dict[str, Any]:
         """No ``takeoff: null`` / ``land: null``: the record (and config hash) of a run without them
         is as before they existed."""
-        data = handler(self)
-        for key in ("takeoff", "land"):
-            if data.get(key, 0) is None:
-                data.pop(key)
-        return data
+        return _without_unset(handler(self), ("takeoff", "land"))
 
 
 class ClockConfig(_Strict):
@@ -153,10 +158,7 @@ class SafetyConfig(_Strict):
     @model_serializer(mode="wrap")
     def _recorded(self, handler: Any) -> dict[str, Any]:
         """No ``keep_out: null``: the record (and config hash) of a run without it is as before the option."""
-        data = handler(self)
-        if data.get("keep_out", 0) is None:
-            data.pop("keep_out")
-        return data
+        return _without_unset(handler(self), ("keep_out",))
 
     @model_validator(mode="wrap")
     @classmethod
