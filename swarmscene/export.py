@@ -17,11 +17,12 @@ of the piece, and its float32 duration; 132 bytes), written as the CSV that Craz
 
 one file ``cf_<i>.csv`` per vehicle, plus ``crazyflie.json`` with the fit's numbers and the
 limits checked, Crazyswarm2's ``crazyflies.yaml`` (:func:`crazyswarm2_config`: each vehicle's
-``initial_position``, the start of its trajectory) and ``crazyswarm2_show.py``, a script for
-Crazyswarm2's ``crazyflie_py`` that uploads the trajectories and flies the show
-(:func:`crazyswarm2_script`). The firmware keeps uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096
-bytes (``crtp_commander_high_level.h``: "4k allows us to store 31 poly4d pieces"), so a vehicle's
-path has at most 31 pieces.
+``initial_position``, the start of its trajectory), ``crazyswarm2_show.py``, a script for
+Crazyswarm2's ``crazyflie_py`` that uploads the trajectories and flies the show (the module
+:mod:`swarmscene.crazyswarm2_show`, copied unchanged), and ``crazyswarm2_show.json``, the show it
+flies (:func:`crazyswarm2_show_data`: robots, first points, duration, floor). The firmware keeps
+uploaded trajectories in ``TRAJECTORY_MEMORY_SIZE`` = 4096 bytes (``crtp_commander_high_level.h``:
+"4k allows us to store 31 poly4d pieces"), so a vehicle's path has at most 31 pieces.
 
 Source of the path (``source``): ``plan`` evaluates the formation's open-loop plan (the VRB air
 show's flat outputs p_i(t), psi_i(t), Theorems 1-2) at 100 Hz; ``flown`` uses the recorded
@@ -96,6 +97,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from . import crazyswarm2_show
 from .core.vectors import quat_yaw
 from .outputs import atomic_write_bytes, atomic_write_json
 
@@ -481,14 +483,15 @@ class ShowExport:
         return phrases
 
     def write(self, out_dir: Path) -> None:
-        """``cf_<i>.csv`` per vehicle, ``crazyflie.json``, ``crazyflies.yaml`` and ``crazyswarm2_show.py``,
-        each written atomically."""
+        """``cf_<i>.csv`` per vehicle, ``crazyflie.json``, ``crazyflies.yaml``, ``crazyswarm2_show.json`` and
+        ``crazyswarm2_show.py``, each written atomically."""
         out_dir = Path(out_dir)
         for i, fit in enumerate(self.fits):
             fit.poly.to_csv(out_dir / f"cf_{i}.csv")
         atomic_write_json(out_dir / "crazyflie.json", self.summary())
         atomic_write_bytes(out_dir / "crazyflies.yaml", crazyswarm2_config(self).encode())
-        atomic_write_bytes(out_dir / LAUNCH_SCRIPT, crazyswarm2_script(self).encode())
+        atomic_write_json(out_dir / LAUNCH_DATA, crazyswarm2_show_data(self))
+        atomic_write_bytes(out_dir / LAUNCH_SCRIPT, crazyswarm2_program())
 
 
 # -- placement in a lab volume -------------------------------------------------------------------
@@ -651,7 +654,10 @@ def crazyswarm2_config(show: ShowExport) -> str:
 
 
 LAUNCH_SCRIPT = "crazyswarm2_show.py"
-"""The bundle's Crazyswarm2 script (:func:`crazyswarm2_script`)."""
+"""The bundle's Crazyswarm2 script: :mod:`swarmscene.crazyswarm2_show` copied unchanged
+(:func:`crazyswarm2_program`)."""
+LAUNCH_DATA = crazyswarm2_show.DATA
+"""``crazyswarm2_show.json``: the show the script flies (:func:`crazyswarm2_show_data`), beside it."""
 ON_FLOOR = 0.05
 """m: a trajectory whose first (last) point is within this height of the floor starts (ends) on the
 ground, so the script takes off (lands) with the trajectory itself."""
@@ -665,111 +671,36 @@ def _floor(show: ShowExport) -> float:
     return float(show.floor)
 
 
-def crazyswarm2_script(show: ShowExport) -> str:
-    """``crazyswarm2_show.py``: a script for Crazyswarm2's ``crazyflie_py`` API that flies the show.
+def crazyswarm2_show_data(show: ShowExport) -> dict[str, Any]:
+    """``crazyswarm2_show.json``, the data :mod:`swarmscene.crazyswarm2_show` flies (its ``Show``).
 
-    It uploads each robot's ``cf_<i>.csv`` as trajectory 0, brings the vehicles to the trajectories'
-    first points (a take-off to each one's first height and a go-to, unless every trajectory starts on
-    the floor: then the trajectory is the take-off), starts all trajectories at once with the
-    positions absolute (``relative=False``) and the time scale 1 (the export's ``time_scale`` is
-    already in the durations), waits the trajectories' duration, and lands those that end in the air
-    (a landing that ends the high-level commander's plan follows every show)."""
+    Each robot ``cf_<i>`` with its file ``cf_<i>.csv`` and its trajectory's first point (x, y, z m,
+    yaw rad; float32, as the vehicle stores it), the trajectories' longest duration (float32), whether
+    every trajectory starts (ends) within :data:`ON_FLOOR` of the floor, the floor (the one the show's
+    safety was checked against) and :data:`LANDING_CLEARANCE` above it, where a landing from the air
+    ends."""
     floor = _floor(show)
-    starts = {f"cf_{i}": fit.poly.evaluate([fit.poly.t0])[0] for i, fit in enumerate(show.fits)}
+    starts = [fit.poly.evaluate([fit.poly.t0])[0] for fit in show.fits]
     ends = [fit.poly.evaluate([fit.poly.t0 + fit.poly.duration])[0] for fit in show.fits]
     duration = max(fit.poly.duration for fit in show.fits)
-    files = "".join(f"    {name!r}: {name + '.csv'!r},\n" for name in starts)
-    start = "".join(f"    {name!r}: ({', '.join(repr(float(np.float32(v))) for v in p)}),\n"
-                    for name, p in starts.items())
-    on_floor_at_start = all(p[2] - floor <= ON_FLOOR for p in starts.values())
-    on_floor_at_end = all(p[2] - floor <= ON_FLOOR for p in ends)
-    return _SCRIPT.format(n=len(show.fits), files=files, start=start, duration=repr(float(np.float32(duration))),
-                          starts_on_floor=on_floor_at_start, ends_on_floor=on_floor_at_end, floor=repr(floor),
-                          landing_height=repr(round(floor + LANDING_CLEARANCE, 6)), script=LAUNCH_SCRIPT)
+    return {
+        "version": crazyswarm2_show.VERSION,
+        "robots": [{"name": f"cf_{i}", "trajectory": f"cf_{i}.csv", "start": [float(np.float32(v)) for v in p]}
+                   for i, p in enumerate(starts)],
+        "show_seconds": float(np.float32(duration)),
+        "starts_on_floor": all(p[2] - floor <= ON_FLOOR for p in starts),
+        "ends_on_floor": all(p[2] - floor <= ON_FLOOR for p in ends),
+        "floor": floor,
+        "landing_height": round(floor + LANDING_CLEARANCE, 6),
+    }
 
 
-_SCRIPT = '''#!/usr/bin/env python3
-"""Fly a swarmscene show of {n} Crazyflies with Crazyswarm2 (crazyflie_py).
+def crazyswarm2_program() -> bytes:
+    """``crazyswarm2_show.py``: the module :mod:`swarmscene.crazyswarm2_show` as shipped, byte for byte
+    (the bundle's copy reads its show from ``crazyswarm2_show.json`` beside it)."""
+    from importlib import resources
 
-Written by python -m swarmscene.export beside the trajectories (cf_<i>.csv) and crazyflies.yaml.
-Start Crazyswarm2's server on this folder's crazyflies.yaml, then run this script in a shell where
-the Crazyswarm2 workspace is sourced:
-
-    # in Crazyswarm2's simulator:
-    ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml backend:=sim
-    python3 {script} --ros-args -p use_sim_time:=True
-    # real vehicles (put your radio uris into crazyflies.yaml first):
-    ros2 launch crazyflie launch.py crazyflies_yaml_file:=$PWD/crazyflies.yaml
-    python3 {script}
-
-Positions are absolute, in the frame of the motion capture (x east, y north, z up, metres): place
-each vehicle at its initial_position of crazyflies.yaml.
-"""
-
-import sys
-from pathlib import Path
-
-from crazyflie_py import Crazyswarm
-from crazyflie_py.uav_trajectory import Trajectory
-
-HERE = Path(__file__).resolve().parent
-TRAJECTORY_ID = 0
-TRAJECTORIES = {{
-{files}}}
-"""Each robot of crazyflies.yaml and the file of its trajectory."""
-START = {{
-{start}}}
-"""Each trajectory's first point: x, y, z (m) and yaw (rad)."""
-SHOW_SECONDS = {duration}
-"""The trajectories' duration (s), the export's time scale and take-off/landing segments included."""
-TIMESCALE = 1.0
-"""startTrajectory's timescale: 1, the export's time scale is already in the durations."""
-STARTS_ON_FLOOR = {starts_on_floor}
-"""Every trajectory starts on the floor: it is the take-off (no separate one)."""
-ENDS_ON_FLOOR = {ends_on_floor}
-"""Every trajectory ends on the floor: it is the landing."""
-FLOOR = {floor}
-LANDING_HEIGHT = {landing_height}
-"""m: where a landing from the air ends (a few centimetres above the floor)."""
-TAKEOFF_SECONDS = 3.0
-GOTO_SECONDS = 2.0
-LAND_SECONDS = 3.0
-SETTLE_SECONDS = 1.0
-
-
-def main():
-    swarm = Crazyswarm()
-    time_helper = swarm.timeHelper
-    allcfs = swarm.allcfs
-    missing = sorted(set(TRAJECTORIES) - set(allcfs.crazyfliesByName))
-    if missing:
-        sys.exit(f"{script}: the Crazyswarm2 server has no {{', '.join(missing)}}: "
-                 "start it on this folder's crazyflies.yaml")
-    cfs = {{name: allcfs.crazyfliesByName[name] for name in TRAJECTORIES}}
-    for name, cf in cfs.items():
-        trajectory = Trajectory()
-        trajectory.loadcsv(HERE / TRAJECTORIES[name])
-        cf.uploadTrajectory(TRAJECTORY_ID, 0, trajectory)
-    if not STARTS_ON_FLOOR:  # the show starts in the air: rise straight up, then go to each first point
-        for name, cf in cfs.items():
-            cf.takeoff(targetHeight=START[name][2], duration=TAKEOFF_SECONDS)
-        time_helper.sleep(TAKEOFF_SECONDS + SETTLE_SECONDS)
-        for name, cf in cfs.items():
-            cf.goTo(START[name][:3], START[name][3], GOTO_SECONDS)
-        time_helper.sleep(GOTO_SECONDS + SETTLE_SECONDS)
-    allcfs.startTrajectory(TRAJECTORY_ID, timescale=TIMESCALE, relative=False)
-    time_helper.sleep(SHOW_SECONDS * TIMESCALE + SETTLE_SECONDS)
-    if ENDS_ON_FLOOR:  # already down: a short landing in place ends the commander's plan
-        allcfs.land(targetHeight=FLOOR, duration=1.0)
-        time_helper.sleep(1.0 + SETTLE_SECONDS)
-    else:
-        allcfs.land(targetHeight=LANDING_HEIGHT, duration=LAND_SECONDS)
-        time_helper.sleep(LAND_SECONDS + SETTLE_SECONDS)
-
-
-if __name__ == "__main__":
-    main()
-'''
+    return resources.files("swarmscene").joinpath(LAUNCH_SCRIPT).read_bytes()
 
 
 def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir: Path | None = None,
@@ -1044,7 +975,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write agent_<i>.csv (the recorded trajectory)")
     parser.add_argument("--crazyflie", type=Path, metavar="DIR",
-                        help="write cf_<i>.csv, crazyflie.json, crazyflies.yaml and crazyswarm2_show.py")
+                        help="write cf_<i>.csv, crazyflie.json, crazyflies.yaml, crazyswarm2_show.py and "
+                             "crazyswarm2_show.json")
     parser.add_argument("--source", choices=("auto", "plan", "flown"), default="auto")
     parser.add_argument("--controller", choices=sorted(CRAZYFLIE), default="mellinger")
     parser.add_argument("--time-scale", default="1.0", help="slow the show down by this factor (> 0), or 'auto'")
@@ -1127,7 +1059,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f"  placed: {_placed(show)}; floor z = {show.floor:g} m, "
               + "; ".join(f"{c['name']} {c['value']:.3g} (limit {c['limit']:g})" for c in show.safety
                           if c["value"] is not None))
-        print(f"  crazyflies.yaml and {LAUNCH_SCRIPT} (Crazyswarm2: the show lasts {show.fits[0].poly.duration:.2f} s)")
+        print(f"  crazyflies.yaml, {LAUNCH_SCRIPT} and {LAUNCH_DATA} (Crazyswarm2: the show lasts "
+              f"{show.fits[0].poly.duration:.2f} s)")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,8 @@ from swarmscene import api, export, plots
 from swarmscene.methods.vrb.transform import robot_flat_outputs
 
 SHOW = ["scenario=vrb_airshow"]
-BUNDLE = ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml", "crazyswarm2_show.py"]
+BUNDLE = ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml", "crazyswarm2_show.json",
+          "crazyswarm2_show.py"]
 
 
 @pytest.fixture(scope="module")

@@ -6,6 +6,8 @@ position names the file and the vehicle."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -69,8 +71,8 @@ def test_forced_it_is_lifted_to_the_floor_clearance_and_taken_off_to(cem_six, tm
     for i in range(6):
         z = export.Poly4D.from_csv(out / f"cf_{i}.csv").evaluate(dense)[:, 2]
         assert z.min() >= 0.01 + 0.25  # the whole show at least the clearance above the box's floor
-    script = (out / "crazyswarm2_show.py").read_text()
-    assert "STARTS_ON_FLOOR = False" in script  # the script takes off to each first point
+    show = json.loads((out / "crazyswarm2_show.json").read_text())
+    assert show["starts_on_floor"] is False  # the script takes off to each first point
 
 
 def test_a_stacked_show_is_refused_for_the_keep_out_ellipsoid(stacked, tmp_path, capsys):
