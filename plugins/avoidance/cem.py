@@ -6,10 +6,13 @@ activates CEM: every failed vehicle becomes a doublet of planned exclusion radiu
 uniform flow along the flight direction, each healthy agent's (phi, psi) is fixed from its position,
 and every guidance tick the healthy agents slide along their streamlines (Algorithm 1, CalcXY of
 Algorithm 2) as TRACK setpoints (position and first-difference velocity; altitude from the
-formation). The math lives in :mod:`swarmscene.methods.cem.flow`; each tick is one compiled call
-(:mod:`swarmscene.methods.cem.kernels`, loaded at the first activation, not at import). The
-hand-back rules and the safety record behind the metrics are :mod:`swarmscene.methods.cem.handback`'s;
-this class adapts them to the plugin contract (options, events, the tick, the metrics).
+formation). The method is :mod:`swarmscene.methods.cem`: the flow in :mod:`~swarmscene.methods.cem.flow`,
+each tick one compiled call (:mod:`~swarmscene.methods.cem.kernels`, loaded at the first activation,
+not at import), the hand-back rules and the safety record in :mod:`~swarmscene.methods.cem.handback`,
+and the run (activations, flight direction, doublet strengths, the tick, the metrics) in
+:class:`~swarmscene.methods.cem.mode.ContainmentExclusionMode`. This class adapts it to the plugin
+contract: its options, the failure events, the avoidance step, the step-end and run-end hooks, and
+the summary's wording of its verdicts.
 
 Choices (the paper leaves these open):
 
@@ -118,21 +121,16 @@ Metrics added at run end (SI units; distances in m, speeds in m/s):
 
 from __future__ import annotations
 
-import math
-import time
-from typing import TYPE_CHECKING, Any, Literal, cast
+from typing import TYPE_CHECKING, Any, Literal
 
-import numpy as np
 from pydantic import Field, model_validator
 
-from swarmscene.methods.cem.flow import CEMNavigator, planned_exclusion_radius
-from swarmscene.methods.cem.handback import HandBack, SafetyRecord
+from swarmscene.methods.cem.mode import ContainmentExclusionMode, Settings
 from swarmscene.plugin import (
     Avoidance,
     BuildContext,
     Event,
     EventKind,
-    Mode,
     PluginParams,
     Setpoints,
     WorldState,
@@ -142,9 +140,6 @@ from swarmscene.plugin import (
 
 if TYPE_CHECKING:  # pragma: no cover
     from swarmscene.plugin import Sensing
-
-
-_TRACK = int(Mode.TRACK)
 
 
 class CEM(Avoidance):
@@ -211,85 +206,13 @@ class CEM(Avoidance):
     def __init__(self, params: Params, ctx: BuildContext) -> None:
         super().__init__(params, ctx)
         p = self.params
-        self.a_f = p.a_f if p.a_f is not None else p.eps + p.delta
-        self.a_p = planned_exclusion_radius(self.a_f, p.delta, p.eps)
-        distance = p.handback_distance if p.handback_distance is not None else 2 * self.a_p
-        self.hand_back = HandBack(p.hand_back, p.hand_back_rule, distance, self.a_p, p.v_des)
-        self.record = SafetyRecord(ctx.n, self.a_f, self.a_p, p.delta, p.eps)
-        self.nav: CEMNavigator | None = None
-        self.active = False
-        self.healthy_idx = np.zeros(0, dtype=int)  # agents under CEM, in navigator order
-        self.failed: dict[int, np.ndarray] = {}  # failed agent -> its x-y centre z_f
-        self.theorem1: list[Any] = []
-        self.theorem2: list[Any] = []
-        self.handback_time: float | None = None
-        self._last_sp: Setpoints | None = None  # the formation's setpoints of this tick (measured after hand-back)
-        self.start_inside = 0  # healthy agents found inside a_p at an activation
-        self._step_s: list[float] = []
-        self._iters_done = (0, 0)  # (Newton iterations, ticks) of navigators replaced by a re-activation
-        self._commanded = False  # CEM produced this tick's commands (measure at step end)
-
-    # ---- activation -------------------------------------------------------------------------
-
-    def flight_direction(self, world: WorldState, healthy: np.ndarray, failed_xy: np.ndarray) -> float:
-        """Flight direction theta, rad (see module docstring for ``"auto"``)."""
-        if self.params.direction != "auto":
-            return math.radians(float(self.params.direction))
-        v = world.vel[healthy, :2].mean(axis=0) if healthy.size else np.zeros(2)
-        if np.hypot(*v) >= 0.05:
-            return math.atan2(v[1], v[0])
-        b = failed_xy.mean(axis=0) - world.pos[healthy, :2].mean(axis=0)
-        return math.atan2(b[1], b[0]) if np.hypot(*b) > 0 else 0.0
-
-    def activate(self, world: WorldState) -> None:
-        """Algorithm 1 lines 5-10 for the healthy agents around every failed vehicle so far."""
-        healthy = np.flatnonzero(world.healthy)
-        if not self.failed or healthy.size == 0:
-            self.active = False
-            return
-        failed_xy = np.array(list(self.failed.values()))
-        start = world.pos[healthy, :2].copy()
-        theta, origin = None, None
-        if self.active and self.nav is not None:  # a later failure: continue from the commands
-            theta, origin = self.nav.theta, self.nav.origin
-            slot = np.full(world.n, -1)
-            slot[self.healthy_idx] = np.arange(self.healthy_idx.size)
-            k = slot[healthy]
-            start[k >= 0] = self.nav.positions[k[k >= 0]]
-        if theta is None:
-            theta = self.flight_direction(world, healthy, failed_xy)
-        p = self.params
-        if self.nav is not None:  # keep the replaced navigator's iteration count
-            (done_iters, done_ticks), (iters, ticks) = self._iters_done, self.nav.iterations_total
-            self._iters_done = (done_iters + iters, done_ticks + ticks)
-        self.nav = CEMNavigator(start, failed_xy, a_p=self.a_p, theta=theta, v_des=p.v_des,
-                                dT=self.ctx.guidance_period, K=p.K, n=p.newton_iterations, sigma=p.sigma,
-                                rng=self.ctx.rng, origin=origin, noise_rule=p.saddle_noise,
-                                strengths=self.strengths(len(failed_xy)), newton_stop=p.newton_stop,
-                                branch_guard=p.branch_guard)
-        self.healthy_idx = healthy
-        self.nav.track_rows(healthy, _TRACK)
-        self._k = self.nav.kernels  # the compiled kernels module (loaded with the navigator)
-        self._failed_xy = np.ascontiguousarray(failed_xy, dtype=float)  # (F, 2) world x-y z_f
-        self._measured = np.empty(self._k.N_MEAS)
-        self._formation = np.empty(self._k.N_FORM)
-        self.hand_back.arm(self.nav)
-        self.active = True
-        self.start_inside += int((self.nav.exclusion_margin() < 0).sum())
-        self.theorem1.append(self.nav.theorem1(p.delta, p.eps))
-        self.theorem2.append(self.nav.theorem2(p.delta, p.eps))
-
-    def strengths(self, n_failures: int) -> np.ndarray | None:
-        """Doublet strengths mu_f for ``multi_failure_flow`` (None: the ring-streamline solve).
-
-        ``"summed"`` is eq. 1 divided by N_f: scaling f by a constant keeps its streamlines, and
-        line 20 of Algorithm 1 rescales the sliding step, so only mu_f = a_p^2 / N_f remains.
-        """
-        rule = self.params.multi_failure_flow
-        if rule == "ring_streamlines":
-            return None
-        a2 = self.a_p**2
-        return np.full(n_failures, a2 if rule == "unit_doublets" else a2 / n_failures, dtype=complex)
+        settings = Settings(
+            K=p.K, newton_iterations=p.newton_iterations, sigma=p.sigma, saddle_noise=p.saddle_noise,
+            newton_stop=p.newton_stop, branch_guard=p.branch_guard, multi_failure_flow=p.multi_failure_flow,
+            v_des=p.v_des, eps=p.eps, delta=p.delta, a_f=p.a_f if p.a_f is not None else p.eps + p.delta,
+            direction=p.direction, hand_back=p.hand_back, hand_back_rule=p.hand_back_rule,
+            handback_distance=p.handback_distance)
+        self.mode = ContainmentExclusionMode(ctx.n, settings, ctx.guidance_period, ctx.rng)
 
     @hookimpl
     def swarmscene_event(self, sim: Any, event: Event) -> None:
@@ -301,103 +224,28 @@ class CEM(Avoidance):
         vehicle holds its position) does not hold for them, so CEM does not model them; they are
         still failed (``healthy`` False) for every other method and for the monitors.
         """
-        if event.kind not in (EventKind.HOVER, EventKind.MOTOR_FAILURE):
-            return
-        for a in event.agents:
-            self.failed.setdefault(int(a), sim.world.pos[a, :2].copy())
-        self.activate(sim.world)
-
-    # ---- guidance ---------------------------------------------------------------------------
-
-    def formation_clear(self, world: WorldState, sp: Setpoints) -> bool:
-        """The ``clear_path`` test on this tick's formation setpoints (:meth:`HandBack.formation_clear`)."""
-        return self.hand_back.formation_clear(self._k, world, sp, self._failed_xy)
+        if event.kind in (EventKind.HOVER, EventKind.MOTOR_FAILURE):
+            self.mode.fail(event.agents, sim.world)
 
     def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Pass ``sp`` through while inactive; else TRACK setpoints along the streamlines."""
-        self._commanded = False
-        self._last_sp = sp
-        if not self.active:
-            if (self.nav is None or self.params.hand_back_rule == "passed"
-                    or self.formation_clear(world, sp)):
-                return sp
-            self.activate(world)  # a setpoint after hand-back leads into a failed vehicle: CEM again
-            if not self.active:  # no healthy agent left to navigate
-                return sp
-            self.handback_time = None
-        elif self.hand_back.decide(cast(CEMNavigator, self.nav), self._k, world, sp, self._failed_xy):
-            self.active = False
-            self.handback_time = world.t
-            return sp
-        t0 = time.perf_counter()
-        out = sp.copy()
-        # TRACK with x-y position and velocity, zero x-y acceleration (first differences only); the
-        # altitude (z) stays the formation's (Assumption 2). One compiled call: step and write-back.
-        # active (activate() set self.nav, and a re-activation replaces it): cast costs nothing per tick
-        cast(CEMNavigator, self.nav).step_into(out.mode, out.pos, out.vel, out.acc)
-        self._step_s.append(time.perf_counter() - t0)
-        self._commanded = True
-        return out
-
-    # ---- measurement ------------------------------------------------------------------------
+        return self.mode.command(world, sp)
 
     @hookimpl
     def swarmscene_step_end(self, sim: Any) -> None:
         """Record the safety quantities of this tick, from the first activation to the end of the run."""
-        if self.nav is None:
-            return
-        if self._commanded:
-            self.record.measure_cem(self.nav, self._k, sim.world, self._failed_xy, self.healthy_idx,
-                                    bool(self.failed), self._measured)
-        elif self._last_sp is not None:
-            self.record.measure_formation(self._k, sim.world, self._last_sp, self._failed_xy, self._formation)
-        self.record.note_violations(sim.world, self.failed, self._failed_xy)
+        self.mode.measure(sim.world)
 
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
         """Add the ``cem.*`` metrics (see module docstring)."""
         metrics.update(self.summary())
 
-    def _iterations_mean(self) -> float | None:
-        """Mean over active ticks of the Newton iterations of the tick's last CalcXY pass."""
-        total, ticks = self._iters_done
-        if self.nav is not None:
-            t, k = self.nav.iterations_total
-            total, ticks = total + t, ticks + k
-        return total / ticks if ticks else None
-
     def summary(self) -> dict[str, Any]:
-        """The ``cem.*`` metrics of the run so far (JSON-serialisable, None for undefined)."""
-
-        def num(x: float) -> float | None:
-            return None if not math.isfinite(x) else float(x)
-
-        t1, t2 = self.theorem1, self.theorem2
-        last1, last2 = (t1[-1] if t1 else None), (t2[-1] if t2 else None)
-        met1, met2 = bool(t1) and all(c.holds for c in t1), bool(t2) and all(c.holds for c in t2)
-        return {
-            "cem.a_f": float(self.a_f),
-            "cem.a_p": float(self.a_p),
-            "cem.activations": len(t1),
-            "cem.handback_time": self.handback_time,
-            "cem.handback_blocked_time": self.hand_back.blocked_time,
-            "cem.start_inside_exclusion": self.start_inside,
-            "cem.theorem1_precondition_met": met1,
-            "cem.theorem2_precondition_met": met2,
-            "cem.theorem1_holds": met1,  # old name (RENAMED_METRICS), until the next release
-            "cem.theorem2_holds": met2,
-            "cem.theorem2_applicable": bool(t2) and all(c.applicable for c in t2),
-            "cem.theorem1_p_min0": num(last1.p_min0) if last1 else None,
-            "cem.theorem1_lambda_max": num(last1.lambda_max) if last1 else None,
-            "cem.theorem1_lhs": num(last1.lhs) if last1 else None,
-            "cem.theorem1_rhs": num(last1.rhs) if last1 else None,
-            "cem.theorem2_d_min0": num(last2.d_min0) if last2 else None,
-            "cem.theorem2_bound": num(last2.bound) if last2 else None,
-            **self.record.metrics(),
-            "cem.step_ms_median": float(np.median(self._step_s) * 1e3) if self._step_s else None,
-            "cem.newton_iterations_mean": self._iterations_mean(),
-            **self.record.violation_metrics(),
-        }
+        """The ``cem.*`` metrics of the run so far (JSON-serialisable, None for undefined), with the
+        old names of :data:`RENAMED_METRICS` beside the new ones until the next release."""
+        metrics = self.mode.metrics()
+        return {**metrics, **{old: metrics[new] for old, new in self.RENAMED_METRICS.items()}}
 
     @staticmethod
     def describe_verdict(key: str, m: dict[str, Any]) -> str | None:

@@ -18,6 +18,7 @@ from swarmscene.core.events import Event, EventKind
 from swarmscene.core.plugin import BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
+from swarmscene.methods.cem.mode import failure_strengths
 from swarmscene.plugins.avoidance import cem as cem_module
 from swarmscene.plugins.avoidance.cem import CEM
 
@@ -62,7 +63,7 @@ def fly(plugin: CEM, world: WorldState, sim, ticks: int, events: dict[int, list[
         sp = formation(world, v)
         out = plugin.adjust(world, None, sp)
         if record is not None:
-            record.append((sp, out, plugin.active))
+            record.append((sp, out, plugin.mode.active))
         live = world.healthy
         world.pos[live] = out.pos[live]
         world.vel[live] = out.vel[live]
@@ -95,8 +96,8 @@ def test_params_defaults_are_the_papers_and_validate():
     assert (p.K, p.newton_iterations, p.sigma, p.v_des, p.eps, p.delta, p.direction) == (2, 20, 1e-3, 1.0, 0.28, 0.40, "auto")
     assert (p.saddle_noise, p.multi_failure_flow) == ("printed", "ring_streamlines")  # the readings
     plugin, _, _ = build(six_vehicle_positions())
-    assert plugin.a_f == pytest.approx(0.68) and plugin.a_p == pytest.approx(1.36)
-    assert plugin.hand_back.distance == pytest.approx(2.72)
+    assert plugin.mode.a_f == pytest.approx(0.68) and plugin.mode.a_p == pytest.approx(1.36)
+    assert plugin.mode.hand_back.distance == pytest.approx(2.72)
     for bad in ({"K": 0}, {"newton_iterations": 0}, {"sigma": -1.0}, {"v_des": 0.0}, {"direction": "north"}, {"speed": 1.0},
                 {"saddle_noise": "always"}, {"multi_failure_flow": "sum"}):
         with pytest.raises(ValidationError):
@@ -117,7 +118,7 @@ def test_inactive_passes_setpoints_through_and_comm_loss_does_not_activate():
     ev = Event(at=0.0, agents=(0,), kind=EventKind.COMM_LOSS)
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
-    assert not plugin.active and plugin.adjust(world, None, sp) is sp
+    assert not plugin.mode.active and plugin.adjust(world, None, sp) is sp
 
 
 def test_motor_failure_activates_like_hover_but_moving_faults_do_not():
@@ -128,21 +129,21 @@ def test_motor_failure_activates_like_hover_but_moving_faults_do_not():
         ev = Event(at=0.0, agents=(0,), kind=kind, **extra)
         ev.apply(world)
         plugin.swarmscene_event(sim=sim, event=ev)
-        assert not plugin.active and plugin.failed == {}
+        assert not plugin.mode.active and plugin.mode.failed == {}
     plugin, world, sim = build(six_vehicle_positions())
     ev = Event(at=0.0, agents=(0,), kind=EventKind.MOTOR_FAILURE, rotor=2, fraction=0.0)
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
-    assert plugin.active and list(plugin.failed) == [0]
-    np.testing.assert_array_equal(plugin.failed[0], world.pos[0, :2])
+    assert plugin.mode.active and list(plugin.mode.failed) == [0]
+    np.testing.assert_array_equal(plugin.mode.failed[0], world.pos[0, :2])
     hovering, hworld, hsim = build(six_vehicle_positions())
     ev = hover(0, 0)
     ev.apply(hworld)
     hovering.swarmscene_event(sim=hsim, event=ev)
     # the same flow: direction, doublet centres and every agent's (phi, psi)
-    assert plugin.nav.theta == hovering.nav.theta
-    np.testing.assert_array_equal(plugin.nav.centres, hovering.nav.centres)
-    np.testing.assert_array_equal(plugin.nav.w0, hovering.nav.w0)
+    assert plugin.mode.nav.theta == hovering.mode.nav.theta
+    np.testing.assert_array_equal(plugin.mode.nav.centres, hovering.mode.nav.centres)
+    np.testing.assert_array_equal(plugin.mode.nav.w0, hovering.mode.nav.w0)
 
 
 # ---- section V-A through the plugin --------------------------------------------------------------
@@ -198,7 +199,7 @@ def test_hand_back_returns_the_formations_setpoints_once_all_have_passed(six_run
     assert out is sp
     assert m["cem.handback_time"] == pytest.approx(first_off * DT)
     healthy_x = record[first_off - 1][1].pos[1:, 0]
-    assert healthy_x.min() >= 0.0 + plugin.hand_back.distance - 0.02  # all past the failed lead
+    assert healthy_x.min() >= 0.0 + plugin.mode.hand_back.distance - 0.02  # all past the failed lead
 
 
 def test_printed_saddle_noise_through_the_plugin_keeps_theorem_2_within_its_measured_bounds():
@@ -233,17 +234,17 @@ def test_auto_direction_from_velocity_and_from_bearing():
     ev = hover(0, 0)
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
-    assert plugin.nav.theta == pytest.approx(math.pi / 2)  # at rest: towards the failure
+    assert plugin.mode.nav.theta == pytest.approx(math.pi / 2)  # at rest: towards the failure
     plugin, world, sim = build(rot)
     world.vel[:, :2] = [0.3, -0.3]
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
-    assert plugin.nav.theta == pytest.approx(-math.pi / 4)  # moving: the mean velocity's heading
+    assert plugin.mode.nav.theta == pytest.approx(-math.pi / 4)  # moving: the mean velocity's heading
     plugin, world, sim = build(rot, direction=90.0)
     world.vel[:, :2] = [0.3, -0.3]
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
-    assert plugin.nav.theta == pytest.approx(math.pi / 2)  # fixed by config
+    assert plugin.mode.nav.theta == pytest.approx(math.pi / 2)  # fixed by config
 
 
 def test_northbound_formation_avoids_its_failed_lead():
@@ -287,7 +288,7 @@ def multi_run():
 
 def test_three_failures_one_later_keep_theorem_1(multi_run):
     plugin, m = multi_run
-    assert m["cem.activations"] == 2 and plugin.nav.centres.size == 3
+    assert m["cem.activations"] == 2 and plugin.mode.nav.centres.size == 3
     assert m["cem.theorem1_holds"]  # precondition at both activations
     assert not m["cem.theorem2_applicable"] and not m["cem.theorem2_holds"]
     assert m["cem.min_pair_distance"] >= m["cem.pair_bound"]  # and its conclusion
@@ -322,6 +323,11 @@ def test_newton_iterations_is_named_apart_from_swarm_n_and_the_old_key_still_wor
     assert "n" not in scenario.data["avoidance"]
 
 
+def strengths(plugin: CEM, n_failures: int) -> np.ndarray | None:
+    """The doublet strengths mu_f the plugin's ``multi_failure_flow`` gives ``n_failures`` failures."""
+    return failure_strengths(plugin.mode.settings.multi_failure_flow, plugin.mode.a_p, n_failures)
+
+
 def test_multi_failure_flow_readings_are_eq_1_for_one_failure_and_differ_for_several():
     """multi_failure_flow: 'summed' is eq. 1 as printed (N_f uniform terms = mu_f a_p^2 / N_f after
     dividing f by N_f), 'unit_doublets' mu_f = a_p^2, 'ring_streamlines' the solved strengths."""
@@ -329,19 +335,19 @@ def test_multi_failure_flow_readings_are_eq_1_for_one_failure_and_differ_for_sev
 
     a2 = A_P**2
     got = {rule: build(grid(), multi_failure_flow=rule)[0] for rule in ("ring_streamlines", "unit_doublets", "summed")}
-    assert got["ring_streamlines"].strengths(3) is None  # the navigator solves them
-    np.testing.assert_allclose(got["unit_doublets"].strengths(3), a2)
-    np.testing.assert_allclose(got["summed"].strengths(3), a2 / 3)
+    assert strengths(got["ring_streamlines"], 3) is None  # the navigator solves them
+    np.testing.assert_allclose(strengths(got["unit_doublets"], 3), a2)
+    np.testing.assert_allclose(strengths(got["summed"], 3), a2 / 3)
     for plugin in got.values():  # one failure: every reading is eq. 1 exactly
-        mu = plugin.strengths(1)
+        mu = strengths(plugin, 1)
         np.testing.assert_allclose(doublet_strengths(np.array([0j]), A_P) if mu is None else mu, a2)
     for rule, plugin in got.items():  # and the navigator flies the reading's strengths
         world = WorldState.at_rest(grid())
         world.healthy[[0, 3, 6]] = False
-        plugin.failed = {0: world.pos[0, :2].copy(), 3: world.pos[3, :2].copy(), 6: world.pos[6, :2].copy()}
-        plugin.activate(world)
-        expected = doublet_strengths(plugin.nav.centres, A_P) if rule == "ring_streamlines" else plugin.strengths(3)
-        np.testing.assert_allclose(plugin.nav.strengths, expected)
+        plugin.mode.failed = {0: world.pos[0, :2].copy(), 3: world.pos[3, :2].copy(), 6: world.pos[6, :2].copy()}
+        plugin.mode.activate(world)
+        expected = doublet_strengths(plugin.mode.nav.centres, A_P) if rule == "ring_streamlines" else strengths(plugin, 3)
+        np.testing.assert_allclose(plugin.mode.nav.strengths, expected)
 
 
 # ---- hand-back test of the formation's setpoints (issue #26) -------------------------------------
@@ -367,7 +373,7 @@ def fly_back(rule: str, ticks: int = 1700):
             plugin.swarmscene_event(sim=sim, event=ev)
         sp = formation(world, (1.0, 0.0) if k < 1200 else (-1.0, 0.0))
         out = plugin.adjust(world, None, sp)
-        flags.append(plugin.active)
+        flags.append(plugin.mode.active)
         live = world.healthy
         world.pos[live], world.vel[live] = out.pos[live], out.vel[live]
         world.t += DT

@@ -48,22 +48,22 @@ def test_compiled_measurements_equal_the_numpy_ones_tick_by_tick(rule):
         world.vel[live] = out.vel[live] * noise.uniform(0.9, 1.1, (live.sum(), 1))
         if k == 300:  # an agent under CEM fails between the command and the measurement
             Event(at=k * DT, agents=(10,), kind=EventKind.HOVER).apply(world)
-        if not plugin._commanded:
+        if not plugin.mode._commanded:
             plugin.swarmscene_step_end(sim=sim)
             continue
-        drift = plugin.record.psi_drift.copy()  # the kernel raises it in place
-        ref = numpy_measure(plugin.nav, plugin.healthy_idx, world.healthy, world.pos, world.vel,
-                            np.array(list(plugin.failed.values())))
-        got = np.empty(plugin._k.N_MEAS)
-        live_n = plugin.nav.measure_tick(world.healthy, world.pos, world.vel, plugin._failed_xy, drift, got)
-        expected_drift = plugin.record.psi_drift.copy()
-        np.maximum.at(expected_drift, plugin.healthy_idx, ref["drift"])
+        drift = plugin.mode.record.psi_drift.copy()  # the kernel raises it in place
+        ref = numpy_measure(plugin.mode.nav, plugin.mode.healthy_idx, world.healthy, world.pos, world.vel,
+                            np.array(list(plugin.mode.failed.values())))
+        got = np.empty(plugin.mode._k.N_MEAS)
+        live_n = plugin.mode.nav.measure_tick(world.healthy, world.pos, world.vel, plugin.mode._failed_xy, drift, got)
+        expected_drift = plugin.mode.record.psi_drift.copy()
+        np.maximum.at(expected_drift, plugin.mode.healthy_idx, ref["drift"])
         np.testing.assert_array_equal(drift, expected_drift)
-        k_ = plugin._k
+        k_ = plugin.mode._k
         assert got[k_.M_MARGIN] == ref["margin"] and got[k_.M_SPEED] == ref["speed"]
         assert got[k_.M_CLEAR] == ref["clear"]
         assert (got[k_.M_PAIR], got[k_.M_PAIR_CMD]) == (ref["pair"], ref["pair_cmd"])
-        assert live_n == int(world.healthy[plugin.healthy_idx].sum())
+        assert live_n == int(world.healthy[plugin.mode.healthy_idx].sum())
         if live_n:
             assert (got[k_.M_SPEED_ACT], got[k_.M_TRACK_ERR]) == (ref["speed_act"], ref["track_err"])
         plugin.swarmscene_step_end(sim=sim)
