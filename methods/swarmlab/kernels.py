@@ -235,7 +235,9 @@ def neighbour_lists(pos, r, r_coll, nbr, count, listed_before):
     previous list is full, the furthest of its members now is a cut no nearer than the new list's
     last (they are as many agents as the list holds), which drops most agents before the ranking;
     when no other agent is within the cut (and it is within r), the members are the nearest and
-    the list stands (most agents, most samples). j's old list is read before its new one is written."""
+    the list stands (most agents, most samples). j's old list is read before its new one is written.
+    Agent j's sums of squares, how many others are within its cut and how many may be closer than
+    2 r_coll are one pass over the others (:func:`squares_counted`)."""
     n = pos.shape[0]
     coords = np.ascontiguousarray(pos.T)
     row = np.empty(n)
@@ -246,33 +248,65 @@ def neighbour_lists(pos, r, r_coll, nbr, count, listed_before):
     near = square_bound(limit)
     close = 0
     for j in range(n):
-        squares_from(coords, j, row)
-        maybe = 0
-        for i in range(j + 1, n):  # each pair once, counted without a branch (it vectorises)
-            maybe += np.int64(row[i] < near)
-        if maybe:  # a root only for the rare pairs that may be close
+        cut = np.inf
+        stand = -1.0  # a bound no sum of squares is under: no list to stand
+        if listed_before and count[j] == nbr.shape[1]:
+            cut = math.sqrt(_furthest_member(coords, j, nbr[j]))
+            if cut <= r:
+                stand = square_bound(cut)
+        maybe, within = squares_counted(coords, j, row, near, stand)
+        if maybe:  # a root only for the rare pairs that may be close (each pair once: i > j)
             for i in range(j + 1, n):
                 if row[i] < near and math.sqrt(row[i]) < limit:
                     close += 1
-        cut = np.inf
-        if listed_before and count[j] == nbr.shape[1]:
-            furthest = 0.0
-            for m in range(count[j]):
-                furthest = max(furthest, row[nbr[j, m]])  # NaN-free: a list never holds its own agent
-            cut = math.sqrt(furthest)
-            if cut <= r and _within_count(row, square_bound(cut)) == count[j]:
-                continue  # no other agent as near as the furthest member: the list stands as it was
+        if stand >= 0 and within == count[j]:
+            continue  # no other agent as near as the furthest member: the list stands as it was
         count[j] = nearest_within(row, r, cut, listed, dist, bins, nbr[j])
     return close
 
 
 @njit(**JIT)
-def _within_count(row, limit):
-    """How many sums of squares are at most ``limit`` (without a branch: it vectorises)."""
-    c = 0
-    for i in range(len(row)):
-        c += np.int64(row[i] <= limit)
-    return c
+def _furthest_member(coords, j, members):
+    """The largest sum of squares from agent j to one of ``members``, each summed as
+    :func:`squares_from` sums it (so it equals that agent's entry of j's row bit for bit)."""
+    furthest = 0.0
+    for m in range(len(members)):
+        i = members[m]
+        s = 0.0
+        for c in range(coords.shape[0]):
+            delta = coords[c, i] - coords[c, j]
+            s += delta * delta
+        furthest = max(furthest, s)
+    return furthest
+
+
+@njit(**JIT)
+def squares_counted(coords, j, row, near, stand):
+    """row = agent j's sums of squares (:func:`squares_from`, row[j] = NaN), and, from the same pass,
+    how many others have a sum below ``near`` and how many at most ``stand``. Three coordinates (the
+    engine's) are one loop without a branch, which vectorises; the sums' order of terms is
+    squares_from's, so each sum is equal to it bit for bit."""
+    n = coords.shape[1]
+    maybe, within = 0, 0
+    if coords.shape[0] == 3:
+        xj, yj, zj = coords[0, j], coords[1, j], coords[2, j]
+        for i in range(n):
+            dx = coords[0, i] - xj
+            dy = coords[1, i] - yj
+            dz = coords[2, i] - zj
+            s = dx * dx + dy * dy + dz * dz  # (dx^2 + dy^2) + dz^2, as squares_from adds them
+            row[i] = s
+            maybe += np.int64(s < near)
+            within += np.int64(s <= stand)
+    else:
+        squares_from(coords, j, row)
+        row[j] = 0.0
+        for i in range(n):
+            maybe += np.int64(row[i] < near)
+            within += np.int64(row[i] <= stand)
+    row[j] = np.nan
+    # j's own sum, 0, was counted below near (> 0) and, when stand >= 0, at most stand
+    return maybe - 1, within - np.int64(stand >= 0)
 
 
 @njit(**JIT)
