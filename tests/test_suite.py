@@ -224,9 +224,11 @@ def test_the_check_tells_identical_scores_from_close_different_and_missing_ones(
 
 
 
-def test_reference_runs_flown_again_reproduce_their_shipped_scores_bit_for_bit(tmp_path):
-    """Two reference runs flown again (one scored by a swarmlab metric, the eigenvalue path) give
-    the shipped reference's floats; ``python -m swarmscene.suite check`` says so."""
+def test_reference_runs_flown_again_reproduce_their_shipped_scores(tmp_path):
+    """Two reference runs flown again give the shipped reference's scores; ``python -m swarmscene.suite
+    check`` says so. The first is scored on positions: the same float. The second by a swarmlab metric
+    (lambda_2, the eigenvalue path): the same float on the machine that made the reference, within
+    the check's rtol on another CPU, whose BLAS dot products round differently (docs/suite.md)."""
     from swarmscene.suite.__main__ import main
 
     for k, job in enumerate((["task=dense_swap_ring", "avoidance=orca", "seed=3"],
@@ -235,5 +237,9 @@ def test_reference_runs_flown_again_reproduce_their_shipped_scores_bit_for_bit(t
     from swarmscene.suite.check import check_sweep
 
     reproduced, text = check_sweep(tmp_path, partial=True)
-    assert reproduced and text.startswith("swarmscene-bench v1: 2 runs compared with the reference: 2 bit for bit")
+    assert reproduced, text
+    head = "swarmscene-bench v1: 2 runs compared with the reference: "
+    assert text.startswith((f"{head}2 bit for bit, 0 within rtol 1e-12, 0 different",
+                            f"{head}1 bit for bit, 1 within rtol 1e-12 (largest ")), text
+    assert "within rtol 1e-12 (largest" not in text or "coverage_goal_flock potential seed 7" in text, text
     assert main(["check", str(tmp_path)]) == 1  # the whole reference: 998 of its runs are missing here
