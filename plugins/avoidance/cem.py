@@ -131,7 +131,6 @@ from swarmscene.plugin import (
     Avoidance,
     BuildContext,
     Event,
-    EventKind,
     Mode,
     PluginParams,
     Setpoints,
@@ -301,7 +300,7 @@ class CEM(Avoidance):
         vehicle holds its position) does not hold for them, so CEM does not model them; they are
         still failed (``healthy`` False) for every other method and for the monitors.
         """
-        if event.kind not in (EventKind.HOVER, EventKind.MOTOR_FAILURE):
+        if not event.behaviour.stays_where_failed:  # hover, motor_failure: the kind says so
             return
         for a in event.agents:
             self.failed.setdefault(int(a), sim.world.pos[a, :2].copy())
