@@ -26,7 +26,7 @@ from pydantic import BaseModel, ValidationError
 from .config import MAX_LENGTH, MAX_SUBSTEPS, MAX_TICKS, Scenario, ScenarioConfig
 from .disturbances import effective
 from .disturbances.base import Disturbance, DisturbanceParams
-from .disturbances.comm import channel_errors
+from .disturbances.channel import channel_errors
 from .errors import ConfigError, format_validation_error
 from .events import check_events
 from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts

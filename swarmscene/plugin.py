@@ -127,8 +127,8 @@ def disturbance_context(key: str = "model", n: int = 6, *, guidance_period: floa
     return DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))
 
 
-_EventKind = Enum("EventKind", {"HOVER": "hover", "COMM_LOSS": "comm_loss", "STUCK": "stuck", "DRIFT": "drift",
-                                 "MOTOR_FAILURE": "motor_failure"}, type=str)
+_EventKind = Enum("EventKind", {"HOVER": "hover", "COMM_LOSS": "comm_loss", "STUCK": "stuck",  # type: ignore[misc]
+                                 "DRIFT": "drift", "MOTOR_FAILURE": "motor_failure"}, type=str)
 """``EventKind`` as it was, kept for one release (0.5.0 removed it: the engine lists no kind)."""
 
 
