@@ -10,14 +10,15 @@ In config (``events`` list)::
       - {at: 3.0, agents: [5], kind: motor_failure, rotor: 0, fraction: 0.0}  # rotor 0 dead
       - {at: {uniform: [2, 20]}, agents: {sample: 1}, kind: hover}  # a random agent, a random time
 
-Each ``kind`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarmscene_register_events``):
-the five above are built in (their classes here, registered by ``plugins/event/``), a package may
-add its own, with its own fields validated by its ``Params``.
+Each ``kind`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarmscene_register_events``),
+chosen from the registry a validation is given (``context={"registry": ...}``); the engine lists
+none. The five above are built-in plugins (``plugins/event/``), registered like a package's own;
+each kind's fields beside ``at``, ``agents`` and ``kind`` are validated by its ``Params``.
 
 The kernel applies an event at the first guidance tick whose time reaches ``at`` (the events phase),
 changes the world state, then calls the ``swarmscene_event`` hook so plugins can react; after the
 physics sub-steps it calls :meth:`EventQueue.hold`, which moves the vehicles whose fault dictates
-their motion (``hover``, ``stuck``, ``drift``) by that rule, whatever the dynamics model did.
+their motion by the rule its kind declares (``motion``: HOLD, COAST), whatever the dynamics model did.
 
 Random events: ``at`` may be a distribution (:mod:`swarmscene.core.distributions`) and ``agents``
 may be ``{sample: k}`` (k distinct agents, uniformly, optionally ``among`` a list). Each event
@@ -30,7 +31,7 @@ draws the same events. The drawn values are reported as metrics ``events.<k>.at`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum, IntEnum
+from enum import IntEnum
 from typing import Annotated, Any, ClassVar, cast
 
 import numpy as np
@@ -46,7 +47,7 @@ from pydantic import (
 )
 
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
-from .fields import MAX_DURATION, Point3, StrictModel, key_error
+from .fields import MAX_DURATION, StrictModel, key_error
 from .state import WorldState
 from .vectors import rows_of
 
@@ -67,11 +68,11 @@ class AgentSample(StrictModel):
         return {k: v for k, v in handler(self).items() if v is not None}
 
 
-_KIND_FIELDS = ("velocity", "rotor", "fraction")
-
-
 class EventConfig(StrictModel):
-    """One event, scheduled or random (see :mod:`swarmscene.core.events`)."""
+    """One event, scheduled or random (its kind's own keys beside these: "Event kinds" below).
+
+    When, whom, which kind (:mod:`swarmscene.core.events`); the kind's own fields (a drift's
+    ``velocity``) sit beside these and are validated by its ``Params``."""
 
     at: Draw | float = Field(
         description="time, s: a number, or a distribution drawn from the run's seed "
@@ -82,14 +83,8 @@ class EventConfig(StrictModel):
         description="indices of the agents hit, or {sample: k, among: [...]} (k drawn at random)"
     )
     kind: str = Field(
-        description="a registered event kind: hover: failure, holds position | comm_loss: radio "
-        "lost | stuck: failure, keeps its last velocity | drift: failure, drifts at `velocity` | "
-        "motor_failure: one rotor's thrust cut to `fraction` (quadrotor dynamics) | a plugin's kind"
-    )
-    velocity: Point3 | None = Field(None, description="drift only: drift velocity [vx, vy, vz], m/s")
-    rotor: int | None = Field(None, ge=0, description="motor_failure only: index of the failed rotor")
-    fraction: float | None = Field(
-        None, ge=0, le=1, description="motor_failure only: thrust the rotor keeps, 0..1 (null: 0)"
+        description="a registered event kind: hover, comm_loss, stuck, drift, motor_failure (the "
+        "built-in plugins) or a package's; each kind's own keys are listed under \"Event kinds\""
     )
 
     @field_validator("at", mode="wrap")
@@ -112,67 +107,48 @@ class EventConfig(StrictModel):
     @model_validator(mode="wrap")
     @classmethod
     def _kind_own_fields(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
-        """A plugin kind's own fields (beyond velocity, rotor, fraction) are taken out before the
-        strict check and validated by the kind's ``Params`` (after it, in :meth:`_checked`)."""
-        own: dict[str, Any] = {}
-        if isinstance(data, dict):
-            kind_cls = _kind_class(data.get("kind"), info.context)
-            if kind_cls is not None:
-                takes = kind_cls.Params.model_fields
-                unknown = [k for k in data if k not in cls.model_fields and k not in takes]
-                if unknown:  # this kind's keys, not the built-in kinds' (velocity, rotor, fraction)
-                    valid = ["at", "agents", "kind", *(k for k in takes if k not in ("at", "agents", "kind"))]
-                    raise key_error(unknown[0], f"unknown key of a {data.get('kind')} event (valid keys: "
-                                    f"{', '.join(valid)})", data[unknown[0]])
-                own = {k: v for k, v in data.items() if k in takes and k not in cls.model_fields}
-                data = {k: v for k, v in data.items() if k not in own}
-        model = handler(data)
-        return model._checked(own, info.context) if isinstance(model, EventConfig) else model
+        """The kind's own fields are taken out before the strict check of ``at``, ``agents``,
+        ``kind`` and validated by the kind's ``Params`` after it (:meth:`_checked`)."""
+        if not isinstance(data, dict):
+            return handler(data)
+        kinds = _kinds(data.get("kind"), info.context)
+        kind_cls = kinds.get(data["kind"]) if isinstance(data.get("kind"), str) else None
+        own = {k: v for k, v in data.items() if k not in cls.model_fields}
+        if kind_cls is not None:
+            _check_keys(data, own, kind_cls, kinds)
+        model = handler({k: v for k, v in data.items() if k not in own})
+        # an unknown kind is the registry's error (validate_choice), reported once: its keys unread
+        return model._checked(own, kind_cls) if kind_cls is not None else model
 
     @model_serializer(mode="wrap")
-    def _without_unused_keys(self, handler: Any) -> dict[str, Any]:
-        """Recorded as written: a hover event has no ``velocity: null``; a plugin kind's own
-        fields are recorded with every default."""
+    def _with_own_fields(self, handler: Any) -> dict[str, Any]:
+        """Recorded with the kind's own fields, every default filled (a record validates again to
+        the same event whatever the kind's defaults become)."""
         data = handler(self)
-        data = {k: v for k, v in data.items() if v is not None or k not in _KIND_FIELDS}
         if self._params is not None:
             extra = self._params.model_dump(mode="json")
-            data.update({k: v for k, v in extra.items() if k not in data and k not in _KIND_FIELDS})
+            data.update({k: v for k, v in extra.items() if k not in data})
         return data
 
-    def _checked(self, own: dict[str, Any], context: Any) -> EventConfig:
-        """The kind's rules: only its own fields given, the ones it needs present; its Params built.
-        An unknown kind is the registry's error (``validate_choice``) when a registry validates,
-        else one line here (listing the built-in kinds)."""
-        kinds = _kinds(context)
-        kind_cls = kinds.get(self.kind)
-        if kind_cls is None:
-            if isinstance(context, dict) and context.get("registry") is not None:
-                return self  # reported once, by validate_choice
-            raise key_error("kind", f"unknown event kind {self.kind!r} (valid: {', '.join(sorted(kinds))})",
-                            self.kind)
-        takes = kind_cls.Params.model_fields
-        for key in _KIND_FIELDS:
-            value = getattr(self, key)
-            if value is not None and key not in takes:
-                users = " or ".join(sorted(n for n, c in kinds.items() if key in c.Params.model_fields))
-                raise key_error(key, f"only a {users} event takes it (this event is {self.kind})", value)
-        given = {k: getattr(self, k) for k in _KIND_FIELDS if k in takes and getattr(self, k) is not None}
-        for key, info in takes.items():
-            if info.is_required() and key not in given and key not in own:
+    def _checked(self, own: dict[str, Any], kind_cls: type[EventKindPlugin]) -> EventConfig:
+        """The kind's Params built from its own fields (a required one missing: one line)."""
+        for key, info in kind_cls.Params.model_fields.items():
+            if info.is_required() and key not in own:
                 raise key_error(key, f"a {self.kind} event needs {info.description}", None)
-        values = {**given, **own}
         try:
-            self._params = kind_cls.Params.model_validate(values)
+            self._params = kind_cls.Params.model_validate(own)
         except ValidationError as exc:  # its first problem, at its key (events.<k>.<key>)
-            raise _at_key(exc, kind_cls.Params, values) from None
+            raise _at_key(exc, kind_cls.Params, own) from None
         self._kind = kind_cls
         return self
 
     @property
     def kind_class(self) -> type[EventKindPlugin]:
         """The event kind's class (a registered :class:`EventKindPlugin`)."""
-        return self._kind if self._kind is not None else BUILTIN_EVENT_KINDS[self.kind]
+        if self._kind is None:
+            raise ValueError(f"event kind {self.kind!r}: not validated against a registry "
+                             "(validate with context={'registry': ...})")
+        return self._kind
 
     @property
     def params(self) -> EventParams:
@@ -183,6 +159,31 @@ class EventConfig(StrictModel):
     def random(self) -> bool:
         """Whether its time or its agents are drawn."""
         return isinstance(self.at, Draw) or isinstance(self.agents, AgentSample)
+
+
+def _check_keys(data: dict[str, Any], own: dict[str, Any], kind_cls: type[EventKindPlugin],
+                kinds: dict[str, type[EventKindPlugin]]) -> None:
+    """A key that is neither an event's nor the kind's own: one line, naming the kinds that take it
+    when some registered kind does (``velocity`` on a hover event), else the valid keys."""
+    takes = kind_cls.Params.model_fields
+    unknown = [k for k in own if k not in takes]
+    if not unknown:
+        return
+    key = unknown[0]
+    users = sorted(n for n, c in kinds.items() if key in c.Params.model_fields)
+    if not users:
+        valid = ", ".join(["at", "agents", "kind", *takes])
+        raise key_error(key, f"unknown key of a {data['kind']} event (valid keys: {valid})", data[key])
+    message = f"only a {' or '.join(users)} event takes it (this event is {data['kind']})"
+    raise key_error(key, message, _as_read(kinds[users[0]].Params.model_fields[key], data[key]))
+
+
+def _as_read(info: Any, value: Any) -> Any:
+    """``value`` as the field ``info`` reads it (``[1, 0, 0]`` -> ``(1.0, 0.0, 0.0)``), else as given."""
+    try:
+        return TypeAdapter(info.annotation).validate_python(value)
+    except (ValidationError, TypeError):
+        return value
 
 
 def _at_key(exc: ValidationError, model: type, values: dict[str, Any]) -> Exception:
@@ -215,52 +216,20 @@ def check_events(events: list[EventConfig], n: int) -> list[str]:
     return errors
 
 
-class EventKind(str, Enum):  # noqa: UP042  # not StrEnum: str() and f-strings of a member keep "EventKind.HOVER"
-    """The built-in kinds' names (a plugin's kind is its registered name, a plain string; the
-    behaviour of each is its :class:`EventKindPlugin` below).
-
-    What happens to the event's agents. Every kind but ``comm_loss`` is a failure: the agent's
-    ``healthy`` flag drops, so formations and avoidance treat it as failed from that tick on.
-
-    HOVER: abrupt failure; the vehicle stops where it is (velocity zero) and stays there for the
-        rest of the run. It remains a physical obstacle (the CEM paper's failure model).
-    COMM_LOSS: the agent's radio fails (``comm_ok`` False): it leaves the communication graph but
-        keeps flying on its last information.
-    STUCK: the vehicle no longer responds to commands and keeps the velocity it had at the event:
-        p(t) = p(t_f) + v(t_f) (t - t_f), a fly-away (the "stuck-at" / lock-in-place fault of the
-        fault-tolerant-control taxonomy applied to the velocity command).
-    DRIFT: the vehicle no longer responds and moves at the event's constant ``velocity`` v_d:
-        p(t) = p(t_f) + v_d (t - t_f). Source: the drift fault of the sensor-fault taxonomy, an
-        additive error growing linearly in time, y(t) = x(t) + r (t - t_f) (Balaban et al., IEEE
-        Sensors Journal 9(12), 2009; Sharma et al., ACM TOSN 6(3), 2010): a position estimate
-        drifting at rate r makes a vehicle that holds its estimate move physically at v_d = -r.
-    MOTOR_FAILURE: one rotor (``rotor``) keeps ``fraction`` of its thrust. The engine only marks
-        the vehicle failed; the dynamics model applies the loss through the ``swarmscene_event``
-        hook and the vehicle then moves as its physics says (it is not held).
-    """
-
-    HOVER = "hover"
-    COMM_LOSS = "comm_loss"
-    STUCK = "stuck"
-    DRIFT = "drift"
-    MOTOR_FAILURE = "motor_failure"
-
-
 class Motion(IntEnum):
     """How :meth:`EventQueue.hold` moves an agent after the dynamics (the last event decides)."""
 
-    DYNAMICS = 0  # the dynamics model moves it (healthy, comm_loss, motor_failure)
-    HOLD = 1  # hover: stays where it failed, at rest
-    COAST = 2  # stuck, drift: constant velocity from where it failed
+    DYNAMICS = 0  # the dynamics model moves it (healthy, a lost radio, a failed rotor)
+    HOLD = 1  # stays where it failed, at rest (a hover failure)
+    COAST = 2  # constant velocity from where it failed (a stuck or drifting vehicle)
 
 
 class EventParams(StrictModel):
     """Base of an event kind's own fields (``velocity`` of a drift, ``rotor`` of a motor failure).
 
     A field without a default is required; its ``description`` completes the error line
-    ``events.<k>.<field>: a <kind> event needs <description>``. The fields ``velocity``,
-    ``rotor`` and ``fraction`` are the event's own attributes (:class:`Event`); any other field
-    is read from ``event.params``."""
+    ``events.<k>.<field>: a <kind> event needs <description>``. The validated fields are
+    ``event.params`` (and read as the event's attributes: ``event.velocity``)."""
 
 
 class EventKindPlugin:
@@ -270,7 +239,9 @@ class EventKindPlugin:
     ``failure`` and ``motion``, and may extend :meth:`apply`. The kernel applies an event in the
     events phase of a tick (:meth:`apply`, then the ``swarmscene_event`` hook, through which a
     dynamics model applies what only it can, e.g. a rotor's thrust), and after the physics
-    sub-steps moves each agent by the motion of the last failure event that hit it.
+    sub-steps moves each agent by the motion of the last failure event that hit it. What other
+    plugins need to know of a kind is a property it declares (``stays_where_failed``,
+    ``rotor_fault``), never its name.
     """
 
     name: ClassVar[str]
@@ -281,6 +252,14 @@ class EventKindPlugin:
     motion: ClassVar[Motion] = Motion.DYNAMICS
     """After the dynamics, each tick: HOLD (stays where it failed, at rest), COAST (constant velocity
     from where it failed: the velocity :meth:`apply` left), DYNAMICS (the dynamics model moves it)."""
+    stays_where_failed: ClassVar[bool] = False
+    """True: a failed vehicle stays about the point where it failed (a hovering one; one that lost
+    a rotor falls or spins down about it), so an avoidance may take it for a fixed obstacle (CEM's
+    Assumption 3). False: it moves on (a fly-away), or the kind says nothing of where it goes."""
+    rotor_fault: ClassVar[bool] = False
+    """True: the kind's ``Params`` have ``rotor`` (int, the rotor's index) and ``fraction`` (0..1,
+    the thrust it keeps): a dynamics model with rotors applies it through the ``swarmscene_event``
+    hook, and validation refuses it with a dynamics model without rotors, or a rotor it lacks."""
 
     @classmethod
     def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
@@ -291,77 +270,23 @@ class EventKindPlugin:
         else:
             world.comm_ok[idx] = False
 
-
-class Hover(EventKindPlugin):
-    """Abrupt failure: stops where it is and stays (the CEM paper's failure model)."""
-
-    name = "hover"
-    motion = Motion.HOLD
-
     @classmethod
-    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
-        """Hover: the agent fails and stops where it is (velocity zero, held by the queue)."""
-        super().apply(event, world, idx)
-        world.vel[idx] = 0.0
+    def event(cls, at: float, agents: tuple[int, ...] | list[int], **fields: Any) -> Event:
+        """An :class:`Event` of this kind at ``at`` s hitting ``agents``, its own ``fields``
+        validated by ``Params`` (as a scenario's would be): ``Drift.event(1.0, (2,), velocity=v)``."""
+        return Event(float(at), tuple(int(a) for a in agents), cls.name,
+                     params=cls.Params.model_validate(fields), kind_class=cls)
 
 
-class CommLoss(EventKindPlugin):
-    """Radio lost: leaves the communication graph, keeps flying on its last information."""
-
-    name = "comm_loss"
-    failure = False
-
-
-class Stuck(EventKindPlugin):
-    """No longer responds: keeps the velocity it had at the event (a fly-away)."""
-
-    name = "stuck"
-    motion = Motion.COAST
-
-
-class Drift(EventKindPlugin):
-    """No longer responds: moves at the event's constant ``velocity`` (a drifting estimate)."""
-
-    name = "drift"
-    motion = Motion.COAST
-
-    class Params(EventParams):
-        velocity: Point3 = Field(description="its drift velocity [vx, vy, vz], m/s")
-
-    @classmethod
-    def apply(cls, event: Event, world: WorldState, idx: np.ndarray) -> None:
-        """Drift: the agent fails and coasts at the event's ``velocity`` from now on."""
-        super().apply(event, world, idx)
-        world.vel[idx] = event.velocity
-
-
-class MotorFailure(EventKindPlugin):
-    """One rotor keeps ``fraction`` of its thrust; the dynamics model applies it (not held)."""
-
-    name = "motor_failure"
-
-    class Params(EventParams):
-        rotor: int = Field(ge=0, description="the index of the failed rotor")
-        fraction: float = Field(0.0, ge=0, le=1, description="thrust the rotor keeps, 0..1 (0: dead)")
-
-
-BUILTIN_EVENT_KINDS: dict[str, type[EventKindPlugin]] = {
-    cls.name: cls for cls in (Hover, CommLoss, Stuck, Drift, MotorFailure)
-}
-"""The built-in kinds (:class:`EventKind`). The kernel's motions are theirs, so their classes live
-here; ``plugins/event/`` registers each through ``swarmscene_register_events`` like a third-party
-kind, and validation reads the registry. Without a registry (an ``EventConfig`` validated on its
-own) these are the kinds known."""
-
-
-def _kinds(context: Any) -> dict[str, type[EventKindPlugin]]:
-    """The event kinds known to a validation: its registry's, else the built-ins."""
+def _kinds(kind: Any, context: Any) -> dict[str, type[EventKindPlugin]]:
+    """The event kinds known to a validation: its registry's (``context={"registry": ...}``, as
+    :mod:`.validation` passes it). The engine holds no list of built-ins: an event validated without
+    a registry is refused in one line, naming the way."""
     registry = context.get("registry") if isinstance(context, dict) else None
-    return registry.classes["event"] if registry is not None else BUILTIN_EVENT_KINDS
-
-
-def _kind_class(kind: Any, context: Any) -> type[EventKindPlugin] | None:
-    return _kinds(context).get(kind) if isinstance(kind, str) else None
+    if registry is None:
+        raise key_error("kind", "an event kind is chosen from a plugin registry: validate with "
+                        "context={'registry': ...} (swarmscene.api.load does)", kind)
+    return registry.classes["event"]
 
 
 @dataclass(frozen=True)
@@ -371,37 +296,40 @@ class Event:
     Attributes:
         at: time at which it happens, s (applied at the first guidance tick with t >= at).
         agents: indices of the agents it hits.
-        kind: :class:`EventKind` for a built-in kind, else the registered name (a ``str`` either way).
-        velocity: drift velocity (3,), m/s, world frame (``drift`` only).
-        rotor: index of the failed rotor (``motor_failure`` only).
-        fraction: thrust the failed rotor keeps, 0..1 (``motor_failure`` only).
-        params: the kind's validated Params (a plugin kind's own fields), or None.
-        kind_class: the kind's :class:`EventKindPlugin` (None: the built-in of that name).
+        kind: the kind's registered name (``"hover"``).
+        params: the kind's validated Params (its own fields: a drift's ``velocity``), read also as
+            the event's attributes (``event.velocity``).
+        kind_class: the kind's :class:`EventKindPlugin` (what the event does).
     """
 
     at: float
     agents: tuple[int, ...]
-    kind: EventKind | str
-    velocity: tuple[float, float, float] | None = None
-    rotor: int | None = None
-    fraction: float | None = None
-    params: Any = field(default=None, compare=False)
+    kind: str
+    params: Any = field(default=None, hash=False)
     kind_class: Any = field(default=None, compare=False)
+
+    def __getattr__(self, name: str) -> Any:
+        """The kind's own fields as attributes (``event.velocity``, ``event.rotor``)."""
+        params = self.__dict__.get("params")  # not getattr: unpickling asks before params is set
+        if params is None or name.startswith("__") or name not in type(params).model_fields:
+            raise AttributeError(f"{type(self).__name__} of kind {self.__dict__.get('kind')!r} has no {name!r}")
+        return getattr(params, name)
 
     @property
     def behaviour(self) -> type[EventKindPlugin]:
         """The class that says what this event does."""
-        if self.kind_class is not None:
-            return self.kind_class
-        return BUILTIN_EVENT_KINDS[getattr(self.kind, "value", self.kind)]
+        if self.kind_class is None:
+            raise ValueError(f"event kind {self.kind!r}: an Event needs its kind's class (kind_class=...; "
+                             f"KindClass.event(at, agents, ...) builds one)")
+        return self.kind_class
 
     @property
     def failure(self) -> bool:
-        """Whether it fails its agents (every built-in kind but ``comm_loss``)."""
+        """Whether it fails its agents (``healthy`` drops) rather than their radio."""
         return self.behaviour.failure
 
     def apply(self, world: WorldState) -> None:
-        """Change ``world`` as this event says (its flags and, for hover and drift, velocities)."""
+        """Change ``world`` as this event's kind says (its flags and, where it sets them, velocities)."""
         self.behaviour.apply(self, world, np.asarray(self.agents, dtype=int))
 
 
@@ -416,16 +344,10 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
         if isinstance(agents, AgentSample):
             pool = np.unique(agents.among) if agents.among else np.arange(n)
             agents = np.sort(rng.choice(pool, size=agents.sample, replace=False)).tolist()
-    kind_class, params = config.kind_class, config.params
-    fraction = config.fraction
-    if fraction is None and "fraction" in kind_class.Params.model_fields:
-        # the kind's own Params have the field (checked just above); EventParams does not
-        fraction = params.fraction if params is not None else 0.0  # type: ignore[attr-defined]
-    kind = EventKind(config.kind) if config.kind in EventKind._value2member_map_ else config.kind
     # Whatever was random is drawn by now: a time in seconds, a list of indices.
     at, agents = cast(float, at), cast(list[int], agents)
-    return Event(float(at), tuple(int(a) for a in agents), kind, velocity=config.velocity,
-                 rotor=config.rotor, fraction=fraction, params=params, kind_class=kind_class)
+    return Event(float(at), tuple(int(a) for a in agents), config.kind, params=config.params,
+                 kind_class=config.kind_class)
 
 
 class EventQueue:
@@ -436,7 +358,7 @@ class EventQueue:
         events: the events, random parts already drawn.
         guidance_period: T_s, s: :meth:`hold` runs once per tick before the clock advances, so a
             coasting vehicle is placed where it is at the end of the tick, t + T_s (needed only
-            when a ``stuck`` or ``drift`` event is queued).
+            when an event of a COAST kind is queued).
         drawn: ``(index in the config list, event)`` of the events whose parts were drawn.
     """
 
@@ -450,7 +372,7 @@ class EventQueue:
         self.drawn = list(drawn or [])
         coasting = any(e.failure and e.behaviour.motion is Motion.COAST for e in events)
         if coasting and guidance_period is None:
-            raise ValueError("EventQueue: stuck and drift events need the guidance period "
+            raise ValueError("EventQueue: coasting events (stuck, drift) need the guidance period "
                              "(build the queue with EventQueue.from_scenario)")
         self._motion: np.ndarray | None = None  # (N,) Motion, allocated at the first failure
         # Sized with _motion at the first failure (empty until then: nothing reads them before).
@@ -519,7 +441,7 @@ class EventQueue:
         self._motion[idx] = event.behaviour.motion
         self._anchor[idx] = world.pos[idx]
         self._anchor_t[idx] = world.t
-        self._coast_vel[idx] = world.vel[idx]  # stuck: the last velocity; drift and hover: set by apply
+        self._coast_vel[idx] = world.vel[idx]  # its own, or the one its kind's apply set
         # hold() runs every tick and the motions change only here: its agents, listed once.
         self._held = rows_of(np.flatnonzero(self._motion == int(Motion.HOLD)))
         self._held_at = self._anchor[self._held]
@@ -527,7 +449,7 @@ class EventQueue:
 
     def hold(self, world: WorldState) -> None:
         """After the physics sub-steps of the tick starting at ``world.t``: hovering vehicles stay
-        where they failed, at rest; stuck and drifting ones are where their constant velocity has
+        where they failed, at rest (HOLD); coasting ones are where their constant velocity has
         taken them at the tick's end, p_f + v (t + T_s - t_f). Others keep what the dynamics did."""
         if self._motion is None:
             return
@@ -541,3 +463,21 @@ class EventQueue:
             elapsed = world.t + T_s - self._anchor_t[coast]
             world.pos[coast] = self._anchor[coast] + self._coast_vel[coast] * elapsed[:, None]
             world.vel[coast] = self._coast_vel[coast]
+
+
+_MOVED = {"Hover": "swarmscene.plugins.event.hover", "CommLoss": "swarmscene.plugins.event.comm_loss",
+          "Stuck": "swarmscene.plugins.event.stuck", "Drift": "swarmscene.plugins.event.drift",
+          "MotorFailure": "swarmscene.plugins.event.motor_failure"}
+"""The built-in kinds' classes, moved to their plugin modules in 0.6.0 (the engine imports no plugin)."""
+
+
+def __getattr__(name: str) -> Any:
+    """One line naming where a name that left this module went (0.6.0)."""
+    if name in _MOVED:
+        raise ImportError(f"swarmscene.core.events.{name} moved to {_MOVED[name]} (a plugin; the engine holds "
+                          f"no built-in event kind)")
+    if name in ("BUILTIN_EVENT_KINDS", "EventKind"):
+        raise ImportError(f"swarmscene.core.events.{name} was removed in 0.6.0: the event kinds are the "
+                          "registry's (registry.classes['event'], swarmscene.core.registry.installed_registry()); "
+                          "an event's kind is its name, a str")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

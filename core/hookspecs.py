@@ -159,11 +159,13 @@ def swarmscene_event(sim: RunView, event: Event) -> None:
     When: during the events phase of the guidance tick at which ``event.at`` is reached, after the
     kernel changed ``sim.world`` (e.g. ``healthy`` mask) and before sensing and formation run.
     A dynamics model may react here to what only it can apply (the quadrotor cuts the thrust of
-    the rotor a ``motor_failure`` names).
+    the rotor an event of a ``rotor_fault`` kind names, ``motor_failure``'s). React to what the
+    kind declares (``event.behaviour``), not to its name: a package's kind then works too.
 
     Args:
         sim: the run's read-only view (:class:`~swarmscene.core.run_view.RunView`).
-        event: the event applied (time, agents, kind).
+        event: the event applied (time, agents, kind's name, ``params`` its own fields,
+            ``behaviour`` its :class:`~swarmscene.core.events.EventKindPlugin`).
     """
 
 

@@ -85,12 +85,14 @@ class BuildContext:
         environment: the obstacle map and its geometric queries.
         rng: the run's one random generator (draws from it are part of the seeded run).
         initial: the world state at t = 0 (read it, do not keep mutating it).
-        link_delay: the declared per-link delay model (``disturbances`` of kind ``comm_delay``):
-            ``link_delay(hops) -> ticks`` (N, N) int, -1 where unreachable; ``None`` when none is
-            declared. For plugins that keep per-link maps (:attr:`Formation.models_communication`).
-        link_loss: the declared per-link packet loss (``packet_loss`` disturbances):
-            ``link_loss(world, sensing) -> lost`` (N, N) bool, the messages (receiver, sender) lost
-            this tick (call it once per tick); ``None`` when none is declared.
+        link_delay: the declared per-link delay models (disturbances offering ``link_delay``,
+            ``comm_delay``'s, ``radio``'s): ``link_delay(hops) -> ticks`` (N, N) int, -1 where
+            unreachable; ``None`` when none is declared. For plugins that keep per-link maps
+            (:attr:`Formation.models_communication`).
+        link_loss: the declared per-link packet loss (disturbances offering ``link_lost``,
+            ``packet_loss``'s, ``radio``'s): ``link_loss(world, sensing) -> lost`` (N, N) bool, the
+            messages (receiver, sender) lost this tick (call it once per tick); ``None`` when none
+            is declared.
         floor: the ground's height, m (``environment.floor``): a take-off starts from it and a
             landing ends on it; ``None``: the scenario has no ground (vehicles may fly at any z).
     """

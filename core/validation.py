@@ -26,7 +26,7 @@ from pydantic import BaseModel, ValidationError
 from .config import MAX_LENGTH, MAX_SUBSTEPS, MAX_TICKS, Scenario, ScenarioConfig
 from .disturbances import effective
 from .disturbances.base import Disturbance, DisturbanceParams
-from .disturbances.comm import channel_errors
+from .disturbances.channel import channel_errors
 from .errors import ConfigError, format_validation_error
 from .events import check_events
 from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts
@@ -94,7 +94,7 @@ def validate(data: dict[str, Any], registry: Any) -> Scenario:
                 f"(an agent index 0..{config.swarm.n - 1})"
             )
         if "dynamics" in classes:
-            errors += _rotor_checks(config, classes["dynamics"])
+            errors += _rotor_checks(config, classes["dynamics"], registry.classes["event"])
         errors += channel_errors(disturbances, config.swarm.n, config.clock.guidance_period)
         if not errors and len(classes) == len(PLUGIN_KINDS):
             errors += memory_checks(config, classes["dynamics"])
@@ -235,19 +235,22 @@ def _scenario_checks(config: ScenarioConfig) -> list[str]:
     return errors
 
 
-def _rotor_checks(config: ScenarioConfig, dynamics: Any) -> list[str]:
-    """``motor_failure`` events need a dynamics model with rotors, and a rotor it has."""
+def _rotor_checks(config: ScenarioConfig, dynamics: Any, kinds: dict[str, Any]) -> list[str]:
+    """An event of a kind declaring ``rotor_fault`` (``motor_failure``) needs a dynamics model with
+    rotors, and a rotor it has (the kind's property, not its name: a package's rotor fault too)."""
     errors = []
     rotors = getattr(dynamics, "rotors", 0)
     for k, event in enumerate(config.events):
-        if event.kind != "motor_failure":
+        kind = kinds.get(event.kind)  # None: an unknown kind, already reported (validate_choice)
+        if kind is None or not kind.rotor_fault:
             continue
+        rotor = event.params.rotor  # type: ignore[attr-defined]  # a rotor_fault kind's Params have it
         if rotors == 0:
-            errors.append(f"events.{k}.kind: motor_failure needs a dynamics model with rotors "
+            errors.append(f"events.{k}.kind: {event.kind} needs a dynamics model with rotors "
                           f"(dynamics {dynamics.name!r} has none; e.g. dynamics=quadrotor)")
-        elif event.rotor is not None and event.rotor >= rotors:
+        elif rotor >= rotors:
             errors.append(f"events.{k}.rotor: must be < {rotors}, the rotors of dynamics "
-                          f"{dynamics.name!r} (got {event.rotor})")
+                          f"{dynamics.name!r} (got {rotor})")
     return errors
 
 

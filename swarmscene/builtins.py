@@ -27,7 +27,7 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "swarmscene.plugins.avoidance.policy",
     "swarmscene.plugins.avoidance.orca",
     "swarmscene.plugins.avoidance.cbf",
-    # disturbance: what the world does to them (models in core/disturbances/)
+    # disturbance: what the world does to them (the phases in core/disturbances/)
     "swarmscene.plugins.disturbance.constant_wind",
     "swarmscene.plugins.disturbance.gust",
     "swarmscene.plugins.disturbance.dryden",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 from pydantic import BaseModel
 
@@ -95,6 +96,7 @@ def render() -> str:
         doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
         lines += ["", f"### `environment.generator={name}`", "", doc, ""]
         lines += model_table(cls.Params, "environment.")
+    lines += _event_kinds(registry)
     lines += ["", "## Observers with options (observers=[NAME])"]
     for cls in registry.observers:
         if isinstance(getattr(cls, "name", None), str) and isinstance(getattr(cls, "Params", None), type):
@@ -102,6 +104,19 @@ def render() -> str:
             lines += ["", f"### `observers=[{cls.name}]`", "", doc, ""]
             lines += model_table(cls.Params, f"observers.{cls.name}.")
     return "\n".join(lines) + "\n"
+
+
+def _event_kinds(registry: Any) -> list[str]:
+    """A table per registered event kind: what it does, and its own keys beside ``at``, ``agents``, ``kind``."""
+    lines = ["", "## Event kinds (events[].kind=NAME; their own keys beside it in the event)"]
+    for name in registry.names("event"):
+        cls = registry.get("event", name)
+        doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
+        does = "fails its agents" if cls.failure else "cuts its agents' radio"
+        lines += ["", f"### `events[].kind={name}`", "", doc, "",
+                  f"It {does}; afterwards the kernel moves them by {cls.motion.name}.", ""]
+        lines += model_table(cls.Params, "events[].") if cls.Params.model_fields else ["No keys of its own."]
+    return lines
 
 
 def write_groups(root: Path) -> Path:

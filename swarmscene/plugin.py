@@ -32,6 +32,7 @@ and :mod:`swarmscene.testing` holds the contract checks every built-in passes.
 
 from __future__ import annotations
 
+from enum import Enum
 from typing import Any
 
 import numpy as np
@@ -40,8 +41,8 @@ from .core.distributions import Draw, number_adapter, parse_draw
 from .core.disturbances.base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams
 from .core.environment import Environment
 from .core.errors import SwarmsceneDeprecationWarning, format_validation_error, validate_renamed
-from .core.events import Event, EventKind, EventKindPlugin, EventParams, Motion
-from .core.fields import MAX_LENGTH, Point2, StrictModel, key_error
+from .core.events import Event, EventKindPlugin, EventParams, Motion
+from .core.fields import MAX_DURATION, MAX_LENGTH, Point2, Point3, StrictModel, key_error
 from .core.generators import MapGenerator
 from .core.hookspecs import hookimpl
 from .core.plugin import (
@@ -63,14 +64,14 @@ from .core.vectors import clip_norm, every, min_distance_between, min_pair_dista
 
 __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
-    "Environment", "Event", "EventKind", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
+    "Environment", "Event", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
     "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "Role", "RunView", "SHARED", "Sensing", "Setpoints",
     "StrictModel", "SwarmsceneDeprecationWarning", "WorldBatch", "WorldState", "build_context", "choose",
     "disturbance_context",
     "hookimpl", "validate_renamed",
-    # what a map generator's Params declares (core/fields.py, core/distributions.py): lengths bounded
-    # by MAX_LENGTH, points, a cross-field error at the key it names, a number or a distribution
-    "Draw", "MAX_LENGTH", "Point2", "key_error", "number_adapter", "parse_draw",
+    # what a Params declares (core/fields.py, core/distributions.py): lengths bounded by MAX_LENGTH,
+    # times by MAX_DURATION, points, a cross-field error at the key it names, a number or a distribution
+    "Draw", "MAX_DURATION", "MAX_LENGTH", "Point2", "Point3", "key_error", "number_adapter", "parse_draw",
     # helpers the built-ins use (core/vectors.py, core/errors.py), as stable as the names above
     "clip_norm", "every", "format_validation_error", "min_distance_between", "min_pair_distance", "rows_of", "wrap",
 ]
@@ -124,3 +125,24 @@ def disturbance_context(key: str = "model", n: int = 6, *, guidance_period: floa
     from .core.disturbances.base import model_rng
 
     return DisturbanceContext(key, n, guidance_period, physics_step, comm_range, model_rng(seed, key))
+
+
+_EventKind = Enum("EventKind", {"HOVER": "hover", "COMM_LOSS": "comm_loss", "STUCK": "stuck",  # type: ignore[misc]
+                                 "DRIFT": "drift", "MOTOR_FAILURE": "motor_failure"}, type=str)
+"""``EventKind`` as it was, kept for one release (0.6.0 removed it: the engine lists no kind)."""
+
+
+def __getattr__(name: str) -> Any:
+    """``EventKind``, deprecated: the built-in kinds' names as an enum, for one more release.
+
+    An event's ``kind`` is its registered name, a plain ``str`` (``event.kind == "hover"``); what a
+    plugin needs to know of a kind is a property the kind declares (``event.behaviour.failure``,
+    ``.motion``, ``.stays_where_failed``, ``.rotor_fault``)."""
+    if name != "EventKind":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import warnings
+
+    warnings.warn("swarmscene.plugin.EventKind is deprecated: an event's kind is its registered name, a str "
+                  "(event.kind == 'hover'); read what a kind does from event.behaviour (failure, motion, "
+                  "stays_where_failed, rotor_fault)", SwarmsceneDeprecationWarning, stacklevel=2)
+    return _EventKind

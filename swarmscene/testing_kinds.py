@@ -295,12 +295,12 @@ def _disturbance_metrics(s: Subject) -> None:
 
 # -- event kinds ---------------------------------------------------------------------------------
 class _OneKind:
-    """A registry holding the built-in event kinds and one more (what a scenario validates against)."""
+    """A registry holding the installed event kinds and one more (what a scenario validates against)."""
 
     def __init__(self, cls: type[EventKindPlugin]) -> None:
-        from .core.events import BUILTIN_EVENT_KINDS
+        from .core.registry import installed_registry
 
-        self.classes = {"event": {**BUILTIN_EVENT_KINDS, cls.name: cls}}
+        self.classes = {"event": {**installed_registry().classes["event"], cls.name: cls}}
 
     def names(self, kind: str) -> list[str]:
         return sorted(self.classes[kind])
@@ -352,9 +352,14 @@ def _event_own_keys(s: Subject) -> None:
 
 @promise("event", "declares")
 def _event_declares(s: Subject) -> None:
-    """``failure`` is True or False and ``motion`` a :class:`Motion`."""
-    assert isinstance(s.cls.failure, bool), f"{s.name}: failure must be True or False (got {s.cls.failure!r})"
+    """``failure``, ``stays_where_failed`` and ``rotor_fault`` are True or False, ``motion`` a
+    :class:`Motion`; a ``rotor_fault`` kind's ``Params`` have ``rotor`` and ``fraction``."""
+    for flag in ("failure", "stays_where_failed", "rotor_fault"):
+        value = getattr(s.cls, flag)
+        assert isinstance(value, bool), f"{s.name}: {flag} must be True or False (got {value!r})"
     assert isinstance(s.cls.motion, Motion), f"{s.name}: motion must be a Motion (got {s.cls.motion!r})"
+    missing = sorted({"rotor", "fraction"} - set(s.cls.Params.model_fields)) if s.cls.rotor_fault else []
+    assert not missing, f"{s.name}: a rotor_fault kind's Params need {missing} (a dynamics model reads them)"
 
 
 @promise("event", "record_round_trip")

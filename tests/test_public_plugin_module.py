@@ -38,10 +38,9 @@ def test_templates_and_the_packaged_example_import_only_the_public_module(path):
     assert ours == {"swarmscene.plugin"}
 
 
-PUBLIC_API_KINDS = ("formation", "avoidance", "dynamics", "policy", "observer")
-"""The kinds whose built-ins are worked examples of the public API (issue #35). The disturbance,
-event and generator folders still register classes whose numerics live in core/ (the kernel's
-phases call them); they join this list when those classes move into their plugin folders."""
+PUBLIC_API_KINDS = ("formation", "avoidance", "dynamics", "policy", "observer", "event", "generator", "disturbance")
+"""The kinds whose built-ins are worked examples of the public API (issue #35): every kind, now that
+the event kinds and disturbance models sit in their plugin folders (their numerics in methods/)."""
 
 
 @pytest.mark.parametrize(

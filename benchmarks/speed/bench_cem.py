@@ -29,12 +29,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from swarmscene.core.events import Event, EventKind  # noqa: E402
 from swarmscene.core.plugin import BuildContext  # noqa: E402
 from swarmscene.core.setpoint import Mode, Setpoints  # noqa: E402
 from swarmscene.core.state import WorldState  # noqa: E402
 from swarmscene.methods.cem.flow import CEMNavigator  # noqa: E402
 from swarmscene.plugins.avoidance.cem import CEM  # noqa: E402
+from swarmscene.plugins.event.hover import Hover  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 from oracles.cem import NumpyNavigator  # noqa: E402  (the NumPy step the kernel replaced)
@@ -67,7 +67,7 @@ def plugin_step(ticks: int, K: int = 2):
                        clearance_limit=0.0, comm_range=50.0, environment=None, rng=np.random.default_rng(1),
                        initial=world)
     plugin = CEM(CEM.Params(K=K, handback_distance=1e6, direction=0.0), ctx)
-    ev = Event(at=0.0, agents=(0,), kind=EventKind.HOVER)
+    ev = Hover.event(0.0, (0,))
     ev.apply(world)
     plugin.swarmscene_event(sim=type("Sim", (), {"world": world})(), event=ev)
     sp = Setpoints.hold(world.pos)

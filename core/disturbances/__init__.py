@@ -18,9 +18,13 @@ Where in the tick (``Simulation.step``)::
                     summed into ``world.force``, integrated with the step
     -> hold, raised events (a battery run down), floor, wrap, finite check, observers   on the truth
 
-Models are registered plugins (hook ``swarmscene_register_disturbances``): the built-in classes
-are here and in this package's modules (the phases below call them), registered by
-``plugins/disturbance/``; a package adds its own the same way, and validation reads the registry.
+Models are registered plugins (hook ``swarmscene_register_disturbances``): the built-in ones are
+plugins like a package's (``plugins/disturbance/``, their numerics in
+:mod:`swarmscene.methods.disturbances` and :mod:`swarmscene.methods.physics`), and validation
+reads the registry. The engine keeps the contract (:mod:`.base`), the phases (:class:`Disturbances`)
+and the broadcast channel (:mod:`.channel`), and names no model: what it needs of one is a method
+or an option the model declares (the channel's ``delays``/``lost``, ``channel_ticks``, a wind
+model's ``moment_arm``).
 
 Composition: ``swarmscene disturbances=[dryden,gps]`` (Hydra's list selection of one group);
 options ``disturbances.dryden.speed=8``. With none declared the kernel takes none of these phases'
@@ -38,17 +42,9 @@ from ..errors import ConfigError
 from ..markers import hookimpl  # not ..hookspecs: it names this package's base (an import circle)
 from ..state import WorldState
 from .base import PHASES, Disturbance, DisturbanceContext, DisturbanceParams, model_rng
-from .comm import MODELS as _COMM
-from .comm import ChannelModels, DelayModel, LossModel
-from .noise import MODELS as _NOISE
-from .wind import MODELS as _WIND
+from .channel import ChannelModels, DelayModel, LossModel
 
-__all__ = ["BUILTIN_MODELS", "Disturbance", "DisturbanceParams", "Disturbances", "Perceived",
-           "PHASES"]
-
-BUILTIN_MODELS: tuple[type[Disturbance], ...] = (*_WIND, *_NOISE, *_COMM)
-"""The built-in models' classes (their numerics live here; ``plugins/disturbance/`` registers each
-through ``swarmscene_register_disturbances``, like a third-party model)."""
+__all__ = ["Disturbance", "DisturbanceParams", "Disturbances", "Perceived", "PHASES"]
 
 
 # The phase methods (Disturbance's docstring): a model declares the one of its phase, which the
@@ -166,7 +162,7 @@ class Disturbances:
 
     def link_delay(self) -> Any:
         """``hops (N, N) -> ticks (N, N)``: the declared delay models per link, summed (-1 where
-        unreachable); ``None`` when no ``comm_delay`` is declared (``BuildContext.link_delay``)."""
+        unreachable); ``None`` when no model offers ``link_delay`` (``BuildContext.link_delay``)."""
         models: list[Any] = [m for m in self.by_phase["communicate"] if _has(m, "link_delay")]
         if not models:
             return None
@@ -180,7 +176,7 @@ class Disturbances:
 
     def link_loss(self) -> Any:
         """``(world, sensing) -> lost (N, N) bool``: the declared loss models per link and tick
-        (a message lost by any is lost); ``None`` when no ``packet_loss`` is declared
+        (a message lost by any is lost); ``None`` when no model offers ``link_lost``
         (``BuildContext.link_loss``)."""
         models: list[Any] = [m for m in self.by_phase["communicate"] if _has(m, "link_lost")]
         if not models:
@@ -317,3 +313,22 @@ def _view(world: WorldState, pos: np.ndarray, vel: np.ndarray) -> WorldState:
     return WorldState(t=world.t, pos=pos, vel=vel, healthy=world.healthy, comm_ok=world.comm_ok,
                       role=world.role, quat=world.quat, omega=world.omega,
                       rotor_speed=world.rotor_speed, acc=world.acc)
+
+
+_MOVED = {"ConstantWind": "swarmscene.plugins.disturbance.constant_wind", "Gust": "swarmscene.plugins.disturbance.gust",
+          "Dryden": "swarmscene.plugins.disturbance.dryden",
+          "SensingNoise": "swarmscene.plugins.disturbance.sensing_noise",
+          "CommDelay": "swarmscene.plugins.disturbance.comm_delay",
+          "PacketLoss": "swarmscene.plugins.disturbance.packet_loss"}
+"""The built-in models' classes, moved to their plugin modules in 0.6.0 (the engine imports no plugin)."""
+
+
+def __getattr__(name: str) -> Any:
+    """One line naming where a name that left this package went (0.6.0)."""
+    if name in _MOVED:
+        raise ImportError(f"swarmscene.core.disturbances.{name} moved to {_MOVED[name]} (a plugin; the engine "
+                          "holds no built-in disturbance model)")
+    if name == "BUILTIN_MODELS":
+        raise ImportError("swarmscene.core.disturbances.BUILTIN_MODELS was removed in 0.6.0: the models are the "
+                          "registry's (registry.classes['disturbance'], swarmscene.core.registry.installed_registry())")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

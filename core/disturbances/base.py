@@ -82,8 +82,9 @@ class Disturbance:
     force:        ``force(world, t) -> (N, 3)``: a force per unit mass on each vehicle, m/s^2,
                   world frame, for the physics step starting at ``t`` (summed over the force
                   models; the dynamics integrates it, ``Dynamics.force_coupling``).
-    A communicate model joins the broadcast channel by its methods (core/disturbances/comm.py):
-    ``delays(world, sensing) -> (N,) ticks`` with ``max_ticks``, and/or
+    A communicate model joins the broadcast channel by its methods (core/disturbances/channel.py):
+    ``delays(world, sensing) -> (N,) ticks`` with ``max_ticks`` (and, so that validation bounds the
+    channel's memory before the run, the classmethod :meth:`channel_ticks`), and/or
     ``lost(world, sensing) -> (N,) bool``; and the per-link layer with
     ``link_delay(hops) -> (N, N) ticks`` and/or ``link_lost(world) -> (N, N) bool``. One with none
     of them is a relay: ``communicate(world, pos, vel)`` after the channel.
@@ -95,6 +96,9 @@ class Disturbance:
     kind: ClassVar[str]
     phase: ClassVar[str]
     Params: ClassVar[type[DisturbanceParams]] = DisturbanceParams
+    delay_option: ClassVar[str | None] = None
+    """The option that lengthens the model's delays (``tau`` of ``comm_delay``), named in the error
+    when the channel would keep too many ticks of messages (None: the model's key is named)."""
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -110,6 +114,14 @@ class Disturbance:
         self.params = params
         self.ctx = ctx
         self.rng = ctx.rng
+
+    @classmethod
+    def channel_ticks(cls, params: Any, n: int, guidance_period: float) -> int:
+        """The longest delay, in guidance ticks, this model may put on a broadcast message, from its
+        options alone (``n`` agents, tick ``guidance_period`` s): the channel keeps that many ticks
+        of messages, and validation refuses a scenario whose channel would not fit in memory
+        (0, the default: the model delays nothing, or what it delays is not bounded in advance)."""
+        return 0
 
     def metrics(self) -> dict[str, Any]:
         """The model's own metrics, keys without prefix (none by default)."""

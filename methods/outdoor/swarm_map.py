@@ -25,7 +25,7 @@ Choices where the text is loose:
   a message in flight to an agent that has just been cut off is lost.
 - Expiry: an entry is present while its age k - stamp is at most T_msg / T_s ticks.
 
-The per-link delays are the engine's delay model (:mod:`swarmscene.core.disturbances.links`,
+The per-link delays are the engine's delay model (:mod:`swarmscene.methods.disturbances.links`,
 ``hop_delay_ticks``: the same ceil(h tau_com / T_s)), or the scenario's declared ``comm_delay``
 disturbance when the plugin is given one (``link_delay``).
 """
@@ -38,7 +38,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy  # scipy.sparse and scipy.spatial load on first use (start-up of unrelated runs)
 
-from swarmscene.core.disturbances.links import hop_delay_ticks
+from swarmscene.methods.disturbances.links import hop_delay_ticks
 from swarmscene.methods.outdoor.apf_navigation import LEVEL_BAND, collision_gain
 
 NO_ENTRY = -1

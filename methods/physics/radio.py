@@ -12,7 +12,7 @@ non-coherent FSK):
     PRR(d) = (1 - p_b)^(8 L)                          a frame of L bytes arrives whole
 
 Bursts: each link (or, in the shared picture, each sender) is a Gilbert-Elliott chain
-(core/disturbances/links.py): in the bad state every message is lost, in the good one a message
+(:mod:`swarmscene.methods.disturbances.links`): in the bad state every message is lost, in the good one a message
 is lost with probability 1 - PRR(d). Beyond ``range`` every message is lost.
 
 Crazyflie-class parameters: P_t = 0 dBm (the Crazyflie 2.x nRF51822's default transmit power);

@@ -130,7 +130,6 @@ from swarmscene.plugin import (
     Avoidance,
     BuildContext,
     Event,
-    EventKind,
     PluginParams,
     Setpoints,
     WorldState,
@@ -224,7 +223,7 @@ class CEM(Avoidance):
         vehicle holds its position) does not hold for them, so CEM does not model them; they are
         still failed (``healthy`` False) for every other method and for the monitors.
         """
-        if event.kind in (EventKind.HOVER, EventKind.MOTOR_FAILURE):
+        if event.behaviour.stays_where_failed:  # hover, motor_failure: the kind says so
             self.mode.fail(event.agents, sim.world)
 
     def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:

@@ -21,7 +21,9 @@ class MyDisturbance(Disturbance):
 
     name = "my_disturbance"
     # sense: each agent's estimate of itself; communicate: what the others receive of it;
-    # wind: the air's velocity at each agent, each physics step (method air(world, t) -> (N, 3)).
+    # wind: the air's velocity at each agent, each physics step (method air(world, t) -> (N, 3));
+    # force: any other force per mass, each physics step (method force(world, t) -> (N, 3), m/s^2).
+    # The built-ins (plugins/disturbance/*.py) are worked examples of each phase.
     phase = "sense"
 
     class Params(DisturbanceParams):

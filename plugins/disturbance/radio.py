@@ -2,8 +2,8 @@
 
 Numerics and sources: :mod:`swarmscene.methods.physics.radio` (log-distance path loss and the
 packet reception rate of FSK, Zuniga and Krishnamachari 2004) over Gilbert-Elliott chains
-(core/disturbances/links.py). A communicate phase model that joins the engine's link layer as a
-delay and loss model (core/disturbances/comm.py):
+(:mod:`swarmscene.methods.disturbances.links`). A communicate phase model that joins the engine's
+broadcast channel and link layer as a delay and loss model (core/disturbances/channel.py):
 
 * the shared picture (what formation and avoidance read): each sender's broadcast of a tick is
   lost when its chain is bad, or with probability 1 - PRR(d) at the distance d to its nearest
@@ -24,7 +24,7 @@ import math
 import numpy as np
 from pydantic import Field
 
-from swarmscene.core.disturbances import links
+from swarmscene.methods.disturbances import links
 from swarmscene.methods.physics import radio
 from swarmscene.plugin import Disturbance, DisturbanceParams, hookimpl
 

@@ -226,8 +226,9 @@ class Quadrotor(Dynamics):
 
     @hookimpl
     def swarmscene_event(self, sim, event) -> None:
-        """A ``motor_failure``: rotor ``event.rotor`` of the event's agents keeps ``event.fraction``."""
-        if getattr(event.kind, "value", event.kind) != "motor_failure":
+        """A rotor fault (a kind declaring ``rotor_fault``: ``motor_failure``): rotor ``event.rotor``
+        of the event's agents keeps ``event.fraction`` of its thrust."""
+        if not event.behaviour.rotor_fault:
             return
         if self.rotor_health is None:
             self.rotor_health = np.ones((sim.world.n, 4))

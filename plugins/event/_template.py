@@ -19,6 +19,8 @@ class MyEventKind(EventKindPlugin):
     name = "my_event"
     failure = True  # healthy drops (False: only the radio is lost, comm_ok drops)
     motion = Motion.COAST  # after the dynamics: HOLD (stays), COAST (constant velocity), DYNAMICS
+    stays_where_failed = False  # True: it stays about where it failed (an avoidance may take it as fixed)
+    rotor_fault = False  # True: Params have rotor and fraction, which a dynamics model with rotors applies
 
     class Params(EventParams):  # the event's own keys beside at, agents, kind
         keep: float = Field(0.5, ge=0, le=1, description="the fraction of its velocity it keeps")

@@ -1,9 +1,17 @@
-"""The ``comm_loss`` event kind: registered here; its semantics in :mod:`swarmscene.core.events`
-(the motions :class:`~swarmscene.core.events.EventQueue` applies are the kernel's, so the class
-lives in core)."""
+"""The ``comm_loss`` event kind: the agent's radio fails (``comm_ok`` False); it flies on.
 
-from swarmscene.core.events import CommLoss
-from swarmscene.plugin import hookimpl
+It leaves the communication graph but keeps flying on its last information; it is no failure
+(``healthy`` stays).
+"""
+
+from swarmscene.plugin import EventKindPlugin, hookimpl
+
+
+class CommLoss(EventKindPlugin):
+    """Radio lost: leaves the communication graph, keeps flying on its last information."""
+
+    name = "comm_loss"
+    failure = False
 
 
 @hookimpl

@@ -1,9 +1,24 @@
-"""The ``hover`` event kind: registered here; its semantics in :mod:`swarmscene.core.events`
-(the motions :class:`~swarmscene.core.events.EventQueue` applies are the kernel's, so the class
-lives in core)."""
+"""The ``hover`` event kind: an abrupt failure; the vehicle stops where it is and stays there.
 
-from swarmscene.core.events import Hover
-from swarmscene.plugin import hookimpl
+It stays for the rest of the run, a physical obstacle (the CEM paper's failure model, its
+Assumption 3).
+"""
+
+from swarmscene.plugin import EventKindPlugin, Motion, hookimpl
+
+
+class Hover(EventKindPlugin):
+    """Abrupt failure: stops where it is and stays (the CEM paper's failure model)."""
+
+    name = "hover"
+    motion = Motion.HOLD
+    stays_where_failed = True
+
+    @classmethod
+    def apply(cls, event, world, idx):
+        """Hover: the agent fails and stops where it is (velocity zero, held by the queue)."""
+        super().apply(event, world, idx)
+        world.vel[idx] = 0.0
 
 
 @hookimpl

@@ -1,9 +1,17 @@
-"""The ``stuck`` event kind: registered here; its semantics in :mod:`swarmscene.core.events`
-(the motions :class:`~swarmscene.core.events.EventQueue` applies are the kernel's, so the class
-lives in core)."""
+"""The ``stuck`` event kind: the vehicle no longer responds and keeps its velocity (a fly-away).
 
-from swarmscene.core.events import Stuck
-from swarmscene.plugin import hookimpl
+p(t) = p(t_f) + v(t_f) (t - t_f): the "stuck-at" / lock-in-place fault of the fault-tolerant-control
+taxonomy, applied to the velocity command.
+"""
+
+from swarmscene.plugin import EventKindPlugin, Motion, hookimpl
+
+
+class Stuck(EventKindPlugin):
+    """No longer responds: keeps the velocity it had at the event (a fly-away)."""
+
+    name = "stuck"
+    motion = Motion.COAST  # at the velocity apply() leaves: its own, unchanged
 
 
 @hookimpl

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from swarmscene import api
-from swarmscene.core.disturbances import links
 from swarmscene.core.setpoint import Setpoints
+from swarmscene.methods.disturbances import links
 
 # -- numerics ----------------------------------------------------------------------------------
 

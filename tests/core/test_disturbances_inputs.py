@@ -8,11 +8,16 @@ import copy
 import pytest
 
 from swarmscene import api
-from swarmscene.core.disturbances import BUILTIN_MODELS
 from swarmscene.core.errors import ConfigError
+from swarmscene.plugins.disturbance.comm_delay import CommDelay
+from swarmscene.plugins.disturbance.constant_wind import ConstantWind
+from swarmscene.plugins.disturbance.dryden import Dryden
+from swarmscene.plugins.disturbance.gust import Gust
+from swarmscene.plugins.disturbance.packet_loss import PacketLoss
+from swarmscene.plugins.disturbance.sensing_noise import SensingNoise
 
 VALUES = [0, -0.0, -1, 1e308, 5e-324, float("nan"), float("inf"), True, None, "x"]
-MODELS = {m.name: m for m in BUILTIN_MODELS}
+MODELS = {m.name: m for m in (ConstantWind, Gust, Dryden, SensingNoise, CommDelay, PacketLoss)}
 CASES = [(kind, name) for kind, cls in MODELS.items() for name in cls.Params.model_fields]
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from swarmscene.core.disturbances.atmosphere import (
+from swarmscene.methods.disturbances.atmosphere import (
     FT,
     DrydenFilters,
     dryden_psd,

@@ -10,9 +10,17 @@ from scipy import stats
 from swarmscene import api
 from swarmscene.core.config import ScenarioConfig
 from swarmscene.core.errors import ConfigError
-from swarmscene.core.events import Event, EventConfig, EventKind, EventQueue, check_events, draw_event
+from swarmscene.core.events import Event, EventConfig, EventQueue, check_events, draw_event
 from swarmscene.core.hookspecs import hookimpl
+from swarmscene.core.registry import installed_registry
 from swarmscene.core.state import WorldState
+from swarmscene.plugins.event.drift import Drift
+from swarmscene.plugins.event.hover import Hover
+from swarmscene.plugins.event.motor_failure import MotorFailure
+from swarmscene.plugins.event.stuck import Stuck
+
+INSTALLED = {"registry": installed_registry()}
+"""The context a scenario validates in (the installed plugins' event kinds)."""
 
 
 def scenario(data: dict, events: list[dict], duration: float = 3.0) -> dict:
@@ -57,7 +65,7 @@ def test_stuck_vehicle_flies_on_at_its_last_velocity(data):
     expected = p_f + v_f * (traj["t"][later] - 1.0)[:, None]
     np.testing.assert_allclose(traj["pos"][later, 2], expected, rtol=0, atol=1e-12)
     assert np.all(traj["vel"][later, 2] == v_f)
-    assert [(t, e.kind, e.agents, bool(h[2])) for t, e, h in seen] == [(1.0, EventKind.STUCK, (2,), False)]
+    assert [(t, e.kind, e.agents, bool(h[2])) for t, e, h in seen] == [(1.0, "stuck", (2,), False)]
     assert not traj["healthy"][-1, 2] and result.metrics["healthy_at_end"] == 4
 
 
@@ -72,7 +80,7 @@ def test_drift_vehicle_moves_at_the_drift_velocity(data):
     np.testing.assert_allclose(traj["pos"][later, 1], p_f + np.outer(traj["t"][later] - 0.5, v_d),
                                rtol=0, atol=1e-12)
     assert np.all(traj["vel"][later, 1] == v_d)
-    assert seen[0][1].kind is EventKind.DRIFT and not seen[0][2][1]
+    assert seen[0][1].kind == "drift" and not seen[0][2][1]
 
 
 def test_hover_holds_only_its_agents_and_motor_failure_is_left_to_the_dynamics(data):
@@ -87,23 +95,24 @@ def test_hover_holds_only_its_agents_and_motor_failure_is_left_to_the_dynamics(d
     assert np.all(traj["pos"][k:, 0] == traj["pos"][k, 0]) and np.all(traj["vel"][k + 1:, 0] == 0)
     moved = np.linalg.norm(traj["pos"][k + 1:, 3] - traj["pos"][k, 3], axis=1)
     assert moved.max() > 1e-3  # the quadrotor loses thrust: it is not frozen by the queue
-    motor = [e for _, e, h in seen if e.kind is EventKind.MOTOR_FAILURE]
-    assert motor == [Event(1.0, (3,), EventKind.MOTOR_FAILURE, rotor=2, fraction=0.5)]
-    assert all(not h[3] for _, e, h in seen if e.kind is EventKind.MOTOR_FAILURE)
+    motor = [e for _, e, h in seen if e.kind == "motor_failure"]
+    assert motor == [MotorFailure.event(1.0, (3,), rotor=2, fraction=0.5)]
+    assert all(not h[3] for _, e, h in seen if e.kind == "motor_failure")
     assert not traj["healthy"][-1, [0, 3]].any()
 
 
 def test_motor_failure_without_fraction_kills_the_rotor():
-    config = EventConfig(at=2.0, agents=[1], kind="motor_failure", rotor=0)
-    expected = Event(2.0, (1,), EventKind.MOTOR_FAILURE, rotor=0, fraction=0.0)
+    config = EventConfig.model_validate({"at": 2.0, "agents": [1], "kind": "motor_failure", "rotor": 0},
+                                        context=INSTALLED)
+    expected = MotorFailure.event(2.0, (1,), rotor=0, fraction=0.0)
     assert draw_event(config, 0, 4, seed=0) == expected
 
 
 def test_the_last_fault_of_an_agent_decides_its_motion():
     """A hovering agent that then drifts leaves its hover point; the hold is per agent."""
     world = WorldState.at_rest(np.zeros((2, 3)))
-    queue = EventQueue([Event(0.0, (0, 1), EventKind.HOVER),
-                        Event(0.2, (1,), EventKind.DRIFT, velocity=(1.0, 0.0, 0.0))], guidance_period=0.1)
+    queue = EventQueue([Hover.event(0.0, (0, 1)), Drift.event(0.2, (1,), velocity=(1.0, 0.0, 0.0))],
+                       guidance_period=0.1)
     for k in range(5):
         world.t = k * 0.1
         queue.apply_due(world)
@@ -116,12 +125,12 @@ def test_the_last_fault_of_an_agent_decides_its_motion():
 
 def test_coasting_needs_the_guidance_period():
     with pytest.raises(ValueError, match="guidance period"):
-        EventQueue([Event(1.0, (0,), EventKind.STUCK)])
+        EventQueue([Stuck.event(1.0, (0,))])
 
 
 # -- random events -------------------------------------------------------------------------------
 def draws(event: dict, seeds, n: int = 6) -> list[Event]:
-    config = EventConfig.model_validate(event)
+    config = EventConfig.model_validate(event, context=INSTALLED)
     return [draw_event(config, 0, n, seed) for seed in seeds]
 
 
@@ -164,7 +173,7 @@ def test_same_seed_same_draw_and_each_event_its_own_stream():
     a, b = draws(event, [7, 7], n=50)
     assert a == b
     assert draws(event, [8], n=50)[0] != a
-    config = EventConfig.model_validate(event)
+    config = EventConfig.model_validate(event, context=INSTALLED)
     # The event's draw depends on its own index, not on the events before it.
     assert draw_event(config, 1, 50, 7) != a and draw_event(config, 0, 50, 7) == a
 
@@ -189,7 +198,7 @@ def test_only_drawn_events_are_reported():
         "swarm": {"n": 4}, "formation": {"name": "a"}, "avoidance": {"name": "b"}, "dynamics": {"name": "c"},
         "events": [{"at": 1.0, "agents": [0], "kind": "hover"},
                    {"at": 2.0, "agents": {"sample": 1, "among": [2]}, "kind": "hover"}],
-    })
+    }, context=INSTALLED)
     assert EventQueue.from_scenario(config).metrics() == {"events.1.at": 2.0, "events.1.agents": [2]}
 
 
@@ -257,6 +266,6 @@ def test_bad_events_give_one_line_naming_the_key(data, event, line):
 
 def test_check_events_accepts_a_pool_with_repeats():
     pool = {"sample": 2, "among": [1, 1, 2]}
-    config = EventConfig.model_validate({"at": 1, "agents": pool, "kind": "hover"})
+    config = EventConfig.model_validate({"at": 1, "agents": pool, "kind": "hover"}, context=INSTALLED)
     assert check_events([config], 3) == []
     assert draw_event(config, 0, 3, 0).agents == (1, 2)

@@ -85,7 +85,7 @@ def test_hover_failure_holds_position_and_is_seen_by_plugins(data):
     class Listener:
         @hookimpl
         def swarmscene_event(self, sim, event):
-            seen.append((round(sim.world.t, 6), event.agents, event.kind.value, bool(sim.world.healthy[2])))
+            seen.append((round(sim.world.t, 6), event.agents, event.kind, bool(sim.world.healthy[2])))
 
     sim.pm.register(Listener())
     result = sim.run()

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from oracles.quadrotor import QuadrotorOracle, desired_force, flat_state
 
-from swarmscene.core.events import Event, EventKind
 from swarmscene.core.plugin import BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.methods.quadrotor.model import AIRFRAMES
 from swarmscene.plugins.dynamics.quadrotor import Quadrotor
+from swarmscene.plugins.event.motor_failure import MotorFailure
 
 T_S = 0.1
 PHYSICS = 1.0 / 240.0
@@ -82,8 +82,7 @@ def fail_rotors(rng, dyns, worlds):
     n = worlds[0].n
     for agents, rotor, fraction in ((rng.choice(n, 3, replace=False), 0, 0.0),
                                     (rng.choice(n, 3, replace=False), 2, 0.4)):
-        event = Event(0.0, tuple(int(a) for a in agents), EventKind.MOTOR_FAILURE, rotor=rotor,
-                      fraction=fraction)
+        event = MotorFailure.event(0.0, tuple(int(a) for a in agents), rotor=rotor, fraction=fraction)
         for dyn, world in zip(dyns, worlds, strict=True):
             dyn.swarmscene_event(sim=SimpleNamespace(world=world), event=event)
 
@@ -170,7 +169,7 @@ def test_ten_second_flights_agree():
     worst = np.zeros(n)
     for k in range(100):
         if k == 40:
-            event = Event(4.0, (3, 17), EventKind.MOTOR_FAILURE, rotor=1, fraction=0.0)
+            event = MotorFailure.event(4.0, (3, 17), rotor=1, fraction=0.0)
             for dyn, world in ((dk, wk), (do, wo)):
                 world.healthy[[3, 17]] = False
                 dyn.swarmscene_event(sim=SimpleNamespace(world=world), event=event)

@@ -14,13 +14,18 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from swarmscene.core.events import Event, EventKind
+from swarmscene.core.events import Event
 from swarmscene.core.plugin import BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.methods.cem.mode import failure_strengths
 from swarmscene.plugins.avoidance import cem as cem_module
 from swarmscene.plugins.avoidance.cem import CEM
+from swarmscene.plugins.event.comm_loss import CommLoss
+from swarmscene.plugins.event.drift import Drift
+from swarmscene.plugins.event.hover import Hover
+from swarmscene.plugins.event.motor_failure import MotorFailure
+from swarmscene.plugins.event.stuck import Stuck
 
 DT = 0.01
 ALT = 2.0
@@ -80,7 +85,7 @@ def fly(plugin: CEM, world: WorldState, sim, ticks: int, events: dict[int, list[
 
 
 def hover(at_tick: int, *agents: int) -> Event:
-    return Event(at=at_tick * DT, agents=tuple(agents), kind=EventKind.HOVER)
+    return Hover.event(at_tick * DT, tuple(agents))
 
 
 # ---- params and registration ---------------------------------------------------------------------
@@ -115,7 +120,7 @@ def test_inactive_passes_setpoints_through_and_comm_loss_does_not_activate():
     plugin, world, sim = build(six_vehicle_positions())
     sp = formation(world)
     assert plugin.adjust(world, None, sp) is sp
-    ev = Event(at=0.0, agents=(0,), kind=EventKind.COMM_LOSS)
+    ev = CommLoss.event(0.0, (0,))
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
     assert not plugin.mode.active and plugin.adjust(world, None, sp) is sp
@@ -124,14 +129,14 @@ def test_inactive_passes_setpoints_through_and_comm_loss_does_not_activate():
 def test_motor_failure_activates_like_hover_but_moving_faults_do_not():
     """A vehicle that lost a rotor is a doublet at the point where it failed, as a hovering one;
     stuck and drifting vehicles break Assumption 3 (they move), so CEM leaves them out."""
-    for kind, extra in ((EventKind.STUCK, {}), (EventKind.DRIFT, {"velocity": (0.2, 0.0, 0.0)})):
+    for kind, extra in ((Stuck, {}), (Drift, {"velocity": (0.2, 0.0, 0.0)})):
         plugin, world, sim = build(six_vehicle_positions())
-        ev = Event(at=0.0, agents=(0,), kind=kind, **extra)
+        ev = kind.event(0.0, (0,), **extra)
         ev.apply(world)
         plugin.swarmscene_event(sim=sim, event=ev)
         assert not plugin.mode.active and plugin.mode.failed == {}
     plugin, world, sim = build(six_vehicle_positions())
-    ev = Event(at=0.0, agents=(0,), kind=EventKind.MOTOR_FAILURE, rotor=2, fraction=0.0)
+    ev = MotorFailure.event(0.0, (0,), rotor=2, fraction=0.0)
     ev.apply(world)
     plugin.swarmscene_event(sim=sim, event=ev)
     assert plugin.mode.active and list(plugin.mode.failed) == [0]

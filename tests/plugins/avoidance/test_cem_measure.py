@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from oracles.cem import numpy_measure
 
-from swarmscene.core.events import Event, EventKind
 from swarmscene.core.plugin import BuildContext
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 from swarmscene.plugins.avoidance.cem import CEM
+from swarmscene.plugins.event.hover import Hover
 
 DT = 0.01
 
@@ -34,7 +34,7 @@ def test_compiled_measurements_equal_the_numpy_ones_tick_by_tick(rule):
     checked = 0
     for k in range(600):
         for agent in events.get(k, ()):
-            ev = Event(at=k * DT, agents=(agent,), kind=EventKind.HOVER)
+            ev = Hover.event(k * DT, (agent,))
             ev.apply(world)
             plugin.swarmscene_event(sim=sim, event=ev)
         sp = Setpoints.hold(world.pos)
@@ -47,7 +47,7 @@ def test_compiled_measurements_equal_the_numpy_ones_tick_by_tick(rule):
                                                            np.zeros(live.sum())])
         world.vel[live] = out.vel[live] * noise.uniform(0.9, 1.1, (live.sum(), 1))
         if k == 300:  # an agent under CEM fails between the command and the measurement
-            Event(at=k * DT, agents=(10,), kind=EventKind.HOVER).apply(world)
+            Hover.event(k * DT, (10,)).apply(world)
         if not plugin.mode._commanded:
             plugin.swarmscene_step_end(sim=sim)
             continue

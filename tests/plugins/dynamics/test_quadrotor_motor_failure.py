@@ -7,9 +7,9 @@ import pytest
 
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
-from swarmscene.core.events import Event, EventKind
 from swarmscene.core.setpoint import Setpoints
 from swarmscene.methods.quadrotor.model import GRAVITY
+from swarmscene.plugins.event.comm_loss import CommLoss
 
 
 def hover(data: dict, events: list, duration: float = 3.0, **clock):
@@ -88,5 +88,5 @@ def test_motor_failure_needs_a_rotor_the_dynamics_has(data, dynamics, event, lin
 
 def test_other_events_leave_the_rotors_alone(data):
     sim, _ = hover(data, [], duration=0.5)
-    sim.dynamics.swarmscene_event(sim=sim, event=Event(0.0, (0,), EventKind.COMM_LOSS))
+    sim.dynamics.swarmscene_event(sim=sim, event=CommLoss.event(0.0, (0,)))
     assert sim.dynamics.rotor_health is None

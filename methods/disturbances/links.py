@@ -95,3 +95,16 @@ class GilbertElliott:
         self.bad = np.where(self.bad, u >= self.p_bg, u < self.p_gb)
         p = np.where(self.bad, self.loss_bad, self.loss_good)
         return self.rng.random(self.bad.shape) < p
+
+
+MAX_DELAY = 60.0
+"""s: the longest delay the ``comm_delay`` model accepts, and the most the channel keeps of its messages."""
+
+
+def max_delay_ticks(model: str, tau: float, jitter: float, n: int, T_s: float) -> int:
+    """The longest delay a ``comm_delay`` model of ``model`` (fixed, hops, random) puts on a message,
+    ticks: fixed tau; hops (n - 1) tau (the mean over receivers is at most that); random
+    tau + 10 jitter (P(X > 10 jitter) = e^-10: rarer, longer delays are cut to it); never more than
+    :data:`MAX_DELAY`."""
+    span = {"fixed": tau, "hops": max(n - 1, 1) * tau, "random": tau + 10.0 * jitter}[model]
+    return fixed_delay_ticks(min(span, MAX_DELAY), T_s)

@@ -26,7 +26,7 @@ are discretised exactly (matrix exponential; noise covariance Q = P - Phi P Phi^
 stationary covariance P), so a series sampled at any step has exactly the filter's variance and
 autocorrelation; only the spectrum's aliasing above the Nyquist frequency differs from the
 continuous one. Everything is vectorised over agents: each agent (or the whole swarm, see the
-``wind`` disturbance models) carries its own filter state.
+``dryden`` disturbance model, ``plugins/disturbance/dryden.py``) carries its own filter state.
 
 Choices where the standards leave room, for a hovering multirotor:
 * V is the vehicle's speed through the air mass (|v - w_mean|), at least ``MIN_AIRSPEED``: a
