@@ -12,17 +12,14 @@ by grep when it was introduced): ``world``, ``sensing``, ``environment``, ``conf
 counters, ``has_attitude`` and :meth:`RunView.request_stop`. Reading is free of copies: ``world``
 is the live :class:`~swarmscene.core.state.WorldState`, read-only by contract (copying it every
 tick would cost more than most observers; ``swarmscene.testing.check_observer`` refuses an
-observer that moves an agent). Setting an attribute of the view raises. Reading any other
-attribute of the simulation (``sim.formation``, ``sim.pm``) still works in this release, with a
-DeprecationWarning naming it; the next minor release refuses it.
+observer that moves an agent). Setting an attribute of the view raises, and so does reading any
+other attribute of the simulation (``sim.formation``, ``sim.pm``): an AttributeError naming it and
+what the view holds (0.4.0 and 0.5.0 read it through with a DeprecationWarning; 0.6.0 refuses it).
 """
 
 from __future__ import annotations
 
-import warnings
 from typing import TYPE_CHECKING, Any, NoReturn, Protocol
-
-from .errors import SwarmsceneDeprecationWarning
 
 if TYPE_CHECKING:
     from .config import ScenarioConfig
@@ -106,16 +103,15 @@ class RunView:
         """End the run after the current tick (e.g. the safety monitor on a collision)."""
         self._sim.request_stop(reason)
 
-    def __getattr__(self, name: str) -> Any:
-        """Another attribute of the simulation, for one release, with a DeprecationWarning."""
+    def __getattr__(self, name: str) -> NoReturn:
+        """Another attribute of the simulation: refused, in one line naming what the view holds."""
         if name.startswith("__"):
             raise AttributeError(name)
-        value = getattr(self._sim, name)
-        warnings.warn(
+        raise AttributeError(
             f"swarmscene: a hook read sim.{name}, which is not part of the run's view (world, sensing, "
-            "environment, config, t, step_count, total_steps, has_attitude, request_stop); the next "
-            "minor release refuses it", SwarmsceneDeprecationWarning, stacklevel=2)
-        return value
+            "environment, config, t, step_count, total_steps, has_attitude, request_stop); refused since "
+            "0.6.0: read what you need from the view, or take it at construction (a formation or an "
+            "avoidance method has its ctx)")
 
     def __setattr__(self, name: str, value: Any) -> NoReturn:
         raise AttributeError(f"a hook's view of the run is read-only (cannot set {name!r})")

@@ -271,14 +271,15 @@ def test_an_observer_hook_that_raises_is_named_with_its_hook(tmp_path):
 
 
 def test_a_deprecation_reaches_a_command_line_user_once(tmp_path):
-    """A hook reading a removed attribute of the run view every tick: the warning is shown, once."""
+    """A hook reading a deprecated name every tick (swarmscene.plugin.EventKind): the warning is shown, once."""
     plugin = tmp_path / "reader.py"
     plugin.write_text(
+        "from swarmscene import plugin\n"
         "from swarmscene.plugin import hookimpl\n"
         "class Reader:\n"
         "    def __init__(self, sim):\n        pass\n"
         "    @hookimpl\n"
-        "    def swarmscene_step_end(self, sim):\n        sim.formation\n"
+        "    def swarmscene_step_end(self, sim):\n        plugin.EventKind\n"
         "@hookimpl\n"
         "def swarmscene_register_observers(register):\n    register(Reader)\n")
     code = (f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
@@ -294,7 +295,7 @@ def test_a_deprecation_reaches_a_command_line_user_once(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code, "clock.duration=1", f"hydra.run.dir={tmp_path}/run"],
                           cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stderr.count("SwarmsceneDeprecationWarning: swarmscene: a hook read sim.formation") == 1, proc.stderr
+    assert proc.stderr.count("SwarmsceneDeprecationWarning: swarmscene.plugin.EventKind is deprecated") == 1, proc.stderr
 
 
 def test_a_sweep_preset_chosen_without_a_plus_gets_the_plus_hint(tmp_path):

@@ -81,9 +81,12 @@ def test_the_view_is_read_only_and_request_stop_reaches_the_run():
     assert sim.step_count == 0 and result.stop_reason == "a test asked"  # asked before the first tick
 
 
-def test_another_attribute_of_the_simulation_warns_for_one_release_and_a_missing_one_raises():
+def test_another_attribute_of_the_simulation_is_refused_in_one_line():
     sim = api.build(api.compose(["clock.duration=0.1"]))
-    with pytest.warns(DeprecationWarning, match=r"a hook read sim\.formation, which is not part of the run's view"):
-        assert sim.view.formation is sim.formation
-    with pytest.raises(AttributeError):
-        sim.view.no_such_thing  # noqa: B018 (the access is the test)
+    with pytest.raises(AttributeError, match=r"^swarmscene: a hook read sim\.formation, which is not part of the "
+                       r"run's view \(world, sensing, .*\); refused since 0\.6\.0: read what you need from the "
+                       r"view, or take it at construction") as raised:
+        sim.view.formation  # noqa: B018 (the access is the test)
+    assert "\n" not in str(raised.value)
+    with pytest.raises(AttributeError, match="sim.no_such_thing"):
+        sim.view.no_such_thing  # noqa: B018
