@@ -22,11 +22,11 @@ from typing import Any, cast
 from .builtins import BUILTIN_PLUGINS
 from .core.config import Scenario
 from .core.errors import ConfigError
-from .core.raised import PluginRaised, RunFailed
 from .core.registry import Registry, make_plugin_manager
 from .core.result import RunResult
 from .core.simulation import Simulation
 from .core.validation import validate
+from .runpath import utc_now, write_outputs  # noqa: F401 (write_outputs: part of the api, used by tests and tools)
 
 CONFIG_MODULE = "swarmscene.scenarios"
 CONFIG_NAME = "config"
@@ -141,6 +141,7 @@ def run(
     ``output.progress`` shows the progress line (``auto``: only on a terminal) unless ``progress``
     is given; ``output.summary`` prints the run's summary (set it false to keep a notebook quiet).
     """
+    from .runpath import fly, land
     from .summary import Progress, summary_text
 
     sim = build(config)
@@ -150,27 +151,17 @@ def run(
         if asked:
             raise ConfigError([f"{asked[0]}: writes files, so it needs a run directory: api.run(..., output_dir=...)"])
     writers = extra_writers(sim)
-    shown = Progress.maybe(output.progress) if progress is None else None
-    started_at = utc_now()
-    raised: PluginRaised | None = None
-    try:
-        result = sim.run(progress=progress or shown)
-    except PluginRaised as exc:  # what the run recorded is written, then the error is raised
-        result, raised = exc.result, exc
-    finally:
-        if shown is not None:
-            shown.close()
+    flight = fly(sim, progress or Progress.maybe(output.progress))
+    result = flight.result
     if output_dir is not None:
         run_dir = Path(output_dir)
-        extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
-        write_outputs(sim, result, run_dir, extras, started_at=started_at)
-        result.run_dir = run_dir
-        if result.error is not None:
+        failed = land(sim, flight, run_dir, writers)
+        if failed is not None:
             from .sweeps.records import record_failure
 
-            record_failure(run_dir, RunFailed.of(result, raised and raised.__cause__), sim.scenario.data)
-    if raised is not None:
-        raise raised
+            record_failure(run_dir, failed, sim.scenario.data)
+    if flight.raised is not None:
+        raise flight.raised
     if output.summary:
         print(summary_text(sim, result, result.run_dir))
     return result
@@ -220,13 +211,15 @@ def run_batch(
     outcomes = BatchSimulation(sims).run(progress)
     results = [outcome.result for outcome in outcomes]
     if output_dir is not None:
+        from .runpath import Flight, land
+
         for b, (sim, outcome) in enumerate(zip(sims, outcomes, strict=True)):
             run_dir = Path(output_dir) / str(b)
-            write_outputs(sim, outcome.result, run_dir, started_at=started_at)
-            if outcome.result.error is not None:
+            failed = land(sim, Flight(outcome.result, started_at, cause=outcome.failure), run_dir)
+            if failed is not None:
                 from .sweeps.records import record_failure
 
-                record_failure(run_dir, RunFailed.of(outcome.result, outcome.failure), sim.scenario.data)
+                record_failure(run_dir, failed, sim.scenario.data)
     return results
 
 
@@ -269,43 +262,6 @@ def _require(module: str, option: str, extra: str) -> None:
 
     if importlib.util.find_spec(module) is None:
         raise ConfigError([f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'"])
-
-
-def utc_now() -> str:
-    """The current time, UTC, ISO 8601 (the manifest's ``started_at``)."""
-    from datetime import datetime
-
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def write_outputs(
-    sim: Simulation,
-    result: RunResult,
-    run_dir: Path,
-    extras: Sequence[Callable[[Path], Any]] = (),
-    started_at: str | None = None,
-) -> None:
-    """Write config, trajectory, metrics and manifest of a finished run into ``run_dir``;
-    ``extras(run_dir)`` (plots, replay) write theirs before the manifest, which lists them, after
-    the files observers hand back (``run_files()``, :func:`~swarmscene.outputs.write_observer_files`).
-
-    ``config.yaml`` is the effective configuration (``sim.scenario.data``); ``started_at`` is the
-    run's start (UTC, ISO 8601) for the manifest.
-    """
-    from .outputs import write_observer_files, write_run_dir
-
-    write_run_dir(
-        run_dir,
-        data=sim.scenario.data,
-        metrics=result.metrics,
-        trajectory=result.trajectory,
-        complete=result.complete,
-        seed=sim.config.seed,
-        # each observer's own files (its run_files(): swarmlab.npz), then the pictures asked for
-        extras=[lambda directory: write_observer_files(directory, result.observers), *extras],
-        started_at=started_at,
-    )
-    result.run_dir = run_dir
 
 
 # -- sweeps ---------------------------------------------------------------------------------------

@@ -436,33 +436,19 @@ def _job(data: dict[str, Any], run_dir: Path) -> Any:
 
 
 def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> tuple[Any, RunFailed | None]:
-    """Run, write the run directory, print the summary of a run that flew; return the result and,
-    for a run that failed (a non-finite state, a plugin's exception), the error to record."""
-    from . import api
-    from .core.raised import PluginRaised, RunFailed
-    from .summary import Progress, RunWarnings, summary_text
+    """Run and write the run directory (:mod:`swarmscene.runpath`, as ``api.run`` does), print the
+    summary of a run that flew; return the result and, for a run that failed (a non-finite state, a
+    plugin's exception), the error to record."""
+    from .runpath import fly, land
+    from .summary import Progress, summary_text
 
     output = sim.config.output
-    progress = Progress.maybe(output.progress, enabled=not sweep)
-    started_at = api.utc_now()
-    cause: BaseException | None = None
-    with RunWarnings() as seen:
-        try:
-            result = sim.run(progress=progress)
-        except PluginRaised as exc:  # what the run recorded is written below, marked failed
-            result, cause = exc.result, exc.__cause__
-        finally:
-            if progress is not None:
-                progress.close()
-    seen.show(failed=result.error is not None)
-    extras = [lambda directory, write=write: write(directory, sim=sim, result=result) for write in writers]
-    api.write_outputs(sim, result, run_dir, extras, started_at=started_at)  # the manifest, last, lists them
-    if result.error is None:
-        if output.summary and not sweep:
-            print(summary_text(sim, result, run_dir))
-        return result, None
+    flight = fly(sim, Progress.maybe(output.progress, enabled=not sweep), gather_warnings=True)
+    failed = land(sim, flight, run_dir, writers)  # the manifest, last, lists every file
+    if failed is None and output.summary and not sweep:
+        print(summary_text(sim, flight.result, run_dir))
     # A run that did not fly to its end gets no verdicts: its one line (the caller prints it) says why.
-    return result, RunFailed.of(result, cause)
+    return flight.result, failed
 
 
 def _objective(sim: Any, result: Any) -> Any:
