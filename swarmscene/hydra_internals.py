@@ -33,7 +33,10 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pathlib import Path
 
 BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
 """The ``_target_`` of Hydra's basic sweeper (``hydra/sweeper=basic``, every multirun's default):
@@ -53,7 +56,7 @@ def save_config_loaded() -> bool:
     return "hydra.core.utils" in sys.modules
 
 
-def replace_save_config(writer: Callable[[Any, str, Any], None]) -> None:
+def replace_save_config(writer: Callable[[Any, str, Path], None]) -> None:
     """Make Hydra write ``.hydra/config.yaml``, ``hydra.yaml`` and ``overrides.yaml`` with ``writer``
     (``writer(cfg, filename, output_dir)``; idempotent).
 
@@ -65,7 +68,7 @@ def replace_save_config(writer: Callable[[Any, str, Any], None]) -> None:
     """
     import hydra.core.utils as hydra_utils
 
-    hydra_utils._save_config = writer
+    hydra_utils._save_config = writer  # type: ignore[assignment]  # its argument names aside: called positionally
 
 
 # -- the config files Hydra reads -------------------------------------------------------------------
