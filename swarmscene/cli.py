@@ -31,11 +31,15 @@ if TYPE_CHECKING:  # pragma: no cover
 # A launcher's worker process (joblib, ray, submitit) imports this module to run `_task`, with
 # Hydra already loaded, and then resolves the job's directory and writes its `.hydra/` files
 # (hydra_files.py): protect them now. The command itself does it in main(), after its signal
-# handler is in place, so that a Ctrl-C during start-up is never a traceback.
-if "hydra.core.utils" in sys.modules:
-    from .hydra_files import install as _protect_run_dirs
+# handler is in place, so that a Ctrl-C during start-up is never a traceback. ("hydra" first:
+# the plain command imports nothing more than before.)
+if "hydra" in sys.modules:
+    from .hydra_internals import save_config_loaded as _save_config_loaded
 
-    _protect_run_dirs()
+    if _save_config_loaded():
+        from .hydra_files import install as _protect_run_dirs
+
+        _protect_run_dirs()
 
 EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs say so
 EXIT_CONFIG = 2

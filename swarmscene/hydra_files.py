@@ -9,9 +9,10 @@ Two things Hydra does on its own before the engine's task runs:
   name is refused, never rewritten, so a directory's name is the scenario's name.
 - it writes ``.hydra/config.yaml``, ``hydra.yaml`` and ``overrides.yaml`` with a plain ``open(path,
   "w")``, which follows a symbolic link planted at that name. :func:`protect_hydra_writes`
-  replaces that writer (``hydra.core.utils._save_config``, hydra-core 1.3) with one that writes
-  through a private temporary file and ``os.replace`` (a link at the name is replaced, not written
-  through) and refuses a run directory or ``.hydra`` that is itself a link.
+  makes Hydra write them with :func:`save_config` instead (the replacement of Hydra's private
+  writer is :func:`swarmscene.hydra_internals.replace_save_config`), which writes through a
+  private temporary file and ``os.replace`` (a link at the name is replaced, not written through)
+  and refuses a run directory or ``.hydra`` that is itself a link.
 
 :func:`install` does both; it is idempotent and cheap, and runs on importing
 :mod:`swarmscene.cli` (so a launcher's worker process, which imports the task to run it, has it
@@ -37,7 +38,7 @@ def dir_name(name: Any) -> str:
     return str(name)
 
 
-def _save_config(cfg: Any, filename: str, output_dir: Path) -> None:
+def save_config(cfg: Any, filename: str, output_dir: Path) -> None:
     """Hydra's ``_save_config``, written atomically and never through a symbolic link."""
     from omegaconf import OmegaConf
 
@@ -54,10 +55,10 @@ def _save_config(cfg: Any, filename: str, output_dir: Path) -> None:
 
 
 def protect_hydra_writes() -> None:
-    """Replace Hydra's ``.hydra/`` writer with :func:`_save_config` (idempotent)."""
-    import hydra.core.utils as hydra_utils
+    """Replace Hydra's ``.hydra/`` writer with :func:`save_config` (idempotent)."""
+    from .hydra_internals import replace_save_config
 
-    hydra_utils._save_config = _save_config
+    replace_save_config(save_config)
 
 
 def register_dir_name_resolver() -> None:

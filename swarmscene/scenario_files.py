@@ -5,8 +5,9 @@ third-party package's options) is read by Hydra's config sources with ``OmegaCon
 has no limit: a YAML alias bomb (nine aliases of nine aliases ...) or a 50 MB scalar hangs it,
 deep nesting overflows the parser's recursion, and non-UTF-8 bytes raise an error that does not
 name the file. :func:`install` puts :func:`check_scenario_file` in front of both of Hydra's file
-readers (``FileConfigSource`` and ``ImportlibResourcesConfigSource``), so every such file is
-checked first, and any problem is one line naming the file (and the line, where there is one):
+readers (``FileConfigSource`` and ``ImportlibResourcesConfigSource``, wrapped by
+:mod:`swarmscene.hydra_internals`), so every such file is checked first, and any problem is one
+line naming the file (and the line, where there is one):
 
 - size: at most :data:`MAX_FILE_BYTES` (checked before reading);
 - text: UTF-8;
@@ -115,31 +116,23 @@ def _read_limited(open_binary: Any) -> bytes:
 
 
 def install() -> None:
-    """Check every file Hydra's two file readers load (idempotent)."""
-    from hydra._internal.core_plugins.file_config_source import FileConfigSource
-    from hydra._internal.core_plugins.importlib_resources_config_source import ImportlibResourcesConfigSource
+    """Check every file Hydra's two file readers load (idempotent; the wrapping of Hydra's readers
+    is :func:`swarmscene.hydra_internals.check_before_config_files_are_read`)."""
+    from .hydra_internals import check_before_config_files_are_read
 
-    if getattr(FileConfigSource.load_config, "_swarmscene_checked", False):
-        return
-    file_load, package_load = FileConfigSource.load_config, ImportlibResourcesConfigSource.load_config
+    check_before_config_files_are_read(_check_file, _check_resource)
 
-    def load_file(self: Any, config_path: str) -> Any:
-        full = os.path.realpath(os.path.join(self.path, self._normalize_file_name(config_path)))
-        if os.path.isfile(full):
-            size = os.path.getsize(full)
-            if size > MAX_FILE_BYTES:  # refused before a byte is read
-                raise ConfigError([f"{full}: too large ({size} bytes; a scenario file holds at most {MAX_FILE_BYTES})"])
-            check_scenario_file(_read_limited(lambda: open(full, "rb")), full)
-        return file_load(self, config_path)
 
-    def load_package(self: Any, config_path: str) -> Any:
-        from importlib import resources
+def _check_file(full: str) -> None:
+    """The check of a file Hydra reads from a folder (``full``: its real path; absent: Hydra says so)."""
+    if os.path.isfile(full):
+        size = os.path.getsize(full)
+        if size > MAX_FILE_BYTES:  # refused before a byte is read
+            raise ConfigError([f"{full}: too large ({size} bytes; a scenario file holds at most {MAX_FILE_BYTES})"])
+        check_scenario_file(_read_limited(lambda: open(full, "rb")), full)
 
-        res = resources.files(self.path).joinpath(self._normalize_file_name(config_path))
-        if res.is_file():
-            check_scenario_file(_read_limited(lambda: res.open("rb")), str(res))
-        return package_load(self, config_path)
 
-    load_file._swarmscene_checked = load_package._swarmscene_checked = True  # type: ignore[attr-defined]
-    FileConfigSource.load_config = load_file  # type: ignore[method-assign]
-    ImportlibResourcesConfigSource.load_config = load_package  # type: ignore[method-assign]
+def _check_resource(res: Any) -> None:
+    """The check of a file Hydra reads from a package (``res``: its ``importlib.resources`` resource)."""
+    if res.is_file():
+        check_scenario_file(_read_limited(lambda: res.open("rb")), str(res))

@@ -186,3 +186,104 @@ def test_no_import_circle_in_the_sweeps_package():
     g = nx.DiGraph([(a, b) for a, targets in sweeps.items() for b in targets])
     circles = [sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1]
     assert not circles, f"import circles: {circles}"
+
+
+HYDRA_INTERNALS = "swarmscene/hydra_internals.py"
+PRIVATE_HYDRA = ("hydra._internal", "hydra.core.singleton")
+"""Hydra's modules that only :mod:`swarmscene.hydra_internals` may import or name."""
+
+
+def _is_private_hydra(name: str) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in PRIVATE_HYDRA)
+
+
+def _hydra_names(tree: ast.AST) -> set[str]:
+    """The local names a file binds to Hydra's modules or to what it imports from them."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name == "hydra" or alias.name.startswith("hydra."):
+                    names.add(alias.asname or alias.name.split(".")[0])
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            if node.module == "hydra" or node.module.startswith("hydra."):
+                names.update(alias.asname or alias.name for alias in node.names)
+    return names
+
+
+def _root(node: ast.AST) -> ast.AST:
+    """The name an attribute chain starts from (``a`` of ``a.b().c[0].d``)."""
+    while isinstance(node, (ast.Attribute, ast.Call, ast.Subscript)):
+        node = node.func if isinstance(node, ast.Call) else node.value
+    return node
+
+
+def hydra_private_uses(path: Path) -> list[str]:
+    """``<file>:<line>: what`` for each use of Hydra's private API in ``path``: an import of
+    ``hydra._internal`` or ``hydra.core.singleton``, a string naming one, an attribute of something
+    imported from Hydra assigned (``hydra_utils._save_config = ...``, ``HydraConfig.instance().cfg
+    = ...``, ``setattr(FileConfigSource, ...)``) or a private one (``_name``) read."""
+    tree = ast.parse(path.read_text())
+    hydra = _hydra_names(tree)
+    where = path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.name
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        line = getattr(node, "lineno", 0)
+        if isinstance(node, ast.Import):
+            found += [(line, f"imports {a.name}") for a in node.names if _is_private_hydra(a.name)]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            full = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+            private = [n for n in full if _is_private_hydra(n)]
+            if private:
+                found.append((line, f"imports {private[0]}"))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            if any(p in node.value for p in PRIVATE_HYDRA):
+                found.append((line, f"names {next(p for p in PRIVATE_HYDRA if p in node.value)}"))
+        elif isinstance(node, (ast.Assign, ast.AugAssign, ast.AnnAssign, ast.Delete)):
+            targets = node.targets if isinstance(node, (ast.Assign, ast.Delete)) else [node.target]
+            for target in targets:
+                for t in (target.elts if isinstance(target, (ast.Tuple, ast.List)) else [target]):
+                    root = _root(t)
+                    if isinstance(t, ast.Attribute) and isinstance(root, ast.Name) and root.id in hydra:
+                        found.append((line, f"assigns {ast.unparse(t)}"))
+        elif (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Load) and node.attr.startswith("_")
+              and not node.attr.startswith("__")):
+            root = _root(node)
+            if isinstance(root, ast.Name) and root.id in hydra:
+                found.append((line, f"reads {ast.unparse(node)}"))
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("setattr", "delattr"):
+            root = _root(node.args[0]) if node.args else None
+            if isinstance(root, ast.Name) and root.id in hydra:
+                found.append((line, ast.unparse(node)))
+    return [f"{where}:{line}: {what}" for line, what in sorted(found)]
+
+
+def test_only_hydra_internals_touches_hydras_private_api():
+    """Hydra's private modules (``hydra._internal``, ``hydra.core.singleton``) and every patch of
+    Hydra's state are in one module, each with its reason and the hydra-core version it was checked
+    against (issue #35): a Hydra upgrade is then one file to read."""
+    uses = [
+        use for folder in ("swarmscene", "core", "methods", "plugins", "scenarios", "hydra_plugins")
+        for path in sources(folder) if path.relative_to(ROOT).as_posix() != HYDRA_INTERNALS
+        for use in hydra_private_uses(path)
+    ]
+    assert not uses, "Hydra's private API outside swarmscene/hydra_internals.py:\n" + "\n".join(uses)
+
+
+def test_the_private_api_check_sees_each_kind_of_use(tmp_path):
+    """The check above finds what it looks for (a check that finds nothing proves nothing)."""
+    path = tmp_path / "probe.py"
+    path.write_text(
+        "import hydra.core.utils as hydra_utils\n"
+        "from hydra._internal.config_loader_impl import ConfigLoaderImpl\n"
+        "from hydra.core import singleton\n"
+        "from hydra.core.hydra_config import HydraConfig\n"
+        "TARGET = 'hydra._internal.core_plugins.basic_sweeper.BasicSweeper'\n"
+        "hydra_utils._save_config = print\n"
+        "HydraConfig.instance().cfg = None\n"
+        "setattr(ConfigLoaderImpl, 'x', 1)\n"
+        "cfg.hydra.job.num = 1\n"
+        "writer = hydra_utils._save_config\n"
+    )
+    uses = hydra_private_uses(path)
+    assert [u.split(": ", 1)[0].rsplit(":", 1)[1] for u in uses] == ["2", "3", "5", "6", "7", "8", "10"], uses

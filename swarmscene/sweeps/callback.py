@@ -9,9 +9,9 @@ from typing import Any
 
 from hydra.experimental.callback import Callback
 
+from ..hydra_internals import BASIC_SWEEPER
 from .tables import exit_status, outcome_line, write_summary
 
-BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
 SWARMSCENE_SWEEPER = "hydra_plugins.swarmscene_sweeper.SwarmsceneSweeper"
 PROGRESS = ("auto", "on", "off")
 

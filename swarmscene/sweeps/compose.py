@@ -8,7 +8,8 @@ list. :class:`GroupCachingLoader` wraps Hydra's loader and composes each distinc
 config-group overrides once per process; a job's plain values are then applied to a copy of that
 composition the way Hydra applies them (``_apply_overrides_to_config``, the step of Hydra's own
 composition that follows the defaults list), and the job's record in the ``hydra`` node
-(``hydra.overrides.task``, ``hydra.job.override_dirname``) is written as Hydra writes it. The
+(``hydra.overrides.task``, ``hydra.job.override_dirname``) is written as Hydra writes it; both
+through :mod:`swarmscene.hydra_internals`, which holds the private Hydra functions they need. The
 result equals Hydra's own composition (tests/test_sweep_compose.py compares them for every preset
 and a sample of grids); a job costs a copy of the composed config and its few overrides (~4 ms).
 
@@ -92,9 +93,9 @@ class GroupCachingLoader(ConfigLoader):
         """Pickled as its search path and command (~2 KB instead of Hydra's loader with its
         repository, ~30 KB): a launcher pickles the loader with every job it sends, in the main
         process, one job after another. The worker rebuilds Hydra's loader once per process."""
-        from hydra._internal.config_loader_impl import ConfigLoaderImpl
+        from ..hydra_internals import is_hydras_config_loader
 
-        if self._inner is not None and type(self._inner) is not ConfigLoaderImpl:
+        if self._inner is not None and not is_hydras_config_loader(self._inner):
             return (GroupCachingLoader, (self._inner, self.command))
         search_path = self._search_path_given if self._inner is None else self._inner.get_search_path()
         return (GroupCachingLoader, (None, self.command, search_path))
@@ -215,8 +216,10 @@ class GroupCachingLoader(ConfigLoader):
             return False
         name = override.key_or_group
         if name not in self._groups:
-            repository = getattr(self.inner, "repository", None)
-            self._groups[name] = True if repository is None else bool(repository.group_exists(name))
+            from ..hydra_internals import group_exists
+
+            exists = group_exists(self.inner, name)
+            self._groups[name] = True if exists is None else exists  # no repository to ask: Hydra composes
         return not self._groups[name]
 
     # -- the rest of ConfigLoader: the wrapped loader's ------------------------------------------
@@ -251,11 +254,11 @@ _LOADERS: dict[tuple[tuple[str, str], ...], Any] = {}
 def _loader_for(search_path: Any) -> Any:
     """Hydra's loader for this search path, made once per process (it holds only the search path
     and a repository built from it)."""
-    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from ..hydra_internals import config_loader
 
     key = tuple((str(p.provider), str(p.path)) for p in search_path.get_path())
     if key not in _LOADERS:
-        _LOADERS[key] = ConfigLoaderImpl(config_search_path=search_path)
+        _LOADERS[key] = config_loader(search_path)
     return _LOADERS[key]
 
 
@@ -280,14 +283,16 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
 
 
 def _apply_values(values: Sequence[Any], cfg: Any) -> None:
-    """Hydra's own step (no public API holds it): the value overrides applied to the composed
-    config, errors wrapped as ``load_configuration`` wraps them."""
-    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    """Hydra's own step (no public API holds it; :func:`~swarmscene.hydra_internals.apply_overrides_to_config`):
+    the value overrides applied to the composed config, errors wrapped as ``load_configuration``
+    wraps them."""
     from hydra.errors import ConfigCompositionException
     from omegaconf.errors import OmegaConfBaseException
 
+    from ..hydra_internals import apply_overrides_to_config
+
     try:
-        ConfigLoaderImpl._apply_overrides_to_config(list(values), cfg)
+        apply_overrides_to_config(values, cfg)
     except OmegaConfBaseException as exc:
         raise ConfigCompositionException().with_traceback(exc.__traceback__) from exc
 
@@ -295,11 +300,11 @@ def _apply_values(values: Sequence[Any], cfg: Any) -> None:
 def _record_overrides(cfg: Any, parsed: Sequence[Any]) -> None:
     """``hydra.overrides.task`` (every non-Hydra override, in order) and ``hydra.job.override_dirname``
     of the job, as ``_load_configuration_impl`` writes them."""
-    from hydra._internal.config_loader_impl import get_overrides_dirname
+    from ..hydra_internals import overrides_dirname
 
     task = [o for o in parsed if not o.is_hydra_override()]
     cfg.hydra.overrides.task = [o.input_line for o in task]
     dirname = cfg.hydra.job.config.override_dirname
-    cfg.hydra.job.override_dirname = get_overrides_dirname(
-        overrides=task, kv_sep=dirname.kv_sep, item_sep=dirname.item_sep, exclude_keys=dirname.exclude_keys,
+    cfg.hydra.job.override_dirname = overrides_dirname(
+        task, kv_sep=dirname.kv_sep, item_sep=dirname.item_sep, exclude_keys=dirname.exclude_keys,
     )

@@ -127,10 +127,10 @@ class PoolLauncher(Launcher):
     def _pool(self) -> ProcessPoolExecutor:
         """The batch's pool: made at the first launch, kept for the sweep's later batches."""
         if self._executor is None:
-            from hydra.core.singleton import Singleton
+            from ..hydra_internals import hydra_singletons
 
             self._known = set(multiprocessing.active_children())
-            sweep = dumps((Singleton.get_state()["instances"], self.hydra_context, self.config, self.task_function))
+            sweep = dumps((hydra_singletons(), self.hydra_context, self.config, self.task_function))
             self._executor = ProcessPoolExecutor(
                 max_workers=self.workers(), mp_context=self._context, initializer=_start_worker, initargs=(sweep,),
             )
@@ -252,15 +252,15 @@ def _start_worker(sweep: bytes) -> None:
     has them (its config store, sources, version), OmegaConf's resolvers registered here as the
     main process registers them (they are local functions, which do not pickle), and stop signals
     recorded, not raised, so a job stops between ticks and writes what it has."""
-    from hydra.core.singleton import Singleton
     from hydra.core.utils import setup_globals
 
+    from ..hydra_internals import restore_hydra_singletons
     from ..searchpath import register_search_path
 
     register_search_path()  # swarmscene's search path, sweeper, launcher and resolvers
     setup_globals()  # Hydra's resolvers (now, hydra, python_version)
     instances, hydra_context, config, task_function = pickle.loads(sweep)
-    Singleton.set_state({"instances": instances, "omegaconf_resolvers": Singleton.get_state()["omegaconf_resolvers"]})
+    restore_hydra_singletons(instances)
     interrupts.install()
     _WORKER.update(hydra_context=hydra_context, config=config, task_function=task_function)
 

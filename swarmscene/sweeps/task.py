@@ -43,10 +43,11 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
         return
     from hydra.core.hydra_config import HydraConfig
 
+    from ..hydra_internals import hydra_config_kept
+
     loader, master = _loader_and_master(task, first_cfg)
     prefix = _id_prefix(HydraConfig.get().job)  # the first job's, numbered by renumber_first
-    before = HydraConfig.instance().cfg
-    try:
+    with hydra_config_kept():
         for idx, overrides in task["rest"]:
             lean = loader.load_task_job(master, list(overrides))
             if lean is not None:
@@ -55,8 +56,6 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
             else:
                 cfg = loader.load_sweep_config(master, list(overrides))
                 run_one(*_as_job(cfg, idx, task["sweep_dir"], prefix))
-    finally:
-        HydraConfig.instance().cfg = before
 
 
 _CURRENT: list[dict[str, Any] | None] = [None]
@@ -87,18 +86,16 @@ _LOADERS: dict[tuple[str, str | None], Any] = {}
 def _loader_and_master(task: dict[str, Any], first_cfg: Any) -> tuple[Any, Any]:
     """This process's group-caching loader for the sweep's search path, and the little of the
     sweep's config that composing a job reads (its config name, Hydra overrides, resolver cache)."""
-    from hydra._internal.config_search_path_impl import ConfigSearchPathImpl
     from omegaconf import OmegaConf
 
+    from ..hydra_internals import config_search_path
     from ..outputs import COMMAND_ENV
     from .compose import GroupCachingLoader
 
     raw_command = os.environ.get(COMMAND_ENV)
     key = (json.dumps(task["search_path"]), raw_command)
     if key not in _LOADERS:  # one per process: its compositions and job templates serve every task
-        search_path = ConfigSearchPathImpl()
-        for provider, path in task["search_path"]:
-            search_path.append(provider, path)
+        search_path = config_search_path((provider, path) for provider, path in task["search_path"])
         _LOADERS.clear()
         _LOADERS[key] = GroupCachingLoader(None, json.loads(raw_command) if raw_command else None, search_path)
     loader = _LOADERS[key]
@@ -131,19 +128,19 @@ def _as_job(cfg: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[
 def _as_lean_job(task_cfg: Any, hydra_root: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[Any, Any]:
     """:func:`_as_job` for a job from :meth:`~.compose.GroupCachingLoader.load_task_job`: the
     composition's one ``hydra`` node numbered for this job and set as ``HydraConfig`` (its parent the
-    job's config, as ``set_config`` makes it; no copy), the run directory ``sweep_dir/<n>``."""
+    job's config, as ``set_config`` makes it; no copy: :func:`~swarmscene.hydra_internals.set_hydra_config_node`),
+    the run directory ``sweep_dir/<n>``."""
     from pathlib import Path
 
-    from hydra.core.hydra_config import HydraConfig
-    from omegaconf import OmegaConf, read_write
+    from omegaconf import read_write
+
+    from ..hydra_internals import set_hydra_config_node
 
     node = hydra_root.hydra
     run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))  # subdir ${hydra.job.num}
     with read_write(node):
         _number(node.job, idx, id_prefix)
         node.runtime.output_dir = str(run_dir)
-    OmegaConf.set_readonly(node, True)
-    node._set_parent(task_cfg)
-    HydraConfig.instance().cfg = hydra_root
+    set_hydra_config_node(hydra_root, task_cfg)
     run_dir.mkdir(parents=True, exist_ok=True)
     return task_cfg, run_dir
