@@ -124,6 +124,7 @@ class WorldBatch:
     def __init__(self, worlds: list[WorldState]) -> None:
         self.worlds = list(worlds)
         self._tick_memo: dict[str, Any] = {}
+        self._batch_memo: dict[str, Any] = {}
         # pack(): per names, the instances packed and, per name, the stacked array and its slices
         self._packed: dict[tuple[str, ...], tuple[list[Any], dict[str, tuple[np.ndarray, list[np.ndarray]]]]] = {}
         for name in BATCHED_FIELDS:
@@ -155,6 +156,14 @@ class WorldBatch:
         if key not in self._tick_memo:
             self._tick_memo[key] = make()
         return self._tick_memo[key]
+
+    def per_batch(self, key: str, make: Callable[[], Any]) -> Any:
+        """``make()`` once for this batch (its worlds and their instances, which a batch keeps
+        until a world ends): what does not change while they fly, such as whether the instances'
+        frozen options agree."""
+        if key not in self._batch_memo:
+            self._batch_memo[key] = make()
+        return self._batch_memo[key]
 
     @property
     def size(self) -> int:
