@@ -11,6 +11,7 @@ for the whole run and equal the agent ids used in config (0 .. N-1).
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
@@ -188,11 +189,11 @@ class WorldBatch:
             known = self._packed[names] = (list(models), {})
         packed = known[1]
         for name in names:
-            arrays = [getattr(model, name) for model in models]
             held = packed.get(name)
-            if held is not None and all(a is view for a, view in zip(arrays, held[1], strict=True)):
-                continue  # every instance still holds the slice this batch gave it
-            stacked = np.stack(arrays)
+            # every instance still holds the slice this batch gave it (C loops: B x names per tick)
+            if held is not None and all(map(operator.is_, map(operator.attrgetter(name), models), held[1])):
+                continue
+            stacked = np.stack([getattr(model, name) for model in models])
             views = list(stacked)
             for model, view in zip(models, views, strict=True):
                 setattr(model, name, view)
