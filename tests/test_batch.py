@@ -151,6 +151,30 @@ def test_quadrotor_worlds_tuned_apart_are_controlled_one_by_one(monkeypatch):
         np.testing.assert_array_equal(outcome.result.trajectory["pos"], api.run(world).trajectory["pos"])
 
 
+def test_lockstep_latches_quadrotor_worlds_in_one_call_as_the_batch_does(monkeypatch):
+    """lockstep (the vector environment's tick) steps its worlds with the batch's stepper: three
+    quadrotor worlds latched in one call per tick, each world's state its single run's after
+    every tick."""
+    from swarmscene.core.batch import lockstep
+    from swarmscene.core.state import WorldBatch
+
+    data = api.compose(["scenario=swap", "dynamics=quadrotor", "swarm.n=4", "output.summary=false"])
+    together = [api.build({**data, "seed": seed}) for seed in SEEDS]
+    alone = [api.build({**data, "seed": seed}) for seed in SEEDS]
+    for sim in together + alone:
+        sim.hook.swarmscene_run_start(sim=sim.view)
+    calls = _count_latches(monkeypatch)
+    batch = WorldBatch([sim.world for sim in together])
+    for _ in range(10):
+        lockstep(together, batch)
+        for sim in alone:
+            sim.step()
+        for one, batched in zip(alone, together, strict=True):
+            for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
+                np.testing.assert_array_equal(getattr(batched.world, field), getattr(one.world, field), err_msg=field)
+    assert sorted(calls) == [4] * 30 + [12] * 10  # the single runs' latches, and one a tick for the three
+
+
 def test_the_quadrotor_heading_vector_has_the_same_bits_at_every_length():
     """control_batch computes y_c = (-sin psi, cos psi, 0) over the worlds' yaws stacked, control
     over one world's: numpy's elementwise sin and cos must give each yaw the same bits at any
