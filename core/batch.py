@@ -1,19 +1,24 @@
-"""Many worlds in one step: B runs of one composition, their physics stepped in one call.
+"""Many worlds in one step: B runs of one composition, their controllers and physics stepped in one call.
 
 A :class:`BatchSimulation` steps B :class:`~swarmscene.core.simulation.Simulation` objects tick by
 tick. Each world keeps everything of its own: its seed and random streams, clock, events,
-disturbances, plugin instances, observers and termination. What the worlds share is the physics
-phase: their per-agent state lies along a world axis (:class:`~swarmscene.core.state.WorldBatch`,
-each world's arrays are slices of (B, N, k) arrays), and the dynamics model's
-:meth:`~swarmscene.core.plugin.Dynamics.step_batch` advances all of them at once. A model without a
-batched form steps each world with its own instance (the default ``step_batch``), so every model
-works in a batch; the other phases run world by world, in the order a single run runs them.
+disturbances, plugin instances, observers and termination. What the worlds share are the
+controller and physics phases: their per-agent state lies along a world axis
+(:class:`~swarmscene.core.state.WorldBatch`, each world's arrays are slices of (B, N, k) arrays),
+and the dynamics model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch` latches every
+world's commands at once, its :meth:`~swarmscene.core.plugin.Dynamics.step_batch` advances all of
+them at once. A model without batched forms controls and steps each world with its own instance
+(the defaults), so every model works in a batch; the other phases run world by world, in the
+order a single run runs them.
 
-A world's tick is the single run's tick, phase by phase (``guide``, the physics sub-steps with the
-wind before and the force phase after each ``step``, ``settle``), so a world of a batch equals its
-single run bit for bit (tests/test_batch.py, every preset). A world that ends (its duration, the
-mission complete, a collision that stops it, a non-finite state, a plugin's exception) is masked:
-the batch is rebuilt over the others, which go on. A Ctrl-C ends every world between two ticks.
+A world's tick is the single run's tick, phase by phase (``guidance``, ``control``, the physics
+sub-steps with the wind before and the force phase after each ``step``, ``settle``): between a
+world's guidance and its control run only the other worlds' guidance, which share nothing with
+it, so a world of a batch equals its single run bit for bit (tests/test_batch.py, every preset).
+:class:`BatchSimulation` and :func:`lockstep` step their worlds with the same function,
+:func:`_step`. A world that ends (its duration, the mission complete, a collision that stops it,
+a non-finite state, a plugin's exception) is masked: the batch is rebuilt over the others, which
+go on. A Ctrl-C ends every world between two ticks.
 
 Timing metrics are the batch's: ``wall_time`` is the wall time of the whole batch up to the
 world's end, and a tick's time is the batch's tick divided among its running worlds.
@@ -24,12 +29,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 from . import interrupts
 from .plugin import Dynamics
 from .result import RunResult
+from .setpoint import Setpoints
 from .simulation import Simulation
-from .state import WorldBatch
+from .state import WorldBatch, WorldState
 
 
 @dataclass
@@ -112,35 +119,22 @@ class BatchSimulation:
     # -- one tick of every running world -------------------------------------------------------
     def _tick(self) -> None:
         tick_start = time.perf_counter()
-        self._each(lambda sim: sim.guide())
-        sims = [self.sims[b] for b in self._running]
-        if sims:
-            batch = self._world_batch()
-            batch.controlled()
-            models = [sim.dynamics for sim in sims]
-            dt = sims[0].physics_step
-            for j in range(sims[0].substeps):
-                self._each(_wind_of(j))
-                self._physics(models, batch, dt)
-                self._each(lambda sim: sim.push())
-        self._each(lambda sim: sim.settle())
+        _step(self)
         share = (time.perf_counter() - tick_start) / max(len(self._running), 1)
         self._each(lambda sim: sim.ticked(share))
 
-    def _physics(self, models: list[Dynamics], batch: WorldBatch, dt: float) -> None:
-        """The dynamics step of every running world: the model's batched form, or world by world
-        when it declines this batch. An exception stops every world it was stepping."""
-        if len(models) != len(self._running) or len(models) == 1:  # a world ended in this sub-step's wind
-            self._each(lambda sim: sim.dynamics.step(sim.world, dt))
-            return
-        try:
-            done = self.model.step_batch(models, batch, dt)
-        except Exception as exc:
-            for b in list(self._running):
-                self._stop(b, exc)
-            return
-        if done is NotImplemented:
-            self._each(lambda sim: sim.dynamics.step(sim.world, dt))
+    # what _step asks of the worlds it steps (lockstep's _Plain answers the same)
+    def _sims(self) -> list[Simulation]:
+        """The running worlds, in the batch's order."""
+        return [self.sims[b] for b in self._running]
+
+    def _count(self) -> int:
+        return len(self._running)
+
+    def _stop_all(self, exc: Exception) -> None:
+        """A batched form raised: every world it was working on stops with its exception."""
+        for b in list(self._running):
+            self._stop(b, exc)
 
     def _each(self, phase: Callable[[Simulation], object]) -> None:
         """A phase run world by world; a world whose phase raised is stopped as its single run."""
@@ -179,6 +173,86 @@ class BatchSimulation:
         return self._batch
 
 
+class _Worlds(Protocol):
+    """What :func:`_step` asks of the worlds it steps: a batch's running worlds
+    (:class:`BatchSimulation`, a world's exception ends that world) or :func:`lockstep`'s
+    (an exception is raised as is)."""
+
+    model: type[Dynamics]
+
+    def _sims(self) -> list[Simulation]: ...
+
+    def _count(self) -> int: ...
+
+    def _each(self, phase: Callable[[Simulation], object]) -> None: ...
+
+    def _world_batch(self) -> WorldBatch: ...
+
+    def _stop_all(self, exc: Exception) -> None: ...
+
+
+def _step(worlds: _Worlds) -> None:
+    """One tick of every running world: each world's guidance, the controllers of all of them
+    (:meth:`~swarmscene.core.plugin.Dynamics.control_batch`), the physics sub-steps (each world's
+    wind, :meth:`~swarmscene.core.plugin.Dynamics.step_batch`, each world's forces), each world's
+    ``settle``. A world's phases run in its single run's order; what runs between a world's
+    guidance and its control is only the other worlds' guidance."""
+    guided: dict[int, tuple[WorldState, Setpoints]] = {}
+    worlds._each(lambda sim: guided.__setitem__(id(sim), sim.guidance()))
+    if worlds._count():
+        _control(worlds, guided)
+    sims = worlds._sims()
+    if sims:
+        batch = worlds._world_batch()
+        batch.controlled()
+        dt = sims[0].physics_step
+        for j in range(sims[0].substeps):
+            worlds._each(_wind_of(j))
+            _physics(worlds, [sim.dynamics for sim in sims], batch, dt)
+            worlds._each(lambda sim: sim.push())
+    worlds._each(lambda sim: sim.settle())
+
+
+def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]]) -> None:
+    """The controllers of every running world: the model's batched form, or world by world when
+    it has none (the default :meth:`~swarmscene.core.plugin.Dynamics.control_batch`, run here so
+    that a world whose ``control`` raises stops alone) or declines this batch. An exception of
+    the batched form stops every world it was controlling."""
+    sims = worlds._sims()
+    if len(sims) > 1 and has_batched_control(worlds.model):
+        try:
+            done = worlds.model.control_batch(
+                [sim.dynamics for sim in sims], worlds._world_batch(),
+                [guided[id(sim)][0] for sim in sims], [guided[id(sim)][1] for sim in sims])
+        except Exception as exc:
+            worlds._stop_all(exc)
+            return
+        if done is not NotImplemented:
+            return
+    worlds._each(lambda sim: sim.dynamics.control(*guided[id(sim)]))
+
+
+def _physics(worlds: _Worlds, models: list[Dynamics], batch: WorldBatch, dt: float) -> None:
+    """The dynamics step of every running world: the model's batched form, or world by world
+    when it declines this batch. An exception of the batched form stops every world it was stepping."""
+    if len(models) != worlds._count() or len(models) == 1:  # a world ended in this sub-step's wind
+        worlds._each(lambda sim: sim.dynamics.step(sim.world, dt))
+        return
+    try:
+        done = worlds.model.step_batch(models, batch, dt)
+    except Exception as exc:
+        worlds._stop_all(exc)
+        return
+    if done is NotImplemented:
+        worlds._each(lambda sim: sim.dynamics.step(sim.world, dt))
+
+
+def has_batched_control(model: type[Dynamics]) -> bool:
+    """Whether ``model`` overrides :meth:`~swarmscene.core.plugin.Dynamics.control_batch` (else the
+    engine controls its worlds one by one, which is what the default does)."""
+    return getattr(model.control_batch, "__func__", None) is not getattr(Dynamics.control_batch, "__func__", None)
+
+
 def _wind_of(j: int) -> Callable[[Simulation], None]:
     """The wind phase of physics sub-step ``j``, as a phase of one world."""
     def wind(sim: Simulation) -> None:
@@ -186,28 +260,38 @@ def _wind_of(j: int) -> Callable[[Simulation], None]:
     return wind
 
 
+class _Plain:
+    """:func:`lockstep`'s worlds: all of them, every phase raising what it raises."""
+
+    def __init__(self, sims: Sequence[Simulation], batch: WorldBatch) -> None:
+        self.sims, self.batch = list(sims), batch
+        self.model = type(self.sims[0].dynamics)
+
+    def _sims(self) -> list[Simulation]:
+        return self.sims
+
+    def _count(self) -> int:
+        return len(self.sims)
+
+    def _each(self, phase: Callable[[Simulation], object]) -> None:
+        for sim in self.sims:
+            phase(sim)
+
+    def _world_batch(self) -> WorldBatch:
+        return self.batch
+
+    def _stop_all(self, exc: Exception) -> None:
+        raise exc
+
+
 def lockstep(sims: Sequence[Simulation], batch: WorldBatch) -> None:
-    """One tick of every world of ``sims`` together, their physics in one batched step: the
-    phases of :meth:`BatchSimulation._tick` without its ends (an exception is raised as is). For a
-    driver that decides itself when a world ends (the vector environment, swarmscene.env).
+    """One tick of every world of ``sims`` together, their controllers and physics in one batched
+    call each: the phases of :meth:`BatchSimulation._tick` without its ends (an exception is
+    raised as is). For a driver that decides itself when a world ends (the vector environment,
+    swarmscene.env).
 
     Args:
         sims: the worlds, built as for :class:`BatchSimulation`.
         batch: ``WorldBatch([sim.world for sim in sims])``, kept while the worlds are the same.
     """
-    for sim in sims:
-        sim.guide()
-    batch.controlled()
-    first = sims[0]
-    model, models, dt = type(first.dynamics), [sim.dynamics for sim in sims], first.physics_step
-    for j in range(first.substeps):
-        for sim in sims:
-            sim.blow(j)
-        if len(sims) == 1 or model.step_batch(models, batch, dt) is NotImplemented:
-            for sim in sims:
-                sim.dynamics.step(sim.world, dt)
-        for sim in sims:
-            sim.push()
-    for sim in sims:
-        sim.settle()
-
+    _step(_Plain(sims, batch))

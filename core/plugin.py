@@ -229,6 +229,28 @@ class Dynamics(Plugin):
         """
 
     @classmethod
+    def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
+                      setpoints: Sequence[Setpoints]) -> object:
+        """``control`` of B worlds at once: ``models[b].control(worlds[b], setpoints[b])`` for each b.
+
+        ``worlds[b]`` is what world b's controller reads (the agents' own estimates, which are
+        ``batch.worlds[b]`` itself when no sensing disturbance is declared) and ``setpoints[b]``
+        its guidance's setpoints for this tick; ``batch`` holds the worlds' true state.
+
+        This default controls each world with its own instance, so every model works in a batch
+        (the engine then runs it itself, world by world, so that a world whose ``control`` raises
+        stops alone, as its single run). A model overrides it to latch all worlds' commands at
+        once (docs/batched.md); what the instances hold afterwards must equal their per-world
+        ``control`` bit for bit (the contract check ``dynamics.control_batch_equals_worlds``). An
+        override may return ``NotImplemented`` for a batch it cannot take whole (instances whose
+        options or setpoint fields differ): the worlds are then controlled one by one. An
+        exception it raises stops every world of the batch.
+        """
+        for model, world, sp in zip(models, worlds, setpoints, strict=True):
+            model.control(world, sp)
+        return None
+
+    @classmethod
     def step_batch(cls, models: Sequence[Self], batch: WorldBatch, dt: float) -> object:
         """Advance the B worlds of ``batch`` by one physics step ``dt``; ``models[b]`` is world b's
         instance (built with that world's options and controlled by that world's ``control``).

@@ -51,6 +51,7 @@ from .recorder import TrajectoryRecorder
 from .result import RunResult
 from .run_view import RunView
 from .sensing import Sensing
+from .setpoint import Setpoints
 from .state import WorldState
 from .vectors import wrap
 
@@ -165,10 +166,16 @@ class Simulation:
             self.push()
         self.settle()
 
-    # The tick's three parts, apart so that a batch of worlds (core/batch.py) can step the
-    # physics of all its worlds in one call between them.
+    # The tick's parts, apart so that a batch of worlds (core/batch.py) can latch the controllers
+    # and step the physics of all its worlds in one call each between them.
     def guide(self) -> None:
         """Events, sense, communicate, formation, avoidance, the controller: up to the physics."""
+        own, setpoints = self.guidance()
+        self.dynamics.control(own, setpoints)
+
+    def guidance(self) -> tuple[WorldState, Setpoints]:
+        """Events, sense, communicate, formation, avoidance: what the controller reads this tick,
+        the agents' own estimates and their setpoints (``guide`` without ``dynamics.control``)."""
         self._apply_due_events()
         seen = self.disturbances.perceive(self.world, self.sensing)  # sense, communicate
         if self.phases is not None and self.phases.flying(self.world.t):  # take-off, landing
@@ -176,7 +183,7 @@ class Simulation:
         else:
             setpoints = self.formation.setpoints(seen.formation_world, seen.formation_sensing)
             setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
-        self.dynamics.control(seen.own, setpoints)
+        return seen.own, setpoints
 
     def blow(self, j: int) -> None:
         """The wind of physics sub-step ``j`` (before ``dynamics.step``)."""

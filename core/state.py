@@ -11,6 +11,7 @@ for the whole run and equal the agent ids used in config (0 .. N-1).
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
@@ -124,6 +125,7 @@ class WorldBatch:
     def __init__(self, worlds: list[WorldState]) -> None:
         self.worlds = list(worlds)
         self._tick_memo: dict[str, Any] = {}
+        self._batch_memo: dict[str, Any] = {}
         # pack(): per names, the instances packed and, per name, the stacked array and its slices
         self._packed: dict[tuple[str, ...], tuple[list[Any], dict[str, tuple[np.ndarray, list[np.ndarray]]]]] = {}
         for name in BATCHED_FIELDS:
@@ -156,6 +158,14 @@ class WorldBatch:
             self._tick_memo[key] = make()
         return self._tick_memo[key]
 
+    def per_batch(self, key: str, make: Callable[[], Any]) -> Any:
+        """``make()`` once for this batch (its worlds and their instances, which a batch keeps
+        until a world ends): what does not change while they fly, such as whether the instances'
+        frozen options agree."""
+        if key not in self._batch_memo:
+            self._batch_memo[key] = make()
+        return self._batch_memo[key]
+
     @property
     def size(self) -> int:
         """B, the number of worlds."""
@@ -179,11 +189,11 @@ class WorldBatch:
             known = self._packed[names] = (list(models), {})
         packed = known[1]
         for name in names:
-            arrays = [getattr(model, name) for model in models]
             held = packed.get(name)
-            if held is not None and all(a is view for a, view in zip(arrays, held[1], strict=True)):
-                continue  # every instance still holds the slice this batch gave it
-            stacked = np.stack(arrays)
+            # every instance still holds the slice this batch gave it (C loops: B x names per tick)
+            if held is not None and all(map(operator.is_, map(operator.attrgetter(name), models), held[1])):
+                continue
+            stacked = np.stack([getattr(model, name) for model in models])
             views = list(stacked)
             for model, view in zip(models, views, strict=True):
                 setattr(model, name, view)

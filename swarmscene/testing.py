@@ -25,7 +25,8 @@ the last one failed), runs the class through the contract of its kind for a few 
   uses its feed-forward (a moving target is followed more closely with ``vel``/``acc`` than from
   ``pos`` alone); the declared ``wind_coupling`` is honoured (``integrated``: ``step`` reacts to
   ``world.wind``; ``force``/``carried``: the kernel applies the wind, so ``step`` must not read it
-  as well); a model with attitude keeps unit quaternions;
+  as well); a model with attitude keeps unit quaternions; ``step_batch`` and ``control_batch``
+  over three worlds give each world the bits of its own ``step`` and ``control``;
 - disturbance model (:func:`check_disturbance`): a ``phase`` and its method; run through the
   kernel's phases, it never modifies the truth, gives finite (N, 3) outputs, draws only from its own
   stream, shares no state between instances, and reports unprefixed, finite JSON metrics;
@@ -485,6 +486,14 @@ def _dynamics_batch_equals_worlds(s: Subject) -> None:
     _check_dynamics_batch_equals_worlds(s.cls, s.params)
 
 
+@promise("dynamics", "control_batch_equals_worlds")
+def _dynamics_control_batch_equals_worlds(s: Subject) -> None:
+    """``control_batch`` over three worlds with setpoints of their own (modes, targets, headings,
+    an agent failed) flies them as each world's own ``control`` does, bit for bit (the default
+    controls world by world; a batched form must latch the same commands)."""
+    _check_dynamics_control_batch_equals_worlds(s.cls, s.params)
+
+
 @promise("dynamics", "no_shared_state")
 def _dynamics_no_shared_state(s: Subject) -> None:
     """Flying an instance changes no class attribute (two instances share no state)."""
@@ -647,6 +656,69 @@ def _check_dynamics_batch_equals_worlds(cls: type[Dynamics], params: PluginParam
                 f"{cls.name}: step_batch gave world {b} another {field} than its own step() "
                 f"(largest difference {np.abs(np.asarray(a) - np.asarray(c)).max():.3g}): a batched form "
                 f"must repeat the per-world arithmetic (docs/batched.md)")
+
+
+def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: PluginParams) -> None:
+    """Three worlds flown 2 s alone (``control`` and ``step``), then together (``control_batch``
+    and ``step_batch``): each tick every world gets setpoints of its own (world 0 a POSITION move,
+    world 1 a TRACK along a moving target with vel, acc and a turning heading, world 2 a
+    VELOCITY command with one agent failed and the rest held)."""
+    shifts = ([0.0, 0.0, 0.0], [5.0, -2.0, 1.0], [-3.0, 4.0, 0.5])
+
+    def worlds() -> list[tuple[WorldState, Dynamics]]:
+        out = []
+        for b, shift in enumerate(shifts):
+            world = example_world(failed=b == 2)
+            world.pos += shift
+            model = _build(cls, params, None, world)
+            model.initialize(world)
+            out.append((world, model))
+        return out
+
+    def setpoints(b: int, world: WorldState, t: float) -> Setpoints:
+        sp = Setpoints.hold(world.pos)
+        if b == 0:
+            sp.mode[:] = Mode.POSITION
+            sp.pos[:] = world.pos + [1.0, 0.0, 0.0]
+        elif b == 1:
+            sp = _moving_target(world.pos, t, feed_forward=True)
+            sp.yaw[:] = 0.3 * t + 0.1 * np.arange(world.n)
+        else:
+            sp.mode[:] = Mode.VELOCITY
+            sp.vel[:] = [0.0, VELOCITY_COMMAND, 0.0]
+            sp.mode[1] = Mode.HOLD
+        return sp
+
+    ticks, substeps = int(round(2.0 / GUIDANCE_PERIOD)), int(round(GUIDANCE_PERIOD / PHYSICS_STEP))
+    alone = worlds()
+    for b, (world, model) in enumerate(alone):
+        for _ in range(ticks):
+            model.control(world, setpoints(b, world, world.t))
+            for _ in range(substeps):
+                model.step(world, PHYSICS_STEP)
+            world.t += GUIDANCE_PERIOD
+    together = worlds()
+    batch = WorldBatch([world for world, _ in together])
+    models = [model for _, model in together]
+    for _ in range(ticks):
+        sps = [setpoints(b, world, world.t) for b, (world, _) in enumerate(together)]
+        if cls.control_batch(models, batch, batch.worlds, sps) is NotImplemented:
+            for (world, model), sp in zip(together, sps, strict=True):
+                model.control(world, sp)
+        batch.controlled()
+        for _ in range(substeps):
+            if cls.step_batch(models, batch, PHYSICS_STEP) is NotImplemented:
+                for world, model in together:
+                    model.step(world, PHYSICS_STEP)
+        for world, _ in together:
+            world.t += GUIDANCE_PERIOD
+    for b, ((one, _), (batched, _)) in enumerate(zip(alone, together, strict=True)):
+        for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
+            a, c = getattr(one, field), getattr(batched, field)
+            assert (a is None) == (c is None) and (a is None or np.array_equal(a, c)), (
+                f"{cls.name}: control_batch flew world {b} to another {field} than its own control() "
+                f"(largest difference {np.abs(np.asarray(a) - np.asarray(c)).max():.3g}): a batched form "
+                f"must latch each world's commands with the per-world arithmetic (docs/batched.md)")
 
 
 def _fresh(cls: type[Dynamics], params: PluginParams) -> tuple[WorldState, Dynamics]:

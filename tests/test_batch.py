@@ -110,6 +110,131 @@ def test_the_quadrotor_steps_every_world_in_one_kernel_call(monkeypatch):
         assert_world_is_its_single_run(config, seed, result)
 
 
+def _count_latches(monkeypatch) -> list[int]:
+    """The rows of every ``latch_references`` call from now on."""
+    from swarmscene.methods.quadrotor import kernels
+
+    calls: list[int] = []
+    kernel = kernels.latch_references
+    monkeypatch.setattr(kernels, "latch_references", lambda *a: calls.append(a[0].shape[0]) or kernel(*a))
+    return calls
+
+
+def test_quadrotor_worlds_with_setpoints_of_their_own_latch_in_one_kernel_call(monkeypatch):
+    """swap flown by quadrotors under sensing noise (each world's controller reads its own noisy
+    estimates, not the truth): every tick one latch_references call for the three worlds' agents,
+    whose setpoints differ, and each world its single run's bits."""
+    config = ["scenario=swap", "dynamics=quadrotor", "swarm.n=4", "disturbances=[sensing_noise]",
+              "clock.duration=2", "output.summary=false"]
+    calls = _count_latches(monkeypatch)
+    results = api.run_batch(config, SEEDS)
+    ticks = results[0].metrics["steps"]
+    assert calls == [4] * 3 + [3 * 4] * ticks  # each world's initialize, then one call per tick
+    monkeypatch.undo()
+    for seed, result in zip(SEEDS, results, strict=True):
+        assert_world_is_its_single_run(config, seed, result)
+    ends = [result.trajectory["pos"][-1] for result in results]
+    assert not np.array_equal(ends[0], ends[1])  # the worlds flew apart (not vacuous)
+
+
+def test_quadrotor_worlds_tuned_apart_are_controlled_one_by_one(monkeypatch):
+    """Worlds whose quadrotors have different gains decline the batched control (one kernel takes
+    one set of options): each world latches its own references, and is its single run."""
+    data = api.compose(["scenario=vrb_airshow", "clock.duration=1", "output.summary=false"])
+    worlds = [{**data, "seed": 5, "dynamics": {**data["dynamics"], "position_omega": w}} for w in (1.0, 2.0)]
+    calls = _count_latches(monkeypatch)
+    outcomes = BatchSimulation([api.build(world) for world in worlds]).run()
+    n = outcomes[0].result.metrics["agents"]
+    assert calls == [n] * (2 + 2 * outcomes[0].result.metrics["steps"])
+    monkeypatch.undo()
+    for world, outcome in zip(worlds, outcomes, strict=True):
+        np.testing.assert_array_equal(outcome.result.trajectory["pos"], api.run(world).trajectory["pos"])
+
+
+def test_lockstep_latches_quadrotor_worlds_in_one_call_as_the_batch_does(monkeypatch):
+    """lockstep (the vector environment's tick) steps its worlds with the batch's stepper: three
+    quadrotor worlds latched in one call per tick, each world's state its single run's after
+    every tick."""
+    from swarmscene.core.batch import lockstep
+    from swarmscene.core.state import WorldBatch
+
+    data = api.compose(["scenario=swap", "dynamics=quadrotor", "swarm.n=4", "output.summary=false"])
+    together = [api.build({**data, "seed": seed}) for seed in SEEDS]
+    alone = [api.build({**data, "seed": seed}) for seed in SEEDS]
+    for sim in together + alone:
+        sim.hook.swarmscene_run_start(sim=sim.view)
+    calls = _count_latches(monkeypatch)
+    batch = WorldBatch([sim.world for sim in together])
+    for _ in range(10):
+        lockstep(together, batch)
+        for sim in alone:
+            sim.step()
+        for one, batched in zip(alone, together, strict=True):
+            for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
+                np.testing.assert_array_equal(getattr(batched.world, field), getattr(one.world, field), err_msg=field)
+    assert sorted(calls) == [4] * 30 + [12] * 10  # the single runs' latches, and one a tick for the three
+
+
+def test_the_quadrotor_heading_vector_has_the_same_bits_at_every_length():
+    """control_batch computes y_c = (-sin psi, cos psi, 0) over the worlds' yaws stacked, control
+    over one world's: numpy's elementwise sin and cos must give each yaw the same bits at any
+    array length and position (else the batched control would leave its worlds' bits)."""
+    from swarmscene.methods.quadrotor.flatness import heading_vector
+
+    rng = np.random.default_rng(34)
+    special = np.array([0.0, -0.0, np.pi, -np.pi / 2, 1e-300, 1e6, 2.0**52, 7.0, -1e-8])
+    for _ in range(200):
+        lengths = rng.integers(1, 40, size=rng.integers(2, 30))
+        parts = [rng.choice(special, k) if rng.random() < 0.2 else rng.uniform(-1, 1, k) * 10.0 ** rng.integers(-6, 7)
+                 for k in lengths]
+        stacked = heading_vector(np.concatenate(parts))
+        start = 0
+        for part in parts:
+            own = heading_vector(part)
+            assert own.tobytes() == stacked[start:start + part.size].tobytes(), part
+            start += part.size
+
+
+def test_a_controller_that_raises_in_one_world_stops_that_world_only(monkeypatch):
+    """A model without a batched control (the single integrator) is controlled world by world:
+    world 1's control raises at t = 1 s and world 1 alone stops, named as its single run names it."""
+    control = SingleIntegrator.control
+    failing = {}
+
+    def failing_control(self, world, sp):
+        if self is failing.get("model") and world.t >= 1.0:
+            raise RuntimeError("controller on fire")
+        control(self, world, sp)
+
+    monkeypatch.setattr(SingleIntegrator, "control", failing_control)
+    data = api.compose(["scenario=swap", "clock.duration=3", "output.summary=false"])
+    sims = [api.build({**data, "seed": seed}) for seed in SEEDS]
+    failing["model"] = sims[1].dynamics
+    outcomes = BatchSimulation(sims).run()
+    assert [o.result.stop_reason for o in outcomes] == ["duration", "plugin_error", "duration"]
+    assert outcomes[1].result.error.startswith(
+        "dynamics 'single_integrator' raised in failing_control at t = 1 s: RuntimeError"), outcomes[1].result.error
+    monkeypatch.undo()
+    assert_world_is_its_single_run(["scenario=swap", "clock.duration=3", "output.summary=false"], 0,
+                                   outcomes[0].result)
+
+
+def test_the_control_batch_contract_check_catches_a_batched_control_that_differs():
+    class Nudged(DoubleIntegrator):
+        name = "nudged_double_integrator"
+
+        @classmethod
+        def control_batch(cls, models, batch, worlds, setpoints):
+            setpoints = list(setpoints)
+            setpoints[1] = setpoints[1].copy()
+            setpoints[1].pos += 1e-12  # world 1's target moved by a picometre
+            return DoubleIntegrator.control_batch.__func__(cls, models, batch, worlds, setpoints)
+
+    with pytest.raises(AssertionError, match="dynamics.control_batch_equals_worlds.*control_batch flew world 1 "
+                                             "to another pos"):
+        testing.check_dynamics(Nudged)
+
+
 def test_the_batch_contract_check_catches_a_batched_form_that_differs():
     class Rounded(DoubleIntegrator):
         name = "rounded_double_integrator"

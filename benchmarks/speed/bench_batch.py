@@ -4,10 +4,13 @@ worlds stepped one by one, and whole batched runs against single runs.
 Part 1, the physics: B worlds of N ``quadrotor`` (6-DOF rigid bodies, SE(3) control, mixer, one
 RK4 step per physics step, float64) or ``double_integrator`` agents, each world's agents holding
 their own points 2 m apart, physics at 240 Hz, the controller latched once per 10 Hz tick. Per
-world: ``model.step(world, dt)`` for each world (today's engine); batched: one
-``Model.step_batch(models, batch, dt)`` (:class:`~swarmscene.core.state.WorldBatch`). The two
-sides fly the same worlds alternately, block by block, timed in CPU time; drone-steps per CPU
-second of each and their ratio. Both sides end in the same state, bit for bit (checked).
+world: ``model.control`` and ``model.step(world, dt)`` for each world; ``step_batch``: the
+controllers world by world, one ``Model.step_batch(models, batch, dt)``
+(:class:`~swarmscene.core.state.WorldBatch`); ``+control_batch``: one
+``Model.control_batch(models, batch, worlds, setpoints)`` and one ``step_batch`` (the engine's
+tick). The three sides fly the same worlds alternately, block by block, timed in CPU time;
+drone-steps per CPU second of each and their ratios to the first. All end in the same state,
+bit for bit (checked).
 
 Part 2, whole runs: ``api.run_batch(data, seeds)`` against ``api.run`` once per seed from the
 same composed data (every phase of every tick: events, sensing, formation, avoidance, the
@@ -21,7 +24,7 @@ the single environment; random actions, agent-steps per CPU second (simulation o
 
 One core, one thread::
 
-    taskset -c 1 python benchmarks/speed/bench_batch.py [--quick]
+    taskset -c 1 python benchmarks/speed/bench_batch.py [--quick] [--only quadrotor:4096x1 ...]
 """
 
 from __future__ import annotations
@@ -68,43 +71,57 @@ def worlds(model_cls: type, b: int, n: int) -> tuple[list[WorldState], list, lis
     return out_worlds, models, targets
 
 
-def tick(models: list, the_worlds: list[WorldState], targets: list[Setpoints], step, batch=None) -> None:
-    """One guidance tick: every world's controller latched, then ``SUBSTEPS`` physics steps."""
-    for model, world, target in zip(models, the_worlds, targets, strict=True):
-        model.control(world, target)
+def tick(models: list, the_worlds: list[WorldState], targets: list[Setpoints], step, batch=None,
+         control_batch: bool = False) -> None:
+    """One guidance tick: every world's controller latched (world by world, or with the model's
+    ``control_batch``), then ``SUBSTEPS`` physics steps."""
+    if control_batch:
+        type(models[0]).control_batch(models, batch, the_worlds, targets)
+    else:
+        for model, world, target in zip(models, the_worlds, targets, strict=True):
+            model.control(world, target)
     if batch is not None:
         batch.controlled()
     for _ in range(SUBSTEPS):
         step()
 
 
-def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int) -> tuple[float, float]:
-    """Drone-steps per CPU second, per world and batched (the best block of each)."""
-    alone_worlds, alone_models, alone_targets = worlds(model_cls, b, n)
-    batch_worlds, batch_models, batch_targets = worlds(model_cls, b, n)
-    batch = WorldBatch(batch_worlds)
+def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int) -> tuple[float, float, float]:
+    """Drone-steps per CPU second, per world, batched physics with the controllers world by world,
+    and batched physics and controllers (the best block of each)."""
+    sides = {side: worlds(model_cls, b, n) for side in ("world", "batch", "control")}
+    batches = {side: WorldBatch(sides[side][0]) for side in ("batch", "control")}
 
-    def per_world() -> None:
-        for model, world in zip(alone_models, alone_worlds, strict=True):
-            model.step(world, PHYSICS_STEP)
+    def stepper(side: str):
+        the_worlds, models, _ = sides[side]
+        if side == "world":
+            def per_world() -> None:
+                for model, world in zip(models, the_worlds, strict=True):
+                    model.step(world, PHYSICS_STEP)
+            return per_world
 
-    def batched() -> None:
-        model_cls.step_batch(batch_models, batch, PHYSICS_STEP)
+        def batched() -> None:
+            model_cls.step_batch(models, batches[side], PHYSICS_STEP)
+        return batched
 
-    best = {"world": np.inf, "batch": np.inf}
-    tick(alone_models, alone_worlds, alone_targets, per_world)  # compile and warm both sides
-    tick(batch_models, batch_worlds, batch_targets, batched, batch)
+    def args(side: str) -> tuple:
+        the_worlds, models, targets = sides[side]
+        return (models, the_worlds, targets, stepper(side), batches.get(side), side == "control")
+
+    best = dict.fromkeys(sides, np.inf)
+    for side in sides:  # compile and warm every side
+        tick(*args(side))
     for _ in range(blocks):
-        for side, args in (("world", (alone_models, alone_worlds, alone_targets, per_world)),
-                           ("batch", (batch_models, batch_worlds, batch_targets, batched, batch))):
+        for side in sides:
             start = time.process_time()
             for _ in range(ticks):
-                tick(*args)
+                tick(*args(side))
             best[side] = min(best[side], time.process_time() - start)
-    for a, c in zip(alone_worlds, batch_worlds, strict=True):
-        assert np.array_equal(a.pos, c.pos) and np.array_equal(a.vel, c.vel), "the batch left its worlds' bits"
+    for side in ("batch", "control"):
+        for a, c in zip(sides["world"][0], sides[side][0], strict=True):
+            assert np.array_equal(a.pos, c.pos) and np.array_equal(a.vel, c.vel), "the batch left its worlds' bits"
     steps = b * n * ticks * SUBSTEPS
-    return steps / best["world"], steps / best["batch"]
+    return steps / best["world"], steps / best["batch"], steps / best["control"]
 
 
 def whole_runs(config: list[str], seeds: list[int], blocks: int) -> tuple[float, float]:
@@ -152,15 +169,21 @@ def main() -> None:
     """Both parts, printed as tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer ticks and blocks (a check, not a measurement)")
+    parser.add_argument("--only", nargs="*", metavar="MODEL:BxN",
+                        help="the physics grid points to run (e.g. quadrotor:4096x1), and nothing else")
     args = parser.parse_args()
     ticks, blocks = (1, 1) if args.quick else (5, 5)
     print("physics, drone-steps per CPU second (240 Hz, 10 Hz control), one core")
-    print(f"{'model':<18}{'B x N':>12}{'per world':>14}{'batched':>14}{'ratio':>8}")
+    print(f"{'model':<18}{'B x N':>12}{'per world':>12}{'step_batch':>12}{'+control_b':>12}{'ratios':>14}")
     for model_cls in (Quadrotor, DoubleIntegrator):
         for b, n in GRID:
-            world_rate, batch_rate = physics(model_cls, b, n, ticks, blocks)
-            print(f"{model_cls.name:<18}{f'{b} x {n}':>12}{world_rate:>14.3g}{batch_rate:>14.3g}"
-                  f"{batch_rate / world_rate:>8.2f}")
+            if args.only is not None and f"{model_cls.name}:{b}x{n}" not in args.only:
+                continue
+            world_rate, batch_rate, control_rate = physics(model_cls, b, n, ticks, blocks)
+            print(f"{model_cls.name:<18}{f'{b} x {n}':>12}{world_rate:>12.3g}{batch_rate:>12.3g}{control_rate:>12.3g}"
+                  f"{batch_rate / world_rate:>7.2f}{control_rate / world_rate:>7.2f}")
+    if args.only is not None:
+        return
     print("\nvector environment, agent-steps per CPU second, one core")
     for b in (16, 256):
         sync, native = vector_env(b, 3 if args.quick else 20, 1 if args.quick else 3)

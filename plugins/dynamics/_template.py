@@ -45,6 +45,26 @@ class MyDynamics(Dynamics):
         world.pos += self.u * dt  # once per physics step, in place
         world.vel[:] = self.u
 
+    # Optional (docs/batched.md): the same control for B worlds at once, on (B, N, 3) stacks. Without
+    # it the engine calls control() world by world. worlds[b] is what world b's controller reads (its
+    # own estimates), setpoints[b] its setpoints. It must give each world the bits control() gives it
+    # (check_dynamics tests that): elementwise numpy operations do, at any shape.
+    @classmethod
+    def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
+                      setpoints: Sequence[Setpoints]) -> object:
+        gain = models[0].params.gain
+        if any(m.params.gain != gain for m in models):
+            return NotImplemented  # one gain per batch here: else the engine calls control() per world
+        pos, mode = np.stack([w.pos for w in worlds]), np.stack([sp.mode for sp in setpoints])
+        sp_pos, sp_vel = np.stack([sp.pos for sp in setpoints]), np.stack([sp.vel for sp in setpoints])
+        u = sp_vel + gain * (sp_pos - pos)
+        velocity, hold = mode == Mode.VELOCITY, mode == Mode.HOLD
+        u[velocity] = sp_vel[velocity]
+        u[hold] = gain * (sp_pos[hold] - pos[hold])
+        for model, own in zip(models, u, strict=True):
+            model.u = own
+        return None
+
     # Optional (docs/batched.md): the same step for B worlds at once. Without it the engine steps a
     # batch's worlds one by one with step(); with it, the (B, N, 3) arrays are updated in one go.
     # It must give each world the bits step() gives it (check_dynamics tests that).

@@ -175,6 +175,56 @@ class Quadrotor(Dynamics):
     """The per-agent arrays ``step`` hands the kernel besides the state (latched by ``control``)."""
 
     @classmethod
+    def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
+                      setpoints: Sequence[Setpoints]) -> object:
+        """``control`` of B worlds in one compiled call over their B x N agents (docs/batched.md).
+
+        :func:`kernels.latch_references` latches agents independently, so the worlds' setpoints,
+        stacked along the world axis, are one swarm's; the references are written into the arrays
+        :meth:`WorldBatch.pack` holds for :meth:`step_batch` (each instance holds its slice, as if
+        its own ``control`` had written it). The heading vectors are computed over the stacked
+        yaws by the same elementwise numpy code as ``control`` (tests/test_batch.py holds its bits
+        to the per-world ones at every length). Worlds whose instances differ in options, or
+        whose setpoints differ in carrying feed-forward (jerk or snap), are left to the
+        per-world ``control``; so is a setpoint record of the wrong size (the world's ``control``
+        raises)."""
+        first = models[0]
+        b, n = batch.pos.shape[:2]
+        feedforward = setpoints[0].jerk is not None or setpoints[0].snap is not None
+        if any(sp.pos.shape[0] != n or (sp.jerk is not None or sp.snap is not None) != feedforward
+               for sp in setpoints) or not cls._same_options(models, batch):
+            return NotImplemented
+        packed = batch.pack(list(models), cls._REFERENCES)
+        ref = {name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}
+        zeros = np.zeros((b * n, 3))
+        yaw = np.concatenate([sp.yaw for sp in setpoints], dtype=np.float64, casting="unsafe")
+        ref["_heading"][:] = heading_vector(yaw)
+        own = all(w is t for w, t in zip(worlds, batch.worlds, strict=True))
+        pos = batch.pos.reshape(b * n, 3) if own else _stacked([w.pos for w in worlds])
+        first._kernels.latch_references(
+            np.concatenate([w.healthy for w in worlds]),
+            np.concatenate([sp.mode for sp in setpoints], dtype=np.int8, casting="unsafe"),
+            _stacked([sp.pos for sp in setpoints]), _stacked([sp.vel for sp in setpoints]),
+            _stacked([sp.acc for sp in setpoints]),
+            _stacked_or_zeros([sp.jerk for sp in setpoints], zeros),
+            _stacked_or_zeros([sp.snap for sp in setpoints], zeros),
+            pos, ref["_heading"], first.params.propagate_reference, feedforward,
+            ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_position_mask"],
+            ref["_omega_d"], ref["_alpha_d"])
+        for model, own_yaw in zip(models, yaw.reshape(b, n), strict=True):
+            model._yaw = own_yaw
+            model._feedforward = feedforward
+            model._tau = 0.0
+        return None
+
+    @classmethod
+    def _same_options(cls, models: Sequence[Self], batch: WorldBatch) -> bool:
+        """Whether the worlds' instances were built with the same options (their kernels then take
+        one set of gains); asked once per batch, the options being frozen."""
+        return bool(batch.per_batch("quadrotor.same_options",
+                                    lambda: all(m.params == models[0].params for m in models)))
+
+    @classmethod
     def step_batch(cls, models: Sequence[Self], batch: WorldBatch, dt: float) -> object:
         """``step`` of B worlds in one compiled call over their B x N agents (docs/batched.md).
 
@@ -213,8 +263,8 @@ class Quadrotor(Dynamics):
         worlds cannot be one swarm (their options, time since the tick, feed-forward, or wind and
         force models differ)."""
         first, one = models[0], batch.worlds[0]
-        if any(m.params != first.params or m._tau != first._tau or m._feedforward != first._feedforward
-               for m in models):
+        if not cls._same_options(models, batch) or any(
+                m._tau != first._tau or m._feedforward != first._feedforward for m in models):
             return None
         if any(w.wind_moment_arm != one.wind_moment_arm or (w.wind is None) != (one.wind is None)
                or (w.force is None) != (one.force is None) for w in batch.worlds):
@@ -246,6 +296,20 @@ class Quadrotor(Dynamics):
 
 MIN_LIFT = 0.2
 """The desired force keeps at least this fraction of m g upwards (se3_controller.py)."""
+
+
+def _stacked(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """The worlds' (N, k) arrays stacked (B N, k) in float64, each converted as ``_floats`` does."""
+    return np.concatenate(arrays, dtype=np.float64, casting="unsafe")
+
+
+def _stacked_or_zeros(arrays: Sequence[np.ndarray | None], zeros: np.ndarray) -> np.ndarray:
+    """:func:`_stacked` where a world's ``None`` (no jerk, no snap) reads as zeros, as in
+    ``control``; ``zeros`` (B N, 3) itself when every world's is ``None``."""
+    if all(a is None for a in arrays):
+        return zeros
+    n = zeros.shape[0] // len(arrays)
+    return _stacked([zeros[:n] if a is None else a for a in arrays])
 
 
 def _floats(a) -> np.ndarray:
