@@ -50,6 +50,7 @@ The built-in plugins pass these checks in the test suite (tests/test_contract.py
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -649,13 +650,21 @@ def _check_dynamics_batch_equals_worlds(cls: type[Dynamics], params: PluginParam
                     model.step(world, PHYSICS_STEP)
         for world, _, _ in together:
             world.t += GUIDANCE_PERIOD
-    for b, ((one, _, _), (batched, _, _)) in enumerate(zip(alone, together, strict=True)):
+    _assert_worlds_equal([one for one, _, _ in alone], [batched for batched, _, _ in together],
+                         lambda b, field: f"{cls.name}: step_batch gave world {b} another {field} than its own "
+                         "step()", "must repeat the per-world arithmetic")
+
+
+def _assert_worlds_equal(alone: list[WorldState], together: list[WorldState], differs: Callable[[int, str], str],
+                         must: str) -> None:
+    """Each batched world's state equals its world flown alone bit for bit; else ``differs(b, field)``,
+    the largest difference, and what ``a batched form`` ``must`` do."""
+    for b, (one, batched) in enumerate(zip(alone, together, strict=True)):
         for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
             a, c = getattr(one, field), getattr(batched, field)
             assert (a is None) == (c is None) and (a is None or np.array_equal(a, c)), (
-                f"{cls.name}: step_batch gave world {b} another {field} than its own step() "
-                f"(largest difference {np.abs(np.asarray(a) - np.asarray(c)).max():.3g}): a batched form "
-                f"must repeat the per-world arithmetic (docs/batched.md)")
+                f"{differs(b, field)} (largest difference {np.abs(np.asarray(a) - np.asarray(c)).max():.3g}): "
+                f"a batched form {must} (docs/batched.md)")
 
 
 def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: PluginParams) -> None:
@@ -712,13 +721,9 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
                     model.step(world, PHYSICS_STEP)
         for world, _ in together:
             world.t += GUIDANCE_PERIOD
-    for b, ((one, _), (batched, _)) in enumerate(zip(alone, together, strict=True)):
-        for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
-            a, c = getattr(one, field), getattr(batched, field)
-            assert (a is None) == (c is None) and (a is None or np.array_equal(a, c)), (
-                f"{cls.name}: control_batch flew world {b} to another {field} than its own control() "
-                f"(largest difference {np.abs(np.asarray(a) - np.asarray(c)).max():.3g}): a batched form "
-                f"must latch each world's commands with the per-world arithmetic (docs/batched.md)")
+    _assert_worlds_equal([one for one, _ in alone], [batched for batched, _ in together],
+                         lambda b, field: f"{cls.name}: control_batch flew world {b} to another {field} than its "
+                         "own control()", "must latch each world's commands with the per-world arithmetic")
 
 
 def _fresh(cls: type[Dynamics], params: PluginParams) -> tuple[WorldState, Dynamics]:
