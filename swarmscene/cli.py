@@ -16,17 +16,14 @@ exits with status 130; SIGTERM (a scheduler's cancel, ``kill``) does the same wi
 
 from __future__ import annotations
 
-import math
 import os
 import shutil
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, NoReturn, cast
 
 from .core import interrupts
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .core.raised import RunFailed
+from .sweeps.job import DEBUG_ENV
 
 # A launcher's worker process (joblib, ray, submitit) imports this module to run `_task`, with
 # Hydra already loaded, and then resolves the job's directory and writes its `.hydra/` files
@@ -45,7 +42,6 @@ EXIT_FAILED = 1  # the run started and failed (a non-finite state): its outputs 
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
-DEBUG_ENV = "SWARMSCENE_DEBUG"
 
 
 def _interrupted_status() -> tuple[int, str]:
@@ -148,7 +144,9 @@ def _main() -> None:
             sys.exit(ended)
         if debug:
             raise
-        _report(_error_lines(exc), _error_status(exc))
+        from .sweeps.job import error_lines
+
+        _report(error_lines(exc), _error_status(exc))
     finally:
         if before is None:
             os.environ.pop("HYDRA_FULL_ERROR", None)
@@ -231,7 +229,7 @@ def _multirun_status() -> int | None:
     return callback.take_exit_status() if callback is not None else None
 
 
-def _report(lines: list[str], status: int = EXIT_CONFIG) -> None:
+def _report(lines: list[str], status: int = EXIT_CONFIG) -> NoReturn:
     for line in lines:
         print(f"swarmscene: {line}", file=sys.stderr)
     sys.exit(status)
@@ -240,124 +238,52 @@ def _report(lines: list[str], status: int = EXIT_CONFIG) -> None:
 def _error_status(exc: BaseException) -> int:
     """The exit status of an error: 1 when a pool launcher's worker died (the jobs written are kept
     and a re-run resumes, as after a job that did not complete), else :data:`EXIT_CONFIG`."""
+    from .sweeps.job import cause_of
     from .sweeps.pool import WorkerDied
 
-    return 1 if _cause_of(exc, (WorkerDied,)) is not None else EXIT_CONFIG
-
-
-def _error_lines(exc: BaseException) -> list[str]:
-    from .core.errors import ConfigError
-    from .core.raised import RunFailed
-    from .hydra_errors import hydra_error_line
-    from .rundir import RunFileError
-    from .sweeps.pool import WorkerDied
-
-    if isinstance(exc, ConfigError):
-        return exc.lines
-    if isinstance(exc, RunFailed):  # its message is the engine's own line (the first non-finite state)
-        return [str(exc)]
-    cause = _cause_of(exc, (ConfigError, RunFileError, WorkerDied))
-    if isinstance(cause, ConfigError):  # raised inside Hydra (swarmscene.dir_name, scenario_files)
-        return cause.lines
-    if isinstance(cause, (RunFileError, WorkerDied)):
-        return [str(cause)]
-    line = hydra_error_line(exc)
-    if line is not None:
-        return [line]
-    cause = _cause_of(exc, (OSError,))
-    if isinstance(cause, OSError) and cause.errno is not None and cause.filename is not None:
-        return [f"{cause.filename}: cannot be written ({cause.strerror or cause})"]  # a full disk, read-only
-    return [f"{type(exc).__name__}: {exc}".splitlines()[0] + f" (set {DEBUG_ENV}=1 for a traceback)"]
-
-
-def _cause_of(exc: BaseException | None, kinds: tuple[type, ...]) -> BaseException | None:
-    """The first exception of ``kinds`` in ``exc``'s chain of causes, else None."""
-    seen = 0
-    while exc is not None and seen < 20:
-        if isinstance(exc, kinds):
-            return exc
-        exc, seen = exc.__cause__ or exc.__context__, seen + 1
-    return None
+    return 1 if cause_of(exc, (WorkerDied,)) is not None else EXIT_CONFIG
 
 
 def _task(cfg: Any) -> Any:
-    """Hydra task: validate, run, write the run directory, print the summary.
-
-    In a multirun every exception of the job is caught and recorded in its run directory
-    (``error.json``, and a manifest with status ``failed``), so the other jobs still run and the
-    sweep table shows the error; a job whose directory already holds a complete manifest with the
-    same config hash is skipped (resume). A Ctrl-C writes what the run has, marked incomplete, and
-    ends the process with status 130. A launcher task of several sweep jobs
-    (:mod:`swarmscene.sweeps.chunks`) runs them one after another, each as a job of its own
-    (:mod:`swarmscene.sweeps.task`).
-    """
+    """Hydra's task: the command's run (validate, run, write the run directory, print the summary),
+    or in a multirun the launcher task of sweep jobs (:func:`swarmscene.sweeps.job.launcher_task`:
+    every exception of a job recorded in its run directory, a job already complete skipped). A
+    Ctrl-C writes what the run has, marked incomplete, and ends the process with status 130."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    from .sweeps import task
+    if HydraConfig.get().mode == RunMode.MULTIRUN:
+        from .sweeps.job import launcher_task
 
-    if HydraConfig.get().mode != RunMode.MULTIRUN:
-        return _one(cfg)
-    task.renumber_first()  # a launcher task of several jobs: this job's number, not the task's
-    result = _one(cfg)
-    task.run_rest(lambda job_cfg, run_dir: _one(job_cfg), cfg)  # the task's other jobs, if any
-    return result
+        return launcher_task(cfg)
+    return _single(_resolved(cfg), Path(HydraConfig.get().runtime.output_dir))
 
 
-def _one(cfg: Any) -> Any:
-    """One run or one sweep job, in the run directory ``HydraConfig`` names."""
+def _resolved(cfg: Any) -> dict[str, Any]:
+    """The run's config resolved; an interpolation that does not resolve ends the command with its
+    key named, and no run directory left."""
     from hydra.core.hydra_config import HydraConfig
-    from hydra.types import RunMode
     from omegaconf import OmegaConf
 
-    from .core.errors import ConfigError
     from .hydra_errors import resolution_error_line
 
-    hydra_cfg = HydraConfig.get()
-    run_dir = Path(hydra_cfg.runtime.output_dir)
     try:
-        data = cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
-    except Exception as exc:  # an interpolation that does not resolve: name its key
+        return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
+    except Exception as exc:
         line = resolution_error_line(exc)
         if line is None:
             raise
-        if hydra_cfg.mode == RunMode.MULTIRUN:
-            raise ConfigError([line]) from exc
-        _remove_unfinished(run_dir)
+        _remove_unfinished(Path(HydraConfig.get().runtime.output_dir))
         _report([line])
-    if hydra_cfg.mode != RunMode.MULTIRUN:
-        return _single(data, run_dir)
-    return _sweep_job(data, run_dir)
-
-
-def _sweep_job(data: dict[str, Any], run_dir: Path) -> Any:
-    """A sweep job: every exception recorded in its run directory (module docstring of _task)."""
-    from .rundir import RunFileError
-    from .sweeps.records import record_failure
-
-    try:
-        return _job(data, run_dir)
-    except KeyboardInterrupt:
-        raise
-    except Exception as exc:  # the job failed: record it, let the launcher run the others
-        line = _error_lines(exc)[0]
-        try:
-            record_failure(run_dir, exc, data)
-        except RunFileError as refused:  # a planted link: nothing is written through it
-            if str(refused) not in line:
-                line += f" (its error.json not written: {refused})"
-        except OSError as write_error:  # a full disk, a read-only directory: say so, go on
-            line += f" (and its error.json could not be written in {run_dir}: {write_error.strerror or write_error})"
-        print(f"swarmscene: job {run_dir.name} failed: {line}", file=sys.stderr)
-        names = (data.get("output") or {}).get("objective") or []
-        if names:  # a sweeper gets None (Optuna: a failed trial)
-            return _objective_from(names, {})
-        return {"status": "failed", "error": str(exc)}
 
 
 def _single(data: dict[str, Any], run_dir: Path) -> Any:
+    """The command's one run: built, flown and landed in ``run_dir``; bad input, a stop request, a
+    failed run or an unwritable directory ends the command with its line and status."""
     from . import api
     from .core.errors import ConfigError
+    from .runpath import run_and_write
+    from .sweeps.job import objective_from
 
     _stop_if_requested(run_dir)  # a signal during start-up or composition
     try:
@@ -374,12 +300,14 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         raise
     _stop_if_requested(run_dir)  # a signal while the plugins were built (and kernels compiled)
     try:
-        result, failed = _run_and_write(sim, run_dir, writers, sweep=False)
+        result, failed = run_and_write(sim, run_dir, writers, sweep=False)
     except OSError as exc:  # a full disk, a read-only directory: its files were removed (outputs.py)
         _remove_unfinished(run_dir)
         if os.environ.get(DEBUG_ENV):
             raise
-        _report(_error_lines(exc))
+        from .sweeps.job import error_lines
+
+        _report(error_lines(exc))
     except Exception:
         _remove_unfinished(run_dir)  # nothing written: no `.hydra/`-only directory left behind
         raise
@@ -403,7 +331,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
         record_failure(run_dir, failed, sim.scenario.data)
         print(f"swarmscene: {result.error}; outputs up to then (marked failed) in {run_dir}", file=sys.stderr)
         sys.exit(EXIT_FAILED)
-    return _objective(sim, result)
+    return objective_from(sim.config.output.objective, result.metrics)
 
 
 def _stop_if_requested(run_dir: Path) -> None:
@@ -411,70 +339,6 @@ def _stop_if_requested(run_dir: Path) -> None:
     if interrupts.requested() is not None:
         _remove_unfinished(run_dir)
         _exit_interrupted("before the run started (no run directory written)")
-
-
-def _job(data: dict[str, Any], run_dir: Path) -> Any:
-    """One job of a sweep: skip when already complete for this config, else run and write.
-
-    One plugin manager serves the job: it validates the scenario and the simulation owns it.
-    """
-    from . import api
-    from .sweeps.records import completed_metrics, write_overrides
-
-    write_overrides(run_dir)  # the job's record of what it is, before anything can fail
-    plugin_set = api.plugins()
-    scenario = api.load(data, plugin_set[1])
-    done = completed_metrics(run_dir, scenario.data)  # hashed over the effective configuration
-    if done is not None:
-        print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
-        return _objective_from(scenario.config.output.objective, done)
-    if interrupts.requested() is not None:  # came while the job was set up: stop before building
-        raise KeyboardInterrupt
-    sim = api.build(scenario, plugin_set)
-    result, failed = _run_and_write(sim, run_dir, api.extra_writers(sim), sweep=True)
-    if not result.complete or interrupts.requested() is not None:
-        raise KeyboardInterrupt  # outputs are written (marked incomplete if the run was cut); stop the sweep
-    if failed is not None:
-        raise failed  # recorded as a failed job (error.json, manifest), outputs kept
-    return _objective(sim, result)
-
-
-def _run_and_write(sim: Any, run_dir: Path, writers: list[Any], sweep: bool) -> tuple[Any, RunFailed | None]:
-    """Run and write the run directory (:mod:`swarmscene.runpath`, as ``api.run`` does), print the
-    summary of a run that flew; return the result and, for a run that failed (a non-finite state, a
-    plugin's exception), the error to record."""
-    from .runpath import fly, land
-    from .summary import Progress, summary_text
-
-    output = sim.config.output
-    flight = fly(sim, Progress.maybe(output.progress, enabled=not sweep), gather_warnings=True)
-    failed = land(sim, flight, run_dir, writers)  # the manifest, last, lists every file
-    if failed is None and output.summary and not sweep:
-        print(summary_text(sim, flight.result, run_dir))
-    # A run that did not fly to its end gets no verdicts: its one line (the caller prints it) says why.
-    return flight.result, failed
-
-
-def _objective(sim: Any, result: Any) -> Any:
-    return _objective_from(sim.config.output.objective, result.metrics)
-
-
-def _objective_from(names: list[str], metrics: dict[str, Any]) -> Any:
-    """The metrics a sweeper optimises (``output.objective``), or all metrics when none is named.
-
-    None when a named metric is missing or not finite (a failed job, a run that blew up): Optuna's
-    sweeper records that trial as failed and the study goes on. (It cannot take NaN: Optuna
-    refuses the value, and the sweeper's second attempt to record the failure ends the study.)
-    """
-    if not names:
-        return metrics
-    values = []
-    for name in names:
-        value = metrics.get(name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            return None
-        values.append(float(value))
-    return values[0] if len(values) == 1 else tuple(values)
 
 
 def _remove_unfinished(run_dir: Path) -> None:

@@ -130,3 +130,19 @@ def write_outputs(
         started_at=started_at,
     )
     result.run_dir = run_dir
+
+
+def run_and_write(sim: Simulation, run_dir: Path, writers: Sequence[Callable[..., Any]], sweep: bool
+                  ) -> tuple[RunResult, RunFailed | None]:
+    """The command's run and a sweep job's: fly with the progress line (not in a sweep, whose line is
+    the sweep's), land, print the summary of a run that flew (not in a sweep); return the result and,
+    for a run that failed (a non-finite state, a plugin's exception), the error to record."""
+    from .summary import Progress, summary_text
+
+    output = sim.config.output
+    flight = fly(sim, Progress.maybe(output.progress, enabled=not sweep), gather_warnings=True)
+    failed = land(sim, flight, run_dir, writers)  # the manifest, last, lists every file
+    if failed is None and output.summary and not sweep:
+        print(summary_text(sim, flight.result, run_dir))
+    # A run that did not fly to its end gets no verdicts: its one line (the caller prints it) says why.
+    return flight.result, failed

@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from swarmscene import cli
+from swarmscene.sweeps import job as job_module
 from swarmscene.sweeps import records, report, stats, tables
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
@@ -712,7 +713,7 @@ def test_a_full_disk_while_the_records_are_written_names_the_file(tmp_path, monk
     with pytest.raises(OSError) as full:
         outputs.atomic_write_json(job / "error.json", {"error": "x"})
     assert full.value.filename == str(job / "error.json") and full.value.errno == errno.ENOSPC
-    assert cli._error_lines(full.value) == [f"{job / 'error.json'}: cannot be written (No space left on device)"]
+    assert job_module.error_lines(full.value) == [f"{job / 'error.json'}: cannot be written (No space left on device)"]
     assert list(job.iterdir()) == []  # no temporary file left behind
 
 

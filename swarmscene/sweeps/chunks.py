@@ -10,7 +10,7 @@ launcher unchanged. In the process that composes the task (:class:`~.compose.Gro
 - the task's first job is composed as a job of its own, its run directory fixed as the job's
   (``hydra.sweep.subdir`` resolved with its own number: the launcher numbers tasks, not jobs), and
   the rest of the task set in its environment (:data:`CHUNK_ENV`, through ``hydra.job.env_set``);
-- Hydra's ``run_job`` runs the first job as ever; the task function (``cli._task``) then runs the
+- Hydra's ``run_job`` runs the first job as ever; the task function (:func:`.job.launcher_task`) then runs the
   rest (:func:`.task.run_rest`): each composed from the cached composition of its groups, numbered, given
   its own run directory and ``HydraConfig``, and run by the same per-job function, which writes the
   same run directory (``.hydra/overrides.yaml``, config, manifest, metrics; resume and failure

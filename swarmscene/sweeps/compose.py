@@ -269,7 +269,7 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
       manifest (``swarmscene.outputs.run_command``), wherever the job runs;
     - ``hydra.output_subdir: null``: Hydra does not write ``.hydra/config.yaml`` and ``hydra.yaml``
       for each job (three YAML dumps, ~15 ms a job); the job writes ``.hydra/overrides.yaml``
-      itself (``cli._job``), its ``config.yaml`` is the effective configuration, and the sweep
+      itself (:func:`.job.run_job`), its ``config.yaml`` is the effective configuration, and the sweep
       directory's ``multirun.yaml`` holds Hydra's own settings (docs/outputs.md).
     """
     from omegaconf import open_dict
