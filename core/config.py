@@ -234,7 +234,7 @@ class OutputConfig(_Strict):
     def _live_view(cls, value: str) -> str:
         import re
 
-        # the grammar only; swarmscene.live starts or reaches the viewer (ports: Rerun's 9876 and 9090)
+        # the grammar only; swarmscene.views.live starts or reaches the viewer (ports: Rerun's 9876 and 9090)
         match = re.fullmatch(LIVE_PATTERN, value)
         ports = [int(p) for p in match.groupdict(default="0").values() if p.isdigit()] if match else []
         if match is None or any(port > 65535 for port in ports):

@@ -11,7 +11,7 @@ algorithms' plugins in :mod:`swarmscene.plugins`, the config tree in :mod:`swarm
 This package is the application around them: the public entry points (:mod:`~swarmscene.api`,
 :mod:`~swarmscene.cli`, :mod:`~swarmscene.plugin`, :mod:`~swarmscene.testing`, :mod:`~swarmscene.env`),
 the one path from a built run to its directory (:mod:`~swarmscene.runpath`), the run directory's
-writer and reader (:mod:`~swarmscene.outputs`, :mod:`~swarmscene.rundir`), the sweeps
+writer and reader (:mod:`~swarmscene.runs.outputs`, :mod:`~swarmscene.runs.rundir`), the sweeps
 (:mod:`swarmscene.sweeps`), the suite (:mod:`swarmscene.suite`), the views of a run (summary,
 plots, live view, replay, exports) and the tools (falsifier, compile, docs generation, schema, info).
 """

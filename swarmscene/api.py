@@ -17,54 +17,18 @@ import re
 from collections.abc import Callable, Sequence
 from datetime import UTC
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
-from .builtins import BUILTIN_PLUGINS
+from .composition.compose import CONFIG_MODULE, CONFIG_NAME, compose  # noqa: F401 (the public API's names)
 from .core.config import Scenario
 from .core.errors import ConfigError
-from .core.registry import Registry, make_plugin_manager
+from .core.registry import Registry
 from .core.result import RunResult
 from .core.simulation import Simulation
-from .core.validation import validate
 from .runpath import utc_now, write_outputs  # noqa: F401 (write_outputs: part of the api, used by tests and tools)
-
-CONFIG_MODULE = "swarmscene.scenarios"
-CONFIG_NAME = "config"
-
-
-def plugins() -> tuple[Any, Registry]:
-    """A fresh plugin manager (built-ins, then entry points) and its registry."""
-    return make_plugin_manager(BUILTIN_PLUGINS)
-
-
-def compose(overrides: Sequence[str] = ()) -> dict[str, Any]:
-    """Compose the config tree with Hydra overrides; return plain data without the ``hydra`` node.
-
-    Every documented option is set with plain ``key=value`` (rewritten to ``++key=value``,
-    :func:`swarmscene.searchpath.plain_overrides`), whether or not the composed YAML holds it.
-    A composition that fails (an unknown option, a value that does not parse or resolve) raises
-    :class:`~swarmscene.core.errors.ConfigError` with the command line's one-line wording.
-    """
-    from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
-    from omegaconf import OmegaConf
-
-    from .searchpath import plain_overrides, register_search_path
-
-    register_search_path()
-    try:
-        with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
-            cfg = hydra_compose(config_name=CONFIG_NAME, overrides=plain_overrides(overrides))
-        return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
-    except ConfigError:
-        raise
-    except Exception as exc:  # Hydra's multi-line wording: the command line's one line instead
-        from .hydra_errors import hydra_error_line
-
-        line = hydra_error_line(exc)  # the command line's reading (an unresolvable value included)
-        if line is None:
-            raise
-        raise ConfigError([line]) from exc
+from .runs import build as assembly
+from .runs.build import build_error_line, plugins  # noqa: F401 (the public API's names)
+from .views.writers import extra_writers, files_asked
 
 
 def load(config: Sequence[str] | dict[str, Any] = (), registry: Registry | None = None) -> Scenario:
@@ -73,11 +37,7 @@ def load(config: Sequence[str] | dict[str, Any] = (), registry: Registry | None 
     A dict is taken as composed data: a run directory's ``config.yaml`` (the effective
     configuration) loads back to the same scenario.
     """
-    data = config if isinstance(config, dict) else compose(config)
-    data = {k: v for k, v in data.items() if k != "hydra"}
-    if registry is None:
-        _, registry = plugins()
-    return validate(data, registry)
+    return assembly.load(config if isinstance(config, dict) else compose(config), registry)
 
 
 def build(
@@ -91,41 +51,9 @@ def build(
         plugin_set: the ``(plugin manager, registry)`` pair of :func:`plugins` that validated
             ``config`` (one manager per run); a fresh one when omitted.
     """
-    pm, registry = plugin_set if plugin_set is not None else plugins()
-    scenario = config if isinstance(config, Scenario) else load(config, registry)
-    try:
-        return Simulation(scenario, pm, registry.observers)
-    except ConfigError:
-        raise
-    except Exception as exc:  # options valid one by one that no plugin can build (memory, overflow)
-        raise ConfigError([build_error_line(scenario, exc)]) from exc
-
-
-def build_error_line(scenario: Scenario, exc: BaseException) -> str:
-    """One line for an exception raised while building a run: the plugin kind whose code raised
-    it (the first plugin module in the traceback), its name, and the exception."""
-    from .core.raised import zero_options
-
-    reason = f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0]}"
-    modules = {cls.__module__: kind for kind, cls in scenario.plugin_classes.items()}
-    tb = exc.__traceback__
-    while tb is not None:
-        kind = modules.get(tb.tb_frame.f_globals.get("__name__"))
-        if kind is not None:
-            name = scenario.plugin_classes[kind].name
-            options = zero_options(exc, tb.tb_frame.f_locals.get("self"), kind) or zero_options(
-                exc, _Holder(scenario.plugin_params.get(kind)), kind)
-            return (f"{kind}: {name!r} cannot be built for this scenario (swarm.n = {scenario.config.swarm.n})"
-                    f"{options}: {reason}")
-        tb = tb.tb_next
-    return f"scenario: cannot be built: {reason}"
-
-
-class _Holder:
-    """A plugin's ``params`` before the plugin exists (a constructor that raised)."""
-
-    def __init__(self, params: Any) -> None:
-        self.params = params
+    if not isinstance(config, (dict, Scenario)):
+        config = compose(config)
+    return assembly.build(config, plugin_set)
 
 
 def run(
@@ -142,12 +70,12 @@ def run(
     is given; ``output.summary`` prints the run's summary (set it false to keep a notebook quiet).
     """
     from .runpath import fly, land
-    from .summary import Progress, summary_text
+    from .views.summary import Progress, summary_text
 
     sim = build(config)
     output = sim.config.output
     if output_dir is None:
-        asked = _files_asked(output)
+        asked = files_asked(output)
         if asked:
             raise ConfigError([f"{asked[0]}: writes files, so it needs a run directory: api.run(..., output_dir=...)"])
     writers = extra_writers(sim)
@@ -203,7 +131,7 @@ def run_batch(
     data = config if isinstance(config, dict) else compose(config)
     first = build({**data, "seed": seeds[0]})
     output = first.config.output  # the same for every world: one composition
-    asked = _files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
+    asked = files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
     if asked:
         raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
     sims = [first, *(build({**data, "seed": seed}) for seed in seeds[1:])]
@@ -221,47 +149,6 @@ def run_batch(
 
                 record_failure(run_dir, failed, sim.scenario.data)
     return results
-
-
-def _files_asked(output: Any) -> list[str]:
-    """The output options that write files beside the run's own (``output.plots=true``...)."""
-    return [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
-
-
-def extra_writers(sim: Simulation) -> list[Callable[..., Any]]:
-    """The optional outputs asked for (plots, animation, Rerun replay, ROS 2 bag), as writer functions; a
-    missing optional package is a one-line ConfigError now, not after the run. A live view
-    (``output.live``) is attached to ``sim`` here, before its run (swarmscene.live)."""
-    output = sim.config.output
-    writers: list[Callable[..., Any]] = []
-    if output.plots or output.animation:
-        _require("matplotlib", "output.plots/output.animation", "plots")
-        from .plots import write_run_plots
-
-        writers.append(write_run_plots)
-    if output.rerun:
-        _require("rerun", "output.rerun", "rerun")
-        from .replay import export_rerun
-
-        writers.append(export_rerun)
-    if output.mcap:  # streams during the run: an observer, whose writer publishes the bag
-        _require("zstandard", "output.mcap", "ros")
-        from .mcap_bag import attach as attach_bag
-
-        writers.append(attach_bag(sim))
-    if output.live != "off":  # streams during the run: an observer on this run's plugin manager
-        from .live import attach
-
-        attach(sim)
-    return writers
-
-
-def _require(module: str, option: str, extra: str) -> None:
-    """A one-line error naming the extra to install when an optional output's package is missing."""
-    import importlib.util
-
-    if importlib.util.find_spec(module) is None:
-        raise ConfigError([f"{option}=true needs the {extra!r} extra: pip install 'swarmscene[{extra}]'"])
 
 
 # -- sweeps ---------------------------------------------------------------------------------------

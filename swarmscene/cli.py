@@ -4,7 +4,7 @@
     swarmscene scenario=cem_six_vehicle avoidance.K=1
     swarmscene --multirun avoidance.K=1,2,5       # a sweep (Hydra launchers)
     swarmscene --help | --cfg job | --info
-    swarmscene --version | plugins                # what is installed (swarmscene.info)
+    swarmscene --version | plugins                # what is installed (swarmscene.tools.info)
 
 Bad input prints one line per problem (``dotted.key: what is allowed (got value)``) and exits
 with status 2, without a traceback (set ``SWARMSCENE_DEBUG=1`` for one) and without leaving a run
@@ -31,10 +31,10 @@ from .sweeps.job import DEBUG_ENV
 # handler is in place, so that a Ctrl-C during start-up is never a traceback. ("hydra" first:
 # the plain command imports nothing more than before.)
 if "hydra" in sys.modules:
-    from .hydra_internals import save_config_loaded as _save_config_loaded
+    from .composition.hydra_internals import save_config_loaded as _save_config_loaded
 
     if _save_config_loaded():
-        from .hydra_files import install as _protect_run_dirs
+        from .composition.hydra_files import install as _protect_run_dirs
 
         _protect_run_dirs()
 
@@ -93,7 +93,7 @@ _FROZEN_AT_EXIT: list[bool] = []
 
 def _dispatch() -> None:
     if sys.argv[1:] in (["--version"], ["plugins"]):  # not Hydra overrides: answered without composing
-        from . import info
+        from .tools import info
 
         sys.exit(info.command(sys.argv[1]))
     # First of all: from here on SIGINT/SIGTERM are recorded, and acted on at the next point
@@ -107,7 +107,7 @@ def _dispatch() -> None:
 def _main() -> None:
     import hydra
 
-    from .searchpath import plain_command_line, register_search_path
+    from .composition.searchpath import plain_command_line, register_search_path
 
     register_search_path()
     _show_deprecations()
@@ -265,7 +265,7 @@ def _resolved(cfg: Any) -> dict[str, Any]:
     from hydra.core.hydra_config import HydraConfig
     from omegaconf import OmegaConf
 
-    from .hydra_errors import resolution_error_line
+    from .composition.hydra_errors import resolution_error_line
 
     try:
         return cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))  # the root is a mapping
@@ -317,7 +317,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
               f"partial outputs (marked incomplete) in {run_dir}", file=sys.stderr)
         sys.exit(status)
     if interrupts.requested() is not None:  # the run ended; the request came while writing
-        from .rundir import RunDir, RunFileError
+        from .runs.rundir import RunDir, RunFileError
 
         try:
             complete = RunDir(run_dir).manifest().get("complete") is True

@@ -1,86 +1,15 @@
-"""``swarmscene-compile``: compile every compiled kernel ahead, once per machine or image.
+"""Moved: ``swarmscene.compile`` is :mod:`swarmscene.tools.compile` since 0.7.0 (the application's wings,
+issue #35). This name, ``python -m swarmscene.compile`` included, works until 0.8.0 with a warning."""
 
-    swarmscene-compile            # or: python -m swarmscene.compile
-
-The engine's kernels (numba, ``cache=True``) are compiled the first time a run calls them and
-kept in numba's on-disk cache; a fresh cluster node or container image otherwise pays that compile
-in its first jobs (the tutorial's first CEM run: ~15 s). This command runs every preset briefly
-with its events moved early, so that each method's kernels (CEM's after a failure, the indoor
-rules, flocking, the quadrotor plant, the cell lists of large swarms) run once, a swarm over
-the dense-pair limit on each dynamics model, and the ``swarmlab`` observer's compiled pass.
-Nothing is written but numba's cache (its default place: ``__pycache__`` beside each module, or
-the user's cache when that is read-only; ``NUMBA_CACHE_DIR`` moves it, e.g. onto a shared file
-system or into the image).
-
-A run that fails here is named in one line and the others go on; the exit status is 1 then.
-"""
-
-from __future__ import annotations
-
-import argparse
 import sys
-import time
-from pathlib import Path
-from typing import Any
+import warnings
 
-SHORT = 1.0
-"""s of simulated time per warm-up run, after the last (moved) event."""
+from .tools import compile as _moved
 
-
-def warmups() -> list[tuple[str, list[str]]]:
-    """(label, overrides) of the warm-up runs: every preset, large swarms on each dynamics, the swarmlab observer."""
-    presets = sorted(p.stem for p in (Path(__file__).parents[1] / "scenarios" / "scenario").glob("*.yaml"))
-    runs = [(f"scenario={p}", [f"scenario={p}"]) for p in presets]
-    for dynamics in ("single_integrator", "double_integrator", "quadrotor"):
-        overrides = [f"dynamics={dynamics}", "swarm=grid", "swarm.n=64", "environment=open"]
-        runs.append((" ".join(overrides), overrides))
-    runs.append(("observers=[swarmlab]", ["scenario=flocking", "observers=[swarmlab]"]))  # its compiled pass
-    return runs
-
-
-def short(data: dict[str, Any]) -> dict[str, Any]:
-    """The scenario with its events at the first ticks and a duration just past the last one."""
-    data = dict(data)
-    events = [dict(e) for e in data.get("events") or []]
-    step = float(data["clock"]["guidance_period"])
-    for i, event in enumerate(events):
-        if "at" in event:
-            event["at"] = round((i + 2) * 5 * step, 9)
-    last = max([e.get("at", 0.0) for e in events] + [0.0])
-    data["events"] = events
-    data["clock"] = {**data["clock"], "duration": min(float(data["clock"]["duration"]), last + SHORT)}
-    data["output"] = {**data.get("output", {}), "progress": "off", "summary": False, "trajectory": False}
-    return data
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``swarmscene-compile``: run the warm-up scenarios, so numba's kernels are compiled and cached."""
-    parser = argparse.ArgumentParser(prog="swarmscene-compile", description=__doc__.splitlines()[0])
-    parser.parse_args(argv)
-    from . import api
-
-    runs = warmups()
-    failed = 0
-    start = time.perf_counter()
-    for i, (label, overrides) in enumerate(runs, 1):
-        began = time.perf_counter()
-        try:
-            api.run(short(api.compose(overrides)))
-            word = "ok"
-        except Exception as exc:  # one line per failed warm-up; the others still compile
-            failed += 1
-            word = f"FAILED: {' '.join(str(exc).split())[:200]}"
-        print(f"swarmscene-compile: [{i}/{len(runs)}] {label}: {time.perf_counter() - began:.1f} s {word}",
-              file=sys.stderr, flush=True)
-    print(f"swarmscene-compile: {len(runs) - failed} of {len(runs)} warm-up runs in "
-          f"{time.perf_counter() - start:.1f} s; numba's cache is filled", file=sys.stderr)
-    return 1 if failed else 0
-
-
-def entry() -> None:
-    """Console script ``swarmscene-compile``."""
-    sys.exit(main())
-
-
+OLD, NEW = "swarmscene.compile", "swarmscene.tools.compile"
 if __name__ == "__main__":
-    entry()
+    print(f"swarmscene: python -m {OLD} is python -m {NEW} now; the old name works until 0.8.0", file=sys.stderr)
+    _moved.entry()
+else:  # the old import name is the moved module itself
+    warnings.warn(f"{OLD} moved to {NEW}; the old name works until 0.8.0", FutureWarning, stacklevel=2)
+    sys.modules[__name__] = _moved

@@ -608,7 +608,7 @@ def render_frame(driver: _Driver, render_mode: str | None) -> np.ndarray | None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .plots import FAILED_COLOR, _draw_obstacles
+    from .views.plots import FAILED_COLOR, _draw_obstacles
 
     sim = driver.episode.sim
     width, height = FRAME_PIXELS
@@ -629,7 +629,7 @@ def register_gym_ids() -> list[str]:
     """Register ``swarmscene/<preset>-v0`` for every shipped preset with Gymnasium (idempotent);
     return the ids. Importing this module does it, so ``gym.make("swarmscene.env:swarmscene/swap-v0")``
     works without an import, and ``make_vec`` and RL-zoo configs can name the environments."""
-    from .groups import group_options
+    from .composition.groups import group_options
 
     ids = []
     for preset in group_options("scenario"):

@@ -63,15 +63,15 @@ def fly(sim: Simulation, progress: Callable[[Simulation], None] | None = None,
     Args:
         sim: the built simulation.
         progress: called after every tick: the engine's progress line
-            (:class:`~swarmscene.summary.Progress`, closed when the run ends, before the warnings are
+            (:class:`~swarmscene.views.summary.Progress`, closed when the run ends, before the warnings are
             shown) or the caller's callback.
         gather_warnings: hold the run's warnings and show each distinct one once at its end
-            (:class:`~swarmscene.summary.RunWarnings`; the command line's habit), numpy's numeric
+            (:class:`~swarmscene.views.summary.RunWarnings`; the command line's habit), numpy's numeric
             ones left out for a run that stopped on a non-finite state, which said so already.
     """
     from contextlib import nullcontext
 
-    from .summary import Progress, RunWarnings
+    from .views.summary import Progress, RunWarnings
 
     started_at = utc_now()
     raised: PluginRaised | None = None
@@ -111,12 +111,12 @@ def write_outputs(
 ) -> None:
     """Write config, trajectory, metrics and manifest of a finished run into ``run_dir``;
     ``extras(run_dir)`` (plots, replay) write theirs before the manifest, which lists them, after
-    the files observers hand back (``run_files()``, :func:`~swarmscene.outputs.write_observer_files`).
+    the files observers hand back (``run_files()``, :func:`~swarmscene.runs.outputs.write_observer_files`).
 
     ``config.yaml`` is the effective configuration (``sim.scenario.data``); ``started_at`` is the
     run's start (UTC, ISO 8601) for the manifest.
     """
-    from .outputs import write_observer_files, write_run_dir
+    from .runs.outputs import write_observer_files, write_run_dir
 
     write_run_dir(
         run_dir,
@@ -137,7 +137,7 @@ def run_and_write(sim: Simulation, run_dir: Path, writers: Sequence[Callable[...
     """The command's run and a sweep job's: fly with the progress line (not in a sweep, whose line is
     the sweep's), land, print the summary of a run that flew (not in a sweep); return the result and,
     for a run that failed (a non-finite state, a plugin's exception), the error to record."""
-    from .summary import Progress, summary_text
+    from .views.summary import Progress, summary_text
 
     output = sim.config.output
     flight = fly(sim, Progress.maybe(output.progress, enabled=not sweep), gather_warnings=True)

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from swarmscene import api
-from swarmscene.searchpath import register_search_path
+from swarmscene.composition.searchpath import register_search_path
 
 register_search_path()
 

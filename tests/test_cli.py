@@ -130,7 +130,7 @@ def test_multirun_sweeps_a_plain_option_absent_from_the_yaml(tmp_path):
 
 
 def test_plain_command_line_rewrites_only_dotted_value_overrides():
-    from swarmscene.searchpath import plain_command_line
+    from swarmscene.composition.searchpath import plain_command_line
 
     argv = ["--multirun", "-cn", "config", "--cfg", "job", "avoidance=cem", "avoidance.K=1,2", "+a.b=1",
             "++c.d=2", "~e.f", "seed=3", "hydra.run.dir=x", "hydra/launcher=joblib", "g.h@pkg=1", "i.j=[1"]

@@ -22,7 +22,7 @@ import yaml
 
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
-from swarmscene.summary import summary_text
+from swarmscene.views.summary import summary_text
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -215,7 +215,7 @@ _RUN_EACH = """
 import json, sys, warnings
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
-from swarmscene.summary import summary_text
+from swarmscene.views.summary import summary_text
 warnings.simplefilter("ignore")
 out = {}
 for preset, overrides in json.loads(sys.argv[1]).items():

@@ -414,7 +414,7 @@ def test_a_plugin_that_raises_fails_the_check_that_called_it_by_name():
 
 
 def test_the_plugin_guide_lists_every_named_check():
-    """docs/plugins.md's table of checks is the list the checks register (python -m swarmscene.docgen --checks)."""
-    from swarmscene.docgen import checks_table
+    """docs/plugins.md's table of checks is the list the checks register (python -m swarmscene.tools.docgen --checks)."""
+    from swarmscene.tools.docgen import checks_table
 
-    assert checks_table() in (ROOT / "docs" / "plugins.md").read_text(), "run: python -m swarmscene.docgen --checks"
+    assert checks_table() in (ROOT / "docs" / "plugins.md").read_text(), "run: python -m swarmscene.tools.docgen --checks"

@@ -1,4 +1,4 @@
-"""The Crazyswarm2 script of the export's bundle as a module (``swarmscene.crazyswarm2_show``), run
+"""The Crazyswarm2 script of the export's bundle as a module (``swarmscene.views.crazyswarm2_show``), run
 against a stand-in for Crazyswarm2's ``crazyflie_py`` (IMRCLab/crazyswarm2, crazyflie_py/crazyflie.py:
 ``Crazyswarm``, ``allcfs.crazyfliesByName``, ``cf.uploadTrajectory``, ``cf.takeoff``, ``cf.goTo``,
 ``allcfs.startTrajectory``, ``allcfs.land``, ``timeHelper.sleep``; ``uav_trajectory.Trajectory``)
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarmscene import crazyswarm2_show, export
+from swarmscene.views import crazyswarm2_show, export
 
 
 def fake_crazyflie_py(names: list[str]) -> tuple[list[tuple], dict[str, types.ModuleType]]:
@@ -150,7 +150,7 @@ def test_a_robot_the_server_does_not_know_stops_the_script_before_anything_is_se
 
 
 @pytest.mark.parametrize("damage, problem", [
-    (None, "missing (python -m swarmscene.export --crazyflie writes it beside this script)"),
+    (None, "missing (python -m swarmscene.views.export --crazyflie writes it beside this script)"),
     ("{", "not a JSON file (Expecting property name enclosed in double quotes: line 1 column 2 (char 1))"),
     (b"\xff\xfe", "not a JSON file (not UTF-8 text)"),
     ([1, 2], "must be an object with the keys ends_on_floor, floor, landing_height, robots, show_seconds, "

@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 from swarmscene.core import hookspecs
-from swarmscene.docgen import render
+from swarmscene.tools.docgen import render
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,7 +25,7 @@ def test_every_hook_has_a_docstring_saying_when():
 
 
 def test_options_doc_is_current():
-    assert (ROOT / "docs" / "options.md").read_text() == render(), "run: python -m swarmscene.docgen docs/options.md"
+    assert (ROOT / "docs" / "options.md").read_text() == render(), "run: python -m swarmscene.tools.docgen docs/options.md"
 
 
 def test_ci_runs_the_readme_test_command():

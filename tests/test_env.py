@@ -271,7 +271,7 @@ def test_every_preset_has_a_gymnasium_id_and_any_scenario_can_get_one():
     import gymnasium as gym
 
     from swarmscene import env as swarm_env
-    from swarmscene.groups import group_options
+    from swarmscene.composition.groups import group_options
 
     assert swarm_env.GYM_IDS == [f"swarmscene/{p}-v0" for p in group_options("scenario")]
     made = gym.make("swarmscene.env:swarmscene/swap-v0")

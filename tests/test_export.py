@@ -11,8 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from swarmscene import api, export, plots
+from swarmscene import api
 from swarmscene.methods.vrb.transform import robot_flat_outputs
+from swarmscene.views import export, plots
 
 SHOW = ["scenario=vrb_airshow"]
 BUNDLE = ["cf_0.csv", "cf_1.csv", "cf_2.csv", "crazyflie.json", "crazyflies.yaml", "crazyswarm2_show.json",
@@ -135,7 +136,7 @@ def short_show(tmp_path_factory):
 
 def test_cli_crazyflie_export_from_a_run_directory(short_show, tmp_path):
     out = tmp_path / "cf"
-    proc = subprocess.run([sys.executable, "-m", "swarmscene.export", str(short_show), "--crazyflie", str(out)],
+    proc = subprocess.run([sys.executable, "-m", "swarmscene.views.export", str(short_show), "--crazyflie", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0] == "crazyflie: 3 vehicles from the plan, time scale 1, controller mellinger"
@@ -188,7 +189,7 @@ def _main(*argv: str, capsys) -> tuple[int, list[str]]:
 ])
 def test_a_bad_option_is_one_line_naming_it_and_writes_nothing(short_show, tmp_path, capsys, option, value, line):
     code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), option, value, capsys=capsys)
-    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert code == 2 and err == [f"python -m swarmscene.views.export: {line}"]
     assert not (tmp_path / "cf").exists()
 
 
@@ -218,10 +219,10 @@ def test_a_run_that_failed_collided_or_did_not_complete_is_refused_unless_forced
     run = _with(short_show, tmp_path, **change)
     code, err = _main(str(run), "--csv", str(tmp_path / "csv"), capsys=capsys)
     assert code == 2
-    assert err == [f"python -m swarmscene.export: {run}: the run {words}; refused (--force exports it anyway)"]
+    assert err == [f"python -m swarmscene.views.export: {run}: the run {words}; refused (--force exports it anyway)"]
     assert not (tmp_path / "csv").exists()
     code, err = _main(str(run), "--csv", str(tmp_path / "csv"), "--force", capsys=capsys)
-    assert code == 0 and err == [f"python -m swarmscene.export: warning: {run}: the run {words}; exported because "
+    assert code == 0 and err == [f"python -m swarmscene.views.export: warning: {run}: the run {words}; exported because "
                                  "of --force"]
     assert len(list((tmp_path / "csv").glob("agent_*.csv"))) == 3
 
@@ -249,7 +250,7 @@ def test_a_show_beyond_the_limits_is_refused_with_status_1_and_nothing_written(s
     out = tmp_path / "cf"
     code, err = _main(str(short_show), "--crazyflie", str(out), "--time-scale", "0.25", capsys=capsys)
     assert code == 1
-    assert err == [f"python -m swarmscene.export: {EXCEEDS_LINE}; refused, nothing written "
+    assert err == [f"python -m swarmscene.views.export: {EXCEEDS_LINE}; refused, nothing written "
                    "(--time-scale auto slows it down; --allow-exceed writes it anyway)"]
     assert not out.exists()
 
@@ -259,7 +260,7 @@ def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsy
     code, err = _main(str(short_show), "--crazyflie", str(out), "--time-scale", "0.25", "--allow-exceed",
                       capsys=capsys)
     assert code == 0
-    assert err == [f"python -m swarmscene.export: warning: {EXCEEDS_LINE}; written because of --allow-exceed"]
+    assert err == [f"python -m swarmscene.views.export: warning: {EXCEEDS_LINE}; written because of --allow-exceed"]
     assert sorted(p.name for p in out.iterdir()) == BUNDLE
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["time_scale"] == 0.25
@@ -275,7 +276,7 @@ def test_a_show_leaving_the_geofence_is_refused_naming_vehicle_time_and_face(sho
     code, err = _main(str(short_show), "--crazyflie", str(out), "--geofence", "-1", "-1", "-0.1", "1", "1", "2",
                       capsys=capsys)
     assert code == 1
-    assert err == ["python -m swarmscene.export: cf_0 leaves the geofence at t = 2.59 s through the x min face "
+    assert err == ["python -m swarmscene.views.export: cf_0 leaves the geofence at t = 2.59 s through the x min face "
                    "(x = -1.001 m < -1 m); refused, nothing written (--fit-box scales the show into a box)"]
     assert not out.exists()
     t, samples, _ = export.show_samples(short_show)
@@ -296,7 +297,7 @@ def test_fit_box_scales_and_shifts_the_show_into_the_box(short_show, tmp_path, c
     box = ["--fit-box", "-0.5", "-0.5", "0", "0.5", "0.5", "1"]
     code, err = _main(str(short_show), "--crazyflie", str(out), *box, capsys=capsys)
     assert code == 1 and not out.exists()
-    assert err == ["python -m swarmscene.export: cf_0 and cf_1 come 0.359 m apart at t = 0.00 s (0.337 m at the closest), under the run's "
+    assert err == ["python -m swarmscene.views.export: cf_0 and cf_1 come 0.359 m apart at t = 0.00 s (0.337 m at the closest), under the run's "
                    "separation limit 0.6 m (scale 0.514, offset (0.124995, 0.0774017, 0.01) m, time scale 1); "
                    "refused, nothing written (--allow-exceed writes it anyway)"]
     code, err = _main(str(short_show), "--crazyflie", str(out), *box, "--allow-exceed", capsys=capsys)
@@ -329,13 +330,13 @@ def test_scaling_applies_before_the_limits(short_show, tmp_path, capsys):
     out = tmp_path / "cf"
     code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
                       capsys=capsys)
-    assert code == 1 and err[0].startswith("python -m swarmscene.export: the show exceeds the pid controller's limits "
+    assert code == 1 and err[0].startswith("python -m swarmscene.views.export: the show exceeds the pid controller's limits "
                                            "(cf_0: axis speed max(|vx|, |vy|, |vz|) (m/s) 1.67 > 1")
     code, err = _main(str(short_show), "--crazyflie", str(out), "--controller", "pid", "--time-scale", "0.5",
                       "--scale", "0.5", "--offset", "0", "0", "0.2", "--allow-exceed", capsys=capsys)
     # at half size the vehicles stand closer than the run's separation limit: written only with a warning
     assert code == 0 and err == [
-        "python -m swarmscene.export: warning: cf_0 and cf_1 come 0.350 m apart at t = 0.00 s (0.328 m at the closest), under the run's "
+        "python -m swarmscene.views.export: warning: cf_0 and cf_1 come 0.350 m apart at t = 0.00 s (0.328 m at the closest), under the run's "
         "separation limit 0.6 m (scale 0.5, offset (0, 0, 0.2) m, time scale 0.5); written because of --allow-exceed"]
     summary = json.loads((out / "crazyflie.json").read_text())
     assert summary["placement"] == {"scale": 0.5, "offset": [0.0, 0.0, 0.2]}
@@ -358,14 +359,14 @@ def test_scaling_applies_before_the_limits(short_show, tmp_path, capsys):
 ])
 def test_a_bad_placement_option_is_one_line_naming_it(short_show, tmp_path, capsys, argv, line):
     code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
-    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert code == 2 and err == [f"python -m swarmscene.views.export: {line}"]
     assert not (tmp_path / "cf").exists()
 
 
 def test_placement_without_a_crazyflie_export_is_refused(short_show, tmp_path, capsys):
     code, err = _main(str(short_show), "--csv", str(tmp_path / "csv"), "--scale", "0.5", capsys=capsys)
     assert code == 2
-    assert err == ["python -m swarmscene.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
+    assert err == ["python -m swarmscene.views.export: --scale: places the Crazyflie show: give --crazyflie DIR"]
     assert not (tmp_path / "csv").exists()
 
 
@@ -459,7 +460,7 @@ def test_with_a_fit_box_the_floor_is_the_placed_shows_floor(short_show, tmp_path
     assert poly.evaluate([0.0])[0, 2] == pytest.approx(0.01, abs=0.005)  # the placed show's start, within the fit
     code, err = _main(str(short_show), "--crazyflie", str(out / "up"), "--fit-box", "-2", "-2", "0", "2", "2", "2.5",
                       "--takeoff", "3", capsys=capsys)
-    assert code == 1 and err[0].startswith("python -m swarmscene.export: cf_0 leaves the geofence at t = -")
+    assert code == 1 and err[0].startswith("python -m swarmscene.views.export: cf_0 leaves the geofence at t = -")
     assert "through the z min face" in err[0] and not (out / "up").exists()
 
 
@@ -471,5 +472,5 @@ def test_with_a_fit_box_the_floor_is_the_placed_shows_floor(short_show, tmp_path
 ])
 def test_a_bad_segment_option_is_one_line_naming_it(short_show, tmp_path, capsys, argv, line):
     code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
-    assert code == 2 and err == [f"python -m swarmscene.export: {line}"]
+    assert code == 2 and err == [f"python -m swarmscene.views.export: {line}"]
     assert not (tmp_path / "cf").exists()

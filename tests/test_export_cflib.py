@@ -20,7 +20,8 @@ import struct
 import numpy as np
 import pytest
 
-from swarmscene import api, export, plots
+from swarmscene import api
+from swarmscene.views import export, plots
 
 cflib_mem = pytest.importorskip("cflib.crazyflie.mem", reason="cflib is in the test extra")
 from cflib.crazyflie.high_level_commander import HighLevelCommander  # noqa: E402

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 import yaml
 
-from swarmscene import api, export
+from swarmscene import api
+from swarmscene.views import export
 
 SHOW = ["scenario=vrb_airshow", "clock.duration=3.0"]
 

@@ -11,10 +11,11 @@ import json
 import numpy as np
 import pytest
 
-from swarmscene import api, export
+from swarmscene import api
 from swarmscene.core.setpoint import Setpoints
+from swarmscene.views import export
 
-PROG = "python -m swarmscene.export"
+PROG = "python -m swarmscene.views.export"
 README_BOX = ["--fit-box", "-2", "-2", "0", "2", "2", "2"]
 
 

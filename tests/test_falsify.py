@@ -18,8 +18,9 @@ import sys
 import pytest
 import yaml
 
-from swarmscene import api, falsify
+from swarmscene import api
 from swarmscene.core.errors import ConfigError
+from swarmscene.tools import falsify
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 TIMING = ("wall_time", "realtime_factor", "step_ms_median", "cem.step_ms_median")
@@ -34,7 +35,7 @@ def composed(*overrides: str, preset: str = "falsify"):
 def hydra_node(*overrides: str):
     from hydra import compose, initialize_config_module
 
-    from swarmscene.searchpath import register_search_path
+    from swarmscene.composition.searchpath import register_search_path
 
     register_search_path()
     with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
@@ -224,7 +225,7 @@ def test_a_non_finite_trial_is_a_failed_trial_and_the_study_goes_on(tmp_path, mo
 
 
 def test_a_damaged_trial_is_not_complete_and_a_planted_link_is_replaced(tmp_path):
-    """read_trial goes through swarmscene.rundir; worst_case.* are written atomically."""
+    """read_trial goes through swarmscene.runs.rundir; worst_case.* are written atomically."""
     study = tmp_path / "study"
     for k, sep in ((0, 0.4), (1, 0.9)):
         run = study / str(k)

@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarmscene import api, cli, export, plots
-from swarmscene.rundir import RunDir, RunFileError
+from swarmscene import api, cli
+from swarmscene.runs.rundir import RunDir, RunFileError
+from swarmscene.views import export, plots
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
 SHORT = ["clock.duration=0.5", "output.summary=false"]
@@ -84,7 +85,7 @@ def test_the_export_names_a_damaged_file_in_one_line(good_run, tmp_path, capsys,
         export.main([str(run), "--csv", str(tmp_path / "csv")])
     err = capsys.readouterr().err.strip().splitlines()
     assert exit_.value.code == 2 and len(err) == 1
-    assert err[0].startswith(f"python -m swarmscene.export: {run}/{words}"), err
+    assert err[0].startswith(f"python -m swarmscene.views.export: {run}/{words}"), err
     assert not (tmp_path / "csv").exists()
 
 
@@ -102,7 +103,7 @@ def test_a_missing_run_directory_is_one_line(tmp_path, capsys):
         export.main([str(tmp_path / "nope"), "--csv", str(tmp_path / "csv")])
     assert exit_.value.code == 2
     assert capsys.readouterr().err == \
-        f"python -m swarmscene.export: {tmp_path}/nope: not a run directory (missing, or not a directory)\n"
+        f"python -m swarmscene.views.export: {tmp_path}/nope: not a run directory (missing, or not a directory)\n"
 
 
 # -- planted links and names: nothing written through or outside ---------------------------------------

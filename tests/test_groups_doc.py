@@ -1,4 +1,4 @@
-"""The README's group table (python -m swarmscene.docgen --groups) and ``swarmscene --help``'s
+"""The README's group table (python -m swarmscene.tools.docgen --groups) and ``swarmscene --help``'s
 group list come from the config tree, so no choice goes unlisted."""
 
 from __future__ import annotations
@@ -7,14 +7,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-from swarmscene import groups
+from swarmscene.composition import groups
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_readme_group_table_is_current():
     readme = (ROOT / "README.md").read_text()
-    assert groups.readme_groups() in readme, "run: python -m swarmscene.docgen --groups"
+    assert groups.readme_groups() in readme, "run: python -m swarmscene.tools.docgen --groups"
 
 
 def test_every_group_of_the_defaults_list_is_documented():

@@ -6,12 +6,12 @@ import platform
 import types
 from importlib.metadata import version
 
-from swarmscene import info
 from swarmscene.builtins import BUILTIN_PLUGINS
 from swarmscene.core import registry as registry_module
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.core.plugin import Formation, PluginParams
 from swarmscene.core.registry import make_plugin_manager
+from swarmscene.tools import info
 
 
 def test_version_line_names_the_package_hydra_and_python():

@@ -188,9 +188,91 @@ def test_no_import_circle_in_the_sweeps_package():
     assert not circles, f"import circles: {circles}"
 
 
-HYDRA_INTERNALS = "swarmscene/hydra_internals.py"
+ROOMS = {
+    # the entry points users import (and the old names of moved modules, until they go)
+    "": 0, "api": 0, "cli": 0, "env": 0,
+    "export": 0, "replay": 0, "docgen": 0, "schema": 0, "compile": 0,
+    "tools": 1, "suite": 1,  # commands of their own: the falsifier, docs, schema, info; the benchmark suite
+    "sweeps": 2,             # the sweep: its grid, its launchers, its job, its tables
+    "testing": 3,            # the contract checks (public, and listed by the docs generator)
+    "runpath": 4,            # the one path from a built run to its directory
+    "views": 5,              # what a run prints, draws, streams, replays and exports
+    "composition": 5,        # Hydra's side: composing, the search path, Hydra's files and errors
+    "runs": 6,               # the run directory's writer and reader, and a run built from its config
+    "builtins": 7, "plugin": 7,  # the engine's interface: the built-ins' list, the public plugin module
+}
+"""The application's rooms (``swarmscene/<room>``), from the entry points down. A module imports its own
+room and rooms below it (a larger number) only: nothing below the entry points imports ``api`` or
+``cli``, and two rooms on one level do not import each other."""
+
+MOVED = {"export": "views", "replay": "views", "docgen": "tools", "schema": "tools", "compile": "tools"}
+"""Top-level names of modules moved into rooms in 0.7.0, kept as forwarding modules until 0.8.0."""
+
+
+def _room(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def test_every_application_module_is_in_a_room():
+    """A new module of the application goes into one of the rooms (or is a new room, placed here)."""
+    unplaced = sorted(m for m in _import_graph("swarmscene") if _room(m) not in ROOMS)
+    assert not unplaced, f"modules in no room of tests/test_layout.py ROOMS: {unplaced}"
+
+
+def against_the_rooms(graph: dict[str, set[str]]) -> list[str]:
+    """``module -> target`` for each import of ``graph`` that goes up the rooms or across one level."""
+    wrong = []
+    for module, targets in graph.items():
+        here = _room(module)
+        for target in targets:
+            there = _room(target)
+            if there != here and here in ROOMS and there in ROOMS and ROOMS[there] <= ROOMS[here] > 0:
+                wrong.append(f"{module} -> {target}")
+    return sorted(wrong)
+
+
+def test_the_application_imports_one_way():
+    """Imports go down the rooms (``ROOMS``), at the top of a module, inside functions and under
+    ``TYPE_CHECKING`` alike; the entry points alone may import each other (``cli`` runs ``api``)."""
+    wrong = against_the_rooms(_import_graph("swarmscene"))
+    assert not wrong, "imports against the rooms' direction:\n" + "\n".join(wrong)
+
+
+def test_the_one_way_check_sees_an_upward_import():
+    """The check above has something to find (a check that finds nothing proves nothing)."""
+    graph = {
+        "swarmscene.views.plots": {"swarmscene.cli", "swarmscene.runs.rundir"},  # up; down
+        "swarmscene.views.replay": {"swarmscene.composition.groups"},  # across one level
+        "swarmscene.sweeps.job": {"swarmscene.api"},  # up to the public API
+        "swarmscene.cli": {"swarmscene.api", "swarmscene.sweeps.job"},  # entry points; down
+    }
+    assert against_the_rooms(graph) == ["swarmscene.sweeps.job -> swarmscene.api",
+                                        "swarmscene.views.plots -> swarmscene.cli",
+                                        "swarmscene.views.replay -> swarmscene.composition.groups"]
+
+
+@pytest.mark.parametrize("old, room", MOVED.items())
+def test_a_moved_modules_old_name_only_forwards(old, room):
+    """``swarmscene.<old>`` (and ``python -m swarmscene.<old>``) forwards to ``swarmscene.<room>.<old>``
+    with a warning that names the new place, and holds nothing of its own."""
+    import importlib
+    import sys
+    import warnings
+
+    sys.modules.pop(f"swarmscene.{old}", None)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        module = importlib.import_module(f"swarmscene.{old}")
+    assert module is importlib.import_module(f"swarmscene.{room}.{old}")
+    assert [str(w.message) for w in seen if w.category is FutureWarning] == [
+        f"swarmscene.{old} moved to swarmscene.{room}.{old}; the old name works until 0.8.0"]
+    assert len((ROOT / "swarmscene" / f"{old}.py").read_text().splitlines()) <= 16
+
+
+HYDRA_INTERNALS = "swarmscene/composition/hydra_internals.py"
 PRIVATE_HYDRA = ("hydra._internal", "hydra.core.singleton")
-"""Hydra's modules that only :mod:`swarmscene.hydra_internals` may import or name."""
+"""Hydra's modules that only :mod:`swarmscene.composition.hydra_internals` may import or name."""
 
 
 def _is_private_hydra(name: str) -> bool:
@@ -267,7 +349,7 @@ def test_only_hydra_internals_touches_hydras_private_api():
         for path in sources(folder) if path.relative_to(ROOT).as_posix() != HYDRA_INTERNALS
         for use in hydra_private_uses(path)
     ]
-    assert not uses, "Hydra's private API outside swarmscene/hydra_internals.py:\n" + "\n".join(uses)
+    assert not uses, "Hydra's private API outside swarmscene/composition/hydra_internals.py:\n" + "\n".join(uses)
 
 
 def test_the_private_api_check_sees_each_kind_of_use(tmp_path):

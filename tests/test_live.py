@@ -1,4 +1,4 @@
-"""The live view (``output.live``, swarmscene/live.py): a run streamed to a Rerun viewer while it is
+"""The live view (``output.live``, swarmscene/views/live.py): a run streamed to a Rerun viewer while it is
 simulated. What the viewer received is read back: a headless Rerun (``rerun --port P --save FILE``,
 the SDK's own binary) stands in for the viewer the run connects to, and a late viewer
 (``rerun --connect URL --save FILE``) reads what a served run left on its server. Both are compared
@@ -18,9 +18,10 @@ import pytest
 
 pytest.importorskip("rerun", reason="the rerun extra")
 
-from swarmscene import api, live, replay  # noqa: E402
+from swarmscene import api  # noqa: E402
 from swarmscene.core.errors import ConfigError  # noqa: E402
-from swarmscene.outputs import config_hash  # noqa: E402
+from swarmscene.runs.outputs import config_hash  # noqa: E402
+from swarmscene.views import live, replay
 
 RUN = ["scenario=cem_six_vehicle", "clock.duration=4"]
 """Six vehicles, agent 0 fails at 2 s (a hover event): 400 ticks, all streamed."""

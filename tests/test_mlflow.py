@@ -13,7 +13,7 @@ import mlflow
 import pytest
 import yaml
 
-from swarmscene.mlflow_callback import MAX_PARAM_LENGTH, MlflowLogger, metrics_of, params_of
+from swarmscene.sweeps.mlflow_callback import MAX_PARAM_LENGTH, MlflowLogger, metrics_of, params_of
 from swarmscene.sweeps.records import record_failure
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]

@@ -16,7 +16,8 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import to_rgb
 from matplotlib.patches import Polygon
 
-from swarmscene import api, plots
+from swarmscene import api
+from swarmscene.views import plots
 
 OVERRIDES = ["events=lead_fails", "events.0.at=3.0", "clock.duration=12.0"]
 
@@ -162,7 +163,7 @@ def test_altitude_figure_for_the_vrb_show(tmp_path):
 
 
 def test_progress_line_reports_the_time_left():
-    from swarmscene.summary import Progress, format_duration
+    from swarmscene.views.summary import Progress, format_duration
 
     progress = Progress(stream=io.StringIO(), delay=0.0)
     assert progress.line(25, 100, "frame 25/100", elapsed=10.0) == (
@@ -189,7 +190,7 @@ def test_write_run_plots_and_gif_animation(finished, tmp_path):
         with Image.open(path) as image:
             assert image.format == "PNG" and image.size[0] > 500
     run = plots.from_simulation(sim, result)
-    from swarmscene.summary import Progress
+    from swarmscene.views.summary import Progress
 
     stream = io.StringIO()
     path = plots.write_animation(run, tmp_path, frames=8, edges=True, progress=Progress(stream=stream, delay=0.0))
@@ -263,10 +264,10 @@ def test_missing_extra_is_named_in_one_line():
 
 
 def test_load_run_names_a_damaged_file(finished, tmp_path):
-    """load_run (pictures, replay, export, report re-runs) reads through swarmscene.rundir."""
+    """load_run (pictures, replay, export, report re-runs) reads through swarmscene.runs.rundir."""
     import shutil
 
-    from swarmscene.rundir import RunFileError
+    from swarmscene.runs.rundir import RunFileError
 
     copy = tmp_path / "run"
     shutil.copytree(finished[2], copy)
@@ -281,7 +282,7 @@ def test_load_run_names_a_damaged_file(finished, tmp_path):
 def test_paths_are_not_drawn_across_a_torus_seam():
     """An agent folded back into a periodic box (the engine's wrap) is not joined across the map:
     its path is split where it jumped, and a path that never wraps is drawn whole."""
-    from swarmscene.plots import RunData, trajectory_figure, wrap_steps
+    from swarmscene.views.plots import RunData, trajectory_figure, wrap_steps
 
     t = np.arange(0.0, 30.0, 0.5)
     x_wrapped = (1.0 * t) % 10.0  # 1 m/s along x in a 10 m torus: folds at t = 10 and 20 s

@@ -115,7 +115,7 @@ def test_a_validated_plugin_map_survives_pickling(registry):
 def test_a_plugin_generator_run_directory_reads_back_with_its_posts(registry, tmp_path):
     """Pictures, replay and export rebuild the map from the run's config.yaml with the installed
     registry: a plugin's generator is found there as in the run (it was refused before)."""
-    from swarmscene import plots
+    from swarmscene.views import plots
 
     scenario = api.load([*BASE, "environment.generator=ak_posts", "environment.count=2"], registry)
     api.run(scenario, output_dir=tmp_path / "run")

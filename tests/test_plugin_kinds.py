@@ -420,7 +420,7 @@ def test_a_package_registers_one_of_every_kind_and_each_passes_its_check(allkind
         check(reg.get(kind, name))
     (altitude,) = [c for c in reg.observers if c.__name__ == "Altitude"]
     testing.check_observer(altitude)
-    from swarmscene.info import components
+    from swarmscene.tools.info import components
 
     rows = {(r["kind"], r["name"]): r["package"] for r in components(reg)}
     assert {rows[(k, n)] for k, n in names.items()} | {rows[("observer", "Altitude")]} == {"swarmscene-allkinds"}

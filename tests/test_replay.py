@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from swarmscene import api, plots, replay
+from swarmscene import api
+from swarmscene.views import plots, replay
 
 OVERRIDES = ["events=lead_fails", "events.0.at=3.0", "clock.duration=8.0"]
 SHOW = ["scenario=vrb_airshow", "clock.duration=4.0"]  # 6-DOF quadrotors: attitude recorded
@@ -232,9 +233,9 @@ def test_the_command_names_a_damaged_file_in_one_line(tmp_path, capsys):
         replay.main([str(run_dir)])
     assert exit_.value.code == 2
     assert capsys.readouterr().err.startswith(
-        f"python -m swarmscene.replay: {run_dir}/trajectory.npz: not a readable numpy archive (")
+        f"python -m swarmscene.views.replay: {run_dir}/trajectory.npz: not a readable numpy archive (")
     assert not (run_dir / "replay.rrd").exists()
     with pytest.raises(SystemExit) as exit_:
         replay.main([str(run_dir), "--every", "0"])
     assert exit_.value.code == 2 and capsys.readouterr().err == \
-        "python -m swarmscene.replay: --every: must be an integer >= 1 (got 0)\n"
+        "python -m swarmscene.views.replay: --every: must be an integer >= 1 (got 0)\n"

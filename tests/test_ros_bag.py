@@ -17,11 +17,12 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from swarmscene import api, mcap_bag, plots, replay
+from swarmscene import api
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.hookspecs import hookimpl
 from swarmscene.methods.ros2 import messages
-from swarmscene.rundir import RunDir
+from swarmscene.runs.rundir import RunDir
+from swarmscene.views import mcap_bag, plots, replay
 
 FAILING = ["events=lead_fails", "events.0.at=3.0", "clock.duration=6.0", "output.mcap=true", "output.summary=false"]
 """The default scenario (obstacles, five vehicles) with the leader failing at 3 s."""
@@ -196,7 +197,7 @@ def test_rerun_opens_the_mcap_and_reads_the_same_transforms(failing, tmp_path):
     (a row per child frame, float32) and each /rosout line into a TextLog."""
     from rerun.chunk import RrdReader
 
-    from swarmscene.live import rerun_command
+    from swarmscene.views.live import rerun_command
 
     rrd = tmp_path / "bag.rrd"
     proc = subprocess.run([*rerun_command(), "mcap", "convert", str(_mcap(failing)), "-o", str(rrd)],
@@ -248,22 +249,22 @@ def test_the_converter_writes_the_same_tf_and_odometry_from_the_run_directory(fa
 
 def test_the_export_command_writes_a_bag_and_refuses_what_it_cannot_write(failing, tmp_path):
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
-    cmd = [sys.executable, "-m", "swarmscene.export", str(failing), "--mcap", str(tmp_path / "out")]
+    cmd = [sys.executable, "-m", "swarmscene.views.export", str(failing), "--mcap", str(tmp_path / "out")]
     done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0 and (tmp_path / "out" / "out_0.mcap").is_file(), done.stderr
     again = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert again.returncode == 2
-    assert again.stderr == (f"python -m swarmscene.export: --mcap: {tmp_path / 'out'} exists (a bag is written "
+    assert again.stderr == (f"python -m swarmscene.views.export: --mcap: {tmp_path / 'out'} exists (a bag is written "
                             "into a new folder, as ros2 bag record does)\n")
     damaged = tmp_path / "damaged"
     damaged.mkdir()
     for name in ("config.yaml", "metrics.json", "manifest.json"):
         (damaged / name).write_bytes((failing / name).read_bytes())
     (damaged / "trajectory.npz").write_bytes((failing / "trajectory.npz").read_bytes()[:500])
-    bad = subprocess.run([sys.executable, "-m", "swarmscene.export", str(damaged), "--mcap", str(tmp_path / "b")],
+    bad = subprocess.run([sys.executable, "-m", "swarmscene.views.export", str(damaged), "--mcap", str(tmp_path / "b")],
                          capture_output=True, text=True, env=env, timeout=300)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1
-    assert bad.stderr.startswith(f"python -m swarmscene.export: {damaged / 'trajectory.npz'}: not a readable numpy")
+    assert bad.stderr.startswith(f"python -m swarmscene.views.export: {damaged / 'trajectory.npz'}: not a readable numpy")
     assert not (tmp_path / "b").exists() and not list(tmp_path.glob(".b.*"))
 
 
@@ -358,8 +359,8 @@ def test_a_run_stopped_early_leaves_no_bag_and_no_spill(tmp_path):
 
 @pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
 def test_the_mcap_writer_makes_files_the_mcap_reader_and_rosbags_read_in_each_compression(tmp_path, compression):
-    from swarmscene.mcap_file import McapWriter, RecordBlock
     from swarmscene.methods.ros2.cdr import CdrTemplate, split_time
+    from swarmscene.views.mcap_file import McapWriter, RecordBlock
 
     frames = ["a/base_link", "bb/base_link"]
     (tmp_path / "b").mkdir()

@@ -1,4 +1,4 @@
-"""swarmscene.rundir: every file of a run directory checked (size, type, links, aliases, the
+"""swarmscene.runs.rundir: every file of a run directory checked (size, type, links, aliases, the
 trajectory's headers and shapes), each problem one RunFileError line naming the file."""
 
 from __future__ import annotations
@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarmscene import api, rundir
-from swarmscene.rundir import RunDir, RunFileError
+from swarmscene import api
+from swarmscene.runs import rundir
+from swarmscene.runs.rundir import RunDir, RunFileError
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""swarmscene.scenario_files: the limits on the YAML files a user hands the engine (size, UTF-8,
+"""swarmscene.composition.scenario_files: the limits on the YAML files a user hands the engine (size, UTF-8,
 nesting, alias expansion, no ${oc.env:...}), each refusal one line naming the file, checked in
 front of Hydra's own readers (a --config-dir file, a packaged preset) before anything is parsed."""
 
@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from swarmscene import scenario_files
+from swarmscene.composition import scenario_files
+from swarmscene.composition.scenario_files import MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES, check_scenario_file
 from swarmscene.core.errors import ConfigError
-from swarmscene.scenario_files import MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES, check_scenario_file
 
 ROOT = Path(__file__).resolve().parents[1]
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]
@@ -104,7 +104,7 @@ def test_the_command_line_refuses_a_hostile_config_dir_file_in_one_line(tmp_path
 def test_install_checks_hydras_readers_once():
     from hydra._internal.core_plugins.file_config_source import FileConfigSource
 
-    from swarmscene.searchpath import register_search_path
+    from swarmscene.composition.searchpath import register_search_path
 
     register_search_path()
     first = FileConfigSource.load_config
@@ -122,7 +122,7 @@ def test_a_resolver_that_only_starts_like_oc_env_is_left_alone():
 
 
 def test_a_long_value_aliased_many_times_is_refused_by_its_expanded_bytes():
-    from swarmscene.scenario_files import MAX_EXPANDED_BYTES
+    from swarmscene.composition.scenario_files import MAX_EXPANDED_BYTES
 
     value = "x" * (1024 * 1024)  # 1 MiB, anchored once: the file stays under its size limit
     aliases = "\n".join("  - *v" for _ in range(MAX_EXPANDED_BYTES // len(value) + 1))

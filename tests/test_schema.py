@@ -1,4 +1,4 @@
-"""swarmscene.schema: every shipped scenario validates against the JSON Schema, and the schema
+"""swarmscene.tools.schema: every shipped scenario validates against the JSON Schema, and the schema
 refuses what the engine refuses; plugins (third-party ones too) bring their own options."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pydantic import ConfigDict, Field
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.plugin import Formation, PluginParams
-from swarmscene.schema import scenario_schema
+from swarmscene.tools.schema import scenario_schema
 
 ROOT = Path(__file__).resolve().parents[1]
 _, REGISTRY = api.plugins()
@@ -108,8 +108,8 @@ def test_a_third_party_plugin_brings_its_options():
 
 
 def test_one_command_writes_the_schema(tmp_path):
-    out = tmp_path / "swarmscene.schema.json"
-    subprocess.run([sys.executable, "-m", "swarmscene.schema", "-o", str(out)], check=True)
+    out = tmp_path / "swarmscene.tools.schema.json"
+    subprocess.run([sys.executable, "-m", "swarmscene.tools.schema", "-o", str(out)], check=True)
     assert json.loads(out.read_text()) == json.loads(json.dumps(scenario_schema()))
 
 

@@ -1,4 +1,4 @@
-"""swarmscene.schema's group schemas: every shipped config-group file, and every file the tutorial
+"""swarmscene.tools.schema's group schemas: every shipped config-group file, and every file the tutorial
 has a user write, validates as written against its group's schema (issue #28: map files failed
 with "'obstacles' was unexpected" under the one top-level schema), and each group's schema still
 refuses a bad file: an unknown key and a wrong type, with a best match that names the key."""
@@ -17,7 +17,7 @@ import yaml
 from jsonschema.exceptions import best_match
 
 from swarmscene import api
-from swarmscene.schema import GLOBAL_GROUPS, GROUPS, group_schema, scenario_schema, schema_file_name
+from swarmscene.tools.schema import GLOBAL_GROUPS, GROUPS, group_schema, scenario_schema, schema_file_name
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -171,19 +171,19 @@ def test_a_group_file_may_open_with_a_defaults_list_but_a_section_field_may_not_
 def test_an_unknown_group_is_refused_in_one_line():
     with pytest.raises(ValueError, match=r"unknown group 'maps' \(valid: scenario, sweep, events, "):
         group_schema("maps")
-    run = subprocess.run([sys.executable, "-m", "swarmscene.schema", "--group", "maps"],
+    run = subprocess.run([sys.executable, "-m", "swarmscene.tools.schema", "--group", "maps"],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "invalid choice: 'maps'" in run.stderr and "Traceback" not in run.stderr
 
 
 def test_one_command_writes_every_group_schema(tmp_path):
-    subprocess.run([sys.executable, "-m", "swarmscene.schema", "--all-groups", str(tmp_path)], check=True)
+    subprocess.run([sys.executable, "-m", "swarmscene.tools.schema", "--all-groups", str(tmp_path)], check=True)
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == sorted(schema_file_name(g) for g in GROUPS)
     assert "swarmscene.tuning.avoidance.schema.json" in names
     written = json.loads((tmp_path / "swarmscene.environment.schema.json").read_text())
     assert written == json.loads(json.dumps(group_schema("environment")))
-    out = subprocess.run([sys.executable, "-m", "swarmscene.schema", "--group", "tuning/dynamics"],
+    out = subprocess.run([sys.executable, "-m", "swarmscene.tools.schema", "--group", "tuning/dynamics"],
                          capture_output=True, text=True, check=True).stdout
     assert json.loads(out) == json.loads(json.dumps(group_schema("tuning/dynamics")))
 

@@ -1,4 +1,4 @@
-"""swarmscene.schema reads every kind chosen by name from the registry (issue #27): an event's
+"""swarmscene.tools.schema reads every kind chosen by name from the registry (issue #27): an event's
 ``kind`` is an enum of the registered kinds, each with its own fields; disturbance models and map
 generators are the registry's; a third-party package's event kind, disturbance model and map
 generator appear beside the built-ins, refused where the engine refuses them."""
@@ -15,7 +15,7 @@ import pytest
 from swarmscene import api
 from swarmscene.core import registry as registry_module
 from swarmscene.core.errors import ConfigError
-from swarmscene.schema import group_schema, scenario_schema
+from swarmscene.tools.schema import group_schema, scenario_schema
 
 _, REGISTRY = api.plugins()
 FULL = scenario_schema(REGISTRY)

@@ -1,4 +1,4 @@
-"""The run summary's verdict lines (swarmscene/summary.py, issue #26): every line states its limit and
+"""The run summary's verdict lines (swarmscene/views/summary.py, issue #26): every line states its limit and
 scope, preconditions print as ``met`` / ``not met``, checks that do not apply print ``n/a``, ``success``
 carries its reason and a ``mission`` line, and a method that does not avoid by design says so."""
 
@@ -10,7 +10,7 @@ from swarmscene import api
 from swarmscene.builtins import BUILTIN_PLUGINS
 from swarmscene.core.registry import make_plugin_manager
 from swarmscene.core.simulation import Simulation
-from swarmscene.summary import FAIL, MET, NA, NOT_MET, OK, summary_text, verdicts
+from swarmscene.views.summary import FAIL, MET, NA, NOT_MET, OK, summary_text, verdicts
 
 
 def run(overrides: list[str]):
@@ -102,7 +102,7 @@ def test_a_measured_bound_that_was_not_kept_prints_fail_even_when_no_theorem_cla
     from types import SimpleNamespace
 
     from swarmscene.plugins.avoidance.cem import CEM
-    from swarmscene.summary import plugin_verdicts
+    from swarmscene.views.summary import plugin_verdicts
 
     _, result, _ = run(["scenario=cem_six_vehicle", "clock.duration=13"])
     m = {**result.metrics, "cem.min_pair_distance": 0.81, "cem.separation_holds": False,

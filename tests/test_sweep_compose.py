@@ -34,7 +34,7 @@ def hydra_loader():
     from hydra.core.global_hydra import GlobalHydra
     from hydra.types import RunMode
 
-    from swarmscene.searchpath import register_search_path
+    from swarmscene.composition.searchpath import register_search_path
 
     register_search_path()
     with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
@@ -104,7 +104,7 @@ def test_a_bad_value_gives_hydras_own_error(hydra_loader):
 def test_the_command_reaches_the_job_through_env_set(hydra_loader):
     import json
 
-    from swarmscene.outputs import COMMAND_ENV
+    from swarmscene.runs.outputs import COMMAND_ENV
 
     loader, master = hydra_loader
     typed = ["swarmscene", "-m", "seed=1,2", "avoidance.K=2"]

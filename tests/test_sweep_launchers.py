@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from swarmscene.rundir import RunDir
+from swarmscene.runs.rundir import RunDir
 from swarmscene.sweeps import tables
 
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]

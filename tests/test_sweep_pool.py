@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 from test_sweep_launchers import GRID, TIMING, assert_identical, basic, swarmscene  # noqa: F401  (basic: a fixture)
 
-from swarmscene.rundir import RunDir
+from swarmscene.runs.rundir import RunDir
 from swarmscene.sweeps import chunks, pool, tables
 
 POOL = ["hydra/launcher=pool", "hydra.launcher.n_jobs=2"]

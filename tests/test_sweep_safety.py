@@ -187,7 +187,7 @@ def test_display_options_neither_change_the_hash_nor_refuse_the_rerun(tmp_path):
 # -- api.sweep --------------------------------------------------------------------------------------
 def test_api_sweep_takes_values_as_values_and_paths_as_paths(tmp_path):
     from swarmscene import api
-    from swarmscene.rundir import RunDir
+    from swarmscene.runs.rundir import RunDir
 
     where = tmp_path / "a dir, with a comma"
     result = api.sweep({"description": ["one, two", "it's"]}, ["clock.duration=0.5"], sweep_dir=where)

@@ -53,7 +53,7 @@ def test_jobs_per_task_auto_keeps_four_tasks_per_worker_and_falls_back_to_one_jo
     assert chunks.jobs_per_task(5, joblib, config(n_jobs=2), 200) == 5
     assert chunks.jobs_per_task(500, joblib, config(n_jobs=2), 3) == 3
     # where a task cannot stand for its jobs: one job a task
-    mlflow = ("swarmscene.sweeps.callback.SweepSummary", "swarmscene.mlflow_callback.MLflowCallback")
+    mlflow = ("swarmscene.sweeps.callback.SweepSummary", "swarmscene.sweeps.mlflow_callback.MLflowCallback")
     assert chunks.refusal(launcher("SlurmLauncher"), config()) == "launcher SlurmLauncher"
     assert chunks.refusal(joblib, config(callbacks=mlflow)) == "job callbacks"
     assert chunks.refusal(joblib, config(chdir=True)) == "hydra.job.chdir"

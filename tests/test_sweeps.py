@@ -637,7 +637,7 @@ def test_an_unknown_validation_mode_is_one_line(tmp_path):
 def _sweeper_choice(overrides: list[str]) -> str:
     from hydra import compose, initialize_config_module
 
-    from swarmscene.searchpath import register_search_path
+    from swarmscene.composition.searchpath import register_search_path
 
     register_search_path()
     with initialize_config_module(config_module="swarmscene.scenarios", version_base="1.3"):
@@ -690,7 +690,7 @@ def test_a_full_disk_while_the_records_are_written_names_the_file(tmp_path, monk
     """ENOSPC names no file; the sweep's records said "No space left on device" and nothing else."""
     import errno
 
-    from swarmscene import outputs
+    from swarmscene.runs import outputs
 
     real_fdopen = outputs.os.fdopen
 
@@ -725,7 +725,7 @@ def test_a_launcher_whose_extra_is_missing_gives_the_install_line(group, option,
     """Without the extra, Hydra has no such option: the line read "unknown option 'joblib'"."""
     from hydra.errors import MissingConfigException
 
-    from swarmscene.hydra_errors import hydra_error_line
+    from swarmscene.composition.hydra_errors import hydra_error_line
 
     exc = MissingConfigException(f"In 'hydra/config': Could not find '{group}/{option}'",
                                  missing_cfg_file=f"{group}/{option}", options=["basic", "pool"])
@@ -742,7 +742,7 @@ def test_an_interpolation_error_with_no_message_still_names_its_key_and_why():
     from omegaconf import OmegaConf
     from omegaconf.errors import InterpolationResolutionError
 
-    from swarmscene.hydra_errors import resolution_error_line
+    from swarmscene.composition.hydra_errors import resolution_error_line
 
     OmegaConf.register_new_resolver("swarmscene_test_silent", lambda: (_ for _ in ()).throw(KeyError()), replace=True)
     cfg = OmegaConf.create({"name": "${swarmscene_test_silent:}"})

@@ -27,7 +27,8 @@ def presets() -> list[str]:
 
 def export_row(name: str, box: list[str], work: Path) -> str:
     """Run preset ``name``, export it fitted into ``box``, and return its table row (exit, first line)."""
-    from swarmscene import api, export
+    from swarmscene import api
+    from swarmscene.views import export
 
     run_dir = work / name
     sim = api.build([f"scenario={name}", "output.summary=false"])

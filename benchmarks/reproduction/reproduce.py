@@ -513,7 +513,7 @@ def markdown(outcomes: list[Outcome], meta: dict[str, Any]) -> str:
 def git_commit() -> str:
     """The commit the report ran from (the run manifests' own record of it), marked when the
     checkout had uncommitted changes; "unknown" outside a git checkout."""
-    from swarmscene.outputs import source_revision
+    from swarmscene.runs.outputs import source_revision
 
     rev = source_revision()
     if rev is None:

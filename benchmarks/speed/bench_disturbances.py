@@ -57,7 +57,7 @@ def worker(cases: dict[str, list[str]]) -> None:
     import numpy as np
 
     from swarmscene import api
-    from swarmscene.searchpath import register_search_path
+    from swarmscene.composition.searchpath import register_search_path
 
     warnings.simplefilter("ignore")
     register_search_path()

@@ -70,7 +70,7 @@ def overhead(overrides: list[str], pairs: int) -> dict[str, float]:
 
 def writer_per_tick(n: int, ticks: int = 2000) -> float:
     """us per ``BagWriter.frame`` of N vehicles (clock, /tf, odometry, separation)."""
-    from swarmscene.mcap_bag import BagWriter
+    from swarmscene.views.mcap_bag import BagWriter
 
     rng = np.random.default_rng(0)
     pos, vel = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))

@@ -125,7 +125,7 @@ def main_process_work(jobs: int) -> float:
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.types import RunMode
 
-    from swarmscene.searchpath import register_search_path
+    from swarmscene.composition.searchpath import register_search_path
     from swarmscene.sweeps.compose import GroupCachingLoader
     from swarmscene.sweeps.grid import GridCheck, JobCheck, expand
     from swarmscene.sweeps.records import check_grid_owner, record_grid

@@ -248,7 +248,7 @@ class CEM(Avoidance):
 
     @staticmethod
     def describe_verdict(key: str, m: dict[str, Any]) -> str | None:
-        """The limit and scope of a ``cem.*`` verdict for the run summary (swarmscene/summary.py, which
+        """The limit and scope of a ``cem.*`` verdict for the run summary (swarmscene/views/summary.py, which
         appends the first violation); ``"n/a: ..."`` where the run gives the check nothing to check."""
         def f(x: Any) -> str:
             return "n/a" if x is None else f"{x:.3g}"

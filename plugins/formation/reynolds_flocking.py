@@ -131,7 +131,7 @@ class ReynoldsFlocking(Formation):
     name = "reynolds_flocking"
     avoids_collisions = False
     """Boids steer apart (separation) but nothing keeps them apart: the run summary says so beside
-    the separation verdict (swarmscene/summary.py)."""
+    the separation verdict (swarmscene/views/summary.py)."""
     metric_prefix = "flocking"
     Params = FlockingParams
     params: FlockingParams

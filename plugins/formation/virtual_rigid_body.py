@@ -226,7 +226,7 @@ class VirtualRigidBody(Formation):
 
     @staticmethod
     def describe_verdict(key: str, m: dict[str, Any]) -> str | None:
-        """The limit and scope of ``vrb.safety_holds`` for the run summary (swarmscene/summary.py)."""
+        """The limit and scope of ``vrb.safety_holds`` for the run summary (swarmscene/views/summary.py)."""
         if key != "vrb.safety_holds":
             return None
         measured = m.get("vrb.min_transformation_distance")

@@ -43,7 +43,7 @@ def task_files() -> list[str]:
 @cache
 def _composed(task_id: str) -> str:
     """``task=<id>`` composed (JSON, so the cache hands out fresh copies)."""
-    from ..api import compose
+    from ..composition.compose import compose
 
     return json.dumps(compose([f"{TASK_GROUP}={task_id}"]), sort_keys=True)
 

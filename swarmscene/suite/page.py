@@ -104,11 +104,12 @@ def task_png(task_id: str, method: str = PICTURE_METHOD) -> bytes:
     """Seed 0 of a task flown by ``method``, top-down (the run's trajectory picture, small)."""
     import io
 
-    from .. import api
-    from ..plots import from_simulation, trajectory_figure
+    from ..composition.compose import compose
+    from ..runs.build import build
+    from ..views.plots import from_simulation, trajectory_figure
 
-    sim = api.build([f"task={task_id}", f"avoidance={method}", "seed=0", "output.summary=false",
-                     "output.progress=off"])
+    sim = build(compose([f"task={task_id}", f"avoidance={method}", "seed=0", "output.summary=false",
+                           "output.progress=off"]))
     result = sim.run()
     fig = trajectory_figure(from_simulation(sim, result))
     fig.set_size_inches(4.2, 3.6)
@@ -163,8 +164,8 @@ def write_page(sweep_dir: Any, docs: Any, reference: bool) -> list[str]:
     import shutil
     from pathlib import Path
 
-    from ..outputs import atomic_write_bytes
-    from ..rundir import read_json
+    from ..runs.outputs import atomic_write_bytes
+    from ..runs.rundir import read_json
     from .definition import frozen
 
     sweep_dir, docs = Path(sweep_dir), Path(docs)

@@ -28,7 +28,7 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from ..outputs import atomic_write_bytes, atomic_write_json, run_command
+from ..runs.outputs import atomic_write_bytes, atomic_write_json, run_command
 from .definition import SUITE, frozen
 
 COLUMNS = ("suite", "version", "task", "family", "method", "seed", "raw", "normalised", "passed", "success", "run")

@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from ..rundir import RunDir, RunFileError, finite_or_none
+from ..runs.rundir import RunDir, RunFileError, finite_or_none
 from ..sweeps.records import job_dirs
 from .definition import SUITE, VERSIONS, frozen
 

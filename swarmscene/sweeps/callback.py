@@ -9,7 +9,7 @@ from typing import Any
 
 from hydra.experimental.callback import Callback
 
-from ..hydra_internals import BASIC_SWEEPER
+from ..composition.hydra_internals import BASIC_SWEEPER
 from .tables import exit_status, outcome_line, write_summary
 
 SWARMSCENE_SWEEPER = "hydra_plugins.swarmscene_sweeper.SwarmsceneSweeper"

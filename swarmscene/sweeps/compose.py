@@ -9,7 +9,7 @@ config-group overrides once per process; a job's plain values are then applied t
 composition the way Hydra applies them (``_apply_overrides_to_config``, the step of Hydra's own
 composition that follows the defaults list), and the job's record in the ``hydra`` node
 (``hydra.overrides.task``, ``hydra.job.override_dirname``) is written as Hydra writes it; both
-through :mod:`swarmscene.hydra_internals`, which holds the private Hydra functions they need. The
+through :mod:`swarmscene.composition.hydra_internals`, which holds the private Hydra functions they need. The
 result equals Hydra's own composition (tests/test_sweep_compose.py compares them for every preset
 and a sample of grids); a job costs a copy of the composed config and its few overrides (~4 ms).
 
@@ -93,7 +93,7 @@ class GroupCachingLoader(ConfigLoader):
         """Pickled as its search path and command (~2 KB instead of Hydra's loader with its
         repository, ~30 KB): a launcher pickles the loader with every job it sends, in the main
         process, one job after another. The worker rebuilds Hydra's loader once per process."""
-        from ..hydra_internals import is_hydras_config_loader
+        from ..composition.hydra_internals import is_hydras_config_loader
 
         if self._inner is not None and not is_hydras_config_loader(self._inner):
             return (GroupCachingLoader, (self._inner, self.command))
@@ -216,7 +216,7 @@ class GroupCachingLoader(ConfigLoader):
             return False
         name = override.key_or_group
         if name not in self._groups:
-            from ..hydra_internals import group_exists
+            from ..composition.hydra_internals import group_exists
 
             exists = group_exists(self.inner, name)
             self._groups[name] = True if exists is None else exists  # no repository to ask: Hydra composes
@@ -254,7 +254,7 @@ _LOADERS: dict[tuple[tuple[str, str], ...], Any] = {}
 def _loader_for(search_path: Any) -> Any:
     """Hydra's loader for this search path, made once per process (it holds only the search path
     and a repository built from it)."""
-    from ..hydra_internals import config_loader
+    from ..composition.hydra_internals import config_loader
 
     key = tuple((str(p.provider), str(p.path)) for p in search_path.get_path())
     if key not in _LOADERS:
@@ -266,7 +266,7 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     """What a sweep's job records, set in its config (the one place a launcher carries to it).
 
     - ``hydra.job.env_set``: the command as typed, which Hydra sets in the job's process for the
-      manifest (``swarmscene.outputs.run_command``), wherever the job runs;
+      manifest (``swarmscene.runs.outputs.run_command``), wherever the job runs;
     - ``hydra.output_subdir: null``: Hydra does not write ``.hydra/config.yaml`` and ``hydra.yaml``
       for each job (three YAML dumps, ~15 ms a job); the job writes ``.hydra/overrides.yaml``
       itself (:func:`.job.run_job`), its ``config.yaml`` is the effective configuration, and the sweep
@@ -274,7 +274,7 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
     """
     from omegaconf import open_dict
 
-    from ..outputs import COMMAND_ENV
+    from ..runs.outputs import COMMAND_ENV
     from .chunks import literal
 
     with open_dict(cfg.hydra.job.env_set):
@@ -283,13 +283,13 @@ def _as_sweep_job(cfg: Any, command: Sequence[str]) -> None:
 
 
 def _apply_values(values: Sequence[Any], cfg: Any) -> None:
-    """Hydra's own step (no public API holds it; :func:`~swarmscene.hydra_internals.apply_overrides_to_config`):
-    the value overrides applied to the composed config, errors wrapped as ``load_configuration``
-    wraps them."""
+    """Hydra's own step (no public API holds it;
+    :func:`~swarmscene.composition.hydra_internals.apply_overrides_to_config`): the value
+    overrides applied to the composed config, errors wrapped as ``load_configuration`` wraps them."""
     from hydra.errors import ConfigCompositionException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ..hydra_internals import apply_overrides_to_config
+    from ..composition.hydra_internals import apply_overrides_to_config
 
     try:
         apply_overrides_to_config(values, cfg)
@@ -300,7 +300,7 @@ def _apply_values(values: Sequence[Any], cfg: Any) -> None:
 def _record_overrides(cfg: Any, parsed: Sequence[Any]) -> None:
     """``hydra.overrides.task`` (every non-Hydra override, in order) and ``hydra.job.override_dirname``
     of the job, as ``_load_configuration_impl`` writes them."""
-    from ..hydra_internals import overrides_dirname
+    from ..composition.hydra_internals import overrides_dirname
 
     task = [o for o in parsed if not o.is_hydra_override()]
     cfg.hydra.overrides.task = [o.input_line for o in task]

@@ -47,12 +47,12 @@ def expand(
     keys' values, the first key varying slowest. With ``cases``, each case's overrides come
     first and the jobs are ``cases x product`` (cases are dropped when ``arguments`` set a key
     that a case sets). With ``plain_params`` the ``params`` and ``cases`` are read as the command
-    line reads its overrides (``swarmscene.searchpath.plain_overrides``); Hydra's basic sweeper
+    line reads its overrides (``swarmscene.composition.searchpath.plain_overrides``); Hydra's basic sweeper
     does not, so its check passes False.
     """
     lines = [f"{k}={v}" for k, v in (params or {}).items()]
     if plain_params:
-        from ..searchpath import plain_overrides
+        from ..composition.searchpath import plain_overrides
 
         lines = plain_overrides(lines)  # as the command line's: `a.b: 1,2` sets a.b, default or not
     parsed = parser.parse_overrides([*lines, *arguments])
@@ -77,7 +77,7 @@ def expand(
     product = [list(combo) for combo in itertools.product(*values)]
     case_lists = [[str(o) for o in case] for case in (cases or [])]
     if plain_params and case_lists:
-        from ..searchpath import plain_overrides
+        from ..composition.searchpath import plain_overrides
 
         case_lists = [plain_overrides(case) for case in case_lists]
     if case_lists:
@@ -189,9 +189,9 @@ class JobCheck:
 
     def problems(self, overrides: Sequence[str]) -> tuple[str, list[str]]:
         """(``"compose"`` or ``"invalid"`` or ``""``, the problem lines) of one job."""
+        from ..composition.hydra_errors import hydra_error_line
         from ..core.errors import ConfigError
         from ..core.validation import validate
-        from ..hydra_errors import hydra_error_line
 
         if self.reads_hydra(overrides):
             return "", []

@@ -47,8 +47,8 @@ def job_from(cfg: Any) -> Any:
     from hydra.core.hydra_config import HydraConfig
     from omegaconf import OmegaConf
 
+    from ..composition.hydra_errors import resolution_error_line
     from ..core.errors import ConfigError
-    from ..hydra_errors import resolution_error_line
 
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
@@ -64,7 +64,7 @@ def job_from(cfg: Any) -> Any:
 def recorded_job(data: dict[str, Any], run_dir: Path) -> Any:
     """:func:`run_job`, with every exception but a stop request recorded in ``run_dir``
     (``error.json``, a manifest marked failed) and one line printed; the launcher runs the others."""
-    from ..rundir import RunFileError
+    from ..runs.rundir import RunFileError
     from .records import record_failure
 
     try:
@@ -90,21 +90,22 @@ def recorded_job(data: dict[str, Any], run_dir: Path) -> Any:
 def run_job(data: dict[str, Any], run_dir: Path) -> Any:
     """Skip the job when ``run_dir`` already holds it complete for this config, else fly and land
     it. One plugin manager serves the job: it validates the scenario and the simulation owns it."""
-    from .. import api
     from ..runpath import run_and_write
+    from ..runs.build import build, load, plugins
+    from ..views.writers import extra_writers
     from .records import completed_metrics, write_overrides
 
     write_overrides(run_dir)  # the job's record of what it is, before anything can fail
-    plugin_set = api.plugins()
-    scenario = api.load(data, plugin_set[1])
+    plugin_set = plugins()
+    scenario = load(data, plugin_set[1])
     done = completed_metrics(run_dir, scenario.data)  # hashed over the effective configuration
     if done is not None:
         print(f"swarmscene: job {run_dir.name} already complete (same config hash): skipped", file=sys.stderr)
         return objective_from(scenario.config.output.objective, done)
     if interrupts.requested() is not None:  # came while the job was set up: stop before building
         raise KeyboardInterrupt
-    sim = api.build(scenario, plugin_set)
-    result, failed = run_and_write(sim, run_dir, api.extra_writers(sim), sweep=True)
+    sim = build(scenario, plugin_set)
+    result, failed = run_and_write(sim, run_dir, extra_writers(sim), sweep=True)
     if not result.complete or interrupts.requested() is not None:
         raise KeyboardInterrupt  # outputs are written (marked incomplete if the run was cut); stop the sweep
     if failed is not None:
@@ -134,10 +135,10 @@ def error_lines(exc: BaseException) -> list[str]:
     """The lines that say what went wrong, for a job's record and the command's exit: a
     configuration error's own lines, a refused file, a dead worker, Hydra's error in one line, an
     unwritable file, else the exception's first line."""
+    from ..composition.hydra_errors import hydra_error_line
     from ..core.errors import ConfigError
     from ..core.raised import RunFailed
-    from ..hydra_errors import hydra_error_line
-    from ..rundir import RunFileError
+    from ..runs.rundir import RunFileError
     from .pool import WorkerDied
 
     if isinstance(exc, ConfigError):

@@ -127,7 +127,7 @@ class PoolLauncher(Launcher):
     def _pool(self) -> ProcessPoolExecutor:
         """The batch's pool: made at the first launch, kept for the sweep's later batches."""
         if self._executor is None:
-            from ..hydra_internals import hydra_singletons
+            from ..composition.hydra_internals import hydra_singletons
 
             self._known = set(multiprocessing.active_children())
             sweep = dumps((hydra_singletons(), self.hydra_context, self.config, self.task_function))
@@ -254,8 +254,8 @@ def _start_worker(sweep: bytes) -> None:
     recorded, not raised, so a job stops between ticks and writes what it has."""
     from hydra.core.utils import setup_globals
 
-    from ..hydra_internals import restore_hydra_singletons
-    from ..searchpath import register_search_path
+    from ..composition.hydra_internals import restore_hydra_singletons
+    from ..composition.searchpath import register_search_path
 
     register_search_path()  # swarmscene's search path, sweeper, launcher and resolvers
     setup_globals()  # Hydra's resolvers (now, hydra, python_version)

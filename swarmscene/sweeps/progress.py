@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..summary import Progress
+from ..views.summary import Progress
 
 
 class SweepProgress:

@@ -12,7 +12,7 @@ A directory belongs to one grid: a launch of another grid into it is refused wit
 (:func:`check_grid_owner`); the same grid resumes (a job complete for the same config hash is
 skipped, :func:`completed_metrics`). Overrides of display options (:data:`DISPLAY_KEYS`) are not
 part of a job's identity: ``+sweep=fast output.progress=off`` resumes ``+sweep=fast``. Every file
-read here may be damaged or planted: it is read through :mod:`swarmscene.rundir`, and a damaged
+read here may be damaged or planted: it is read through :mod:`swarmscene.runs.rundir`, and a damaged
 ``sweep.json`` or lock is one line (:class:`~swarmscene.core.errors.ConfigError`), never a warning.
 """
 
@@ -23,7 +23,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from ..outputs import atomic_write_json, config_hash, package_versions, run_command
+from ..runs.outputs import atomic_write_json, config_hash, package_versions, run_command
 
 ERROR_FILE = "error.json"
 MANIFEST = "manifest.json"
@@ -75,7 +75,7 @@ def record_failure(run_dir: Path, exc: BaseException, data: dict[str, Any]) -> N
 def refuse_linked_job_dir(run_dir: Path) -> None:
     """A job directory or its ``.hydra/`` planted as a symbolic link is refused (RunFileError, one
     line): every record of the job is written inside the sweep directory, never through a link."""
-    from ..rundir import RunFileError
+    from ..runs.rundir import RunFileError
 
     for directory in (Path(run_dir), Path(run_dir) / ".hydra"):
         if directory.is_symlink():
@@ -89,7 +89,7 @@ def write_overrides(run_dir: Path) -> None:
     import yaml
     from hydra.core.hydra_config import HydraConfig
 
-    from ..outputs import atomic_write_bytes
+    from ..runs.outputs import atomic_write_bytes
 
     refuse_linked_job_dir(run_dir)
     path = Path(run_dir) / ".hydra" / "overrides.yaml"
@@ -115,14 +115,14 @@ def completed_metrics(run_dir: Path, data: dict[str, Any]) -> dict[str, Any] | N
 
     Complete means: the manifest says so for the same config hash, and every file it lists that
     a resume relies on loads (``metrics.json`` a mapping, ``trajectory.npz`` whole, checked by
-    :mod:`swarmscene.rundir`). Before the job runs (again), what a killed attempt left behind goes:
+    :mod:`swarmscene.runs.rundir`). Before the job runs (again), what a killed attempt left behind goes:
     a stale ``error.json`` and its temporary files (``.*.tmp``).
     """
     run_dir = Path(run_dir)
     refuse_linked_job_dir(run_dir)
     remove_temporaries(run_dir)
     if complete_problem(run_dir, config_hash(data)) is None:
-        from ..rundir import RunDir
+        from ..runs.rundir import RunDir
 
         return RunDir(run_dir).metrics()
     if (run_dir / ERROR_FILE).is_file() or (run_dir / ERROR_FILE).is_symlink():
@@ -133,7 +133,7 @@ def completed_metrics(run_dir: Path, data: dict[str, Any]) -> dict[str, Any] | N
 def complete_problem(run_dir: Path, expected_hash: str | None = None) -> str | None:
     """None when the run directory holds a complete run (for ``expected_hash``, when given),
     else why not, in one line (a damaged file names itself)."""
-    from ..rundir import RunDir, RunFileError
+    from ..runs.rundir import RunDir, RunFileError
 
     try:
         run = RunDir(run_dir)
@@ -267,7 +267,7 @@ def read_grid(sweep_dir: Path) -> dict[str, Any] | None:
     """``sweep.json`` checked (``grid``: list of text, ``jobs``: list of lists of text), or None
     when there is none; ConfigError (one line naming the file) when it is damaged."""
     from ..core.errors import ConfigError
-    from ..rundir import RunFileError, read_json
+    from ..runs.rundir import RunFileError, read_json
 
     path = Path(sweep_dir) / SWEEP_FILE
     if not path.exists() and not path.is_symlink():
@@ -358,7 +358,7 @@ def _shown(override: str) -> str:
 
 def _first_foreign_job(sweep_dir: Path, jobs: list[list[str]]) -> tuple[str, str] | None:
     """The first job directory whose overrides are not this grid's job of the same number."""
-    from ..rundir import RunDir, RunFileError
+    from ..runs.rundir import RunDir, RunFileError
 
     if not sweep_dir.is_dir():
         return None

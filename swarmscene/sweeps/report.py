@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
         out = args.out or directory / f"{_safe(args.plot)}_vs_{_safe(args.against)}.png"
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=110)
-        from ..outputs import atomic_write_bytes
+        from ..runs.outputs import atomic_write_bytes
 
         atomic_write_bytes(out, buffer.getvalue())
         print(f"swarmscene-report: plot -> {out}")
@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as exc:
             print(f"swarmscene-report: {exc}", file=sys.stderr)
             return 2
-        from ..outputs import atomic_write_bytes
+        from ..runs.outputs import atomic_write_bytes
 
         atomic_write_bytes(directory / "methods.md", table.encode())
         print(table, end="")
@@ -243,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
 def _redraw_runs(directory: Path, plots: bool, animation: bool, rerun: bool) -> int:
     """Each run's pictures (and replay): every run skipped is named with why, and the last line
     counts what was made; status 1 when nothing was (every run skipped, or none to draw)."""
-    from ..rundir import RunFileError
+    from ..runs.rundir import RunFileError
 
     made, skipped = 0, 0
     runs = job_dirs(directory)
@@ -254,11 +254,11 @@ def _redraw_runs(directory: Path, plots: bool, animation: bool, rerun: bool) -> 
             continue
         try:
             if plots:
-                from ..plots import write_run_plots
+                from ..views.plots import write_run_plots
 
                 write_run_plots(run_dir, plots=True, animation=animation)
             if rerun:
-                from ..replay import export_rerun
+                from ..views.replay import export_rerun
 
                 export_rerun(run_dir)
         except RunFileError as exc:  # a damaged run: named, skipped, the others drawn

@@ -132,7 +132,7 @@ class SwarmsceneSweeper(Sweeper):
         from hydra.core.override_parser.overrides_parser import OverridesParser
         from omegaconf import OmegaConf
 
-        from ..outputs import atomic_write_bytes
+        from ..runs.outputs import atomic_write_bytes
         from .callback import summary_wanted, write_under_lock
         from .chunks import jobs_per_task, tasks
         from .records import SweepLock, check_grid_owner, record_grid

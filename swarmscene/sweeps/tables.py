@@ -34,7 +34,7 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
-from ..outputs import atomic_write_bytes
+from ..runs.outputs import atomic_write_bytes
 from .records import ERROR_FILE, MANIFEST, complete_problem, job_dirs
 from .stats import lower_bound, mean_interval, wilson
 
@@ -61,11 +61,11 @@ def parse_value(text: str) -> Any:
 def job_row(run_dir: Path, root: Path | None = None) -> dict[str, Any]:
     """One table row: identity, status, error, swept values and every metric of a run directory.
 
-    Every file is read through :mod:`swarmscene.rundir`: a job whose files do not load (a garbage
+    Every file is read through :mod:`swarmscene.runs.rundir`: a job whose files do not load (a garbage
     ``metrics.json``, a truncated trajectory) is ``damaged``, with the file's one-line problem as
     its error, never ``complete``.
     """
-    from ..rundir import RunDir, RunFileError
+    from ..runs.rundir import RunDir, RunFileError
 
     if Path(run_dir).is_symlink():  # planted where a job's folder goes: reported, never read
         name = str(Path(run_dir).relative_to(root)) if root is not None else Path(run_dir).name

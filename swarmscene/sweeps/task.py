@@ -43,7 +43,7 @@ def run_rest(run_one: Callable[[Any, Any], Any], first_cfg: Any) -> None:
         return
     from hydra.core.hydra_config import HydraConfig
 
-    from ..hydra_internals import hydra_config_kept
+    from ..composition.hydra_internals import hydra_config_kept
 
     loader, master = _loader_and_master(task, first_cfg)
     prefix = _id_prefix(HydraConfig.get().job)  # the first job's, numbered by renumber_first
@@ -88,8 +88,8 @@ def _loader_and_master(task: dict[str, Any], first_cfg: Any) -> tuple[Any, Any]:
     sweep's config that composing a job reads (its config name, Hydra overrides, resolver cache)."""
     from omegaconf import OmegaConf
 
-    from ..hydra_internals import config_search_path
-    from ..outputs import COMMAND_ENV
+    from ..composition.hydra_internals import config_search_path
+    from ..runs.outputs import COMMAND_ENV
     from .compose import GroupCachingLoader
 
     raw_command = os.environ.get(COMMAND_ENV)
@@ -128,13 +128,13 @@ def _as_job(cfg: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[
 def _as_lean_job(task_cfg: Any, hydra_root: Any, idx: int, sweep_dir: str, id_prefix: str | None) -> tuple[Any, Any]:
     """:func:`_as_job` for a job from :meth:`~.compose.GroupCachingLoader.load_task_job`: the
     composition's one ``hydra`` node numbered for this job and set as ``HydraConfig`` (its parent the
-    job's config, as ``set_config`` makes it; no copy: :func:`~swarmscene.hydra_internals.set_hydra_config_node`),
-    the run directory ``sweep_dir/<n>``."""
+    job's config, as ``set_config`` makes it; no copy:
+    :func:`~swarmscene.composition.hydra_internals.set_hydra_config_node`), the run directory ``sweep_dir/<n>``."""
     from pathlib import Path
 
     from omegaconf import read_write
 
-    from ..hydra_internals import set_hydra_config_node
+    from ..composition.hydra_internals import set_hydra_config_node
 
     node = hydra_root.hydra
     run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))  # subdir ${hydra.job.num}

@@ -23,19 +23,20 @@ from .pool import WARM_ENV
 
 def warm(scenario: str | None) -> None:
     """Import the engine; run ``scenario`` (JSON of a composed config) briefly if given."""
+    import importlib
+
     import hydra.core.utils  # noqa: F401  (run_job and its logging: every job's first call)
 
-    from .. import api, cli  # noqa: F401  (the task function's module)
+    from ..runs.build import build, plugins, shortened
 
-    api.plugins()  # every registered plugin's module, the third parties' included
+    importlib.import_module("swarmscene.cli")  # the module of the task function the workers call by name
+    plugins()  # every registered plugin's module, the third parties' included
     if not scenario:
         return
-    from ..compile import short
-
-    data = short(json.loads(scenario))
+    data = shortened(json.loads(scenario))
     data["output"] = {**data["output"], "plots": False, "animation": False, "rerun": False, "live": "off"}
     try:
-        api.run(data)
+        build(data).run()
     except Exception:  # the job reports it, in its own run directory
         pass
 

@@ -187,7 +187,7 @@ def test_every_model_option_is_documented():
     """docs/disturbances.md carries each model's option table as the docgen renders it."""
     from pathlib import Path
 
-    from swarmscene.docgen import model_table
+    from swarmscene.tools.docgen import model_table
 
     doc = (Path(__file__).parents[2] / "docs" / "disturbances.md").read_text()
     registry = api.plugins()[1]  # every built-in model, core/disturbances' and plugins/disturbance's

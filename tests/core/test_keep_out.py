@@ -15,7 +15,7 @@ import pytest
 from swarmscene import api
 from swarmscene.core.errors import ConfigError
 from swarmscene.core.vectors import ellipsoid_norm
-from swarmscene.summary import FAIL, OK, verdicts
+from swarmscene.views.summary import FAIL, OK, verdicts
 
 CRAZYFLIE = [0.12, 0.12, 0.3]
 """m: the Crazyflie's keep-out radii (methods/physics/crazyflie.py KEEP_OUT_RADII)."""

@@ -155,7 +155,7 @@ def test_a_batch_of_phased_worlds_is_its_single_runs():
 
 
 def test_the_summary_judges_the_mission_when_it_ended_and_the_landing_by_the_vehicles_left_aloft(data):
-    from swarmscene.summary import FAIL, OK, verdicts
+    from swarmscene.views.summary import FAIL, OK, verdicts
 
     data = phased(data, land=0.1)
     data["termination"]["on_complete"] = False

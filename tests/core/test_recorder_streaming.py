@@ -110,7 +110,7 @@ def test_attitude_is_streamed_too():
 
 
 def test_npz_copies_whole_spill_files_and_writes_other_arrays(tmp_path):
-    from swarmscene.outputs import _whole_npy_file, write_npz
+    from swarmscene.runs.outputs import _whole_npy_file, write_npz
 
     frames = np.arange(6 * 2 * 3, dtype=np.float32).reshape(6, 2, 3)
     app = NpyAppender(tmp_path / "pos.npy", (2, 3), np.float32)

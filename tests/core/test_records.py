@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from swarmscene import api
-from swarmscene.outputs import COSMETIC_KEYS, atomic_write_bytes, config_hash, source_revision
+from swarmscene.runs.outputs import COSMETIC_KEYS, atomic_write_bytes, config_hash, source_revision
 
 TIMING = ("wall_time", "realtime_factor", "step_ms_median")
 EXE = [sys.executable, "-c", "from swarmscene.cli import main; main()"]

@@ -179,7 +179,7 @@ def test_misspelt_disabled_name_warns_and_lists_the_installed_plugins(monkeypatc
 
 
 def test_the_manifest_versions_name_every_plugin_distribution(monkeypatch):
-    from swarmscene import outputs
+    from swarmscene.runs import outputs
 
     eps = [FakeEntryPoint("good", _third_party_avoidance(), dist="gooddist")]
     monkeypatch.setattr(registry_module, "entry_points", lambda group: eps)

@@ -36,7 +36,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from .core import interrupts
+from ..core import interrupts
 
 MANIFEST_PACKAGES = (
     "swarmscene", "numpy", "scipy", "shapely", "networkx", "pydantic", "pluggy", "hydra-core", "numba",
@@ -285,7 +285,7 @@ def _without_cosmetic(data: dict[str, Any]) -> dict[str, Any]:
 def package_versions() -> dict[str, str]:
     """Python's version, the engine's packages' (:data:`MANIFEST_PACKAGES`) and every installed
     plugin distribution's (a ``swarmscene`` entry point): what the numbers depend on."""
-    from .core.registry import plugin_distributions
+    from ..core.registry import plugin_distributions
 
     return {**_engine_versions(), **plugin_distributions()}
 

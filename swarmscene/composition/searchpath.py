@@ -39,7 +39,7 @@ def third_party_config_paths() -> list[tuple[str, str]]:
     ``SWARMSCENE_DISABLE_PLUGINS`` does not name (``name`` or ``dist:name``, as for plugins)."""
     import os
 
-    from .core.registry import DISABLE_ENV
+    from ..core.registry import DISABLE_ENV
 
     blocked = {b.strip() for b in os.environ.get(DISABLE_ENV, "").split(",") if b.strip()}
     found = []
@@ -63,8 +63,8 @@ class SwarmsceneSearchPathPlugin(SearchPathPlugin):
 
 def register_search_path() -> None:
     """Make Hydra use :class:`SwarmsceneSearchPathPlugin` and know swarmscene's sweeper
-    (``hydra_plugins.swarmscene_sweeper``), :mod:`swarmscene.hydra_files` and
-    :mod:`swarmscene.scenario_files`; idempotent."""
+    (``hydra_plugins.swarmscene_sweeper``), :mod:`swarmscene.composition.hydra_files` and
+    :mod:`swarmscene.composition.scenario_files`; idempotent."""
     from hydra_plugins.swarmscene_sweeper import register as register_sweeper
 
     from .groups import register_help_resolver
@@ -147,7 +147,7 @@ def plain_command_line(argv: Sequence[str]) -> list[str]:
             out.append(arg)
             option = arg if arg in OPTIONS_WITH_VALUE else None
         elif arg.lstrip("+~").startswith("="):  # Hydra: "Config group override must be a string or a list"
-            from .core.errors import ConfigError
+            from ..core.errors import ConfigError
 
             raise ConfigError([f"{arg}: an override needs a key before '=' (key=value; got {arg!r})"])
         else:

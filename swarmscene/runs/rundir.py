@@ -6,7 +6,7 @@ type and, for the trajectory, every array's name, dtype and shape) and turns any
 :class:`RunFileError`: one line naming the file and what is wrong. Nothing is unpickled
 (``numpy.load(allow_pickle=False)``, ``yaml.safe_load`` with no aliases).
 
-    from swarmscene.rundir import RunDir, RunFileError
+    from swarmscene.runs.rundir import RunDir, RunFileError
     run = RunDir(path)
     run.metrics()        # dict, checked
     run.trajectory()     # {"t": (T,), "pos": (T, N, 3), "vel": (T, N, 3), "healthy": (T, N), "quat"?: (T, N, 4)}

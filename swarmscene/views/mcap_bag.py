@@ -1,4 +1,4 @@
-"""ROS 2 bags of a run, without ROS: ``output.mcap=true`` and ``python -m swarmscene.export RUN_DIR --mcap OUT``.
+"""ROS 2 bags of a run, without ROS: ``output.mcap=true`` and ``python -m swarmscene.views.export RUN_DIR --mcap OUT``.
 
 A bag is a rosbag2 folder: ``<name>_0.mcap`` (MCAP, ``ros2`` profile: CDR messages, ``ros2msg``
 schemas) and the ``metadata.yaml`` that ``ros2 bag info`` and ``ros2 bag play`` read. A run with
@@ -57,10 +57,10 @@ from typing import Any
 
 import numpy as np
 
-from .core.hookspecs import hookimpl
+from ..core.hookspecs import hookimpl
+from ..methods.ros2 import messages as msgs
+from ..methods.ros2.cdr import CdrBuilder, CdrTemplate, split_time
 from .mcap_file import McapWriter, RecordBlock
-from .methods.ros2 import messages as msgs
-from .methods.ros2.cdr import CdrBuilder, CdrTemplate, split_time
 
 WORLD_FRAME = "world"
 BAG_DIR = "bag"
@@ -162,7 +162,7 @@ class BagWriter:
     """
 
     def __init__(self, fh: Any, config: dict[str, Any], n: int, slots: bool = False) -> None:
-        from . import __version__
+        from .. import __version__
 
         self.n = n
         self.config = config
@@ -332,7 +332,7 @@ class BagFolder:
         self.folder = self.tmp / name
         self.folder.mkdir()
         self.file_name = f"{name}_0.mcap"
-        from .core.recorder import create_exclusive
+        from ..core.recorder import create_exclusive
 
         self.fh = os.fdopen(create_exclusive(self.folder / self.file_name), "wb")
         self._cleanup = weakref.finalize(self, _remove, self.fh, self.tmp)
@@ -340,7 +340,7 @@ class BagFolder:
     def publish(self, writer: BagWriter, target: Path) -> Path:
         """Finish the bag, write metadata.yaml and move the folder to ``target`` (named as the
         folder; a directory or a link already there is replaced, never followed)."""
-        from .outputs import atomic_write_bytes, user_file_mode
+        from ..runs.outputs import atomic_write_bytes, user_file_mode
 
         target = Path(target)
         if target.name != self.folder.name:
@@ -408,7 +408,7 @@ class McapRecorder:
     def _watch_formation(self, formation: Any) -> None:
         """See each tick's formation setpoints (the slots): the formation's own ``setpoints`` is
         wrapped on this instance only; the setpoints pass through untouched."""
-        from .core.setpoint import Mode
+        from ..core.setpoint import Mode
 
         original = formation.setpoints
 
@@ -487,7 +487,7 @@ def end_lines(config: dict[str, Any], end: float, metrics: dict[str, Any]) -> li
 # -- converted from a run directory ----------------------------------------------------------------
 def export_mcap(run_dir: Path, out: Path) -> Path:
     """Write the bag folder ``out`` (``out/<name>_0.mcap`` and metadata.yaml) from a run directory,
-    read through the checked reader (:func:`swarmscene.plots.load_run`). ``out`` must not exist."""
+    read through the checked reader (:func:`swarmscene.views.plots.load_run`). ``out`` must not exist."""
     from .plots import load_run, nearest_neighbour
     from .replay import events, exclusion_radius
 
@@ -529,8 +529,8 @@ def _recorded_verdicts(config: dict[str, Any], metrics: dict[str, Any]) -> list[
     mission's needs the run's last state, so its line is the stop and success instead)."""
     from types import SimpleNamespace
 
-    from .core.config import ScenarioConfig
-    from .core.registry import installed_registry
+    from ..core.config import ScenarioConfig
+    from ..core.registry import installed_registry
     from .summary import engine_verdicts, plugin_verdicts
 
     context = {"registry": installed_registry()}  # the installed plugins choose a recorded map generator
@@ -546,9 +546,9 @@ def _recorded_verdicts(config: dict[str, Any], metrics: dict[str, Any]) -> list[
 
 
 def export_main(parser: Any, run_dir: Path, out: Path) -> None:
-    """``python -m swarmscene.export RUN_DIR --mcap OUT``: the bag, or one line and exit status 2
+    """``python -m swarmscene.views.export RUN_DIR --mcap OUT``: the bag, or one line and exit status 2
     (a damaged or missing file of the run, named; OUT already there; OUT not writable)."""
-    from .rundir import RunFileError
+    from ..runs.rundir import RunFileError
 
     try:
         written = export_mcap(run_dir, out)

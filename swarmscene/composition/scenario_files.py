@@ -6,7 +6,7 @@ has no limit: a YAML alias bomb (nine aliases of nine aliases ...) or a 50 MB sc
 deep nesting overflows the parser's recursion, and non-UTF-8 bytes raise an error that does not
 name the file. :func:`install` puts :func:`check_scenario_file` in front of both of Hydra's file
 readers (``FileConfigSource`` and ``ImportlibResourcesConfigSource``, wrapped by
-:mod:`swarmscene.hydra_internals`), so every such file is checked first, and any problem is one
+:mod:`swarmscene.composition.hydra_internals`), so every such file is checked first, and any problem is one
 line naming the file (and the line, where there is one):
 
 - size: at most :data:`MAX_FILE_BYTES` (checked before reading);
@@ -26,7 +26,7 @@ import os
 import re
 from typing import Any
 
-from .core.errors import ConfigError
+from ..core.errors import ConfigError
 
 MAX_FILE_BYTES = 4 * 1024 * 1024
 """Largest scenario file read (bytes): the largest shipped one is a few KiB."""
@@ -117,7 +117,7 @@ def _read_limited(open_binary: Any) -> bytes:
 
 def install() -> None:
     """Check every file Hydra's two file readers load (idempotent; the wrapping of Hydra's readers
-    is :func:`swarmscene.hydra_internals.check_before_config_files_are_read`)."""
+    is :func:`swarmscene.composition.hydra_internals.check_before_config_files_are_read`)."""
     from .hydra_internals import check_before_config_files_are_read
 
     check_before_config_files_are_read(_check_file, _check_resource)

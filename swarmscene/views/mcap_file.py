@@ -25,7 +25,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from .methods.ros2.cdr import CdrTemplate
+from ..methods.ros2.cdr import CdrTemplate
 
 MAGIC = b"\x89MCAP0\r\n"
 OP = {"header": 0x01, "footer": 0x02, "schema": 0x03, "channel": 0x04, "message": 0x05, "chunk": 0x06,

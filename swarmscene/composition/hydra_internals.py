@@ -64,7 +64,7 @@ def replace_save_config(writer: Callable[[Any, str, Path], None]) -> None:
     (hydra-core 1.3.8). Why: Hydra's writer opens the path with a plain ``open(path, "w")``, which
     follows a link planted at that name, and no public option or hook changes how, or whether
     safely, those files are written (``hydra.output_subdir: null`` drops them altogether). The
-    replacement (:func:`swarmscene.hydra_files.save_config`) writes atomically, never through a link.
+    replacement (:func:`swarmscene.composition.hydra_files.save_config`) writes atomically, never through a link.
     """
     import hydra.core.utils as hydra_utils
 

@@ -10,13 +10,13 @@ Two things Hydra does on its own before the engine's task runs:
 - it writes ``.hydra/config.yaml``, ``hydra.yaml`` and ``overrides.yaml`` with a plain ``open(path,
   "w")``, which follows a symbolic link planted at that name. :func:`protect_hydra_writes`
   makes Hydra write them with :func:`save_config` instead (the replacement of Hydra's private
-  writer is :func:`swarmscene.hydra_internals.replace_save_config`), which writes through a
+  writer is :func:`swarmscene.composition.hydra_internals.replace_save_config`), which writes through a
   private temporary file and ``os.replace`` (a link at the name is replaced, not written through)
   and refuses a run directory or ``.hydra`` that is itself a link.
 
 :func:`install` does both; it is idempotent and cheap, and runs on importing
 :mod:`swarmscene.cli` (so a launcher's worker process, which imports the task to run it, has it
-too) and in :func:`swarmscene.searchpath.register_search_path`.
+too) and in :func:`swarmscene.composition.searchpath.register_search_path`.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ RESOLVER = "swarmscene.dir_name"
 
 def dir_name(name: Any) -> str:
     """The scenario ``name`` as a directory name, or a ConfigError naming ``name`` (one line)."""
-    from .core.config import name_problem
-    from .core.errors import ConfigError
+    from ..core.config import name_problem
+    from ..core.errors import ConfigError
 
     problem = name_problem(name)
     if problem is not None:
@@ -42,8 +42,8 @@ def save_config(cfg: Any, filename: str, output_dir: Path) -> None:
     """Hydra's ``_save_config``, written atomically and never through a symbolic link."""
     from omegaconf import OmegaConf
 
-    from .outputs import atomic_write_bytes
-    from .rundir import RunFileError
+    from ..runs.outputs import atomic_write_bytes
+    from ..runs.rundir import RunFileError
 
     output_dir = Path(output_dir)
     for directory in (output_dir.parent, output_dir):

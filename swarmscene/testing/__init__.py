@@ -40,7 +40,7 @@ the last one failed), runs the class through the contract of its kind for a few 
 - observer (:func:`check_observer`): only lifecycle hooks, each marked ``hookimpl``; it changes
   nothing of a run, adds finite JSON metrics, and gives the same metrics in a second run.
 
-Each rule is a named check (:func:`list_checks`; :mod:`swarmscene.contract` runs them): a failure
+Each rule is a named check (:func:`list_checks`; :mod:`swarmscene.testing.contract` runs them): a failure
 names every check that failed, and ``check_*`` returns each check's outcome. A class that knowingly
 breaks a rule declares it, with the reason, in ``xfail_checks = {"<kind>.<check>": "why"}``.
 
@@ -58,15 +58,15 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
+from ..core.environment import Environment
+from ..core.errors import format_validation_error
+from ..core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
+from ..core.sensing import Sensing
+from ..core.setpoint import Mode, Setpoints
+from ..core.state import WorldBatch, WorldState
+from ..plugin import build_context
 from .contract import ContractError, Outcome, Subject, checks_of, promise, run
-from .core.environment import Environment
-from .core.errors import format_validation_error
-from .core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
-from .core.sensing import Sensing
-from .core.setpoint import Mode, Setpoints
-from .core.state import WorldBatch, WorldState
-from .plugin import build_context
-from .testing_kinds import (  # the kinds beside the three algorithms, rules listed above
+from .kinds import (  # the kinds beside the three algorithms, rules listed above
     _assert_class_untouched,
     _class_state,
     check_disturbance,
@@ -101,7 +101,7 @@ def installed_registry() -> Any:
     """The registry of this installation (built-ins and installed packages), built once: the checks
     validate options against it as a scenario would, so an option naming another kind's component
     (``avoidance.policy``) is resolved."""
-    from .api import plugins
+    from ..runs.build import plugins
 
     return plugins()[1]
 
@@ -160,7 +160,7 @@ def check_formation(cls: type[Formation], options: dict[str, Any] | None = None,
     """Run ``cls`` through the formation checks (:func:`list_checks`); return each check's outcome.
 
     Raises:
-        AssertionError: a promise broken (:class:`~swarmscene.contract.ContractError`, naming each
+        AssertionError: a promise broken (:class:`~swarmscene.testing.contract.ContractError`, naming each
             failed check), unless the class declares it in ``xfail_checks`` with a reason.
     """
     return run("formation", _subject("formation", cls, Formation, options, refused, environment))

@@ -20,18 +20,18 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ValidationError
 
+from ..core import hookspecs
+from ..core.disturbances import Disturbances
+from ..core.disturbances.base import PHASES, Disturbance, DisturbanceParams
+from ..core.environment import Environment
+from ..core.errors import format_validation_error
+from ..core.events import EventConfig, EventKindPlugin, EventParams, EventQueue, Motion, draw_event
+from ..core.fields import MAX_LENGTH
+from ..core.generators import MapGenerator
+from ..core.plugin import PluginParams, Policy
+from ..core.sensing import Sensing
+from ..core.state import WorldState
 from .contract import Outcome, Subject, promise, run
-from .core import hookspecs
-from .core.disturbances import Disturbances
-from .core.disturbances.base import PHASES, Disturbance, DisturbanceParams
-from .core.environment import Environment
-from .core.errors import format_validation_error
-from .core.events import EventConfig, EventKindPlugin, EventParams, EventQueue, Motion, draw_event
-from .core.fields import MAX_LENGTH
-from .core.generators import MapGenerator
-from .core.plugin import PluginParams, Policy
-from .core.sensing import Sensing
-from .core.state import WorldState
 
 __all__ = ["check_disturbance", "check_event_kind", "check_generator", "check_observer", "check_policy"]
 
@@ -298,7 +298,7 @@ class _OneKind:
     """A registry holding the installed event kinds and one more (what a scenario validates against)."""
 
     def __init__(self, cls: type[EventKindPlugin]) -> None:
-        from .core.registry import installed_registry
+        from ..core.registry import installed_registry
 
         self.classes = {"event": {**installed_registry().classes["event"], cls.name: cls}}
 
@@ -514,7 +514,7 @@ def _generator_deterministic(s: Subject) -> None:
 
 # -- policies ------------------------------------------------------------------------------------
 def _observations(layout: Any) -> np.ndarray:
-    from .methods.policy.observation import observe
+    from ..methods.policy.observation import observe
 
     world = _world()
     return observe(Sensing(world, Environment(), 10.0), None, layout, 10.0, 5.0)
@@ -546,8 +546,8 @@ class _Acting:
 
 def _acting(s: Subject) -> tuple[np.ndarray, list[_Acting]]:
     """The observations, and each action kind's calls (velocity, acceleration)."""
-    from .methods.policy.actions import ActionSpec
-    from .methods.policy.observation import ObservationLayout
+    from ..methods.policy.actions import ActionSpec
+    from ..methods.policy.observation import ObservationLayout
 
     def act() -> tuple[np.ndarray, list[_Acting]]:
         layout = ObservationLayout(4)
@@ -611,11 +611,12 @@ TIMING = ("wall_time", "realtime_factor", "step_ms_median")
 
 
 def _run(observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], np.ndarray]:
-    from .api import load, plugins
-    from .core.simulation import Simulation
+    from ..composition.compose import compose
+    from ..core.simulation import Simulation
+    from ..runs.build import load, plugins
 
     pm, registry = plugins()
-    sim = Simulation(load(overrides, registry), pm, observers)
+    sim = Simulation(load(compose(overrides), registry), pm, observers)
     result = sim.run()
     return result.metrics, np.array(sim.world.pos)
 
@@ -623,8 +624,8 @@ def _run(observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], n
 def _run_checked(name: str, observers: list[type], overrides: list[str]) -> tuple[dict[str, Any], np.ndarray]:
     """:func:`_run`, an observer's exception turned into the check's failure: a metric written
     outside its namespace is the rule "changed the run's metrics" (the engine refuses the write)."""
-    from .core.metric_keys import MetricKeyError
-    from .core.raised import PluginRaised
+    from ..core.metric_keys import MetricKeyError
+    from ..core.raised import PluginRaised
 
     try:
         return _run(observers, overrides)
@@ -662,7 +663,7 @@ def _observer_hooks_of(cls: type) -> None:
 
 def _observed(s: Subject) -> tuple[tuple[dict[str, Any], np.ndarray], tuple[dict[str, Any], np.ndarray]]:
     """The short run without the observer and with it (metrics, final positions)."""
-    from .api import plugins
+    from ..runs.build import plugins
 
     def runs() -> tuple[tuple[dict[str, Any], np.ndarray], tuple[dict[str, Any], np.ndarray]]:
         base = [c for c in plugins()[1].observers if c is not s.cls]
@@ -707,7 +708,7 @@ def _observer_metrics_json(s: Subject) -> None:
 @promise("observer", "fresh_per_run")
 def _observer_fresh(s: Subject) -> None:
     """A fresh instance in a second run gives the same metrics (no state kept on the class)."""
-    from .api import plugins
+    from ..runs.build import plugins
 
     added = _added(s)
     base = [c for c in plugins()[1].observers if c is not s.cls]

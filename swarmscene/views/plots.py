@@ -21,7 +21,7 @@ replay; red is kept for failures and limits.
 On ``output.animation=true`` ``animation.mp4`` (when matplotlib finds ffmpeg) or
 ``animation.gif``: the top-down view over time, trails, failed vehicles, and with
 ``output.comm_edges=true`` the communication edges (healthy pairs within ``comm.range``). Writing it
-reports the frames written and the time left on a terminal (:class:`swarmscene.summary.Progress`).
+reports the frames written and the time left on a terminal (:class:`swarmscene.views.summary.Progress`).
 
 Everything works from a run directory alone (config.yaml + trajectory.npz, metrics.json when
 present), so ``swarmscene-report RUN_DIR --run-plots`` redraws them later. Inside a run the safety
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from .outputs import atomic_write_bytes, private_temp_dir, publish
+from ..runs.outputs import atomic_write_bytes, private_temp_dir, publish
 
 FAILED_COLOR = "tab:red"
 LIMIT_COLOR = "tab:red"
@@ -174,10 +174,10 @@ class RunData:
 def _obstacles(config: dict[str, Any]) -> list[Any]:
     """The run's obstacles, rebuilt from its environment section with the installed registry, so
     a run whose map came from a plugin's generator reads back like a built-in's."""
-    from .builtins import BUILTIN_PLUGINS
-    from .core.config import EnvironmentConfig
-    from .core.geometry import build_obstacles
-    from .core.registry import make_plugin_manager
+    from ..builtins import BUILTIN_PLUGINS
+    from ..core.config import EnvironmentConfig
+    from ..core.geometry import build_obstacles
+    from ..core.registry import make_plugin_manager
 
     registry = make_plugin_manager(BUILTIN_PLUGINS)[1]  # the installed plugins, as api.plugins()
     env = EnvironmentConfig.model_validate(config.get("environment") or {}, context={"registry": registry})
@@ -193,10 +193,10 @@ CONFIG_SECTIONS = ("clock", "safety", "comm", "environment", "swarm", "formation
 def load_run(run_dir: Path) -> RunData:
     """Read a run directory's config.yaml and trajectory.npz (metrics.json, manifest.json if there).
 
-    Every file goes through :mod:`swarmscene.rundir`: a missing, damaged or planted one raises
-    :class:`~swarmscene.rundir.RunFileError`, one line naming the file and what is wrong.
+    Every file goes through :mod:`swarmscene.runs.rundir`: a missing, damaged or planted one raises
+    :class:`~swarmscene.runs.rundir.RunFileError`, one line naming the file and what is wrong.
     """
-    from .rundir import CONFIG, MANIFEST, METRICS, RunDir, RunFileError
+    from ..runs.rundir import CONFIG, MANIFEST, METRICS, RunDir, RunFileError
 
     run = RunDir(run_dir)
     config = run.config()
@@ -220,7 +220,7 @@ def load_run(run_dir: Path) -> RunData:
 def _check_sections(path: Path, config: dict[str, Any]) -> None:
     """A config.yaml whose sections are not mappings (or whose events are not a list of them) is
     damaged: say so here rather than fail deep inside a figure."""
-    from .rundir import RunFileError
+    from ..runs.rundir import RunFileError
 
     for key in CONFIG_SECTIONS:
         if config.get(key) is not None and not isinstance(config[key], dict):
@@ -232,7 +232,7 @@ def _check_sections(path: Path, config: dict[str, Any]) -> None:
 
 def _hash(config: dict[str, Any]) -> str:
     """The config hash the manifest holds for this config (the manifest is written last)."""
-    from .outputs import config_hash
+    from ..runs.outputs import config_hash
 
     return config_hash(config)
 
@@ -274,7 +274,7 @@ def agent_clearance(run: RunData) -> np.ndarray:
     pos = np.asarray(run.pos)
     if not run.obstacles:
         return np.full(pos.shape[:2], np.inf)
-    from .core.environment import Environment
+    from ..core.environment import Environment
 
     return Environment(run.obstacles).clearance(pos.reshape(-1, 3)).reshape(pos.shape[:2])
 
@@ -485,7 +485,7 @@ def write_animation(run: RunData, run_dir: Path, frames: int = 150, edges: bool 
                     progress: Any = None) -> Path:
     """animation.mp4 when an ffmpeg writer exists, else animation.gif; returns the path.
 
-    ``progress``: a :class:`swarmscene.summary.Progress` told of every frame written (None: quiet).
+    ``progress``: a :class:`swarmscene.views.summary.Progress` told of every frame written (None: quiet).
     """
     from matplotlib import animation
     from matplotlib.collections import LineCollection

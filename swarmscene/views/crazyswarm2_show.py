@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Fly a swarmscene show of Crazyflies with Crazyswarm2 (crazyflie_py).
 
-Copied unchanged by ``python -m swarmscene.export --crazyflie DIR`` beside the trajectories
+Copied unchanged by ``python -m swarmscene.views.export --crazyflie DIR`` beside the trajectories
 (cf_<i>.csv), crazyflies.yaml and the show's data, crazyswarm2_show.json: the robots, each one's
 trajectory file and first point, the show's duration, whether it starts and ends on the floor, and
 the floor's height. Start Crazyswarm2's server on this folder's crazyflies.yaml, then run this
@@ -26,7 +26,7 @@ export's time scale is already in the durations), waits the trajectories' durati
 plan). A robot the server does not know, or a missing or damaged crazyswarm2_show.json, stops it
 with one line before anything is sent.
 
-This file is also the module ``swarmscene.crazyswarm2_show`` (linted, type-checked and tested with
+This file is also the module ``swarmscene.views.crazyswarm2_show`` (linted, type-checked and tested with
 the package). It imports the standard library only, and Crazyswarm2's ``crazyflie_py`` inside
 :func:`main`, so the workspace's python3 runs it without swarmscene installed.
 """
@@ -139,7 +139,8 @@ def read_show(path: Path) -> Show:
     try:
         data = json.loads(path.read_text(encoding="utf-8"), object_pairs_hook=_unique_keys)
     except FileNotFoundError:
-        raise ShowFileError("missing (python -m swarmscene.export --crazyflie writes it beside this script)") from None
+        raise ShowFileError("missing (python -m swarmscene.views.export --crazyflie writes it beside this script)"
+                            ) from None
     except OSError as exc:
         raise ShowFileError(f"cannot be read ({exc.strerror or exc})") from None
     except UnicodeDecodeError:

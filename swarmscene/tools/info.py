@@ -87,7 +87,7 @@ def command(name: str) -> int:
     if name == "--version":
         print(version_line())
         return 0
-    from .api import plugins
+    from ..runs.build import plugins
 
     _, registry = plugins()
     print(plugins_text(registry))

@@ -22,7 +22,7 @@ Modes (``output.live``; :func:`target` reads the value, the config checks its gr
 Every run is its own recording, with the replay's recording id (``replay.recording_id``:
 ``<name>-seed<seed>-<12 hex digits of the config hash>``) and application id, so a sweep's jobs
 open side by side in one viewer instead of overwriting each other. The entities, their colours and
-the layout are the replay's (:mod:`swarmscene.replay`): the static scene when the run starts, then
+the layout are the replay's (:mod:`swarmscene.views.replay`): the static scene when the run starts, then
 every guidance tick thinned to at most :data:`MAX_FRAMES` frames (the replay's own thinning) the
 agents, bodies, trails, exclusion zones, comm edges and the separation and clearance series; the
 failures and radio losses as they happen; at the end the first violation of each safety condition
@@ -51,7 +51,7 @@ from urllib.parse import quote, urlsplit
 
 import numpy as np
 
-from .core.hookspecs import hookimpl
+from ..core.hookspecs import hookimpl
 
 DEFAULT_PORT = 9876
 """Rerun's gRPC port."""
@@ -225,7 +225,7 @@ class LiveView:
     def __init__(self, sim: Any, url: str) -> None:
         import rerun as rr
 
-        from .outputs import config_hash
+        from ..runs.outputs import config_hash
         from .plots import RunData, agent_colors
         from .replay import APPLICATION_ID, exclusion_radius, recording_id
 

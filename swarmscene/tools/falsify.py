@@ -64,7 +64,7 @@ def failure_search_space(config: Any, trial: Any) -> None:
     Raises:
         ConfigError: one line when the config holds no event with a list of agents to search.
     """
-    # The command line spells a plain value `++key=...` (swarmscene.searchpath.plain_overrides).
+    # The command line spells a plain value `++key=...` (swarmscene.composition.searchpath.plain_overrides).
     taken = {name.lstrip("+~") for name in (*trial.params, *trial.user_attrs)}
     duration, n = failure_bounds(config)
     if FAILURE_TIME not in taken:
@@ -75,7 +75,7 @@ def failure_search_space(config: Any, trial: Any) -> None:
 
 def failure_bounds(config: Any) -> tuple[float, int]:
     """(``clock.duration``, ``swarm.n``) of the composed config, checked to hold a searchable event."""
-    from .core.errors import ConfigError
+    from ..core.errors import ConfigError
 
     events = config.get("events") or []
     agents = events[0].get("agents") if len(events) else None
@@ -126,9 +126,9 @@ class Trial:
 
 def read_trial(run_dir: Path) -> Trial:
     """The trial of one run directory (its overrides, metrics and limit), read through
-    :mod:`swarmscene.rundir`: a trial whose files are missing or damaged is not complete
+    :mod:`swarmscene.runs.rundir`: a trial whose files are missing or damaged is not complete
     (``status`` ``damaged``), never a crash of the study's end."""
-    from .rundir import CONFIG, MANIFEST, METRICS, OVERRIDES, RunDir, RunFileError, finite_or_none
+    from ..runs.rundir import CONFIG, MANIFEST, METRICS, OVERRIDES, RunDir, RunFileError, finite_or_none
 
     run_dir = Path(run_dir)
     trial = Trial(trial=int(run_dir.name), overrides=[], status="unfinished")
@@ -160,7 +160,7 @@ def read_trial(run_dir: Path) -> Trial:
 
 def read_trials(sweep_dir: Path) -> list[Trial]:
     """Every trial of a study's sweep directory, in trial order."""
-    from .sweeps.records import job_dirs
+    from ..sweeps.records import job_dirs
 
     return [read_trial(d) for d in job_dirs(Path(sweep_dir)) if d.name.isdigit()]
 
@@ -223,8 +223,8 @@ def write_worst_case(sweep_dir: Path, sampler: str = "", command: str = "swarmsc
     ``worst_case.json`` records the trial, its searched values, rho, the first violation, the
     number of trials and the progress curve. None (nothing written) when no trial completed.
     """
-    from .outputs import atomic_write_bytes
-    from .rundir import CONFIG, read_text
+    from ..runs.outputs import atomic_write_bytes
+    from ..runs.rundir import CONFIG, read_text
 
     sweep_dir = Path(sweep_dir)
     trials = read_trials(sweep_dir)
@@ -285,7 +285,7 @@ class WorstCase(_Callback):
         if problem is not None:
             print(f"swarmscene: {problem}", file=sys.stderr)
             raise SystemExit(2)
-        from .sweeps import callback
+        from ..sweeps import callback
 
         callback.started(self, config)  # its end runs even when every trial failed
 
