@@ -8,12 +8,13 @@ Compose a scenario from Hydra config groups, run it, read back metrics and safet
 
 The engine lives in :mod:`swarmscene.core`, the methods' numerics in :mod:`swarmscene.methods`, the
 algorithms' plugins in :mod:`swarmscene.plugins`, the config tree in :mod:`swarmscene.scenarios`.
-This package is the application around them: the public entry points (:mod:`~swarmscene.api`,
-:mod:`~swarmscene.cli`, :mod:`~swarmscene.plugin`, :mod:`~swarmscene.testing`, :mod:`~swarmscene.env`),
-the one path from a built run to its directory (:mod:`~swarmscene.runpath`), the run directory's
-writer and reader (:mod:`~swarmscene.runs.outputs`, :mod:`~swarmscene.runs.rundir`), the sweeps
-(:mod:`swarmscene.sweeps`), the suite (:mod:`swarmscene.suite`), the views of a run (summary,
-plots, live view, replay, exports) and the tools (falsifier, compile, docs generation, schema, info).
+This package is the application around them, in rooms with one import direction
+(swarmscene/README.md; ``tests/test_layout.py`` holds it): the public entry points
+(:mod:`~swarmscene.api`, :mod:`~swarmscene.cli`, :mod:`~swarmscene.plugin`, :mod:`~swarmscene.testing`,
+:mod:`~swarmscene.env`) at the top; the tools (:mod:`swarmscene.tools`) and the benchmark suite
+(:mod:`swarmscene.suite`); the sweeps (:mod:`swarmscene.sweeps`); the one path from a built run to
+its directory (:mod:`~swarmscene.runpath`); the views of a run (:mod:`swarmscene.views`) and Hydra's
+side (:mod:`swarmscene.composition`); the run directory's writer and reader (:mod:`swarmscene.runs`).
 """
 
 from importlib.metadata import PackageNotFoundError, version

@@ -27,7 +27,7 @@ from .sweeps.job import DEBUG_ENV
 
 # A launcher's worker process (joblib, ray, submitit) imports this module to run `_task`, with
 # Hydra already loaded, and then resolves the job's directory and writes its `.hydra/` files
-# (hydra_files.py): protect them now. The command itself does it in main(), after its signal
+# (composition/hydra_files.py): protect them now. The command itself does it in main(), after its signal
 # handler is in place, so that a Ctrl-C during start-up is never a traceback. ("hydra" first:
 # the plain command imports nothing more than before.)
 if "hydra" in sys.modules:
@@ -301,7 +301,7 @@ def _single(data: dict[str, Any], run_dir: Path) -> Any:
     _stop_if_requested(run_dir)  # a signal while the plugins were built (and kernels compiled)
     try:
         result, failed = run_and_write(sim, run_dir, writers, sweep=False)
-    except OSError as exc:  # a full disk, a read-only directory: its files were removed (outputs.py)
+    except OSError as exc:  # a full disk, a read-only directory: its files were removed (runs/outputs.py)
         _remove_unfinished(run_dir)
         if os.environ.get(DEBUG_ENV):
             raise

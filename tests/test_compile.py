@@ -26,5 +26,5 @@ def test_events_move_to_the_first_ticks_and_the_run_ends_just_after_the_last():
     assert cut["output"]["trajectory"] is False and cut["output"]["summary"] is False
     assert data["events"][0]["at"] == 1.0 and data["clock"]["duration"] == 60.0  # the input is untouched
     api.load(cut)  # still a valid scenario
-    plain = warm.short(api.compose(["scenario=swap"]))  # no events: a short run
+    plain = shortened(api.compose(["scenario=swap"]))  # no events: a short run
     assert plain["events"] == [] and plain["clock"]["duration"] == WARM_UP

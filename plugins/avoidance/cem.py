@@ -238,9 +238,9 @@ class CEM(Avoidance):
     @hookimpl
     def swarmscene_run_end(self, sim: Any, metrics: dict[str, Any]) -> None:
         """Add the ``cem.*`` metrics (see module docstring)."""
-        metrics.update(self.summary())
+        metrics.update(self.metrics())
 
-    def summary(self) -> dict[str, Any]:
+    def metrics(self) -> dict[str, Any]:
         """The ``cem.*`` metrics of the run so far (JSON-serialisable, None for undefined), with the
         old names of :data:`RENAMED_METRICS` beside the new ones until the next release."""
         metrics = self.mode.metrics()

@@ -27,7 +27,7 @@ def version_line() -> str:
             f"Python {platform.python_version()})")
 
 
-def _summary(cls: type) -> str:
+def _description(cls: type) -> str:
     """The first line of a class's docstring (its one-line description)."""
     doc = (cls.__doc__ or "").strip()
     return doc.splitlines()[0].strip() if doc else ""
@@ -49,12 +49,12 @@ def components(registry: Any) -> list[dict[str, str]]:
             source = registry.sources.get((kind, name), "")
             dist, ver = registry.distributions.get(source, own)
             rows.append({"kind": kind, "name": name, "package": dist, "version": ver,
-                         "description": _summary(cls)})
+                         "description": _description(cls)})
     for cls in registry.observers:
         dist = _observer_package(cls, registry)
         rows.append({"kind": "observer", "name": cls.__name__, "package": dist,
                      "version": package_version(dist) if dist != "unknown" else "",
-                     "description": _summary(cls)})
+                     "description": _description(cls)})
     return rows
 
 

@@ -426,7 +426,7 @@ class ShowExport:
     safety: tuple[dict[str, Any], ...] = ()  # safety_checks of the placed show
     floor: float = 0.0  # m, the lab's floor the show was checked against
 
-    def summary(self) -> dict[str, Any]:
+    def record(self) -> dict[str, Any]:
         """What the export records of itself: format, source, time scale, placement, memory limits, checks."""
         return {
             "format": "poly4d (Crazyflie high-level commander; Crazyswarm2 trajectory CSV)",
@@ -488,7 +488,7 @@ class ShowExport:
         out_dir = Path(out_dir)
         for i, fit in enumerate(self.fits):
             fit.poly.to_csv(out_dir / f"cf_{i}.csv")
-        atomic_write_json(out_dir / "crazyflie.json", self.summary())
+        atomic_write_json(out_dir / "crazyflie.json", self.record())
         atomic_write_bytes(out_dir / "crazyflies.yaml", crazyswarm2_config(self).encode())
         atomic_write_json(out_dir / LAUNCH_DATA, crazyswarm2_show_data(self))
         atomic_write_bytes(out_dir / LAUNCH_SCRIPT, crazyswarm2_program())

@@ -68,4 +68,4 @@ def test_compiled_measurements_equal_the_numpy_ones_tick_by_tick(rule):
             assert (got[k_.M_SPEED_ACT], got[k_.M_TRACK_ERR]) == (ref["speed_act"], ref["track_err"])
         plugin.swarmscene_step_end(sim=sim)
         checked += 1
-    assert checked > 500 and plugin.summary()["cem.activations"] == 4
+    assert checked > 500 and plugin.metrics()["cem.activations"] == 4
