@@ -257,10 +257,11 @@ def test_missing_extra_fails_before_the_run_and_leaves_no_run_directory(tmp_path
 
 def test_missing_extra_is_named_in_one_line():
     from swarmscene.core.errors import ConfigError
+    from swarmscene.views import writers
 
     with pytest.raises(ConfigError, match=r"output.plots=true needs the 'plots' extra: pip install 'swarmscene\[plots\]'"):
-        api._require("no_such_module_for_swarmscene", "output.plots", "plots")
-    api._require("matplotlib", "output.plots", "plots")  # installed: no error
+        writers._require("no_such_module_for_swarmscene", "output.plots", "plots")
+    writers._require("matplotlib", "output.plots", "plots")  # installed: no error
 
 
 def test_load_run_names_a_damaged_file(finished, tmp_path):
