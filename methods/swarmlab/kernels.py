@@ -437,7 +437,8 @@ def swarm_sample(pos, vel, r, r_coll, nbr, count, listed_before, x, sigma, order
         sigma: the previous sample's next shift (:func:`certified_lambda2`; <= 0: none).
         order: (N,) the previous factorisation's row order, in, and this one's, out (a permutation
             of the agents; any, the first time: it only speeds the sort).
-        fwork, iwork: the buffers of :func:`workspace` (N, max_neig): nothing is allocated per sample.
+        fwork: the floats of :func:`workspace` (N, max_neig): nothing is allocated per sample.
+        iwork: the integers of :func:`workspace` (N, max_neig).
 
     Returns:
         (S, Phi, U, lambda_2 / N, components, certified, next sigma, factorisations, Krylov
@@ -763,7 +764,8 @@ def certified_lambda2(indptr, indices, deg, x, sigma0, order, fwork, iwork):
         sigma0: the first shift (between the previous lambda_2 and lambda_3), or a value <= 0.
         order: (N,) a permutation of the agents (the previous sample's row order), in; the rows'
             order by the start vector, out (:func:`sort_by`).
-        fwork, iwork: at least ``LAMBDA_FLOATS(N)`` floats and 2 N integers (:func:`workspace`).
+        fwork: at least ``lambda_floats(N)`` floats (:func:`workspace`).
+        iwork: at least 2 N integers.
 
     Returns:
         (theta, status, next sigma, factorisations, Krylov vectors): theta within
