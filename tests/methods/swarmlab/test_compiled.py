@@ -234,3 +234,18 @@ def test_the_row_order_is_the_stable_argsort_from_any_previous_order(seed):
         perm = start.copy()
         kernels.sort_by(x, perm)
         np.testing.assert_array_equal(perm, want)
+
+
+def test_the_buffers_are_allocated_once_and_the_row_order_stays_a_permutation():
+    """A run's samples reuse the warm start's two buffers (kernels.workspace, allocated with the first
+    sample) and leave its row order a permutation of the agents; a new size refits them."""
+    start = WarmStart()
+    buffers = None
+    for pos, vel in drifting_swarm(50, 6, 21):
+        assert_equal_to_definition(pos, vel, 150.0, 8, 0.5, start)
+        if buffers is None:
+            buffers = (start.fwork, start.iwork)
+        assert start.fwork is buffers[0] and start.iwork is buffers[1]
+        np.testing.assert_array_equal(np.sort(start.order), np.arange(50))
+    assert_equal_to_definition(pos[:30], vel[:30], 150.0, 8, 0.5, start)
+    assert start.fwork is not buffers[0] and len(start.order) == 30
