@@ -94,8 +94,32 @@ COLD_SHIFT = -1e-3
 JACOBI_SWEEPS_MAX = 30
 """Sweeps of the Ritz problems' Jacobi rotations at most (they converge quadratically: a handful)."""
 
+LISTS_FLOATS = 6
+"""The lists' and order's floats per agent in :func:`workspace`: the coordinates (3), row, dist, speed."""
+
 CERTIFIED, REFUSED = 0, 1
 """The status of :func:`certified_lambda2`: theta is lambda_2 within the bound, or no proof was found."""
+
+
+@njit(**JIT)
+def graph_ints(n, size):
+    """The integers :func:`undirected_graph` takes of its buffer: N agents' lists of at most ``size``."""
+    return 5 * n + 2 + 3 * n * size
+
+
+@njit(**JIT)
+def lambda_floats(n):
+    """The floats :func:`certified_lambda2` takes of its buffer for N agents."""
+    k = KRYLOV_MAX
+    return 2 * k * n + 3 * k * k + n * n + 3 * n
+
+
+def workspace(n, size):
+    """(fwork, iwork): every buffer of :func:`swarm_sample` for N agents' lists of at most ``size``,
+    allocated once per run (``WarmStart``), so that a sample allocates nothing."""
+    floats = LISTS_FLOATS * n + lambda_floats(n)
+    ints = n + TIGHTEN_BINS + graph_ints(n, size) + 2 * n
+    return np.empty(floats), np.empty(ints, dtype=np.int64)
 
 
 # ---- one sample's graph: distances, neighbour lists, safety, order, components -----------------
@@ -228,7 +252,7 @@ def _insert(dist, listed, m, out):
 
 
 @njit(**JIT)
-def neighbour_lists(pos, r, r_coll, nbr, count, listed_before):
+def neighbour_lists(pos, r, r_coll, nbr, count, listed_before, coords, row, listed, dist, bins):
     """Every agent's neighbour list (nbr[j, :count[j]]) and the pairs closer than 2 r_coll.
 
     With ``listed_before``, nbr and count hold the previous sample's lists: while agent j's
@@ -236,58 +260,49 @@ def neighbour_lists(pos, r, r_coll, nbr, count, listed_before):
     last (they are as many agents as the list holds), which drops most agents before the ranking;
     when no other agent is within the cut (and it is within r), the members are the nearest and
     the list stands (most agents, most samples). j's old list is read before its new one is written.
-    Agent j's sums of squares, how many others are within its cut and how many may be closer than
-    2 r_coll are one pass over the others (:func:`squares_counted`)."""
+    Agent j's sums of squares and how many may be closer than 2 r_coll are one pass over the others
+    (:func:`squares_counted`); its previous members' furthest is read from them, and how many others
+    are within it is a second, vectorised pass. Buffers (``workspace``): coords (dim, N) (the
+    positions transposed into it), row, listed, dist (N,) and bins (``TIGHTEN_BINS``,)."""
     n = pos.shape[0]
-    coords = np.ascontiguousarray(pos.T)
-    row = np.empty(n)
-    listed = np.empty(n, dtype=np.int64)
-    dist = np.empty(n)
-    bins = np.empty(TIGHTEN_BINS, dtype=np.int64)
+    for c in range(pos.shape[1]):
+        for i in range(n):
+            coords[c, i] = pos[i, c]
+    size = nbr.shape[1]
     limit = 2.0 * r_coll
     near = square_bound(limit)
     close = 0
     for j in range(n):
-        cut = np.inf
-        stand = -1.0  # a bound no sum of squares is under: no list to stand
-        if listed_before and count[j] == nbr.shape[1]:
-            cut = math.sqrt(_furthest_member(coords, j, nbr[j]))
-            if cut <= r:
-                stand = square_bound(cut)
-        maybe, within = squares_counted(coords, j, row, near, stand)
+        maybe = squares_counted(coords, j, row, near)
         if maybe:  # a root only for the rare pairs that may be close (each pair once: i > j)
             for i in range(j + 1, n):
                 if row[i] < near and math.sqrt(row[i]) < limit:
                     close += 1
-        if stand >= 0 and within == count[j]:
-            continue  # no other agent as near as the furthest member: the list stands as it was
+        cut = np.inf
+        if listed_before and count[j] == size:
+            furthest = 0.0  # the largest of the members' sums of squares
+            for m in range(size):
+                furthest = max(furthest, row[nbr[j, m]])
+            cut = math.sqrt(furthest)
+            if cut <= r:
+                stand = square_bound(cut)
+                within = 0
+                for i in range(n):  # row[j] is NaN: j is not counted
+                    within += np.int64(row[i] <= stand)
+                if within == count[j]:
+                    continue  # no other agent as near as the furthest member: the list stands as it was
         count[j] = nearest_within(row, r, cut, listed, dist, bins, nbr[j])
     return close
 
 
 @njit(**JIT)
-def _furthest_member(coords, j, members):
-    """The largest sum of squares from agent j to one of ``members``, each summed as
-    :func:`squares_from` sums it (so it equals that agent's entry of j's row bit for bit)."""
-    furthest = 0.0
-    for m in range(len(members)):
-        i = members[m]
-        s = 0.0
-        for c in range(coords.shape[0]):
-            delta = coords[c, i] - coords[c, j]
-            s += delta * delta
-        furthest = max(furthest, s)
-    return furthest
-
-
-@njit(**JIT)
-def squares_counted(coords, j, row, near, stand):
+def squares_counted(coords, j, row, near):
     """row = agent j's sums of squares (:func:`squares_from`, row[j] = NaN), and, from the same pass,
-    how many others have a sum below ``near`` and how many at most ``stand``. Three coordinates (the
-    engine's) are one loop without a branch, which vectorises; the sums' order of terms is
-    squares_from's, so each sum is equal to it bit for bit."""
+    how many others have a sum below ``near``. Three coordinates (the engine's) are one loop without
+    a branch, which vectorises; the sums' order of terms is squares_from's, so each sum is equal to
+    it bit for bit."""
     n = coords.shape[1]
-    maybe, within = 0, 0
+    maybe = 0
     if coords.shape[0] == 3:
         xj, yj, zj = coords[0, j], coords[1, j], coords[2, j]
         for i in range(n):
@@ -297,24 +312,20 @@ def squares_counted(coords, j, row, near, stand):
             s = dx * dx + dy * dy + dz * dz  # (dx^2 + dy^2) + dz^2, as squares_from adds them
             row[i] = s
             maybe += np.int64(s < near)
-            within += np.int64(s <= stand)
     else:
         squares_from(coords, j, row)
         row[j] = 0.0
         for i in range(n):
             maybe += np.int64(row[i] < near)
-            within += np.int64(row[i] <= stand)
     row[j] = np.nan
-    # j's own sum, 0, was counted below near (> 0) and, when stand >= 0, at most stand
-    return maybe - 1, within - np.int64(stand >= 0)
+    return maybe - 1  # j's own sum, 0, was counted below near (> 0)
 
 
 @njit(**JIT)
-def order_parameter(vel, nbr, count):
+def order_parameter(vel, nbr, count, speed):
     """Phi = (1/N) sum_j (1/|N_j|) sum_{i in N_j} cos(v_j, v_i): 1 for an agent without neighbours,
-    0 for a cosine with a zero velocity (the MATLAB divides by zero)."""
+    0 for a cosine with a zero velocity (the MATLAB divides by zero). ``speed``: an (N,) buffer."""
     n, dim = vel.shape
-    speed = np.empty(n)
     for i in range(n):
         s = 0.0
         for c in range(dim):
@@ -339,28 +350,34 @@ def order_parameter(vel, nbr, count):
 
 
 @njit(**JIT)
-def undirected_graph(nbr, count):
+def undirected_graph(nbr, count, iwork):
     """A = (M + M^T) > 0 as adjacency lists (CSR: ``indices[indptr[i]:indptr[i + 1]]`` are i's
     neighbours) and the degrees: agent i's own list joined with the agents that list i (M^T), each
-    once (a stamp per agent marks those met)."""
+    once (a stamp per agent marks those met). The arrays are views of ``iwork`` (at least
+    ``graph_ints(N, max list)`` integers)."""
     n = len(count)
-    inptr = np.zeros(n + 1, dtype=np.int64)
+    size = nbr.shape[1]
+    indptr = iwork[:n + 1]
+    deg = iwork[n + 1:2 * n + 1]
+    stamp = iwork[2 * n + 1:3 * n + 1]
+    fill = iwork[3 * n + 1:4 * n + 1]
+    inptr = iwork[4 * n + 1:5 * n + 2]
+    listers = iwork[5 * n + 2:5 * n + 2 + n * size]
+    indices = iwork[5 * n + 2 + n * size:5 * n + 2 + 3 * n * size]
+    inptr[:] = 0
     for j in range(n):
         for m in range(count[j]):
             inptr[nbr[j, m] + 1] += 1
     for i in range(n):
         inptr[i + 1] += inptr[i]
-    listers = np.empty(inptr[n], dtype=np.int64)
-    fill = inptr[:n].copy()
+    fill[:] = inptr[:n]
     for j in range(n):
         for m in range(count[j]):
             i = nbr[j, m]
             listers[fill[i]] = j
             fill[i] += 1
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    indices = np.empty(2 * inptr[n], dtype=np.int64)
-    deg = np.zeros(n, dtype=np.int64)
-    stamp = np.full(n, -1, dtype=np.int64)
+    indptr[0] = 0
+    stamp[:] = -1
     e = 0
     for i in range(n):
         for m in range(count[i]):  # i's own list: distinct agents
@@ -378,17 +395,17 @@ def undirected_graph(nbr, count):
 
 
 @njit(**JIT)
-def components(indptr, indices):
-    """The number of connected components (breadth-first, as network_components.m)."""
+def components(indptr, indices, seen, queue):
+    """The number of connected components (breadth-first, as network_components.m); ``seen`` and
+    ``queue``: (N,) integer buffers."""
     n = len(indptr) - 1
-    seen = np.zeros(n, dtype=np.bool_)
-    queue = np.empty(n, dtype=np.int64)
+    seen[:] = 0
     found = 0
     for start in range(n):
         if seen[start]:
             continue
         found += 1
-        seen[start] = True
+        seen[start] = 1
         queue[0] = start
         head, tail = 0, 1
         while head < tail:
@@ -397,14 +414,14 @@ def components(indptr, indices):
             for e in range(indptr[v], indptr[v + 1]):
                 u = indices[e]
                 if not seen[u]:
-                    seen[u] = True
+                    seen[u] = 1
                     queue[tail] = u
                     tail += 1
     return found
 
 
 @njit(**JIT)
-def swarm_sample(pos, vel, r, r_coll, nbr, count, listed_before, x, sigma):
+def swarm_sample(pos, vel, r, r_coll, nbr, count, listed_before, x, sigma, order, fwork, iwork):
     """One sample of at least two agents (module docstring).
 
     Args:
@@ -418,23 +435,36 @@ def swarm_sample(pos, vel, r, r_coll, nbr, count, listed_before, x, sigma):
         listed_before: whether nbr and count hold a previous sample's lists.
         x: (N,) the Fiedler vector, in: the previous sample's (zeros: none), out: this sample's.
         sigma: the previous sample's next shift (:func:`certified_lambda2`; <= 0: none).
+        order: (N,) the previous factorisation's row order, in, and this one's, out (a permutation
+            of the agents; any, the first time: it only speeds the sort).
+        fwork: the floats of :func:`workspace` (N, max_neig): nothing is allocated per sample.
+        iwork: the integers of :func:`workspace` (N, max_neig).
 
     Returns:
         (S, Phi, U, lambda_2 / N, components, certified, next sigma, factorisations, Krylov
         vectors): lambda_2 0 for more than one component (no computation), from the dense
         Laplacian's eigenvalues when no certificate is found (certified False).
     """
-    n = pos.shape[0]
-    close = neighbour_lists(pos, r, r_coll, nbr, count, listed_before)
+    n, dim = pos.shape
+    size = nbr.shape[1]
+    lists_f, lists_i = fwork[:LISTS_FLOATS * n], iwork[:n + TIGHTEN_BINS]
+    coords = lists_f[:dim * n].reshape((dim, n)) if dim <= 3 else np.empty((dim, n))
+    row, dist, speed = lists_f[3 * n:4 * n], lists_f[4 * n:5 * n], lists_f[5 * n:6 * n]
+    close = neighbour_lists(pos, r, r_coll, nbr, count, listed_before, coords, row, lists_i[:n], dist,
+                            lists_i[n:])
     safety = 1.0 - close / (n * (n - 1) / 2)
-    phi = order_parameter(vel, nbr, count)
-    indptr, indices, deg = undirected_graph(nbr, count)
-    n_cc = components(indptr, indices)
+    phi = order_parameter(vel, nbr, count, speed)
+    graph_i = iwork[n + TIGHTEN_BINS:]
+    indptr, indices, deg = undirected_graph(nbr, count, graph_i)
+    rest_i = graph_i[graph_ints(n, size):]
+    n_cc = components(indptr, indices, rest_i[:n], rest_i[n:2 * n])
     union = (n - n_cc) / (n - 1)
     if n_cc > 1:  # one zero eigenvalue per component: lambda_2 = 0
         return safety, phi, union, 0.0, n_cc, False, sigma, 0, 0
-    _start_vector(x, pos)
-    lam2, status, sigma, factorisations, vectors = certified_lambda2(indptr, indices, deg, x, sigma)
+    lambda_f = fwork[LISTS_FLOATS * n:]
+    _start_vector(x, pos, lambda_f[:n].reshape((1, n)))
+    lam2, status, sigma, factorisations, vectors = certified_lambda2(indptr, indices, deg, x, sigma, order,
+                                                                     lambda_f, rest_i)
     if status != CERTIFIED:
         lam2 = dense_lambda2(indptr, indices, deg)
     return safety, phi, union, lam2 / n, n_cc, status == CERTIFIED, sigma, factorisations, vectors
@@ -457,10 +487,11 @@ def dense_lambda2(indptr, indices, deg):
 
 
 @njit(**JIT)
-def _start_vector(x, pos):
+def _start_vector(x, pos, spare):
     """x orthonormalised against 1: the previous Fiedler vector; without one (zeros), the positions'
-    widest coordinate (a geometric graph's Fiedler vector varies along it); else the indices."""
-    none = np.empty((0, len(x)))
+    widest coordinate (a geometric graph's Fiedler vector varies along it); else the indices.
+    ``spare``: any (1, N) array (only its type is used)."""
+    none = spare[:0]
     if _orthonormalise(x, none, 0) >= 1e-8:
         return
     widest, spread = 0, -1.0
@@ -584,6 +615,30 @@ def _smooth(indptr, indices, deg, x, work):
 
 
 @njit(**JIT)
+def sort_by(x, perm):
+    """perm <- the agents in ascending (x, index) order, np.argsort(x, kind="mergesort")'s (a stable
+    sort: equal values in index order), by insertion from perm's previous order, which is nearly
+    sorted when x is near the vector that ordered it (a few dozen moves for a hundred boids instead
+    of a merge sort); when x's sign flipped (its first agent above its last), the order is reversed
+    first. Any permutation in gives the same order out: only the number of moves depends on it."""
+    n = len(perm)
+    if n > 1 and x[perm[0]] > x[perm[n - 1]]:
+        for k in range(n // 2):
+            perm[k], perm[n - 1 - k] = perm[n - 1 - k], perm[k]
+    for t in range(1, n):
+        v = perm[t]
+        xv = x[v]
+        s = t
+        while s > 0:
+            u = perm[s - 1]
+            if x[u] < xv or (x[u] == xv and u < v):
+                break
+            perm[s] = u
+            s -= 1
+        perm[s] = v
+
+
+@njit(**JIT)
 def _orthonormalise(v, basis, count):
     """v against the constant vector and basis[:count] (modified Gram-Schmidt, twice: a solve near
     an eigenvalue makes v nearly parallel to earlier vectors), then to unit length; returns its
@@ -601,16 +656,17 @@ def _orthonormalise(v, basis, count):
 
 
 @njit(**JIT)
-def _ritz(basis, image, gram, k, x, lx):
+def _ritz(basis, image, gram, k, x, lx, small):
     """Rayleigh-Ritz with L on span(basis[:k]) (``image`` = L basis, ``gram`` = basis^T L basis,
     filled as the vectors came): the lowest Ritz vector in x, L x in lx, and the second Ritz value
-    (>= lambda_3; inf for one vector)."""
+    (>= lambda_3; inf for one vector). ``small``: a (2, K, K) buffer, K >= k."""
     if k == 1:
         x[:] = basis[0]
         lx[:] = image[0]
         return np.inf
-    h = gram[:k, :k].copy()
-    vectors = _jacobi(h)
+    h = small[0, :k, :k]
+    h[:, :] = gram[:k, :k]
+    vectors = _jacobi(h, small[1, :k, :k])
     lowest, second = 0, 1
     if h[1, 1] < h[0, 0]:
         lowest, second = 1, 0
@@ -628,14 +684,16 @@ def _ritz(basis, image, gram, k, x, lx):
 
 
 @njit(**JIT)
-def _jacobi(h):
+def _jacobi(h, v):
     """The eigenvectors of the small symmetric h (columns of the result), its eigenvalues left on its
     diagonal: cyclic Jacobi rotations until the off-diagonal is negligible (Golub and Van Loan,
     Matrix Computations, 4th ed., algorithm 8.5.3; a few sweeps for the Ritz problems here, cheaper
     than a LAPACK call at this size). Only the Ritz values' accuracy matters, and Jacobi's is that of
-    the matrix's entries."""
+    the matrix's entries. ``v``: a (k, k) buffer, returned."""
     k = h.shape[0]
-    v = np.eye(k)
+    v[:, :] = 0.0
+    for p in range(k):
+        v[p, p] = 1.0
     for _ in range(JACOBI_SWEEPS_MAX):
         off = 0.0
         scale = 0.0
@@ -694,7 +752,7 @@ def _next_shift(theta, theta3, sigma, negatives):
 
 
 @njit(**JIT)
-def certified_lambda2(indptr, indices, deg, x, sigma0):
+def certified_lambda2(indptr, indices, deg, x, sigma0, order, fwork, iwork):
     """lambda_2 of the connected graph's Laplacian with its proof (module docstring).
 
     Args:
@@ -704,6 +762,10 @@ def certified_lambda2(indptr, indices, deg, x, sigma0):
         x: the start vector (the previous Fiedler vector; not constant), overwritten with the
             Fiedler vector found.
         sigma0: the first shift (between the previous lambda_2 and lambda_3), or a value <= 0.
+        order: (N,) a permutation of the agents (the previous sample's row order), in; the rows'
+            order by the start vector, out (:func:`sort_by`).
+        fwork: at least ``lambda_floats(N)`` floats (:func:`workspace`).
+        iwork: at least 2 N integers.
 
     Returns:
         (theta, status, next sigma, factorisations, Krylov vectors): theta within
@@ -715,24 +777,30 @@ def certified_lambda2(indptr, indices, deg, x, sigma0):
     tol = CERT_RTOL * norm_l
     rounding = ROUNDING_ALLOWANCE * (n + deg.max()) * UNIT_ROUNDOFF * norm_l
     kmax = min(KRYLOV_MAX, n - 1)
-    basis = np.empty((kmax, n))
-    image = np.empty((kmax, n))
-    gram = np.empty((kmax, kmax))
-    lx = np.empty(n)
+    used = 0
+    basis = fwork[used:used + kmax * n].reshape((kmax, n))
+    used += kmax * n
+    image = fwork[used:used + kmax * n].reshape((kmax, n))
+    used += kmax * n
+    gram = fwork[used:used + kmax * kmax].reshape((kmax, kmax))
+    used += kmax * kmax
+    small = fwork[used:used + 2 * kmax * kmax].reshape((2, kmax, kmax))
+    used += 2 * kmax * kmax
+    a = fwork[used:used + n * n].reshape((n, n))
+    used += n * n
+    lx, d, work = fwork[used:used + n], fwork[used + n:used + 2 * n], fwork[used + 2 * n:used + 3 * n]
+    inv, first = iwork[:n], iwork[n:2 * n]
     if _orthonormalise(x, basis, 0) < 1e-8:  # (nearly) constant: no direction to start from
         x[:] = np.arange(n) - (n - 1) / 2.0
         _orthonormalise(x, basis, 0)
     for _ in range(SMOOTHING_STEPS):
         _smooth(indptr, indices, deg, x, lx)
     _orthonormalise(x, basis, 0)
-    perm = np.argsort(x, kind="mergesort")
-    inv = np.empty(n, dtype=np.int64)
-    inv[perm] = np.arange(n)
-    first = np.empty(n, dtype=np.int64)
+    sort_by(x, order)
+    perm = order
+    for k in range(n):
+        inv[perm[k]] = k
     envelope(indptr, indices, perm, inv, first)
-    a = np.empty((n, n))
-    d = np.empty(n)
-    work = np.empty(n)
     laplacian_times(indptr, indices, deg, x, lx)
     quotient = np.dot(x, lx)  # >= lambda_2: between lambda_2 and lambda_3 when x is near the Fiedler vector
     shifts = (sigma0, quotient, COLD_SHIFT * norm_l)  # the previous sample's, x's quotient, below 0
@@ -755,7 +823,7 @@ def certified_lambda2(indptr, indices, deg, x, sigma0):
         k = 1
         while True:
             if k == 1 or k >= RITZ_FROM:
-                second = _ritz(basis, image, gram, k, x, lx)
+                second = _ritz(basis, image, gram, k, x, lx, small)
                 if second < np.inf:  # (one vector has no second Ritz value: keep the previous shift's)
                     theta3 = second
                 theta, bound, res = _temple(x, lx, sigma, negatives, error)

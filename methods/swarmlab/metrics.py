@@ -72,9 +72,11 @@ distances); above, the k-d tree's neighbour lists and the sparse graph."""
 
 class WarmStart:
     """What a sample hands the next (one per run; :func:`swarm_metrics` updates it): the
-    neighbour lists, whose furthest members bound the next lists, and the Fiedler vector and shift
-    lambda_2 starts from. The lists do not depend on it; lambda_2 only within its certified bound
-    (a warm start changes the last digits, never more than 1e-12 ||L||_inf); the cost does."""
+    neighbour lists, whose furthest members bound the next lists, the Fiedler vector and shift
+    lambda_2 starts from and the row order its factorisation sorts from, and the compiled pass's
+    buffers (allocated with the first sample of a size). The lists do not depend on it; lambda_2
+    only within its certified bound (a warm start changes the last digits, never more than
+    1e-12 ||L||_inf); the cost does."""
 
     def __init__(self) -> None:
         self.fit(0, 0)
@@ -87,6 +89,9 @@ class WarmStart:
         self.listed = False
         self.x = np.zeros(n)
         self.sigma = 0.0
+        self.order = np.arange(n)
+        self.fwork: np.ndarray | None = None  # kernels.workspace(n, listed), with the first sample
+        self.iwork: np.ndarray | None = None
 
 
 class SwarmSample(NamedTuple):
@@ -303,9 +308,12 @@ def swarm_metrics(pos: np.ndarray, vel: np.ndarray, r: float, max_neig: int, r_c
     listed = min(max_neig, n - 1)
     if state.n != n or state.listed_max != listed:
         state.fit(n, listed)
-    out = (_kernels or _load_kernels()).swarm_sample(
+    kernels = _kernels or _load_kernels()
+    if state.fwork is None or state.iwork is None:
+        state.fwork, state.iwork = kernels.workspace(n, listed)
+    out = kernels.swarm_sample(
         np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), float(r), float(r_coll),
-        state.nbr, state.count, state.listed, state.x, state.sigma)
+        state.nbr, state.count, state.listed, state.x, state.sigma, state.order, state.fwork, state.iwork)
     state.listed, state.sigma = True, out[6]
     return SwarmSample(*out[:6])
 

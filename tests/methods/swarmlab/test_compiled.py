@@ -44,6 +44,13 @@ def graph(pos, r, max_neig):
     return indptr, indices, a.sum(axis=1).astype(np.int64), lap
 
 
+def certify(indptr, indices, deg, x0, sigma):
+    """kernels.certified_lambda2 with fresh buffers and the identity as the previous row order."""
+    n = len(deg)
+    fwork, iwork = kernels.workspace(n, 1)
+    return kernels.certified_lambda2(indptr, indices, deg, x0, float(sigma), np.arange(n), fwork, iwork)
+
+
 def drifting_swarm(n, ticks, seed, extent=20.0, step=0.6):
     """States of a swarm in a random walk: each tick's neighbour graph differs from the last."""
     rng = np.random.default_rng(seed)
@@ -160,8 +167,7 @@ def test_the_certificate_is_a_proof(seed):
     for x0, sigma in ((rng.normal(size=80), 0.0), (rng.normal(size=80), 0.5 * (exact[1] + exact[2])),
                       (np.linalg.eigh(lap)[1][:, 1] + 0.1 * rng.normal(size=80), exact[1] * 0.9),
                       (rng.normal(size=80), exact[3] + 1.0)):
-        theta, status, sigma_next, factorisations, _ = kernels.certified_lambda2(indptr, indices, deg, x0.copy(),
-                                                                                 float(sigma))
+        theta, status, sigma_next, factorisations, _ = certify(indptr, indices, deg, x0.copy(), sigma)
         assert 1 <= factorisations <= kernels.FACTORISATIONS_MAX
         if status == kernels.CERTIFIED:
             assert abs(theta - exact[1]) <= kernels.CERT_RTOL * 2 * deg.max()
@@ -180,7 +186,7 @@ def test_no_certificate_for_a_double_lambda_2(shape):
         pos, max_neig = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]), 3
     indptr, indices, deg, lap = graph(pos, 1.0, max_neig)
     x0 = np.random.default_rng(6).normal(size=len(pos))
-    theta, status, *_ = kernels.certified_lambda2(indptr, indices, deg, x0, 0.0)
+    theta, status, *_ = certify(indptr, indices, deg, x0, 0.0)
     assert status == kernels.REFUSED
     got = assert_equal_to_definition(pos, np.ones_like(pos), 1.0, max_neig, 0.1)
     assert got.alg_conn == pytest.approx(2.0 / len(pos), abs=1e-12)
@@ -211,3 +217,35 @@ def test_above_the_compiled_limit_the_tree_path_gives_the_definition():
     start = WarmStart()
     got = assert_equal_to_definition(pos, vel, 150.0, 6, 0.5, start)
     assert not got.certified and start.n == 0
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_row_order_is_the_stable_argsort_from_any_previous_order(seed):
+    """sort_by gives np.argsort(x, kind="mergesort") (equal values in index order) whatever order it
+    starts from: the identity, the previous sample's, a reversed one (x's sign flipped), a random one;
+    with ties and signed zeros."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=60)
+    x[rng.integers(0, 60, 15)] = 0.5  # ties
+    x[[3, 7]] = 0.0, -0.0
+    want = np.argsort(x, kind="mergesort")
+    for start in (np.arange(60), want.copy(), want[::-1].copy(), rng.permutation(60),
+                  np.argsort(x + 0.05 * rng.normal(size=60), kind="mergesort")):
+        perm = start.copy()
+        kernels.sort_by(x, perm)
+        np.testing.assert_array_equal(perm, want)
+
+
+def test_the_buffers_are_allocated_once_and_the_row_order_stays_a_permutation():
+    """A run's samples reuse the warm start's two buffers (kernels.workspace, allocated with the first
+    sample) and leave its row order a permutation of the agents; a new size refits them."""
+    start = WarmStart()
+    buffers = None
+    for pos, vel in drifting_swarm(50, 6, 21):
+        assert_equal_to_definition(pos, vel, 150.0, 8, 0.5, start)
+        if buffers is None:
+            buffers = (start.fwork, start.iwork)
+        assert start.fwork is buffers[0] and start.iwork is buffers[1]
+        np.testing.assert_array_equal(np.sort(start.order), np.arange(50))
+    assert_equal_to_definition(pos[:30], vel[:30], 150.0, 8, 0.5, start)
+    assert start.fwork is not buffers[0] and len(start.order) == 30
