@@ -202,10 +202,9 @@ def run_batch(
         raise ConfigError(["seeds: a batch needs at least one seed"])
     data = config if isinstance(config, dict) else compose(config)
     first = build({**data, "seed": seeds[0]})
-    output = first.config.output  # the same for every world: one composition
-    asked = _files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
-    if asked:
-        raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
+    refused = unbatched_output(first.config.output)  # the same for every world: one composition
+    if refused is not None:
+        raise ConfigError([f"{refused}: not written by a batch of worlds (run that world alone)"])
     sims = [first, *(build({**data, "seed": seed}) for seed in seeds[1:])]
     started_at = utc_now()
     outcomes = BatchSimulation(sims).run(progress)
@@ -221,6 +220,15 @@ def run_batch(
 
                 record_failure(run_dir, failed, sim.scenario.data)
     return results
+
+
+def unbatched_output(output: Any) -> str | None:
+    """The first output option of ``output`` (a scenario's ``output`` section) that a batch of
+    worlds does not write (``output.plots=true``, ``output.live=window``...), None when there is
+    none: :func:`run_batch` refuses such a composition, ``hydra/launcher=batch`` runs its jobs one
+    by one."""
+    asked = _files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
+    return asked[0] if asked else None
 
 
 def _files_asked(output: Any) -> list[str]:
