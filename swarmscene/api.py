@@ -28,7 +28,7 @@ from .core.simulation import Simulation
 from .runpath import utc_now, write_outputs  # noqa: F401 (write_outputs: part of the api, used by tests and tools)
 from .runs import build as assembly
 from .runs.build import build_error_line, plugins  # noqa: F401 (the public API's names)
-from .views.writers import extra_writers, files_asked
+from .views.writers import extra_writers, files_asked, unbatched_output  # noqa: F401 (unbatched_output: public)
 
 
 def load(config: Sequence[str] | dict[str, Any] = (), registry: Registry | None = None) -> Scenario:
@@ -130,10 +130,9 @@ def run_batch(
         raise ConfigError(["seeds: a batch needs at least one seed"])
     data = config if isinstance(config, dict) else compose(config)
     first = build({**data, "seed": seeds[0]})
-    output = first.config.output  # the same for every world: one composition
-    asked = files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
-    if asked:
-        raise ConfigError([f"{asked[0]}: not written by a batch of worlds (run that world alone)"])
+    refused = unbatched_output(first.config.output)  # the same for every world: one composition
+    if refused is not None:
+        raise ConfigError([f"{refused}: not written by a batch of worlds (run that world alone)"])
     sims = [first, *(build({**data, "seed": seed}) for seed in seeds[1:])]
     started_at = utc_now()
     outcomes = BatchSimulation(sims).run(progress)

@@ -1,11 +1,13 @@
 """Sweep speed: the main process's cost per job, the workers' fixed cost per job, full paper sweeps,
-and the speed-up over the cores of the machine it runs on (issue 25's goals).
+the speed-up over the cores of the machine it runs on (issue 25's goals), and the batch launcher
+beside the pool (issue 34).
 
-    python benchmarks/speed/bench_sweep.py                    # every part below, small sizes (~3 min)
-    python benchmarks/speed/bench_sweep.py --part main        # one part: main, fixed, cem, scaling, cold
+    python benchmarks/speed/bench_sweep.py                    # every part below, small sizes (~4 min)
+    python benchmarks/speed/bench_sweep.py --part main        # one part: main, fixed, cem, scaling, cold, batch
     python benchmarks/speed/bench_sweep.py --part cem --seeds 1000
     python benchmarks/speed/bench_sweep.py --part cem --rounds 3   # pool and joblib alternated, 3 rounds
     python benchmarks/speed/bench_sweep.py --part fixed --jobs-per-task 1   # job by job (the ratio's baseline)
+    python benchmarks/speed/bench_sweep.py --part batch --seeds 1000 --rounds 3   # pool against batch
 
 Every command runs in a fresh process with its wall time measured around it; a job's start is the
 time its ``.hydra/overrides.yaml`` appears (the first file a sweep job writes).
@@ -29,6 +31,11 @@ time its ``.hydra/overrides.yaml`` appears (the first file a sweep job writes).
 - ``cold``: 8 full ``cem_six_vehicle`` seeds on 2 workers with an empty numba cache (a fresh node
   that skipped ``swarmscene-compile``): the pool compiles the kernels once, in its fork server;
   joblib's workers each compile them.
+- ``batch``: ``--seeds`` seeds of ``swap`` and of the default scenario (full length) on 2 workers of
+  the pool launcher and of the batch launcher (``hydra/launcher=batch``, its default ``batch_size``),
+  alternated for ``--rounds`` rounds: medians, the pool / batch wall-time ratio pair by pair, and
+  whether the two tables are identical apart from wall-clock metrics. Goal (issue 34): 1,000 seeds of
+  each, batch >= 5x faster than pool. ``--launchers`` is not read here (always pool and batch).
 
 The launchers (``--launchers``, default ``pool,joblib``): ``pool``, swarmscene's launcher of warm
 workers (``hydra/launcher=pool``), and ``joblib``, Hydra's. The CPU time counts the command and
@@ -43,6 +50,7 @@ import argparse
 import csv
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -240,17 +248,68 @@ def part_cold(root: Path) -> None:
         print(f"  {name}: {wall:.1f} s, {cpu:.1f} s of CPU (the kernels compiled in each worker, or once)")
 
 
+def same_runs(a: Path, b: Path, jobs: int) -> bool:
+    """Whether every job of two sweep directories has the same metrics (wall-clock ones aside) and
+    the same trajectory arrays, bit for bit."""
+    from swarmscene.runs.rundir import RunDir
+
+    for job in map(str, range(jobs)):
+        left, right = RunDir(a / job), RunDir(b / job)
+        if ({k: v for k, v in left.metrics().items() if k not in TIMING}
+                != {k: v for k, v in right.metrics().items() if k not in TIMING}):
+            return False
+        t1, t2 = left.trajectory(), right.trajectory()
+        if t1.keys() != t2.keys() or any(t1[k].dtype != t2[k].dtype or t1[k].tobytes() != t2[k].tobytes() for k in t1):
+            return False
+    return True
+
+
+BATCH_SCENARIOS = ("swap", "default")
+"""The scenarios of the ``batch`` part (issue 34's goal names them)."""
+
+
+def part_batch(root: Path, seeds: int, rounds: int) -> None:
+    """Print, for each of :data:`BATCH_SCENARIOS`, the pool's and the batch launcher's median wall
+    time over ``seeds`` seeds on 2 workers (alternated, ``rounds`` rounds), their ratio pair by pair,
+    and whether their tables are identical (wall-clock metrics aside)."""
+    names = ("pool", "batch")
+    for scenario in BATCH_SCENARIOS:
+        print(f"{scenario}, {seeds} seeds, 2 workers (pool and batch alternated, {rounds} rounds)")
+        times: dict[str, list[tuple[float, float]]] = {name: [] for name in names}
+        same = True
+        for i in range(rounds):
+            order = names if i % 2 == 0 else names[::-1]  # each launcher first in every other round
+            for name in order:
+                directory = root / f"batch_{scenario}{seeds}_{name}_{i}"
+                times[name].append(run([f"scenario={scenario}", f"seed=range(0,{seeds})", *launcher(name, 2)],
+                                       directory))
+            pool_dir, batch_dir = (root / f"batch_{scenario}{seeds}_{name}_{i}" for name in names)
+            same &= table(pool_dir) == table(batch_dir) and same_runs(pool_dir, batch_dir, seeds)
+            for directory in (pool_dir, batch_dir):
+                shutil.rmtree(directory)
+        for name, runs in times.items():
+            wall, cpu = sorted(runs)[len(runs) // 2]
+            print(f"  {name}: median {wall:.1f} s of {[round(w, 1) for w, _ in runs]}, {cpu:.1f} s of CPU, "
+                  f"{cpu / wall:.2f} cores used, {1e3 * wall / seeds:.1f} ms per job")
+        ratios = sorted(wp / wb for (wp, _), (wb, _) in zip(times["pool"], times["batch"], strict=True))
+        median = ratios[len(ratios) // 2]
+        print(f"  pool / batch wall, pair by pair: median {median:.2f} of {[round(r, 2) for r in ratios]} "
+              f"(>= 5x: {verdict(median >= 5.0)}); tables identical apart from wall-clock metrics: {same}")
+
+
 def main() -> None:
     """Run the chosen parts (``--part``) in a temporary directory, then print the load average."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "cold", "all"), default="all")
-    parser.add_argument("--seeds", type=int, default=100, help="seeds of the full cem_six_vehicle sweep")
+    parser.add_argument("--part", choices=("main", "fixed", "cem", "scaling", "cold", "batch", "all"), default="all")
+    parser.add_argument("--seeds", type=int, default=100,
+                        help="seeds of the full cem_six_vehicle sweep (cem) and of swap and default (batch)")
     parser.add_argument("--scaling-jobs", type=int, default=None,
                         help="jobs of the scaling sweep (default 240 per core: ~20 s of jobs per core, so the "
                              "command's serial start, ~2 s, stays a small part of it at every worker count)")
     parser.add_argument("--launchers", default="pool,joblib",
                         help="the launchers measured, in turn (pool: swarmscene's warm pool; joblib: Hydra's)")
-    parser.add_argument("--rounds", type=int, default=1, help="rounds of the cem part, the launchers alternated")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="rounds of the cem and batch parts, the launchers alternated")
     parser.add_argument("--jobs-per-task", default=None,
                         help="hydra.sweeper.jobs_per_task of every sweep (default: the sweeper's, auto); "
                              "1 launches job by job, as before launcher tasks, for a side-by-side ratio")
@@ -271,6 +330,8 @@ def main() -> None:
             part_cem(root, args.seeds, args.rounds)
         if args.part in ("cold", "all"):
             part_cold(root)
+        if args.part in ("batch", "all"):
+            part_batch(root, args.seeds, args.rounds)
         if args.part in ("scaling", "all"):
             part_scaling(root, args.scaling_jobs or 240 * (os.cpu_count() or 1))
     print(f"load average at the end: {os.getloadavg()[0]:.2f}")

@@ -7,6 +7,8 @@
     compose.py   the launchers' config loader: one composition per set of group overrides
     chunks.py    launcher tasks of several jobs, run back to back in one process
     pool.py      the pool launcher (``hydra/launcher=pool``): workers forked from a warm fork server
+    batch.py     the batch launcher (``hydra/launcher=batch``): the pool's workers, the jobs that differ
+                 only in their seed flown as batches of worlds (core/batch.py)
     warm.py      what that fork server loads before it forks: the engine, the sweep's scenario run once
     records.py   a sweep directory's records: job outcomes, resume, the grid that owns it, its lock
     tables.py    summary.csv/.parquet/.md and the sweep's exit status

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, cast
 
@@ -61,14 +62,16 @@ def job_from(cfg: Any) -> Any:
     return recorded_job(data, run_dir)
 
 
-def recorded_job(data: dict[str, Any], run_dir: Path) -> Any:
-    """:func:`run_job`, with every exception but a stop request recorded in ``run_dir``
+def recorded_job(data: dict[str, Any], run_dir: Path,
+                 run: Callable[[dict[str, Any], Path], Any] | None = None) -> Any:
+    """:func:`run_job` (or ``run``, the same contract: the batch launcher's landing of a world,
+    :mod:`.batch`), with every exception but a stop request recorded in ``run_dir``
     (``error.json``, a manifest marked failed) and one line printed; the launcher runs the others."""
     from ..runs.rundir import RunFileError
     from .records import record_failure
 
     try:
-        return run_job(data, run_dir)
+        return (run or run_job)(data, run_dir)
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # the job failed: record it, let the launcher run the others

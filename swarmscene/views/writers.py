@@ -12,6 +12,15 @@ if TYPE_CHECKING:
     from ..core.simulation import Simulation
 
 
+def unbatched_output(output: Any) -> str | None:
+    """The first output option of ``output`` (a scenario's ``output`` section) that a batch of
+    worlds does not write (``output.plots=true``, ``output.live=window``...), None when there is
+    none: ``api.run_batch`` refuses such a composition, ``hydra/launcher=batch`` runs its jobs one
+    by one."""
+    asked = files_asked(output) + ([f"output.live={output.live}"] if output.live != "off" else [])
+    return asked[0] if asked else None
+
+
 def files_asked(output: Any) -> list[str]:
     """The output options that write files beside the run's own (``output.plots=true``...)."""
     return [f"output.{key}=true" for key in ("plots", "animation", "rerun", "mcap") if getattr(output, key)]
