@@ -151,7 +151,8 @@ def run_batch(
 
 
 # -- sweeps ---------------------------------------------------------------------------------------
-LAUNCHERS = {"basic": None, "pool": "hydra/launcher=pool", "joblib": "hydra/launcher=joblib",
+LAUNCHERS = {"basic": None, "pool": "hydra/launcher=pool", "batch": "hydra/launcher=batch",
+             "joblib": "hydra/launcher=joblib",
              "ray": "hydra/launcher=ray", "submitit_slurm": "hydra/launcher=submitit_slurm"}
 """``api.sweep``'s launcher names and the Hydra override that chooses each (basic: one process)."""
 
@@ -206,7 +207,8 @@ def sweep(
             ``"1,2,5"``).
         overrides: fixed overrides (``["scenario=cem_six_vehicle", "clock.duration=10"]``).
         launcher: ``basic`` (this machine, one job at a time), ``pool`` (all cores, workers that
-            start warm: the fastest on one machine), ``joblib`` (all cores), ``ray``
+            start warm: the fastest on one machine), ``batch`` (the pool's workers, a grid's jobs
+            that differ only in their seed flown as batches of worlds), ``joblib`` (all cores), ``ray``
             (a local Ray, or a cluster with ``hydra.launcher.ray.init.address=...`` in
             ``overrides``: docs/sweeps.md), ``submitit_slurm``.
         sweep_dir: where the jobs go (default ``multirun/api/<UTC time>`` under the working

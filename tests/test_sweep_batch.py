@@ -183,3 +183,18 @@ def test_a_bad_batch_size_is_one_line(tmp_path):
                       f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1] == "swarmscene: hydra.launcher.batch_size: must be an integer >= 1 (got 0)"
+
+
+def test_api_sweep_takes_the_batch_launcher_by_name(basic, tmp_path):
+    """``api.sweep(..., launcher="batch")`` is ``hydra/launcher=batch``: the basic launcher's rows."""
+    from swarmscene import api
+
+    result = api.sweep({"seed": "0,1,2"}, ["scenario=swap", "clock.duration=1.5"], launcher="batch",
+                       sweep_dir=tmp_path / "sw")
+    assert result.exit_status == 0
+    by_seed = {row["seed"]: row for row in table(result.sweep_dir)}
+    expected = {row["seed"]: row for row in table(basic) if "scenario=swap" in row.get("overrides", "")}
+    assert sorted(by_seed) == [0, 1, 2] == sorted(expected)
+    for seed, row in by_seed.items():
+        assert {k: v for k, v in row.items() if k not in ("job", "overrides")} == {
+            k: v for k, v in expected[seed].items() if k not in ("job", "overrides")}
