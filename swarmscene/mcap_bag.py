@@ -458,7 +458,7 @@ class McapRecorder:
         from .replay import event_text
 
         at = float(event.at)
-        self.writer.log(at, "WARN", event_text(getattr(event.kind, "value", event.kind), event.agents))
+        self.writer.log(at, "WARN", event_text(event.name, event.agents))
         self._failures(at, sim.world.pos, sim.world.healthy)
 
     def publish(self, run_dir: Path, sim: Any = None, result: Any = None) -> Path:
