@@ -30,8 +30,6 @@ KIND = "kind"
 """Its older spelling for an event's kind and a disturbance model (until :data:`KIND_UNTIL`)."""
 KIND_UNTIL = "0.8.0"
 """The release that no longer reads ``kind``."""
-BOTH = f"give {NAME} only ({KIND} is its old spelling, and both are given)"
-"""What is wrong with a node that gives both (the error line's text after the key)."""
 
 
 def renamed_kind(node: Any, where: str) -> Any:
@@ -42,12 +40,14 @@ def renamed_kind(node: Any, where: str) -> Any:
     ``kind``, is returned as it is.
 
     Raises:
-        ValueError: ``kind`` and ``name`` both given (:data:`BOTH`; the caller names the key).
+        ValueError: ``kind`` and ``name`` both given (``kind and name both given: write
+            <where>.name only``; the caller puts the key ``<where>.kind`` before it). On the
+            command line that is ``<where>.kind=...`` over a file that says ``name``.
     """
     if not isinstance(node, dict) or KIND not in node:
         return node
     if NAME in node:
-        raise ValueError(BOTH)
+        raise ValueError(f"{KIND} and {NAME} both given: write {where}.{NAME} only ({KIND} is its old spelling)")
     warnings.warn(f"{where}.{KIND} is deprecated: write {where}.{NAME} ({KIND} is accepted until {KIND_UNTIL})",
                   SwarmsceneDeprecationWarning, stacklevel=3)
     return {(NAME if k == KIND else k): v for k, v in node.items()}

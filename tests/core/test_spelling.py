@@ -61,14 +61,23 @@ def test_kind_still_chooses_them_with_exactly_one_deprecation_line_each(default_
 
 @pytest.mark.parametrize(("event", "model", "line"), [
     ({"name": "hover", "kind": "hover"}, {"name": "sensing_noise"},
-     "events.0.kind: give name only (kind is its old spelling, and both are given)"),
+     "events.0.kind: kind and name both given: write events.0.name only (kind is its old spelling)"),
     ({"name": "hover"}, {"name": "sensing_noise", "kind": "dryden"},
-     "disturbances.gps.kind: give name only (kind is its old spelling, and both are given)"),
+     "disturbances.gps.kind: kind and name both given: write disturbances.gps.name only (kind is its old spelling)"),
 ])
 def test_name_and_kind_both_given_is_one_error_line(default_data, event, model, line):
     with pytest.raises(ConfigError) as err:
         api.load(scenario_with(default_data, event, model), REGISTRY)
     assert err.value.lines == [line]
+
+
+def test_kind_typed_over_a_shipped_file_that_says_name_is_that_error_naming_the_key_to_type():
+    """``events.0.kind=stuck`` on the command line, over events/lead_fails.yaml's ``name: hover``."""
+    with pytest.raises(ConfigError) as err:
+        api.load(["events=lead_fails", "events.0.kind=stuck"], REGISTRY)
+    assert err.value.lines == [
+        "events.0.kind: kind and name both given: write events.0.name only (kind is its old spelling)"]
+    assert api.load(["events=lead_fails", "events.0.name=stuck"], REGISTRY).config.events[0].name == "stuck"
 
 
 def test_a_disturbance_without_name_is_the_model_its_key_names(default_data):
@@ -88,7 +97,7 @@ def test_an_event_validated_on_its_own_reads_kind_with_the_warning():
     with pytest.raises(ValidationError) as err:
         EventConfig.model_validate(both, context=context)
     assert format_validation_error(err.value, EventConfig, both, "events.0") == [
-        "events.0.kind: give name only (kind is its old spelling, and both are given) (got 'hover')"]
+        "events.0.kind: kind and name both given: write events[].name only (kind is its old spelling) (got 'hover')"]
     with pytest.warns(SwarmsceneDeprecationWarning, match="EventConfig.kind is deprecated: read EventConfig.name"):
         assert old.kind == "hover"
 
