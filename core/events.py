@@ -3,17 +3,18 @@
 In config (``events`` list)::
 
     events:
-      - {at: 5.0, agents: [0], kind: hover}        # agent 0 stops where it is and stays (CEM paper)
-      - {at: 9.0, agents: [3, 4], kind: comm_loss}  # agents 3 and 4 drop out of the comm graph
-      - {at: 4.0, agents: [1], kind: stuck}         # agent 1 flies on at its last velocity
-      - {at: 4.0, agents: [2], kind: drift, velocity: [0.2, 0.0, 0.0]}  # drifts at 0.2 m/s east
-      - {at: 3.0, agents: [5], kind: motor_failure, rotor: 0, fraction: 0.0}  # rotor 0 dead
-      - {at: {uniform: [2, 20]}, agents: {sample: 1}, kind: hover}  # a random agent, a random time
+      - {at: 5.0, agents: [0], name: hover}        # agent 0 stops where it is and stays (CEM paper)
+      - {at: 9.0, agents: [3, 4], name: comm_loss}  # agents 3 and 4 drop out of the comm graph
+      - {at: 4.0, agents: [1], name: stuck}         # agent 1 flies on at its last velocity
+      - {at: 4.0, agents: [2], name: drift, velocity: [0.2, 0.0, 0.0]}  # drifts at 0.2 m/s east
+      - {at: 3.0, agents: [5], name: motor_failure, rotor: 0, fraction: 0.0}  # rotor 0 dead
+      - {at: {uniform: [2, 20]}, agents: {sample: 1}, name: hover}  # a random agent, a random time
 
-Each ``kind`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarmscene_register_events``),
+Each ``name`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarmscene_register_events``),
 chosen from the registry a validation is given (``context={"registry": ...}``); the engine lists
 none. The five above are built-in plugins (``plugins/event/``), registered like a package's own;
-each kind's fields beside ``at``, ``agents`` and ``kind`` are validated by its ``Params``.
+each kind's fields beside ``at``, ``agents`` and ``name`` are validated by its ``Params``. The
+spelling ``kind`` of ``name`` is read until 0.8.0, with a deprecation warning (:mod:`.spelling`).
 
 The kernel applies an event at the first guidance tick whose time reaches ``at`` (the events phase),
 changes the world state, then calls the ``swarmscene_event`` hook so plugins can react; after the
@@ -30,6 +31,7 @@ draws the same events. The drawn values are reported as metrics ``events.<k>.at`
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Annotated, Any, ClassVar, cast
@@ -47,7 +49,9 @@ from pydantic import (
 )
 
 from .distributions import EVENTS_STREAM, Draw, number_adapter, parse_draw, stream
+from .errors import SwarmsceneDeprecationWarning
 from .fields import MAX_DURATION, StrictModel, key_error
+from .spelling import KIND, renamed_kind
 from .state import WorldState
 from .vectors import rows_of
 
@@ -82,9 +86,10 @@ class EventConfig(StrictModel):
     agents: AgentSample | list[int] = Field(
         description="indices of the agents hit, or {sample: k, among: [...]} (k drawn at random)"
     )
-    kind: str = Field(
+    name: str = Field(
         description="a registered event kind: hover, comm_loss, stuck, drift, motor_failure (the "
-        "built-in plugins) or a package's; each kind's own keys are listed under \"Event kinds\""
+        "built-in plugins) or a package's; each kind's own keys are listed under \"Event kinds\" "
+        "(kind, its spelling until 0.6.0, is read until 0.8.0 with a warning)"
     )
 
     @field_validator("at", mode="wrap")
@@ -108,11 +113,16 @@ class EventConfig(StrictModel):
     @classmethod
     def _kind_own_fields(cls, data: Any, handler: Any, info: ValidationInfo) -> Any:
         """The kind's own fields are taken out before the strict check of ``at``, ``agents``,
-        ``kind`` and validated by the kind's ``Params`` after it (:meth:`_checked`)."""
+        ``name`` and validated by the kind's ``Params`` after it (:meth:`_checked`). The old
+        spelling ``kind`` is read as ``name`` (:func:`~.spelling.renamed_kind`)."""
         if not isinstance(data, dict):
             return handler(data)
-        kinds = _kinds(data.get("kind"), info.context)
-        kind_cls = kinds.get(data["kind"]) if isinstance(data.get("kind"), str) else None
+        try:
+            data = renamed_kind(data, "events[]")
+        except ValueError as exc:
+            raise key_error(KIND, str(exc), data[KIND]) from None
+        kinds = _kinds(data.get("name"), info.context)
+        kind_cls = kinds.get(data["name"]) if isinstance(data.get("name"), str) else None
         own = {k: v for k, v in data.items() if k not in cls.model_fields}
         if kind_cls is not None:
             _check_keys(data, own, kind_cls, kinds)
@@ -134,7 +144,7 @@ class EventConfig(StrictModel):
         """The kind's Params built from its own fields (a required one missing: one line)."""
         for key, info in kind_cls.Params.model_fields.items():
             if info.is_required() and key not in own:
-                raise key_error(key, f"a {self.kind} event needs {info.description}", None)
+                raise key_error(key, f"a {self.name} event needs {info.description}", None)
         try:
             self._params = kind_cls.Params.model_validate(own)
         except ValidationError as exc:  # its first problem, at its key (events.<k>.<key>)
@@ -146,7 +156,7 @@ class EventConfig(StrictModel):
     def kind_class(self) -> type[EventKindPlugin]:
         """The event kind's class (a registered :class:`EventKindPlugin`)."""
         if self._kind is None:
-            raise ValueError(f"event kind {self.kind!r}: not validated against a registry "
+            raise ValueError(f"event kind {self.name!r}: not validated against a registry "
                              "(validate with context={'registry': ...})")
         return self._kind
 
@@ -154,6 +164,13 @@ class EventConfig(StrictModel):
     def params(self) -> EventParams:
         """The kind's validated Params (its own fields, defaults filled)."""
         return self._params
+
+    @property
+    def kind(self) -> str:
+        """Deprecated name of :attr:`name` (read until 0.8.0)."""
+        warnings.warn("EventConfig.kind is deprecated: read EventConfig.name", SwarmsceneDeprecationWarning,
+                      stacklevel=2)
+        return self.name
 
     @property
     def random(self) -> bool:
@@ -172,9 +189,9 @@ def _check_keys(data: dict[str, Any], own: dict[str, Any], kind_cls: type[EventK
     key = unknown[0]
     users = sorted(n for n, c in kinds.items() if key in c.Params.model_fields)
     if not users:
-        valid = ", ".join(["at", "agents", "kind", *takes])
-        raise key_error(key, f"unknown key of a {data['kind']} event (valid keys: {valid})", data[key])
-    message = f"only a {' or '.join(users)} event takes it (this event is {data['kind']})"
+        valid = ", ".join(["at", "agents", "name", *takes])
+        raise key_error(key, f"unknown key of a {data['name']} event (valid keys: {valid})", data[key])
+    message = f"only a {' or '.join(users)} event takes it (this event is {data['name']})"
     raise key_error(key, message, _as_read(kinds[users[0]].Params.model_fields[key], data[key]))
 
 
@@ -235,7 +252,7 @@ class EventParams(StrictModel):
 class EventKindPlugin:
     """An event kind: what an event does to its agents, and how the kernel moves them afterwards.
 
-    Subclasses declare ``name`` (what a scenario writes as ``kind``), ``Params`` (its own fields),
+    Subclasses declare ``name`` (what a scenario's event writes as ``name``), ``Params`` (its own fields),
     ``failure`` and ``motion``, and may extend :meth:`apply`. The kernel applies an event in the
     events phase of a tick (:meth:`apply`, then the ``swarmscene_event`` hook, through which a
     dynamics model applies what only it can, e.g. a rotor's thrust), and after the physics
@@ -278,14 +295,14 @@ class EventKindPlugin:
                      params=cls.Params.model_validate(fields), kind_class=cls)
 
 
-def _kinds(kind: Any, context: Any) -> dict[str, type[EventKindPlugin]]:
+def _kinds(name: Any, context: Any) -> dict[str, type[EventKindPlugin]]:
     """The event kinds known to a validation: its registry's (``context={"registry": ...}``, as
     :mod:`.validation` passes it). The engine holds no list of built-ins: an event validated without
     a registry is refused in one line, naming the way."""
     registry = context.get("registry") if isinstance(context, dict) else None
     if registry is None:
-        raise key_error("kind", "an event kind is chosen from a plugin registry: validate with "
-                        "context={'registry': ...} (swarmscene.api.load does)", kind)
+        raise key_error("name", "an event kind is chosen from a plugin registry: validate with "
+                        "context={'registry': ...} (swarmscene.api.load does)", name)
     return registry.classes["event"]
 
 
@@ -296,7 +313,8 @@ class Event:
     Attributes:
         at: time at which it happens, s (applied at the first guidance tick with t >= at).
         agents: indices of the agents it hits.
-        kind: the kind's registered name (``"hover"``).
+        name: the kind's registered name (``"hover"``); ``kind`` is its deprecated alias (read
+            until 0.8.0).
         params: the kind's validated Params (its own fields: a drift's ``velocity``), read also as
             the event's attributes (``event.velocity``).
         kind_class: the kind's :class:`EventKindPlugin` (what the event does).
@@ -304,22 +322,29 @@ class Event:
 
     at: float
     agents: tuple[int, ...]
-    kind: str
+    name: str
     params: Any = field(default=None, hash=False)
     kind_class: Any = field(default=None, compare=False)
+
+    @property
+    def kind(self) -> str:
+        """Deprecated name of :attr:`name` (read until 0.8.0)."""
+        warnings.warn("Event.kind is deprecated: read Event.name (the kind's registered name; "
+                      "Event.kind is read until 0.8.0)", SwarmsceneDeprecationWarning, stacklevel=2)
+        return self.name
 
     def __getattr__(self, name: str) -> Any:
         """The kind's own fields as attributes (``event.velocity``, ``event.rotor``)."""
         params = self.__dict__.get("params")  # not getattr: unpickling asks before params is set
         if params is None or name.startswith("__") or name not in type(params).model_fields:
-            raise AttributeError(f"{type(self).__name__} of kind {self.__dict__.get('kind')!r} has no {name!r}")
+            raise AttributeError(f"{type(self).__name__} of kind {self.__dict__.get('name')!r} has no {name!r}")
         return getattr(params, name)
 
     @property
     def behaviour(self) -> type[EventKindPlugin]:
         """The class that says what this event does."""
         if self.kind_class is None:
-            raise ValueError(f"event kind {self.kind!r}: an Event needs its kind's class (kind_class=...; "
+            raise ValueError(f"event kind {self.name!r}: an Event needs its kind's class (kind_class=...; "
                              f"KindClass.event(at, agents, ...) builds one)")
         return self.kind_class
 
@@ -346,7 +371,7 @@ def draw_event(config: EventConfig, index: int, n: int, seed: int) -> Event:
             agents = np.sort(rng.choice(pool, size=agents.sample, replace=False)).tolist()
     # Whatever was random is drawn by now: a time in seconds, a list of indices.
     at, agents = cast(float, at), cast(list[int], agents)
-    return Event(float(at), tuple(int(a) for a in agents), config.kind, params=config.params,
+    return Event(float(at), tuple(int(a) for a in agents), config.name, params=config.params,
                  kind_class=config.kind_class)
 
 
@@ -479,5 +504,5 @@ def __getattr__(name: str) -> Any:
     if name in ("BUILTIN_EVENT_KINDS", "EventKind"):
         raise ImportError(f"swarmscene.core.events.{name} was removed in 0.6.0: the event kinds are the "
                           "registry's (registry.classes['event'], swarmscene.core.registry.installed_registry()); "
-                          "an event's kind is its name, a str")
+                          "an event's kind is its registered name, a str (event.name)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -93,7 +93,7 @@ def swarmscene_register_disturbances(register: DisturbanceRegister) -> None:
     """Register disturbance models: call ``register(cls)`` once per class.
 
     When: once, while the plugin manager is built. A scenario chooses one under
-    ``disturbances.<key>`` (``kind: <name>``, or the key itself).
+    ``disturbances.<key>`` (``name: <name>``, or the key itself).
 
     Args:
         register: takes a subclass of :class:`~swarmscene.core.disturbances.base.Disturbance`
@@ -105,7 +105,7 @@ def swarmscene_register_disturbances(register: DisturbanceRegister) -> None:
 def swarmscene_register_events(register: EventKindRegister) -> None:
     """Register event kinds: call ``register(cls)`` once per class.
 
-    When: once, while the plugin manager is built. A scenario names one as an event's ``kind``.
+    When: once, while the plugin manager is built. A scenario names one as an event's ``name``.
 
     Args:
         register: takes a subclass of :class:`~swarmscene.core.events.EventKindPlugin` declaring
@@ -164,7 +164,7 @@ def swarmscene_event(sim: RunView, event: Event) -> None:
 
     Args:
         sim: the run's read-only view (:class:`~swarmscene.core.run_view.RunView`).
-        event: the event applied (time, agents, kind's name, ``params`` its own fields,
+        event: the event applied (``at``, ``agents``, ``name`` its kind's, ``params`` its own fields,
             ``behaviour`` its :class:`~swarmscene.core.events.EventKindPlugin`).
     """
 

@@ -3,12 +3,14 @@ problem out.
 
 Hydra composes plain YAML; ``OmegaConf.to_container(resolve=True)`` turns it into plain data;
 :func:`validate` checks it in one pass: every name a user chose against the plugin registry
-(``validate_choice``: plugins, disturbance models, event kinds, the map generator), the engine's own
-keys against :class:`~.config.ScenarioConfig` (its events by their registered kinds), each chosen
-plugin's keys against that plugin's ``Params``, then scenario-level checks (physics step divides
-the guidance period, events name existing agents, agents start clear of obstacles and of each
-other, the run fits the machine: :mod:`.resources`). Every problem becomes one line
-``dotted.key: what is allowed (got value)``, collected in a :class:`ConfigError`.
+(``validate_choice``: plugins, disturbance models, event kinds, the map generator; an event's or
+a disturbance model's ``kind``, the old spelling of its ``name``, is read with a warning:
+:mod:`.spelling`), the engine's own keys against :class:`~.config.ScenarioConfig` (its events by
+their registered kinds), each chosen plugin's keys against that plugin's ``Params``, then
+scenario-level checks (physics step divides the guidance period, events name existing agents,
+agents start clear of obstacles and of each other, the run fits the machine: :mod:`.resources`).
+Every problem becomes one line ``dotted.key: what is allowed (got value)``, collected in a
+:class:`ConfigError`.
 
 Validation builds what it checks (the obstacle footprints, the start positions) once: the returned
 :class:`~.config.Scenario` carries them to the simulation, with the effective configuration (every
@@ -32,6 +34,7 @@ from .events import check_events
 from .plugin import PLUGIN_KINDS, PluginParams, shared_option_conflicts
 from .registry import validate_choice
 from .resources import memory_checks
+from .spelling import KIND, NAME, renamed_kind
 
 
 def effective_config(config: ScenarioConfig, classes: dict[str, Any], params: dict[str, PluginParams],
@@ -70,6 +73,7 @@ def validate(data: dict[str, Any], registry: Any) -> Scenario:
         the :class:`Scenario`, with the obstacles and start positions built while checking it.
     """
     errors: list[str] = []
+    data = _spelt_names(data, errors)
     _validate_event_kinds(data.get("events"), registry, errors)
     data = _validate_generator(data, registry, errors)
     try:
@@ -142,12 +146,12 @@ def validate_disturbances(
         if not isinstance(node, dict):
             errors.append(f"disturbances.{key}: must be a mapping of options (got {node!r})")
             continue
-        kind = node.get("kind", key)
-        where = f"disturbances.{key}.kind" if "kind" in node else f"disturbances.{key}"
-        cls = validate_choice(registry, "disturbance", kind, where, errors)
+        name = node.get(NAME, key)
+        where = f"disturbances.{key}.{NAME}" if NAME in node else f"disturbances.{key}"
+        cls = validate_choice(registry, "disturbance", name, where, errors)
         if cls is None:
             continue
-        options = {k: v for k, v in node.items() if k != "kind"}
+        options = {k: v for k, v in node.items() if k != NAME}
         try:
             out[key] = (cls, cls.Params.model_validate(options))
         except ValidationError as exc:
@@ -170,13 +174,33 @@ def _validate_generator(data: dict[str, Any], registry: Any, errors: list[str]) 
     return {**data, "environment": env}
 
 
+def _spelt_names(data: dict[str, Any], errors: list[str]) -> dict[str, Any]:
+    """``data`` with each event's and disturbance model's plugin name under ``name``: the old
+    spelling ``kind`` renamed with a deprecation warning naming its key, both given one error line
+    (and ``kind`` dropped, so that nothing else reports it). :mod:`.spelling`."""
+
+    def spelt(node: Any, where: str) -> Any:
+        try:
+            return renamed_kind(node, where)
+        except ValueError as exc:
+            errors.append(f"{where}.{KIND}: {exc}")
+            return {k: v for k, v in node.items() if k != KIND}
+
+    events, models = data.get("events"), data.get("disturbances")
+    if isinstance(events, list) and any(isinstance(e, dict) and KIND in e for e in events):
+        data = {**data, "events": [spelt(e, f"events.{k}") for k, e in enumerate(events)]}
+    if isinstance(models, dict) and any(isinstance(m, dict) and KIND in m for m in models.values()):
+        data = {**data, "disturbances": {key: spelt(m, f"disturbances.{key}") for key, m in models.items()}}
+    return data
+
+
 def _validate_event_kinds(events: Any, registry: Any, errors: list[str]) -> None:
-    """Each event's ``kind`` is a registered event kind (the schema checks everything else)."""
+    """Each event's ``name`` is a registered event kind (the schema checks everything else)."""
     if not isinstance(events, list):
         return
     for k, event in enumerate(events):
-        if isinstance(event, dict) and "kind" in event:
-            validate_choice(registry, "event", event["kind"], f"events.{k}.kind", errors)
+        if isinstance(event, dict) and NAME in event:
+            validate_choice(registry, "event", event[NAME], f"events.{k}.{NAME}", errors)
 
 
 def _validate_observers(node: Any, registry: Any, errors: list[str]) -> dict[str, BaseModel]:
@@ -241,12 +265,12 @@ def _rotor_checks(config: ScenarioConfig, dynamics: Any, kinds: dict[str, Any]) 
     errors = []
     rotors = getattr(dynamics, "rotors", 0)
     for k, event in enumerate(config.events):
-        kind = kinds.get(event.kind)  # None: an unknown kind, already reported (validate_choice)
+        kind = kinds.get(event.name)  # None: an unknown kind, already reported (validate_choice)
         if kind is None or not kind.rotor_fault:
             continue
         rotor = event.params.rotor  # type: ignore[attr-defined]  # a rotor_fault kind's Params have it
         if rotors == 0:
-            errors.append(f"events.{k}.kind: {event.kind} needs a dynamics model with rotors "
+            errors.append(f"events.{k}.name: {event.name} needs a dynamics model with rotors "
                           f"(dynamics {dynamics.name!r} has none; e.g. dynamics=quadrotor)")
         elif rotor >= rotors:
             errors.append(f"events.{k}.rotor: must be < {rotors}, the rotors of dynamics "

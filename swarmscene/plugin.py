@@ -135,14 +135,14 @@ _EventKind = Enum("EventKind", {"HOVER": "hover", "COMM_LOSS": "comm_loss", "STU
 def __getattr__(name: str) -> Any:
     """``EventKind``, deprecated: the built-in kinds' names as an enum, for one more release.
 
-    An event's ``kind`` is its registered name, a plain ``str`` (``event.kind == "hover"``); what a
-    plugin needs to know of a kind is a property the kind declares (``event.behaviour.failure``,
-    ``.motion``, ``.stays_where_failed``, ``.rotor_fault``)."""
+    An event's kind is its registered name, a plain ``str`` (``event.name == "hover"``; ``event.kind``
+    is its deprecated alias, read until 0.8.0); what a plugin needs to know of a kind is a property
+    the kind declares (``event.behaviour.failure``, ``.motion``, ``.stays_where_failed``, ``.rotor_fault``)."""
     if name != "EventKind":
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     import warnings
 
     warnings.warn("swarmscene.plugin.EventKind is deprecated: an event's kind is its registered name, a str "
-                  "(event.kind == 'hover'); read what a kind does from event.behaviour (failure, motion, "
+                  "(event.name == 'hover'); read what a kind does from event.behaviour (failure, motion, "
                   "stays_where_failed, rotor_fault)", SwarmsceneDeprecationWarning, stacklevel=2)
     return _EventKind

@@ -22,7 +22,7 @@ END_TO_END = (
     "test_replay.py", "test_plots.py", "test_report.py", "test_compile.py", "test_packaging.py",
     "test_rl_train.py", "test_rl_supersuit.py", "test_live.py", "test_export_crazyswarm2.py", "test_export_cflib.py",
     "test_sweep_pool.py", "test_sweep_tasks.py", "test_lint.py", "test_ros_tutorial.py", "test_suite_third_party.py",
-    "test_batch.py",
+    "test_batch.py", "test_recorded_spelling.py",
 )
 """Test modules that run whole commands, sweeps, clusters, installs, whole preset runs (test_batch.py:
 every preset, batched and alone) or the linters and type checker (ruff and mypy over the whole

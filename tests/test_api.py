@@ -93,7 +93,7 @@ def test_an_events_choice_replaces_a_presets_events():
     """cem_six_vehicle's failure is its defaults list's events choice (events/cem_six_vehicle.yaml),
     so `events=none` on the command line replaces it; it used to be the preset's own key, which
     came after the groups and silently won (then a refusal)."""
-    assert api.compose(["scenario=cem_six_vehicle"])["events"] == [{"at": 2.0, "agents": [0], "kind": "hover"}]
+    assert api.compose(["scenario=cem_six_vehicle"])["events"] == [{"at": 2.0, "agents": [0], "name": "hover"}]
     assert api.compose(["scenario=cem_six_vehicle", "events=none"])["events"] == []
     assert api.compose(["scenario=cem_six_vehicle", "events=lead_fails"])["events"][0]["at"] == 10.0
     assert api.compose(["scenario=cem_six_vehicle", "events.0.at=5"])["events"][0]["at"] == 5

@@ -52,7 +52,7 @@ def new_trial():
 @pytest.mark.parametrize("scenario, duration, n", [("cem_six_vehicle", 40.0, 6), ("outdoor_square", 400.0, 8)])
 def test_the_failure_is_searched_over_the_run_and_every_agent_of_the_scenario(scenario, duration, n):
     config = composed(f"scenario={scenario}")
-    assert [dict(e) for e in config.events] == [{"at": 2.0, "agents": [0], "kind": "hover"}]  # the preset's
+    assert [dict(e) for e in config.events] == [{"at": 2.0, "agents": [0], "name": "hover"}]  # the preset's
     trial = new_trial()
     falsify.failure_search_space(config, trial)
     time, agent = trial.distributions[falsify.FAILURE_TIME], trial.distributions[falsify.FAILURE_AGENT]
@@ -76,10 +76,10 @@ def test_a_scenario_without_a_searchable_event_is_one_line():
         falsify.failure_search_space(config, new_trial())
     assert exc.value.lines == [
         "events: the falsifier searches the first event's time and agent, so it needs one with a list of "
-        "agents, e.g. {at: 2.0, agents: [0], kind: hover} (got [])"
+        "agents, e.g. {at: 2.0, agents: [0], name: hover} (got [])"
     ]
-    config.events = [{"at": 2.0, "agents": {"sample": 1}, "kind": "hover"}]
-    with pytest.raises(ConfigError, match=r"\(got \[\{'at': 2.0, 'agents': \{'sample': 1\}, 'kind': 'hover'\}\]\)"):
+    config.events = [{"at": 2.0, "agents": {"sample": 1}, "name": "hover"}]
+    with pytest.raises(ConfigError, match=r"\(got \[\{'at': 2.0, 'agents': \{'sample': 1\}, 'name': 'hover'\}\]\)"):
         falsify.failure_search_space(config, new_trial())
 
 
@@ -107,7 +107,7 @@ def test_the_full_space_adds_wind_and_packet_loss_by_their_config_keys():
         "++disturbances.packet_loss.p": "interval(0.0, 0.3)",
     }
     assert composed("scenario=cem_six_vehicle")["disturbances"] == {
-        "constant_wind": {"kind": "constant_wind"}, "packet_loss": {"kind": "packet_loss"}}
+        "constant_wind": {"name": "constant_wind"}, "packet_loss": {"name": "packet_loss"}}
     assert full.sweeper.custom_search_space == failure.sweeper.custom_search_space
     assert full.sweep.dir.startswith("multirun/falsify/") and failure.sweep.dir.startswith("multirun/falsify_failure/")
 
@@ -151,7 +151,7 @@ def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_pa
     assert f"Run it: {reproduce}" in proc.stderr
 
     scenario = yaml.safe_load((study / falsify.WORST_CASE_FILE).read_text())
-    assert scenario["events"] == [{"at": 10.0, "agents": [0], "kind": "hover"}]
+    assert scenario["events"] == [{"at": 10.0, "agents": [0], "name": "hover"}]
     assert scenario["avoidance"]["name"] == "none"
     rerun = subprocess.run(
         [*EXE, "--config-path", str(study), "--config-name", "worst_case", f"hydra.run.dir={tmp_path}/rerun"],

@@ -60,10 +60,10 @@ def test_every_kind_registers_through_its_own_hook():
 
 @pytest.mark.parametrize("overrides, line", [
     (["formation.name=spiral"], "formation.name: unknown formation 'spiral' (valid: antipodal_swap, "),
-    (["+disturbances.x.kind=hurricane"], "disturbances.x.kind: unknown disturbance model 'hurricane' (valid: "
+    (["+disturbances.x.name=hurricane"], "disturbances.x.name: unknown disturbance model 'hurricane' (valid: "
                                          "battery, comm_delay, constant_wind, downwash, drag, dryden, ground_effect, "
                                          "gust, packet_loss, radio, sensing_noise)"),
-    (["events=drift", "events.0.kind=explode"], "events.0.kind: unknown event kind 'explode' (valid: comm_loss, "
+    (["events=drift", "events.0.name=explode"], "events.0.name: unknown event kind 'explode' (valid: comm_loss, "
                                                 "drift, hover, motor_failure, stuck)"),
     (["+environment.generator=maze"], "environment.generator: unknown map generator 'maze' (valid: building, "
                                       "corridor, obstacle_field)"),
@@ -78,7 +78,7 @@ def test_an_unknown_name_of_any_kind_is_one_line_in_one_format(overrides, line):
 
 def test_validate_choice_returns_the_class_or_appends_one_line():
     errors: list[str] = []
-    assert validate_choice(REGISTRY, "event", "hover", "events.0.kind", errors).name == "hover"
+    assert validate_choice(REGISTRY, "event", "hover", "events.0.name", errors).name == "hover"
     assert validate_choice(REGISTRY, "policy", 3, "avoidance.policy", errors) is None
     assert errors == ["avoidance.policy: unknown policy 3 (valid: seek_reference)"]
 
@@ -136,6 +136,10 @@ def test_the_disturbance_check_refuses_each_broken_rule():
     class NoDescription(DisturbanceParams):
         std: float = 0.1
 
+    class Named(DisturbanceParams):  # name (or kind) chooses the model: an option of that name is never read
+        std: float = Field(0.1, ge=0, description="m")
+        name: str = Field("x", description="clashes")
+
     shared = {"drawn": np.random.default_rng(0)}
 
     def in_place(self, world, pos, vel):
@@ -147,6 +151,7 @@ def test_the_disturbance_check_refuses_each_broken_rule():
         (_variant(_Bias, phase="gravity"), "phase must be one of"),
         (_variant(_Bias, phase="wind"), "must define air"),
         (_variant(_Bias, Params=NoDescription), "has no description"),
+        (_variant(_Bias, Params=Named), "clash with the key that chooses the model"),
         (_variant(_Bias, sense=in_place), "modified world.pos"),
         (_variant(_Bias, sense=lambda self, w, p, v: (p[:, :2], v)), r"must be \(N, 3\)"),
         (_variant(_Bias, sense=lambda self, w, p, v: (p * np.nan, v)), "is not finite"),
@@ -193,6 +198,9 @@ def test_the_event_kind_check_refuses_each_broken_rule():
     class Clash(EventParams):
         agents: int = Field(1, description="clashes")
 
+    class KindClash(EventParams):  # the old spelling of name, read until 0.8.0
+        kind: str = Field("x", description="clashes")
+
     class Undescribed(EventParams):
         keep: float = 0.5
 
@@ -212,6 +220,7 @@ def test_the_event_kind_check_refuses_each_broken_rule():
     cases = [
         (_variant(_Slow, name=None), "set a `name`"),
         (_variant(_Slow, Params=Clash), "clash with every event's own keys"),
+        (_variant(_Slow, Params=KindClash), r"\['kind'\] clash with every event's own keys"),
         (_variant(_Slow, Params=Undescribed), "has no description"),
         (_variant(_Slow, failure="yes"), "failure must be True or False"),
         (_variant(_Slow, motion="coast"), "motion must be a Motion"),
@@ -249,7 +258,7 @@ def test_a_plugin_event_kind_is_validated_by_its_params_with_the_built_ins_lines
             return format_validation_error(exc, EventConfig, event, prefix="events.0")
         return []
 
-    base = {"at": 1.0, "agents": [0], "kind": "tilt"}
+    base = {"at": 1.0, "agents": [0], "name": "tilt"}
     assert lines(base) == ["events.0.angle: a tilt event needs the tilt angle, degrees (got None)"]
     assert lines({**base, "angle": 95}) == ["events.0.angle: must be <= 90.0 (got 95)"]
     assert lines({**base, "angle": 5, "rotor": 1}) == [
@@ -437,10 +446,10 @@ def test_the_package_flies_its_components_by_name(allkinds):
     run: the updraft carries every agent up at 0.5 m/s (ak_point is carried by the air), and agent 1,
     frozen at t = 0.5 s keeping none of its velocity, stays where it froze."""
     data = _composed(formation={"name": "ak_climb", "height": 0.0}, avoidance={"name": "ak_damped"},
-                     dynamics={"name": "ak_point"}, disturbances={"up": {"kind": "ak_updraft", "speed": 0.5}},
-                     events=[{"at": 0.5, "agents": [1], "kind": "ak_freeze", "keep": 0.0}])
+                     dynamics={"name": "ak_point"}, disturbances={"up": {"name": "ak_updraft", "speed": 0.5}},
+                     events=[{"at": 0.5, "agents": [1], "name": "ak_freeze", "keep": 0.0}])
     scenario = api.load(data, allkinds[1])
-    assert scenario.data["events"] == [{"at": 0.5, "agents": [1], "kind": "ak_freeze", "keep": 0.0}]
+    assert scenario.data["events"] == [{"at": 0.5, "agents": [1], "name": "ak_freeze", "keep": 0.0}]
     run = api.run(scenario)
     z = run.trajectory["pos"][:, :, 2]
     assert run.metrics["disturbances.up.speed"] == 0.5 and run.metrics["healthy_at_end"] == 2
@@ -456,8 +465,8 @@ def test_the_package_flies_in_a_batch_of_worlds_as_alone(allkinds):
     """ak_point has no batched form (docs/batched.md): a batch steps its worlds one by one with
     their own instances, and each world is its single run (every kind of the package in play)."""
     data = _composed(formation={"name": "ak_climb", "height": 0.0}, avoidance={"name": "ak_damped"},
-                     dynamics={"name": "ak_point"}, disturbances={"up": {"kind": "ak_updraft", "speed": 0.5}},
-                     events=[{"at": 0.5, "agents": [1], "kind": "ak_freeze", "keep": 0.0}],
+                     dynamics={"name": "ak_point"}, disturbances={"up": {"name": "ak_updraft", "speed": 0.5}},
+                     events=[{"at": 0.5, "agents": [1], "name": "ak_freeze", "keep": 0.0}],
                      swarm={"n": 3, "start": {"kind": "random", "extent": 6.0}})
     batched = api.run_batch(data, [3, 4])
     for seed, result in zip([3, 4], batched, strict=True):
@@ -525,10 +534,10 @@ def test_a_misspelt_field_of_a_plugin_event_kind_lists_that_kinds_fields(allkind
 
     _, registry = allkinds
     with pytest.raises(ConfigError) as err:
-        api.load(["events=lead_fails", "events.0.kind=ak_freeze", "++events.0.kep=0.5"], registry)
-    assert err.value.lines == ["events.0.kep: unknown key of a ak_freeze event (valid keys: at, agents, kind, keep) "
+        api.load(["events=lead_fails", "events.0.name=ak_freeze", "++events.0.kep=0.5"], registry)
+    assert err.value.lines == ["events.0.kep: unknown key of a ak_freeze event (valid keys: at, agents, name, keep) "
                                "(got 0.5)"]
     with pytest.raises(ConfigError) as err:
         api.load(["events=drift", "++events.0.velocty=[1,0,0]"], registry)
-    assert err.value.lines == ["events.0.velocty: unknown key of a drift event (valid keys: at, agents, kind, "
+    assert err.value.lines == ["events.0.velocty: unknown key of a drift event (valid keys: at, agents, name, "
                                "velocity) (got [1, 0, 0])"]

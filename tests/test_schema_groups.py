@@ -152,15 +152,15 @@ def test_a_plugin_section_gets_a_best_match_about_its_own_keys(section, best):
 
 def test_a_disturbance_entry_is_its_kind_or_its_key():
     schema = SCHEMAS["disturbances"]
-    assert errors(schema, {"gusty": {"kind": "gust", "hold": 0}}) == []
+    assert errors(schema, {"gusty": {"name": "gust", "hold": 0}}) == []
     assert errors(schema, {"gust": {"hold": 0}}) == []  # kind defaults to the key
     # neither: an entry another file declares (disturbances=[gps]), any model's options; the
     # composed configuration always has the kind
     assert errors(schema, {"gusty": {"hold": 0}}) == []
     assert errors(schema, {"gusty": {"hodl": 0}}) != []
     full = errors(scenario_schema(REGISTRY), {"disturbances": {"gusty": {"hold": 0}}})
-    assert "disturbances.gusty: 'kind' is a required property" in full
-    assert errors(schema, {"gusty": {"kind": "dryden", "hold": 0}}) != []  # hold is gust's
+    assert "disturbances.gusty: 'name' is a required property" in full
+    assert errors(schema, {"gusty": {"name": "dryden", "hold": 0}}) != []  # hold is gust's
 
 
 def test_a_group_file_may_open_with_a_defaults_list_but_a_section_field_may_not_hold_one():

@@ -75,8 +75,9 @@ def _has(model: Any, method: str) -> bool:
 
 
 def effective(models: dict[str, tuple[type[Disturbance], DisturbanceParams]]) -> dict[str, Any]:
-    """The declared models with every option resolved, as plain data (the run record)."""
-    return {key: {"kind": cls.name, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
+    """The declared models with every option resolved, as plain data (the run record): each with its
+    ``name`` (recorded as ``kind`` until 0.6.0, :func:`~swarmscene.core.spelling.recorded_name`)."""
+    return {key: {"name": cls.name, **params.model_dump(mode="json")} for key, (cls, params) in models.items()}
 
 
 class Perceived:

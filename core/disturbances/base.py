@@ -1,11 +1,13 @@
-"""The contract of a disturbance model: its ``kind``, its phase, its ``Params``, its random stream.
+"""The contract of a disturbance model: its ``name``, its phase, its ``Params``, its random stream.
 
-A scenario declares models under ``disturbances``, each under a key of its choice (the key is its
-name in errors and metrics; ``kind`` defaults to the key)::
+A scenario declares models under ``disturbances``, each under a key of its choice (the key names it
+in errors and metrics; the model's ``name`` defaults to the key)::
 
     disturbances:
-      dryden: {speed: 5.0}                   # kind: dryden
-      gps: {kind: sensing_noise, pos_std: [2.1, 2.1, 4.2]}
+      dryden: {speed: 5.0}                   # name: dryden
+      gps: {name: sensing_noise, pos_std: [2.1, 2.1, 4.2]}
+
+(``kind``, the spelling of ``name`` until 0.6.0, is read until 0.8.0 with a warning: :mod:`..spelling`.)
 
 Each model acts in one phase of the tick (:data:`PHASES`); the kernel calls the models of a phase
 in the order of their keys (sorted), so a composition does not depend on how Hydra merged it.
@@ -13,12 +15,14 @@ in the order of their keys (sorted), so a composition does not depend on how Hyd
 
 from __future__ import annotations
 
+import warnings
 import zlib
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
+from ..errors import SwarmsceneDeprecationWarning
 from ..fields import StrictModel
 
 PHASES = ("sense", "communicate", "wind", "force")
@@ -65,13 +69,23 @@ def model_rng(seed: int, key: str) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM, zlib.crc32(key.encode()))))
 
 
+class _DeprecatedKind:
+    """``Disturbance.kind``: the model's ``name``, read with a warning (until 0.8.0)."""
+
+    def __get__(self, obj: Any, owner: type) -> str:
+        warnings.warn(f"{owner.__name__}.kind is deprecated: read {owner.__name__}.name (a disturbance "
+                      f"model's kind is read until 0.8.0)", SwarmsceneDeprecationWarning, stacklevel=2)
+        return owner.name  # type: ignore[attr-defined]  # every registered model declares one
+
+
 class Disturbance:
     """A disturbance model: subclasses set ``name``, ``phase``, ``Params`` and their phase's method
     (and ``params: Params`` under their ``Params``, which types ``self.params`` as that model).
 
-    ``name`` is the registered name a scenario writes as ``kind`` (``disturbances.<key>.kind``, the
-    key itself when it is left out); ``kind`` is the same string under its older attribute name
-    (either may be declared: the other follows).
+    ``name`` is the registered name a scenario chooses it by (``disturbances.<key>.name``, the key
+    itself when it is left out). ``kind``, its attribute name until 0.6.0, is deprecated (until
+    0.8.0): reading it warns and gives ``name``; a model declaring ``kind`` rather than ``name`` is
+    registered under it, with a warning.
 
     sense:        ``sense(world, pos, vel) -> (pos, vel)``: each agent's estimate of its own state,
                   from the truth (``world``) and the estimate of the models before it.
@@ -93,7 +107,6 @@ class Disturbance:
     """
 
     name: ClassVar[str]
-    kind: ClassVar[str]
     phase: ClassVar[str]
     Params: ClassVar[type[DisturbanceParams]] = DisturbanceParams
     delay_option: ClassVar[str | None] = None
@@ -102,13 +115,20 @@ class Disturbance:
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        # One name under two attributes: the registry reads ``name`` like every kind's; the
-        # kernel's records (``effective``) and older third-party models use ``kind``.
+        # ``kind`` was the attribute until 0.6.0: a model still declaring it has it as its name
+        # (reads of ``kind`` then go through the deprecated alias below, like every model's).
         own = cls.__dict__
-        if "name" in own and "kind" not in own:
-            cls.kind = cls.name
-        elif "kind" in own and "name" not in own:
-            cls.name = cls.kind
+        if "kind" in own and not isinstance(own["kind"], _DeprecatedKind):
+            declared = own["kind"]
+            if "name" not in own:
+                warnings.warn(f"{cls.__qualname__} declares kind = {declared!r}: declare name (a disturbance "
+                              f"model's kind is read as its name until 0.8.0)", SwarmsceneDeprecationWarning,
+                              stacklevel=2)
+                cls.name = declared
+            del cls.kind
+
+    kind = _DeprecatedKind()
+    """Deprecated name of ``name`` (read until 0.8.0)."""
 
     def __init__(self, params: DisturbanceParams, ctx: DisturbanceContext) -> None:
         self.params = params

@@ -2,7 +2,7 @@
 
 A copy runs as is: list your module under the ``swarmscene`` entry-point group of your package (or
 in swarmscene/builtins.py for a built-in), add ``disturbances/<name>.yaml`` holding
-``<name>: {kind: <name>}`` (the key is the model's name in errors and metrics), choose it with
+``<name>: {name: <name>}`` (the key is the model's name in errors and metrics), choose it with
 ``swarmscene disturbances=[<name>]``, and check it with
 ``swarmscene.testing.check_disturbance(MyDisturbance)`` in your tests.
 Cite the paper or datasheet behind each number here.

@@ -18,7 +18,7 @@ from swarmscene.plugin import Disturbance, DisturbanceContext, DisturbanceParams
 
 
 class CommDelayParams(DisturbanceParams):
-    """``kind: comm_delay``: the delay's law and its latencies."""
+    """``name: comm_delay``: the delay's law and its latencies."""
 
     model: Literal["fixed", "hops", "random"] = Field(
         "hops", description="fixed: tau; hops: tau per hop (thesis 4.2: tau_ij = dist(i, j) "
@@ -86,5 +86,5 @@ class CommDelay(Disturbance):
 
 @hookimpl
 def swarmscene_register_disturbances(register):
-    """Add :class:`CommDelay` to the registry, so that ``disturbances.<key>.kind: comm_delay`` chooses it."""
+    """Add :class:`CommDelay` to the registry, so that ``disturbances.<key>.name: comm_delay`` chooses it."""
     register(CommDelay)

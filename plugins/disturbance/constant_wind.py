@@ -14,7 +14,7 @@ from swarmscene.plugin import Disturbance, DisturbanceContext, WorldState, hooki
 
 
 class ConstantWindParams(WindParams):
-    """``kind: constant_wind``: its speed toward ``heading`` and its vertical component."""
+    """``name: constant_wind``: its speed toward ``heading`` and its vertical component."""
 
     speed: float = Field(5.0, ge=0.0, le=MAX_WIND, description="wind speed, m/s")
     vertical: float = Field(0.0, ge=-MAX_WIND, le=MAX_WIND, description="vertical component, m/s (up +)")
@@ -41,5 +41,5 @@ class ConstantWind(Disturbance):
 
 @hookimpl
 def swarmscene_register_disturbances(register):
-    """Add :class:`ConstantWind` to the registry, so that ``disturbances.<key>.kind: constant_wind`` chooses it."""
+    """Add :class:`ConstantWind` to the registry, so that ``disturbances.<key>.name: constant_wind`` chooses it."""
     register(ConstantWind)

@@ -20,7 +20,7 @@ from swarmscene.plugin import Disturbance, DisturbanceContext, WorldState, hooki
 
 
 class DrydenParams(WindParams):
-    """``kind: dryden``: W_20, the mean wind, the intensities' factor and the field's extent."""
+    """``name: dryden``: W_20, the mean wind, the intensities' factor and the field's extent."""
 
     speed: float = Field(
         5.0, ge=0.0, le=MAX_WIND,
@@ -91,5 +91,5 @@ class Dryden(Disturbance):
 
 @hookimpl
 def swarmscene_register_disturbances(register):
-    """Add :class:`Dryden` to the registry, so that ``disturbances.<key>.kind: dryden`` chooses it."""
+    """Add :class:`Dryden` to the registry, so that ``disturbances.<key>.name: dryden`` chooses it."""
     register(Dryden)

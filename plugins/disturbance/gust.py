@@ -16,7 +16,7 @@ from swarmscene.plugin import MAX_DURATION, Disturbance, DisturbanceContext, Wor
 
 
 class GustParams(WindParams):
-    """``kind: gust``: its peak, direction and timing."""
+    """``name: gust``: its peak, direction and timing."""
 
     amplitude: float = Field(5.0, ge=0.0, le=MAX_WIND, description="gust peak V_m, m/s")
     elevation: float = Field(
@@ -54,5 +54,5 @@ class Gust(Disturbance):
 
 @hookimpl
 def swarmscene_register_disturbances(register):
-    """Add :class:`Gust` to the registry, so that ``disturbances.<key>.kind: gust`` chooses it."""
+    """Add :class:`Gust` to the registry, so that ``disturbances.<key>.name: gust`` chooses it."""
     register(Gust)

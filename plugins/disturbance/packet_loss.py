@@ -17,7 +17,7 @@ from swarmscene.plugin import Disturbance, DisturbanceContext, DisturbanceParams
 
 
 class PacketLossParams(DisturbanceParams):
-    """``kind: packet_loss``: the loss law and its probabilities."""
+    """``name: packet_loss``: the loss law and its probabilities."""
 
     model: Literal["bernoulli", "gilbert_elliott", "range"] = Field(
         "bernoulli", description="bernoulli: independent losses of probability p; "
@@ -82,5 +82,5 @@ class PacketLoss(Disturbance):
 
 @hookimpl
 def swarmscene_register_disturbances(register):
-    """Add :class:`PacketLoss` to the registry, so that ``disturbances.<key>.kind: packet_loss`` chooses it."""
+    """Add :class:`PacketLoss` to the registry, so that ``disturbances.<key>.name: packet_loss`` chooses it."""
     register(PacketLoss)

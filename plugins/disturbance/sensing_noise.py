@@ -41,7 +41,7 @@ from swarmscene.plugin import (
 
 
 class SensingNoiseParams(DisturbanceParams):
-    """``kind: sensing_noise``: the errors' standard deviations, correlation time and dropouts."""
+    """``name: sensing_noise``: the errors' standard deviations, correlation time and dropouts."""
 
     pos_std: tuple[float, float, float] = Field(
         (0.05, 0.05, 0.05), description="standard deviation of the position error per axis "
@@ -112,5 +112,5 @@ class SensingNoise(Disturbance):
 
 @hookimpl
 def swarmscene_register_disturbances(register):
-    """Add :class:`SensingNoise` to the registry, so that ``disturbances.<key>.kind: sensing_noise`` chooses it."""
+    """Add :class:`SensingNoise` to the registry, so that ``disturbances.<key>.name: sensing_noise`` chooses it."""
     register(SensingNoise)

@@ -2,7 +2,7 @@
 
 A copy runs as is: list your module under the ``swarmscene`` entry-point group of your package (or
 in swarmscene/builtins.py for a built-in), write events of it in a scenario
-(``events: [{at: 2.0, agents: [1], kind: my_event, keep: 0.5}]``), and check it with
+(``events: [{at: 2.0, agents: [1], name: my_event, keep: 0.5}]``), and check it with
 ``swarmscene.testing.check_event_kind(MyEventKind)`` in your tests.
 """
 
@@ -22,7 +22,7 @@ class MyEventKind(EventKindPlugin):
     stays_where_failed = False  # True: it stays about where it failed (an avoidance may take it as fixed)
     rotor_fault = False  # True: Params have rotor and fraction, which a dynamics model with rotors applies
 
-    class Params(EventParams):  # the event's own keys beside at, agents, kind
+    class Params(EventParams):  # the event's own keys beside at, agents, name
         keep: float = Field(0.5, ge=0, le=1, description="the fraction of its velocity it keeps")
 
     @classmethod

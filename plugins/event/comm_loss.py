@@ -16,5 +16,5 @@ class CommLoss(EventKindPlugin):
 
 @hookimpl
 def swarmscene_register_events(register):
-    """Add :class:`CommLoss` to the registry, so that an event's ``kind: comm_loss`` chooses it."""
+    """Add :class:`CommLoss` to the registry, so that an event's ``name: comm_loss`` chooses it."""
     register(CommLoss)

@@ -14,7 +14,7 @@ from swarmscene.plugin import EventKindPlugin, EventParams, Motion, Point3, hook
 
 
 class DriftParams(EventParams):
-    """``kind: drift``: its own field beside ``at``, ``agents``, ``kind``."""
+    """``name: drift``: its own field beside ``at``, ``agents``, ``name``."""
 
     velocity: Point3 = Field(description="its drift velocity [vx, vy, vz], m/s")
 
@@ -35,5 +35,5 @@ class Drift(EventKindPlugin):
 
 @hookimpl
 def swarmscene_register_events(register):
-    """Add :class:`Drift` to the registry, so that an event's ``kind: drift`` chooses it."""
+    """Add :class:`Drift` to the registry, so that an event's ``name: drift`` chooses it."""
     register(Drift)

@@ -23,5 +23,5 @@ class Hover(EventKindPlugin):
 
 @hookimpl
 def swarmscene_register_events(register):
-    """Add :class:`Hover` to the registry, so that an event's ``kind: hover`` chooses it."""
+    """Add :class:`Hover` to the registry, so that an event's ``name: hover`` chooses it."""
     register(Hover)

@@ -12,7 +12,7 @@ from swarmscene.plugin import EventKindPlugin, EventParams, hookimpl
 
 
 class MotorFailureParams(EventParams):
-    """``kind: motor_failure``: its own fields beside ``at``, ``agents``, ``kind``."""
+    """``name: motor_failure``: its own fields beside ``at``, ``agents``, ``name``."""
 
     rotor: int = Field(ge=0, description="the index of the failed rotor")
     fraction: float = Field(0.0, ge=0, le=1, description="thrust the rotor keeps, 0..1 (0: dead)")
@@ -29,5 +29,5 @@ class MotorFailure(EventKindPlugin):
 
 @hookimpl
 def swarmscene_register_events(register):
-    """Add :class:`MotorFailure` to the registry, so that an event's ``kind: motor_failure`` chooses it."""
+    """Add :class:`MotorFailure` to the registry, so that an event's ``name: motor_failure`` chooses it."""
     register(MotorFailure)

@@ -16,5 +16,5 @@ class Stuck(EventKindPlugin):
 
 @hookimpl
 def swarmscene_register_events(register):
-    """Add :class:`Stuck` to the registry, so that an event's ``kind: stuck`` chooses it."""
+    """Add :class:`Stuck` to the registry, so that an event's ``name: stuck`` chooses it."""
     register(Stuck)

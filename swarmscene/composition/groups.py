@@ -59,7 +59,7 @@ def help_groups(options: Callable[[str], list[str]] = group_options) -> str:
 
 
 def kind_choices() -> str:
-    """Every registered kind and where a user names one (``event: events.<k>.kind``)."""
+    """Every registered kind and where a user names one (``event: events.<k>.name``)."""
     from ..core.registry import KINDS
 
     return "; ".join(f"{kind}: {spec.where}" for kind, spec in KINDS.items())

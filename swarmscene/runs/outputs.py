@@ -262,8 +262,14 @@ def config_hash(data: dict[str, Any]) -> str:
     ``data`` is the effective configuration (``Scenario.data``, a run directory's config.yaml):
     every value the run uses is in it, so the hash changes when any of them changes, including a
     plugin default changed by an upgrade. Same hash, same numbers for the same package versions.
+    An event's and a disturbance model's plugin name is hashed under ``kind`` whichever key holds
+    it (:func:`~swarmscene.core.spelling.canonical_names`): a run recorded with ``name`` has the
+    hash of the same run recorded with ``kind`` until 0.6.0 (a sweep resumed across it runs nothing again).
     """
-    canonical = json.dumps(_jsonable(_without_cosmetic(data)), sort_keys=True, separators=(",", ":"))
+    from ..core.spelling import canonical_names
+
+    plain = _jsonable(_without_cosmetic(canonical_names(data)))
+    canonical = json.dumps(plain, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()
 
 

@@ -10,6 +10,12 @@ definition with its own hash. Runs are scored against the frozen definitions, an
 ``tests/test_suite.py`` fails when the composition of a frozen version no longer gives them, so v1
 cannot change silently: a changed task is a new version
 (``python -m swarmscene.suite.definition v2`` writes the record of a new one).
+
+Canonical form (:func:`canonical`): a definition is hashed, frozen and compared with a run's
+``config.yaml`` with each event's and each disturbance model's plugin name keyed ``kind``, as v1
+was frozen, whichever key the task file or the run record spells it with (``name``; ``kind`` until
+0.6.0: :mod:`swarmscene.core.spelling`). The spelling is not part of what a task means: the new
+one leaves v1's hashes as they were, and a run recorded either way holds the same definition.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from collections.abc import Iterable
 from functools import cache
 from importlib.resources import files
 from typing import Any, cast
+
+from ..core.spelling import canonical_names
 
 SUITE = "swarmscene-bench"
 """The suite's name, as every task's ``task.suite`` says and a citation names it."""
@@ -53,9 +61,16 @@ def composed(task_id: str) -> dict[str, Any]:
     return json.loads(_composed(task_id))
 
 
+def canonical(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` (a composition, a definition or a run's config) in the canonical form every
+    definition is hashed and compared in: each event's and disturbance model's plugin name keyed
+    ``kind`` (the module docstring; :func:`~swarmscene.core.spelling.canonical_names`)."""
+    return cast("dict[str, Any]", canonical_names(data))
+
+
 def definition(task_id: str) -> dict[str, Any]:
-    """A task's definition: its composition without :data:`METHOD_FREE`."""
-    data = composed(task_id)
+    """A task's definition: its composition without :data:`METHOD_FREE`, in :func:`canonical` form."""
+    data = canonical(composed(task_id))
     return {k: v for k, v in data.items() if k not in METHOD_FREE}
 
 

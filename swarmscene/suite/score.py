@@ -4,7 +4,9 @@ A run is scored when its directory is complete and its ``config.yaml`` declares 
 frozen version whose definition it still holds: every value the task's composition sets is the
 value the run used (so ``clock.duration=5`` on the command line, or an edited task file, gives no
 score), its horizon is the task's and its seed one of the task's seeds. Any other run is listed
-with the reason it was not scored, never silently dropped.
+with the reason it was not scored, never silently dropped. Both are compared in the canonical form
+of :mod:`.definition`: a run that recorded an event's kind as ``name`` or as ``kind`` (until 0.6.0)
+holds the same definition.
 
 Score of a run (:class:`~swarmscene.core.task.ScoreConfig`): ``raw`` is ``metrics[score.metric]``
 (a metric the run left undefined, e.g. ``hex.formed_at`` of a lattice never formed, is the worst
@@ -22,7 +24,7 @@ from typing import Any
 
 from ..runs.rundir import RunDir, RunFileError, finite_or_none
 from ..sweeps.records import job_dirs
-from .definition import SUITE, VERSIONS, frozen
+from .definition import SUITE, VERSIONS, canonical, frozen
 
 
 @dataclass(frozen=True)
@@ -117,7 +119,7 @@ def score_run(run_dir: Path) -> RunScore | Unscored:
     version, task_id = task.get("version"), task.get("id")
     if task.get("suite") != SUITE or version not in VERSIONS or task_id not in frozen(version)["tasks"]:
         return Unscored(str(run_dir), f"task {task.get('suite')} {version} {task_id!r} is not part of a frozen version")
-    differs = holds_definition(config, frozen(version)["tasks"][task_id]["definition"])
+    differs = holds_definition(canonical(config), frozen(version)["tasks"][task_id]["definition"])
     if differs is not None:
         return Unscored(str(run_dir), f"{differs}: differs from task {task_id!r} of {version}")
     seed = config.get("seed")

@@ -30,6 +30,7 @@ from ..core.fields import MAX_LENGTH
 from ..core.generators import MapGenerator
 from ..core.plugin import PluginParams, Policy
 from ..core.sensing import Sensing
+from ..core.spelling import KIND, NAME
 from ..core.state import WorldState
 from .contract import Outcome, Subject, promise, run
 
@@ -206,12 +207,13 @@ def check_disturbance(cls: type[Disturbance], options: dict[str, Any] | None = N
 
     Rules: ``name``, ``phase`` (one of sense, communicate, wind, force) and its method (``sense``,
     ``communicate``, ``air`` or ``force``; a channel model, ``delays`` or ``lost``); Params as every
-    kind's (refused options named ``disturbances.<name>.<key>``); the truth it is handed is never
+    kind's (refused options named ``disturbances.<name>.<key>``; no option named ``name`` or ``kind``,
+    the keys that choose a model); the truth it is handed is never
     modified; its outputs are finite (N, 3); it draws only from its own stream (``ctx.rng``: the
     same seed gives the same outputs); two instances do not share state; ``metrics()`` is flat,
     finite JSON without the ``disturbances.<key>.`` prefix (the engine adds it).
     """
-    params = _check_declaration(cls, Disturbance, DisturbanceParams, "disturbances.<key>.kind",
+    params = _check_declaration(cls, Disturbance, DisturbanceParams, "disturbances.<key>.name",
                                 options, refused, f"disturbances.{getattr(cls, 'name', '?')}")
     return run("disturbance", Subject(cls, params, class_state=_class_state(cls, Disturbance)))
 
@@ -226,6 +228,13 @@ def _alone(s: Subject) -> list[_DisturbedTick]:
 def _disturbance_params(s: Subject) -> None:
     """``name`` set; ``Params`` derive from ``DisturbanceParams``, refuse unknown keys, describe every
     option, round-trip through YAML; refused options named ``disturbances.<name>.<key>``."""
+
+
+@promise("disturbance", "own_keys_free")
+def _disturbance_own_keys(s: Subject) -> None:
+    """No option is named like the key that chooses the model (``name``; ``kind``, its old spelling)."""
+    clash = sorted(set(s.cls.Params.model_fields) & {NAME, KIND})
+    assert not clash, f"{s.name}: Params options {clash} clash with the key that chooses the model"
 
 
 @promise("disturbance", "phase")
@@ -313,7 +322,7 @@ def check_event_kind(cls: type[EventKindPlugin], options: dict[str, Any] | None 
 
     Rules: ``name``; ``Params`` derive from ``EventParams`` (each field described: a required one's
     description completes ``a <kind> event needs <description>``), no field named like an event's
-    own keys (``at``, ``agents``, ``kind``); ``failure`` a bool and ``motion`` a :class:`Motion`;
+    own keys (``at``, ``agents``, ``name``, ``kind``); ``failure`` a bool and ``motion`` a :class:`Motion`;
     an event of the kind validates, and its record validates again to the same record;
     :meth:`~EventKindPlugin.apply` changes only its agents, never a position (the kernel moves
     vehicles), drops ``healthy`` when it is a failure and ``comm_ok`` when it is not, leaves finite
@@ -327,7 +336,7 @@ def check_event_kind(cls: type[EventKindPlugin], options: dict[str, Any] | None 
 def _event(s: Subject) -> Any:
     """An event of the kind on agents 1 and 2 at 0.3 s, validated as a scenario's and drawn."""
     _event_declares(s)
-    data = {"at": 0.3, "agents": [1, 2], "kind": s.name, **s.params.model_dump(mode="json", exclude_none=True)}
+    data = {"at": 0.3, "agents": [1, 2], NAME: s.name, **s.params.model_dump(mode="json", exclude_none=True)}
     context = {"registry": _OneKind(s.cls)}
     try:
         config = EventConfig.model_validate(data, context=context)
@@ -345,8 +354,8 @@ def _event_params(s: Subject) -> None:
 
 @promise("event", "own_keys_free")
 def _event_own_keys(s: Subject) -> None:
-    """No field is named like an event's own keys (``at``, ``agents``, ``kind``)."""
-    clash = sorted(set(s.cls.Params.model_fields) & {"at", "agents", "kind"})
+    """No field is named like an event's own keys (``at``, ``agents``, ``name``; ``kind``, its old spelling)."""
+    clash = sorted(set(s.cls.Params.model_fields) & {"at", "agents", NAME, KIND})
     assert not clash, f"{s.name}: Params fields {clash} clash with every event's own keys"
 
 

@@ -107,13 +107,13 @@ def render() -> str:
 
 
 def _event_kinds(registry: Any) -> list[str]:
-    """A table per registered event kind: what it does, and its own keys beside ``at``, ``agents``, ``kind``."""
-    lines = ["", "## Event kinds (events[].kind=NAME; their own keys beside it in the event)"]
+    """A table per registered event kind: what it does, and its own keys beside ``at``, ``agents``, ``name``."""
+    lines = ["", "## Event kinds (events[].name=NAME; their own keys beside it in the event)"]
     for name in registry.names("event"):
         cls = registry.get("event", name)
         doc = (sys.modules[cls.__module__].__doc__ or cls.__doc__ or "").strip().splitlines()[0]
         does = "fails its agents" if cls.failure else "cuts its agents' radio"
-        lines += ["", f"### `events[].kind={name}`", "", doc, "",
+        lines += ["", f"### `events[].name={name}`", "", doc, "",
                   f"It {does}; afterwards the kernel moves them by {cls.motion.name}.", ""]
         lines += model_table(cls.Params, "events[].") if cls.Params.model_fields else ["No keys of its own."]
     return lines

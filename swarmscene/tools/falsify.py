@@ -83,7 +83,7 @@ def failure_bounds(config: Any) -> tuple[float, int]:
         shown = list(events) if len(events) else "[]"
         raise ConfigError([
             f"events: the falsifier searches the first event's time and agent, so it needs one with a "
-            f"list of agents, e.g. {{at: 2.0, agents: [0], kind: hover}} (got {shown})"
+            f"list of agents, e.g. {{at: 2.0, agents: [0], name: hover}} (got {shown})"
         ])
     return float(config.clock.duration), int(config.swarm.n)
 

@@ -10,8 +10,8 @@ Both come from the same pydantic models the engine validates with (:mod:`swarmsc
 and each plugin's ``Params``). ``formation``, ``avoidance`` and ``dynamics`` are each one of the
 registered plugins of their kind, told apart by ``name`` (a ``const``), so an editor completes and
 checks the options of the plugin chosen. The other kinds chosen by name come from the registry
-too: each event is the event kind its ``kind`` names (an enum of the registered kinds, each with its
-own fields), each ``disturbances`` entry the model its ``kind`` (or key) names, and
+too: each event is the event kind its ``name`` names (an enum of the registered kinds, each with its
+own fields), each ``disturbances`` entry the model its ``name`` (or key) names, and
 ``environment.generator`` one of the registered map generators, a plugin's parameters beside the
 built-ins'. The full schema describes what the engine validates after
 Hydra composition (``swarmscene --cfg job``, ``api.compose``); the partial one describes the files a
@@ -90,7 +90,7 @@ def scenario_schema(registry: Any | None = None, partial: bool = False) -> dict[
         defs["disturbances.any"] = _any_method(
             "options of a disturbance chosen elsewhere",
             "an entry named by another file (disturbances=[gps]): options of any disturbance model",
-            [defs[f"disturbances.{c.name}"] for c in disturbance_models], "kind")
+            [defs[f"disturbances.{c.name}"] for c in disturbance_models], "name")
     root["properties"]["disturbances"] = _disturbances(
         root["properties"]["disturbances"], [c.name for c in disturbance_models], partial)
     _event_kinds(root, defs, event_kinds, refs, partial)
@@ -187,35 +187,35 @@ def _any_method(title: str, description: str, variants: list[dict[str, Any]], ta
 
 
 def _disturbance(cls: Any, params: dict[str, Any]) -> dict[str, Any]:
-    """A disturbance model's Params with its ``kind`` (optional: it defaults to the entry's key)."""
+    """A disturbance model's Params with its ``name`` (optional: it defaults to the entry's key)."""
     doc = (cls.__doc__ or "").strip().splitlines()
     return {
         **{k: v for k, v in params.items() if k not in ("properties", "title", "description")},
-        "title": f"disturbances kind={cls.kind}",
-        "description": doc[0] if doc else f"disturbance {cls.kind}",
+        "title": f"disturbances name={cls.name}",
+        "description": doc[0] if doc else f"disturbance {cls.name}",
         "type": "object",
-        "properties": {"kind": {"const": cls.kind, "description": "disturbance model"},
+        "properties": {"name": {"const": cls.name, "description": "disturbance model"},
                        **params.get("properties", {})},
         "additionalProperties": False,
     }
 
 
 def _disturbances(node: dict[str, Any], kinds: list[str], partial: bool) -> dict[str, Any]:
-    """The ``disturbances`` mapping: each entry is the model its ``kind`` names, or, without
-    ``kind``, the model its key names (``dryden: {}``); an entry of another key needs a kind
+    """The ``disturbances`` mapping: each entry is the model its ``name`` names, or, without
+    ``name``, the model its key names (``dryden: {}``); an entry of another key needs a name
     (in a hand-written file it may be an entry another file declares, ``gps`` from
     ``disturbances=[gps]``: any model's options)."""
     def entry(default: str | None) -> dict[str, Any]:
-        chosen = [{"if": {"properties": {"kind": {"const": k}}, "required": ["kind"]},
+        chosen = [{"if": {"properties": {"name": {"const": k}}, "required": ["name"]},
                    "then": {"$ref": REF.format(model=f"disturbances.{k}")}} for k in kinds]
-        missing: dict[str, Any]  # the schema an entry without ``kind`` must meet
+        missing: dict[str, Any]  # the schema an entry without ``name`` must meet
         if default:
             missing = {"$ref": REF.format(model=f"disturbances.{default}")}
         else:
-            missing = {"$ref": REF.format(model="disturbances.any")} if partial else {"required": ["kind"]}
+            missing = {"$ref": REF.format(model="disturbances.any")} if partial else {"required": ["name"]}
         return {"type": "object", "allOf": [
             *chosen,
-            {"if": {"required": ["kind"]}, "then": {"properties": {"kind": {"enum": kinds}}}, "else": missing},
+            {"if": {"required": ["name"]}, "then": {"properties": {"name": {"enum": kinds}}}, "else": missing},
         ]}
 
     return {
@@ -228,7 +228,7 @@ def _disturbances(node: dict[str, Any], kinds: list[str], partial: bool) -> dict
 
 def _event_kinds(root: dict[str, Any], defs: dict[str, Any], kinds: list[Any], refs: dict[Any, Any],
                  partial: bool) -> None:
-    """``events``: each event is the registered kind its ``kind`` names (an enum of the registry's
+    """``events``: each event is the registered kind its ``name`` names (an enum of the registry's
     kinds), with ``at``, ``agents`` and that kind's own fields (its ``Params``) only; the engine's
     one ``EventConfig`` definition, which admits any kind's fields, is replaced by one per kind."""
     base = defs.pop("EventConfig")["properties"]
@@ -241,13 +241,13 @@ def _event_kinds(root: dict[str, Any], defs: dict[str, Any], kinds: list[Any], r
     if partial:  # an event whose kind another file gives: any kind's fields
         defs["events.any"] = _any_method(
             "an event whose kind is given elsewhere", "at, agents and the fields of any event kind",
-            [defs[f"events.{n}"] for n in names], "kind")
-    chosen = [{"if": {"properties": {"kind": {"const": n}}, "required": ["kind"]},
+            [defs[f"events.{n}"] for n in names], "name")
+    chosen = [{"if": {"properties": {"name": {"const": n}}, "required": ["name"]},
                "then": {"$ref": REF.format(model=f"events.{n}")}} for n in names]
-    missing = {"$ref": REF.format(model="events.any")} if partial else {"required": ["kind"]}
+    missing = {"$ref": REF.format(model="events.any")} if partial else {"required": ["name"]}
     item = {"type": "object", "allOf": [*chosen, {
-        "if": {"required": ["kind"]},
-        "then": {"properties": {"kind": {"enum": names, "description": "registered event kind"}}},
+        "if": {"required": ["name"]},
+        "then": {"properties": {"name": {"enum": names, "description": "registered event kind"}}},
         "else": missing}]}
     node = root["properties"]["events"]
     root["properties"]["events"] = {**{k: v for k, v in node.items() if k != "items"}, "items": item}
@@ -282,17 +282,17 @@ def _observers(root: dict[str, Any], defs: dict[str, Any], observers: list[Any],
 
 
 def _event(cls: Any, base: dict[str, Any], params: dict[str, Any]) -> dict[str, Any]:
-    """An event kind: ``at`` and ``agents`` (every event's), its ``kind`` as a const, its Params."""
+    """An event kind: ``at`` and ``agents`` (every event's), its ``name`` as a const, its Params."""
     doc = (cls.__doc__ or "").strip().splitlines()
     return {
         **{k: v for k, v in params.items() if k not in ("properties", "required", "title", "description")},
-        "title": f"events kind={cls.name}",
+        "title": f"events name={cls.name}",
         "description": doc[0] if doc else f"event kind {cls.name}",
         "type": "object",
         "properties": {"at": base["at"], "agents": base["agents"],
-                       "kind": {"const": cls.name, "description": "registered event kind"},
+                       "name": {"const": cls.name, "description": "registered event kind"},
                        **params.get("properties", {})},
-        "required": ["at", "agents", "kind", *params.get("required", [])],
+        "required": ["at", "agents", "name", *params.get("required", [])],
         "additionalProperties": False,
     }
 

@@ -330,8 +330,7 @@ class LiveView:
 
         at = float(event.at)
         self.rec.set_time(TIMELINE, duration=at)
-        self.rec.log("events", rr.TextLog(event_text(getattr(event.kind, "value", event.kind), event.agents),
-                                          level="WARN"))
+        self.rec.log("events", rr.TextLog(event_text(event.name, event.agents), level="WARN"))
         pos = np.array(sim.world.pos, float)[None]
         separation = float(np.min(nearest_neighbour(replace(self.run, pos=pos))))
         if np.isfinite(separation):

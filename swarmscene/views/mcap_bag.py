@@ -32,7 +32,7 @@ Topics (each guidance tick unless told; "live only": not in a bag converted from
                                                                       condition's first violation (ERROR), the
                                                                       end of the run and the verdict lines
 
-Covariance: where the scenario declares sensing noise (``disturbances.<key>.kind: sensing_noise``)
+Covariance: where the scenario declares sensing noise (``disturbances.<key>.name: sensing_noise``)
 the pose covariance's x, y, z diagonal is the sum of the models' ``pos_std``^2 and the twist's
 linear diagonal the sum of their ``vel_std``^2 (the body frame's when the three deviations are
 equal, as in every shipped preset); orientation and angular entries are 0 (not modelled). The pose
@@ -108,8 +108,10 @@ def child_frame(i: int) -> str:
 def noise_deviations(config: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
     """(position variances (3,), velocity variances (3,)) summed over the scenario's
     ``sensing_noise`` models, or None when it declares none."""
-    found = [d for d in (config.get("disturbances") or {}).values()
-             if isinstance(d, dict) and d.get("kind") == "sensing_noise"]
+    from ..core.spelling import recorded_name  # a model's name, or its kind as recorded until 0.6.0
+
+    found = [d for key, d in (config.get("disturbances") or {}).items()
+             if isinstance(d, dict) and recorded_name(d, key) == "sensing_noise"]
     if not found:
         return None
     pos = sum((np.asarray(d.get("pos_std", [0, 0, 0]), float) ** 2 for d in found), np.zeros(3))
@@ -456,7 +458,7 @@ class McapRecorder:
         from .replay import event_text
 
         at = float(event.at)
-        self.writer.log(at, "WARN", event_text(getattr(event.kind, "value", event.kind), event.agents))
+        self.writer.log(at, "WARN", event_text(event.name, event.agents))
         self._failures(at, sim.world.pos, sim.world.healthy)
 
     def publish(self, run_dir: Path, sim: Any = None, result: Any = None) -> Path:

@@ -154,12 +154,14 @@ class RunData:
         The time is the scheduled event's (``events``) when one names the agent; the frames only
         bound it (an event at the start of a tick shows in the frame recorded at its end).
         """
+        from ..core.spelling import recorded_name  # an event's name, or its kind as recorded until 0.6.0
+
         scheduled: dict[int, list[float]] = {}
         for k, event in enumerate(self.config.get("events") or []):
             # a random event's time and agents are the run's draws (metrics events.<k>.*)
             agents = self.metrics.get(f"events.{k}.agents", event.get("agents", []))
             at = self.metrics.get(f"events.{k}.at", event.get("at"))
-            if event.get("kind") == "hover" and isinstance(agents, list) and isinstance(at, (int, float)):
+            if recorded_name(event) == "hover" and isinstance(agents, list) and isinstance(at, (int, float)):
                 for agent in agents:
                     scheduled.setdefault(int(agent), []).append(float(at))
         out = []

@@ -168,18 +168,21 @@ def rotation_matrices(quat: np.ndarray) -> np.ndarray:
     ], -2)
 
 
-def event_text(kind: Any, agents: Any) -> str:
-    """The event log's line for a scheduled event (``hover``, ``comm_loss``) of ``agents``."""
-    what = {"hover": "failed (hovers in place)", "comm_loss": "lost its radio"}.get(str(kind), str(kind))
+def event_text(name: Any, agents: Any) -> str:
+    """The event log's line for a scheduled event of kind ``name`` (``hover``, ``comm_loss``) of ``agents``."""
+    what = {"hover": "failed (hovers in place)", "comm_loss": "lost its radio"}.get(str(name), str(name))
     return f"agent {', '.join(str(a) for a in agents)}: {what}"
 
 
 def events(run: RunData) -> list[tuple[float, str, str]]:
-    """(time s, level, text) of every event of the run, in time order (module docstring)."""
+    """(time s, level, text) of every event of the run, in time order (module docstring); an event's
+    kind is its ``name``, or its ``kind`` in a run recorded until 0.6.0."""
+    from ..core.spelling import recorded_name
+
     out: list[tuple[float, str, str]] = []
     for event in run.config.get("events") or []:
         if float(event["at"]) <= float(run.t[-1]) + 1e-9:
-            out.append((float(event["at"]), "WARN", event_text(event.get("kind"), event.get("agents", []))))
+            out.append((float(event["at"]), "WARN", event_text(recorded_name(event), event.get("agents", []))))
     out += end_events(run)
     return sorted(out, key=lambda e: e[0])
 

@@ -40,12 +40,12 @@ def test_default_config_validates(data):
         (lambda d: d["formation"].update(name="nope"), "formation.name: unknown formation 'nope' (valid: "),
         (lambda d: d["formation"].update(waypoints=[]), "formation.waypoints: must have at least 1 item(s) (got [])"),
         (
-            lambda d: d.update(events=[{"at": 1.0, "agents": [9], "kind": "hover"}]),
+            lambda d: d.update(events=[{"at": 1.0, "agents": [9], "name": "hover"}]),
             "events.0.agents: agents are 0..4 (got [9])",
         ),
         (
-            lambda d: d.update(events=[{"at": 1.0, "agents": [0], "kind": "explode"}]),
-            "events.0.kind: unknown event kind 'explode' (valid: comm_loss, drift, hover, motor_failure, "
+            lambda d: d.update(events=[{"at": 1.0, "agents": [0], "name": "explode"}]),
+            "events.0.name: unknown event kind 'explode' (valid: comm_loss, drift, hover, motor_failure, "
             "stuck)",  # the registered kinds, one validate_choice line like every kind's
         ),
         (
@@ -134,7 +134,7 @@ VALUES = st.one_of(
     st.sampled_from([float("nan"), float("inf"), -float("inf"), 1e-9, 1e9]),
     st.sampled_from(["line", "grid", "circle", "v", "none", "potential", "single_integrator", "x", ""]),
     st.just([]),
-    st.just([{"at": 0.5, "agents": [1], "kind": "hover"}]),
+    st.just([{"at": 0.5, "agents": [1], "name": "hover"}]),
     st.none(),
 )
 

@@ -32,7 +32,7 @@ def hovering(data: dict, dynamics: str, duration: float, disturbances: dict, **d
 def test_several_models_compose_from_the_command_line():
     data = api.compose(["scenario=cem_six_vehicle", "disturbances=[dryden,packet_loss]",
                         "disturbances.dryden.speed=8"])
-    assert data["disturbances"] == {"dryden": {"kind": "dryden", "speed": 8}, "packet_loss": {"kind": "packet_loss"}}
+    assert data["disturbances"] == {"dryden": {"name": "dryden", "speed": 8}, "packet_loss": {"name": "packet_loss"}}
     scenario = api.load(data)
     assert scenario.data["disturbances"]["dryden"]["speed"] == 8.0
     assert scenario.data["disturbances"]["dryden"]["field"] == "shared"  # defaults recorded
@@ -52,8 +52,8 @@ def test_none_declared_leaves_the_record_as_it_was():
     ({"windy": {}}, "disturbances.windy: unknown disturbance model 'windy' (valid: battery, comm_delay, "
                     "constant_wind, downwash, drag, dryden, ground_effect, gust, packet_loss, radio, "
                     "sensing_noise)"),
-    ({"w": {"kind": "breeze"}}, "disturbances.w.kind: unknown disturbance model 'breeze'"),
-    ({"gps": {"kind": "sensing_noise", "pos_std": [1, -1, 1]}},
+    ({"w": {"name": "breeze"}}, "disturbances.w.name: unknown disturbance model 'breeze'"),
+    ({"gps": {"name": "sensing_noise", "pos_std": [1, -1, 1]}},
      "disturbances.gps.pos_std: each must be in [0, 1000] (got [1.0, -1.0, 1.0])"),
     ({"packet_loss": {"p": 1.5}}, "disturbances.packet_loss.p: must be <= 1.0 (got 1.5)"),
     ({"dryden": 3}, "disturbances.dryden: must be a mapping of options (got 3)"),

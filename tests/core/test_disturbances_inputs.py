@@ -37,7 +37,7 @@ def test_boundary_values_run_or_are_one_line(small, kind, name):
             data = copy.deepcopy(small)
             data["dynamics"] = {"name": dynamics}
             tuple_field = isinstance(MODELS[kind].Params.model_fields[name].default, tuple)
-            data["disturbances"] = {"m": {"kind": kind, name: [value] * 3 if tuple_field else value}}
+            data["disturbances"] = {"m": {"name": kind, name: [value] * 3 if tuple_field else value}}
             try:
                 api.run(data)
             except ConfigError as exc:

@@ -22,7 +22,7 @@ def probed(data: dict, noise: dict, ticks: int = 400, n: int = N, spacing: float
     data["dynamics"] = {"name": "single_integrator"}
     data["formation"] = {"name": "static_shape", "waypoints": [[0.0, 0.0, 5.0]]}
     data["termination"]["on_complete"] = False
-    data["disturbances"] = {"noise": {"kind": "sensing_noise", **noise}}
+    data["disturbances"] = {"noise": {"name": "sensing_noise", **noise}}
     sim = api.build(data)
     target = sim.world.pos.copy()
     seen, truth = [], []

@@ -14,7 +14,7 @@ from swarmscene.core.state import WorldState
 def falling(data: dict, floor, drifts: dict[int, float], duration: float = 8.0) -> dict:
     """The default scenario with agents drifting straight down from z = 2 m (a coasting failure)."""
     data["environment"]["floor"] = floor
-    data["events"] = [{"at": 0.5, "agents": [a], "kind": "drift", "velocity": [0.0, 0.0, -v]}
+    data["events"] = [{"at": 0.5, "agents": [a], "name": "drift", "velocity": [0.0, 0.0, -v]}
                       for a, v in drifts.items()]
     data["clock"]["duration"] = duration
     data["termination"]["on_complete"] = False
@@ -47,7 +47,7 @@ def test_a_healthy_vehicle_lands_below_the_touchdown_speed_and_may_lift_off():
     floor = Floor(0.0, 0.5, 0.1)
     floor.on_ground = np.zeros(3, dtype=bool)
     events = floor.meet(world)
-    assert [(e.kind, e.agents) for e in events] == [("crash", (1,))]
+    assert [(e.name, e.agents) for e in events] == [("crash", (1,))]
     assert world.pos[:, 2].tolist() == [0.0, 0.0, 1.0]
     assert world.vel[2].tolist() == [0.0, 0.0, -3.0]  # in the air: untouched
     assert floor.landings == 1 and floor.crashed == {1}

@@ -77,7 +77,7 @@ def test_clock_does_not_drift(data):
 
 
 def test_hover_failure_holds_position_and_is_seen_by_plugins(data):
-    data["events"] = [{"at": 1.0, "agents": [2], "kind": "hover"}]
+    data["events"] = [{"at": 1.0, "agents": [2], "name": "hover"}]
     data["termination"]["on_complete"] = False
     seen = []
     sim = api.build(short(data, 4.0))
@@ -85,7 +85,7 @@ def test_hover_failure_holds_position_and_is_seen_by_plugins(data):
     class Listener:
         @hookimpl
         def swarmscene_event(self, sim, event):
-            seen.append((round(sim.world.t, 6), event.agents, event.kind, bool(sim.world.healthy[2])))
+            seen.append((round(sim.world.t, 6), event.agents, event.name, bool(sim.world.healthy[2])))
 
     sim.pm.register(Listener())
     result = sim.run()
@@ -100,7 +100,7 @@ def test_hover_failure_holds_position_and_is_seen_by_plugins(data):
 
 
 def test_comm_loss_removes_agent_from_graph(data):
-    data["events"] = [{"at": 0.5, "agents": [1], "kind": "comm_loss"}]
+    data["events"] = [{"at": 0.5, "agents": [1], "name": "comm_loss"}]
     sim = api.build(short(data, 1.0))
     sim.run()
     assert not sim.world.comm_ok[1] and sim.world.healthy[1]
@@ -110,7 +110,7 @@ def test_comm_loss_removes_agent_from_graph(data):
 def test_disconnection_is_reported_with_time_and_agents(data):
     data["comm"]["range"] = 2.5  # grid spacing 2 m: connected at start
     data["swarm"]["start"]["kind"] = "line"
-    data["events"] = [{"at": 0.5, "agents": [2], "kind": "comm_loss"}]  # the middle of the line
+    data["events"] = [{"at": 0.5, "agents": [2], "name": "comm_loss"}]  # the middle of the line
     data["formation"]["shape"] = "line"
     result = api.run(short(data, 1.0))
     assert result.metrics["connected"] is False
@@ -212,7 +212,7 @@ def test_a_non_finite_state_stops_the_run_naming_the_agent_and_tick():
 def test_random_events_are_drawn_by_the_kernel_and_reported(data):
     """The kernel builds its queue from the scenario (EventQueue.from_scenario): a random event's
     drawn time and agents are applied and reported as events.<k>.* metrics."""
-    data["events"] = [{"at": {"uniform": [0.5, 1.5]}, "agents": {"sample": 2}, "kind": "hover"}]
+    data["events"] = [{"at": {"uniform": [0.5, 1.5]}, "agents": {"sample": 2}, "name": "hover"}]
     result = api.run(short(data, 2.0))
     at, agents = result.metrics["events.0.at"], result.metrics["events.0.agents"]
     assert 0.5 <= at <= 1.5 and len(agents) == 2

@@ -324,7 +324,7 @@ def test_sum_at_is_add_at():
 
 @pytest.mark.parametrize("agents", [[1, 2], [0, 3], [4]])
 def test_held_agents_stay_where_they_failed_whether_their_rows_are_a_run_or_not(data, agents):
-    data["events"] = [{"at": 1.0, "agents": agents, "kind": "hover"}]
+    data["events"] = [{"at": 1.0, "agents": agents, "name": "hover"}]
     data["termination"]["on_complete"] = False
     data["clock"]["duration"] = 3.0
     result = api.build(data).run()

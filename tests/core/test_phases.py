@@ -71,7 +71,7 @@ def test_events_fire_at_their_mission_times_after_a_takeoff(data):
     """A drift straight down from t = 0.5 s, 1 m/s, from 2 m: under the floor in the tick ending at
     2.5 s with a take-off as without one (tests/core/test_floor.py)."""
     data = phased(data, takeoff=2.0)
-    data["events"] = [{"at": 0.5, "agents": [0], "kind": "drift", "velocity": [0.0, 0.0, -1.0]}]
+    data["events"] = [{"at": 0.5, "agents": [0], "name": "drift", "velocity": [0.0, 0.0, -1.0]}]
     data["termination"]["on_complete"] = False
     data["clock"]["duration"] = 4.0
     m = api.run(data).metrics

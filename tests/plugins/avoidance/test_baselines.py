@@ -46,7 +46,7 @@ def test_swap_without_collision_everyone_arrives(method, n, dynamics):
 @pytest.mark.parametrize("method", METHODS)
 def test_failed_vehicle_is_a_static_obstacle(method):
     data = api.compose([*swap(method), "swarm.n=8"])
-    data["events"] = [{"at": 1.5, "agents": [0], "kind": "hover"}]  # on its way to the centre
+    data["events"] = [{"at": 1.5, "agents": [0], "name": "hover"}]  # on its way to the centre
     metrics = api.run(data).metrics
     assert metrics["healthy_at_end"] == 7
     assert_swap_succeeded(metrics)

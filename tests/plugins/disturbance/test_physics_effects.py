@@ -128,7 +128,7 @@ def test_a_dead_battery_is_an_event_and_the_vehicle_falls_onto_the_floor(data):
 
     sim.pm.register(Seen(), name="seen")
     m = sim.run().metrics
-    kinds = [(e.kind, e.agents) for e in events]
+    kinds = [(e.name, e.agents) for e in events]
     assert kinds[0] == ("battery_depleted", (0, 1))
     assert m["disturbances.battery.depleted"] == 2
     assert m["disturbances.battery.min_charge"] == 0.0  # drawn to empty, the terminal voltage held

@@ -29,7 +29,7 @@ def hover(data: dict, events: list, duration: float = 3.0, **clock):
 def test_all_rotors_dead_is_free_fall(data):
     """Four motor failures at t_f = 1 s: no thrust, no torque; from hover at rest
     z(t) = z(t_f) - g (t - t_f)^2 / 2 exactly (RK4 is exact for constant acceleration)."""
-    events = [{"at": 1.0, "agents": [0], "kind": "motor_failure", "rotor": r} for r in range(4)]
+    events = [{"at": 1.0, "agents": [0], "name": "motor_failure", "rotor": r} for r in range(4)]
     sim, target = hover(data, events, duration=3.0)
     zs, ts = [], []
     while sim.step_count < sim.total_steps:
@@ -49,7 +49,7 @@ def test_first_instant_after_a_rotor_failure(data, fraction):
     """Rotor 0 keeping fraction f of its thrust, at hover: in the first instant the thrust is
     (3 + f)/4 m g, so z'' = -(1 - f) g / 4, and the yaw drag torques leave (1 - f) k_D w_h^2 about
     +z (rotor 0 turns against +z in the FLU frame): omega_z' = (1 - f) k_D w_h^2 / J_z."""
-    sim, _ = hover(data, [{"at": 0.0, "agents": [0], "kind": "motor_failure", "rotor": 0,
+    sim, _ = hover(data, [{"at": 0.0, "agents": [0], "name": "motor_failure", "rotor": 0,
                            "fraction": fraction}])
     af = sim.dynamics.airframe
     h = sim.dynamics.params.max_step
@@ -66,7 +66,7 @@ def test_first_instant_after_a_rotor_failure(data, fraction):
 def test_a_dead_rotor_makes_it_spin_and_fall(data):
     """The controller, unaware, keeps its four-rotor allocation: without rotor 0 the yaw torque
     cannot be balanced and the lift not held level: the vehicle spins up and falls."""
-    sim, target = hover(data, [{"at": 0.5, "agents": [0], "kind": "motor_failure", "rotor": 0}])
+    sim, target = hover(data, [{"at": 0.5, "agents": [0], "name": "motor_failure", "rotor": 0}])
     sim.run()
     assert abs(sim.world.omega[0, 2]) > 10.0  # rad/s
     assert sim.world.pos[0, 2] < target[0, 2] - 1.0
@@ -74,13 +74,13 @@ def test_a_dead_rotor_makes_it_spin_and_fall(data):
 
 
 @pytest.mark.parametrize("dynamics, event, line", [
-    ("single_integrator", {"rotor": 0}, "events.0.kind: motor_failure needs a dynamics model with rotors "
+    ("single_integrator", {"rotor": 0}, "events.0.name: motor_failure needs a dynamics model with rotors "
                                         "(dynamics 'single_integrator' has none; e.g. dynamics=quadrotor)"),
     ("quadrotor", {"rotor": 4}, "events.0.rotor: must be < 4, the rotors of dynamics 'quadrotor' (got 4)"),
 ])
 def test_motor_failure_needs_a_rotor_the_dynamics_has(data, dynamics, event, line):
     data["dynamics"] = {"name": dynamics}
-    data["events"] = [{"at": 1.0, "agents": [0], "kind": "motor_failure", **event}]
+    data["events"] = [{"at": 1.0, "agents": [0], "name": "motor_failure", **event}]
     with pytest.raises(ConfigError) as exc:
         api.load(data)
     assert exc.value.lines == [line]

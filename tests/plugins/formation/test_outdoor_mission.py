@@ -41,7 +41,7 @@ def failure():
 
 def test_comm_loss_agent_disappears_from_the_others_maps():
     sim = build(["scenario=outdoor_square", *QUIET],
-                [{"at": 30.0, "agents": [4], "kind": "comm_loss"}])
+                [{"at": 30.0, "agents": [4], "name": "comm_loss"}])
     run_to(sim, 30.0 + T_MSG - 0.3)
     others = np.arange(8) != 4
     assert sim.formation.mission.map.present[others, 4].all()  # still within T_msg
@@ -88,7 +88,7 @@ def test_multi_hop_maps_still_complete_the_mission_safely():
 
 def test_a_lone_leader_aborts_after_T_led_and_the_cut_off_follower_stops_after_T_fol():
     sim = build(["scenario=outdoor_square", "swarm.n=2", "swarm.leader=0", *QUIET, "clock.duration=30"],
-                [{"at": 0.0, "agents": [1], "kind": "comm_loss"}])
+                [{"at": 0.0, "agents": [1], "name": "comm_loss"}])
     run_to(sim, T_LED - 0.2)
     assert sim.formation.mission.task[0] == Task.LEAD and not sim.formation.mission.leader.aborted
     run_to(sim, T_LED + 0.2)
