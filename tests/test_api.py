@@ -69,7 +69,7 @@ def test_sweep_refuses_a_bad_grid_before_any_job_and_records_failed_jobs(tmp_pat
 def test_sweep_names_an_unknown_launcher_in_one_line():
     with pytest.raises(ConfigError) as err:
         api.sweep({"seed": [0]}, launcher="slurm")
-    assert err.value.lines == ["launcher: must be one of basic, pool, joblib, ray, submitit_slurm (got 'slurm')"]
+    assert err.value.lines == ["launcher: must be one of basic, pool, batch, joblib, ray, submitit_slurm (got 'slurm')"]
 
 
 @pytest.mark.parametrize(("overrides", "line"), [
