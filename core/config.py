@@ -23,6 +23,7 @@ from .events import EventConfig
 from .fields import MAX_DURATION, MAX_LENGTH, Coordinate, Point2, Point3, StrictModel
 from .obstacles import CircleObstacle, EnvironmentConfig, Obstacle, PolygonObstacle, WallObstacle
 from .plugin import PluginParams
+from .spelling import KIND_UNTIL, START_RENAMES
 from .task import TaskConfig
 
 _Strict = StrictModel  # the schema's sections below; other modules own theirs (events, obstacles)
@@ -55,7 +56,7 @@ MAX_PERIOD = 3600.0
 class StartConfig(_Strict):
     """Initial positions of the swarm.
 
-    kinds: ``line`` (along +y through ``center``, ``spacing`` apart), ``grid`` (square-ish grid,
+    layouts: ``line`` (along +y through ``center``, ``spacing`` apart), ``grid`` (square-ish grid,
     ``spacing`` apart, centred on ``center``), ``circle`` (agent k at angle ``2 pi k / n`` on a ring
     of ``radius``, or of ``spacing * n / (2 pi)`` when ``radius`` is null),
     ``explicit`` (``positions``, one [x, y, z] per agent), ``random`` (uniform in a square of side
@@ -64,19 +65,28 @@ class StartConfig(_Strict):
     connected, the "random eligible initial state" of the thesis' section 5.4).
     """
 
-    kind: Literal["line", "grid", "circle", "explicit", "random"] = Field(
-        "grid", description="layout: line | grid | circle | explicit | random (see above)"
+    layout: Literal["line", "grid", "circle", "explicit", "random"] = Field(
+        "grid", description="line | grid | circle | explicit | random (see above); swarm.start.kind, its old "
+        "key, is read until 0.9.0"
     )
     spacing: float = Field(2.0, gt=0, le=MAX_LENGTH, description="distance between neighbours, m")
     center: Point3 = Field((0.0, 0.0, 1.0), description="[x, y, z] of the swarm's centre, m")
-    extent: float = Field(10.0, gt=0, le=MAX_LENGTH, description="side of the square for kind=random, m")
+    extent: float = Field(10.0, gt=0, le=MAX_LENGTH, description="side of the square for layout=random, m")
     radius: float | None = Field(
-        None, gt=0, le=MAX_LENGTH, description="for kind=circle: ring radius, m (null: spacing * n / (2 pi))"
+        None, gt=0, le=MAX_LENGTH, description="for layout=circle: ring radius, m (null: spacing * n / (2 pi))"
     )
-    positions: list[Point3] = Field(default_factory=list, description="for kind=explicit, m")
+    positions: list[Point3] = Field(default_factory=list, description="for layout=explicit, m")
     connected: bool = Field(
-        False, description="for kind=random: redraw until the comm graph (comm.range) is connected"
+        False, description="for layout=random: redraw until the comm graph (comm.range) is connected"
     )
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _layout_was_kind(cls, data: Any, handler: Any) -> Any:
+        """``swarm.start.kind`` still chooses the layout until 0.9.0, with a warning: ``kind`` now
+        means only a plugin's kind (:mod:`.spelling`). Given with ``layout`` (an old command line
+        over a new file), ``kind`` wins."""
+        return validate_renamed(data, handler, START_RENAMES, "swarm.start", until=KIND_UNTIL)
 
 
 class SwarmConfig(_Strict):
@@ -328,7 +338,7 @@ class ScenarioConfig(_Strict):
     @model_validator(mode="after")
     def _explicit_positions_match_n(self) -> ScenarioConfig:
         start = self.swarm.start
-        if start.kind == "explicit" and len(start.positions) != self.swarm.n:
+        if start.layout == "explicit" and len(start.positions) != self.swarm.n:
             raise ValueError(
                 f"swarm.start.positions: must list swarm.n = {self.swarm.n} positions "
                 f"(got {len(start.positions)})"

@@ -18,11 +18,13 @@ positions or any other random part.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 from pydantic import Field, TypeAdapter, model_serializer, model_validator
 
+from .errors import SwarmsceneDeprecationWarning
 from .fields import MAX_LENGTH, StrictModel, key_error
 
 EVENTS_STREAM = 0x6576
@@ -54,19 +56,19 @@ class Draw(StrictModel):
 
     @model_validator(mode="after")
     def _one_distribution(self) -> Draw:
-        given = self.kinds()
+        given = self.families()
         if len(given) != 1:
             raise ValueError(
                 f"give exactly one distribution, one of {', '.join(type(self).model_fields)}"
             )
-        for kind, bad, rule in (
+        for family, bad, rule in (
             ("uniform", lambda p: p[0] > p[1], "[low, high] with low <= high"),
             ("normal", lambda p: p[1] < 0, "[mean, std] with std >= 0"),
             ("lognormal", lambda p: p[1] < 0, "[mu, sigma] with sigma >= 0"),
         ):
-            value = getattr(self, kind)
+            value = getattr(self, family)
             if value is not None and bad(value):
-                raise key_error(kind, f"must be {rule}", list(value))
+                raise key_error(family, f"must be {rule}", list(value))
         return self
 
     @model_serializer(mode="wrap")
@@ -74,44 +76,57 @@ class Draw(StrictModel):
         """Recorded as written: ``{uniform: [2, 20]}``, without the other keys' nulls."""
         return {k: v for k, v in handler(self).items() if v is not None}
 
+    @property
+    def kind(self) -> str:
+        """Deprecated alias of :attr:`family` (until 0.9.0: ``kind`` names a plugin's kind only)."""
+        warnings.warn("Draw.kind is deprecated: read Draw.family (kind is removed in 0.9.0)",
+                      SwarmsceneDeprecationWarning, stacklevel=2)
+        return self.family
+
     def kinds(self) -> list[str]:
+        """Deprecated alias of :meth:`families` (until 0.9.0)."""
+        warnings.warn("Draw.kinds() is deprecated: call Draw.families() (kinds is removed in 0.9.0)",
+                      SwarmsceneDeprecationWarning, stacklevel=2)
+        return self.families()
+
+    def families(self) -> list[str]:
         """The distribution keys given (one, once validated)."""
         return [k for k in type(self).model_fields if getattr(self, k) is not None]
 
     @property
-    def kind(self) -> str:
-        """The one distribution key given (``uniform``, ``normal``, ...)."""
-        return self.kinds()[0]
+    def family(self) -> str:
+        """The one distribution key given, its family (``uniform``, ``normal``, ...)."""
+        return self.families()[0]
 
     def support(self) -> tuple[float, float]:
         """Smallest and largest value a draw can take."""
-        kind = self.kind
-        value = getattr(self, kind)
-        if kind == "uniform":
+        family = self.family
+        value = getattr(self, family)
+        if family == "uniform":
             return float(value[0]), float(value[1])
-        if kind == "choice":
+        if family == "choice":
             return float(min(value)), float(max(value))
-        if kind == "normal" and value[1] == 0:
+        if family == "normal" and value[1] == 0:
             return float(value[0]), float(value[0])
-        return (0.0 if kind in ("lognormal", "exponential") else -np.inf), np.inf
+        return (0.0 if family in ("lognormal", "exponential") else -np.inf), np.inf
 
     def positive(self) -> bool:
         """Whether every draw is > 0 (sizes)."""
-        if self.kind in ("lognormal", "exponential"):
+        if self.family in ("lognormal", "exponential"):
             return True
-        return self.kind != "normal" and self.support()[0] > 0
+        return self.family != "normal" and self.support()[0] > 0
 
     def sample(self, rng: np.random.Generator, size: int | None = None) -> Any:
         """One value (``size`` None) or an array of ``size`` values drawn with ``rng``."""
-        kind = self.kind
-        value = getattr(self, kind)
-        if kind == "uniform":
+        family = self.family
+        value = getattr(self, family)
+        if family == "uniform":
             return rng.uniform(value[0], value[1], size)
-        if kind == "normal":
+        if family == "normal":
             return rng.normal(value[0], value[1], size)
-        if kind == "lognormal":
+        if family == "lognormal":
             return rng.lognormal(value[0], value[1], size)
-        if kind == "exponential":
+        if family == "exponential":
             return rng.exponential(value, size)
         picks = rng.integers(len(value), size=size)
         return np.asarray(value, dtype=float)[picks]

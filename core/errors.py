@@ -32,18 +32,22 @@ class SwarmsceneDeprecationWarning(DeprecationWarning):
     category, each distinct warning once, so a user meets it before the name is removed."""
 
 
-def validate_renamed(data: Any, handler: Callable[[Any], Any], renames: dict[str, str], prefix: str) -> Any:
+def validate_renamed(data: Any, handler: Callable[[Any], Any], renames: dict[str, str], prefix: str,
+                     until: str | None = None) -> Any:
     """Validate ``data`` (a pydantic ``wrap`` model validator's input) whose deprecated keys are
-    renamed first (``renames``: old -> new), each with a :class:`SwarmsceneDeprecationWarning`; an
-    old key given wins over the new one's default. A value given under an old name that does not
-    validate is reported under the name the user typed, with the new one
-    (``avoidance.n (now avoidance.newton_iterations): must be >= 1``), not under a key they never wrote."""
+    renamed first (``renames``: old -> new), each with a :class:`SwarmsceneDeprecationWarning` (saying
+    the release ``until`` which the old key is read, when given); an old key given wins over the new
+    one's value, so that an old command line still overrides a file written in the new spelling. A
+    value given under an old name that does not validate is reported under the name the user typed,
+    with the new one (``avoidance.n (now avoidance.newton_iterations): must be >= 1``), not under a
+    key they never wrote."""
     if not isinstance(data, dict) or not any(old in data for old in renames):
         return handler(data)
     data, typed = dict(data), {}
     for old, new in renames.items():
         if old in data:
-            warnings.warn(f"{prefix}.{old} is deprecated: write {prefix}.{new}", SwarmsceneDeprecationWarning,
+            last = f" ({old} is accepted until {until})" if until else ""
+            warnings.warn(f"{prefix}.{old} is deprecated: write {prefix}.{new}{last}", SwarmsceneDeprecationWarning,
                           stacklevel=4)
             data[new] = data.pop(old)
             typed[new] = old

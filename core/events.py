@@ -14,7 +14,7 @@ Each ``name`` is a registered event kind (:class:`EventKindPlugin`, hook ``swarm
 chosen from the registry a validation is given (``context={"registry": ...}``); the engine lists
 none. The five above are built-in plugins (``plugins/event/``), registered like a package's own;
 each kind's fields beside ``at``, ``agents`` and ``name`` are validated by its ``Params``. The
-spelling ``kind`` of ``name`` is read until 0.8.0, with a deprecation warning (:mod:`.spelling`).
+spelling ``kind`` of ``name`` is read until 0.9.0, with a deprecation warning (:mod:`.spelling`).
 
 The kernel applies an event at the first guidance tick whose time reaches ``at`` (the events phase),
 changes the world state, then calls the ``swarmscene_event`` hook so plugins can react; after the
@@ -89,7 +89,7 @@ class EventConfig(StrictModel):
     name: str = Field(
         description="a registered event kind: hover, comm_loss, stuck, drift, motor_failure (the "
         "built-in plugins) or a package's; each kind's own keys are listed under \"Event kinds\" "
-        "(kind, its spelling until 0.6.0, is read until 0.8.0 with a warning)"
+        "(kind, its spelling until 0.6.0, is read until 0.9.0 with a warning)"
     )
 
     @field_validator("at", mode="wrap")
@@ -167,7 +167,7 @@ class EventConfig(StrictModel):
 
     @property
     def kind(self) -> str:
-        """Deprecated name of :attr:`name` (read until 0.8.0)."""
+        """Deprecated name of :attr:`name` (read until 0.9.0)."""
         warnings.warn("EventConfig.kind is deprecated: read EventConfig.name", SwarmsceneDeprecationWarning,
                       stacklevel=2)
         return self.name
@@ -314,7 +314,7 @@ class Event:
         at: time at which it happens, s (applied at the first guidance tick with t >= at).
         agents: indices of the agents it hits.
         name: the kind's registered name (``"hover"``); ``kind`` is its deprecated alias (read
-            until 0.8.0).
+            until 0.9.0).
         params: the kind's validated Params (its own fields: a drift's ``velocity``), read also as
             the event's attributes (``event.velocity``).
         kind_class: the kind's :class:`EventKindPlugin` (what the event does).
@@ -328,9 +328,9 @@ class Event:
 
     @property
     def kind(self) -> str:
-        """Deprecated name of :attr:`name` (read until 0.8.0)."""
+        """Deprecated name of :attr:`name` (read until 0.9.0)."""
         warnings.warn("Event.kind is deprecated: read Event.name (the kind's registered name; "
-                      "Event.kind is read until 0.8.0)", SwarmsceneDeprecationWarning, stacklevel=2)
+                      "Event.kind is read until 0.9.0)", SwarmsceneDeprecationWarning, stacklevel=2)
         return self.name
 
     def __getattr__(self, name: str) -> Any:

@@ -48,18 +48,18 @@ def initial_positions(config: Any, rng: np.random.Generator) -> np.ndarray:
     start, n = config.swarm.start, config.swarm.n
     center = np.asarray(start.center, dtype=float)
     s = start.spacing
-    if start.kind == "explicit":
+    if start.layout == "explicit":
         return np.asarray(start.positions, dtype=float)
-    if start.kind == "line":
+    if start.layout == "line":
         offsets = np.zeros((n, 3))
         offsets[:, 1] = (np.arange(n) - (n - 1) / 2) * s
-    elif start.kind == "grid":
+    elif start.layout == "grid":
         cols = math.ceil(math.sqrt(n))
         k = np.arange(n)
         offsets = np.zeros((n, 3))
         offsets[:, 0] = (k // cols - (math.ceil(n / cols) - 1) / 2) * s
         offsets[:, 1] = (k % cols - (cols - 1) / 2) * s
-    elif start.kind == "circle":
+    elif start.layout == "circle":
         radius = start.radius if start.radius is not None else s * n / (2 * math.pi)
         radius = radius if n > 1 else 0.0
         angle = 2 * math.pi * np.arange(n) / n

@@ -15,6 +15,12 @@ Until 0.6.0 those two were spelt ``kind``. Three places still meet that spelling
 * a hash (:func:`canonical_names`): the config hash of a run and the definitions of a frozen
   benchmark suite (``swarmscene/suite/v1.json``) key the plugin name ``kind``, as they were first
   hashed, so a spelling changes no hash and a task means what it meant.
+
+``kind`` had a third meaning until 0.7.x, the swarm's start layout. It is ``swarm.start.layout``
+now (``line``, ``grid``, ``circle``, ``explicit``, ``random``); ``swarm.start.kind`` is read until
+:data:`KIND_UNTIL` (:class:`~.config.StartConfig`, with one deprecation line) and hashed as
+``kind`` by :func:`canonical_names`, like the plugin names. So ``kind`` means one thing, the kind
+of a plugin (formation, avoidance, dynamics, event, ...).
 """
 
 from __future__ import annotations
@@ -28,15 +34,20 @@ NAME = "name"
 """The key of a chosen plugin's name, for every kind."""
 KIND = "kind"
 """Its older spelling for an event's kind and a disturbance model (until :data:`KIND_UNTIL`)."""
-KIND_UNTIL = "0.8.0"
-"""The release that no longer reads ``kind``."""
+KIND_UNTIL = "0.9.0"
+"""The release that no longer reads ``kind`` in its old meanings (a plugin's name, the start layout)."""
+
+LAYOUT = "layout"
+"""The key of the swarm's start layout (``swarm.start.layout``)."""
+START_RENAMES = {KIND: LAYOUT}
+"""The start layout's old key -> its key (read by :class:`~.config.StartConfig`)."""
 
 
 def renamed_kind(node: Any, where: str) -> Any:
     """An event's or a disturbance model's config ``node`` with its plugin name under ``name``.
 
     ``kind`` given alone is renamed, with the warning ``<where>.kind is deprecated: write
-    <where>.name (kind is accepted until 0.8.0)``; anything that is not a mapping, or has no
+    <where>.name (kind is accepted until 0.9.0)``; anything that is not a mapping, or has no
     ``kind``, is returned as it is.
 
     Raises:
@@ -64,12 +75,20 @@ def recorded_name(node: Any, default: Any = None) -> Any:
 
 def canonical_names(config: Any) -> Any:
     """``config`` (composed or recorded) with each event's and each disturbance model's plugin name
-    keyed ``kind``, as run records and suite definitions were first hashed: the form every hash and
-    every comparison with a frozen definition reads, whichever spelling a file has. A node giving
-    both keys is left as it is (validation refuses it). ``config`` itself is not changed."""
+    keyed ``kind``, and the start layout ``swarm.start.kind``, as run records and suite definitions
+    were first hashed: the form every hash and every comparison with a frozen definition reads,
+    whichever spelling a file has. An event or a model giving both keys is left as it is (validation
+    refuses it); a start giving both keeps ``kind``, which validation reads. ``config`` itself is
+    not changed."""
     if not isinstance(config, dict):
         return config
     out = dict(config)
+    swarm = config.get("swarm")
+    if isinstance(swarm, dict) and isinstance(swarm.get("start"), dict):
+        start = swarm["start"]
+        if LAYOUT in start:  # with both, kind wins (an old command line over a new file)
+            keyed = {(KIND if k == LAYOUT else k): v for k, v in start.items() if not (k == LAYOUT and KIND in start)}
+            out["swarm"] = {**swarm, "start": keyed}
     events = config.get("events")
     if isinstance(events, list):
         out["events"] = [_kind_keyed(e) for e in events]

@@ -1,5 +1,5 @@
 """Moved: ``swarmscene.docgen`` is :mod:`swarmscene.tools.docgen` since 0.7.0 (the application's wings,
-issue #35). This name, ``python -m swarmscene.docgen`` included, works until 0.8.0 with a warning."""
+issue #35). This name, ``python -m swarmscene.docgen`` included, works until 0.9.0 with a warning."""
 
 import sys
 import warnings
@@ -8,8 +8,8 @@ from .tools import docgen as _moved
 
 OLD, NEW = "swarmscene.docgen", "swarmscene.tools.docgen"
 if __name__ == "__main__":
-    print(f"swarmscene: python -m {OLD} is python -m {NEW} now; the old name works until 0.8.0", file=sys.stderr)
+    print(f"swarmscene: python -m {OLD} is python -m {NEW} now; the old name works until 0.9.0", file=sys.stderr)
     _moved.main()
 else:  # the old import name is the moved module itself
-    warnings.warn(f"{OLD} moved to {NEW}; the old name works until 0.8.0", FutureWarning, stacklevel=2)
+    warnings.warn(f"{OLD} moved to {NEW}; the old name works until 0.9.0", FutureWarning, stacklevel=2)
     sys.modules[__name__] = _moved

@@ -136,7 +136,7 @@ def __getattr__(name: str) -> Any:
     """``EventKind``, deprecated: the built-in kinds' names as an enum, for one more release.
 
     An event's kind is its registered name, a plain ``str`` (``event.name == "hover"``; ``event.kind``
-    is its deprecated alias, read until 0.8.0); what a plugin needs to know of a kind is a property
+    is its deprecated alias, read until 0.9.0); what a plugin needs to know of a kind is a property
     the kind declares (``event.behaviour.failure``, ``.motion``, ``.stays_where_failed``, ``.rotor_fault``)."""
     if name != "EventKind":
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

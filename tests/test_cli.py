@@ -63,7 +63,7 @@ def test_default_scenario_writes_run_directory(tmp_path):
         (["clock.duration=1e12"], "swarmscene: clock.duration: must be <= 1000000000.0 (got 1000000000000.0)"),
         (["clock.duration=1e8"], "swarmscene: clock.duration: at most 10000000 guidance ticks of "
                                  "clock.guidance_period = 0.1 s (got 100000000.0: 1e+09 ticks)"),
-        (["swarm.start.kind=random", "swarm.n=100000"], "swarmscene: swarm.start: cannot place 100000 agents 2.0 m "
+        (["swarm.start.layout=random", "swarm.n=100000"], "swarmscene: swarm.start: cannot place 100000 agents 2.0 m "
                                                          "apart in a 10.0 m square (at most 39 fit; raise swarm.start.extent)"),
         (["swarm.n=100000"], "swarmscene: formation: 'static_shape' cannot be built for this scenario "
                              "(swarm.n = 100000): MemoryError: Unable to allocate"),

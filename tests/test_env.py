@@ -78,7 +78,7 @@ def test_a_failed_agent_is_terminated_alone_and_leaves_agents():
 
 
 def test_seeded_reset_repeats_and_another_seed_differs():
-    env = make_env(["swarm.start.kind=random", "swarm.start.spacing=1.0", *SHORT])
+    env = make_env(["swarm.start.layout=random", "swarm.start.spacing=1.0", *SHORT])
     first, _ = env.reset(seed=5)
     again, _ = env.reset(seed=5)
     other, _ = env.reset(seed=6)
@@ -140,7 +140,7 @@ def test_velocity_and_acceleration_actions_through_the_dynamics():
 def test_reward_is_progress_minus_the_safety_penalties():
     # Progress: a reference that jumps to (3, 4, 1) at the second tick (formation speed 1000 m/s);
     # the agent at the origin flies 0.1 m straight at it: progress 0.1, effort 0.5 |a|^2 = 0.125.
-    env = make_gym_env([*ALONE, "swarm.start.kind=explicit", "swarm.start.positions=[[0,0,1]]",
+    env = make_gym_env([*ALONE, "swarm.start.layout=explicit", "swarm.start.positions=[[0,0,1]]",
                         "formation.waypoints=[[3,4,1]]", "formation.speed=1000", "avoidance=policy",
                         "avoidance.max_speed=2"], {"reward": {"progress": 1.0, "effort": 0.5}})
     env.reset(seed=0)
@@ -150,7 +150,7 @@ def test_reward_is_progress_minus_the_safety_penalties():
     np.testing.assert_allclose(env.driver.episode.policy.reference.pos, [[3.0, 4.0, 1.0]])
     assert reward == pytest.approx(0.1 - 0.125, abs=1e-7)  # the action is float32
     # Separation: two agents 0.3 m apart (safety.separation_limit 0.5) cost 10 each per tick.
-    env = make_env(["swarm.n=2", "swarm.start.kind=line", "swarm.start.spacing=0.3", "safety.start_overlap=warn",
+    env = make_env(["swarm.n=2", "swarm.start.layout=line", "swarm.start.spacing=0.3", "safety.start_overlap=warn",
                     "environment=open", *SHORT], {"reward": {"progress": 0.0}})
     env.reset(seed=0)
     _, rewards, *_ = env.step({a: np.zeros(3, dtype=np.float32) for a in env.agents})
@@ -158,7 +158,7 @@ def test_reward_is_progress_minus_the_safety_penalties():
 
 
 def test_collision_ends_the_episode_with_termination_on_collision():
-    env = make_env(["swarm.n=2", "swarm.start.kind=line", "swarm.start.spacing=0.3", "safety.start_overlap=warn",
+    env = make_env(["swarm.n=2", "swarm.start.layout=line", "swarm.start.spacing=0.3", "safety.start_overlap=warn",
                     "environment=open", "termination.on_collision=true", *SHORT])
     env.reset(seed=0)
     _, _, terms, truncs, infos = env.step({a: np.zeros(3, dtype=np.float32) for a in env.agents})

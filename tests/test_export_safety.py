@@ -43,7 +43,7 @@ def stacked(tmp_path_factory):
     """Two vehicles hovering 0.2 m one above the other for 2 s (separation limit 0.1 m: only the
     keep-out ellipsoid, 0.3 m tall, is broken), written."""
     run_dir = tmp_path_factory.mktemp("stacked") / "run"
-    sim = api.build(["swarm.n=2", "swarm.leader=null", "swarm.start.kind=explicit",
+    sim = api.build(["swarm.n=2", "swarm.leader=null", "swarm.start.layout=explicit",
                      "swarm.start.positions=[[0,0,1],[0,0,1.2]]", "safety.separation_limit=0.1",
                      "avoidance=none", "dynamics=single_integrator", "clock.duration=2", "output.summary=false"])
     target = sim.world.pos.copy()
@@ -132,7 +132,7 @@ def test_the_runs_floor_is_where_an_unplaced_take_off_starts(tmp_path, capsys):
     import yaml
 
     run_dir = tmp_path / "run"
-    sim = api.build(["swarm.n=2", "swarm.leader=null", "swarm.start.kind=explicit",
+    sim = api.build(["swarm.n=2", "swarm.leader=null", "swarm.start.layout=explicit",
                      "swarm.start.positions=[[0,0,1.5],[1,0,1.5]]", "environment.floor=0.5", "avoidance=none",
                      "dynamics=single_integrator", "clock.duration=2", "output.summary=false"])
     target = sim.world.pos.copy()

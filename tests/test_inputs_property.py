@@ -203,7 +203,7 @@ def test_a_run_that_does_not_fit_in_memory_is_refused_before_it_is_built(monkeyp
     from swarmscene.core import resources
 
     monkeypatch.setattr(resources, "machine_memory", lambda: 2**29)
-    data = api.compose(["swarm.n=100000", "swarm.start.kind=line"])
+    data = api.compose(["swarm.n=100000", "swarm.start.layout=line"])
     expected = 256 * 2**20 + 100_000 * 16 * 1024 + 8 * 450 + 54 * 100_000 * 49 + 8 * 451
     with pytest.raises(ConfigError) as info:
         api.run(data)

@@ -206,7 +206,7 @@ room and rooms below it (a larger number) only: nothing below the entry points i
 ``cli``, and two rooms on one level do not import each other."""
 
 MOVED = {"export": "views", "replay": "views", "docgen": "tools", "schema": "tools", "compile": "tools"}
-"""Top-level names of modules moved into rooms in 0.7.0, kept as forwarding modules until 0.8.0."""
+"""Top-level names of modules moved into rooms in 0.7.0, kept as forwarding modules until 0.9.0."""
 
 
 def _room(module: str) -> str:
@@ -266,7 +266,7 @@ def test_a_moved_modules_old_name_only_forwards(old, room):
         module = importlib.import_module(f"swarmscene.{old}")
     assert module is importlib.import_module(f"swarmscene.{room}.{old}")
     assert [str(w.message) for w in seen if w.category is FutureWarning] == [
-        f"swarmscene.{old} moved to swarmscene.{room}.{old}; the old name works until 0.8.0"]
+        f"swarmscene.{old} moved to swarmscene.{room}.{old}; the old name works until 0.9.0"]
     assert len((ROOT / "swarmscene" / f"{old}.py").read_text().splitlines()) <= 16
 
 

@@ -17,7 +17,7 @@ from swarmscene.core.errors import ConfigError
 from swarmscene.core.obstacles import EnvironmentConfig
 
 POSTS = "swarmscene_allkinds.plugin"
-BASE = ["environment=open", "swarm.n=3", "swarm.start.kind=line", "clock.duration=1"]
+BASE = ["environment=open", "swarm.n=3", "swarm.start.layout=line", "clock.duration=1"]
 
 
 class _EntryPoint:

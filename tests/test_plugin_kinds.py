@@ -198,7 +198,7 @@ def test_the_event_kind_check_refuses_each_broken_rule():
     class Clash(EventParams):
         agents: int = Field(1, description="clashes")
 
-    class KindClash(EventParams):  # the old spelling of name, read until 0.8.0
+    class KindClash(EventParams):  # the old spelling of name, read until 0.9.0
         kind: str = Field("x", description="clashes")
 
     class Undescribed(EventParams):
@@ -436,7 +436,7 @@ def test_a_package_registers_one_of_every_kind_and_each_passes_its_check(allkind
 
 
 def _composed(**sections):
-    data = api.compose(["swarm.n=3", "swarm.start.kind=line", "environment=open", "clock.duration=2"])
+    data = api.compose(["swarm.n=3", "swarm.start.layout=line", "environment=open", "clock.duration=2"])
     data.update({k: v for k, v in sections.items()})
     return data
 
@@ -467,7 +467,7 @@ def test_the_package_flies_in_a_batch_of_worlds_as_alone(allkinds):
     data = _composed(formation={"name": "ak_climb", "height": 0.0}, avoidance={"name": "ak_damped"},
                      dynamics={"name": "ak_point"}, disturbances={"up": {"name": "ak_updraft", "speed": 0.5}},
                      events=[{"at": 0.5, "agents": [1], "name": "ak_freeze", "keep": 0.0}],
-                     swarm={"n": 3, "start": {"kind": "random", "extent": 6.0}})
+                     swarm={"n": 3, "start": {"layout": "random", "extent": 6.0}})
     batched = api.run_batch(data, [3, 4])
     for seed, result in zip([3, 4], batched, strict=True):
         alone = api.run(api.load({**data, "seed": seed}, allkinds[1]))

@@ -1,8 +1,9 @@
-"""Run directories recorded before the one spelling of a plugin's name (issue #35): their
-``config.yaml`` keys an event's kind and a disturbance model ``kind``. Every reader takes either
-spelling: such a directory plots, replays, exports and scores as the same run recorded with
-``name``, has the same config hash, and runs again from the command line (one deprecation line per
-key, the new record spelt ``name``)."""
+"""Run directories recorded before ``kind`` had one meaning (issue #35): their ``config.yaml`` keys
+an event's kind and a disturbance model ``kind`` (until 0.6.0), and the start layout
+``swarm.start.kind`` (until 0.7.0). Every reader takes either spelling: such a directory plots,
+replays, exports and scores as the same run recorded with ``name`` and ``layout``, has the same
+config hash, and runs again from the command line (one deprecation line per key, the new record
+spelt ``name`` and ``layout``)."""
 
 from __future__ import annotations
 
@@ -27,10 +28,13 @@ TASK = ["task=resil_lead_fails", "avoidance=orca", "seed=0", "output.summary=fal
 
 
 def spelt_kind(config: dict) -> dict:
-    """``config`` as 0.6.0 recorded it: each event's and disturbance model's name under ``kind``."""
+    """``config`` as 0.6.0 recorded it: each event's and disturbance model's name under ``kind``,
+    and the start layout too."""
     old = json.loads(json.dumps(config))
     for node in [*old.get("events", []), *old.get("disturbances", {}).values()]:
         node["kind"] = node.pop("name")
+    start = old["swarm"]["start"]
+    old["swarm"]["start"] = {("kind" if k == "layout" else k): v for k, v in start.items()}
     return old
 
 
@@ -50,6 +54,8 @@ def test_the_record_is_spelt_name_and_an_old_one_kind(runs):
     assert new["events"] == [{"at": 2.0, "agents": [0], "name": "hover"}]
     assert new["disturbances"]["mocap"]["name"] == "sensing_noise" and "kind" not in new["disturbances"]["mocap"]
     assert old["events"] == [{"at": 2.0, "agents": [0], "kind": "hover"}]
+    assert new["swarm"]["start"]["layout"] == old["swarm"]["start"]["kind"] == "explicit"
+    assert "kind" not in new["swarm"]["start"] and "layout" not in old["swarm"]["start"]
     manifest = json.loads((runs[0] / "manifest.json").read_text())
     assert config_hash(new) == config_hash(old) == manifest["config_hash"]
 
@@ -83,10 +89,14 @@ def test_an_old_run_directory_runs_again_with_one_deprecation_line_per_key(runs,
                           cwd=tmp_path, capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode == 0, proc.stderr
     for key in ("events.0", "disturbances.mocap"):
-        line = f"SwarmsceneDeprecationWarning: {key}.kind is deprecated: write {key}.name (kind is accepted until 0.8.0)"
+        line = f"SwarmsceneDeprecationWarning: {key}.kind is deprecated: write {key}.name (kind is accepted until 0.9.0)"
         assert proc.stderr.count(line) == 1, proc.stderr
+    line = ("SwarmsceneDeprecationWarning: swarm.start.kind is deprecated: write swarm.start.layout "
+            "(kind is accepted until 0.9.0)")
+    assert proc.stderr.count(line) == 1, proc.stderr
     again = yaml.safe_load((tmp_path / "again" / "config.yaml").read_text())
     assert again["events"] == [{"at": 2.0, "agents": [0], "name": "hover"}]
+    assert again["swarm"]["start"]["layout"] == "explicit" and "kind" not in again["swarm"]["start"]
     manifest = json.loads((tmp_path / "again" / "manifest.json").read_text())
     assert manifest["config_hash"] == json.loads((runs[0] / "manifest.json").read_text())["config_hash"]
     assert json.loads((tmp_path / "again" / "metrics.json").read_text())["min_separation"] == json.loads(

@@ -38,7 +38,7 @@ def build(effects: tuple[str, ...], n: int):
     k = np.arange(n)
     start = np.column_stack([k % side - side / 2, k // side - side / 2, np.full(n, 2.0)]).tolist()
     overrides = ["scenario=default", "environment=open", f"swarm.n={n}", "swarm.leader=null",
-                 "swarm.start.kind=explicit",
+                 "swarm.start.layout=explicit",
                  f"swarm.start.positions={start}", "avoidance=none", "dynamics=quadrotor", "events=none",
                  "environment.floor=0", "clock.physics_step=0.02", "clock.guidance_period=0.1",
                  "clock.duration=1000", "output.summary=false", "output.progress=off", "comm.range=5",

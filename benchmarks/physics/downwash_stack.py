@@ -29,7 +29,7 @@ def lower_error(gap: float, scale: float | None, duration: float) -> tuple[float
     from swarmscene.core.setpoint import Setpoints
 
     overrides = ["scenario=default", "environment=open", "swarm.n=2", "swarm.leader=null",
-                 "swarm.start.kind=explicit", f"swarm.start.positions=[[0,0,1],[0,0,{1 + gap}]]",
+                 "swarm.start.layout=explicit", f"swarm.start.positions=[[0,0,1],[0,0,{1 + gap}]]",
                  "avoidance=none", "dynamics=quadrotor", "events=none", "environment.floor=0",
                  "clock.guidance_period=0.1", "clock.physics_step=0.02", f"clock.duration={duration}",
                  "termination.on_complete=false", "safety.start_overlap=warn", "output.summary=false"]

@@ -69,7 +69,7 @@ def bench(name: str, mp, n: int, steps: int, warmup: int, seed: int = 0) -> dict
 
 
 ENGINE_OPEN = [  # N = 1,000 on a 0.5 m grid in an open map, the leader heading 30 m east
-    "scenario=indoor_corridor", "environment=open", "swarm.n=1000", "swarm.start.kind=grid",
+    "scenario=indoor_corridor", "environment=open", "swarm.n=1000", "swarm.start.layout=grid",
     "swarm.start.spacing=0.5", "swarm.start.center=[0,0,1]", "formation.waypoints=[[0,0],[30,0]]",
     "formation.end_region=[[15,-30],[15,30],[45,30],[45,-30]]",
 ]

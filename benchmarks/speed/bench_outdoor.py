@@ -32,7 +32,7 @@ def main() -> None:
 
     sim = api.build([
         "scenario=outdoor_square", f"swarm.n={args.n}", "swarm.leader=0",
-        f"swarm.start.kind={args.start}", f"comm.range={args.comm_range}",
+        f"swarm.start.layout={args.start}", f"comm.range={args.comm_range}",
         f"clock.duration={args.duration}", "output.progress=off", "output.summary=false",
         "output.trajectory=false",
     ])

@@ -42,7 +42,7 @@ from swarmscene import api
 n, steps, record = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "1"
 side = 10.0 * math.sqrt(n)
 overrides = [
-    "scenario=flocking", f"swarm.n={n}", "swarm.start.kind=grid", "swarm.start.spacing=10",
+    "scenario=flocking", f"swarm.n={n}", "swarm.start.layout=grid", "swarm.start.spacing=10",
     f"swarm.start.center=[{side / 2},{side / 2},2]", "formation.space=bounded",
     f"formation.box_max=[{side},{side},{side}]", "comm.range=10", f"clock.duration={steps}",
     "output.summary=false",

@@ -7,7 +7,7 @@ in errors and metrics; the model's ``name`` defaults to the key)::
       dryden: {speed: 5.0}                   # name: dryden
       gps: {name: sensing_noise, pos_std: [2.1, 2.1, 4.2]}
 
-(``kind``, the spelling of ``name`` until 0.6.0, is read until 0.8.0 with a warning: :mod:`..spelling`.)
+(``kind``, the spelling of ``name`` until 0.6.0, is read until 0.9.0 with a warning: :mod:`..spelling`.)
 
 Each model acts in one phase of the tick (:data:`PHASES`); the kernel calls the models of a phase
 in the order of their keys (sorted), so a composition does not depend on how Hydra merged it.
@@ -70,11 +70,11 @@ def model_rng(seed: int, key: str) -> np.random.Generator:
 
 
 class _DeprecatedKind:
-    """``Disturbance.kind``: the model's ``name``, read with a warning (until 0.8.0)."""
+    """``Disturbance.kind``: the model's ``name``, read with a warning (until 0.9.0)."""
 
     def __get__(self, obj: Any, owner: type) -> str:
         warnings.warn(f"{owner.__name__}.kind is deprecated: read {owner.__name__}.name (a disturbance "
-                      f"model's kind is read until 0.8.0)", SwarmsceneDeprecationWarning, stacklevel=2)
+                      f"model's kind is read until 0.9.0)", SwarmsceneDeprecationWarning, stacklevel=2)
         return owner.name  # type: ignore[attr-defined]  # every registered model declares one
 
 
@@ -84,7 +84,7 @@ class Disturbance:
 
     ``name`` is the registered name a scenario chooses it by (``disturbances.<key>.name``, the key
     itself when it is left out). ``kind``, its attribute name until 0.6.0, is deprecated (until
-    0.8.0): reading it warns and gives ``name``; a model declaring ``kind`` rather than ``name`` is
+    0.9.0): reading it warns and gives ``name``; a model declaring ``kind`` rather than ``name`` is
     registered under it, with a warning.
 
     sense:        ``sense(world, pos, vel) -> (pos, vel)``: each agent's estimate of its own state,
@@ -122,13 +122,13 @@ class Disturbance:
             declared = own["kind"]
             if "name" not in own:
                 warnings.warn(f"{cls.__qualname__} declares kind = {declared!r}: declare name (a disturbance "
-                              f"model's kind is read as its name until 0.8.0)", SwarmsceneDeprecationWarning,
+                              f"model's kind is read as its name until 0.9.0)", SwarmsceneDeprecationWarning,
                               stacklevel=2)
                 cls.name = declared
             del cls.kind
 
     kind = _DeprecatedKind()
-    """Deprecated name of ``name`` (read until 0.8.0)."""
+    """Deprecated name of ``name`` (read until 0.9.0)."""
 
     def __init__(self, params: DisturbanceParams, ctx: DisturbanceContext) -> None:
         self.params = params

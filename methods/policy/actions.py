@@ -12,28 +12,42 @@ their saturations). Failed agents, and agents without a command, hold where they
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
+from swarmscene.core.errors import SwarmsceneDeprecationWarning
 from swarmscene.core.setpoint import Mode, Setpoints
 from swarmscene.core.state import WorldState
 
-ActionKind = Literal["velocity", "acceleration"]
+ActionCommand = Literal["velocity", "acceleration"]
+"""What an action commands (a policy avoidance's ``action`` option)."""
+ActionKind = ActionCommand
+"""Deprecated name of :data:`ActionCommand` (until 0.9.0: ``kind`` names a plugin's kind only)."""
 
 
 @dataclass(frozen=True)
 class ActionSpec:
     """How a normalised action is scaled (what a policy needs to know about its outputs)."""
 
-    kind: ActionKind
+    command: ActionCommand
+    """velocity: an action of 1 on an axis commands ``max_speed`` along it; acceleration:
+    ``max_accel``"""
     max_speed: float
     """m/s: a velocity action of 1 on an axis commands this speed along it"""
     max_accel: float
     """m/s^2: an acceleration action of 1 on an axis commands this acceleration along it"""
     guidance_period: float
     """T_s, s: a command holds for one guidance tick"""
+
+    @property
+    def kind(self) -> ActionCommand:
+        """Deprecated alias of :attr:`command` (until 0.9.0)."""
+        warnings.warn("ActionSpec.kind is deprecated: read ActionSpec.command (kind is removed in 0.9.0)",
+                      SwarmsceneDeprecationWarning, stacklevel=2)
+        return self.command
 
 
 def action_setpoints(world: WorldState, action: np.ndarray, active: np.ndarray, spec: ActionSpec) -> Setpoints:
@@ -42,7 +56,7 @@ def action_setpoints(world: WorldState, action: np.ndarray, active: np.ndarray, 
     sp = Setpoints.hold(world.pos)
     go = active & world.healthy
     sp.mode[go] = Mode.VELOCITY
-    if spec.kind == "velocity":
+    if spec.command == "velocity":
         sp.vel[go] = a[go] * spec.max_speed
     else:
         acc = a[go] * spec.max_accel

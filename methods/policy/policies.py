@@ -57,7 +57,7 @@ def seek_reference_actions(layout: ObservationLayout, spec: ActionSpec, obs: np.
     wall = (f["obs_mask"][:, 0] > 0) & (clearance < radius)
     push = np.where(wall, 1.0 - np.maximum(clearance, 0.0) / radius, 0.0)
     desired -= repulsion * push[:, None] * f["obs_dir"]
-    if spec.kind == "velocity":
+    if spec.command == "velocity":
         action = desired / spec.max_speed
     else:
         action = (desired - f["own_vel"]) / (spec.guidance_period * spec.max_accel)

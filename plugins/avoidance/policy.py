@@ -25,7 +25,7 @@ from typing import Any, cast
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
 
-from swarmscene.methods.policy.actions import ActionKind, ActionSpec, action_setpoints
+from swarmscene.methods.policy.actions import ActionCommand, ActionSpec, action_setpoints
 from swarmscene.methods.policy.observation import ObservationLayout, observe
 from swarmscene.methods.policy.policies import make_policy
 from swarmscene.plugin import (
@@ -55,7 +55,7 @@ class PolicyAvoidance(Avoidance):
             default_factory=dict, description="keyword options of the chosen policy (e.g. the path "
             "of a trained model), validated by the policy's Params; seek_reference takes gain, "
             "repulsion, radius")
-        action: ActionKind = Field(
+        action: ActionCommand = Field(
             "velocity", description="what an action commands: velocity (a * max_speed) or "
             "acceleration (a * max_accel, through the dynamics' velocity loop)")
         max_speed: float = Field(2.0, gt=0, description="m/s commanded by a velocity action of 1")

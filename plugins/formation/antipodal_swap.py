@@ -2,7 +2,7 @@
 
 The standard stress test of multi-robot collision avoidance (the circle scenario of the RVO2
 examples; the swap of the barrier-certificate papers): N agents start on a ring of radius R
-(``swarm.start.kind: circle``) and each one's goal is its antipode,
+(``swarm.start.layout: circle``) and each one's goal is its antipode,
 
     g_i = 2 c - p_i(0),   c = the centroid of the start positions (the ring's centre),
 

@@ -31,7 +31,7 @@ class MyPolicy(Policy):
         action is a velocity or an acceleration and its scale."""
         f = self.layout.split(np.asarray(obs, dtype=float))
         desired = self.params.gain * f["ref_offset"] * f["ref_mask"]  # m/s
-        if self.spec.kind == "velocity":
+        if self.spec.command == "velocity":
             action = desired / self.spec.max_speed
         else:
             action = (desired - f["own_vel"]) / (self.spec.guidance_period * self.spec.max_accel)

@@ -12,9 +12,10 @@ cannot change silently: a changed task is a new version
 (``python -m swarmscene.suite.definition v2`` writes the record of a new one).
 
 Canonical form (:func:`canonical`): a definition is hashed, frozen and compared with a run's
-``config.yaml`` with each event's and each disturbance model's plugin name keyed ``kind``, as v1
-was frozen, whichever key the task file or the run record spells it with (``name``; ``kind`` until
-0.6.0: :mod:`swarmscene.core.spelling`). The spelling is not part of what a task means: the new
+``config.yaml`` with each event's and each disturbance model's plugin name keyed ``kind``, and the
+start layout ``swarm.start.kind``, as v1 was frozen, whichever key the task file or the run record
+spells it with (``name``, ``kind`` until 0.6.0; ``layout``, ``kind`` until 0.7.0:
+:mod:`swarmscene.core.spelling`). The spelling is not part of what a task means: the new
 one leaves v1's hashes as they were, and a run recorded either way holds the same definition.
 """
 
@@ -63,8 +64,8 @@ def composed(task_id: str) -> dict[str, Any]:
 
 def canonical(data: dict[str, Any]) -> dict[str, Any]:
     """``data`` (a composition, a definition or a run's config) in the canonical form every
-    definition is hashed and compared in: each event's and disturbance model's plugin name keyed
-    ``kind`` (the module docstring; :func:`~swarmscene.core.spelling.canonical_names`)."""
+    definition is hashed and compared in: each event's and disturbance model's plugin name, and the
+    start layout, keyed ``kind`` (the module docstring; :func:`~swarmscene.core.spelling.canonical_names`)."""
     return cast("dict[str, Any]", canonical_names(data))
 
 

@@ -562,8 +562,8 @@ def _acting(s: Subject) -> tuple[np.ndarray, list[_Acting]]:
         layout = ObservationLayout(4)
         obs = _observations(layout)
         found = []
-        for kind in ("velocity", "acceleration"):
-            spec = ActionSpec(kind, 2.0, 2.0, GUIDANCE_PERIOD)
+        for command in ("velocity", "acceleration"):
+            spec = ActionSpec(command, 2.0, 2.0, GUIDANCE_PERIOD)
             first, second, fresh = (s.cls(s.params, layout, spec) for _ in range(3))
             given = obs.copy()
             alone = [np.array(first(given)) for _ in range(3)]

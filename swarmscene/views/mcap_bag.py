@@ -50,6 +50,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+import warnings
 import weakref
 from collections.abc import Sequence
 from pathlib import Path
@@ -532,12 +533,15 @@ def _recorded_verdicts(config: dict[str, Any], metrics: dict[str, Any]) -> list[
     from types import SimpleNamespace
 
     from ..core.config import ScenarioConfig
+    from ..core.errors import SwarmsceneDeprecationWarning
     from ..core.registry import installed_registry
     from .summary import engine_verdicts, plugin_verdicts
 
     context = {"registry": installed_registry()}  # the installed plugins choose a recorded map generator
     try:
-        engine = SimpleNamespace(config=ScenarioConfig.model_validate(config, context=context))
+        with warnings.catch_warnings():  # a record's old spelling is read silently: the user typed none of it
+            warnings.simplefilter("ignore", SwarmsceneDeprecationWarning)
+            engine = SimpleNamespace(config=ScenarioConfig.model_validate(config, context=context))
     except ValueError:
         return []
     lines = [*engine_verdicts(engine, metrics)] if metrics else []

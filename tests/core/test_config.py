@@ -169,7 +169,7 @@ def test_connected_random_start_redraws_until_connected_and_keeps_a_connected_fi
     from swarmscene.core.geometry import initial_positions
 
     def positions(edits: list[str]) -> np.ndarray:
-        config = api.load(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "swarm.start.extent=9",
+        config = api.load(["swarm=grid", "swarm.n=12", "swarm.start.layout=random", "swarm.start.extent=9",
                            "swarm.start.spacing=0.6", "comm.range=3", *edits]).config
         return initial_positions(config, np.random.default_rng(config.seed))
 
@@ -182,12 +182,12 @@ def test_connected_random_start_redraws_until_connected_and_keeps_a_connected_fi
     assert not all(connected(p) for p in plain)  # the case exercises redraws
     assert all(connected(p) for p in drawn)
     assert all(np.array_equal(a, b) for a, b in zip(plain, drawn, strict=True) if connected(a))
-    lines = errors_of_overrides(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "swarm.start.extent=500",
+    lines = errors_of_overrides(["swarm=grid", "swarm.n=12", "swarm.start.layout=random", "swarm.start.extent=500",
                                  "swarm.start.connected=true", "comm.range=3"])
     assert lines == ["swarm.start: no connected swarm (comm.range = 3.0 m) in 200 random draws of 12 agents "
                      "2.0 m apart in a 500.0 m square; shrink swarm.start.extent"]
     # agents spacing apart cannot link at a shorter range: refused without drawing
-    lines = errors_of_overrides(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "swarm.start.connected=true",
+    lines = errors_of_overrides(["swarm=grid", "swarm.n=12", "swarm.start.layout=random", "swarm.start.connected=true",
                                  "comm.range=1"])
     assert lines == ["swarm.start: agents 2.0 m apart cannot link at comm.range = 1.0 m "
                      "(swarm.start.connected needs comm.range >= swarm.start.spacing)"]

@@ -68,7 +68,7 @@ def test_range_loss_law():
 def moving(data: dict, disturbances: dict, ticks: int = 120, n: int = 9):
     """A grid flying 20 m east on single integrators; per tick, the picture the formation received
     and the true positions then."""
-    data["swarm"] = {"n": n, "leader": None, "start": {"kind": "grid", "spacing": 3.0, "center": [0, 0, 5]}}
+    data["swarm"] = {"n": n, "leader": None, "start": {"layout": "grid", "spacing": 3.0, "center": [0, 0, 5]}}
     data["environment"] = {"name": "open", "obstacles": []}
     data["clock"].update(duration=ticks * 0.1, guidance_period=0.1, physics_step=0.1)
     data["avoidance"] = {"name": "none"}
@@ -110,7 +110,7 @@ def test_bernoulli_losses_hold_the_last_row_at_rate_p(data):
 def test_hop_delay_in_the_picture_is_the_mean_over_receivers(data):
     """A line of 4 agents 3 m apart, comm range 4 m: hops from agent 0 are 1, 2, 3 -> 2, 4, 6 ticks
     at tau_com = 0.2 s, mean 4; from agent 1: 1, 1, 2 -> 2, 2, 4, mean 8/3 -> 3 ticks."""
-    data["swarm"] = {"n": 4, "leader": None, "start": {"kind": "line", "spacing": 3.0, "center": [0, 0, 5]}}
+    data["swarm"] = {"n": 4, "leader": None, "start": {"layout": "line", "spacing": 3.0, "center": [0, 0, 5]}}
     data["comm"] = {"range": 4.0}
     data["disturbances"] = {"comm_delay": {"model": "hops", "tau": 0.2}}
     data["avoidance"] = {"name": "none"}
@@ -152,7 +152,7 @@ def test_a_channel_too_large_for_memory_is_refused(data):
     data["clock"]["physics_step"] = 0.0001
     data["disturbances"] = {"comm_delay": {"model": "fixed", "tau": 60.0}}
     data["swarm"]["n"] = 1000
-    data["swarm"]["start"] = {"kind": "grid", "spacing": 2.0}
+    data["swarm"]["start"] = {"layout": "grid", "spacing": 2.0}
     from swarmscene.core.errors import ConfigError
 
     with pytest.raises(ConfigError) as exc:

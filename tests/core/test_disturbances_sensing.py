@@ -15,7 +15,7 @@ N = 100
 def probed(data: dict, noise: dict, ticks: int = 400, n: int = N, spacing: float = 3.0):
     """A grid of ``n`` single integrators holding their start; returns the run and, per tick, the
     positions/velocities the formation received and the true ones at that moment."""
-    data["swarm"] = {"n": n, "leader": None, "start": {"kind": "grid", "spacing": spacing, "center": [0, 0, 5]}}
+    data["swarm"] = {"n": n, "leader": None, "start": {"layout": "grid", "spacing": spacing, "center": [0, 0, 5]}}
     data["environment"] = {"name": "open", "obstacles": []}
     data["clock"].update(duration=ticks * 0.1, guidance_period=0.1, physics_step=0.1)
     data["avoidance"] = {"name": "none"}

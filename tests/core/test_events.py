@@ -181,7 +181,7 @@ def test_same_seed_same_draw_and_each_event_its_own_stream():
 def test_random_events_leave_the_run_generator_and_trajectories_untouched(data):
     """An event drawn after the run ends changes nothing: same start, same generator state, the
     same trajectory bit for bit; the draw is reported so it can be replayed as a fixed event."""
-    data["swarm"]["start"] = {"kind": "random", "spacing": 1.0, "extent": 8.0, "center": [0, 0, 2]}
+    data["swarm"]["start"] = {"layout": "random", "spacing": 1.0, "extent": 8.0, "center": [0, 0, 2]}
     plain = scenario(data, [], duration=2.0)
     _, a, _ = simulate(plain)
     late = {"at": {"uniform": [50, 60]}, "agents": {"sample": 2}, "name": "hover"}

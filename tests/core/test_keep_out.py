@@ -54,7 +54,7 @@ def brute_force(t: np.ndarray, pos: np.ndarray, radii: list[float]) -> dict:
 def explicit(data: dict, positions: list[list[float]], keep_out: list[float] | None, duration: float) -> dict:
     """The default scenario with agents at ``positions``, no obstacles, no avoidance, the keep-out
     ellipsoid ``keep_out`` and a separation limit under every pair's distance (no collision)."""
-    data["swarm"].update(n=len(positions), start={"kind": "explicit", "positions": positions})
+    data["swarm"].update(n=len(positions), start={"layout": "explicit", "positions": positions})
     data["environment"]["obstacles"] = []
     data["avoidance"] = {"name": "none"}
     data["safety"].update(separation_limit=0.01, keep_out=keep_out)

@@ -18,7 +18,7 @@ def short(data: dict, duration: float = 3.0) -> dict:
 
 
 def test_same_config_and_seed_give_bit_identical_results(data):
-    data["swarm"]["start"] = {"kind": "random", "spacing": 1.0, "extent": 8.0, "center": [0, 0, 2]}
+    data["swarm"]["start"] = {"layout": "random", "spacing": 1.0, "extent": 8.0, "center": [0, 0, 2]}
     data["seed"] = 7
     a = api.run(short(data, 5.0))
     b = api.run(short(data, 5.0))
@@ -120,7 +120,7 @@ def test_disconnection_is_reported_with_time_and_agents(data):
 
 def test_collision_termination_and_first_violation(data):
     # Two agents start 0.6 m apart and are sent to the same point: they collide.
-    data["swarm"].update(n=2, start={"kind": "explicit", "positions": [[0, 0, 2], [0.6, 0, 2]]})
+    data["swarm"].update(n=2, start={"layout": "explicit", "positions": [[0, 0, 2], [0.6, 0, 2]]})
     data["avoidance"] = {"name": "none"}
     data["environment"]["obstacles"] = []
     data["formation"].update(shape="line", spacing=0.01, waypoints=[[0.3, 0, 2]])

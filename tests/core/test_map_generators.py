@@ -165,7 +165,7 @@ def test_field_is_seeded_by_its_own_stream():
 
 
 def test_a_field_leaves_the_run_generator_alone(data):
-    data["swarm"]["start"] = {"kind": "random", "spacing": 1.0, "extent": 6.0, "center": [0, 0, 2]}
+    data["swarm"]["start"] = {"layout": "random", "spacing": 1.0, "extent": 6.0, "center": [0, 0, 2]}
     plain = api.load(data)
     data["environment"] = {"name": "f", "generator": "obstacle_field", **FIELD,
                            "free_regions": [{"center": [0.0, 0.0], "radius": 6.0}]}

@@ -68,7 +68,7 @@ def test_rerun_from_a_run_directory_gives_identical_metrics(tmp_path):
     """The documented way: swarmscene --config-path <run dir> --config-name config (a relative
     path is taken from the working directory)."""
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    first = subprocess.run([*EXE, "swarm=grid", "swarm.n=9", "swarm.start.kind=random", "swarm.start.extent=12",
+    first = subprocess.run([*EXE, "swarm=grid", "swarm.n=9", "swarm.start.layout=random", "swarm.start.extent=12",
                             "swarm.start.connected=true", "avoidance.v_max=1.2", "clock.duration=6",
                             f"hydra.run.dir={tmp_path}/a"], capture_output=True, text=True, env=env, timeout=120)
     assert first.returncode == 0, first.stderr
@@ -122,7 +122,7 @@ def test_files_follow_the_umask(tmp_path, umask):
 
 
 def test_validation_builds_the_start_once_and_the_run_uses_it():
-    scenario = api.load(["swarm=grid", "swarm.n=12", "swarm.start.kind=random", "swarm.start.extent=12",
+    scenario = api.load(["swarm=grid", "swarm.n=12", "swarm.start.layout=random", "swarm.start.extent=12",
                          "swarm.start.connected=true", "clock.duration=0.2"])
     assert scenario.initial_positions.shape == (12, 3) and not scenario.initial_positions.flags.writeable
     assert len(scenario.obstacles) == 1 and scenario.obstacles[0].geom_type == "Polygon"

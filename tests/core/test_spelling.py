@@ -1,7 +1,9 @@
-"""One spelling of a plugin's name (issue #35): an event's kind and a disturbance model are chosen
-by ``name`` like every other plugin; ``kind`` still works until 0.8.0 with one deprecation warning
-naming the key, both is one error line, the run record writes ``name`` and hashes as before, and
-``Event.kind`` / ``Disturbance.kind`` are deprecated aliases of ``name``."""
+"""One meaning of ``kind`` (issue #35): an event's kind and a disturbance model are chosen by ``name``
+like every other plugin; ``kind`` still works until 0.9.0 with one deprecation warning naming the
+key, both is one error line, the run record writes ``name`` and hashes as before, and
+``Event.kind`` / ``Disturbance.kind`` are deprecated aliases of ``name``. The start layout is
+``swarm.start.layout`` (``swarm.start.kind`` read until 0.9.0, hashed as before); a distribution's
+family and a policy's action command lost their ``kind`` aliases' meaning the same way."""
 
 from __future__ import annotations
 
@@ -52,8 +54,8 @@ def test_kind_still_chooses_them_with_exactly_one_deprecation_line_each(default_
         old = api.load(scenario_with(default_data, {"kind": "hover"}, {"kind": "sensing_noise"}), REGISTRY)
     lines = [str(w.message) for w in caught if issubclass(w.category, SwarmsceneDeprecationWarning)]
     assert lines == [
-        "events.0.kind is deprecated: write events.0.name (kind is accepted until 0.8.0)",
-        "disturbances.gps.kind is deprecated: write disturbances.gps.name (kind is accepted until 0.8.0)",
+        "events.0.kind is deprecated: write events.0.name (kind is accepted until 0.9.0)",
+        "disturbances.gps.kind is deprecated: write disturbances.gps.name (kind is accepted until 0.9.0)",
     ]
     assert old.data == new.data  # mapped to name: the same scenario, recorded the same way
     assert config_hash(old.data) == config_hash(new.data)
@@ -139,3 +141,64 @@ def test_recorded_name_and_canonical_names_read_either_spelling():
     assert canonical_names(new) == canonical_names(old) == old  # keyed kind, as first hashed
     assert new["events"][0] == {"at": 1.0, "agents": [0], "name": "hover"}  # the argument is not changed
     assert config_hash(new) == config_hash(old)
+
+
+# -- the start layout: swarm.start.layout, swarm.start.kind read until 0.9.0 ---------------------
+def with_start(data: dict, **start) -> dict:
+    data = copy.deepcopy(data)
+    data["swarm"] = {**data["swarm"], "n": 4, "start": {"spacing": 1.5, **start}}
+    return data
+
+
+def test_start_kind_still_lays_out_the_swarm_with_one_deprecation_line(default_data):
+    new = api.load(with_start(default_data, layout="line"), REGISTRY)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        old = api.load(with_start(default_data, kind="line"), REGISTRY)
+    lines = [str(w.message) for w in caught if issubclass(w.category, SwarmsceneDeprecationWarning)]
+    assert lines == ["swarm.start.kind is deprecated: write swarm.start.layout (kind is accepted until 0.9.0)"]
+    assert (old.initial_positions == new.initial_positions).all()
+    assert new.initial_positions[:, 1].tolist() == [-2.25, -0.75, 0.75, 2.25]  # a line along +y, 1.5 m apart
+    assert old.data == new.data and old.data["swarm"]["start"]["layout"] == "line"
+    assert "kind" not in old.data["swarm"]["start"]
+
+
+def test_start_kind_over_a_file_that_says_layout_wins(default_data):
+    """An old command line (``swarm.start.kind=line``) composed over a preset spelt ``layout``."""
+    with pytest.warns(SwarmsceneDeprecationWarning, match="swarm.start.kind is deprecated"):
+        scenario = api.load(with_start(default_data, layout="grid", kind="line"), REGISTRY)
+    assert scenario.config.swarm.start.layout == "line"
+
+
+def test_a_bad_start_kind_names_the_key_typed_and_its_new_name(default_data):
+    with pytest.warns(SwarmsceneDeprecationWarning), pytest.raises(ConfigError) as err:
+        api.load(with_start(default_data, kind="spiral"), REGISTRY)
+    assert err.value.lines == ["swarm.start.kind (now swarm.start.layout): must be one of 'line', 'grid', "
+                               "'circle', 'explicit' or 'random' (got 'spiral')"]
+
+
+def test_the_start_layout_hashes_as_its_old_key():
+    """Run records and swarmscene-bench v1's frozen definitions were hashed with ``kind``."""
+    layout = {"swarm": {"n": 2, "start": {"layout": "line", "spacing": 2.0}}}
+    kind = {"swarm": {"n": 2, "start": {"kind": "line", "spacing": 2.0}}}
+    assert canonical_names(layout) == canonical_names(kind) == kind
+    assert config_hash(layout) == config_hash(kind)
+    both = {"swarm": {"n": 2, "start": {"kind": "line", "layout": "grid"}}}  # kind wins, as validation reads it
+    assert canonical_names(both) == {"swarm": {"n": 2, "start": {"kind": "line"}}}
+    assert layout == {"swarm": {"n": 2, "start": {"layout": "line", "spacing": 2.0}}}  # not changed in place
+
+
+def test_a_draws_family_and_a_policys_command_keep_kind_as_deprecated_aliases():
+    from swarmscene.methods.policy.actions import ActionSpec
+    from swarmscene.plugin import Draw
+
+    draw = Draw.model_validate({"lognormal": [0.0, 0.5]})
+    assert draw.family == "lognormal" and draw.families() == ["lognormal"]
+    with pytest.warns(SwarmsceneDeprecationWarning, match=r"Draw.kind is deprecated: read Draw.family"):
+        assert draw.kind == "lognormal"
+    with pytest.warns(SwarmsceneDeprecationWarning, match=r"Draw.kinds\(\) is deprecated: call Draw.families\(\)"):
+        assert draw.kinds() == ["lognormal"]
+    spec = ActionSpec("acceleration", 2.0, 3.0, 0.1)
+    assert spec.command == "acceleration"
+    with pytest.warns(SwarmsceneDeprecationWarning, match="ActionSpec.kind is deprecated: read ActionSpec.command"):
+        assert spec.kind == "acceleration"

@@ -50,7 +50,7 @@ n = len(start["pos"])
 data = api.compose(["scenario=flocking", f"swarm.n={n}", f"clock.duration={steps}",
                     f"formation.box_max=[{box!r},{box!r},{box!r}]", "output.trajectory=false",
                     "output.summary=false"])
-data["swarm"]["start"] = {"kind": "explicit", "positions": np.column_stack(
+data["swarm"]["start"] = {"layout": "explicit", "positions": np.column_stack(
     [start["pos"], np.full(n, 2.0)]).tolist()}
 data["safety"]["start_overlap"] = "warn"  # a uniform random start puts some boids close
 with warnings.catch_warnings():

@@ -91,7 +91,7 @@ ticks = lambda physics_steps: physics_steps * period / data["clock"]["guidance_p
 warm, steps = int(round(ticks(warm))), int(round(ticks(steps)))  # guidance ticks
 data = api.compose(overrides + [f"clock.duration={(warm + steps) * data['clock']['guidance_period']!r}",
                                 "output.summary=false"])
-data["swarm"]["start"] = {"kind": "explicit", "positions": np.load(sys.argv[5]).tolist()}
+data["swarm"]["start"] = {"layout": "explicit", "positions": np.load(sys.argv[5]).tolist()}
 sim = api.build(data)
 result = sim.run()
 assert result.metrics["steps"] == warm + steps, result.metrics

@@ -71,7 +71,7 @@ start = np.load(sys.argv[1]); steps = int(sys.argv[2]); params = json.loads(sys.
 n = len(start["pos"])
 data = api.compose(["scenario=flocking", f"swarm.n={n}", f"clock.duration={steps}",
                     "output.trajectory=false", "output.summary=false"])
-data["swarm"]["start"] = {"kind": "explicit", "positions": np.column_stack(
+data["swarm"]["start"] = {"layout": "explicit", "positions": np.column_stack(
     [start["pos"], np.full(n, 2.0)]).tolist()}
 data["safety"]["start_overlap"] = "warn"  # Mesa's start is uniform random: some boids start close
 data["comm"]["range"] = params["vision"]

@@ -22,7 +22,7 @@ T_S, U_SAT = 0.01, 0.02
 def build(positions: list[list[float]], extra: list[str] = ()) -> Simulation:
     pm, registry = make_plugin_manager(tuple(dict.fromkeys((*BUILTIN_PLUGINS, *MODULES))), False)
     pos = "[" + ",".join(f"[{x},{y},{z}]" for x, y, z in positions) + "]"
-    overrides = ["scenario=indoor_corridor", f"swarm.n={len(positions)}", "swarm.start.kind=explicit",
+    overrides = ["scenario=indoor_corridor", f"swarm.n={len(positions)}", "swarm.start.layout=explicit",
                  f"+swarm.start.positions={pos}", "clock.duration=0.01", *extra]
     return Simulation(api.load(overrides, registry), pm, registry.observers)
 

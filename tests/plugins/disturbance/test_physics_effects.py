@@ -23,7 +23,7 @@ def stacked(data: dict, dynamics: dict, gap: float, disturbances: dict, duration
             floor=None) -> tuple:
     """Two vehicles told to hold, one ``gap`` m straight above the other (at 1 m), built."""
     data["swarm"] = {"n": 2, "leader": None,
-                     "start": {"kind": "explicit", "positions": [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0 + gap]]}}
+                     "start": {"layout": "explicit", "positions": [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0 + gap]]}}
     data["safety"]["start_overlap"] = "warn"
     data["environment"]["floor"] = floor
     data["clock"].update(duration=duration, guidance_period=0.1, physics_step=0.02)
@@ -155,7 +155,7 @@ def test_a_low_battery_caps_the_thrust(data):
 
 
 def test_the_radio_drops_what_is_out_of_range_and_feeds_the_link_layer(data):
-    data["swarm"]["start"] = {"kind": "line", "spacing": 10.0, "center": [0.0, 0.0, 2.0]}
+    data["swarm"]["start"] = {"layout": "line", "spacing": 10.0, "center": [0.0, 0.0, 2.0]}
     data["clock"]["duration"] = 1.0
     data["disturbances"] = {"radio": {"range": 5.0, "budget": 20}}
     sim = api.build(data)
@@ -168,7 +168,7 @@ def test_the_radio_drops_what_is_out_of_range_and_feeds_the_link_layer(data):
 
 
 def test_the_radio_reception_in_range_follows_the_link_model(data):
-    data["swarm"]["start"] = {"kind": "line", "spacing": 120.0, "center": [0.0, 0.0, 2.0]}
+    data["swarm"]["start"] = {"layout": "line", "spacing": 120.0, "center": [0.0, 0.0, 2.0]}
     data["clock"]["duration"] = 20.0
     data["comm"]["range"] = 500.0
     data["termination"]["on_complete"] = False
@@ -187,7 +187,7 @@ def test_the_downwash_scale_sweeps_as_a_multirun(tmp_path):
     heights (the antipodal swap of two vehicles 0.5 m one above the other), two jobs, the push each
     recorded: none at scale 0, the fit's 0.30 N on 27 g at scale 1."""
     result = api.sweep({"disturbances.downwash.scale": [0.0, 1.0]},
-                       ["scenario=swap", "swarm.n=2", "swarm.start.kind=explicit",
+                       ["scenario=swap", "swarm.n=2", "swarm.start.layout=explicit",
                         "swarm.start.positions=[[0,0,1],[0,0,1.5]]", "safety.start_overlap=warn",
                         "dynamics=quadrotor", "avoidance=none", "disturbances=[downwash]", "environment.floor=0",
                         "clock.duration=0.3", "output.trajectory=false"],

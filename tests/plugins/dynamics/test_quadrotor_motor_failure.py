@@ -13,7 +13,7 @@ from swarmscene.plugins.event.comm_loss import CommLoss
 
 
 def hover(data: dict, events: list, duration: float = 3.0, **clock):
-    data["swarm"] = {"n": 2, "leader": None, "start": {"kind": "line", "spacing": 3.0, "center": [0, 0, 20]}}
+    data["swarm"] = {"n": 2, "leader": None, "start": {"layout": "line", "spacing": 3.0, "center": [0, 0, 20]}}
     data["environment"] = {"name": "open", "obstacles": []}
     data["avoidance"] = {"name": "none"}
     data["dynamics"] = {"name": "quadrotor"}

@@ -23,7 +23,7 @@ MODULES = ("swarmscene.plugins.formation.hex_lattice", "swarmscene.plugins.avoid
 THESIS_LINE_START = [
     "formation=hex_lattice", "avoidance=apf_navigation", "environment=open",
     "dynamics=double_integrator", "dynamics.u_sat=2.0", "dynamics.v_max=0.5",
-    "swarm.n=8", "swarm.leader=1", "swarm.start.kind=line", "swarm.start.spacing=1.5",
+    "swarm.n=8", "swarm.leader=1", "swarm.start.layout=line", "swarm.start.spacing=1.5",
     "swarm.start.center=[0.0,0.0,4.0]", "safety.separation_limit=0.55", "safety.start_overlap=warn",
     "clock.duration=250", "output.progress=off",
 ]

@@ -101,7 +101,7 @@ def test_reduced_corridor_run_succeeds():
 
 def test_disconnected_start_is_reported_and_fails():
     far = "[" + ",".join(f"[{-5.0 + 2.0 * k},0.0,1.0]" for k in range(3)) + "]"
-    m = build(["scenario=indoor_corridor", "swarm.n=3", "swarm.start.kind=explicit",
+    m = build(["scenario=indoor_corridor", "swarm.n=3", "swarm.start.layout=explicit",
                f"+swarm.start.positions={far}", "clock.duration=0.5"]).run().metrics
     assert not m["indoor.initial_connected"] and not m["indoor.connected"]
     assert m["indoor.max_rank"] == 3 and not m["indoor.success"] and not m["success"]
@@ -110,7 +110,7 @@ def test_disconnected_start_is_reported_and_fails():
 def test_leader_waits_when_its_neighbours_are_lost():
     """u_lcon = 0 without G_sigma neighbours (eq. 5.43): an isolated leader does not move."""
     start = "[[-3.0,0.0,1.0],[-1.0,0.0,1.0]]"
-    sim = build(["scenario=indoor_corridor", "swarm.n=2", "swarm.start.kind=explicit",
+    sim = build(["scenario=indoor_corridor", "swarm.n=2", "swarm.start.layout=explicit",
                  f"+swarm.start.positions={start}", "clock.duration=0.2"])
     sim.run()
     np.testing.assert_allclose(sim.world.pos[0], [-3.0, 0.0, 1.0])

@@ -93,7 +93,7 @@ def test_config_errors_name_the_key():
     with pytest.raises(ConfigError, match="threshold"):
         api.load(["scenario=vrb_airshow", "formation.threshold=0.5"], registry)
     with pytest.raises(ValueError, match="3 agents"):
-        build(["scenario=vrb_airshow", "swarm.n=4", "swarm.start.kind=grid"])
+        build(["scenario=vrb_airshow", "swarm.n=4", "swarm.start.layout=grid"])
 
 
 @pytest.mark.slow
