@@ -47,17 +47,15 @@ import json
 import logging
 import math
 import os
-import pickle
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..core import interrupts
 from . import pool
-from .pool import PoolLauncher, WorkerDied
+from .chunks import config_refusal
+from .pool import PoolLauncher
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +88,7 @@ class BatchLauncher(PoolLauncher):
         configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
         sweep_dir.mkdir(parents=True, exist_ok=True)
-        why = sweep_refusal(self.config)
+        why = config_refusal(self.config)
         tasks = plan(job_overrides, initial_job_idx, 1 if why else self.batch_size, self.workers())
         batched = sum(len(task) for task in tasks if len(task) > 1)
         log.info(f"Batch launcher: {self.workers()} workers, {len(job_overrides)} jobs, {batched} of them in "
@@ -99,47 +97,12 @@ class BatchLauncher(PoolLauncher):
         for task in tasks:
             log.info(f"\t#{', '.join(str(idx) for idx, _ in task)} : {' '.join(filter_overrides(task[0][1]))}"
                      f"{' (and their seeds)' if len(task) > 1 else ''}")
-        executor = self._pool()
-        futures: list[Future[Any]] = []
-        try:
-            for task in tasks:
-                if len(task) == 1:
-                    futures.append(executor.submit(pool._run_task, task[0][0], task[0][1]))
-                else:
-                    futures.append(executor.submit(run_batch_task, task, str(sweep_dir)))
-            returns: dict[int, Any] = {}
-            for task, future in zip(tasks, futures, strict=True):
-                returned = pickle.loads(future.result())  # our own workers' JobReturn(s)
-                returns.update(zip((idx for idx, _ in task), returned if len(task) > 1 else [returned], strict=True))
-            return [returns[initial_job_idx + offset] for offset in range(len(job_overrides))]
-        except KeyboardInterrupt:
-            self._stop(futures)
-            raise
-        except BrokenProcessPool:
-            self._executor = None
-            raise WorkerDied(f"{sweep_dir}: a worker process died (killed, or out of memory); the jobs "
-                             f"written are kept: run the same command to resume the others") from None
-
-
-def sweep_refusal(config: Any) -> str | None:
-    """Why none of this sweep's jobs may be batched (each then runs through Hydra's ``run_job``, as
-    the pool runs it), or None: job callbacks other than the summary (``on_job_start`` and
-    ``on_job_end`` are Hydra's ``run_job``'s), ``hydra.job.chdir``, a ``hydra.sweep.subdir`` read
-    through ``${hydra:...}`` (the conditions of :func:`.chunks.refusal`)."""
-    from omegaconf import OmegaConf
-
-    from .callback import SUMMARY_TARGET
-
-    hydra = config.hydra
-    if hydra.job.chdir:
-        return "hydra.job.chdir"
-    callbacks = hydra.callbacks or {}
-    if any((c or {}).get("_target_") != SUMMARY_TARGET for c in callbacks.values()):
-        return "job callbacks"
-    sweep = OmegaConf.to_container(hydra.sweep, resolve=False)
-    if isinstance(sweep, dict) and "${hydra:" in str(sweep.get("subdir")):
-        return "hydra.sweep.subdir"
-    return None
+        calls = [(run_batch_task, (task, str(sweep_dir))) if len(task) > 1 else (pool._run_task, task[0])
+                 for task in tasks]
+        returns: dict[int, Any] = {}
+        for task, returned in zip(tasks, self._run_on_pool(calls, sweep_dir), strict=True):
+            returns.update(zip((idx for idx, _ in task), returned if len(task) > 1 else [returned], strict=True))
+        return [returns[initial_job_idx + offset] for offset in range(len(job_overrides))]
 
 
 def group_key(overrides: Sequence[str]) -> tuple[str, ...] | None:

@@ -63,22 +63,30 @@ def jobs_per_task(setting: Any, launcher: Any, config: Any, jobs: int, cores: in
 
 
 def refusal(launcher: Any, config: Any) -> str | None:
-    """Why this sweep's jobs must be launched one by one (None: they may share tasks)."""
+    """Why this sweep's jobs must be launched one by one (None: they may share tasks): a launcher
+    that does not run tasks (:data:`CHUNKING_LAUNCHERS`), or :func:`config_refusal`."""
     if type(launcher).__name__ not in CHUNKING_LAUNCHERS:
         return f"launcher {type(launcher).__name__}"
+    return config_refusal(config)
+
+
+def config_refusal(config: Any) -> str | None:
+    """Why this sweep's config keeps each job to Hydra's ``run_job`` (None: jobs may share a task or
+    a batch, :mod:`.batch`): job callbacks other than the summary (``on_job_start``/``on_job_end``
+    are ``run_job``'s), ``hydra.job.chdir``, a ``hydra.sweep.subdir`` read through ``${hydra:...}``
+    (resolved against HydraConfig: not the task's own job)."""
+    from omegaconf import OmegaConf
+
+    from .callback import SUMMARY_TARGET
+
     hydra = config.hydra
     if hydra.job.chdir:
         return "hydra.job.chdir"
-    from .callback import SUMMARY_TARGET
-
     callbacks = hydra.callbacks or {}
     if any((c or {}).get("_target_") != SUMMARY_TARGET for c in callbacks.values()):
         return "job callbacks"
-    from omegaconf import OmegaConf
-
     sweep = cast("dict[str, Any]", OmegaConf.to_container(hydra.sweep, resolve=False))
-    subdir = sweep.get("subdir")
-    if "${hydra:" in str(subdir):  # resolved against HydraConfig: not the task's own job
+    if "${hydra:" in str(sweep.get("subdir")):
         return "hydra.sweep.subdir"
     return None
 

@@ -45,7 +45,7 @@ import os
 import pickle
 import signal
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -110,12 +110,20 @@ class PoolLauncher(Launcher):
         log.info(f"Pool launcher: {self.workers()} workers, {len(job_overrides)} tasks; sweep output dir: {sweep_dir}")
         for idx, overrides in enumerate(job_overrides):
             log.info(f"\t#{initial_job_idx + idx} : {' '.join(filter_overrides(overrides))}")
+        calls = [(_run_task, (initial_job_idx + idx, list(overrides))) for idx, overrides in enumerate(job_overrides)]
+        return self._run_on_pool(calls, sweep_dir)
+
+    def _run_on_pool(self, calls: Sequence[tuple[Callable[..., bytes], tuple[Any, ...]]], sweep_dir: Path) -> list[Any]:
+        """Each ``(function, args)`` of ``calls`` run on the pool; what each returned, unpickled
+        (our own workers' JobReturns), in the calls' order. Ctrl-C stops the workers
+        (:meth:`_stop`) and goes on up; a worker that dies ends the launch with one line
+        (:class:`WorkerDied`), the jobs written kept."""
         executor = self._pool()
-        futures: list[Future[Any]] = []
+        futures: list[Future[bytes]] = []
         try:
-            for idx, overrides in enumerate(job_overrides):
-                futures.append(executor.submit(_run_task, initial_job_idx + idx, list(overrides)))
-            return [pickle.loads(future.result()) for future in futures]  # our own workers' JobReturn
+            for function, args in calls:
+                futures.append(executor.submit(function, *args))
+            return [pickle.loads(future.result()) for future in futures]
         except KeyboardInterrupt:
             self._stop(futures)
             raise
