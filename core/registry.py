@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import types
 import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -159,6 +160,25 @@ def validate_choice(registry: Registry, kind: str, name: Any, key: str, errors: 
     return None
 
 
+class _PluginManager(pluggy.PluginManager):
+    """pluggy's manager, with a cheaper first look at a module plugin's names.
+
+    ``register`` asks :meth:`parse_hookimpl_opts` about every name in a plugin's ``dir()``; pluggy
+    looks each one up with ``inspect.getattr_static``, which walks the module type's MRO first (a
+    plugin module holds hundreds of imported names: ~7 ms for the built-ins, paid by every run and
+    every sweep job). For a module, that lookup finds the module's own ``__dict__`` entry, and a
+    value that is not a function, method, ``staticmethod`` or ``classmethod`` is never a hook
+    implementation, so such a name is answered None here, as pluggy would; every other name (and
+    every dunder) goes to pluggy's own method."""
+
+    def parse_hookimpl_opts(self, plugin: Any, name: str) -> Any:
+        if isinstance(plugin, types.ModuleType) and not name.startswith("__"):
+            value = vars(plugin).get(name)
+            if not isinstance(value, (types.FunctionType, types.MethodType, staticmethod, classmethod)):
+                return None
+        return super().parse_hookimpl_opts(plugin, name)
+
+
 def make_plugin_manager(
     builtins: Iterable[str] = (), load_entry_points: bool = True
 ) -> tuple[pluggy.PluginManager, Registry]:
@@ -171,7 +191,7 @@ def make_plugin_manager(
     Returns:
         The manager (owned by whoever asked: one per simulation) and the filled registry.
     """
-    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm = _PluginManager(hookspecs.PROJECT)
     pm.add_hookspecs(hookspecs)
     for module_name in (*CORE_OBSERVERS, *builtins):
         pm.register(importlib.import_module(module_name), name=module_name)
@@ -258,6 +278,8 @@ def _load_entry_points(pm: pluggy.PluginManager) -> dict[str, tuple[str, str]]:
                 RuntimeWarning,
                 stacklevel=2,
             )
+    if not blocked:  # the scan of every distribution below (~7 ms) only checks the names blocked
+        return provided
     for ep in entry_points(group=CONF_ENTRY_POINT_GROUP):  # config folders are named the same way
         seen.update((ep.name, f"{ep.dist.name if ep.dist is not None else 'unknown'}:{ep.name}"))
     for name in sorted(blocked - seen):  # a misspelt name would otherwise block nothing, silently

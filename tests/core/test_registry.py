@@ -186,3 +186,43 @@ def test_the_manifest_versions_name_every_plugin_distribution(monkeypatch):
     versions = outputs.package_versions()
     assert versions["gooddist"] == "3.1.4"
     assert versions["numba"] and versions["swarmscene"] and versions["python"]
+
+
+def _hookimpls(pm: pluggy.PluginManager) -> list[tuple]:
+    return sorted((caller.name, impl.plugin_name, impl.function.__module__, impl.function.__qualname__,
+                   impl.wrapper, impl.hookwrapper, impl.tryfirst, impl.trylast)
+                  for caller in pm.hook.__dict__.values() if isinstance(caller, pluggy.HookCaller)
+                  for impl in caller.get_hookimpls())
+
+
+def test_the_managers_quick_look_at_a_module_finds_what_pluggy_finds(monkeypatch):
+    """``_PluginManager`` answers a module's non-function names itself (pluggy's per-name static
+    lookup is most of a manager's cost); the hook implementations are pluggy's own, for the
+    built-ins, the allkinds test package, and a module holding every shape pluggy accepts."""
+    import tests.swarmscene_allkinds.plugin as allkinds
+
+    odd = types.ModuleType("odd_plugin")
+
+    @hookimpl(tryfirst=True)
+    def swarmscene_run_start(sim):  # a plain function, marked
+        pass
+
+    class Holder:
+        @hookimpl
+        def swarmscene_run_end(self, sim, metrics):  # a bound method, marked
+            pass
+
+    odd.swarmscene_run_start = swarmscene_run_start
+    odd.swarmscene_run_end = Holder().swarmscene_run_end
+    odd.unmarked = lambda: None
+    odd.constant, odd.Holder, odd.module = 3, Holder, types
+    modules = [*BUILTIN_PLUGINS, allkinds.__name__]
+    ours, _ = make_plugin_manager(modules, load_entry_points=False)
+    ours.register(odd, name="odd")
+    monkeypatch.setattr(registry_module, "_PluginManager", pluggy.PluginManager)
+    plain, _ = make_plugin_manager(modules, load_entry_points=False)
+    plain.register(odd, name="odd")
+    found = _hookimpls(ours)
+    assert found == _hookimpls(plain)
+    assert {name for name, plugin, *_ in found if plugin == "odd"} == {"swarmscene_run_start",
+                                                                "swarmscene_run_end"}
