@@ -62,3 +62,19 @@ def test_the_help_group_list_is_resolved_once_per_search_path(tmp_path, monkeypa
     with initialize_config_dir(config_dir=str(tmp_path), version_base="1.3"):
         other = groups.installed_help_groups()
     assert (first, again, other) == ("list 1", "list 1", "list 2")
+
+
+def test_the_help_groups_are_listed_once_per_search_path(monkeypatch):
+    """The help template's ``${swarmscene_groups:}`` is resolved by every composition (a merge looks
+    through it); its list is made once for a search path, not once per composition (each has a new
+    search path object: keyed by that object, the list was made again and kept, every time)."""
+    from swarmscene import api
+
+    monkeypatch.setattr(groups, "_HELP_GROUPS", {})
+    made = []
+    real = groups.help_groups
+    monkeypatch.setattr(groups, "help_groups", lambda options: made.append(1) or real(options))
+    for _ in range(3):
+        api.compose(["scenario=swap"])
+    assert len(made) == 1 and len(groups._HELP_GROUPS) == 1
+    assert "scenario: " in next(iter(groups._HELP_GROUPS.values()))

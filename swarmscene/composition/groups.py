@@ -80,13 +80,14 @@ def installed_help_groups() -> str:
     ``--help`` shows it; the groups' options change only with the search path."""
     from hydra.core.global_hydra import GlobalHydra
 
-    key = repr(GlobalHydra.instance().config_loader().get_search_path())
+    # keyed by the elements' text: the search path object is new with every composition
+    key = tuple(repr(element) for element in GlobalHydra.instance().config_loader().get_search_path().get_path())
     if key not in _HELP_GROUPS:
         _HELP_GROUPS[key] = help_groups(installed_options)
     return _HELP_GROUPS[key]
 
 
-_HELP_GROUPS: dict[str, str] = {}
+_HELP_GROUPS: dict[tuple[str, ...], str] = {}
 
 
 def register_help_resolver() -> None:
