@@ -459,6 +459,7 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
             episodes[b] = self.drivers[b].reset(None)
             self._steps[b] = 0
         going = [b for b in range(self.num_envs) if not self._ended[b]]
+        observed: dict[int, np.ndarray] = {}  # the going worlds' observations, made once
         if going:
             every = np.ones(self.drivers[0].n, dtype=bool)
             before = {b: episodes[b].act(actions[b], every) for b in going}
@@ -469,11 +470,13 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
                 self._steps[b] += 1
                 if self.max_episode_steps is not None and self._steps[b] >= self.max_episode_steps:
                     trunc = not term
-                _, rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episodes[b], reward, term, trunc)
+                observed[b], rewards[b], terminated[b], truncated[b], info = _swarm_outcome(
+                    episodes[b], reward, term, trunc)
                 if info:
                     infos = self._add_info(infos, info, b)
         self._ended = terminated | truncated
-        return np.stack([episode.observe() for episode in episodes]), rewards, terminated, truncated, infos
+        observations = [observed[b] if b in observed else episode.observe() for b, episode in enumerate(episodes)]
+        return np.stack(observations), rewards, terminated, truncated, infos
 
     def _episode(self, b: int) -> _Episode:
         episode = self.drivers[b].episode
