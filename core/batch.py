@@ -5,16 +5,18 @@ tick. Each world keeps everything of its own: its seed and random streams, clock
 disturbances, plugin instances, observers and termination. What the worlds share are the
 controller and physics phases: their per-agent state lies along a world axis
 (:class:`~swarmscene.core.state.WorldBatch`, each world's arrays are slices of (B, N, k) arrays),
-and the dynamics model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch` latches every
-world's commands at once, its :meth:`~swarmscene.core.plugin.Dynamics.step_batch` advances all of
-them at once. A model without batched forms controls and steps each world with its own instance
-(the defaults), so every model works in a batch; the other phases run world by world, in the
-order a single run runs them.
+and the avoidance method's :meth:`~swarmscene.core.plugin.Avoidance.adjust_batch` adjusts every world's
+setpoints at once, the dynamics model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch`
+latches every world's commands at once, its :meth:`~swarmscene.core.plugin.Dynamics.step_batch`
+advances all of them at once. A method or model without batched forms adjusts, controls and steps
+each world with its own instance (the defaults), so every plugin works in a batch; the other phases
+run world by world, in the order a single run runs them.
 
-A world's tick is the single run's tick, phase by phase (``guidance``, ``control``, the physics
-sub-steps with the wind before and the force phase after each ``step``, ``settle``): between a
-world's guidance and its control run only the other worlds' guidance, which share nothing with
-it, so a world of a batch equals its single run bit for bit (tests/test_batch.py, every preset).
+A world's tick is the single run's tick, phase by phase (``planned``: events, sensing and the
+formation; ``adjust``, ``control``, the physics sub-steps with the wind before and the force phase
+after each ``step``, ``settle``): between two phases of a world run only the other worlds' same
+phase, which share nothing with it, so a world of a batch equals its single run bit for bit
+(tests/test_batch.py, every preset).
 :class:`BatchSimulation` and :func:`lockstep` step their worlds with the same function,
 :func:`_step`. A world that ends (its duration, the mission complete, a collision that stops it,
 a non-finite state, a plugin's exception) is masked: the batch is rebuilt over the others, which
@@ -29,9 +31,10 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, cast
 
 from . import interrupts
+from .disturbances import Perceived
 from .plugin import Dynamics
 from .result import RunResult
 from .setpoint import Setpoints
@@ -192,13 +195,16 @@ class _Worlds(Protocol):
 
 
 def _step(worlds: _Worlds) -> None:
-    """One tick of every running world: each world's guidance, the controllers of all of them
+    """One tick of every running world: each world's guidance up to its avoidance
+    (:meth:`~swarmscene.core.simulation.Simulation.planned`), the avoidance of all of them
+    (:meth:`~swarmscene.core.plugin.Avoidance.adjust_batch`), the controllers of all of them
     (:meth:`~swarmscene.core.plugin.Dynamics.control_batch`), the physics sub-steps (each world's
     wind, :meth:`~swarmscene.core.plugin.Dynamics.step_batch`, each world's forces), each world's
-    ``settle``. A world's phases run in its single run's order; what runs between a world's
-    guidance and its control is only the other worlds' guidance."""
-    guided: dict[int, tuple[WorldState, Setpoints]] = {}
-    worlds._each(lambda sim: guided.__setitem__(id(sim), sim.guidance()))
+    ``settle``. A world's phases run in its single run's order; what runs between two phases of a
+    world is only the other worlds' same phase."""
+    planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]] = {}
+    worlds._each(lambda sim: planned.__setitem__(id(sim), sim.planned()))
+    guided = _adjust(worlds, planned)
     if worlds._count():
         _control(worlds, guided)
     sims = worlds._sims()
@@ -211,6 +217,41 @@ def _step(worlds: _Worlds) -> None:
             _physics(worlds, [sim.dynamics for sim in sims], batch, dt)
             worlds._each(lambda sim: sim.push())
     worlds._each(lambda sim: sim.settle())
+
+
+def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]]
+            ) -> dict[int, tuple[WorldState, Setpoints]]:
+    """The avoidance of every running world, after its formation: what each world's controller
+    reads (keyed by ``id(sim)``). The worlds flying their formation (not a take-off or landing)
+    with one avoidance method are adjusted by its batched form; the others, and all of them when
+    the method has none (the default returns ``NotImplemented``) or declines this batch, world by
+    world, so that a world whose ``adjust`` raises stops alone. An exception of the batched form
+    stops every world."""
+    guided: dict[int, tuple[WorldState, Setpoints]] = {}
+    sims = [sim for sim in worlds._sims() if planned[id(sim)][1] is not None]
+    method = type(sims[0].avoidance) if sims else None
+    if method is not None and len(sims) > 1 and all(type(sim.avoidance) is method for sim in sims):
+        seen = [cast("Perceived", planned[id(sim)][1]) for sim in sims]
+        try:
+            done = method.adjust_batch([sim.avoidance for sim in sims], [p.world for p in seen],
+                                       [p.sensing for p in seen], [planned[id(sim)][2] for sim in sims])
+            if done is not NotImplemented and len(cast("list[Setpoints]", done)) != len(sims):
+                raise ValueError(f"{method.__name__}.adjust_batch returned {len(cast('list', done))} setpoints "
+                                 f"for {len(sims)} worlds")
+        except Exception as exc:
+            worlds._stop_all(exc)
+            return guided
+        if done is not NotImplemented:
+            for sim, sp in zip(sims, cast("list[Setpoints]", done), strict=True):
+                guided[id(sim)] = (planned[id(sim)][0], sp)
+
+    def adjust(sim: Simulation) -> None:
+        if id(sim) not in guided:
+            own, seen, sp = planned[id(sim)]
+            guided[id(sim)] = (own, sp if seen is None else sim.avoidance.adjust(seen.world, seen.sensing, sp))
+
+    worlds._each(adjust)
+    return guided
 
 
 def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]]) -> None:

@@ -181,6 +181,23 @@ class Avoidance(Plugin):
     def adjust(self, world: WorldState, sensing: Sensing, sp: Setpoints) -> Setpoints:
         """Return setpoints that keep agents apart and clear of obstacles (may return ``sp``)."""
 
+    @classmethod
+    def adjust_batch(cls, avoidances: Sequence[Self], worlds: Sequence[WorldState], sensings: Sequence[Sensing],
+                     setpoints: Sequence[Setpoints]) -> list[Setpoints] | object:
+        """``adjust`` of B worlds at once: ``[avoidances[b].adjust(worlds[b], sensings[b],
+        setpoints[b]) for each b]``, the worlds of a batch (core/batch.py) in one call.
+
+        This default returns ``NotImplemented``: the engine then adjusts each world with its own
+        instance, so every method works in a batch (and a world whose ``adjust`` raises stops
+        alone, as its single run). A method overrides it to take all worlds' agents in one pass of
+        its numerics (docs/batched.md); the setpoints it returns, and what the instances hold
+        afterwards, must equal each world's own ``adjust`` bit for bit (the contract check
+        ``avoidance.adjust_batch_equals_worlds``). An override may return ``NotImplemented`` for a
+        batch it cannot take whole (instances whose options differ). An exception it raises stops
+        every world of the batch.
+        """
+        return NotImplemented
+
 
 class Dynamics(Plugin):
     """A controller plus a plant: turns setpoints into motion, respecting saturation."""

@@ -37,7 +37,7 @@ import pluggy
 
 from . import interrupts, raised
 from .config import Scenario
-from .disturbances import Disturbances
+from .disturbances import Disturbances, Perceived
 from .environment import Environment
 from .errors import ConfigError
 from .events import EventQueue
@@ -176,14 +176,21 @@ class Simulation:
     def guidance(self) -> tuple[WorldState, Setpoints]:
         """Events, sense, communicate, formation, avoidance: what the controller reads this tick,
         the agents' own estimates and their setpoints (``guide`` without ``dynamics.control``)."""
+        own, seen, setpoints = self.planned()
+        if seen is not None:
+            setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
+        return own, setpoints
+
+    def planned(self) -> tuple[WorldState, Perceived | None, Setpoints]:
+        """Events, sense, communicate, formation: the guidance up to the avoidance (a batch of
+        worlds adjusts all of them in one call between the two, core/batch.py). Returns the agents'
+        own estimates, what the avoidance perceives (None during a take-off or landing, whose
+        setpoints the controller takes as they are) and the formation's setpoints."""
         self._apply_due_events()
         seen = self.disturbances.perceive(self.world, self.sensing)  # sense, communicate
         if self.phases is not None and self.phases.flying(self.world.t):  # take-off, landing
-            setpoints = self.phases.setpoints(self.world.t)
-        else:
-            setpoints = self.formation.setpoints(seen.formation_world, seen.formation_sensing)
-            setpoints = self.avoidance.adjust(seen.world, seen.sensing, setpoints)
-        return seen.own, setpoints
+            return seen.own, None, self.phases.setpoints(self.world.t)
+        return seen.own, seen, self.formation.setpoints(seen.formation_world, seen.formation_sensing)
 
     def blow(self, j: int) -> None:
         """The wind of physics sub-step ``j`` (before ``dynamics.step``)."""

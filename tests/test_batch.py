@@ -235,6 +235,39 @@ def test_the_control_batch_contract_check_catches_a_batched_control_that_differs
         testing.check_dynamics(Nudged)
 
 
+def test_orca_adjusts_every_world_in_one_pass_of_its_numerics(monkeypatch):
+    """swap (ORCA): one new_velocities call a tick for all worlds' agents, each world its single run."""
+    import swarmscene.plugins.avoidance.orca as orca_plugin
+
+    calls = []
+    real = orca_plugin.new_velocities
+    monkeypatch.setattr(orca_plugin, "new_velocities", lambda pos, *a: calls.append(len(pos)) or real(pos, *a))
+    data = api.compose(["scenario=swap", "clock.duration=2", "output.summary=false"])
+    outcomes = BatchSimulation([api.build({**data, "seed": seed}) for seed in SEEDS]).run()
+    n = data["swarm"]["n"]
+    assert calls and set(calls) == {n * len(SEEDS)}  # every tick, every world's agents at once
+    for seed, outcome in zip(SEEDS, outcomes, strict=True):
+        assert_world_is_its_single_run(["scenario=swap", "clock.duration=2", "output.summary=false"], seed,
+                                       outcome.result)
+
+
+def test_the_adjust_batch_contract_check_catches_a_batched_avoidance_that_differs():
+    from swarmscene.plugins.avoidance.orca import Orca
+
+    class Nudged(Orca):
+        name = "nudged_orca"
+
+        @classmethod
+        def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
+            out = Orca.adjust_batch.__func__(cls, avoidances, worlds, sensings, setpoints)
+            out[1].vel[0] += 1e-12  # world 1's first agent one picometre per second faster
+            return out
+
+    with pytest.raises(AssertionError, match="avoidance.adjust_batch_equals_worlds.*adjust_batch gave world 1 "
+                                             "other setpoints \\(vel\\)"):
+        testing.check_avoidance(Nudged)
+
+
 def test_the_batch_contract_check_catches_a_batched_form_that_differs():
     class Rounded(DoubleIntegrator):
         name = "rounded_double_integrator"

@@ -66,6 +66,9 @@ from swarmscene.methods.baselines.neighbours import neighbour_table
 from swarmscene.methods.baselines.orca import new_velocities, obstacle_lines
 from swarmscene.plugin import Avoidance, BuildContext, Setpoints, hookimpl
 
+_Rows = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""The per-agent rows of :func:`new_velocities`: positions, velocities, v_pref, neighbours, valid, static."""
+
 
 class Orca(Avoidance):
     """Optimal Reciprocal Collision Avoidance (planar), all agents' linear programs in lock-step."""
@@ -100,16 +103,59 @@ class Orca(Avoidance):
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
         """Each agent's velocity nearest its preferred one inside the ORCA half-planes of its
         neighbours (reciprocal: each takes half of the avoidance); failed agents count as static."""
+        v_pref, rows, hard = self._rows(world, sensing, sp)
+        v_new, feasible = new_velocities(*rows, *self._constants(), hard, np.radians(self.params.detour))
+        return self._commanded(world, sp, v_pref, rows[4], v_new, feasible)
+
+    @classmethod
+    def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
+        """``adjust`` of B worlds with one pass of ORCA's numerics: each world's preferred
+        velocities (its own perturbation stream), neighbour table and obstacle half-planes as
+        ``adjust`` makes them, then the agents of every world through :func:`new_velocities` at
+        once, their neighbour indices shifted to the stacked rows. Its arithmetic is row by row
+        (masked lock-step loops, elementwise operations and square roots), so every world gets
+        its own ``adjust``'s bits (the contract check ``avoidance.adjust_batch_equals_worlds``).
+        Declined (``NotImplemented``, before any world is touched) for instances whose options
+        differ, or worlds with and without obstacles."""
+        first = avoidances[0]
+        if any(a._constants() != first._constants() or a.params.detour != first.params.detour
+               for a in avoidances[1:]) or len({s.environment.empty for s in sensings}) != 1:
+            return NotImplemented
+        prepared = [a._rows(w, s, sp) for a, w, s, sp in zip(avoidances, worlds, sensings, setpoints, strict=True)]
+        sizes = [len(w.pos) for w in worlds]
+        offsets = np.cumsum([0, *sizes[:-1]])
+        pos, vel, preferred, index, valid, static = (
+            np.concatenate([rows[k] + (offset if k == 3 else 0) for (_, rows, _), offset in zip(prepared, offsets,
+                                                                                            strict=True)])
+            for k in range(6))
+        hard = None if prepared[0][2] is None else tuple(
+            np.concatenate([h[k] for _, _, h in prepared]) for k in range(3))
+        v_new, feasible = new_velocities(pos, vel, preferred, index, valid, static, *first._constants(), hard,
+                                         np.radians(first.params.detour))
+        cuts = offsets[1:]
+        return [a._commanded(w, sp, v_pref, rows[4], v, f) for a, w, sp, (v_pref, rows, _), v, f in zip(
+            avoidances, worlds, setpoints, prepared, np.split(v_new, cuts), np.split(feasible, cuts), strict=True)]
+
+    def _rows(self, world, sensing, sp: Setpoints) -> tuple[np.ndarray, _Rows, Any]:
+        """What eq. 5 needs of one world: v_pref (N, 3), the rows of :func:`new_velocities` (x-y
+        positions, velocities with the failed ones static, the perturbed v_pref, the neighbour
+        table and its mask, the static agents) and the obstacle half-planes (None without)."""
         p = self.params
         v_pref = preferred_velocity(sp, world.pos, p.gain, p.v_max)
         index, valid = neighbour_table(sensing.pairs(self.range), world.pos[:, :2], p.max_neighbours)
         static = ~world.healthy
         vel = np.where(static[:, None], 0.0, world.vel[:, :2])
         preferred = perturb(v_pref[:, :2], p.perturbation, self.ctx.rng)
-        v_new, feasible = new_velocities(
-            world.pos[:, :2], vel, preferred, index, valid, static, self.combined_radius, p.time_horizon,
-            self.ctx.guidance_period, p.v_max, self._obstacle_halfplanes(sensing), np.radians(p.detour),
-        )
+        return v_pref, (world.pos[:, :2], vel, preferred, index, valid, static), self._obstacle_halfplanes(sensing)
+
+    def _constants(self) -> tuple[float, float, float, float]:
+        """r_A + r_B, tau, the time step and v_max of :func:`new_velocities`."""
+        return self.combined_radius, self.params.time_horizon, self.ctx.guidance_period, self.params.v_max
+
+    def _commanded(self, world, sp: Setpoints, v_pref: np.ndarray, valid: np.ndarray, v_new: np.ndarray,
+                   feasible: np.ndarray) -> Setpoints:
+        """The healthy agents' velocity commands, and the metrics' counts of this tick (``valid``:
+        the neighbour table's mask)."""
         healthy = world.healthy
         self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
         self.max_used = max(self.max_used, int(valid.sum(axis=1).max(initial=0)))

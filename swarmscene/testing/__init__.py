@@ -343,6 +343,14 @@ def _avoidance_deterministic(s: Subject) -> None:
         _assert_same(s.name, tick.out, tick.again)
 
 
+@promise("avoidance", "adjust_batch_equals_worlds")
+def _avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
+    """``adjust_batch`` over three worlds apart (one with a failed agent) gives each world's own
+    ``adjust`` setpoints, tick after tick, and leaves the instances' counts as theirs, bit for bit
+    (the default returns ``NotImplemented``: the engine adjusts world by world)."""
+    _check_avoidance_adjust_batch_equals_worlds(s)
+
+
 @promise("avoidance", "no_shared_state")
 def _avoidance_no_shared_state(s: Subject) -> None:
     """Running an instance changes no class attribute (two instances share no state)."""
@@ -724,6 +732,47 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
     _assert_worlds_equal([one for one, _ in alone], [batched for batched, _ in together],
                          lambda b, field: f"{cls.name}: control_batch flew world {b} to another {field} than its "
                          "own control()", "must latch each world's commands with the per-world arithmetic")
+
+
+def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
+    """Three worlds (the example world shifted apart, world 1 squeezed to half its spacing, world 2
+    without its failed agent) flown TICKS ticks towards their centres, alone and then together."""
+    def worlds() -> list[WorldState]:
+        out = []
+        for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
+            world = example_world(failed=b != 2)
+            world.pos = (0.5 * world.pos if b == 1 else world.pos) + shift
+            out.append(world)
+        return out
+
+    alone, together = worlds(), worlds()
+    alone_methods = [_build(s.cls, s.params, s.environment, world) for world in alone]
+    batch_methods = [_build(s.cls, s.params, s.environment, world) for world in together]
+    for tick in range(TICKS):
+        sps = [_converging_setpoints(world) for world in together]
+        outs = s.cls.adjust_batch(batch_methods, together, [_sensing(w, s.environment) for w in together],
+                                  [sp.copy() for sp in sps])
+        if outs is NotImplemented:
+            return
+        assert isinstance(outs, list) and len(outs) == len(together), (
+            f"{s.name}: adjust_batch returned {type(outs).__name__}, not one Setpoints per world")
+        for b, (world, method, out) in enumerate(zip(alone, alone_methods, outs, strict=True)):
+            own = method.adjust(world, _sensing(world, s.environment), _converging_setpoints(world))
+            for key in ("mode", "pos", "vel", "acc", "yaw"):
+                assert np.array_equal(getattr(own, key), getattr(out, key)), (
+                    f"{s.name}: adjust_batch gave world {b} other setpoints ({key}) than its own adjust() at "
+                    f"tick {tick}: a batched form must give each world its own arithmetic (docs/batched.md)")
+            _fly(world, own)
+            _fly(together[b], out)
+    for b, (one, batched) in enumerate(zip(alone_methods, batch_methods, strict=True)):
+        assert _counts(one) == _counts(batched), (
+            f"{s.name}: after adjust_batch world {b}'s instance holds {_counts(batched)}, its own adjust() "
+            f"{_counts(one)}")
+
+
+def _counts(obj: Any) -> dict[str, Any]:
+    """An instance's plain attributes (counters, flags, names): what its metrics are made of."""
+    return {k: v for k, v in vars(obj).items() if isinstance(v, (bool, int, float, str))}
 
 
 def _fresh(cls: type[Dynamics], params: PluginParams) -> tuple[WorldState, Dynamics]:
