@@ -251,6 +251,22 @@ def test_orca_adjusts_every_world_in_one_pass_of_its_numerics(monkeypatch):
                                        outcome.result)
 
 
+def test_orca_worlds_tuned_apart_are_adjusted_one_by_one(monkeypatch):
+    """World 1 considers fewer neighbours (a neighbour table of another width): orca declines the
+    batch before touching a world, and each world is its single run."""
+    import swarmscene.plugins.avoidance.orca as orca_plugin
+
+    calls = []
+    real = orca_plugin.new_velocities
+    monkeypatch.setattr(orca_plugin, "new_velocities", lambda pos, *a: calls.append(len(pos)) or real(pos, *a))
+    configs = [["scenario=swap", "clock.duration=2", "output.summary=false", f"avoidance.max_neighbours={k}"]
+               for k in (10, 3)]
+    outcomes = BatchSimulation([api.build(config) for config in configs]).run()
+    assert calls and set(calls) == {api.compose(configs[0])["swarm"]["n"]}  # world by world
+    for config, outcome in zip(configs, outcomes, strict=True):
+        assert_world_is_its_single_run(config, 0, outcome.result)
+
+
 def test_the_adjust_batch_contract_check_catches_a_batched_avoidance_that_differs():
     from swarmscene.plugins.avoidance.orca import Orca
 

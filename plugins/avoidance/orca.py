@@ -118,16 +118,14 @@ class Orca(Avoidance):
         Declined (``NotImplemented``, before any world is touched) for instances whose options
         differ, or worlds with and without obstacles."""
         first = avoidances[0]
-        if any(a._constants() != first._constants() or a.params.detour != first.params.detour
-               for a in avoidances[1:]) or len({s.environment.empty for s in sensings}) != 1:
+        if any(a.params != first.params or a._constants() != first._constants() for a in avoidances[1:]) or len(
+                {s.environment.empty for s in sensings}) != 1:
             return NotImplemented
         prepared = [a._rows(w, s, sp) for a, w, s, sp in zip(avoidances, worlds, sensings, setpoints, strict=True)]
-        sizes = [len(w.pos) for w in worlds]
-        offsets = np.cumsum([0, *sizes[:-1]])
-        pos, vel, preferred, index, valid, static = (
-            np.concatenate([rows[k] + (offset if k == 3 else 0) for (_, rows, _), offset in zip(prepared, offsets,
-                                                                                            strict=True)])
-            for k in range(6))
+        offsets = np.cumsum([0, *(len(w.pos) for w in worlds[:-1])])
+        pos, vel, preferred, index, valid, static = (np.concatenate([rows[k] for _, rows, _ in prepared])
+                                                     for k in range(6))
+        index += np.repeat(offsets, [len(w.pos) for w in worlds])[:, None]  # world b's agent i: row offset_b + i
         hard = None if prepared[0][2] is None else tuple(
             np.concatenate([h[k] for _, _, h in prepared]) for k in range(3))
         v_new, feasible = new_velocities(pos, vel, preferred, index, valid, static, *first._constants(), hard,
