@@ -51,6 +51,22 @@ def test_a_complete_run_reads_back(run):
     assert d.has("metrics.json") and not d.has("error.json")
 
 
+def test_the_recorded_config_reads_back_as_the_scenarios_data(tmp_path):
+    """config.yaml (written by libyaml's emitter where PyYAML has it) reads back to the scenario's
+    data, a description with escapes, quotes, non-ASCII text and a wrapped long line included."""
+    from swarmscene.runs.outputs import CONFIG_HEADER
+
+    description = ("Corridor \u00e9t\u00e9 \u2192 '#1': \"tab\"\there, a colon: and a line\nbreak, \u4e2d "
+                   * 6).strip()
+    data = api.compose(["clock.duration=0.2", "output.summary=false"])
+    api.run({**data, "description": description}, output_dir=tmp_path / "run")
+    text = (tmp_path / "run" / "config.yaml").read_text()
+    assert text.startswith(CONFIG_HEADER)
+    recorded = RunDir(tmp_path / "run").config()
+    assert recorded["description"] == description
+    assert recorded == json.loads(json.dumps(api.load({**data, "description": description}).data))
+
+
 def test_a_missing_directory_or_a_file_in_its_place(tmp_path):
     assert problem(lambda: RunDir(tmp_path / "nope")) == f"{tmp_path}/nope: not a run directory (missing, or not a directory)"
     (tmp_path / "file").write_text("x")

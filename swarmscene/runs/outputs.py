@@ -450,7 +450,10 @@ def _write_run_files(
 ) -> None:
     import yaml  # PyYAML comes with hydra-core; imported here to keep start-up light
 
-    text = CONFIG_HEADER + yaml.safe_dump(_jsonable(data), sort_keys=False)
+    # libyaml's emitter where PyYAML has it (its wheels do): 4x faster (~4 ms of a sweep job), the
+    # same data read back; only a long quoted string with escapes may wrap at another place
+    dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+    text = CONFIG_HEADER + yaml.dump(_jsonable(data), Dumper=dumper, sort_keys=False)
     atomic_write_bytes(run_dir / "config.yaml", text.encode())
     if trajectory:
         write_npz(run_dir / "trajectory.npz", trajectory)
