@@ -109,30 +109,38 @@ class Orca(Avoidance):
 
     @classmethod
     def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
-        """``adjust`` of B worlds with one pass of ORCA's numerics: each world's preferred
-        velocities (its own perturbation stream), neighbour table and obstacle half-planes as
-        ``adjust`` makes them, then the agents of every world through :func:`new_velocities` at
-        once, their neighbour indices shifted to the stacked rows. Its arithmetic is row by row
-        (masked lock-step loops, elementwise operations and square roots), so every world gets
-        its own ``adjust``'s bits (the contract check ``avoidance.adjust_batch_equals_worlds``).
-        Declined (``NotImplemented``, before any world is touched) for instances whose options
-        differ, or worlds with and without obstacles."""
+        """``adjust`` of B worlds with one pass of ORCA's numerics. The worlds' agents are stacked
+        as rows: the preferred velocities and the neighbour tables are made for all of them at
+        once (each world's pairs shifted to its rows, so an agent's partners stay in its world),
+        the perturbation with each world's own stream and the obstacle half-planes from each
+        world's sensing, then every row goes through :func:`new_velocities`. All of it is row by
+        row (masked lock-step loops, elementwise operations and square roots; the neighbour order
+        a sort within each agent), so every world gets its own ``adjust``'s bits (the contract
+        check ``avoidance.adjust_batch_equals_worlds``). Declined (``NotImplemented``, before any
+        world is touched) for instances whose options differ, or worlds with and without obstacles."""
         first = avoidances[0]
         if any(a.params != first.params or a._constants() != first._constants() for a in avoidances[1:]) or len(
                 {s.environment.empty for s in sensings}) != 1:
             return NotImplemented
-        prepared = [a._rows(w, s, sp) for a, w, s, sp in zip(avoidances, worlds, sensings, setpoints, strict=True)]
-        offsets = np.cumsum([0, *(len(w.pos) for w in worlds[:-1])])
-        pos, vel, preferred, index, valid, static = (np.concatenate([rows[k] for _, rows, _ in prepared])
-                                                     for k in range(6))
-        index += np.repeat(offsets, [len(w.pos) for w in worlds])[:, None]  # world b's agent i: row offset_b + i
-        hard = None if prepared[0][2] is None else tuple(
-            np.concatenate([h[k] for _, _, h in prepared]) for k in range(3))
-        v_new, feasible = new_velocities(pos, vel, preferred, index, valid, static, *first._constants(), hard,
-                                         np.radians(first.params.detour))
-        cuts = offsets[1:]
-        return [a._commanded(w, sp, v_pref, rows[4], v, f) for a, w, sp, (v_pref, rows, _), v, f in zip(
-            avoidances, worlds, setpoints, prepared, np.split(v_new, cuts), np.split(feasible, cuts), strict=True)]
+        p, sizes = first.params, [len(w.pos) for w in worlds]
+        offsets = np.cumsum([0, *sizes[:-1]])
+        spans = [slice(o, o + size) for o, size in zip(offsets, sizes, strict=True)]
+        pos = np.concatenate([w.pos for w in worlds])
+        stacked = Setpoints(*(np.concatenate([getattr(sp, key) for sp in setpoints]) for key in
+                              ("mode", "pos", "vel", "acc", "yaw")))
+        v_pref = preferred_velocity(stacked, pos, p.gain, p.v_max)  # row by row
+        pairs = np.concatenate([s.pairs(first.range) + o for s, o in zip(sensings, offsets, strict=True)])
+        index, valid = neighbour_table(pairs, pos[:, :2], p.max_neighbours)  # each agent's partners in its world
+        static = ~np.concatenate([w.healthy for w in worlds])
+        vel = np.where(static[:, None], 0.0, np.concatenate([w.vel[:, :2] for w in worlds]))
+        preferred = np.concatenate([perturb(v_pref[span, :2], p.perturbation, a.ctx.rng)  # each world's stream
+                                    for a, span in zip(avoidances, spans, strict=True)])
+        planes = [a._obstacle_halfplanes(s) for a, s in zip(avoidances, sensings, strict=True)]
+        hard = None if planes[0] is None else tuple(np.concatenate([h[k] for h in planes]) for k in range(3))
+        v_new, feasible = new_velocities(pos[:, :2], vel, preferred, index, valid, static, *first._constants(), hard,
+                                         np.radians(p.detour))
+        return [a._commanded(w, sp, v_pref[span], valid[span], v_new[span], feasible[span])
+                for a, w, sp, span in zip(avoidances, worlds, setpoints, spans, strict=True)]
 
     def _rows(self, world, sensing, sp: Setpoints) -> tuple[np.ndarray, _Rows, Any]:
         """What eq. 5 needs of one world: v_pref (N, 3), the rows of :func:`new_velocities` (x-y
