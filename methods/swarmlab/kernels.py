@@ -808,6 +808,7 @@ def certified_lambda2(indptr, indices, deg, x, sigma0, order, fwork, iwork):
     theta, theta3 = np.inf, np.inf
     vectors = 0
     factorisations = 0
+    fresh = True  # lx is still L x of the start vector: the first Krylov space's L basis[0] is a copy
     while factorisations < FACTORISATIONS_MAX:
         sigma = shifts[tried] if tried < 3 else 0.5 * (theta + theta3)
         negatives, error = factor(indptr, indices, deg, sigma, perm, inv, first, a, d)
@@ -818,7 +819,11 @@ def certified_lambda2(indptr, indices, deg, x, sigma0, order, fwork, iwork):
             tried += 1
             continue
         basis[0] = x
-        laplacian_times(indptr, indices, deg, basis[0], image[0])
+        if fresh:
+            image[0] = lx  # the same product, the same bits
+        else:
+            laplacian_times(indptr, indices, deg, basis[0], image[0])
+        fresh = False  # from here on the Ritz vector and its orthonormalisation change x
         gram[0, 0] = np.dot(basis[0], image[0])
         k = 1
         while True:
