@@ -188,7 +188,10 @@ def _tighten(dist, listed, m, size, bins):
     """Keep of listed[:m] (in index order) those no further than a tighter cut, and return how many:
     the distances are counted into ``len(bins)`` equal bins between their least and greatest, and the
     cut is the furthest member of the first bins that hold ``size`` of them (as many agents as the
-    list holds: no nearer than its last). Three passes without a data-dependent branch."""
+    list holds: no nearer than its last). Those kept are the agents of those bins, tested by their bin:
+    a distance's bin never decreases with it (a difference, a product and a truncation, each
+    monotone), so it is in the first bins exactly when it is no further than that cut, and the cut
+    itself need not be found. Three passes without a data-dependent branch."""
     lo, hi = np.inf, -np.inf
     for t in range(m):
         lo = min(lo, dist[t])
@@ -204,16 +207,12 @@ def _tighten(dist, listed, m, size, bins):
     while held < size:
         last += 1
         held += bins[last]
-    cut = lo
-    for t in range(m):
-        inside = min(np.int64((dist[t] - lo) * scale), nb - 1) <= last
-        cut = max(cut, dist[t] if inside else lo)
     kept = 0
     for t in range(m):
         d = dist[t]
         listed[kept] = listed[t]
         dist[kept] = d
-        kept += np.int64(d <= cut)
+        kept += np.int64(min(np.int64((d - lo) * scale), nb - 1) <= last)
     return kept
 
 
@@ -808,6 +807,7 @@ def certified_lambda2(indptr, indices, deg, x, sigma0, order, fwork, iwork):
     theta, theta3 = np.inf, np.inf
     vectors = 0
     factorisations = 0
+    fresh = True  # lx is still L x of the start vector: the first Krylov space's L basis[0] is a copy
     while factorisations < FACTORISATIONS_MAX:
         sigma = shifts[tried] if tried < 3 else 0.5 * (theta + theta3)
         negatives, error = factor(indptr, indices, deg, sigma, perm, inv, first, a, d)
@@ -818,7 +818,11 @@ def certified_lambda2(indptr, indices, deg, x, sigma0, order, fwork, iwork):
             tried += 1
             continue
         basis[0] = x
-        laplacian_times(indptr, indices, deg, basis[0], image[0])
+        if fresh:
+            image[0] = lx  # the same product, the same bits
+        else:
+            laplacian_times(indptr, indices, deg, basis[0], image[0])
+        fresh = False  # from here on the Ritz vector and its orthonormalisation change x
         gram[0, 0] = np.dot(basis[0], image[0])
         k = 1
         while True:

@@ -93,6 +93,21 @@ class WarmStart:
         self.fwork: np.ndarray | None = None  # kernels.workspace(n, listed), with the first sample
         self.iwork: np.ndarray | None = None
 
+    def again(self, pos: np.ndarray, vel: np.ndarray, r: float, r_coll: float) -> tuple:
+        """The compiled pass of a swarm this state has sampled before (``listed``): the kernel's
+        tuple, S, Phi, U and lambda_2 / N first (:func:`kernels.swarm_sample`).
+
+        :func:`swarm_metrics` without its checks and conversions, which the first sample settled
+        (the size, the buffers, the kernels): ``pos`` and ``vel`` must be (N, dim) float64 arrays of
+        that N (the engine's state), ``r`` and ``r_coll`` floats. A hundred boids' sample is short
+        enough that the checks' Python, out of the caches between two flocking ticks, was ~7 % of it.
+        """
+        assert self.listed and _kernels is not None
+        out = _kernels.swarm_sample(pos, vel, r, r_coll, self.nbr, self.count, True, self.x, self.sigma, self.order,
+                                    self.fwork, self.iwork)
+        self.sigma = out[6]
+        return out
+
 
 class SwarmSample(NamedTuple):
     """One sample's metrics (SwarmLab's S, Phi, U, lambda_2 / N), the components, and whether

@@ -249,3 +249,16 @@ def test_the_buffers_are_allocated_once_and_the_row_order_stays_a_permutation():
         np.testing.assert_array_equal(np.sort(start.order), np.arange(50))
     assert_equal_to_definition(pos[:30], vel[:30], 150.0, 8, 0.5, start)
     assert start.fwork is not buffers[0] and len(start.order) == 30
+
+
+def test_a_warm_start_sampled_again_is_swarm_metrics_bit_for_bit():
+    """WarmStart.again (the observer's call after its first sample: no checks, no conversions) gives
+    every sample's metrics, lists and Fiedler vector exactly as swarm_metrics does from the same state."""
+    through, direct = WarmStart(), WarmStart()
+    for k, (pos, vel) in enumerate(drifting_swarm(40, 8, 5)):
+        want = swarm_metrics(pos, vel, 150.0, 6, 0.5, through)
+        got = swarm_metrics(pos, vel, 150.0, 6, 0.5, direct) if k == 0 else direct.again(pos, vel, 150.0, 0.5)
+        assert tuple(got[:6]) == tuple(want), k
+        np.testing.assert_array_equal(direct.nbr, through.nbr)
+        np.testing.assert_array_equal(direct.x, through.x)
+        assert direct.sigma == through.sigma
