@@ -736,7 +736,8 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
 
 def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
     """Three worlds (the example world shifted apart, world 1 squeezed to half its spacing, world 2
-    without its failed agent) flown TICKS ticks towards their centres, alone and then together."""
+    without its failed agent) flown TICKS ticks towards their centres twice side by side: each
+    world by its own instance's ``adjust``, and all three by ``adjust_batch``."""
     def worlds() -> list[WorldState]:
         out = []
         for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
