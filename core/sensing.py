@@ -101,7 +101,7 @@ def read_only(value: T) -> T:
         view = value.view()
         view.setflags(write=False)  # (not ``view.flags.writeable = False``: a flags object a call, 1.5x slower)
         return cast("T", view)
-    if type(value) is tuple:  # not a named tuple: its own fields stay
+    if isinstance(value, tuple) and type(value) is tuple:  # not a named tuple: its own fields stay
         items: tuple[Any, ...] = value
         return cast("T", tuple([read_only(item) for item in items]))  # a list: no generator a call
     return value
