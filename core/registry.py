@@ -14,6 +14,7 @@ import importlib
 import os
 import types
 import warnings
+import weakref
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
@@ -160,23 +161,43 @@ def validate_choice(registry: Registry, kind: str, name: Any, key: str, errors: 
     return None
 
 
+_HOOKABLE = (types.FunctionType, types.MethodType, staticmethod, classmethod)
+"""What pluggy takes as a hook implementation (a function, a bound method, a static or class method)."""
+
+
 class _PluginManager(pluggy.PluginManager):
-    """pluggy's manager, with a cheaper first look at a module plugin's names.
+    """pluggy's manager, with a cheaper look at a module plugin's names.
 
     ``register`` asks :meth:`parse_hookimpl_opts` about every name in a plugin's ``dir()``; pluggy
-    looks each one up with ``inspect.getattr_static``, which walks the module type's MRO first (a
-    plugin module holds hundreds of imported names: ~7 ms for the built-ins, paid by every run and
-    every sweep job). For a module, that lookup finds the module's own ``__dict__`` entry, and a
-    value that is not a function, method, ``staticmethod`` or ``classmethod`` is never a hook
-    implementation, so such a name is answered None here, as pluggy would; every other name (and
-    every dunder) goes to pluggy's own method."""
+    looks each one up with ``inspect.getattr_static``, which walks the module type's MRO first (the
+    built-in modules hold ~1,000 names: ~7 ms, paid by every run, every sweep job and every world
+    of a batch). A name in a module's own ``__dict__`` is found there by that lookup (the module
+    type's data descriptors, ``__dict__`` and ``__annotations__``, are never hook implementations),
+    so:
+
+    * a value that is not a function, method, ``staticmethod`` or ``classmethod`` is never a hook
+      implementation: such a name (a dunder included) is answered None here, as pluggy would;
+    * for a function, pluggy's answer depends on the value alone (its marker): it is asked once per
+      process and kept with the value, and asked again when the module holds another value.
+
+    Every other name, and every plugin that is not a module, goes to pluggy's own method."""
+
+    _module_answers: weakref.WeakKeyDictionary[types.ModuleType, dict[tuple[str, str], tuple[Any, Any]]] = (
+        weakref.WeakKeyDictionary())
+    """pluggy's answer per module, project and name, with the value it was given for."""
 
     def parse_hookimpl_opts(self, plugin: Any, name: str) -> Any:
-        if isinstance(plugin, types.ModuleType) and not name.startswith("__"):
-            value = vars(plugin).get(name)
-            if not isinstance(value, (types.FunctionType, types.MethodType, staticmethod, classmethod)):
-                return None
-        return super().parse_hookimpl_opts(plugin, name)
+        if not isinstance(plugin, types.ModuleType) or name not in vars(plugin):
+            return super().parse_hookimpl_opts(plugin, name)
+        value = vars(plugin)[name]
+        if not isinstance(value, _HOOKABLE):
+            return None
+        answers = self._module_answers.setdefault(plugin, {})
+        key = (self.project_name, name)
+        known = answers.get(key)
+        if known is None or known[0] is not value:
+            known = answers[key] = (value, super().parse_hookimpl_opts(plugin, name))
+        return known[1]
 
 
 def make_plugin_manager(

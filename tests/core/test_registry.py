@@ -196,9 +196,10 @@ def _hookimpls(pm: pluggy.PluginManager) -> list[tuple]:
 
 
 def test_the_managers_quick_look_at_a_module_finds_what_pluggy_finds(monkeypatch):
-    """``_PluginManager`` answers a module's non-function names itself (pluggy's per-name static
-    lookup is most of a manager's cost); the hook implementations are pluggy's own, for the
-    built-ins, the allkinds test package, and a module holding every shape pluggy accepts."""
+    """``_PluginManager`` answers a module's non-function names itself and keeps pluggy's answer
+    for each function (pluggy's per-name static lookup is most of a manager's cost); the hook
+    implementations are pluggy's own, for the built-ins, the allkinds test package, and a module
+    holding every shape pluggy accepts, also after that module's values change."""
     import tests.swarmscene_allkinds.plugin as allkinds
 
     odd = types.ModuleType("odd_plugin")
@@ -226,3 +227,14 @@ def test_the_managers_quick_look_at_a_module_finds_what_pluggy_finds(monkeypatch
     assert found == _hookimpls(plain)
     assert {name for name, plugin, *_ in found if plugin == "odd"} == {"swarmscene_run_start",
                                                                 "swarmscene_run_end"}
+    # a module that now holds other values (reloaded, patched) is answered for them, not from memory
+    odd.swarmscene_run_start = lambda sim: None  # unmarked
+    odd.swarmscene_run_end = hookimpl(lambda sim, metrics: None)  # another function, marked
+    monkeypatch.undo()
+    again, _ = make_plugin_manager([], load_entry_points=False)
+    again.register(odd, name="odd")
+    monkeypatch.setattr(registry_module, "_PluginManager", pluggy.PluginManager)
+    plain_again, _ = make_plugin_manager([], load_entry_points=False)
+    plain_again.register(odd, name="odd")
+    assert _hookimpls(again) == _hookimpls(plain_again)
+    assert {name for name, plugin, *_ in _hookimpls(again) if plugin == "odd"} == {"swarmscene_run_end"}
