@@ -127,7 +127,7 @@ class WorldBatch:
         self._tick_memo: dict[str, Any] = {}
         self._batch_memo: dict[str, Any] = {}
         # pack(): per names, the instances packed and, per name, the stacked array and its slices
-        self._packed: dict[tuple[str, ...], tuple[list[Any], dict[str, tuple[np.ndarray, list[np.ndarray]]]]] = {}
+        self._packed: dict[tuple[str, ...] | str, tuple[list[Any], dict[str, tuple[np.ndarray, list[np.ndarray]]]]] = {}
         for name in BATCHED_FIELDS:
             arrays = [getattr(world, name) for world in self.worlds]
             if any(a is None for a in arrays):
@@ -175,18 +175,21 @@ class WorldBatch:
         """A world field that the batch does not hold (``wind``, ``force``), stacked (B, N, k): a copy."""
         return np.stack([getattr(world, name) for world in self.worlds])
 
-    def pack(self, models: list[Any], names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    def pack(self, models: list[Any], names: tuple[str, ...], key: str | None = None) -> dict[str, np.ndarray]:
         """The per-agent arrays ``names`` of the worlds' plugin instances ``models``, as (B, N, k)
         arrays whose slices the instances then hold (like the worlds' fields).
 
         The first call stacks them and rebinds each instance's attribute to its slice, so an
         instance that writes its arrays in place (a controller latching references) writes into
         the batch; a later call returns the same arrays unless an instance has rebound one of
-        them (reallocated it), in which case that name is stacked and rebound again.
+        them (reallocated it), in which case that name is stacked and rebound again. The arrays are
+        kept under ``key`` (default: ``names``): a model that packs several lists of instances
+        (one per controller law) gives each its own key, so that one does not unpack the other.
         """
-        known = self._packed.get(names)
+        kept = names if key is None else key
+        known = self._packed.get(kept)
         if known is None or known[0] != models:
-            known = self._packed[names] = (list(models), {})
+            known = self._packed[kept] = (list(models), {})
         packed = known[1]
         for name in names:
             held = packed.get(name)

@@ -235,6 +235,47 @@ def test_the_control_batch_contract_check_catches_a_batched_control_that_differs
         testing.check_dynamics(Nudged)
 
 
+def _count_steady_steps(monkeypatch) -> list[int]:
+    """Rows of each steady step of the thesis controller: a world's own (N rows, also inside its
+    ``control``) or double_integrator's stacked one (B N rows)."""
+    from swarmscene.methods.quadrotor.thesis_controllers import ThesisController
+
+    rows: list[int] = []
+    real = ThesisController.step_steady
+
+    def counted(self, family, r, *rest):
+        rows.append(len(r))
+        return real(self, family, r, *rest)
+
+    monkeypatch.setattr(ThesisController, "step_steady", counted)
+    return rows
+
+
+def test_double_integrator_worlds_on_one_law_are_controlled_in_one_stacked_step(monkeypatch):
+    """The default scenario: at each world's first tick a law starts (each world's own control);
+    at every later tick the controllers run as one stacked step over all worlds' agents; each
+    world is its single run."""
+    rows = _count_steady_steps(monkeypatch)
+    config = ["clock.duration=3", "output.summary=false"]
+    data = api.compose(config)
+    outcomes = BatchSimulation([api.build({**data, "seed": seed}) for seed in SEEDS]).run()
+    n, ticks = data["swarm"]["n"], int(round(3 / data["clock"]["guidance_period"]))
+    assert rows == [n] * len(SEEDS) + [n * len(SEEDS)] * (ticks - 1)
+    monkeypatch.undo()
+    for seed, outcome in zip(SEEDS, outcomes, strict=True):
+        assert_world_is_its_single_run(config, seed, outcome.result)
+
+
+def test_double_integrator_worlds_tuned_apart_are_controlled_one_by_one(monkeypatch):
+    rows = _count_steady_steps(monkeypatch)
+    configs = [["clock.duration=2", "output.summary=false", f"dynamics.omega={omega}"] for omega in (1.5, 2.0)]
+    outcomes = BatchSimulation([api.build(config) for config in configs]).run()
+    assert rows and set(rows) == {api.compose(configs[0])["swarm"]["n"]}  # each world's own step
+    monkeypatch.undo()
+    for config, outcome in zip(configs, outcomes, strict=True):
+        assert_world_is_its_single_run(config, 0, outcome.result)
+
+
 def test_orca_adjusts_every_world_in_one_pass_of_its_numerics(monkeypatch):
     """swap (ORCA): one new_velocities call a tick for all worlds' agents, each world its single run."""
     import swarmscene.plugins.avoidance.orca as orca_plugin

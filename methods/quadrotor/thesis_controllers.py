@@ -347,7 +347,7 @@ class ThesisController:
             if self._one_law != law:  # else every agent used it last tick: nothing restarts
                 self._restart(_FAMILY[mode], r, v)
                 self._one_law = law
-            return self._step_one(law, r, v, r_ref, v_ref, u_ref, v_lim)
+            return self.step_steady(law, r, v, r_ref, v_ref, u_ref, v_lim)
         family = _FAMILY[mode]
         self._one_law = None
         self._restart(family, r, v)
@@ -369,8 +369,29 @@ class ThesisController:
         self.tracker.integrate(r, r_ref, u_inf, u, family == _TRACKER)
         return u
 
-    def _step_one(self, family: int, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray,
-                  v_ref: np.ndarray, u_ref: np.ndarray, v_lim: np.ndarray | float | None) -> np.ndarray:
+    def steady_law(self, mode: np.ndarray) -> int | None:
+        """The law every agent ran at the previous tick, when ``mode`` keeps each of them on it (so
+        :meth:`step` restarts no integral and runs :meth:`step_steady` with it); else None."""
+        if self._one_law is None or not mode.size:
+            return None
+        first = int(mode[0])
+        if not 0 <= first < len(_FAMILY) or int(_FAMILY[first]) != self._one_law:
+            return None
+        return self._one_law if every(mode == first) else None
+
+    def stacked(self, law: int, x_I: np.ndarray) -> ThesisController:
+        """A controller with this one's gains and limits over the agents of B worlds stacked along
+        the first axis (the world axis, docs/batched.md), whose law ``law`` integrates ``x_I``
+        ((B N, 3), a view of the worlds' own integral states) in place. Its :meth:`step_steady`
+        is each world's :meth:`step`, bit for bit, when every world's :meth:`steady_law` is
+        ``law``: the same elementwise operations on the same values."""
+        twin = ThesisController(0, self.velocity.gains, self.position.gains, self.tracker.gains,
+                                self.u_sat, self.K_lim, self.eps_lim)
+        (twin.velocity, twin.position, twin.tracker)[law].x_I = x_I
+        return twin
+
+    def step_steady(self, family: int, r: np.ndarray, v: np.ndarray, r_ref: np.ndarray,
+                    v_ref: np.ndarray, u_ref: np.ndarray, v_lim: np.ndarray | float | None) -> np.ndarray:
         """:meth:`step` when every agent uses law ``family``: the same operations on the same
         values (so the same bits), without the two laws whose results the selection drops. The
         idle laws' integrals are left as they are: an agent entering a law restarts its integral."""

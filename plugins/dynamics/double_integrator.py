@@ -138,6 +138,71 @@ class DoubleIntegrator(Dynamics):
         self.u[...] = self.controller.step(mode, world.pos, world.vel, r_ref, v_ref, sp.acc, v_max)
         self._held_dt = None
 
+    _LAWS = ("velocity", "position", "tracker")
+    """The controller's law objects, in the order of its law numbers (its ``steady_law``)."""
+
+    @classmethod
+    def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
+                      setpoints: Sequence[Setpoints]) -> object:
+        """``control`` of B worlds at once over their stacked B x N agents (docs/batched.md).
+
+        The worlds whose agents are all healthy and all keep the law they ran at the previous tick
+        (:meth:`ThesisController.steady_law`, every tick but a world's first and its mode
+        changes) are grouped by that law, and each group of two or more is one swarm of stacked
+        agents: their integral states are
+        packed along the world axis (:meth:`WorldBatch.pack`, each controller integrates its
+        slice), and one :meth:`ThesisController.step_steady` runs the law's elementwise
+        operations, which give each agent its single run's bits. The other worlds run their own
+        ``control``. Worlds whose instances differ in options, and setpoints that are not (N, 3)
+        float64 records, are left to the per-world ``control`` (which raises for a wrong size)."""
+        n = batch.pos.shape[1]
+        if not cls._same_options(models, batch) or not all(map(_plain_record, setpoints, [n] * len(setpoints))):
+            return NotImplemented
+        laws = [model.controller.steady_law(sp.mode) if every(world.healthy) else None
+                for model, world, sp in zip(models, worlds, setpoints, strict=True)]
+        groups = {law: [b for b, own in enumerate(laws) if own == law]
+                  for law in sorted({law for law in laws if law is not None})}
+        groups = {law: group for law, group in groups.items() if len(group) > 1}
+        if not groups:
+            return NotImplemented
+        for law, group in groups.items():
+            cls._control_steady([models[b] for b in group], batch, [worlds[b] for b in group],
+                                [setpoints[b] for b in group], law)
+        for b in sorted(set(range(len(models))) - {b for group in groups.values() for b in group}):
+            models[b].control(worlds[b], setpoints[b])
+        return None
+
+    @classmethod
+    def _control_steady(cls, flock: list[Self], batch: WorldBatch, worlds: list[WorldState],
+                        setpoints: list[Setpoints], law: int) -> None:
+        """``control`` of worlds whose agents all keep law ``law``: one stacked step of the law."""
+        n = batch.pos.shape[1]
+        x_I = batch.pack([getattr(model.controller, cls._LAWS[law]) for model in flock], ("x_I",),
+                         key=f"double_integrator.{cls._LAWS[law]}")["x_I"]
+        twin = batch.per_batch(f"double_integrator.twin.{law}", lambda: flock[0].controller.stacked(law, x_I))
+        getattr(twin, cls._LAWS[law]).x_I = x_I.reshape(-1, 3)  # the slices pack() handed out this tick
+        v_max = flock[0].params.v_max
+        vel = np.concatenate([sp.vel for sp in setpoints])
+        if v_max is None:
+            v_ref = vel
+        else:  # np.clip's values, as control's
+            v_ref = np.maximum(vel, -v_max)
+            np.minimum(v_ref, v_max, out=v_ref)
+        u = twin.step_steady(
+            law, np.concatenate([world.pos for world in worlds]), np.concatenate([world.vel for world in worlds]),
+            np.concatenate([sp.pos for sp in setpoints]), v_ref, np.concatenate([sp.acc for sp in setpoints]),
+            v_max)
+        for model, own_u in zip(flock, u.reshape(len(flock), n, 3), strict=True):
+            model.u[...] = own_u
+            model._held_dt = None
+
+    @classmethod
+    def _same_options(cls, models: Sequence[Self], batch: WorldBatch) -> bool:
+        """Whether the worlds' instances were built with the same options (one set of gains);
+        asked once per batch, the options being frozen."""
+        return bool(batch.per_batch("double_integrator.same_options",
+                                    lambda: all(m.params == models[0].params for m in models)))
+
     def step(self, world: WorldState, dt: float) -> None:
         """r += T v + T^2/2 u, v += T u (exact for u held over the step)."""
         # r += T v + T^2/2 u, v += T u. u is held over the tick's sub-steps, so its two terms are
@@ -162,6 +227,13 @@ class DoubleIntegrator(Dynamics):
         move += du_pos
         batch.pos += move
         batch.vel += du_vel
+
+
+def _plain_record(sp: Setpoints, n: int) -> bool:
+    """Whether ``sp`` commands ``n`` agents with float64 (N,) modes and (N, 3) references: what the
+    stacked law reads (another dtype would be promoted differently once stacked)."""
+    return sp.mode.shape == (n,) and all(a.shape == (n, 3) and a.dtype == np.float64
+                                         for a in (sp.pos, sp.vel, sp.acc))
 
 
 @hookimpl

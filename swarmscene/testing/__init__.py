@@ -676,11 +676,12 @@ def _assert_worlds_equal(alone: list[WorldState], together: list[WorldState], di
 
 
 def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: PluginParams) -> None:
-    """Three worlds flown 2 s alone (``control`` and ``step``), then together (``control_batch``
-    and ``step_batch``): each tick every world gets setpoints of its own (world 0 a POSITION move,
-    world 1 a TRACK along a moving target with vel, acc and a turning heading, world 2 a
-    VELOCITY command with one agent failed and the rest held)."""
-    shifts = ([0.0, 0.0, 0.0], [5.0, -2.0, 1.0], [-3.0, 4.0, 0.5])
+    """Five worlds flown 2 s alone (``control`` and ``step``), then together (``control_batch``
+    and ``step_batch``): each tick every world gets setpoints of its own (worlds 0 and 3 a
+    POSITION move each, worlds 1 and 4 a TRACK along a moving target with vel, acc and a turning
+    heading, world 2 a VELOCITY command with one agent failed and the rest held), so that a
+    batched form that groups worlds by their controller's mode has groups to take."""
+    shifts = ([0.0, 0.0, 0.0], [5.0, -2.0, 1.0], [-3.0, 4.0, 0.5], [2.0, 6.0, -1.0], [-6.0, -5.0, 2.0])
 
     def worlds() -> list[tuple[WorldState, Dynamics]]:
         out = []
@@ -694,11 +695,11 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
 
     def setpoints(b: int, world: WorldState, t: float) -> Setpoints:
         sp = Setpoints.hold(world.pos)
-        if b == 0:
+        if b in (0, 3):
             sp.mode[:] = Mode.POSITION
-            sp.pos[:] = world.pos + [1.0, 0.0, 0.0]
-        elif b == 1:
-            sp = _moving_target(world.pos, t, feed_forward=True)
+            sp.pos[:] = world.pos + [1.0, 0.0, 0.0] if b == 0 else world.pos + [-0.5, 2.0, 0.3]
+        elif b in (1, 4):
+            sp = _moving_target(world.pos, t + b, feed_forward=True)
             sp.yaw[:] = 0.3 * t + 0.1 * np.arange(world.n)
         else:
             sp.mode[:] = Mode.VELOCITY
