@@ -17,7 +17,7 @@ they are handed out read-only (:func:`read_only`): copy one to edit it.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any, Generic, TypeVar, cast
@@ -27,7 +27,15 @@ import scipy  # submodules load on first use (scipy.sparse, scipy.spatial): a sm
 
 from .environment import Environment
 from .state import WorldState
-from .vectors import DENSE_POINTS, dense_pair_dist2, min_pair_distance, pairs_within, upper_pair_array
+from .vectors import (
+    DENSE_POINTS,
+    dense_pair_dist2,
+    dense_pair_dist2_batch,
+    every,
+    min_pair_distance,
+    pairs_within,
+    upper_pair_array,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     import networkx as nx
@@ -497,3 +505,28 @@ class Sensing:
         rows, cols = self.comm_adjacency.nonzero()
         graph.add_edges_from((int(a), int(b)) for a, b in zip(rows, cols, strict=True) if a < b)
         return graph
+
+
+def prefetch_few(sensings: Sequence[Sensing]) -> None:
+    """The first queries of B small worlds' snapshots in one pass (a batch's tick, core/batch.py):
+    every pair's squared length (:attr:`Sensing._every_pair`), the closest pair
+    (:attr:`Sensing.min_separation`) and, where every agent is a member and every member is in
+    range of every other, :attr:`Sensing.comm_connected`, over the worlds' stacked positions
+    (:func:`~.vectors.dense_pair_dist2_batch`). Each snapshot gets the bits its own lazy queries
+    give (the same lengths; a least and a greatest value do not depend on the order they are
+    sought in). Snapshots of more than ``DENSE_POINTS`` or fewer than two agents, of another N
+    than the first's, or not float64, are left to their own queries; so is any query already made."""
+    few = [s for s in sensings if 2 <= s._n <= DENSE_POINTS and s.world.pos.dtype == np.float64
+           and "_every_pair" not in s.__dict__]
+    few = [s for s in few if s._n == few[0]._n and s.world.pos.shape[1] == few[0].world.pos.shape[1]]
+    if len(few) < 2:
+        return
+    i, j, d2 = dense_pair_dist2_batch(np.stack([s.world.pos for s in few]))
+    closest = np.sqrt(np.minimum.reduce(d2, axis=1)).tolist()
+    widest = np.maximum.reduce(d2, axis=1).tolist()
+    for s, own, least, most in zip(few, d2, closest, widest, strict=True):
+        s.__dict__["_every_pair"] = read_only((i, j, own))
+        s.__dict__.setdefault("min_separation", least)
+        if (s.periodic is None and most <= s.comm_range * s.comm_range
+                and every(s.world.healthy) and every(s.world.comm_ok)):
+            s.__dict__.setdefault("comm_connected", True)

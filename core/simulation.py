@@ -202,7 +202,13 @@ class Simulation:
 
     def settle(self) -> None:
         """After the physics: hold failed agents, raised events, the floor, the wrap, the finite
-        check, the clock, the new snapshot and the observers."""
+        check, the clock, the new snapshot (:meth:`settle_world`), then the observers."""
+        self.settle_world()
+        self._step_end()
+
+    def settle_world(self) -> None:
+        """:meth:`settle` up to the observers (a batch of worlds answers their snapshots' first
+        queries in one pass between the two, core/batch.py)."""
         self.events.hold(self.world)
         if self.disturbances.raisers:
             self._apply_raised(self.disturbances.raised(self.world, self.world.t + self.guidance_period))
@@ -218,6 +224,9 @@ class Simulation:
         # mission time, from whole ticks (no drift from summing dt); a take-off's ticks come before 0
         self.world.t = (self.step_count - self.takeoff_ticks) * self.guidance_period
         self.sensing = Sensing(self.world, self.environment, self.config.comm.range, self.sensing)
+
+    def observe(self) -> None:
+        """The tick's end for the observers: ``swarmscene_step_end`` (after :meth:`settle_world`)."""
         self._step_end()
 
     def _step_end(self) -> None:

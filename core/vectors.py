@@ -77,6 +77,20 @@ def dense_pair_dist2(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return i, j, d2
 
 
+def dense_pair_dist2_batch(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`dense_pair_dist2` of B point sets at once: ``points`` (B, N, D) float64, the pairs
+    (i < j) and their squared distances (B, M), each row the bits of that set's own call (the same
+    elementwise differences, squares and axis sums, in the same order)."""
+    i, j = _upper_pairs(points.shape[1])
+    diff = points.take(j, axis=1)
+    diff -= points.take(i, axis=1)
+    diff *= diff
+    d2 = diff[:, :, 0] + diff[:, :, 1] if points.shape[2] > 1 else diff[:, :, 0].copy()
+    for k in range(2, points.shape[2]):
+        d2 += diff[:, :, k]
+    return i, j, d2
+
+
 def pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Every pair (i < j, in lexicographic order) of ``points`` (N, D) at most ``radius`` apart,
     shape (M, 2), and its squared distance (M,): one dense pass for at most ``DENSE_POINTS``

@@ -1,0 +1,65 @@
+"""A batch's one pass over its small worlds' snapshots (core/sensing.prefetch_few) answers each
+snapshot's first queries with the bits that snapshot's own lazy queries give."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmscene.core.environment import Environment
+from swarmscene.core.sensing import Sensing, prefetch_few
+from swarmscene.core.state import WorldState
+from swarmscene.core.vectors import DENSE_POINTS, dense_pair_dist2, dense_pair_dist2_batch
+
+
+def test_the_stacked_pair_lengths_are_each_sets_own_to_the_bit():
+    rng = np.random.default_rng(3)
+    for b, n, d in ((1, 2, 3), (7, 5, 3), (4, DENSE_POINTS, 3), (3, 6, 2)):
+        # lengths over many scales, so that a changed order of the sums would show in the last bits
+        points = rng.normal(size=(b, n, d)) * 10.0 ** rng.integers(-3, 4, size=(b, n, 1))
+        i, j, d2 = dense_pair_dist2_batch(points)
+        for k in range(b):
+            own_i, own_j, own_d2 = dense_pair_dist2(points[k])
+            assert np.array_equal(i, own_i) and np.array_equal(j, own_j)
+            assert d2[k].tobytes() == own_d2.tobytes()
+
+
+def worlds(rng: np.random.Generator) -> list[WorldState]:
+    """Six small worlds: spread within range, spread beyond it, one agent failed, one radio lost,
+    then two that prefetch_few must leave alone (another N, one agent)."""
+    out = []
+    for scale, n in ((1.0, 6), (9.0, 6), (1.0, 6), (1.0, 6), (1.0, 7), (1.0, 1)):
+        out.append(WorldState.at_rest(rng.uniform(-scale, scale, (n, 3))))
+    out[2].healthy[4] = False
+    out[3].comm_ok[0] = False
+    return out
+
+
+def test_prefetched_snapshots_answer_as_their_own_queries():
+    rng = np.random.default_rng(7)
+    env = Environment()
+    for _ in range(20):
+        ws = worlds(rng)
+        batch = [Sensing(w, env, comm_range=4.0) for w in ws]
+        prefetch_few(batch)
+        for w, fetched in zip(ws, batch, strict=True):
+            own = Sensing(w, env, comm_range=4.0)
+            assert fetched.min_separation == own.min_separation
+            assert fetched.comm_connected is own.comm_connected
+            if w.n >= 2:
+                assert all(a.tobytes() == b.tobytes() for a, b in zip(fetched._every_pair, own._every_pair, strict=True))
+                assert np.array_equal(fetched.pairs(2.5), own.pairs(2.5))
+
+
+def test_prefetch_few_answers_what_it_can_and_leaves_the_rest_to_the_snapshot():
+    rng = np.random.default_rng(1)
+    ws = worlds(rng)
+    ws[0].pos[:] = rng.uniform(-1.0, 1.0, (6, 3))  # all within range: a complete graph
+    batch = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
+    prefetch_few(batch)
+    answered = [sorted(k for k in ("_every_pair", "min_separation", "comm_connected") if k in s.__dict__)
+                for s in batch]
+    assert answered[0] == ["_every_pair", "comm_connected", "min_separation"]
+    assert answered[1] == ["_every_pair", "min_separation"]  # beyond range: the sweeps decide
+    assert answered[2] == answered[3] == ["_every_pair", "min_separation"]  # not every agent a member
+    assert answered[4] == answered[5] == []  # another N; a single agent
+    assert not batch[0].__dict__["_every_pair"][2].flags.writeable  # shared: read-only, as a query's
