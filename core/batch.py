@@ -16,9 +16,10 @@ A world's tick is the single run's tick, phase by phase (``planned``: events, se
 formation; ``adjust``, ``control``, the physics sub-steps with the wind before and the force phase
 after each ``step``, ``settle_world``, the observers): between two phases of a world run only
 the other worlds' same phase, which share nothing with it, so a world of a batch equals its single
-run bit for bit (tests/test_batch.py, every preset). Between the last two, the small worlds' new
-snapshots get their pair lengths, closest pair and complete-graph test in one pass
-(:func:`~swarmscene.core.sensing.prefetch_few`): the values their own queries would compute.
+run bit for bit (tests/test_batch.py, every preset). Between the last two, the worlds' new
+snapshots get their first queries answered in one pass (:func:`~swarmscene.core.sensing.prefetch`:
+the small worlds' pairs, closest pair and complete-graph test, and "no obstacle in range"): the
+values their own queries would compute.
 :class:`BatchSimulation` and :func:`lockstep` step their worlds with the same function,
 :func:`_step`. A world that ends (its duration, the mission complete, a collision that stops it,
 a non-finite state, a plugin's exception) is masked: the batch is rebuilt over the others, which
@@ -39,7 +40,7 @@ from . import interrupts
 from .disturbances import Perceived
 from .plugin import Dynamics
 from .result import RunResult
-from .sensing import prefetch_few
+from .sensing import prefetch
 from .setpoint import Setpoints
 from .simulation import Simulation
 from .state import WorldBatch, WorldState
@@ -204,7 +205,7 @@ def _step(worlds: _Worlds) -> None:
     (:meth:`~swarmscene.core.plugin.Dynamics.control_batch`), the physics sub-steps (each world's
     wind, :meth:`~swarmscene.core.plugin.Dynamics.step_batch`, each world's forces), each world's
     ``settle_world``, the first queries of the worlds' new snapshots in one pass
-    (:func:`~swarmscene.core.sensing.prefetch_few`), each world's observers. A world's phases
+    (:func:`~swarmscene.core.sensing.prefetch`), each world's observers. A world's phases
     run in its single run's order; what runs between two phases of a world is only the other
     worlds' same phase."""
     planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]] = {}
@@ -222,7 +223,7 @@ def _step(worlds: _Worlds) -> None:
             _physics(worlds, [sim.dynamics for sim in sims], batch, dt)
             worlds._each(lambda sim: sim.push())
     worlds._each(lambda sim: sim.settle_world())
-    prefetch_few([sim.sensing for sim in worlds._sims()])
+    prefetch([sim.sensing for sim in worlds._sims()])
     worlds._each(lambda sim: sim.observe())
 
 

@@ -507,15 +507,28 @@ class Sensing:
         return graph
 
 
-def prefetch_few(sensings: Sequence[Sensing]) -> None:
-    """The first queries of B small worlds' snapshots in one pass (a batch's tick, core/batch.py):
-    every pair's squared length (:attr:`Sensing._every_pair`), the closest pair
+def prefetch(sensings: Sequence[Sensing]) -> None:
+    """The first queries of B worlds' new snapshots, answered in one pass over the worlds.
+
+    A batch's tick (core/batch.py) calls it; each snapshot gets the values its own lazy queries
+    would give:
+
+    * the small worlds' pairs (:func:`_prefetch_few`);
+    * the worlds with no obstacle near any agent (:func:`_prefetch_clear`).
+
+    Anything else is left to each snapshot's own queries, as is any query already made."""
+    _prefetch_few(sensings)
+    _prefetch_clear(sensings)
+
+
+def _prefetch_few(sensings: Sequence[Sensing]) -> None:
+    """Every pair's squared length (:attr:`Sensing._every_pair`), the closest pair
     (:attr:`Sensing.min_separation`) and, where every agent is a member and every member is in
     range of every other, :attr:`Sensing.comm_connected`, over the worlds' stacked positions
-    (:func:`~.vectors.dense_pair_dist2_batch`). Each snapshot gets the bits its own lazy queries
-    give (the same lengths; a least and a greatest value do not depend on the order they are
-    sought in). Snapshots of more than ``DENSE_POINTS`` or fewer than two agents, of another N
-    than the first's, or not float64, are left to their own queries; so is any query already made."""
+    (:func:`~.vectors.dense_pair_dist2_batch`). Each snapshot gets the bits its own queries give
+    (the same lengths; a least and a greatest value do not depend on the order they are sought
+    in). Snapshots of more than ``DENSE_POINTS`` or fewer than two agents, of another N than the
+    first's, or not float64, are left alone."""
     few = [s for s in sensings if 2 <= s._n <= DENSE_POINTS and s.world.pos.dtype == np.float64
            and "_every_pair" not in s.__dict__]
     few = [s for s in few if s._n == few[0]._n and s.world.pos.shape[1] == few[0].world.pos.shape[1]]
@@ -530,3 +543,28 @@ def prefetch_few(sensings: Sequence[Sensing]) -> None:
         if (s.periodic is None and most <= s.comm_range * s.comm_range
                 and every(s.world.healthy) and every(s.world.comm_ok)):
             s.__dict__.setdefault("comm_connected", True)
+
+
+def _prefetch_clear(sensings: Sequence[Sensing]) -> None:
+    """:meth:`Sensing.obstacle_nearest` at the range the previous tick asked for (where the first
+    query of a tick works), for the snapshots whose kept obstacle candidates (a Verlet list,
+    :class:`ObstacleCandidates`) hold none and still cover that range: nothing is within it. The
+    cover test of every such world is one pass over their stacked positions (the same
+    differences, squares and sums as :meth:`ObstacleCandidates.cover`; the greatest of them does
+    not depend on the order). A query made afterwards at a range within it is answered from it, as
+    after the snapshot's own first query; a wider one queries as it would have."""
+    empty = [s for s in sensings if s._candidates is not None and not s._candidates.point.size
+             and not s._nearest and 0.0 < s._hint["obstacles"] <= s._candidates.radius
+             and s.world.pos.dtype == np.float64 and s._candidates.xy.shape == (s._n, 2)]
+    empty = [s for s in empty if s._n == empty[0]._n]
+    if len(empty) < 2:
+        return
+    moved = np.stack([s.world.pos[:, :2] for s in empty])
+    moved -= np.stack([cast("ObstacleCandidates", s._candidates).xy for s in empty])
+    moved *= moved
+    farthest = np.maximum.reduce(moved[:, :, 0] + moved[:, :, 1], axis=1, initial=0.0).tolist()
+    for s, far in zip(empty, farthest, strict=True):
+        reach = s._hint["obstacles"]
+        if far <= (cast("ObstacleCandidates", s._candidates).radius - reach) ** 2:
+            index, clearance = _nothing_near(s._n)
+            s._none_within, s._nearest[reach] = reach, (index.copy(), clearance.copy())

@@ -1,4 +1,4 @@
-"""A batch's one pass over its small worlds' snapshots (core/sensing.prefetch_few) answers each
+"""A batch's one pass over its small worlds' snapshots (core/sensing.prefetch) answers each
 snapshot's first queries with the bits that snapshot's own lazy queries give."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from swarmscene.core.environment import Environment
-from swarmscene.core.sensing import Sensing, prefetch_few
+from swarmscene.core.sensing import Sensing, prefetch
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import DENSE_POINTS, dense_pair_dist2, dense_pair_dist2_batch
 
@@ -25,7 +25,7 @@ def test_the_stacked_pair_lengths_are_each_sets_own_to_the_bit():
 
 def worlds(rng: np.random.Generator) -> list[WorldState]:
     """Six small worlds: spread within range, spread beyond it, one agent failed, one radio lost,
-    then two that prefetch_few must leave alone (another N, one agent)."""
+    then two that prefetch must leave alone (another N, one agent)."""
     out = []
     for scale, n in ((1.0, 6), (9.0, 6), (1.0, 6), (1.0, 6), (1.0, 7), (1.0, 1)):
         out.append(WorldState.at_rest(rng.uniform(-scale, scale, (n, 3))))
@@ -40,7 +40,7 @@ def test_prefetched_snapshots_answer_as_their_own_queries():
     for _ in range(20):
         ws = worlds(rng)
         batch = [Sensing(w, env, comm_range=4.0) for w in ws]
-        prefetch_few(batch)
+        prefetch(batch)
         for w, fetched in zip(ws, batch, strict=True):
             own = Sensing(w, env, comm_range=4.0)
             assert fetched.min_separation == own.min_separation
@@ -50,12 +50,12 @@ def test_prefetched_snapshots_answer_as_their_own_queries():
                 assert np.array_equal(fetched.pairs(2.5), own.pairs(2.5))
 
 
-def test_prefetch_few_answers_what_it_can_and_leaves_the_rest_to_the_snapshot():
+def test_prefetch_answers_what_it_can_and_leaves_the_rest_to_the_snapshot():
     rng = np.random.default_rng(1)
     ws = worlds(rng)
     ws[0].pos[:] = rng.uniform(-1.0, 1.0, (6, 3))  # all within range: a complete graph
     batch = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
-    prefetch_few(batch)
+    prefetch(batch)
     answered = [sorted(k for k in ("_every_pair", "min_separation", "comm_connected") if k in s.__dict__)
                 for s in batch]
     assert answered[0] == ["_every_pair", "comm_connected", "min_separation"]
@@ -63,3 +63,40 @@ def test_prefetch_few_answers_what_it_can_and_leaves_the_rest_to_the_snapshot():
     assert answered[2] == answered[3] == ["_every_pair", "min_separation"]  # not every agent a member
     assert answered[4] == answered[5] == []  # another N; a single agent
     assert not batch[0].__dict__["_every_pair"][2].flags.writeable  # shared: read-only, as a query's
+
+
+def test_worlds_far_from_the_obstacles_are_answered_as_their_own_queries():
+    """Six worlds drift past a pillar tick by tick, their snapshots chained as a run chains them
+    (the monitor's 0.5 m then a plugin's 2 m, so the next tick's first query works at 2 m): with
+    the one pass before the queries, every answer and what each snapshot keeps for the next tick
+    equal the snapshots queried on their own."""
+    from shapely.geometry import Point
+
+    env = Environment([Point(0.0, 0.0).buffer(1.0)])
+    rng = np.random.default_rng(5)
+    starts = [np.column_stack([rng.uniform(-12.0, -4.0, 5), rng.uniform(-2.5, 2.5, 5), np.ones(5)])
+              for _ in range(6)]
+    alone = [WorldState.at_rest(p.copy()) for p in starts]
+    together = [WorldState.at_rest(p.copy()) for p in starts]
+    own: list[Sensing | None] = [None] * 6
+    fetched: list[Sensing | None] = [None] * 6
+    answered = near = 0
+    for tick in range(120):
+        step = np.array([0.15, 0.02 * np.sin(0.1 * tick), 0.0])
+        for a, b in zip(alone, together, strict=True):
+            a.pos += step
+            b.pos += step
+        own = [Sensing(w, env, 3.0, previous) for w, previous in zip(alone, own, strict=True)]
+        fetched = [Sensing(w, env, 3.0, previous) for w, previous in zip(together, fetched, strict=True)]
+        prefetch(fetched)
+        answered += sum(bool(s._nearest) for s in fetched)
+        for mine, theirs in zip(own, fetched, strict=True):
+            for radius in (0.5, 2.0):
+                assert all(x.tobytes() == y.tobytes() for x, y in
+                           zip(mine.obstacle_nearest(radius), theirs.obstacle_nearest(radius), strict=True))
+            assert mine._none_within == theirs._none_within
+            assert (mine._candidates is None) == (theirs._candidates is None)
+            if mine._candidates is not None:
+                assert np.array_equal(mine._candidates.xy, theirs._candidates.xy)
+            near += bool((mine.obstacle_nearest(2.0)[0] >= 0).any())
+    assert answered > 100 and near > 100  # worlds far from the pillar answered, others near it
