@@ -381,31 +381,74 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
     """
     x = np.empty(13)
     work = np.empty((5, 13))
-    no_wind = (0.0, 0.0, 0.0)
     weights = taylor_weights(tau, h, substeps)
     for i in range(pos.shape[0]):
-        for k in range(3):
-            x[k], x[3 + k], x[10 + k] = pos[i, k], vel[i, k], omega[i, k]
-        for k in range(4):
-            x[6 + k] = quat[i, k]
-        y_c, w_d, al_d = _row(heading, i), _row(omega_d, i), _row(alpha_d, i)
-        for sub in range(substeps):
-            p_d, v_d, a_d = reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, weights[sub])
-            R = rotmat(x[6], x[7], x[8], x[9])
-            f, M = se3_control((x[0], x[1], x[2]), (x[3], x[4], x[5]), R, (x[10], x[11], x[12]),
-                               p_d, v_d, a_d, y_c, w_d, al_d, feedforward, position_mask[i],
-                               k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift)
-            allocate(f, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_speed[i])
-            thrust, torque = wrench(rotor_speed[i], rotor_gain[i], mixer)
-            ext = no_wind
-            if has_wind:
-                ext, moment = wind_load(R, _row(wind, i), drag, mass, arm)
-                torque = _add(torque, moment)
-            if has_force:
-                ext = _add(ext, _row(force, i))
-            rk4(x, thrust, torque, ext, mass, J, gyro, h, work)
-        for k in range(3):
-            pos[i, k], vel[i, k], omega[i, k] = x[k], x[3 + k], x[10 + k]
-        for k in range(4):
-            quat[i, k] = x[6 + k]
+        _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
+                    p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
+                    feedforward, h, substeps,
+                    mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                    mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
+                    wind, has_wind, arm, drag, force, has_force)
     return weights[substeps, 0]
+
+
+@numba.njit(cache=True, parallel=True)
+def step_swarm_parallel(pos, vel, quat, omega, rotor_speed,
+                        p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
+                        feedforward, tau, h, substeps,
+                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
+                        wind, has_wind, arm, drag, force, has_force, chunks):
+    """:func:`step_swarm` with the agents cut into ``chunks`` runs of consecutive agents, stepped
+    by numba's threads (``prange``; as many at once as ``numba.set_num_threads`` allows). The
+    agents are independent and each is stepped by the same :func:`_step_agent`, so every agent
+    gets the bits :func:`step_swarm` gives it (tests/plugins/dynamics/test_quadrotor_threads.py)."""
+    weights = taylor_weights(tau, h, substeps)
+    n = pos.shape[0]
+    for c in numba.prange(chunks):
+        x = np.empty(13)
+        work = np.empty((5, 13))
+        for i in range(c * n // chunks, (c + 1) * n // chunks):
+            _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
+                        p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
+                        feedforward, h, substeps,
+                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
+                        wind, has_wind, arm, drag, force, has_force)
+    return weights[substeps, 0]
+
+
+@numba.njit(cache=True)
+def _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
+                p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
+                feedforward, h, substeps,
+                mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
+                wind, has_wind, arm, drag, force, has_force):
+    """Agent i's ``substeps`` internal steps (:func:`step_swarm`'s loop body), with ``x`` (13,)
+    and ``work`` (5, 13) as its scratch state."""
+    no_wind = (0.0, 0.0, 0.0)
+    for k in range(3):
+        x[k], x[3 + k], x[10 + k] = pos[i, k], vel[i, k], omega[i, k]
+    for k in range(4):
+        x[6 + k] = quat[i, k]
+    y_c, w_d, al_d = _row(heading, i), _row(omega_d, i), _row(alpha_d, i)
+    for sub in range(substeps):
+        p_d, v_d, a_d = reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, weights[sub])
+        R = rotmat(x[6], x[7], x[8], x[9])
+        f, M = se3_control((x[0], x[1], x[2]), (x[3], x[4], x[5]), R, (x[10], x[11], x[12]),
+                           p_d, v_d, a_d, y_c, w_d, al_d, feedforward, position_mask[i],
+                           k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift)
+        allocate(f, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_speed[i])
+        thrust, torque = wrench(rotor_speed[i], rotor_gain[i], mixer)
+        ext = no_wind
+        if has_wind:
+            ext, moment = wind_load(R, _row(wind, i), drag, mass, arm)
+            torque = _add(torque, moment)
+        if has_force:
+            ext = _add(ext, _row(force, i))
+        rk4(x, thrust, torque, ext, mass, J, gyro, h, work)
+    for k in range(3):
+        pos[i, k], vel[i, k], omega[i, k] = x[k], x[3 + k], x[10 + k]
+    for k in range(4):
+        quat[i, k] = x[6 + k]

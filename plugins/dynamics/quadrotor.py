@@ -83,6 +83,12 @@ class Quadrotor(Dynamics):
         propagate_reference: bool = Field(
             True, description="in TRACK mode, move the reference along its Taylor polynomial "
             "(p, v, a, jerk, snap) between guidance ticks")
+        threads: int | None = Field(
+            1, ge=1, description="threads of the physics step when it steps at least 1,024 agents "
+            "(one large swarm, or the worlds of a batch together): each thread steps a run of "
+            "agents, and every agent gets the bits it gets with one thread; null: every thread "
+            "numba may start (NUMBA_NUM_THREADS, by default the cores). 1 (the default) leaves the "
+            "other cores to a sweep's workers")
 
         @model_validator(mode="after")
         def _inner_loop_resolved(self) -> Quadrotor.Params:
@@ -160,7 +166,8 @@ class Quadrotor(Dynamics):
         one compiled call (:func:`kernels.step_swarm`)."""
         substeps = max(1, math.ceil(dt / self.params.max_step - 1e-9))
         wind, force = world.wind, world.force
-        self._tau = self._kernels.step_swarm(
+        kernel, split = _stepper(self._kernels, self.params.threads, world.n)
+        self._tau = kernel(
             world.pos, world.vel, world.quat, world.omega, world.rotor_speed,
             self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._heading,
             self._position_mask, self._omega_d, self._alpha_d, self._feedforward,
@@ -168,7 +175,7 @@ class Quadrotor(Dynamics):
             wind=self._zeros if wind is None else _floats(wind), has_wind=wind is not None,
             arm=float(world.wind_moment_arm), drag=self._drag,
             force=self._zeros if force is None else _floats(force), has_force=force is not None,
-            **self._constants)
+            **self._constants, **split)
 
     _REFERENCES = ("_p", "_v", "_a", "_dv", "_da", "_dj", "_ds", "_heading", "_position_mask",
                    "_omega_d", "_alpha_d", "_rotor_gain")
@@ -243,7 +250,8 @@ class Quadrotor(Dynamics):
         worlds = batch.worlds
         has_wind, has_force = worlds[0].wind is not None, worlds[0].force is not None
         substeps = max(1, math.ceil(dt / first.params.max_step - 1e-9))
-        tau = first._kernels.step_swarm(
+        kernel, split = _stepper(first._kernels, first.params.threads, b * n)
+        tau = kernel(
             batch.pos.reshape(b * n, 3), batch.vel.reshape(b * n, 3), batch.quat.reshape(b * n, 4),
             batch.omega.reshape(b * n, 3), batch.rotor_speed.reshape(b * n, 4),
             ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_heading"],
@@ -252,7 +260,7 @@ class Quadrotor(Dynamics):
             wind=_floats(batch.stack("wind")).reshape(b * n, 3) if has_wind else zeros, has_wind=has_wind,
             arm=float(worlds[0].wind_moment_arm), drag=first._drag,
             force=_floats(batch.stack("force")).reshape(b * n, 3) if has_force else zeros, has_force=has_force,
-            **first._constants)
+            **first._constants, **split)
         for model in models:
             model._tau = tau
         return None
@@ -296,6 +304,26 @@ class Quadrotor(Dynamics):
 
 MIN_LIFT = 0.2
 """The desired force keeps at least this fraction of m g upwards (se3_controller.py)."""
+
+PARALLEL_MIN_AGENTS = 1024
+"""Agents (of one world, or of a batch's worlds together) from which ``threads`` > 1 steps them in
+parallel: a physics step costs ~0.3 us an agent, starting the threads some tens of us."""
+
+
+def _stepper(kernels, threads: int | None, agents: int) -> tuple:
+    """The kernel that steps ``agents`` agents with ``threads`` threads (``Quadrotor.Params``), and
+    its extra argument: :func:`kernels.step_swarm` on one thread, or
+    :func:`kernels.step_swarm_parallel` with one run of agents per thread (the threads set for the
+    call; at most numba's own count, ``NUMBA_NUM_THREADS``)."""
+    if threads == 1 or agents < PARALLEL_MIN_AGENTS:
+        return kernels.step_swarm, {}
+    import numba  # already loaded by the kernels
+
+    count = min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS)
+    if count <= 1:
+        return kernels.step_swarm, {}
+    numba.set_num_threads(count)
+    return kernels.step_swarm_parallel, {"chunks": count}
 
 
 def _stacked(arrays: Sequence[np.ndarray]) -> np.ndarray:
