@@ -319,7 +319,8 @@ def _stepper(kernels, threads: int | None, agents: int) -> tuple:
         return kernels.step_swarm, {}
     import numba  # already loaded by the kernels
 
-    count = min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS)
+    most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]  # set when numba loads
+    count = min(threads or most, most)
     if count <= 1:
         return kernels.step_swarm, {}
     numba.set_num_threads(count)
