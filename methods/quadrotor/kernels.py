@@ -399,16 +399,18 @@ def step_swarm_parallel(pos, vel, quat, omega, rotor_speed,
                         mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
                         mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
                         wind, has_wind, arm, drag, force, has_force, chunks):
-    """:func:`step_swarm` with the agents cut into ``chunks`` runs of consecutive agents, stepped
-    by numba's threads (``prange``; as many at once as ``numba.set_num_threads`` allows). The
-    agents are independent and each is stepped by the same :func:`_step_agent`, so every agent
-    gets the bits :func:`step_swarm` gives it (tests/plugins/dynamics/test_quadrotor_threads.py)."""
+    """:func:`step_swarm` with the agents dealt to ``chunks`` shares in turn (agent i to share
+    i mod ``chunks``, so that agents that cost more, a region of the swarm that turns or
+    saturates, are spread over the shares), stepped by numba's threads (``prange``; as many at
+    once as ``numba.set_num_threads`` allows). The agents are independent and each is stepped by
+    the same :func:`_step_agent`, so every agent gets the bits :func:`step_swarm` gives it
+    (tests/plugins/dynamics/test_quadrotor_threads.py)."""
     weights = taylor_weights(tau, h, substeps)
     n = pos.shape[0]
     for c in numba.prange(chunks):
         x = np.empty(13)
         work = np.empty((5, 13))
-        for i in range(c * n // chunks, (c + 1) * n // chunks):
+        for i in range(c, n, chunks):
             _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
                         p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
                         feedforward, h, substeps,

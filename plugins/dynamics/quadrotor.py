@@ -85,8 +85,8 @@ class Quadrotor(Dynamics):
             "(p, v, a, jerk, snap) between guidance ticks")
         threads: int | None = Field(
             1, ge=1, description="threads of the physics step when it steps at least 1,024 agents "
-            "(one large swarm, or the worlds of a batch together): each thread steps a run of "
-            "agents, and every agent gets the bits it gets with one thread; null: every thread "
+            "(one large swarm, or the worlds of a batch together): each thread steps a share of "
+            "the agents, and every agent gets the bits it gets with one thread; null: every thread "
             "numba may start (NUMBA_NUM_THREADS, by default the cores). 1 (the default) leaves the "
             "other cores to a sweep's workers")
 
@@ -313,8 +313,8 @@ parallel: a physics step costs ~0.3 us an agent, starting the threads some tens 
 def _stepper(kernels, threads: int | None, agents: int) -> tuple:
     """The kernel that steps ``agents`` agents with ``threads`` threads (``Quadrotor.Params``), and
     its extra argument: :func:`kernels.step_swarm` on one thread, or
-    :func:`kernels.step_swarm_parallel` with one run of agents per thread (the threads set for the
-    call; at most numba's own count, ``NUMBA_NUM_THREADS``)."""
+    :func:`kernels.step_swarm_parallel` with one share of the agents per thread (the threads set
+    for the call; at most numba's own count, ``NUMBA_NUM_THREADS``)."""
     if threads == 1 or agents < PARALLEL_MIN_AGENTS:
         return kernels.step_swarm, {}
     import numba  # already loaded by the kernels
