@@ -25,16 +25,24 @@ the single environment; random actions, agent-steps per CPU second (simulation o
 One core, one thread::
 
     taskset -c 1 python benchmarks/speed/bench_batch.py [--quick] [--only quadrotor:4096x1 ...]
+
+Part 4, instead of the others, with ``--threads K``: the quadrotor's batched tick on one thread and
+on K (``dynamics.threads``), in wall time, at 1 x 10,000 and the grid's points of at least 1,024
+agents (the sides alternate block by block and end in the same bits)::
+
+    python benchmarks/speed/bench_batch.py --threads 2
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # one core (before numpy and numba are imported)
+    if not (_var == "NUMBA_NUM_THREADS" and "--threads" in sys.argv):  # part 4 asks numba for threads
+        os.environ.setdefault(_var, "1")  # one core (before numpy and numba are imported)
 
 import numpy as np  # noqa: E402
 
@@ -54,8 +62,9 @@ GRID = [(1, 100), (1, 1000), (16, 10), (64, 16), (256, 6), (4096, 1)]
 """(B worlds, N agents per world): the issue's grid points."""
 
 
-def worlds(model_cls: type, b: int, n: int) -> tuple[list[WorldState], list, list[Setpoints]]:
-    """B worlds of N agents on a grid 2 m apart at 2 m altitude, each holding its points."""
+def worlds(model_cls: type, b: int, n: int, **options) -> tuple[list[WorldState], list, list[Setpoints]]:
+    """B worlds of N agents on a grid 2 m apart at 2 m altitude, each holding its points (the
+    model built with ``options``)."""
     side = int(np.ceil(np.sqrt(n)))
     k = np.arange(n)
     pos = np.column_stack([2.0 * (k % side), 2.0 * (k // side), np.full(n, 2.0)])
@@ -63,7 +72,7 @@ def worlds(model_cls: type, b: int, n: int) -> tuple[list[WorldState], list, lis
     for _ in range(b):
         world = WorldState.at_rest(pos)
         ctx = build_context(positions=pos, guidance_period=GUIDANCE_PERIOD, physics_step=PHYSICS_STEP)
-        model = model_cls(model_cls.Params(), ctx)
+        model = model_cls(model_cls.Params(**options), ctx)
         model.initialize(world)
         out_worlds.append(world)
         models.append(model)
@@ -124,6 +133,33 @@ def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int) -> tuple[f
     return steps / best["world"], steps / best["batch"], steps / best["control"]
 
 
+def threads_scaling(b: int, n: int, threads: int, ticks: int, blocks: int) -> tuple[float, float]:
+    """Quadrotor drone-steps per wall second of B worlds of N agents, batched (``control_batch``
+    and ``step_batch``) on one thread and on ``threads`` (``dynamics.threads``), the two sides
+    alternating block by block (the best block of each); both end in the same bits (checked)."""
+    sides = {k: worlds(Quadrotor, b, n, threads=k) for k in (1, threads)}
+    batches = {k: WorldBatch(sides[k][0]) for k in sides}
+
+    def one_tick(k: int) -> None:
+        the_worlds, models, targets = sides[k]
+        tick(models, the_worlds, targets, lambda: Quadrotor.step_batch(models, batches[k], PHYSICS_STEP)
+             if b > 1 else models[0].step(the_worlds[0], PHYSICS_STEP), batches[k], control_batch=b > 1)
+
+    best = dict.fromkeys(sides, np.inf)
+    for k in sides:  # compile and warm
+        one_tick(k)
+    for _ in range(blocks):
+        for k in sides:
+            start = time.perf_counter()
+            for _ in range(ticks):
+                one_tick(k)
+            best[k] = min(best[k], time.perf_counter() - start)
+    for a, c in zip(sides[1][0], sides[threads][0], strict=True):
+        assert np.array_equal(a.pos, c.pos) and np.array_equal(a.quat, c.quat), "threads changed the bits"
+    steps = b * n * ticks * SUBSTEPS
+    return steps / best[1], steps / best[threads]
+
+
 def whole_runs(config: list[str], seeds: list[int], blocks: int) -> tuple[float, float]:
     """Runs per CPU second, one by one and as one batch (the best block of each); both sides
     start from the same composed data (Hydra composes once), so the ratio is the stepping's."""
@@ -171,8 +207,17 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="fewer ticks and blocks (a check, not a measurement)")
     parser.add_argument("--only", nargs="*", metavar="MODEL:BxN",
                         help="the physics grid points to run (e.g. quadrotor:4096x1), and nothing else")
+    parser.add_argument("--threads", type=int, default=None, metavar="K",
+                        help="instead: the quadrotor batched on 1 thread and on K (dynamics.threads), wall "
+                        "time, at 1 x 10,000 and the grid's points with at least 1,024 agents")
     args = parser.parse_args()
     ticks, blocks = (1, 1) if args.quick else (5, 5)
+    if args.threads is not None:
+        print(f"quadrotor, drone-steps per wall second, 1 thread and {args.threads} (dynamics.threads)")
+        for b, n in [(1, 10_000), *((b, n) for b, n in GRID if b * n >= 1024)]:
+            one, many = threads_scaling(b, n, args.threads, ticks, blocks)
+            print(f"{f'{b} x {n}':>12}{one:>12.3g}{many:>12.3g}  ratio {many / one:5.2f}")
+        return
     print("physics, drone-steps per CPU second (240 Hz, 10 Hz control), one core")
     print(f"{'model':<18}{'B x N':>12}{'per world':>12}{'step_batch':>12}{'+control_b':>12}{'ratios':>14}")
     for model_cls in (Quadrotor, DoubleIntegrator):
