@@ -162,6 +162,30 @@ def test_the_worst_case_is_the_violating_trial_and_its_file_reproduces_it(tmp_pa
     assert {k: v for k, v in again.items() if k not in TIMING} == {k: v for k, v in bad.items() if k not in TIMING}
 
 
+def test_a_studys_trials_flown_as_batches_of_worlds_are_its_one_by_one_trials(tmp_path):
+    """The falsifier on the batch launcher grouped by physics, Optuna asking four trials at a time:
+    each launch of four trials (other winds, links, failure times and agents) is one batch of
+    worlds, and the study (every trial's numbers, the worst case) is the basic launcher's."""
+    study = ["+sweep=falsify", "scenario=default", "hydra.sweeper.n_trials=8", "hydra.sweeper.n_jobs=4",
+             "clock.duration=4"]
+    procs = {}
+    for name, launcher in (("basic", []), ("batch", ["hydra/launcher=batch", "hydra.launcher.n_jobs=1",
+                                                      "hydra.launcher.group=physics"])):
+        procs[name] = subprocess.run([*EXE, *study, *launcher, f"hydra.sweep.dir={tmp_path / name}"],
+                                     cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert procs[name].returncode == 0, procs[name].stderr
+    launches = [line for line in procs["batch"].stdout.splitlines() if "Batch launcher:" in line]
+    assert len(launches) == 2 and all("4 jobs, 4 of them in 1 batches" in line for line in launches)
+    for k in range(8):
+        one, batched = (json.loads((tmp_path / name / str(k) / "metrics.json").read_text()) for name in ("basic", "batch"))
+        assert {key: v for key, v in batched.items() if key not in TIMING} == {
+            key: v for key, v in one.items() if key not in TIMING}, k
+    worst = {name: json.loads((tmp_path / name / falsify.WORST_CASE_RECORD).read_text()) for name in procs}
+    for record in worst.values():
+        del record["run_dir"], record["reproduce"]
+    assert worst["batch"] == worst["basic"] and worst["basic"]["trials"] == 8
+
+
 # -- bad options, failed trials, damaged and planted files ---------------------------------------
 @pytest.mark.parametrize("override, line", [
     ("hydra.sweeper.n_trials=0",

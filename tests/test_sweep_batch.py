@@ -178,6 +178,50 @@ def test_a_launch_is_cut_into_batches_of_one_group_each():
     assert batch.group_key(["seed=1", "::job=1"]) is None  # a launcher task of several jobs: never grouped
 
 
+def test_grouped_by_physics_a_launch_is_one_group_of_every_job_that_parses():
+    jobs = [["scenario=swap", "seed=0"], ["scenario=default", "avoidance=orca", "seed=1"],
+            ["events.0.at=2.5", "events.0.agents.0=3"], ["seed=1", "::job=1"]]
+    tasks = batch.plan(jobs, 0, batch_size=64, workers=1, group="physics")
+    assert [[idx for idx, _ in task] for task in tasks] == [[0, 1, 2], [3]]  # a task of several jobs alone
+
+
+def test_grouped_by_physics_jobs_of_other_scenarios_share_a_task_and_fly_by_their_physics(basic, tmp_path):
+    """``group=physics`` on one worker: the six jobs of two scenarios (other formations, methods
+    and dynamics) are one task; the worker flies swap's worlds and the default's as two batches (their
+    dynamics differ), every job the basic launcher's bit for bit."""
+    proc = swarmscene(*GRID, "hydra/launcher=batch", "hydra.launcher.n_jobs=1", "hydra.launcher.group=physics",
+                      f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "6 jobs, 6 of them in 1 batches (grouped by physics)" in launched(proc)
+    for name in map(str, range(6)):
+        assert job(tmp_path / "sw", name) == job(basic, name), name
+    assert table(tmp_path / "sw") == table(basic)
+
+
+def test_worlds_with_other_options_share_a_batch_grouped_by_physics(tmp_path):
+    """Four jobs of the default scenario that differ in a controller gain and in the avoidance's
+    largest speed: grouped by physics they fly as one batch of four worlds (the double integrator's
+    batched control declines worlds tuned apart), each job the basic launcher's bit for bit."""
+    grid = ["--multirun", "seed=0", "dynamics.omega=1.5,2.0", "avoidance.v_max=1.5,1.0", "clock.duration=2"]
+    runs = {}
+    for name, launcher in (("basic", []), ("batch", ["hydra/launcher=batch", "hydra.launcher.n_jobs=1",
+                                                      "hydra.launcher.group=physics"])):
+        proc = swarmscene(*grid, *launcher, f"hydra.sweep.dir={tmp_path}/{name}", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        runs[name] = proc
+    assert "4 jobs, 4 of them in 1 batches" in launched(runs["batch"])
+    for name in map(str, range(4)):
+        assert job(tmp_path / "batch", name) == job(tmp_path / "basic", name), name
+
+
+def test_a_bad_group_is_one_line(tmp_path):
+    proc = swarmscene("--multirun", "seed=0,1", "hydra/launcher=batch", "hydra.launcher.group=everything",
+                      f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1] == (
+        "swarmscene: hydra.launcher.group: must be one of seed, physics (got 'everything')")
+
+
 def test_a_bad_batch_size_is_one_line(tmp_path):
     proc = swarmscene("--multirun", "seed=0,1", "hydra/launcher=batch", "hydra.launcher.batch_size=0",
                       f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path)

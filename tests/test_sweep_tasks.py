@@ -56,6 +56,11 @@ def test_jobs_per_task_auto_keeps_four_tasks_per_worker_and_falls_back_to_one_jo
     mlflow = ("swarmscene.sweeps.callback.SweepSummary", "swarmscene.sweeps.mlflow_callback.MLflowCallback")
     assert chunks.refusal(launcher("SlurmLauncher"), config()) == "launcher SlurmLauncher"
     assert chunks.refusal(joblib, config(callbacks=mlflow)) == "job callbacks"
+    # a callback with only the sweep's hooks (the falsifier's) keeps no job to run_job; one that
+    # cannot be imported here does
+    falsify = ("swarmscene.sweeps.callback.SweepSummary", "swarmscene.tools.falsify.WorstCase")
+    assert chunks.refusal(joblib, config(callbacks=falsify)) is None
+    assert chunks.refusal(joblib, config(callbacks=("not_a_module.Callback",))) == "job callbacks"
     assert chunks.refusal(joblib, config(chdir=True)) == "hydra.job.chdir"
     assert chunks.refusal(joblib, config(subdir="${hydra:job.num}")) == "hydra.sweep.subdir"
     assert chunks.refusal(joblib, config()) is None

@@ -1,10 +1,12 @@
 """The batch launcher (``hydra/launcher=batch``): the jobs of a sweep that differ only in their seed
-flown as batches of worlds, on this machine's cores.
+(or, with ``group: physics``, any jobs whose worlds can share a physics step) flown as batches of
+worlds, on this machine's cores.
 
 It is the pool launcher (:mod:`.pool`: workers forked from a warm fork server, the same stop
 requests, the same one line for a worker that dies) with another unit of work. In the main process
 :func:`plan` groups a launch's jobs by their overrides without the seed (``avoidance.K=2 seed=0``
-and ``avoidance.K=2 seed=1`` share a group) and cuts each group of two or more jobs into batches of
+and ``avoidance.K=2 seed=1`` share a group; with ``group: physics`` every job whose overrides
+parse is in one group) and cuts each group of two or more jobs into batches of
 at most ``batch_size`` jobs, small enough that every worker gets about :data:`TASKS_PER_WORKER`
 tasks; a job alone in its group is a task of its own, run as the pool runs it (Hydra's
 ``run_job``). A worker runs a batch in :func:`run_batch_task`:
@@ -20,7 +22,11 @@ tasks; a job alone in its group is a task of its own, run as the pool runs it (H
    output a batch does not write (``output.plots``, ``animation``, ``rerun``, ``mcap``, ``live``:
    :func:`swarmscene.views.writers.unbatched_output`), an environment (``hydra.job.env_set``) of its own;
 3. the other jobs are grouped by their resolved config without ``seed`` (a job whose config
-   differs in anything else, through an interpolation of the seed say, is a group of its own),
+   differs in anything else, through an interpolation of the seed say, is a group of its own;
+   with ``group: physics``, by what the worlds of a batch must share: the dynamics model, the
+   number of agents, the guidance period and the physics step; options, methods and disturbances
+   may differ from world to world, and each world's phases take the batched forms where the
+   worlds' plugins and options agree, core/batch.py),
    each group built (one plugin manager per world, as each job has) and flown as one
    :class:`~swarmscene.core.batch.BatchSimulation`; a world that cannot be built runs alone (its
    failure recorded by the per-job path);
@@ -37,8 +43,9 @@ directory is the basic launcher's except the timing metrics (``wall_time``, ``re
 batch's). The sweep's progress line counts a batch's jobs when they are written, all at once at the
 batch's end.
 
-Options (``hydra.launcher.*``): the pool's ``n_jobs`` and ``warm``, and ``batch_size`` (the most
-jobs one batch flies, default :data:`BATCH_SIZE`).
+Options (``hydra.launcher.*``): the pool's ``n_jobs`` and ``warm``, ``batch_size`` (the most
+jobs one batch flies, default :data:`BATCH_SIZE`) and ``group`` (:data:`GROUPS`: ``seed``, the
+default, or ``physics``: a falsifier's trials, or a grid's points, flown as batches).
 """
 
 from __future__ import annotations
@@ -66,6 +73,9 @@ TASKS_PER_WORKER = 4
 ends when its slowest world ends: one batch per worker would leave cores idle at the sweep's end)..."""
 MIN_BATCH = 16
 """...unless that makes batches smaller than this: then one batch per worker, at most this size."""
+GROUPS = ("seed", "physics")
+"""``hydra.launcher.group``: which jobs may share a batch. ``seed``: those whose overrides differ
+only in the seed (one composition); ``physics``: any whose worlds can share a physics step."""
 ALONE = "::alone"
 """The group key of a job that shares a group with no other (:func:`group_key`)."""
 
@@ -74,11 +84,15 @@ class BatchLauncher(PoolLauncher):
     """Hydra launcher: the pool launcher's workers, flying the jobs that differ only in their seed
     as batches of worlds (module docstring)."""
 
-    def __init__(self, n_jobs: int | None = None, warm: bool = True, batch_size: int = BATCH_SIZE) -> None:
+    def __init__(self, n_jobs: int | None = None, warm: bool = True, batch_size: int = BATCH_SIZE,
+                 group: str = "seed") -> None:
         if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
             raise ValueError(f"hydra.launcher.batch_size: must be an integer >= 1 (got {batch_size!r})")
+        if group not in GROUPS:
+            raise ValueError(f"hydra.launcher.group: must be one of {', '.join(GROUPS)} (got {group!r})")
         super().__init__(n_jobs=n_jobs, warm=warm)
         self.batch_size = batch_size
+        self.group = group
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[Any]:
         """Run a launch's jobs, batched where they may be; their ``JobReturn`` in the jobs' order."""
@@ -89,15 +103,16 @@ class BatchLauncher(PoolLauncher):
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
         sweep_dir.mkdir(parents=True, exist_ok=True)
         why = config_refusal(self.config)
-        tasks = plan(job_overrides, initial_job_idx, 1 if why else self.batch_size, self.workers())
+        tasks = plan(job_overrides, initial_job_idx, 1 if why else self.batch_size, self.workers(), self.group)
         batched = sum(len(task) for task in tasks if len(task) > 1)
         log.info(f"Batch launcher: {self.workers()} workers, {len(job_overrides)} jobs, {batched} of them in "
-                 f"{sum(len(task) > 1 for task in tasks)} batches{f' (none batched: {why})' if why else ''}; "
+                 f"{sum(len(task) > 1 for task in tasks)} batches{f' (none batched: {why})' if why else ''}"
+                 f"{' (grouped by physics)' if self.group == 'physics' else ''}; "
                  f"sweep output dir: {sweep_dir}")
         for task in tasks:
             log.info(f"\t#{', '.join(str(idx) for idx, _ in task)} : {' '.join(filter_overrides(task[0][1]))}"
                      f"{' (and their seeds)' if len(task) > 1 else ''}")
-        calls = [(run_batch_task, (task, str(sweep_dir))) if len(task) > 1 else (pool._run_task, task[0])
+        calls = [(run_batch_task, (task, str(sweep_dir), self.group)) if len(task) > 1 else (pool._run_task, task[0])
                  for task in tasks]
         returns: dict[int, Any] = {}
         for task, returned in zip(tasks, self._run_on_pool(calls, sweep_dir), strict=True):
@@ -105,10 +120,11 @@ class BatchLauncher(PoolLauncher):
         return [returns[initial_job_idx + offset] for offset in range(len(job_overrides))]
 
 
-def group_key(overrides: Sequence[str]) -> tuple[str, ...] | None:
+def group_key(overrides: Sequence[str], group: str = "seed") -> tuple[str, ...] | None:
     """A job's overrides without its seed (``seed=3``, ``++seed=3``): jobs with the same key share a
-    composition but for the seed. None for what cannot be grouped: a launcher task of several jobs
-    (:mod:`.chunks`), overrides that do not parse (the job reports it)."""
+    composition but for the seed; with ``group="physics"`` one key for every job (the workers group
+    them by their physics, :meth:`_World.key`). None for what cannot be grouped: a launcher task of
+    several jobs (:mod:`.chunks`), overrides that do not parse (the job reports it)."""
     from .chunks import split
     from .compose import parse
 
@@ -118,10 +134,13 @@ def group_key(overrides: Sequence[str]) -> tuple[str, ...] | None:
         parsed = parse(list(overrides))
     except Exception:  # the job's own composition says what is wrong
         return None
+    if group == "physics":
+        return ("::physics",)
     return tuple(text for text, o in zip(overrides, parsed, strict=True) if o.key_or_group != "seed")
 
 
-def plan(jobs: Sequence[Sequence[str]], start: int, batch_size: int, workers: int) -> list[list[tuple[int, list[str]]]]:
+def plan(jobs: Sequence[Sequence[str]], start: int, batch_size: int, workers: int,
+         group: str = "seed") -> list[list[tuple[int, list[str]]]]:
     """The launch's tasks, in the order of their first job: ``[(job number, overrides), ...]`` each,
     a batch (two jobs or more of one group, :func:`group_key`) or one job. A group is cut into
     batches of equal size (within one) of at most ``batch_size`` jobs, and at most the batched jobs
@@ -130,7 +149,7 @@ def plan(jobs: Sequence[Sequence[str]], start: int, batch_size: int, workers: in
     groups: dict[tuple[str, ...], list[tuple[int, list[str]]]] = {}
     for offset, overrides in enumerate(jobs):
         idx = start + offset
-        key = group_key(overrides) if batch_size > 1 else None
+        key = group_key(overrides, group) if batch_size > 1 else None
         groups.setdefault(key if key is not None else (ALONE, str(idx)), []).append((idx, list(overrides)))
     batchable = sum(len(members) for members in groups.values() if len(members) > 1)
     workers = max(workers, 1)
@@ -157,12 +176,18 @@ class _World:
     run_dir: Path
     env: dict[str, str]
 
-    def key(self) -> str:
-        """Its config without the seed, as text: the worlds of one batch have the same."""
+    def key(self, group: str = "seed") -> str:
+        """What the worlds of one batch share, as text: the config without the seed (``group``
+        ``seed``), or the physics step's terms (``physics``: the dynamics model, the number of
+        agents, the guidance period and the physics step)."""
+        if group == "physics":
+            clock = self.scenario.config.clock
+            return json.dumps([self.data["dynamics"]["name"], self.scenario.config.swarm.n,
+                               clock.guidance_period, clock.physics_step], default=repr)
         return json.dumps({k: v for k, v in self.data.items() if k != "seed"}, sort_keys=True, default=repr)
 
 
-def run_batch_task(items: list[tuple[int, list[str]]], sweep_dir: str) -> bytes:
+def run_batch_task(items: list[tuple[int, list[str]]], sweep_dir: str, group: str = "seed") -> bytes:
     """A batch in a worker (module docstring): every job's ``JobReturn``, in the task's order,
     pickled by :func:`.pool.dumps`."""
     from hydra.core.hydra_config import HydraConfig
@@ -192,12 +217,12 @@ def run_batch_task(items: list[tuple[int, list[str]]], sweep_dir: str) -> bytes:
                     worlds.append(world)
     groups: dict[str, list[_World]] = {}
     for world in worlds:
-        groups.setdefault(world.key(), []).append(world)
+        groups.setdefault(world.key(group), []).append(world)
     if worlds:
         with env_override(worlds[0].env):
-            for group in groups.values():
-                overrides_of = {world.idx: world.overrides for world in group}
-                for idx, value in fly(group).items():
+            for together in groups.values():
+                overrides_of = {world.idx: world.overrides for world in together}
+                for idx, value in fly(together).items():
                     returns[idx] = _job_return(overrides_of[idx], name, value)
     return pool.dumps([returns[idx] for idx, _ in items])
 
@@ -217,10 +242,12 @@ def _alone(cfg: Any, overrides: list[str], name: str) -> Any:
 def _composed(loader: Any, config: Any, idx: int, overrides: list[str], sweep_dir: str,
               prefix: str) -> tuple[Any, Path]:
     """Job ``idx`` composed and set up as ``run_job`` sets it up (its number, run directory and
-    ``HydraConfig``), as a launcher task's later jobs are (:func:`.task.run_rest`)."""
+    ``HydraConfig``), as a launcher task's later jobs are (:func:`.task.run_rest`). The loader is
+    the sweeper's: swarmscene's group-caching one, or Hydra's own under another sweeper (Optuna's,
+    the falsifier's), which composes each job whole."""
     from .task import _as_job, _as_lean_job
 
-    lean = loader.load_task_job(config, list(overrides))
+    lean = loader.load_task_job(config, list(overrides)) if hasattr(loader, "load_task_job") else None
     if lean is not None:
         task_cfg, hydra_root = lean
         cfg, run_dir = _as_lean_job(task_cfg, hydra_root, idx, sweep_dir, prefix)

@@ -72,9 +72,10 @@ def refusal(launcher: Any, config: Any) -> str | None:
 
 def config_refusal(config: Any) -> str | None:
     """Why this sweep's config keeps each job to Hydra's ``run_job`` (None: jobs may share a task or
-    a batch, :mod:`.batch`): job callbacks other than the summary (``on_job_start``/``on_job_end``
-    are ``run_job``'s), ``hydra.job.chdir``, a ``hydra.sweep.subdir`` read through ``${hydra:...}``
-    (resolved against HydraConfig: not the task's own job)."""
+    a batch, :mod:`.batch`): callbacks other than the summary with job hooks of their own
+    (``on_job_start``/``on_job_end`` are ``run_job``'s), ``hydra.job.chdir``, a
+    ``hydra.sweep.subdir`` read through ``${hydra:...}`` (resolved against HydraConfig: not the
+    task's own job)."""
     from omegaconf import OmegaConf
 
     from .callback import SUMMARY_TARGET
@@ -83,12 +84,28 @@ def config_refusal(config: Any) -> str | None:
     if hydra.job.chdir:
         return "hydra.job.chdir"
     callbacks = hydra.callbacks or {}
-    if any((c or {}).get("_target_") != SUMMARY_TARGET for c in callbacks.values()):
+    if any(_has_job_hooks((c or {}).get("_target_")) for c in callbacks.values() if (c or {}).get("_target_")
+           != SUMMARY_TARGET):
         return "job callbacks"
     sweep = cast("dict[str, Any]", OmegaConf.to_container(hydra.sweep, resolve=False))
     if "${hydra:" in str(sweep.get("subdir")):
         return "hydra.sweep.subdir"
     return None
+
+
+def _has_job_hooks(target: Any) -> bool:
+    """Whether the callback class ``target`` names has its own ``on_job_start`` or ``on_job_end``
+    (Hydra's ``run_job`` calls them, so its jobs must run one by one); True when it cannot be
+    imported here (its job then reports what is wrong). A callback with only the sweep's hooks
+    (the falsifier's ``WorstCase``) lets jobs share a task or a batch."""
+    from hydra.experimental.callback import Callback
+    from hydra.utils import get_class
+
+    try:
+        cls = get_class(str(target))
+    except Exception:
+        return True
+    return any(getattr(cls, hook, None) is not getattr(Callback, hook) for hook in ("on_job_start", "on_job_end"))
 
 
 def _workers(config: Any, cores: int | None) -> int:
