@@ -12,6 +12,7 @@ import pytest
 
 from swarmscene import api, testing
 from swarmscene.core.batch import BatchSimulation
+from swarmscene.core.plugin import Dynamics
 from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
 from swarmscene.plugins.dynamics.single_integrator import SingleIntegrator
 
@@ -196,10 +197,13 @@ def test_the_quadrotor_heading_vector_has_the_same_bits_at_every_length():
 
 
 def test_a_controller_that_raises_in_one_world_stops_that_world_only(monkeypatch):
-    """A model without a batched control (the single integrator) is controlled world by world:
-    world 1's control raises at t = 1 s and world 1 alone stops, named as its single run names it."""
+    """A model without a batched control (the single integrator with the default one) is controlled
+    world by world: world 1's control raises at t = 1 s and world 1 alone stops, named as its
+    single run names it."""
     control = SingleIntegrator.control
     failing = {}
+    # the model's controllers world by world (the default control_batch), as a third party's without one
+    monkeypatch.setattr(SingleIntegrator, "control_batch", Dynamics.__dict__["control_batch"])
 
     def failing_control(self, world, sp):
         if self is failing.get("model") and world.t >= 1.0:
@@ -274,6 +278,23 @@ def test_double_integrator_worlds_tuned_apart_are_controlled_one_by_one(monkeypa
     monkeypatch.undo()
     for config, outcome in zip(configs, outcomes, strict=True):
         assert_world_is_its_single_run(config, 0, outcome.result)
+
+
+def test_single_integrator_worlds_are_controlled_in_one_stacked_pass(monkeypatch):
+    """swap: every tick one control_batch for the three worlds and no world's own control; each
+    world its single run."""
+    calls = []
+    monkeypatch.setattr(SingleIntegrator, "control", lambda *a: calls.append("control"))
+    config = ["scenario=swap", "clock.duration=2", "output.summary=false"]
+    data = api.compose(config)
+    real = SingleIntegrator.control_batch.__func__
+    monkeypatch.setattr(SingleIntegrator, "control_batch",
+                        classmethod(lambda cls, models, *a: calls.append(len(models)) or real(cls, models, *a)))
+    outcomes = BatchSimulation([api.build({**data, "seed": seed}) for seed in SEEDS]).run()
+    assert calls and set(calls) == {len(SEEDS)}
+    monkeypatch.undo()
+    for seed, outcome in zip(SEEDS, outcomes, strict=True):
+        assert_world_is_its_single_run(config, seed, outcome.result)
 
 
 def test_orca_adjusts_every_world_in_one_pass_of_its_numerics(monkeypatch):

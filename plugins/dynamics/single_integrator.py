@@ -67,6 +67,35 @@ class SingleIntegrator(Dynamics):
             u = np.where((sp.mode == _HOLD)[:, None], correction, u)
         self.u = clip_norm(u, p.u_max)
 
+    @classmethod
+    def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
+                      setpoints: Sequence[Setpoints]) -> object:
+        """``control`` of B worlds at once over their stacked B x N agents (docs/batched.md): the
+        correction, the mode selection and the saturation are elementwise or row by row, so each
+        agent gets its own ``control``'s bits. Worlds whose options differ, and setpoints that are
+        not (N, 3) float64 records, are left to the per-world ``control``."""
+        first = models[0]
+        n = batch.pos.shape[1]
+        if not all(m.params == first.params for m in models) or not all(
+                sp.mode.shape == (n,) and sp.pos.shape == sp.vel.shape == (n, 3)
+                and sp.pos.dtype == sp.vel.dtype == np.float64 for sp in setpoints):
+            return NotImplemented
+        p = first.params
+        mode = np.concatenate([sp.mode for sp in setpoints])
+        vel = np.concatenate([sp.vel for sp in setpoints])
+        own = all(w is t for w, t in zip(worlds, batch.worlds, strict=True))
+        correction = p.gain * (np.concatenate([sp.pos for sp in setpoints])
+                               - (batch.pos.reshape(-1, 3) if own else np.concatenate([w.pos for w in worlds])))
+        u = vel + correction
+        if np.count_nonzero(mode & 1):  # as control's selection, over every world's agents
+            velocity = mode == _VELOCITY
+            if np.count_nonzero(velocity):
+                u = np.where(velocity[:, None], vel, u)
+            u = np.where((mode == _HOLD)[:, None], correction, u)
+        for model, own_u in zip(models, clip_norm(u, p.u_max).reshape(len(models), n, 3), strict=True):
+            model.u = own_u
+        return None
+
     def step(self, world: WorldState, dt: float) -> None:
         """r += u T, v = u: the velocity command is flown exactly."""
         world.pos += self.u * dt
