@@ -149,10 +149,9 @@ class DoubleIntegrator(Dynamics):
         The worlds whose agents are all healthy and all keep the law they ran at the previous tick
         (:meth:`ThesisController.steady_law`, every tick but a world's first and its mode
         changes) are grouped by that law, and each group of two or more is one swarm of stacked
-        agents: their integral states are
-        packed along the world axis (:meth:`WorldBatch.pack`, each controller integrates its
-        slice), and one :meth:`ThesisController.step_steady` runs the law's elementwise
-        operations, which give each agent its single run's bits. The other worlds run their own
+        agents: their integral states are packed along the world axis (:meth:`WorldBatch.pack`,
+        each controller integrates its slice), and one :meth:`ThesisController.step_steady` runs
+        the law's elementwise operations, which give each agent its single run's bits. The other worlds run their own
         ``control``. Worlds whose instances differ in options, and setpoints that are not (N, 3)
         float64 records, are left to the per-world ``control`` (which raises for a wrong size)."""
         n = batch.pos.shape[1]
@@ -230,7 +229,7 @@ class DoubleIntegrator(Dynamics):
 
 
 def _plain_record(sp: Setpoints, n: int) -> bool:
-    """Whether ``sp`` commands ``n`` agents with float64 (N,) modes and (N, 3) references: what the
+    """Whether ``sp`` commands ``n`` agents with (N,) modes and (N, 3) float64 references: what the
     stacked law reads (another dtype would be promoted differently once stacked)."""
     return sp.mode.shape == (n,) and all(a.shape == (n, 3) and a.dtype == np.float64
                                          for a in (sp.pos, sp.vel, sp.acc))

@@ -76,7 +76,8 @@ class SingleIntegrator(Dynamics):
         not (N, 3) float64 records, are left to the per-world ``control``."""
         first = models[0]
         n = batch.pos.shape[1]
-        if not all(m.params == first.params for m in models) or not all(
+        same = batch.per_batch("single_integrator.same_options", lambda: all(m.params == first.params for m in models))
+        if not same or not all(
                 sp.mode.shape == (n,) and sp.pos.shape == sp.vel.shape == (n, 3)
                 and sp.pos.dtype == sp.vel.dtype == np.float64 for sp in setpoints):
             return NotImplemented
