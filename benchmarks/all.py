@@ -39,6 +39,7 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("outdoor", "python benchmarks/speed/bench_outdoor.py", 1),
     ("mcap", "python benchmarks/speed/bench_mcap.py", 5),
     ("batch", "taskset -c 1 python benchmarks/speed/bench_batch.py", 5),
+    ("batch_phases", "python benchmarks/speed/batch_phases.py", 2),
     ("indoor", "taskset -c 1 python benchmarks/speed/bench_indoor.py", 5),
     ("sweep", "python benchmarks/speed/bench_sweep.py", 6),
     ("sweep_1000", "python benchmarks/speed/bench_sweep.py --part cem --seeds 1000", 15),
