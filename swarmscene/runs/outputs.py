@@ -56,13 +56,16 @@ COSMETIC_KEYS = (
     ("output", "rerun"),
     ("output", "mcap"),
     ("output", "live"),
+    ("dynamics", "threads"),
 )
 """Options left out of the config hash: they change none of the numbers a run computes nor the
 record files (config, metrics, trajectory) it writes: a label, what is printed, what a sweeper is
 handed from metrics.json, how the trajectory is buffered on its way to the same trajectory.npz, and
 the pictures drawn from the record (plots, animation, replay; ``swarmscene-report --run-plots
 --rerun`` draws them later), the live view and the ROS 2 bag (``export --mcap`` converts the
-record). A sweep re-run with only these changed resumes (docs/sweeps.md)."""
+record). ``dynamics.threads`` is how many threads step the physics; a dynamics model that has the
+option gives the same numbers bit for bit on any count (the quadrotor's does, tested), so a run on
+4 threads has the hash of the same run on 1. A sweep re-run with only these changed resumes (docs/sweeps.md)."""
 
 COMMAND_ENV = "SWARMSCENE_COMMAND"
 """The command as typed (a JSON list), which a sweep hands to its jobs: a job on a Ray or SLURM

@@ -64,6 +64,24 @@ def test_hash_changes_with_every_effective_value_and_not_with_cosmetic_keys():
     assert "progress" in data["output"]  # config_hash leaves its input untouched
 
 
+# config_hash of two quadrotor compositions as 0.8.0 (eb3deeb) computed them, before the quadrotor
+# had its ``threads`` option
+HASHES_0_8_0 = {
+    ("dynamics=quadrotor",): "abbab648e0aed1c50e0bfd7d492d4152c6d1ee5eab60136f8990b0035a6a22c3",
+    ("scenario=vrb_airshow",): "37020f9a8eca57ed31e6c6c67af9bff85ff6e1bfb2df4484a6fbbf67db7c2846",
+}
+
+
+@pytest.mark.parametrize("overrides", sorted(HASHES_0_8_0))
+def test_the_physics_threads_leave_0_8_0s_hashes_and_any_count_hashes_alike(overrides):
+    """``dynamics.threads`` changes no number (tests/plugins/dynamics/test_quadrotor_threads.py), so
+    it is out of the hash: a sweep recorded by 0.8.0, or on another thread count, resumes."""
+    data = api.load(list(overrides)).data
+    assert data["dynamics"]["threads"] == 1
+    assert config_hash(data) == HASHES_0_8_0[overrides]
+    assert config_hash(api.load([*overrides, "dynamics.threads=4"]).data) == HASHES_0_8_0[overrides]
+
+
 def test_rerun_from_a_run_directory_gives_identical_metrics(tmp_path):
     """The documented way: swarmscene --config-path <run dir> --config-name config (a relative
     path is taken from the working directory)."""
