@@ -185,6 +185,20 @@ def test_grouped_by_physics_a_launch_is_one_group_of_every_job_that_parses():
     assert [[idx for idx, _ in task] for task in tasks] == [[0, 1, 2], [3]]  # a task of several jobs alone
 
 
+def test_grouped_by_physics_a_null_physics_step_is_the_guidance_period_it_stands_for():
+    """``clock.physics_step: null`` means the guidance period: such a world batches with one that
+    spells that step out, and not with one of another step."""
+    from swarmscene import api
+
+    def key(*overrides):
+        scenario = api.load(list(overrides))
+        return batch._World(0, [], scenario.data, scenario, None, Path("."), {}).key("physics")
+
+    null = ("clock.physics_step=null", "clock.guidance_period=0.1")
+    assert key(*null) == key("clock.physics_step=0.1", "clock.guidance_period=0.1") != key()  # default: 0.02
+    assert key(*null) != key("clock.physics_step=null", "clock.guidance_period=0.2")
+
+
 def test_grouped_by_physics_jobs_of_other_scenarios_share_a_task_and_fly_by_their_physics(basic, tmp_path):
     """``group=physics`` on one worker: the six jobs of two scenarios (other formations, methods
     and dynamics) are one task; the worker flies swap's worlds and the default's as two batches (their
@@ -242,3 +256,15 @@ def test_api_sweep_takes_the_batch_launcher_by_name(basic, tmp_path):
     for seed, row in by_seed.items():
         assert {k: v for k, v in row.items() if k not in ("job", "overrides")} == {
             k: v for k, v in expected[seed].items() if k not in ("job", "overrides")}
+
+
+def test_a_sweep_of_threaded_quadrotors_completes(tmp_path):
+    """``dynamics.threads`` > 1 at 1,024 agents: the fork server warms the scenario on one thread,
+    since numba's GNU OpenMP threads, once started, kill every process forked from theirs (the
+    sweep ended interrupted before); the workers fly the jobs on two."""
+    env = {**os.environ, "NUMBA_NUM_THREADS": "2"}  # a one-core machine too starts two threads
+    proc = swarmscene("--multirun", "scenario=flocking", "dynamics=quadrotor", "swarm.n=1024", "dynamics.threads=2",
+                      "clock.duration=1", "seed=0,1", "hydra/launcher=batch", "hydra.launcher.n_jobs=1",
+                      f"hydra.sweep.dir={tmp_path}/sw", cwd=tmp_path, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.strip().splitlines()[-1] == f"swarmscene: 2 jobs, all complete; summary in {tmp_path}/sw/summary.md"

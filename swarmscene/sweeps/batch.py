@@ -109,9 +109,10 @@ class BatchLauncher(PoolLauncher):
                  f"{sum(len(task) > 1 for task in tasks)} batches{f' (none batched: {why})' if why else ''}"
                  f"{' (grouped by physics)' if self.group == 'physics' else ''}; "
                  f"sweep output dir: {sweep_dir}")
+        others = " (and their seeds)" if self.group == "seed" else " (and the others' overrides)"
         for task in tasks:
             log.info(f"\t#{', '.join(str(idx) for idx, _ in task)} : {' '.join(filter_overrides(task[0][1]))}"
-                     f"{' (and their seeds)' if len(task) > 1 else ''}")
+                     f"{others if len(task) > 1 else ''}")
         calls = [(run_batch_task, (task, str(sweep_dir), self.group)) if len(task) > 1 else (pool._run_task, task[0])
                  for task in tasks]
         returns: dict[int, Any] = {}
@@ -181,9 +182,9 @@ class _World:
         ``seed``), or the physics step's terms (``physics``: the dynamics model, the number of
         agents, the guidance period and the physics step)."""
         if group == "physics":
-            clock = self.scenario.config.clock
-            return json.dumps([self.data["dynamics"]["name"], self.scenario.config.swarm.n,
-                               clock.guidance_period, clock.physics_step], default=repr)
+            config = self.scenario.config  # the physics step as the engine resolves it (null: T_s)
+            return json.dumps([self.data["dynamics"]["name"], config.swarm.n,
+                               config.clock.guidance_period, config.physics_step], default=repr)
         return json.dumps({k: v for k, v in self.data.items() if k != "seed"}, sort_keys=True, default=repr)
 
 

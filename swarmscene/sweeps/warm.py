@@ -35,6 +35,10 @@ def warm(scenario: str | None) -> None:
         return
     data = shortened(json.loads(scenario))
     data["output"] = {**data["output"], "plots": False, "animation": False, "rerun": False, "live": "off"}
+    if isinstance(data.get("dynamics"), dict) and "threads" in data["dynamics"]:
+        # numba's threads must not start here: its GNU OpenMP layer (where TBB is missing) kills
+        # every child forked after they did, and the workers are forked from this process
+        data["dynamics"] = {**data["dynamics"], "threads": 1}
     try:
         build(data).run()
     except Exception:  # the job reports it, in its own run directory
