@@ -238,7 +238,8 @@ def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | No
     guided: dict[int, tuple[WorldState, Setpoints]] = {}
     sims = [sim for sim in worlds._sims() if planned[id(sim)][1] is not None]
     method = type(sims[0].avoidance) if sims else None
-    if method is not None and len(sims) > 1 and all(type(sim.avoidance) is method for sim in sims):
+    if (method is not None and len(sims) > 1 and all(type(sim.avoidance) is method for sim in sims)
+            and written_for(method, "adjust_batch", "adjust")):
         seen = [cast("Perceived", planned[id(sim)][1]) for sim in sims]
         try:
             done = method.adjust_batch([sim.avoidance for sim in sims], [p.world for p in seen],
@@ -265,26 +266,41 @@ def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | No
 def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]]) -> None:
     """The controllers of every running world: the model's batched form, or world by world when
     it has none (the default :meth:`~swarmscene.core.plugin.Dynamics.control_batch`, run here so
-    that a world whose ``control`` raises stops alone) or declines this batch. An exception of
-    the batched form stops every world it was controlling."""
+    that a world whose ``control`` raises stops alone), declines this batch, or leaves some of its
+    worlds (returns their places in the batch). An exception of the batched form stops every world
+    it was controlling."""
     sims = worlds._sims()
+    left: set[int] | None = None  # ids of the worlds the engine controls one by one; None: all
     if len(sims) > 1 and has_batched_control(worlds.model):
         try:
             done = worlds.model.control_batch(
                 [sim.dynamics for sim in sims], worlds._world_batch(),
                 [guided[id(sim)][0] for sim in sims], [guided[id(sim)][1] for sim in sims])
+            if done is not NotImplemented:
+                left = {id(sims[b]) for b in _places(done, len(sims), worlds.model)}
         except Exception as exc:
             worlds._stop_all(exc)
             return
-        if done is not NotImplemented:
-            return
-    worlds._each(lambda sim: sim.dynamics.control(*guided[id(sim)]))
+    worlds._each(lambda sim: sim.dynamics.control(*guided[id(sim)]) if left is None or id(sim) in left else None)
+
+
+def _places(done: object, count: int, model: type) -> list[int]:
+    """The worlds a ``control_batch`` left to their own ``control``: none for ``None``, else the
+    places it returned (integers in ``range(count)``); anything else is the model's error."""
+    if done is None:
+        return []
+    places = list(cast("Sequence[int]", done)) if isinstance(done, (list, tuple)) else None
+    if places is None or not all(isinstance(b, int) and 0 <= b < count for b in places):
+        raise ValueError(f"{model.__name__}.control_batch returned {done!r}: None, NotImplemented or the "
+                         f"places (0..{count - 1}) of the worlds it left to their own control")
+    return places
 
 
 def _physics(worlds: _Worlds, models: list[Dynamics], batch: WorldBatch, dt: float) -> None:
     """The dynamics step of every running world: the model's batched form, or world by world
     when it declines this batch. An exception of the batched form stops every world it was stepping."""
-    if len(models) != worlds._count() or len(models) == 1:  # a world ended in this sub-step's wind
+    if (len(models) != worlds._count() or len(models) == 1  # a world ended in this sub-step's wind
+            or not written_for(worlds.model, "step_batch", "step")):
         worlds._each(lambda sim: sim.dynamics.step(sim.world, dt))
         return
     try:
@@ -298,8 +314,20 @@ def _physics(worlds: _Worlds, models: list[Dynamics], batch: WorldBatch, dt: flo
 
 def has_batched_control(model: type[Dynamics]) -> bool:
     """Whether ``model`` overrides :meth:`~swarmscene.core.plugin.Dynamics.control_batch` (else the
-    engine controls its worlds one by one, which is what the default does)."""
-    return getattr(model.control_batch, "__func__", None) is not getattr(Dynamics.control_batch, "__func__", None)
+    engine controls its worlds one by one, which is what the default does) for its own ``control``
+    (:func:`written_for`)."""
+    return (getattr(model.control_batch, "__func__", None) is not getattr(Dynamics.control_batch, "__func__", None)
+            and written_for(model, "control_batch", "control"))
+
+
+def written_for(cls: type, batched: str, single: str) -> bool:
+    """Whether ``cls``'s batched form (``adjust_batch``, ``control_batch``, ``step_batch``) was
+    written for the per-world form ``single`` it has: the class that defines the batched form
+    defines ``single`` too, or inherits it. A subclass that overrides ``control`` alone (a plugin
+    deriving from the double integrator) would otherwise have its worlds flown by its base's
+    batched ``control``, not by its own; its worlds run their own ``single`` instead."""
+    owner = next(k for k in cls.__mro__ if batched in vars(k))
+    return issubclass(owner, next(k for k in cls.__mro__ if single in vars(k)))
 
 
 def _wind_of(j: int) -> Callable[[Simulation], None]:

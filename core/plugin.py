@@ -194,7 +194,8 @@ class Avoidance(Plugin):
         afterwards, must equal each world's own ``adjust`` bit for bit (the contract check
         ``avoidance.adjust_batch_equals_worlds``). An override may return ``NotImplemented`` for a
         batch it cannot take whole (instances whose options differ). An exception it raises stops
-        every world of the batch.
+        every world of the batch. A subclass that overrides ``adjust`` and not this is adjusted
+        world by world (the engine uses a batched form only with the ``adjust`` it was written for).
         """
         return NotImplemented
 
@@ -259,9 +260,13 @@ class Dynamics(Plugin):
         stops alone, as its single run). A model overrides it to latch all worlds' commands at
         once (docs/batched.md); what the instances hold afterwards must equal their per-world
         ``control`` bit for bit (the contract check ``dynamics.control_batch_equals_worlds``). An
-        override may return ``NotImplemented`` for a batch it cannot take whole (instances whose
-        options or setpoint fields differ): the worlds are then controlled one by one. An
-        exception it raises stops every world of the batch.
+        override returns ``None`` when it controlled every world; ``NotImplemented`` for a batch
+        it cannot take (instances whose options or setpoint fields differ): the worlds are then
+        controlled one by one; or the places (indices into ``models``) of the worlds it left, which
+        the engine then controls one by one (a world whose ``control`` raises stops alone). An
+        exception it raises stops every world of the batch. A subclass that overrides ``control``
+        and not this is controlled world by world (the engine uses a batched form only with the
+        ``control`` it was written for).
         """
         for model, world, sp in zip(models, worlds, setpoints, strict=True):
             model.control(world, sp)
@@ -277,7 +282,8 @@ class Dynamics(Plugin):
         docs/batched.md); the result must equal the per-world steps bit for bit (the contract
         check ``dynamics.batch_equals_worlds``). An override may return ``NotImplemented`` for a
         batch it cannot take whole (instances whose options differ): the worlds are then
-        stepped one by one.
+        stepped one by one. A subclass that overrides ``step`` and not this is stepped world by
+        world (the engine uses a batched form only with the ``step`` it was written for).
         """
         for model, world in zip(models, batch.worlds, strict=True):
             model.step(world, dt)

@@ -223,6 +223,48 @@ def test_a_controller_that_raises_in_one_world_stops_that_world_only(monkeypatch
                                    outcomes[0].result)
 
 
+def test_a_world_the_batched_control_leaves_stops_alone_when_its_control_raises(monkeypatch):
+    """The double integrator's batched control steps worlds 0 and 2 on their law together and
+    leaves world 1 (whose law it cannot tell) to the engine, which runs its own ``control``: that
+    raises at t = 1 s and world 1 alone stops; world 0 is its single run."""
+    from swarmscene.methods.quadrotor.thesis_controllers import ThesisController
+
+    control, steady_law, failing, grouped = DoubleIntegrator.control, ThesisController.steady_law, {}, []
+
+    def failing_control(self, world, sp):
+        if self is failing.get("model") and world.t >= 1.0:
+            raise RuntimeError("controller on fire")
+        control(self, world, sp)
+
+    def law(self, mode):
+        return None if self is failing["model"].controller else steady_law(self, mode)
+
+    real = DoubleIntegrator._control_steady.__func__
+    monkeypatch.setattr(DoubleIntegrator, "control", failing_control)
+    monkeypatch.setattr(ThesisController, "steady_law", law)
+    monkeypatch.setattr(DoubleIntegrator, "_control_steady",
+                        classmethod(lambda cls, flock, *a: grouped.append(len(flock)) or real(cls, flock, *a)))
+    config = ["clock.duration=3", "output.summary=false"]
+    sims = [api.build({**api.compose(config), "seed": seed}) for seed in SEEDS]
+    failing["model"] = sims[1].dynamics
+    outcomes = BatchSimulation(sims).run()
+    assert grouped and set(grouped) == {2}  # worlds 0 and 2 together, world 1 never
+    assert [o.result.stop_reason for o in outcomes] == ["duration", "plugin_error", "duration"]
+    assert "RuntimeError: controller on fire" in outcomes[1].result.error
+    monkeypatch.undo()
+    assert_world_is_its_single_run(config, 0, outcomes[0].result)
+
+
+def test_a_control_batch_that_returns_a_wrong_answer_is_named():
+    from swarmscene.core.batch import _places
+
+    assert _places(None, 3, DoubleIntegrator) == [] and _places([2, 0], 3, DoubleIntegrator) == [2, 0]
+    for wrong in ([3], [-1], "0", [0.0], 1):
+        with pytest.raises(ValueError, match=r"DoubleIntegrator.control_batch returned .*: None, NotImplemented "
+                                             r"or the places \(0..2\) of the worlds it left to their own control"):
+            _places(wrong, 3, DoubleIntegrator)
+
+
 def test_the_control_batch_contract_check_catches_a_batched_control_that_differs():
     class Nudged(DoubleIntegrator):
         name = "nudged_double_integrator"
@@ -403,3 +445,72 @@ def test_a_batch_refuses_the_per_run_views_in_one_line():
     with pytest.raises(ConfigError) as err:
         api.run_batch(["scenario=swap", "output.plots=true"], [0, 1])
     assert err.value.lines == ["output.plots=true: not written by a batch of worlds (run that world alone)"]
+
+
+class _HalfCommand(DoubleIntegrator):
+    """A subclass that overrides ``control`` alone: half its base's command."""
+
+    name = "half_command"
+
+    def control(self, world, sp):
+        super().control(world, sp)
+        self.u *= 0.5
+
+
+class _HalfVelocity(SingleIntegrator):
+    """A subclass that overrides ``control`` alone: half its base's velocity command."""
+
+    name = "half_velocity"
+    xfail_checks = {"dynamics.velocity_mode": "flies half the commanded velocity"}
+
+    def control(self, world, sp):
+        super().control(world, sp)
+        self.u = self.u * 0.5
+
+
+class _HalfStep(SingleIntegrator):
+    """A subclass that overrides ``step`` alone: it flies half the command."""
+
+    name = "half_step"
+    xfail_checks = {"dynamics.velocity_mode": "flies half the commanded velocity"}
+
+    def step(self, world, dt):
+        world.pos += 0.5 * self.u * dt
+        world.vel[:] = 0.5 * self.u
+
+
+@pytest.mark.parametrize(("scenario", "subclass"), [("default", _HalfCommand), ("swap", _HalfVelocity),
+                                                    ("swap", _HalfStep)])
+def test_a_subclass_overriding_the_per_world_form_alone_is_flown_by_it(scenario, subclass):
+    """Its base's batched form was written for the base's ``control`` (``step``): the subclass's
+    worlds in a batch are controlled (stepped) by their own, each world its single run."""
+    from swarmscene.core.batch import written_for
+
+    single = {_HalfCommand: "control", _HalfVelocity: "control", _HalfStep: "step"}[subclass]
+    assert written_for(subclass.__base__, f"{single}_batch", single)
+    assert not written_for(subclass, f"{single}_batch", single)
+    data = api.compose([f"scenario={scenario}", "clock.duration=2", "output.summary=false"])
+
+    def built(seed):
+        sim = api.build({**data, "seed": seed})
+        sim.dynamics.__class__ = subclass
+        return sim
+
+    for seed, outcome in zip(SEEDS, BatchSimulation([built(seed) for seed in SEEDS]).run(), strict=True):
+        alone = built(seed).run()
+        assert outcome.result.metrics["min_separation"] == alone.metrics["min_separation"]
+        np.testing.assert_array_equal(outcome.result.trajectory["pos"], alone.trajectory["pos"])
+    plain = api.build({**data, "seed": SEEDS[-1]}).run()
+    assert not np.array_equal(plain.trajectory["pos"], alone.trajectory["pos"])  # the subclass flies apart
+    testing.check_dynamics(subclass)  # the batched forms' checks pass as the engine flies them
+
+
+def test_an_avoidance_subclass_overriding_adjust_alone_is_adjusted_by_it():
+    from swarmscene.core.batch import written_for
+    from swarmscene.plugins.avoidance.orca import Orca
+
+    class Wrapped(Orca):
+        def adjust(self, world, sensing, sp):
+            return super().adjust(world, sensing, sp)
+
+    assert written_for(Orca, "adjust_batch", "adjust") and not written_for(Wrapped, "adjust_batch", "adjust")

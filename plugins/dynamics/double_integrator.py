@@ -151,9 +151,11 @@ class DoubleIntegrator(Dynamics):
         changes) are grouped by that law, and each group of two or more is one swarm of stacked
         agents: their integral states are packed along the world axis (:meth:`WorldBatch.pack`,
         each controller integrates its slice), and one :meth:`ThesisController.step_steady` runs
-        the law's elementwise operations, which give each agent its single run's bits. The other worlds run their own
-        ``control``. Worlds whose instances differ in options, and setpoints that are not (N, 3)
-        float64 records, are left to the per-world ``control`` (which raises for a wrong size)."""
+        the law's elementwise operations, which give each agent its single run's bits. The other
+        worlds are left to the engine (their places returned), which runs their own ``control``
+        (a world whose ``control`` raises stops alone). Worlds whose instances differ in options,
+        and setpoints that are not (N, 3) float64 records, are all left to the per-world
+        ``control`` (which raises for a wrong size)."""
         n = batch.pos.shape[1]
         if not cls._same_options(models, batch) or not all(map(_plain_record, setpoints, [n] * len(setpoints))):
             return NotImplemented
@@ -167,9 +169,7 @@ class DoubleIntegrator(Dynamics):
         for law, group in groups.items():
             cls._control_steady([models[b] for b in group], batch, [worlds[b] for b in group],
                                 [setpoints[b] for b in group], law)
-        for b in sorted(set(range(len(models))) - {b for group in groups.values() for b in group}):
-            models[b].control(worlds[b], setpoints[b])
-        return None
+        return sorted(set(range(len(models))) - {b for group in groups.values() for b in group})
 
     @classmethod
     def _control_steady(cls, flock: list[Self], batch: WorldBatch, worlds: list[WorldState],

@@ -73,12 +73,13 @@ class SingleIntegrator(Dynamics):
         """``control`` of B worlds at once over their stacked B x N agents (docs/batched.md): the
         correction, the mode selection and the saturation are elementwise or row by row, so each
         agent gets its own ``control``'s bits. Worlds whose options differ, and setpoints that are
-        not (N, 3) float64 records, are left to the per-world ``control``."""
+        not (N, 3) float64 records with (N,) integer modes, are left to the per-world ``control``
+        (where a wrong record raises for its own world)."""
         first = models[0]
         n = batch.pos.shape[1]
         same = batch.per_batch("single_integrator.same_options", lambda: all(m.params == first.params for m in models))
         if not same or not all(
-                sp.mode.shape == (n,) and sp.pos.shape == sp.vel.shape == (n, 3)
+                sp.mode.shape == (n,) and sp.mode.dtype.kind in "iu" and sp.pos.shape == sp.vel.shape == (n, 3)
                 and sp.pos.dtype == sp.vel.dtype == np.float64 for sp in setpoints):
             return NotImplemented
         p = first.params

@@ -50,14 +50,15 @@ The built-in plugins pass these checks in the test suite (tests/test_contract.py
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import yaml
 from pydantic import ValidationError
 
+from ..core.batch import written_for
 from ..core.environment import Environment
 from ..core.errors import format_validation_error
 from ..core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
@@ -653,7 +654,7 @@ def _check_dynamics_batch_equals_worlds(cls: type[Dynamics], params: PluginParam
             model.control(world, target)
         batch.controlled()
         for _ in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
-            if cls.step_batch(models, batch, PHYSICS_STEP) is NotImplemented:
+            if _batched(cls, "step", models, batch, PHYSICS_STEP) is NotImplemented:
                 for world, model, _ in together:
                     model.step(world, PHYSICS_STEP)
         for world, _, _ in together:
@@ -661,6 +662,14 @@ def _check_dynamics_batch_equals_worlds(cls: type[Dynamics], params: PluginParam
     _assert_worlds_equal([one for one, _, _ in alone], [batched for batched, _, _ in together],
                          lambda b, field: f"{cls.name}: step_batch gave world {b} another {field} than its own "
                          "step()", "must repeat the per-world arithmetic")
+
+
+def _batched(cls: type, single: str, *args: Any) -> object:
+    """``cls.<single>_batch(*args)``, or ``NotImplemented`` where the engine flies the worlds by
+    their own ``single`` instead (a subclass that overrides it alone: :func:`~swarmscene.core.batch.written_for`)."""
+    if not written_for(cls, f"{single}_batch", single):
+        return NotImplemented
+    return getattr(cls, f"{single}_batch")(*args)
 
 
 def _assert_worlds_equal(alone: list[WorldState], together: list[WorldState], differs: Callable[[int, str], str],
@@ -720,12 +729,14 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
     models = [model for _, model in together]
     for _ in range(ticks):
         sps = [setpoints(b, world, world.t) for b, (world, _) in enumerate(together)]
-        if cls.control_batch(models, batch, batch.worlds, sps) is NotImplemented:
-            for (world, model), sp in zip(together, sps, strict=True):
-                model.control(world, sp)
+        done = _batched(cls, "control", models, batch, batch.worlds, sps)
+        left = range(len(models)) if done is NotImplemented else cast("Sequence[int]", done or [])
+        for b in left:  # the worlds it left to their own control
+            (world, model), sp = together[b], sps[b]
+            model.control(world, sp)
         batch.controlled()
         for _ in range(substeps):
-            if cls.step_batch(models, batch, PHYSICS_STEP) is NotImplemented:
+            if _batched(cls, "step", models, batch, PHYSICS_STEP) is NotImplemented:
                 for world, model in together:
                     model.step(world, PHYSICS_STEP)
         for world, _ in together:
@@ -752,8 +763,8 @@ def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
     batch_methods = [_build(s.cls, s.params, s.environment, world) for world in together]
     for tick in range(TICKS):
         sps = [_converging_setpoints(world) for world in together]
-        outs = s.cls.adjust_batch(batch_methods, together, [_sensing(w, s.environment) for w in together],
-                                  [sp.copy() for sp in sps])
+        outs = _batched(s.cls, "adjust", batch_methods, together, [_sensing(w, s.environment) for w in together],
+                        [sp.copy() for sp in sps])
         if outs is NotImplemented:
             return
         assert isinstance(outs, list) and len(outs) == len(together), (

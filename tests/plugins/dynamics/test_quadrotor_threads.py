@@ -76,12 +76,20 @@ def test_a_batch_of_small_worlds_is_stepped_on_threads_as_one_swarm(monkeypatch)
     monkeypatch.setattr(quadrotor_plugin, "PARALLEL_MIN_AGENTS", 32)
     config = ["scenario=flocking", "swarm.n=16", "dynamics=quadrotor", "dynamics.threads=2",
               "clock.duration=1", "output.summary=false"]
-    rows = []
+    rows, kernels = [], []
     real = quadrotor_plugin._stepper
-    monkeypatch.setattr(quadrotor_plugin, "_stepper", lambda k, t, agents: rows.append(agents) or real(k, t, agents))
+
+    def stepper(k, t, agents):
+        rows.append(agents)
+        chosen = real(k, t, agents)
+        kernels.append(chosen[0].__name__)
+        return chosen
+
+    monkeypatch.setattr(quadrotor_plugin, "_stepper", stepper)
     data = api.compose(config)
     outcomes = BatchSimulation([api.build({**data, "seed": seed}) for seed in (0, 1, 2)]).run()
     assert rows and set(rows) == {48}
+    assert set(kernels) == {"step_swarm_parallel" if numba.config.NUMBA_NUM_THREADS >= 2 else "step_swarm"}
     monkeypatch.undo()
     for seed, outcome in zip((0, 1, 2), outcomes, strict=True):
         alone = api.run([*config, f"seed={seed}"])
