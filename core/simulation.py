@@ -55,6 +55,9 @@ from .setpoint import Setpoints
 from .state import WorldState
 from .vectors import wrap
 
+SHOWN_AGENTS = 10
+"""How many agents an error names before it says how many more: a message stays one line."""
+
 
 class Simulation:
     """One run of a validated scenario.
@@ -300,10 +303,12 @@ class Simulation:
         start = self.world.pos[:, : lo.size]
         outside = np.flatnonzero(np.any((start < lo) | (start >= lo + size), axis=1))
         if outside.size:
+            named = outside[:SHOWN_AGENTS].tolist()
+            more = f" and {outside.size - len(named)} more" if outside.size > len(named) else ""
             raise ConfigError([
-                f"swarm.start: agents {outside.tolist()} start outside the periodic box of formation "
-                f"{self.formation.name!r}, {lo.tolist()} to {(lo + size).tolist()} m (its wrap would "
-                f"move them at t = 0)"
+                f"swarm.start: {outside.size} agents ({named}{more}) start outside the periodic box of "
+                f"formation {self.formation.name!r}, {lo.tolist()} to {(lo + size).tolist()} m (its wrap "
+                f"would move them at t = 0)"
             ])
 
     def _wrap_periodic(self) -> None:

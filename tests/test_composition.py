@@ -311,8 +311,13 @@ def test_swapped_dynamics_gets_its_own_defaults_not_the_presets_tuning():
         ),
         (   # ... and would teleport the agents that start outside its box at t = 0
             ["scenario=cem_six_vehicle", "formation=reynolds_flocking", "formation.space=toroidal"],
-            "swarm.start: agents [1, 3, 4, 5] start outside the periodic box of formation "
+            "swarm.start: 4 agents ([1, 3, 4, 5]) start outside the periodic box of formation "
             "'reynolds_flocking', [0.0, 0.0] to [100.0, 100.0] m (its wrap would move them at t = 0)",
+        ),
+        (   # ... naming ten of them when there are more
+            ["scenario=flocking", "formation.box_max=[50,50,50]"],
+            "swarm.start: 84 agents ([0, 2, 3, 4, 5, 6, 7, 8, 11, 12] and 74 more) start outside the periodic "
+            "box of formation 'reynolds_flocking', [0.0, 0.0] to [50.0, 50.0] m (its wrap would move them at t = 0)",
         ),
     ],
     ids=lambda case: " ".join(case) if isinstance(case, list) else "line",
