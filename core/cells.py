@@ -227,6 +227,104 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
 
 
 @numba.njit(cache=True)
+def torus_disk_graph_connected(points: np.ndarray, radius: float, size: np.ndarray) -> bool:
+    """:func:`disk_graph_connected` in a periodic space: the first ``size.size`` axes of
+    ``points`` (N, D) wrap, the points lying in [0, size) along them, and two points are linked
+    when their minimum-image distance is at most ``radius`` (each wrapped axis' difference folded
+    into [-size / 2, size / 2] as a k-d tree with a ``boxsize`` folds it, then summed axis by axis).
+
+    Pair by pair over cells at least ``radius`` wide, the cells of a wrapped axis wrapping too (one
+    cell along an axis shorter than three radii), joined by union-find up to the first union that
+    leaves one component. The periodic k-d tree listed every pair and a sparse matrix labelled the
+    components: 10,000 boids in a 1 km torus, ~10 ms a tick.
+    """
+    n, dim = points.shape
+    wrapped = size.size
+    lo = np.zeros(3)
+    side = np.ones(3)
+    shape = np.ones(3, np.int64)
+    for k in range(dim):
+        if k < wrapped:
+            cells = int(size[k] / (radius * (1.0 + 1e-9)))  # margin: a cell never narrower than radius
+            shape[k] = cells if cells >= 3 else 1  # fewer: the neighbours -1, 0, +1 would repeat cells
+            side[k] = size[k] / shape[k]
+        else:
+            lo[k], hi = _extent(points, k)
+            side[k] = radius if radius > 0.0 else 1.0
+            shape[k] = int((hi - lo[k]) / side[k]) + 1
+    coord = np.zeros((n, 3), np.int64)
+    cell = np.empty(n, np.int64)
+    for i in range(n):
+        for k in range(dim):
+            coord[i, k] = min(int((points[i, k] - lo[k]) / side[k]), shape[k] - 1)
+        cell[i] = (coord[i, 0] * shape[1] + coord[i, 1]) * shape[2] + coord[i, 2]
+    start, order = _sorted_by_cell(cell, shape[0] * shape[1] * shape[2])
+    parent = np.arange(n)
+    components = n
+    r2 = radius * radius
+    offsets = np.empty((3, 3), np.int64)  # per axis, the neighbour cells' coordinates
+    count = np.empty(3, np.int64)
+    for i in range(n):
+        for k in range(3):
+            count[k] = 0
+            for d in range(-1, 2):
+                c = coord[i, k] + d
+                if k < wrapped:
+                    c %= shape[k]  # one cell (shape 1): -1, 0 and +1 are that cell, taken once
+                    if shape[k] == 1 and d != 0:
+                        continue
+                elif not 0 <= c < shape[k]:
+                    continue
+                offsets[k, count[k]] = c
+                count[k] += 1
+        for a in range(count[0]):
+            for b in range(count[1]):
+                for c in range(count[2]):
+                    q = (offsets[0, a] * shape[1] + offsets[1, b]) * shape[2] + offsets[2, c]
+                    for s in range(start[q], start[q + 1]):
+                        j = order[s]
+                        if j <= i or _torus_dist2(points, i, j, size) > r2:
+                            continue
+                        if _join(parent, i, j):
+                            components -= 1
+                            if components == 1:
+                                return True
+    return components == 1
+
+
+@numba.njit(cache=True, inline="always")
+def _torus_dist2(points: np.ndarray, i: int, j: int, size: np.ndarray) -> float:
+    """Squared minimum-image distance of points i and j (the first ``size.size`` axes wrap)."""
+    d2 = 0.0
+    for k in range(points.shape[1]):
+        diff = points[j, k] - points[i, k]
+        if k < size.size:
+            half = 0.5 * size[k]
+            if diff < -half:
+                diff = size[k] + diff
+            elif diff > half:
+                diff = diff - size[k]
+        d2 += diff * diff
+    return d2
+
+
+@numba.njit(cache=True)
+def _sorted_by_cell(cell: np.ndarray, cells: int):
+    """Counting sort of the points by cell: ``order[start[q]:start[q + 1]]`` are cell q's."""
+    start = np.zeros(cells + 1, np.int64)
+    for i in range(cell.size):
+        start[cell[i] + 1] += 1
+    for q in range(cells):
+        start[q + 1] += start[q]
+    fill = start[:-1].copy()
+    order = np.empty(cell.size, np.int64)
+    for i in range(cell.size):
+        order[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    return start, order
+
+
+@numba.njit(cache=True)
 def _cells_meet(points, order, start, q, q2, r2) -> bool:
     """Some point of cell q and some point of cell q2 are at most sqrt(r2) apart."""
     for s in range(start[q], start[q + 1]):

@@ -427,7 +427,10 @@ class Sensing:
     def _periodic_connected(self) -> bool:
         """:attr:`comm_connected` in a periodic space (a torus): links by the minimum-image distance,
         so two agents a range apart across a seam of the box are linked, as they are in the space
-        the formation flies (Euclidean distance inside the box split a flock that crossed a seam)."""
+        the formation flies (Euclidean distance inside the box split a flock that crossed a seam).
+        Up to ``DENSE_LIMIT`` members a periodic k-d tree lists the links; more are joined by
+        union-find over a compiled cell list that wraps (:func:`.cells.torus_disk_graph_connected`,
+        the same answer: tests/core/test_cells.py)."""
         members = np.flatnonzero(self.comm_members)
         if members.size <= 1:
             return True
@@ -436,6 +439,10 @@ class Sensing:
         a = lo.size
         wrapped = np.mod(pos[:, :a] - lo, size)
         pos[:, :a] = np.where(wrapped >= size, 0.0, wrapped)  # rounding can reach size itself
+        if members.size > DENSE_LIMIT:
+            from .cells import torus_disk_graph_connected  # imports numba: only swarms this large pay for it
+
+            return bool(torus_disk_graph_connected(pos, self.comm_range, np.asarray(size, dtype=float)))
         box = np.empty(pos.shape[1])
         box[:a] = size
         if a < pos.shape[1]:  # the axes that do not wrap: a box too wide to ever fold a link

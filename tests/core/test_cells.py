@@ -104,3 +104,44 @@ def test_compiled_nearest_obstacle_equals_shapelys_to_the_bit():
                                     seg, start, polygonal, 0.9)
         assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
         assert (want[0] >= 0).sum() > 100 and (want[1] == 0).any()  # near walls, some inside
+
+
+def _torus_tree_connected(points: np.ndarray, radius: float, size: np.ndarray) -> bool:
+    """The oracle: scipy's periodic k-d tree lists the links, its sparse graph labels the
+    components (an axis beyond ``size`` gets a box too wide to fold any link)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    pos, box = points.copy(), np.empty(points.shape[1])
+    box[: size.size] = size
+    if size.size < points.shape[1]:
+        pos[:, size.size:] -= pos[:, size.size:].min(axis=0)
+        box[size.size:] = pos[:, size.size:].max(axis=0) + 2.0 * radius + 1.0
+    links = cKDTree(pos, boxsize=box).query_pairs(radius, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(links)), (links[:, 0], links[:, 1])), shape=(len(pos), len(pos)))
+    return connected_components(graph, directed=False)[0] == 1
+
+
+def test_the_torus_graph_is_connected_when_the_periodic_k_d_tree_says_so():
+    """2,000 random swarms: 2-D and 3-D, one to three wrapped axes, boxes shorter than three radii
+    (one cell along the axis), flocks astride the seams; then a 10,000-boid torus."""
+    from swarmscene.core.cells import torus_disk_graph_connected
+
+    rng = np.random.default_rng(11)
+    answers = []
+    for _ in range(2000):
+        n, dim = int(rng.integers(2, 60)), int(rng.integers(2, 4))
+        wrapped = int(rng.integers(1, dim + 1))
+        size, radius = rng.uniform(3.0, 40.0, wrapped), float(rng.uniform(0.5, 15.0))
+        points = rng.uniform(0.0, 1.0, (n, dim)) * np.concatenate([size, rng.uniform(1.0, 30.0, dim - wrapped)])
+        if rng.random() < 0.3:  # a flock astride the seams
+            points[:, :wrapped] = np.mod(rng.normal(0.0, radius, (n, wrapped)), size)
+            points[:, :wrapped] = np.where(points[:, :wrapped] >= size, 0.0, points[:, :wrapped])
+        want = _torus_tree_connected(points, radius, size)
+        assert torus_disk_graph_connected(points, radius, size) == want, (n, dim, size, radius)
+        answers.append(want)
+    assert 0.2 < np.mean(answers) < 0.8  # both answers, often
+    boids = np.column_stack([rng.uniform(0.0, 1000.0, (10_000, 2)), np.full(10_000, 2.0)])
+    for radius in (8.0, 20.0):
+        size = np.array([1000.0, 1000.0])
+        assert torus_disk_graph_connected(boids, radius, size) == _torus_tree_connected(boids, radius, size)

@@ -170,3 +170,26 @@ def test_on_a_torus_agents_across_a_seam_are_linked():
     split = Sensing(WorldState.at_rest(apart), Environment(), comm_range=5.0)
     split.periodic = torus.periodic
     assert not split.comm_connected
+
+
+@pytest.mark.parametrize("n", [100, 400])  # the k-d tree's side of DENSE_LIMIT and the cell list's
+def test_a_ring_around_the_torus_is_connected_through_its_seam_only(n):
+    """n agents on a ring along x of a 100 m torus, the gap between two neighbours the comm range
+    less a millimetre: connected through the seam; one agent gone from the ring's middle and it is
+    still one chain; a second one gone elsewhere splits it, on either path."""
+    x = np.arange(n) * (100.0 / n)
+    pos = np.column_stack([x, np.full(n, 50.0), np.full(n, 2.0)])
+
+    def connected(world, comm_range):
+        sensing = Sensing(world, Environment(), comm_range=comm_range)
+        sensing.periodic = (np.zeros(2), np.full(2, 100.0))
+        return sensing.comm_connected
+
+    step = 100.0 / n
+    assert connected(WorldState.at_rest(pos), step + 1e-3)
+    assert not connected(WorldState.at_rest(pos), step - 1e-3)
+    world = WorldState.at_rest(pos)
+    world.healthy[n // 2] = False  # the ring opened once: a chain through the seam
+    assert connected(world, step + 1e-3)
+    world.healthy[n // 4] = False  # and twice: two chains
+    assert not connected(world, step + 1e-3)
