@@ -123,24 +123,30 @@ def _torus_tree_connected(points: np.ndarray, radius: float, size: np.ndarray) -
 
 
 def test_the_torus_graph_is_connected_when_the_periodic_k_d_tree_says_so():
-    """2,000 random swarms: 2-D and 3-D, one to three wrapped axes, boxes shorter than three radii
-    (one cell along the axis), flocks astride the seams; then a 10,000-boid torus."""
-    from swarmscene.core.cells import torus_disk_graph_connected
+    """3,000 random swarms: 2-D and 3-D, one to three wrapped axes, boxes two to twelve radii long
+    (some too short for distinct neighbour cells), dense and sparse (both of the kernel's paths),
+    flocks astride the seams; then a 10,000-boid torus at two ranges."""
+    import math
+
+    from swarmscene.core.cells import _torus_cells, torus_disk_graph_connected
 
     rng = np.random.default_rng(11)
-    answers = []
-    for _ in range(2000):
-        n, dim = int(rng.integers(2, 60)), int(rng.integers(2, 4))
+    answers, by_cells = [], []
+    for _ in range(3000):
+        n, dim = int(rng.integers(2, 400)), int(rng.integers(2, 4))
         wrapped = int(rng.integers(1, dim + 1))
-        size, radius = rng.uniform(3.0, 40.0, wrapped), float(rng.uniform(0.5, 15.0))
-        points = rng.uniform(0.0, 1.0, (n, dim)) * np.concatenate([size, rng.uniform(1.0, 30.0, dim - wrapped)])
+        radius = float(rng.uniform(0.5, 6.0))
+        size = rng.uniform(2.0 * radius, 12.0 * radius, wrapped)
+        points = rng.uniform(0.0, 1.0, (n, dim)) * np.concatenate([size, rng.uniform(0.1, 3 * radius, dim - wrapped)])
         if rng.random() < 0.3:  # a flock astride the seams
             points[:, :wrapped] = np.mod(rng.normal(0.0, radius, (n, wrapped)), size)
             points[:, :wrapped] = np.where(points[:, :wrapped] >= size, 0.0, points[:, :wrapped])
         want = _torus_tree_connected(points, radius, size)
         assert torus_disk_graph_connected(points, radius, size) == want, (n, dim, size, radius)
         answers.append(want)
-    assert 0.2 < np.mean(answers) < 0.8  # both answers, often
+        _, _, shape, reach = _torus_cells(points, size, radius / math.sqrt(3.0) * (1.0 - 1e-9), radius)
+        by_cells.append(shape.prod() <= 8 * n + 64 and all(shape[:wrapped] >= 2 * reach[:wrapped] + 1))
+    assert 0.2 < np.mean(answers) < 0.8 and 0.2 < np.mean(by_cells) < 0.95  # both answers, both paths
     boids = np.column_stack([rng.uniform(0.0, 1000.0, (10_000, 2)), np.full(10_000, 2.0)])
     for radius in (8.0, 20.0):
         size = np.array([1000.0, 1000.0])
