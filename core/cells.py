@@ -227,6 +227,16 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
 
 
 @numba.njit(cache=True)
+def inside_box(points: np.ndarray, size: np.ndarray) -> bool:
+    """Every point's first ``size.size`` coordinates lie in [0, size)."""
+    for i in range(points.shape[0]):
+        for k in range(size.size):
+            if not 0.0 <= points[i, k] < size[k]:
+                return False
+    return True
+
+
+@numba.njit(cache=True)
 def torus_disk_graph_connected(points: np.ndarray, radius: float, size: np.ndarray) -> bool:
     """:func:`disk_graph_connected` in a periodic space: the first ``size.size`` axes of
     ``points`` (N, D) wrap, the points lying in [0, size) along them, and two points are linked

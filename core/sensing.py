@@ -435,14 +435,13 @@ class Sensing:
         if members.size <= 1:
             return True
         lo, size = cast("tuple[np.ndarray, np.ndarray]", self.periodic)
-        pos = np.array(self.world.pos[members], dtype=float)
         a = lo.size
-        wrapped = np.mod(pos[:, :a] - lo, size)
-        pos[:, :a] = np.where(wrapped >= size, 0.0, wrapped)  # rounding can reach size itself
         if members.size > DENSE_LIMIT:
             from .cells import torus_disk_graph_connected  # imports numba: only swarms this large pay for it
 
-            return bool(torus_disk_graph_connected(pos, self.comm_range, np.asarray(size, dtype=float)))
+            return bool(torus_disk_graph_connected(self._folded(members, lo, size), self.comm_range,
+                                                   np.asarray(size, dtype=float)))
+        pos = self._folded(members, lo, size, copy=True)
         box = np.empty(pos.shape[1])
         box[:a] = size
         if a < pos.shape[1]:  # the axes that do not wrap: a box too wide to ever fold a link
@@ -453,6 +452,24 @@ class Sensing:
                                         shape=(members.size, members.size))
         count, _ = scipy.sparse.csgraph.connected_components(graph, directed=False)
         return bool(count == 1)
+
+    def _folded(self, members: np.ndarray, lo: np.ndarray, size: np.ndarray, copy: bool = False) -> np.ndarray:
+        """The members' positions (float64, C order) with the periodic axes folded into
+        [0, size): ``(p - lo) mod size``. The world's own array, read only, when every agent is a
+        member, the box starts at 0 and the wrap phase left every coordinate inside it (the fold
+        then changes no bit); a copy otherwise, or when ``copy``."""
+        pos = self.world.pos
+        a = lo.size
+        if not copy and members.size == self.world.n and not lo.any() and pos.dtype == np.float64 \
+                and pos.flags.c_contiguous:
+            from .cells import inside_box  # a compiled pass: numpy's column min and max cost 0.3 ms at 10,000
+
+            if inside_box(pos, np.asarray(size, dtype=float)):
+                return pos
+        pos = np.array(pos[members], dtype=float)
+        wrapped = np.mod(pos[:, :a] - lo, size)
+        pos[:, :a] = np.where(wrapped >= size, 0.0, wrapped)  # rounding can reach size itself
+        return pos
 
     def _few_connected(self) -> bool:
         """:attr:`comm_connected` of a few agents, from :attr:`_every_pair`: a complete graph at once
