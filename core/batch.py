@@ -277,14 +277,14 @@ def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]]) -
                 [sim.dynamics for sim in sims], worlds._world_batch(),
                 [guided[id(sim)][0] for sim in sims], [guided[id(sim)][1] for sim in sims])
             if done is not NotImplemented:
-                left = {id(sims[b]) for b in _places(done, len(sims), worlds.model)}
+                left = {id(sims[b]) for b in left_places(done, len(sims), worlds.model)}
         except Exception as exc:
             worlds._stop_all(exc)
             return
     worlds._each(lambda sim: sim.dynamics.control(*guided[id(sim)]) if left is None or id(sim) in left else None)
 
 
-def _places(done: object, count: int, model: type) -> list[int]:
+def left_places(done: object, count: int, model: type) -> list[int]:
     """The worlds a ``control_batch`` left to their own ``control``: none for ``None``, else the
     places it returned (integers in ``range(count)``); anything else is the model's error."""
     if done is None:

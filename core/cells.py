@@ -84,16 +84,7 @@ def _grid(points: np.ndarray, side: float):
         for k in range(dim):
             coord[i, k] = int((points[i, k] - lo[k]) / side)
         cell[i] = (coord[i, 0] * shape[1] + coord[i, 1]) * shape[2] + coord[i, 2]
-    start = np.zeros(shape[0] * shape[1] * shape[2] + 1, np.int64)
-    for i in range(n):
-        start[cell[i] + 1] += 1
-    for q in range(start.size - 1):
-        start[q + 1] += start[q]
-    fill = start[:-1].copy()
-    order = np.empty(n, np.int64)
-    for i in range(n):
-        order[fill[cell[i]]] = i
-        fill[cell[i]] += 1
+    start, order = _sorted_by_cell(cell, shape[0] * shape[1] * shape[2])
     return coord, shape, start, order
 
 
@@ -196,11 +187,7 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
         return _connected_by_pairs(points, radius, max(radius, coarse))
     coord, shape, start, order = _grid(points, fine)
     parent = np.arange(n)
-    components = n
-    for q in range(start.size - 1):  # every cell is a clique
-        for s in range(start[q] + 1, start[q + 1]):
-            if _join(parent, order[start[q]], order[s]):
-                components -= 1
+    components = n - _join_cells_whole(parent, start, order)
     if components == 1:
         return True
     r2 = radius * radius
@@ -262,11 +249,7 @@ def torus_disk_graph_connected(points: np.ndarray, radius: float, size: np.ndarr
             return _torus_connected_by_pairs(points, radius, size)
     coord, start, order = _torus_grid(points, lo, side, shape)
     parent = np.arange(n)
-    components = n
-    for q in range(start.size - 1):  # every cell is a clique
-        for s in range(start[q] + 1, start[q + 1]):
-            if _join(parent, order[start[q]], order[s]):
-                components -= 1
+    components = n - _join_cells_whole(parent, start, order)
     if components == 1:
         return True
     r2 = radius * radius
@@ -428,6 +411,18 @@ def _sorted_by_cell(cell: np.ndarray, cells: int):
         order[fill[cell[i]]] = i
         fill[cell[i]] += 1
     return start, order
+
+
+@numba.njit(cache=True)
+def _join_cells_whole(parent: np.ndarray, start: np.ndarray, order: np.ndarray) -> int:
+    """Join the points of each cell into one component (cells narrower than the radius over
+    sqrt(3) are cliques); returns how many unions merged two components."""
+    merged = 0
+    for q in range(start.size - 1):
+        for s in range(start[q] + 1, start[q + 1]):
+            if _join(parent, order[start[q]], order[s]):
+                merged += 1
+    return merged
 
 
 @numba.njit(cache=True)

@@ -256,13 +256,13 @@ def test_a_world_the_batched_control_leaves_stops_alone_when_its_control_raises(
 
 
 def test_a_control_batch_that_returns_a_wrong_answer_is_named():
-    from swarmscene.core.batch import _places
+    from swarmscene.core.batch import left_places
 
-    assert _places(None, 3, DoubleIntegrator) == [] and _places([2, 0], 3, DoubleIntegrator) == [2, 0]
+    assert left_places(None, 3, DoubleIntegrator) == [] and left_places([2, 0], 3, DoubleIntegrator) == [2, 0]
     for wrong in ([3], [-1], "0", [0.0], 1):
         with pytest.raises(ValueError, match=r"DoubleIntegrator.control_batch returned .*: None, NotImplemented "
                                              r"or the places \(0..2\) of the worlds it left to their own control"):
-            _places(wrong, 3, DoubleIntegrator)
+            left_places(wrong, 3, DoubleIntegrator)
 
 
 def test_the_control_batch_contract_check_catches_a_batched_control_that_differs():

@@ -50,15 +50,15 @@ The built-in plugins pass these checks in the test suite (tests/test_contract.py
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 import yaml
 from pydantic import ValidationError
 
-from ..core.batch import written_for
+from ..core.batch import left_places, written_for
 from ..core.environment import Environment
 from ..core.errors import format_validation_error
 from ..core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
@@ -730,8 +730,8 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
     for _ in range(ticks):
         sps = [setpoints(b, world, world.t) for b, (world, _) in enumerate(together)]
         done = _batched(cls, "control", models, batch, batch.worlds, sps)
-        left = range(len(models)) if done is NotImplemented else cast("Sequence[int]", done or [])
-        for b in left:  # the worlds it left to their own control
+        left = range(len(models)) if done is NotImplemented else left_places(done, len(models), cls)
+        for b in left:  # the worlds it left to their own control, as the engine reads them
             (world, model), sp = together[b], sps[b]
             model.control(world, sp)
         batch.controlled()
