@@ -35,7 +35,7 @@ import os
 import sys
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -390,6 +390,90 @@ def _swarm_outcome(episode: _Episode, reward: np.ndarray, terminated: bool, trun
     return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
 
 
+class _Worlds:
+    """The B worlds of a vector environment: one :class:`_Driver` each, their going episodes ticked
+    as one batch of worlds (:func:`swarmscene.core.batch.lockstep`: the physics in one call per
+    physics step), and a world whose episode ended started again at its next step (Gymnasium's
+    next-step autoreset). Both vector environments are this, read two ways."""
+
+    def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
+                 max_episode_steps: int | None) -> None:
+        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ValueError(f"num_envs: must be an integer >= 1 (got {num_envs!r})")
+        self.drivers = [_Driver(config, options) for _ in range(num_envs)]
+        self.n, self.layout_size = self.drivers[0].n, self.drivers[0].layout_size
+        self.max_episode_steps = max_episode_steps
+        self.steps = np.zeros(num_envs, dtype=int)  # ticks of each world's episode
+        self.ended = np.zeros(num_envs, dtype=bool)  # the world's episode ended at the last step
+        self._batch: tuple[list[Any], Any] | None = None  # (the worlds, their WorldBatch)
+
+    def reset(self, seed: int | Sequence[int | None] | None) -> list[_Episode]:
+        """Start every world's episode: world b from ``seed + b`` (as ``SyncVectorEnv`` seeds its
+        copies), from ``seed[b]``, or from its own generator when ``seed`` is None."""
+        b_worlds = len(self.drivers)
+        seeds = [None] * b_worlds if seed is None else (
+            [seed + b for b in range(b_worlds)] if isinstance(seed, int) else list(seed))
+        if len(seeds) != b_worlds:
+            raise ValueError(f"seed: {len(seeds)} seeds for {b_worlds} worlds")
+        self.steps[:] = 0
+        self.ended[:] = False
+        return [driver.reset(s) for driver, s in zip(self.drivers, seeds, strict=True)]
+
+    def episodes(self) -> list[_Episode]:
+        """The worlds' current episodes (an error before :meth:`reset`)."""
+        episodes = [driver.episode for driver in self.drivers]
+        if any(episode is None for episode in episodes):
+            raise RuntimeError("step() called before reset()")
+        return cast(list[_Episode], episodes)
+
+    def restart_ended(self, episodes: list[_Episode]) -> list[int]:
+        """Start the next episode of each world whose episode ended at the last step (in place in
+        ``episodes``, its seed from the world's own generator); the worlds restarted."""
+        restarted = np.flatnonzero(self.ended).tolist()
+        for b in restarted:
+            episodes[b] = self.drivers[b].reset(None)
+            self.steps[b] = 0
+        return restarted
+
+    def tick(self, episodes: list[_Episode], going: list[int], actions: np.ndarray,
+             active: np.ndarray) -> dict[int, tuple[np.ndarray, bool, bool]]:
+        """One guidance tick of the ``going`` worlds, their physics as one batch: world b acts
+        ``actions[b]`` (N, 3) with its agents ``active[b]`` (N,); by world, the agents' rewards
+        (N,), whether the episode terminated, whether it was truncated (``max_episode_steps``)."""
+        if not going:  # every world restarted at this step
+            return {}
+        before = {b: episodes[b].act(actions[b], active[b]) for b in going}
+        sims = [episodes[b].sim for b in going]
+        lockstep(sims, self._world_batch(sims))
+        judged = {}
+        for b in going:
+            reward, terminated, truncated = episodes[b].judge(actions[b], before[b])
+            self.steps[b] += 1
+            if self.max_episode_steps is not None and self.steps[b] >= self.max_episode_steps:
+                truncated = not terminated
+            judged[b] = (reward, terminated, truncated)
+        return judged
+
+    def _world_batch(self, sims: list[Any]) -> Any:
+        """The running worlds' WorldBatch, made again when a world started a new episode."""
+        worlds = [sim.world for sim in sims]
+        if self._batch is None or len(self._batch[0]) != len(worlds) or any(
+                a is not c for a, c in zip(self._batch[0], worlds, strict=True)):
+            self._batch = (worlds, WorldBatch(worlds))
+        return self._batch[1]
+
+    def close(self) -> None:
+        """Drop the episodes."""
+        for driver in self.drivers:
+            driver.episode = None
+
+
+def _refuse_rendering(render_mode: str | None) -> None:
+    if render_mode is not None:
+        raise ValueError(f"render_mode: the vector environment does not render (got {render_mode!r}); "
+                         "render one world with gym.make(id, render_mode=...)")
+
+
 class SwarmVectorEnv(gymnasium.vector.VectorEnv):
     """B copies of :class:`SwarmGymEnv` stepped as one batch of worlds (docs/batched.md).
 
@@ -416,89 +500,142 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
     def __init__(self, num_envs: int = 1, config: Sequence[str] | dict[str, Any] = (),
                  options: EnvOptions | dict | None = None, max_episode_steps: int | None = None,
                  render_mode: str | None = None) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode: the vector environment does not render (got {render_mode!r}); "
-                             "render one world with gym.make(id, render_mode=...)")
-        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f"num_envs: must be an integer >= 1 (got {num_envs!r})")
+        _refuse_rendering(render_mode)
+        self.worlds = _Worlds(num_envs, config, options, max_episode_steps)
         self.num_envs = num_envs
-        self.drivers = [_Driver(config, options) for _ in range(num_envs)]
-        n, size = self.drivers[0].n, self.drivers[0].layout_size
+        n, size = self.worlds.n, self.worlds.layout_size
         self.single_observation_space = _observation_box((n, size))
         self.single_action_space = _action_box((n, 3))
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
-        self.max_episode_steps = max_episode_steps
-        self._steps = np.zeros(num_envs, dtype=int)
-        self._ended = np.zeros(num_envs, dtype=bool)
-        self._batch: tuple[list[Any], Any] | None = None  # (the worlds, their WorldBatch)
+        self._every = np.ones((num_envs, n), dtype=bool)  # the centralised agent commands every vehicle
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the stacked
         observations and an empty info."""
-        seeds = [None] * self.num_envs if seed is None else (
-            [seed + b for b in range(self.num_envs)] if isinstance(seed, int) else list(seed))
-        if len(seeds) != self.num_envs:
-            raise ValueError(f"seed: {len(seeds)} seeds for {self.num_envs} worlds")
-        for driver, s in zip(self.drivers, seeds, strict=True):
-            driver.reset(s)
-        self._steps[:] = 0
-        self._ended[:] = False
-        return self._observe(), {}
+        episodes = self.worlds.reset(seed)
+        return np.stack([episode.observe() for episode in episodes]), {}
 
     def step(self, actions: np.ndarray):
         """One guidance tick of every world; observations, rewards, terminations, truncations (B,)
         and infos. A world whose episode ended at the last step starts its next one instead."""
-        episodes = [self._episode(b) for b in range(self.num_envs)]
-        actions = checked_action(actions, (self.num_envs, self.drivers[0].n, 3), "actions")
+        worlds = self.worlds
+        episodes = worlds.episodes()
+        actions = checked_action(actions, (self.num_envs, worlds.n, 3), "actions")
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
-        for b in np.flatnonzero(self._ended).tolist():  # next-step autoreset
-            episodes[b] = self.drivers[b].reset(None)
-            self._steps[b] = 0
-        going = [b for b in range(self.num_envs) if not self._ended[b]]
+        worlds.restart_ended(episodes)
+        going = np.flatnonzero(~worlds.ended).tolist()
         observed: dict[int, np.ndarray] = {}  # the going worlds' observations, made once
-        if going:
-            every = np.ones(self.drivers[0].n, dtype=bool)
-            before = {b: episodes[b].act(actions[b], every) for b in going}
-            sims = [episodes[b].sim for b in going]
-            lockstep(sims, self._world_batch(sims))
-            for b in going:
-                reward, term, trunc = episodes[b].judge(actions[b], before[b])
-                self._steps[b] += 1
-                if self.max_episode_steps is not None and self._steps[b] >= self.max_episode_steps:
-                    trunc = not term
-                observed[b], rewards[b], terminated[b], truncated[b], info = _swarm_outcome(
-                    episodes[b], reward, term, trunc)
-                if info:
-                    infos = self._add_info(infos, info, b)
-        self._ended = terminated | truncated
+        for b, (reward, term, trunc) in worlds.tick(episodes, going, actions, self._every).items():
+            observed[b], rewards[b], terminated[b], truncated[b], info = _swarm_outcome(
+                episodes[b], reward, term, trunc)
+            if info:
+                infos = self._add_info(infos, info, b)
+        worlds.ended = terminated | truncated
         observations = [observed[b] if b in observed else episode.observe() for b, episode in enumerate(episodes)]
         return np.stack(observations), rewards, terminated, truncated, infos
 
-    def _episode(self, b: int) -> _Episode:
-        episode = self.drivers[b].episode
-        if episode is None:
-            raise RuntimeError("step() called before reset()")
-        return episode
-
-    def _observe(self) -> np.ndarray:
-        return np.stack([self._episode(b).observe() for b in range(self.num_envs)])
-
-    def _world_batch(self, sims: list[Any]) -> Any:
-        """The running worlds' WorldBatch, made again when a world started a new episode."""
-        worlds = [sim.world for sim in sims]
-        if self._batch is None or len(self._batch[0]) != len(worlds) or any(
-                a is not c for a, c in zip(self._batch[0], worlds, strict=True)):
-            self._batch = (worlds, WorldBatch(worlds))
-        return self._batch[1]
-
     def close(self, **kwargs: Any) -> None:
         """Drop the episodes."""
-        for driver in self.drivers:
-            driver.episode = None
+        self.worlds.close()
+
+
+class SwarmMultiAgentVectorEnv:
+    """B copies of :class:`SwarmParallelEnv` stepped as one batch of worlds, as arrays over worlds
+    and agents (B, N, ...) for multi-agent learners (docs/rl.md).
+
+    World b is the parallel environment's episode, step for step: ``reset(seed=s)`` seeds it with
+    ``s + b`` and its later episodes draw their seeds from its own generator; an episode that ends
+    (terminated, truncated, or every agent done) is reset at the world's next step (next-step
+    autoreset: the new episode's first observations, rewards 0, no ends). Where the parallel
+    environment gives dicts over its live agents, this gives arrays over all N, with masks:
+
+    - ``infos["agents"]`` (B, N) bool: the agents that act at the next step (the parallel
+      environment's ``agents``); the actions of the others are ignored (flown as zeros);
+    - ``infos["acted"]`` (B, N) bool: the agents that acted at this step; their entries of the
+      rewards (B, N), terminations (B, N) and truncations (B, N) are the parallel environment's
+      values, the others are 0 and False;
+    - observations (B, N, D): every agent's row, as the parallel environment observes it.
+
+    For the worlds whose episode ended, ``infos["metrics"]`` and ``infos["success"]`` hold the run's
+    metrics and success in Gymnasium's vector form (with the masks ``infos["_metrics"]``,
+    ``infos["_success"]``). Not a ``gymnasium.vector.VectorEnv``: its rewards and ends are per agent,
+    which Gymnasium's vector wrappers do not expect.
+
+    Args:
+        num_envs: B, the number of worlds.
+        config, options: as for :class:`SwarmParallelEnv` (one scenario for every world).
+        max_episode_steps: truncate each episode after this many steps (None: at ``clock.duration``).
+    """
+
+    metadata: dict[str, Any] = {"name": "swarmscene_vector_v0",
+                                "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
+    # Gymnasium's own function, so that the infos have its vector form, as SwarmVectorEnv's do; it
+    # reads nothing of its object but num_envs (and itself, for nested dicts)
+    _add_info = gymnasium.vector.VectorEnv._add_info
+
+    def __init__(self, num_envs: int = 1, config: Sequence[str] | dict[str, Any] = (),
+                 options: EnvOptions | dict | None = None, max_episode_steps: int | None = None,
+                 render_mode: str | None = None) -> None:
+        _refuse_rendering(render_mode)
+        self.worlds = _Worlds(num_envs, config, options, max_episode_steps)
+        self.num_envs, self.num_agents = num_envs, self.worlds.n
+        self.possible_agents = [f"agent_{i}" for i in range(self.num_agents)]  # the parallel env's names
+        self.single_agent_observation_space = _observation_box((self.worlds.layout_size,))
+        self.single_agent_action_space = _action_box((3,))
+        self.observation_space = _observation_box((num_envs, self.num_agents, self.worlds.layout_size))
+        self.action_space = _action_box((num_envs, self.num_agents, 3))
+        self.agents = np.zeros((num_envs, self.num_agents), dtype=bool)  # act at the next step
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+        """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the observations
+        (B, N, D) and ``{"agents": mask}`` (the healthy agents, which act first)."""
+        episodes = self.worlds.reset(seed)
+        for b, episode in enumerate(episodes):
+            self.agents[b] = episode.sim.world.healthy
+        return np.stack([episode.observe() for episode in episodes]), {"agents": self.agents.copy()}
+
+    def step(self, actions: np.ndarray):
+        """One guidance tick of every world with actions (B, N, 3); observations (B, N, D), rewards,
+        terminations and truncations (B, N), and infos (the masks ``agents`` and ``acted``, and the
+        ended worlds' ``metrics`` and ``success``). A world whose episode ended at the last step
+        starts its next one instead."""
+        worlds = self.worlds
+        episodes = worlds.episodes()
+        b_worlds, n = self.num_envs, self.num_agents
+        actions = checked_action(actions, (b_worlds, n, 3), "actions")
+        for b in worlds.restart_ended(episodes):
+            self.agents[b] = episodes[b].sim.world.healthy
+        going = ~worlds.ended  # a restarted world's first observation is this step's
+        acted = self.agents & going[:, None]
+        rewards = np.zeros((b_worlds, n))
+        terminated = np.zeros((b_worlds, n), dtype=bool)
+        truncated = np.zeros((b_worlds, n), dtype=bool)
+        infos: dict[str, Any] = {}
+        observed: dict[int, np.ndarray] = {}
+        flown = np.where(acted[..., None], actions, 0.0)  # the parallel env flies zeros for the others
+        for b, (reward, term, trunc) in worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted).items():
+            observed[b] = episodes[b].observe()  # before run_end, as the parallel env observes
+            failed = acted[b] & ~episodes[b].sim.world.healthy
+            rewards[b] = np.where(acted[b], reward, 0.0)
+            terminated[b] = acted[b] & (term | failed)
+            truncated[b] = acted[b] & trunc
+            self.agents[b] = acted[b] & ~failed & (not (term or trunc))
+            if term or trunc:
+                metrics = episodes[b].finish()
+                infos = self._add_info(  # type: ignore[misc]  # not a VectorEnv: above
+                    infos, {"metrics": metrics, "success": bool(metrics["success"])}, b)
+        worlds.ended = going & ~self.agents.any(axis=1)
+        infos.update(agents=self.agents.copy(), acted=acted)
+        observations = [observed[b] if b in observed else episode.observe() for b, episode in enumerate(episodes)]
+        return np.stack(observations), rewards, terminated, truncated, infos
+
+    def close(self) -> None:
+        """Drop the episodes."""
+        self.worlds.close()
 
 
 RENDER_MODES = ("rgb_array", "human")

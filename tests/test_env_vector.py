@@ -8,6 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from swarmscene import api
 from swarmscene import env as swarm_env
 
 SHORT = "swarmscene-test/swap-short-v0"
@@ -64,3 +65,69 @@ def test_a_bad_world_count_or_render_mode_is_one_line():
         swarm_env.SwarmVectorEnv(0, ["scenario=swap"])
     with pytest.raises(ValueError, match=r"^render_mode: the vector environment does not render"):
         swarm_env.SwarmVectorEnv(2, ["scenario=swap"], render_mode="human")
+
+
+# --------------------------------------------------------------------------- the multi-agent form
+
+def failing_short():
+    """The default scenario, 12 ticks an episode, agent 0 failing at its sixth tick (t = 0.5 s)."""
+    data = api.compose(["events=lead_fails", "clock.duration=1.2"])
+    data["events"][0]["at"] = 0.5
+    return data
+
+
+def test_the_multi_agent_vector_env_is_the_parallel_env_world_by_world():
+    """Three worlds over 27 steps, two episodes each (a failure in each, ends and autoresets),
+    against three PettingZoo parallel environments seeded as the worlds: every acting agent's
+    observation, reward and ends, the live agents, and the ended worlds' metrics."""
+    config, b_worlds, steps = failing_short(), 3, 27
+    envs = swarm_env.SwarmMultiAgentVectorEnv(b_worlds, config)
+    singles = [swarm_env.make_env(config) for _ in range(b_worlds)]
+    obs, infos = envs.reset(seed=11)
+    assert obs.shape == (b_worlds, 5, envs.single_agent_observation_space.shape[0])
+    for b, env in enumerate(singles):
+        first, _ = env.reset(seed=11 + b)
+        assert infos["agents"][b].tolist() == [a in first for a in env.possible_agents]
+        for a, row in first.items():
+            np.testing.assert_array_equal(obs[b, env.possible_agents.index(a)], row)
+    rng = np.random.default_rng(0)
+    restarts, failures = 0, 0
+    for _ in range(steps):
+        actions = rng.uniform(-1, 1, envs.action_space.shape)
+        obs, rewards, terminated, truncated, infos = envs.step(actions)
+        for b, env in enumerate(singles):
+            if not env.agents:  # the world restarted at this step: its first observation, nothing acted
+                first, _ = env.reset()
+                restarts += 1
+                assert not infos["acted"][b].any() and not rewards[b].any() and not terminated[b].any()
+                for a, row in first.items():
+                    np.testing.assert_array_equal(obs[b, env.possible_agents.index(a)], row)
+                continue
+            index = {a: i for i, a in enumerate(env.possible_agents)}
+            acting = list(env.agents)
+            assert infos["acted"][b].tolist() == [a in acting for a in env.possible_agents]
+            o, r, te, tr, inf = env.step({a: actions[b, index[a]] for a in acting})
+            for a in acting:
+                i = index[a]
+                np.testing.assert_array_equal(obs[b, i], o[a])
+                assert (rewards[b, i], terminated[b, i], truncated[b, i]) == (r[a], te[a], tr[a])
+            if env.agents:  # the world goes on: an agent that ended failed alone
+                failures += sum(te[a] for a in acting)
+            assert infos["agents"][b].tolist() == [a in env.agents for a in env.possible_agents]
+            ended = any(tr.values()) or not env.agents
+            assert infos.get("_metrics", np.zeros(b_worlds, bool))[b] == ended
+            if ended:
+                assert infos["metrics"]["steps"][b] == inf[acting[0]]["metrics"]["steps"]
+                assert infos["success"][b] == inf[acting[0]]["metrics"]["success"]
+    assert restarts == 2 * b_worlds and failures == 2 * b_worlds  # what the comparison covered
+
+
+def test_the_multi_agent_vector_env_refuses_bad_actions_and_worlds_in_one_line():
+    envs = swarm_env.SwarmMultiAgentVectorEnv(2, ["scenario=swap", "clock.duration=0.3"])
+    with pytest.raises(RuntimeError, match=r"^step\(\) called before reset\(\)$"):
+        envs.step(np.zeros((2, envs.num_agents, 3)))
+    envs.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^actions: "):
+        envs.step(np.zeros((2, envs.num_agents)))
+    with pytest.raises(ValueError, match=r"^num_envs: must be an integer >= 1 \(got 0\)$"):
+        swarm_env.SwarmMultiAgentVectorEnv(0, ["scenario=swap"])

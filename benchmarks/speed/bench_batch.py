@@ -20,7 +20,9 @@ each and their ratio.
 Part 3, the vector environment: ``gym.make_vec`` on a swarmscene id, B worlds of the default
 scenario with 6 agents (double integrator, the ``policy`` avoidance, the safety monitor), the
 native vector environment (the worlds' physics batched) against Gymnasium's ``SyncVectorEnv`` of
-the single environment; random actions, agent-steps per CPU second (simulation only).
+the single environment; random actions, agent-steps per CPU second (simulation only). Then the
+same worlds as multi-agent arrays: ``SwarmMultiAgentVectorEnv`` against B PettingZoo parallel
+environments stepped in a loop.
 
 One core, one thread::
 
@@ -201,6 +203,40 @@ def vector_env(b: int, steps: int, blocks: int) -> tuple[float, float]:
     return rates["sync"], rates["vector_entry_point"]
 
 
+def multi_agent_vector_env(b: int, steps: int, blocks: int) -> tuple[float, float]:
+    """Agent-steps per CPU second of B worlds x 6 agents: B PettingZoo parallel environments stepped
+    one after another, and ``SwarmMultiAgentVectorEnv`` (one batch, arrays (B, N, ...))."""
+    from swarmscene import env as swarm_env
+
+    config = ["swarm.n=6", "dynamics=double_integrator"]
+    rates = {}
+    singles = [swarm_env.make_env(config) for _ in range(b)]
+    batched = swarm_env.SwarmMultiAgentVectorEnv(b, config)
+    for side in ("parallel", "batched"):
+        rng = np.random.default_rng(0)
+        if side == "batched":
+            batched.reset(seed=0)
+        else:
+            for i, env in enumerate(singles):
+                env.reset(seed=i)
+        best = np.inf
+        for _ in range(blocks):
+            actions = [rng.uniform(-1, 1, (b, 6, 3)) for _ in range(steps)]
+            start = time.process_time()
+            for action in actions:
+                if side == "batched":
+                    batched.step(action)
+                    continue
+                for i, env in enumerate(singles):
+                    if not env.agents:  # the next-step autoreset the batched side does
+                        env.reset()
+                        continue
+                    env.step({a: action[i, int(a.rsplit("_", 1)[1])] for a in env.agents})
+            best = min(best, time.process_time() - start)
+        rates[side] = b * 6 * steps / best
+    return rates["parallel"], rates["batched"]
+
+
 def main() -> None:
     """Both parts, printed as tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -233,6 +269,11 @@ def main() -> None:
     for b in (16, 256):
         sync, native = vector_env(b, 3 if args.quick else 20, 1 if args.quick else 3)
         print(f"{b} worlds x 6 agents  SyncVectorEnv {sync:10.4g}  native {native:10.4g}  ratio {native / sync:5.2f}")
+    print("\nmulti-agent vector environment, agent-steps per CPU second, one core")
+    for b in (16, 256):
+        loop, native = multi_agent_vector_env(b, 3 if args.quick else 20, 1 if args.quick else 3)
+        print(f"{b} worlds x 6 agents  parallel envs in a loop {loop:10.4g}  SwarmMultiAgentVectorEnv "
+              f"{native:10.4g}  ratio {native / loop:5.2f}")
     print("\nwhole runs, runs per CPU second, one core")
     seeds = list(range(4 if args.quick else 32))
     for config in (["scenario=swap", "output.summary=false"], ["output.summary=false"]):
