@@ -131,3 +131,20 @@ def test_the_multi_agent_vector_env_refuses_bad_actions_and_worlds_in_one_line()
         envs.step(np.zeros((2, envs.num_agents)))
     with pytest.raises(ValueError, match=r"^num_envs: must be an integer >= 1 \(got 0\)$"):
         swarm_env.SwarmMultiAgentVectorEnv(0, ["scenario=swap"])
+
+
+def test_the_multi_agent_vector_env_truncates_at_max_episode_steps_and_restarts_next():
+    envs = swarm_env.SwarmMultiAgentVectorEnv(2, ["scenario=swap"], max_episode_steps=3)
+    with pytest.raises(ValueError, match=r"^seed: 3 seeds for 2 worlds$"):
+        envs.reset(seed=[1, 2, 3])
+    obs, infos = envs.reset(seed=[5, 5])
+    np.testing.assert_array_equal(obs[0], obs[1])  # one seed, one start
+    zero = np.zeros(envs.action_space.shape)
+    for _ in range(2):
+        _, _, terminated, truncated, infos = envs.step(zero)
+        assert not (terminated | truncated).any() and "_metrics" not in infos
+    _, _, terminated, truncated, infos = envs.step(zero)
+    assert truncated.all() and not terminated.any() and not infos["agents"].any()
+    assert list(infos["metrics"]["steps"]) == [3, 3] and infos["_success"].all()
+    _, rewards, _, truncated, infos = envs.step(zero)  # the autoreset step
+    assert infos["agents"].all() and not infos["acted"].any() and not rewards.any() and not truncated.any()
