@@ -400,6 +400,9 @@ class _Worlds:
                  max_episode_steps: int | None) -> None:
         if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f"num_envs: must be an integer >= 1 (got {num_envs!r})")
+        if max_episode_steps is not None and (not isinstance(max_episode_steps, int | np.integer)
+                                              or isinstance(max_episode_steps, bool) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps: must be an integer >= 1 or None (got {max_episode_steps!r})")
         self.drivers = [_Driver(config, options) for _ in range(num_envs)]
         self.n, self.layout_size = self.drivers[0].n, self.drivers[0].layout_size
         self.max_episode_steps = max_episode_steps
@@ -409,10 +412,12 @@ class _Worlds:
 
     def reset(self, seed: int | Sequence[int | None] | None) -> list[_Episode]:
         """Start every world's episode: world b from ``seed + b`` (as ``SyncVectorEnv`` seeds its
-        copies), from ``seed[b]``, or from its own generator when ``seed`` is None."""
+        copies), from ``seed[b]``, or, where the seed is None, from the world's own generator (as
+        the single environment's ``reset()``: before any seed was given, each world's generator
+        starts from the scenario's ``seed``, so those worlds start alike)."""
         b_worlds = len(self.drivers)
         seeds = [None] * b_worlds if seed is None else (
-            [seed + b for b in range(b_worlds)] if isinstance(seed, int) else list(seed))
+            [int(seed) + b for b in range(b_worlds)] if isinstance(seed, int | np.integer) else list(seed))
         if len(seeds) != b_worlds:
             raise ValueError(f"seed: {len(seeds)} seeds for {b_worlds} worlds")
         self.steps[:] = 0
@@ -510,6 +515,16 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
         self._every = np.ones((num_envs, n), dtype=bool)  # the centralised agent commands every vehicle
 
+    @property
+    def drivers(self) -> list[_Driver]:
+        """The worlds' drivers (each holds its validated scenario and current episode)."""
+        return self.worlds.drivers
+
+    @property
+    def max_episode_steps(self) -> int | None:
+        """Each episode is truncated after this many steps (None: at ``clock.duration``)."""
+        return self.worlds.max_episode_steps
+
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the stacked
         observations and an empty info."""
@@ -550,11 +565,13 @@ class SwarmMultiAgentVectorEnv:
     World b is the parallel environment's episode, step for step: ``reset(seed=s)`` seeds it with
     ``s + b`` and its later episodes draw their seeds from its own generator; an episode that ends
     (terminated, truncated, or every agent done) is reset at the world's next step (next-step
-    autoreset: the new episode's first observations, rewards 0, no ends). Where the parallel
-    environment gives dicts over its live agents, this gives arrays over all N, with masks:
+    autoreset: the new episode's first observations, rewards 0, no ends), and so is an episode
+    that starts with no healthy agent. Where the parallel environment gives dicts over its live
+    agents, this gives arrays over all N, with masks:
 
     - ``infos["agents"]`` (B, N) bool: the agents that act at the next step (the parallel
-      environment's ``agents``); the actions of the others are ignored (flown as zeros);
+      environment's ``agents``; also :attr:`agent_mask`); the others' actions are ignored (the
+      policy holds them, as the parallel environment holds an agent it is given no action for);
     - ``infos["acted"]`` (B, N) bool: the agents that acted at this step; their entries of the
       rewards (B, N), terminations (B, N) and truncations (B, N) are the parallel environment's
       values, the others are 0 and False;
@@ -588,15 +605,16 @@ class SwarmMultiAgentVectorEnv:
         self.single_agent_action_space = _action_box((3,))
         self.observation_space = _observation_box((num_envs, self.num_agents, self.worlds.layout_size))
         self.action_space = _action_box((num_envs, self.num_agents, 3))
-        self.agents = np.zeros((num_envs, self.num_agents), dtype=bool)  # act at the next step
+        self.agent_mask = np.zeros((num_envs, self.num_agents), dtype=bool)
+        """(B, N): the agents that act at the next step."""
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the observations
         (B, N, D) and ``{"agents": mask}`` (the healthy agents, which act first)."""
         episodes = self.worlds.reset(seed)
         for b, episode in enumerate(episodes):
-            self.agents[b] = episode.sim.world.healthy
-        return np.stack([episode.observe() for episode in episodes]), {"agents": self.agents.copy()}
+            self._started(b, episode)
+        return np.stack([episode.observe() for episode in episodes]), {"agents": self.agent_mask.copy()}
 
     def step(self, actions: np.ndarray):
         """One guidance tick of every world with actions (B, N, 3); observations (B, N, D), rewards,
@@ -607,31 +625,44 @@ class SwarmMultiAgentVectorEnv:
         episodes = worlds.episodes()
         b_worlds, n = self.num_envs, self.num_agents
         actions = checked_action(actions, (b_worlds, n, 3), "actions")
+        going = ~worlds.ended  # a world restarted now shows its new episode's first observation
         for b in worlds.restart_ended(episodes):
-            self.agents[b] = episodes[b].sim.world.healthy
-        going = ~worlds.ended  # a restarted world's first observation is this step's
-        acted = self.agents & going[:, None]
+            self._started(b, episodes[b])
+        acted = self.agent_mask & going[:, None]
         rewards = np.zeros((b_worlds, n))
         terminated = np.zeros((b_worlds, n), dtype=bool)
         truncated = np.zeros((b_worlds, n), dtype=bool)
         infos: dict[str, Any] = {}
         observed: dict[int, np.ndarray] = {}
-        flown = np.where(acted[..., None], actions, 0.0)  # the parallel env flies zeros for the others
+        flown = np.where(acted[..., None], actions, 0.0)  # the parallel env's action rows: 0 where none
         for b, (reward, term, trunc) in worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted).items():
             observed[b] = episodes[b].observe()  # before run_end, as the parallel env observes
             failed = acted[b] & ~episodes[b].sim.world.healthy
             rewards[b] = np.where(acted[b], reward, 0.0)
             terminated[b] = acted[b] & (term | failed)
             truncated[b] = acted[b] & trunc
-            self.agents[b] = acted[b] & ~failed & (not (term or trunc))
+            self.agent_mask[b] = acted[b] & ~failed & (not (term or trunc))
+            worlds.ended[b] = not self.agent_mask[b].any()
             if term or trunc:
                 metrics = episodes[b].finish()
                 infos = self._add_info(  # type: ignore[misc]  # not a VectorEnv: above
                     infos, {"metrics": metrics, "success": bool(metrics["success"])}, b)
-        worlds.ended = going & ~self.agents.any(axis=1)
-        infos.update(agents=self.agents.copy(), acted=acted)
+        infos.update(agents=self.agent_mask.copy(), acted=acted)
         observations = [observed[b] if b in observed else episode.observe() for b, episode in enumerate(episodes)]
         return np.stack(observations), rewards, terminated, truncated, infos
+
+    @property
+    def sims(self) -> list[Any]:
+        """The worlds' current :class:`~swarmscene.core.simulation.Simulation` objects (read them,
+        e.g. ``sims[b].world``; ``sims[b].avoidance`` is the ``policy`` plugin with the observation
+        ``layout`` and action ``spec`` a scripted policy is built with)."""
+        return [episode.sim for episode in self.worlds.episodes()]
+
+    def _started(self, b: int, episode: _Episode) -> None:
+        """World b's new episode: its healthy agents act first; with none, it ends at once (and is
+        started again at its next step)."""
+        self.agent_mask[b] = episode.sim.world.healthy
+        self.worlds.ended[b] = not self.agent_mask[b].any()
 
     def close(self) -> None:
         """Drop the episodes."""

@@ -11,13 +11,15 @@ import pytest
 from swarmscene import api
 from swarmscene import env as swarm_env
 
-SHORT = "swarmscene-test/swap-short-v0"
-swarm_env.register_scenario(SHORT, ["scenario=swap", "clock.duration=0.5"])  # 5 ticks an episode
+SHORT = "swarmscene-test/default-short-v0"
+# 5 ticks an episode, from a random start: a world's seed decides its start, so seeding is checked
+swarm_env.register_scenario(SHORT, ["swarm.start.layout=random", "clock.duration=0.5"])
 
 
 def rollout(envs, steps, seed=7):
     rng = np.random.default_rng(0)
     record, ends = [envs.reset(seed=seed)[0]], []
+    assert not np.array_equal(record[0][0], record[0][1])  # the worlds' seeds differ, and so do their starts
     for _ in range(steps):
         actions = rng.uniform(-1, 1, envs.action_space.shape)
         obs, rewards, terminated, truncated, infos = envs.step(actions)
@@ -70,56 +72,101 @@ def test_a_bad_world_count_or_render_mode_is_one_line():
 # --------------------------------------------------------------------------- the multi-agent form
 
 def failing_short():
-    """The default scenario, 12 ticks an episode, agent 0 failing at its sixth tick (t = 0.5 s)."""
-    data = api.compose(["events=lead_fails", "clock.duration=1.2"])
+    """The default scenario from a random start (so that a world's seed matters), 12 ticks an
+    episode, agent 0 failing at its sixth tick (t = 0.5 s)."""
+    data = api.compose(["events=lead_fails", "clock.duration=1.2", "swarm.start.layout=random"])
     data["events"][0]["at"] = 0.5
     return data
 
 
-def test_the_multi_agent_vector_env_is_the_parallel_env_world_by_world():
-    """Three worlds over 27 steps, two episodes each (a failure in each, ends and autoresets),
-    against three PettingZoo parallel environments seeded as the worlds: every acting agent's
-    observation, reward and ends, the live agents, and the ended worlds' metrics."""
-    config, b_worlds, steps = failing_short(), 3, 27
+def colliding():
+    """Five vehicles from a random start in a 6 m square, an episode ending at the first pair closer
+    than 1.8 m (random actions end most episodes so within the 2 s), agent 0 failing at t = 0.3 s:
+    a terminated world's failed agent did not act, so its ends stay False."""
+    data = api.compose(["events=lead_fails", "swarm.start.layout=random", "swarm.start.extent=6",
+                        "termination.on_collision=true", "safety.separation_limit=1.8", "clock.duration=2"])
+    data["events"][0]["at"] = 0.3
+    return data
+
+
+@pytest.mark.parametrize(("config", "steps", "ends"), [(failing_short(), 27, "truncated"), (colliding(), 80, "terminated")],
+                         ids=["failures-truncation", "collisions"])
+def test_the_multi_agent_vector_env_is_the_parallel_env_world_by_world(config, steps, ends):
+    """Three worlds against three PettingZoo parallel environments seeded as the worlds: every
+    entry of the observations, rewards and ends (the agents that did not act: 0 and False), the
+    live agents and the ended worlds' metrics, through failures, ends and restarts."""
+    b_worlds = 3
     envs = swarm_env.SwarmMultiAgentVectorEnv(b_worlds, config)
     singles = [swarm_env.make_env(config) for _ in range(b_worlds)]
     obs, infos = envs.reset(seed=11)
     assert obs.shape == (b_worlds, 5, envs.single_agent_observation_space.shape[0])
+    assert not np.array_equal(obs[0], obs[1])  # the worlds' seeds differ, and so do their starts
     for b, env in enumerate(singles):
-        first, _ = env.reset(seed=11 + b)
-        assert infos["agents"][b].tolist() == [a in first for a in env.possible_agents]
-        for a, row in first.items():
-            np.testing.assert_array_equal(obs[b, env.possible_agents.index(a)], row)
+        expect(obs[b], infos["agents"][b], env, env.reset(seed=11 + b)[0])
     rng = np.random.default_rng(0)
-    restarts, failures = 0, 0
+    counted = {"restarts": 0, "failures": 0, "terminated": 0, "truncated": 0}
     for _ in range(steps):
         actions = rng.uniform(-1, 1, envs.action_space.shape)
         obs, rewards, terminated, truncated, infos = envs.step(actions)
         for b, env in enumerate(singles):
             if not env.agents:  # the world restarted at this step: its first observation, nothing acted
-                first, _ = env.reset()
-                restarts += 1
-                assert not infos["acted"][b].any() and not rewards[b].any() and not terminated[b].any()
-                for a, row in first.items():
-                    np.testing.assert_array_equal(obs[b, env.possible_agents.index(a)], row)
+                counted["restarts"] += 1
+                expect(obs[b], infos["agents"][b], env, env.reset()[0])
+                assert not infos["acted"][b].any() and not rewards[b].any()
+                assert not (terminated[b] | truncated[b]).any()
                 continue
-            index = {a: i for i, a in enumerate(env.possible_agents)}
             acting = list(env.agents)
             assert infos["acted"][b].tolist() == [a in acting for a in env.possible_agents]
+            index = {a: i for i, a in enumerate(env.possible_agents)}
             o, r, te, tr, inf = env.step({a: actions[b, index[a]] for a in acting})
+            own = np.zeros(5), np.zeros(5, bool), np.zeros(5, bool)
             for a in acting:
-                i = index[a]
-                np.testing.assert_array_equal(obs[b, i], o[a])
-                assert (rewards[b, i], terminated[b, i], truncated[b, i]) == (r[a], te[a], tr[a])
-            if env.agents:  # the world goes on: an agent that ended failed alone
-                failures += sum(te[a] for a in acting)
-            assert infos["agents"][b].tolist() == [a in env.agents for a in env.possible_agents]
-            ended = any(tr.values()) or not env.agents
+                own[0][index[a]], own[1][index[a]], own[2][index[a]] = r[a], te[a], tr[a]
+            for mine, theirs in zip((rewards[b], terminated[b], truncated[b]), own, strict=True):
+                np.testing.assert_array_equal(mine, theirs)  # every entry: the others 0 and False
+            expect(obs[b], infos["agents"][b], env, o)
+            ended = not env.agents
             assert infos.get("_metrics", np.zeros(b_worlds, bool))[b] == ended
             if ended:
+                counted["terminated" if any(te.values()) else "truncated"] += 1
                 assert infos["metrics"]["steps"][b] == inf[acting[0]]["metrics"]["steps"]
                 assert infos["success"][b] == inf[acting[0]]["metrics"]["success"]
-    assert restarts == 2 * b_worlds and failures == 2 * b_worlds  # what the comparison covered
+            else:
+                counted["failures"] += sum(te.values())  # the world goes on: an agent failed alone
+    # what the comparison covered
+    assert counted["restarts"] >= b_worlds and counted[ends] >= b_worlds
+    if ends == "truncated":
+        assert counted["failures"] == 2 * b_worlds
+
+
+def expect(rows, live, env, observed):
+    """A world's rows and live-agent mask are the parallel environment's (its observations of
+    the agents it reports, its ``agents``)."""
+    assert live.tolist() == [a in env.agents for a in env.possible_agents]
+    for a, row in observed.items():
+        np.testing.assert_array_equal(rows[env.possible_agents.index(a)], row)
+
+
+def test_a_world_starting_with_no_healthy_agent_ends_at_once_and_restarts_next(monkeypatch):
+    """Stock scenarios start healthy; a plugin's ``run_start`` could fail every agent. The parallel
+    environment then has no agents; the world is over before it acts, without a tick or metrics."""
+    start = swarm_env._Episode.__init__
+
+    def no_one_healthy(self, scenario, options):
+        start(self, scenario, options)
+        self.sim.world.healthy[:] = False
+
+    monkeypatch.setattr(swarm_env._Episode, "__init__", no_one_healthy)
+    config = ["scenario=swap", "swarm.n=4", "clock.duration=0.4"]
+    single = swarm_env.make_env(config)
+    single.reset(seed=0)
+    assert single.agents == []
+    envs = swarm_env.SwarmMultiAgentVectorEnv(1, config)
+    _, infos = envs.reset(seed=0)
+    assert not infos["agents"].any()
+    _, rewards, terminated, truncated, infos = envs.step(np.zeros(envs.action_space.shape))
+    assert not infos["acted"].any() and "_metrics" not in infos and not rewards.any()
+    assert envs.worlds.drivers[0].episode.sim.step_count == 0  # restarted, not ticked
 
 
 def test_the_multi_agent_vector_env_refuses_bad_actions_and_worlds_in_one_line():
