@@ -40,6 +40,7 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("mcap", "python benchmarks/speed/bench_mcap.py", 5),
     ("batch", "taskset -c 1 python benchmarks/speed/bench_batch.py", 5),
     ("crazyflow_grid", "taskset -c 1 python benchmarks/speed/peers/bench_crazyflow_grid.py", 26),
+    ("env_protocol", "taskset -c 1 python benchmarks/speed/bench_env_protocol.py", 3),
     ("batch_phases", "python benchmarks/speed/batch_phases.py", 2),
     ("indoor", "taskset -c 1 python benchmarks/speed/bench_indoor.py", 5),
     ("sweep", "python benchmarks/speed/bench_sweep.py", 6),
