@@ -91,7 +91,8 @@ def training(b: int, generations: int, blocks: int) -> float:
         for generation in range(generations):
             candidates = np.array(es.ask())
             first = 2 * (block * generations + generation)
-            flown = example.fly(envs, policy, np.repeat(candidates, 2, axis=0), [first, first + 1] * (b // 2))
+            weights = np.repeat(candidates, 2, axis=0)
+            flown = example.fly(envs, lambda obs, w=weights: policy.act(w, obs), [first, first + 1] * (b // 2))
             es.tell(list(candidates), (-flown.reshape(-1, 2).mean(axis=1)).tolist())
         best = min(best, time.process_time() - start)
     return b * AGENTS * ticks * generations / best

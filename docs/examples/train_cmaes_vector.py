@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,10 +98,9 @@ class LinearPolicy:
         self.count = total
 
 
-def fly(envs: SwarmMultiAgentVectorEnv, policy: LinearPolicy, weights: np.ndarray,
-        seeds: Sequence[int]) -> np.ndarray:
-    """One episode of every world, world b flying ``weights[b]`` from ``seeds[b]``; each world's
-    return per vehicle (the sum of its agents' rewards over the episode, over N).
+def fly(envs: SwarmMultiAgentVectorEnv, act: Callable[[np.ndarray], np.ndarray], seeds: Sequence[int]) -> np.ndarray:
+    """One episode of every world from ``seeds[b]``, the actions (B, N, 3) ``act(observations)``;
+    each world's return per vehicle (the sum of its agents' rewards over the episode, over N).
 
     A world's episode is over when none of its agents acts any more (``infos["agents"]``); its
     later steps (the next episode, which the autoreset starts) are not counted."""
@@ -109,34 +108,27 @@ def fly(envs: SwarmMultiAgentVectorEnv, policy: LinearPolicy, weights: np.ndarra
     total = np.zeros(envs.num_envs)
     ended = np.zeros(envs.num_envs, dtype=bool)
     while not ended.all():
-        obs, rewards, _, _, infos = envs.step(policy.act(weights, obs))
+        obs, rewards, _, _, infos = envs.step(act(obs))
         total += np.where(ended, 0.0, rewards.sum(axis=1))
         ended |= ~infos["agents"].any(axis=1)
     return total / envs.num_agents
 
 
-def evaluate(envs: SwarmMultiAgentVectorEnv, policy: LinearPolicy, weights: np.ndarray) -> float:
-    """Mean return per vehicle over the evaluation seeds (one a world), world b flying
-    ``weights[b]`` (B, size)."""
-    return float(fly(envs, policy, weights, [EVAL_SEED0 + b for b in range(envs.num_envs)]).mean())
+def evaluate(envs: SwarmMultiAgentVectorEnv, act: Callable[[np.ndarray], np.ndarray]) -> float:
+    """Mean return per vehicle of ``act`` over the evaluation seeds, one a world."""
+    return float(fly(envs, act, [EVAL_SEED0 + b for b in range(envs.num_envs)]).mean())
 
 
-def scripted(envs: SwarmMultiAgentVectorEnv) -> float:
-    """Mean return per vehicle over the evaluation seeds of ``seek_reference``, the ``policy``
-    plugin's scripted baseline (docs/rl.md), every agent acting on its own observation row."""
+def scripted(envs: SwarmMultiAgentVectorEnv) -> Callable[[np.ndarray], np.ndarray]:
+    """``seek_reference``, the ``policy`` plugin's scripted baseline (docs/rl.md), every agent of
+    every world acting on its own observation row."""
     from swarmscene import api
 
     envs.reset(seed=0)  # the worlds' policy plugins, which hold the observation layout and action spec
     avoidance = envs.sims[0].avoidance
     seek = api.plugins()[1].get("policy", "seek_reference")
     policy = seek(seek.Params.model_validate({}), avoidance.layout, avoidance.spec)
-    obs, _ = envs.reset(seed=[EVAL_SEED0 + b for b in range(envs.num_envs)])
-    total, ended = np.zeros(envs.num_envs), np.zeros(envs.num_envs, dtype=bool)
-    while not ended.all():
-        obs, rewards, _, _, infos = envs.step(np.stack([policy(rows) for rows in obs]))
-        total += np.where(ended, 0.0, rewards.sum(axis=1))
-        ended |= ~infos["agents"].any(axis=1)
-    return float((total / envs.num_agents).mean())
+    return lambda obs: np.stack([policy(rows) for rows in obs])
 
 
 def train(config: Sequence[str], generations: int, starts: int, seed: int, quiet: bool) -> Result:
@@ -154,8 +146,8 @@ def train(config: Sequence[str], generations: int, starts: int, seed: int, quiet
     for generation in range(generations):
         candidates = np.array(es.ask())
         first = seed + generation * starts  # the generation's starts, the same for every candidate
-        flown = fly(envs, policy, np.repeat(candidates, starts, axis=0),
-                    [first + j for j in range(starts)] * es.popsize)
+        weights = np.repeat(candidates, starts, axis=0)
+        flown = fly(envs, lambda obs: policy.act(weights, obs), [first + j for j in range(starts)] * es.popsize)
         returns = flown.reshape(es.popsize, starts).mean(axis=1)
         es.tell(list(candidates), (-returns).tolist())  # CMA-ES minimises
         medians.append(float(np.median(returns)))
@@ -165,10 +157,12 @@ def train(config: Sequence[str], generations: int, starts: int, seed: int, quiet
     best = np.asarray(es.result.xfavorite)  # the distribution's mean: CMA-ES's estimate of the optimum
     policy.learning = False
     spread = np.random.default_rng(seed).normal(0.0, SIGMA0, (envs.num_envs, policy.size))
-    return Result(generations, es.popsize, envs.num_envs, zero_return=evaluate(envs, policy, np.zeros((envs.num_envs, policy.size))),
-                  random_return=evaluate(envs, policy, spread),
-                  trained_return=evaluate(envs, policy, np.tile(best, (envs.num_envs, 1))),
-                  scripted_return=scripted(envs), medians=medians, best_weights=best)
+    every = np.tile(best, (envs.num_envs, 1))
+    return Result(generations, es.popsize, envs.num_envs,
+                  zero_return=evaluate(envs, lambda obs: np.zeros(obs.shape[:2] + (3,))),
+                  random_return=evaluate(envs, lambda obs: policy.act(spread, obs)),
+                  trained_return=evaluate(envs, lambda obs: policy.act(every, obs)),
+                  scripted_return=evaluate(envs, scripted(envs)), medians=medians, best_weights=best)
 
 
 def main(argv: Sequence[str] | None = None) -> Result:
