@@ -150,12 +150,10 @@ def test_the_default_scenario_runs_the_double_integrator_params_defaults(data):
 def test_the_example_package_holds_only_commented_deviations_too():
     """docs/examples/swarmscene-slowdown is what a plugin author copies: its group file repeated
     both of its Params' defaults, against the rule docs/plugins.md states."""
-    import importlib.util
+    import script_modules
 
     package = SCENARIOS.parent / "docs" / "examples" / "swarmscene-slowdown" / "swarmscene_slowdown"
-    spec = importlib.util.spec_from_file_location("swarmscene_slowdown_example", package / "plugin.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = script_modules.load("swarmscene_slowdown_example", package / "plugin.py")
     for path in sorted((package / "conf").rglob("*.yaml")):
         text = path.read_text()
         assert problems(module.Slowdown.Params, yaml.safe_load(text) or {}, text, "") == [], path

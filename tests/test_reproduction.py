@@ -8,28 +8,20 @@ must hold within the tolerance the claim states (or, declared ``expect: misses``
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import sys
 from functools import cache
 from pathlib import Path
 
 import pytest
+import script_modules
 
 from swarmscene import api
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _load_reproduce():
-    spec = importlib.util.spec_from_file_location("reproduce", ROOT / "benchmarks" / "reproduction" / "reproduce.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["reproduce"] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-reproduce = _load_reproduce()
+reproduce = script_modules.load("reproduce", ROOT / "benchmarks" / "reproduction" / "reproduce.py")
 CLAIMS = reproduce.load_claims()
 
 

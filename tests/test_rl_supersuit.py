@@ -6,13 +6,12 @@ tick ending at 10.1 s, the 101st step) cut to 12 s (120 steps, then truncation).
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
 import pytest
+import script_modules
 from packaging.version import Version
 
 ss = pytest.importorskip("supersuit")
@@ -28,11 +27,7 @@ FAILURE_STEP, LAST_STEP = 101, 120
 
 @pytest.fixture(scope="module")
 def recipe():
-    spec = importlib.util.spec_from_file_location("supersuit_recipe", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return script_modules.load("supersuit_recipe", EXAMPLE)
 
 
 def test_without_black_death_the_vectoriser_fails_at_the_first_failure():

@@ -6,13 +6,12 @@ against random actions and the same network untrained on the same evaluation see
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+import script_modules
 
 pytest.importorskip("stable_baselines3")
 import gymnasium as gym  # noqa: E402
@@ -24,11 +23,7 @@ CI_RUN = ["--set", "clock.duration=10", "--timesteps", "8192", "--seed", "0", "-
 
 
 def load_example():
-    spec = importlib.util.spec_from_file_location("train_ppo", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the file runs
-    spec.loader.exec_module(module)
-    return module
+    return script_modules.load("train_ppo", EXAMPLE)
 
 
 @pytest.fixture(scope="module")

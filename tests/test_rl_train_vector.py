@@ -7,12 +7,11 @@ the same 36 random starts training never drew."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+import script_modules
 
 pytest.importorskip("cma")
 
@@ -22,11 +21,7 @@ CI_RUN = ["--generations", "20", "--set", "clock.duration=6", "--seed", "0", "--
 
 @pytest.fixture(scope="module")
 def example():
-    spec = importlib.util.spec_from_file_location("train_cmaes_vector", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the file runs
-    spec.loader.exec_module(module)
-    return module
+    return script_modules.load("train_cmaes_vector", EXAMPLE)
 
 
 def test_cma_es_learns_on_its_starts_and_beyond_its_start_and_random_weights_on_unseen_ones(example):
