@@ -179,13 +179,17 @@ def whole_runs(config: list[str], seeds: list[int], blocks: int) -> tuple[float,
     return len(seeds) / best["runs"], len(seeds) / best["batch"]
 
 
+ENV_CASE = ["swarm.n=6", "dynamics=double_integrator"]
+"""Part 3's worlds: the default scenario with 6 agents on the double integrator."""
+
+
 def vector_env(b: int, steps: int, blocks: int) -> tuple[float, float]:
     """Agent-steps per CPU second of B worlds x 6 agents, Gymnasium's sync vector env and ours."""
     import gymnasium as gym
 
     from swarmscene import env as swarm_env
 
-    env_id = swarm_env.register_scenario("bench/default6-v0", ["swarm.n=6", "dynamics=double_integrator"])
+    env_id = swarm_env.register_scenario("bench/default6-v0", ENV_CASE)
     rates = {}
     for mode in ("sync", "vector_entry_point"):
         envs = gym.make_vec(env_id, num_envs=b, vectorization_mode=mode)
@@ -208,10 +212,9 @@ def multi_agent_vector_env(b: int, steps: int, blocks: int) -> tuple[float, floa
     one after another, and ``SwarmMultiAgentVectorEnv`` (one batch, arrays (B, N, ...))."""
     from swarmscene import env as swarm_env
 
-    config = ["swarm.n=6", "dynamics=double_integrator"]
     rates = {}
-    singles = [swarm_env.make_env(config) for _ in range(b)]
-    batched = swarm_env.SwarmMultiAgentVectorEnv(b, config)
+    singles = [swarm_env.make_env(ENV_CASE) for _ in range(b)]
+    batched = swarm_env.SwarmMultiAgentVectorEnv(b, ENV_CASE)
     for side in ("parallel", "batched"):
         rng = np.random.default_rng(0)
         if side == "batched":
