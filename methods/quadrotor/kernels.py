@@ -30,48 +30,54 @@ GRAVITY = 9.81
 POSITION, VELOCITY, TRACK, HOLD = 0, 1, 2, 3
 """core.setpoint.Mode values."""
 
+_jit = numba.njit(cache=True, error_model="numpy")
+"""Every kernel's compilation: cached beside the module, and a division by zero gives inf or nan
+(numpy's rule) instead of a check and an exception per division (Python's), which would keep the
+physics step from vectorising. No formula here divides by zero: |F| >= min_lift m g, y_c is
+horizontal while b_3d points up, |q| ~ 1, J > 0."""
+
 
 # --------------------------------------------------------------------------- 3-vector helpers
 
 
-@numba.njit(cache=True)
+@_jit
 def _cross(a, b):
     """a × b, in cross_rows' order: (a_1 b_2 - a_2 b_1, a_2 b_0 - a_0 b_2, a_0 b_1 - a_1 b_0)."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@numba.njit(cache=True)
+@_jit
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@numba.njit(cache=True)
+@_jit
 def _add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@numba.njit(cache=True)
+@_jit
 def _sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@numba.njit(cache=True)
+@_jit
 def _scale(s, a):
     return (s * a[0], s * a[1], s * a[2])
 
 
-@numba.njit(cache=True)
+@_jit
 def _div(a, s):
     return (a[0] / s, a[1] / s, a[2] / s)
 
 
-@numba.njit(cache=True)
+@_jit
 def _columns(R):
     """The columns of a 3x3 matrix held as three row tuples."""
     return ((R[0][0], R[1][0], R[2][0]), (R[0][1], R[1][1], R[2][1]), (R[0][2], R[1][2], R[2][2]))
 
 
-@numba.njit(cache=True)
+@_jit
 def _row(m, i):
     return (m[i, 0], m[i, 1], m[i, 2])
 
@@ -79,7 +85,7 @@ def _row(m, i):
 # --------------------------------------------------------------------------- flatness (tick)
 
 
-@numba.njit(cache=True)
+@_jit
 def normalize_with_derivatives(n, n_dot, n_ddot):
     """u = n / ν, ν = |n|, and its derivatives: u̇ = (ṅ - ν̇ u) / ν, ü = (n̈ - ν̈ u - 2 ν̇ u̇) / ν
     with ν̇ = u·ṅ, ν̈ = u̇·ṅ + u·n̈."""
@@ -92,7 +98,7 @@ def normalize_with_derivatives(n, n_dot, n_ddot):
     return u, u_dot, u_ddot
 
 
-@numba.njit(cache=True)
+@_jit
 def flat_rates(acc, jerk, snap, y_c, yaw_rate, yaw_acc):
     """Body rates ω and angular acceleration α (body frame) of flat outputs (Mellinger and Kumar
     2011, sec. III; VRB paper sec. III), for one agent.
@@ -127,7 +133,7 @@ def flat_rates(acc, jerk, snap, y_c, yaw_rate, yaw_acc):
     return omega, alpha
 
 
-@numba.njit(cache=True)
+@_jit
 def latch_references(healthy, mode, sp_pos, sp_vel, sp_acc, sp_jerk, sp_snap, pos, heading,
                      propagate, feedforward,
                      p_ref, v_ref, a_ref, dv, da, dj, ds, position_mask, omega_d, alpha_d):
@@ -166,7 +172,7 @@ def latch_references(healthy, mode, sp_pos, sp_vel, sp_acc, sp_jerk, sp_snap, po
 # --------------------------------------------------------------------------- SE(3) control (step)
 
 
-@numba.njit(cache=True)
+@_jit
 def rotmat(q0, q1, q2, q3):
     """R_b^o of q = (w, x, y, z) as three row tuples; each entry summed in the order of the rows of
     model._R_BASIS (the oracle's quadratic form)."""
@@ -176,7 +182,7 @@ def rotmat(q0, q1, q2, q3):
             (-2.0 * (q0 * q2) + 2.0 * (q1 * q3), 2.0 * (q0 * q1) + 2.0 * (q2 * q3), ww - xx - yy + zz))
 
 
-@numba.njit(cache=True)
+@_jit
 def desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, min_lift):
     """F = -k_x e_x - k_v e_v + m g e_3 + m a_d (Lee et al.'s desired force, z up), e_x dropped when
     not ``position``; F_z kept >= ``min_lift`` m g and the tilt of F capped (|F_xy| <= F_z tan)."""
@@ -189,7 +195,7 @@ def desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, m
     return (F0 * shrink, F1 * shrink, F2)
 
 
-@numba.njit(cache=True)
+@_jit
 def attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, J):
     """Lee et al.'s moment (body FLU), A = R_d^T R:
     e_R = ½ (A - A^T)^∨, e_Ω = Ω - A^T Ω_d,
@@ -217,7 +223,7 @@ def attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, 
             M[2] - k_Omega[2] * (omega[2] - w_d[2]) - J[2] * (c[2] - a_d[2]))
 
 
-@numba.njit(cache=True)
+@_jit
 def se3_control(p, v, R, omega, p_d, v_d, a_d, y_c, omega_d, alpha_d, feedforward, position,
                 k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift):
     """Collective thrust f = max(F·R e_3, 0) and moment M of Lee et al.'s tracking law, with
@@ -237,31 +243,37 @@ def se3_control(p, v, R, omega, p_d, v_d, a_d, y_c, omega_d, alpha_d, feedforwar
 # --------------------------------------------------------------------------- mixer (eq. 3.15-3.16)
 
 
-@numba.njit(cache=True)
-def allocate(thrust, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, out):
-    """Rotor speeds ϖ (eq. 3.16) into ``out`` (4,), within [ϖ_min, ϖ_max], thrust first: f is
-    clipped to [thrust_min, thrust_max] (four rotors' range), ϖ^2 = base + λ δ with base = T^-1 (f,
-    0), δ = T^-1 (0, M) and λ the largest value in [0, 1] keeping every ϖ_r^2 in [w2_min, w2_max]."""
+@_jit
+def allocate(thrust, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max):
+    """Rotor speeds ϖ (eq. 3.16), within [ϖ_min, ϖ_max], thrust first: f is clipped to
+    [thrust_min, thrust_max] (four rotors' range), ϖ^2 = base + λ δ with base = T^-1 (f, 0),
+    δ = T^-1 (0, M) and λ the largest value in [0, 1] keeping every ϖ_r^2 in [w2_min, w2_max].
+    Written out rotor by rotor (no loop, no array) so that it inlines into :func:`_step_lanes`."""
     f = min(max(thrust, thrust_min), thrust_max)
-    room_min = np.inf
-    for r in range(4):
-        base = f * mixer_inverse[r, 0]
-        delta = M[0] * mixer_inverse[r, 1] + M[1] * mixer_inverse[r, 2] + M[2] * mixer_inverse[r, 3]
-        room = (w2_max - base if delta > 0.0 else base - w2_min) / max(abs(delta), 1e-300)
-        room_min = min(room_min, room)
-    lam = min(room_min, 1.0)
-    for r in range(4):
-        base = f * mixer_inverse[r, 0]
-        delta = M[0] * mixer_inverse[r, 1] + M[1] * mixer_inverse[r, 2] + M[2] * mixer_inverse[r, 3]
-        out[r] = math.sqrt(min(max(base + lam * delta, w2_min), w2_max))
+    b0, b1, b2, b3 = (f * mixer_inverse[0, 0], f * mixer_inverse[1, 0],
+                      f * mixer_inverse[2, 0], f * mixer_inverse[3, 0])
+    d0 = M[0] * mixer_inverse[0, 1] + M[1] * mixer_inverse[0, 2] + M[2] * mixer_inverse[0, 3]
+    d1 = M[0] * mixer_inverse[1, 1] + M[1] * mixer_inverse[1, 2] + M[2] * mixer_inverse[1, 3]
+    d2 = M[0] * mixer_inverse[2, 1] + M[1] * mixer_inverse[2, 2] + M[2] * mixer_inverse[2, 3]
+    d3 = M[0] * mixer_inverse[3, 1] + M[1] * mixer_inverse[3, 2] + M[2] * mixer_inverse[3, 3]
+    room = min(min(min(min(np.inf, _room(b0, d0, w2_min, w2_max)), _room(b1, d1, w2_min, w2_max)),
+                   _room(b2, d2, w2_min, w2_max)), _room(b3, d3, w2_min, w2_max))
+    lam = min(room, 1.0)
+    return (math.sqrt(min(max(b0 + lam * d0, w2_min), w2_max)), math.sqrt(min(max(b1 + lam * d1, w2_min), w2_max)),
+            math.sqrt(min(max(b2 + lam * d2, w2_min), w2_max)), math.sqrt(min(max(b3 + lam * d3, w2_min), w2_max)))
 
 
-@numba.njit(cache=True)
-def wrench(rotor_speed, gain, mixer):
-    """Thrust T and moment M (eq. 3.15) of rotors turning at ``gain`` ϖ: a rotor keeping a fraction
-    φ of its thrust and drag torque turns at an effective sqrt(φ) ϖ."""
-    w0, w1, w2, w3 = (rotor_speed[0] * gain[0], rotor_speed[1] * gain[1],
-                      rotor_speed[2] * gain[2], rotor_speed[3] * gain[3])
+@_jit
+def _room(base, delta, w2_min, w2_max):
+    """The largest λ keeping base + λ δ in [w2_min, w2_max] (δ = 0: as good as unbounded)."""
+    return (w2_max - base if delta > 0.0 else base - w2_min) / max(abs(delta), 1e-300)
+
+
+@_jit
+def wrench(w, gain, mixer):
+    """Thrust T and moment M (eq. 3.15) of rotors turning at ``gain`` ϖ (4-tuples): a rotor
+    keeping a fraction φ of its thrust and drag torque turns at an effective sqrt(φ) ϖ."""
+    w0, w1, w2, w3 = w[0] * gain[0], w[1] * gain[1], w[2] * gain[2], w[3] * gain[3]
     w0, w1, w2, w3 = w0 * w0, w1 * w1, w2 * w2, w3 * w3
     return (w0 * mixer[0, 0] + w1 * mixer[0, 1] + w2 * mixer[0, 2] + w3 * mixer[0, 3],
             (w0 * mixer[1, 0] + w1 * mixer[1, 1] + w2 * mixer[1, 2] + w3 * mixer[1, 3],
@@ -269,7 +281,7 @@ def wrench(rotor_speed, gain, mixer):
              w0 * mixer[3, 0] + w1 * mixer[3, 1] + w2 * mixer[3, 2] + w3 * mixer[3, 3]))
 
 
-@numba.njit(cache=True)
+@_jit
 def wind_load(R, wind, drag, mass, arm):
     """The wind's acceleration a = R D R^T w (world) and moment (0, 0, h) × m D R^T w (body)."""
     f = ((R[0][0] * wind[0] + R[1][0] * wind[1] + R[2][0] * wind[2]) * drag[0],
@@ -282,55 +294,70 @@ def wind_load(R, wind, drag, mass, arm):
 # --------------------------------------------------------------------------- rigid body (eq. 3.4-3.8)
 
 
-@numba.njit(cache=True)
-def rhs(x, c, a, gyro, ext, out):
-    """ẋ of x = [p v q ω] into ``out`` (13,): ṗ = v; v̇ = c R e_3 - g e_3 + ext (c = T / m);
+@_jit
+def rhs(v, q, w, c, a, gyro, ext):
+    """ẋ of x = (p, v, q, ω) as (ṗ, v̇, q̇, ω̇): ṗ = v; v̇ = c R e_3 - g e_3 + ext (c = T / m);
     q̇ = ½ q ⊗ (0, ω); ω̇ = a - (ω_j ω_k) γ_i (a = M / J, γ = model.Airframe.gyro)."""
-    q0, q1, q2, q3 = x[6], x[7], x[8], x[9]
-    w0, w1, w2 = x[10], x[11], x[12]
-    out[0], out[1], out[2] = x[3], x[4], x[5]
-    out[3] = (2.0 * (q0 * q2) + 2.0 * (q1 * q3)) * c + ext[0]
-    out[4] = (-2.0 * (q0 * q1) + 2.0 * (q2 * q3)) * c + ext[1]
-    out[5] = (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) * c - GRAVITY + ext[2]
-    out[6] = -0.5 * q1 * w0 + -0.5 * q2 * w1 + -0.5 * q3 * w2
-    out[7] = 0.5 * q0 * w0 + -0.5 * q3 * w1 + 0.5 * q2 * w2
-    out[8] = 0.5 * q3 * w0 + 0.5 * q0 * w1 + -0.5 * q1 * w2
-    out[9] = -0.5 * q2 * w0 + 0.5 * q1 * w1 + 0.5 * q0 * w2
-    out[10] = a[0] - w1 * w2 * gyro[0]
-    out[11] = a[1] - w2 * w0 * gyro[1]
-    out[12] = a[2] - w0 * w1 * gyro[2]
+    q0, q1, q2, q3 = q
+    w0, w1, w2 = w
+    v_dot = ((2.0 * (q0 * q2) + 2.0 * (q1 * q3)) * c + ext[0],
+             (-2.0 * (q0 * q1) + 2.0 * (q2 * q3)) * c + ext[1],
+             (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) * c - GRAVITY + ext[2])
+    q_dot = (-0.5 * q1 * w0 + -0.5 * q2 * w1 + -0.5 * q3 * w2,
+             0.5 * q0 * w0 + -0.5 * q3 * w1 + 0.5 * q2 * w2,
+             0.5 * q3 * w0 + 0.5 * q0 * w1 + -0.5 * q1 * w2,
+             -0.5 * q2 * w0 + 0.5 * q1 * w1 + 0.5 * q0 * w2)
+    w_dot = (a[0] - w1 * w2 * gyro[0], a[1] - w2 * w0 * gyro[1], a[2] - w0 * w1 * gyro[2])
+    return v, v_dot, q_dot, w_dot
 
 
-@numba.njit(cache=True)
-def rk4(x, thrust, M, ext, mass, J, gyro, dt, work):
-    """One classical RK4 step of x (13,) in place with T, M and ext held; q renormalised.
-    ``work`` (5, 13) is scratch (k_1..k_4 and the stage state)."""
+@_jit
+def _stage3(x, h, k):
+    return (x[0] + h * k[0], x[1] + h * k[1], x[2] + h * k[2])
+
+
+@_jit
+def _stage4(x, h, k):
+    return (x[0] + h * k[0], x[1] + h * k[1], x[2] + h * k[2], x[3] + h * k[3])
+
+
+@_jit
+def _rk4_sum3(x, s, k1, k2, k3, k4):
+    return (x[0] + s * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]),
+            x[1] + s * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]),
+            x[2] + s * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2]))
+
+
+@_jit
+def _rk4_sum4(x, s, k1, k2, k3, k4):
+    return (x[0] + s * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]),
+            x[1] + s * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]),
+            x[2] + s * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2]),
+            x[3] + s * (k1[3] + 2.0 * (k2[3] + k3[3]) + k4[3]))
+
+
+@_jit
+def rk4(p, v, q, w, thrust, M, ext, mass, J, gyro, dt):
+    """One classical RK4 step of (p, v, q, ω) with T, M and ext held; returns the new state, q
+    renormalised."""
     c = thrust / mass
     a = (M[0] / J[0], M[1] / J[1], M[2] / J[2])
     h = 0.5 * dt
-    k1, k2, k3, k4, xs = work[0], work[1], work[2], work[3], work[4]
-    rhs(x, c, a, gyro, ext, k1)
-    for j in range(13):
-        xs[j] = x[j] + h * k1[j]
-    rhs(xs, c, a, gyro, ext, k2)
-    for j in range(13):
-        xs[j] = x[j] + h * k2[j]
-    rhs(xs, c, a, gyro, ext, k3)
-    for j in range(13):
-        xs[j] = x[j] + dt * k3[j]
-    rhs(xs, c, a, gyro, ext, k4)
+    p1, v1, q1, w1 = rhs(v, q, w, c, a, gyro, ext)
+    p2, v2, q2, w2 = rhs(_stage3(v, h, v1), _stage4(q, h, q1), _stage3(w, h, w1), c, a, gyro, ext)
+    p3, v3, q3, w3 = rhs(_stage3(v, h, v2), _stage4(q, h, q2), _stage3(w, h, w2), c, a, gyro, ext)
+    p4, v4, q4, w4 = rhs(_stage3(v, dt, v3), _stage4(q, dt, q3), _stage3(w, dt, w3), c, a, gyro, ext)
     sixth = dt / 6.0
-    for j in range(13):
-        x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
-    norm = math.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
-    for j in range(6, 10):
-        x[j] = x[j] / norm
+    q = _rk4_sum4(q, sixth, q1, q2, q3, q4)
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (_rk4_sum3(p, sixth, p1, p2, p3, p4), _rk4_sum3(v, sixth, v1, v2, v3, v4),
+            (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm), _rk4_sum3(w, sixth, w1, w2, w3, w4))
 
 
 # --------------------------------------------------------------------------- one physics step
 
 
-@numba.njit(cache=True)
+@_jit
 def taylor_weights(tau, h, substeps):
     """(τ, τ²/2, τ³/6, τ⁴/24) at the start of each sub-step, τ accumulated step by step from
     ``tau`` (the same for every agent, so computed once per call)."""
@@ -342,27 +369,24 @@ def taylor_weights(tau, h, substeps):
     return w
 
 
-@numba.njit(cache=True)
-def reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, weights):
-    """(p_d, v_d, a_d) of agent i at τ s after the tick: the quartic Taylor polynomial
-    p + τ v + τ²/2 a + τ³/6 j + τ⁴/24 s (and its derivatives) on TRACK rows (dv..ds zero
-    elsewhere); ``weights`` = (τ, τ²/2, τ³/6, τ⁴/24)."""
-    tau, t2, t3, t4 = weights[0], weights[1], weights[2], weights[3]
-    if tau == 0.0:
-        return _row(p_ref, i), _row(v_ref, i), _row(a_ref, i)
-    p = (p_ref[i, 0] + tau * dv[i, 0] + t2 * da[i, 0] + t3 * dj[i, 0] + t4 * ds[i, 0],
-         p_ref[i, 1] + tau * dv[i, 1] + t2 * da[i, 1] + t3 * dj[i, 1] + t4 * ds[i, 1],
-         p_ref[i, 2] + tau * dv[i, 2] + t2 * da[i, 2] + t3 * dj[i, 2] + t4 * ds[i, 2])
-    v = (v_ref[i, 0] + tau * da[i, 0] + t2 * dj[i, 0] + t3 * ds[i, 0],
-         v_ref[i, 1] + tau * da[i, 1] + t2 * dj[i, 1] + t3 * ds[i, 1],
-         v_ref[i, 2] + tau * da[i, 2] + t2 * dj[i, 2] + t3 * ds[i, 2])
-    a = (a_ref[i, 0] + tau * dj[i, 0] + t2 * ds[i, 0],
-         a_ref[i, 1] + tau * dj[i, 1] + t2 * ds[i, 1],
-         a_ref[i, 2] + tau * dj[i, 2] + t2 * ds[i, 2])
-    return p, v, a
+# Rows of the lanes (structure of arrays, one column per agent; :func:`_to_lanes`). The state X:
+P, V, Q, W = 0, 3, 6, 10
+STATE_ROWS = 13
+# the held inputs U: the tick's reference p, v, a and its Taylor coefficients v, a, jerk, snap
+# (zero off TRACK rows), the heading y_c, Ω_d, Ω̇_d, the position mask (1 or 0), the rotor gains,
+# the wind and the force per mass
+P_REF, V_REF, A_REF, DV, DA, DJ, DS, HEADING, OMEGA_D, ALPHA_D = 0, 3, 6, 9, 12, 15, 18, 21, 24, 27
+MASK, GAIN, WIND, FORCE = 30, 31, 35, 38
+INPUT_ROWS = 41
+BLOCK = 64
+"""Agents stepped together as lanes: their state and inputs, ~30 kB, stay in the core's first-level
+cache through the sub-steps."""
+PAD = 8
+"""Spare columns in each row of the lanes: with rows a power of two of bytes apart, the rows would
+share a few cache sets and evict one another (measured: 1.6x slower at 256 columns)."""
 
 
-@numba.njit(cache=True)
+@_jit
 def step_swarm(pos, vel, quat, omega, rotor_speed,
                p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
                feedforward, tau, h, substeps,
@@ -372,18 +396,44 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
     """``substeps`` internal steps of length h for every agent, state written in place
     (``Quadrotor.step``); returns τ after them (time since the tick, accumulated step by step).
 
-    Per sub-step and agent: the reference at τ (:func:`reference`), the SE(3) law
-    (:func:`se3_control`), allocation with limits (eq. 3.16, :func:`allocate`), the rotors' real
-    wrench (eq. 3.15) at ``rotor_gain`` = sqrt(health) times the commanded speeds, the wind's force
-    and moment when ``has_wind`` (:func:`wind_load`), the force per mass ``force`` when
-    ``has_force`` (the disturbances' force phase, held over the step), then RK4 (:func:`rk4`).
-    ``rotor_speed`` receives the last commanded speeds.
+    Per sub-step and agent: the reference at τ (the quartic Taylor polynomial on TRACK rows), the
+    SE(3) law (:func:`se3_control`), allocation with limits (eq. 3.16, :func:`allocate`), the
+    rotors' real wrench (eq. 3.15) at ``rotor_gain`` = sqrt(health) times the commanded speeds,
+    the wind's force and moment when ``has_wind`` (:func:`wind_load`), the force per mass
+    ``force`` when ``has_force`` (the disturbances' force phase, held over the step), then RK4
+    (:func:`rk4`). ``rotor_speed`` receives the last commanded speeds.
+
+    The agents are stepped as SIMD lanes (:func:`_step_lanes`): copied into a structure of
+    arrays, one column per agent, so that the compiler runs one instruction over 4-8 agents at
+    once (the branches of the law are per-agent selects, the same work in every lane); each
+    agent's arithmetic is the same, in the same order, as when agents were stepped one by one.
     """
-    x = np.empty(13)
-    work = np.empty((5, 13))
     weights = taylor_weights(tau, h, substeps)
-    for i in range(pos.shape[0]):
-        _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
+    _step_range(0, pos.shape[0], weights, pos, vel, quat, omega, rotor_speed,
+                p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
+                feedforward, h, substeps,
+                mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
+                wind, has_wind, arm, drag, force, has_force)
+    return weights[substeps, 0]
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def step_swarm_parallel(pos, vel, quat, omega, rotor_speed,
+                        p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
+                        feedforward, tau, h, substeps,
+                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
+                        wind, has_wind, arm, drag, force, has_force, chunks):
+    """:func:`step_swarm` with the agents cut into ``chunks`` runs of consecutive agents, stepped
+    by numba's threads (``prange``; as many at once as ``numba.set_num_threads`` allows). Every
+    lane does the same work whatever its agent does, so equal runs are equal loads. The agents are
+    independent and each is stepped by the same code, so every agent gets the bits
+    :func:`step_swarm` gives it (tests/plugins/dynamics/test_quadrotor_threads.py)."""
+    n = pos.shape[0]
+    weights = taylor_weights(tau, h, substeps)
+    for c in numba.prange(chunks):
+        _step_range(c * n // chunks, (c + 1) * n // chunks, weights, pos, vel, quat, omega, rotor_speed,
                     p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
                     feedforward, h, substeps,
                     mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
@@ -392,65 +442,106 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
     return weights[substeps, 0]
 
 
-@numba.njit(cache=True, parallel=True)
-def step_swarm_parallel(pos, vel, quat, omega, rotor_speed,
-                        p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
-                        feedforward, tau, h, substeps,
-                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
-                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
-                        wind, has_wind, arm, drag, force, has_force, chunks):
-    """:func:`step_swarm` with the agents dealt to ``chunks`` shares in turn (agent i to share
-    i mod ``chunks``, so that agents that cost more, a region of the swarm that turns or
-    saturates, are spread over the shares), stepped by numba's threads (``prange``; as many at
-    once as ``numba.set_num_threads`` allows). The agents are independent and each is stepped by
-    the same :func:`_step_agent`, so every agent gets the bits :func:`step_swarm` gives it
-    (tests/plugins/dynamics/test_quadrotor_threads.py)."""
-    weights = taylor_weights(tau, h, substeps)
-    n = pos.shape[0]
-    for c in numba.prange(chunks):
-        x = np.empty(13)
-        work = np.empty((5, 13))
-        for i in range(c, n, chunks):
-            _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
-                        p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
-                        feedforward, h, substeps,
-                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
-                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
-                        wind, has_wind, arm, drag, force, has_force)
-    return weights[substeps, 0]
-
-
-@numba.njit(cache=True)
-def _step_agent(i, x, work, weights, pos, vel, quat, omega, rotor_speed,
+@_jit
+def _step_range(start, stop, weights, pos, vel, quat, omega, rotor_speed,
                 p_ref, v_ref, a_ref, dv, da, dj, ds, heading, position_mask, omega_d, alpha_d,
                 feedforward, h, substeps,
                 mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
                 mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_gain,
                 wind, has_wind, arm, drag, force, has_force):
-    """Agent i's ``substeps`` internal steps (:func:`step_swarm`'s loop body), with ``x`` (13,)
-    and ``work`` (5, 13) as its scratch state."""
+    """Agents ``start:stop``, ``BLOCK`` at a time: into the lanes, ``substeps`` sub-steps, back into
+    the (N, k) arrays."""
+    X, U, Wr = np.empty((STATE_ROWS, BLOCK + PAD)), np.empty((INPUT_ROWS, BLOCK + PAD)), np.empty((4, BLOCK + PAD))
+    for first in range(start, stop, BLOCK):
+        last = min(first + BLOCK, stop)
+        _to_lanes(first, last, X, U, pos, vel, quat, omega, p_ref, v_ref, a_ref, dv, da, dj, ds, heading,
+                  position_mask, omega_d, alpha_d, rotor_gain, wind, has_wind, force, has_force)
+        for sub in range(substeps):
+            _step_lanes(last - first, X, U, Wr, weights[sub], feedforward, h,
+                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max,
+                        has_wind, arm, drag, has_force)
+        for i in range(first, last):
+            j = i - first
+            for k in range(3):
+                pos[i, k], vel[i, k], omega[i, k] = X[P + k, j], X[V + k, j], X[W + k, j]
+            for k in range(4):
+                quat[i, k], rotor_speed[i, k] = X[Q + k, j], Wr[k, j]
+
+
+@_jit
+def _to_lanes(start, stop, X, U, pos, vel, quat, omega, p_ref, v_ref, a_ref, dv, da, dj, ds, heading,
+              position_mask, omega_d, alpha_d, rotor_gain, wind, has_wind, force, has_force):
+    """Agents ``start:stop`` into columns 0, 1, ... of the state X and the held inputs U (the rows
+    above), from the engine's (N, k) arrays."""
+    for i in range(start, stop):
+        j = i - start
+        for k in range(3):
+            X[P + k, j], X[V + k, j], X[W + k, j] = pos[i, k], vel[i, k], omega[i, k]
+            U[P_REF + k, j], U[V_REF + k, j], U[A_REF + k, j] = p_ref[i, k], v_ref[i, k], a_ref[i, k]
+            U[DV + k, j], U[DA + k, j], U[DJ + k, j], U[DS + k, j] = dv[i, k], da[i, k], dj[i, k], ds[i, k]
+            U[HEADING + k, j], U[OMEGA_D + k, j], U[ALPHA_D + k, j] = heading[i, k], omega_d[i, k], alpha_d[i, k]
+            U[WIND + k, j] = wind[i, k] if has_wind else 0.0
+            U[FORCE + k, j] = force[i, k] if has_force else 0.0
+        for k in range(4):
+            X[Q + k, j], U[GAIN + k, j] = quat[i, k], rotor_gain[i, k]
+        U[MASK, j] = 1.0 if position_mask[i] else 0.0
+
+
+@_jit
+def _column(A, row, i):
+    """Rows row..row+2 of column i, a 3-tuple."""
+    return (A[row, i], A[row + 1, i], A[row + 2, i])
+
+
+@_jit
+def _step_lanes(count, X, U, Wr, weights, feedforward, h,
+                mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
+                mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max,
+                has_wind, arm, drag, has_force):
+    """One sub-step of the agents in columns ``0:count`` of X, U, Wr, ``weights`` = (τ, τ²/2, τ³/6,
+    τ⁴/24) at its start. The loop body has no call that stays a call and no exit, so the
+    compiler vectorises it across agents."""
+    tau, t2, t3, t4 = weights[0], weights[1], weights[2], weights[3]
     no_wind = (0.0, 0.0, 0.0)
-    for k in range(3):
-        x[k], x[3 + k], x[10 + k] = pos[i, k], vel[i, k], omega[i, k]
-    for k in range(4):
-        x[6 + k] = quat[i, k]
-    y_c, w_d, al_d = _row(heading, i), _row(omega_d, i), _row(alpha_d, i)
-    for sub in range(substeps):
-        p_d, v_d, a_d = reference(p_ref, v_ref, a_ref, dv, da, dj, ds, i, weights[sub])
-        R = rotmat(x[6], x[7], x[8], x[9])
-        f, M = se3_control((x[0], x[1], x[2]), (x[3], x[4], x[5]), R, (x[10], x[11], x[12]),
-                           p_d, v_d, a_d, y_c, w_d, al_d, feedforward, position_mask[i],
+    for i in range(count):
+        p, v, w = _column(X, P, i), _column(X, V, i), _column(X, W, i)
+        q = (X[Q, i], X[Q + 1, i], X[Q + 2, i], X[Q + 3, i])
+        p_d, v_d, a_d = _reference(U, i, tau, t2, t3, t4)
+        R = rotmat(q[0], q[1], q[2], q[3])
+        f, M = se3_control(p, v, R, w, p_d, v_d, a_d, _column(U, HEADING, i), _column(U, OMEGA_D, i),
+                           _column(U, ALPHA_D, i), feedforward, U[MASK, i] != 0.0,
                            k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift)
-        allocate(f, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max, rotor_speed[i])
-        thrust, torque = wrench(rotor_speed[i], rotor_gain[i], mixer)
+        speeds = allocate(f, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max)
+        gain = (U[GAIN, i], U[GAIN + 1, i], U[GAIN + 2, i], U[GAIN + 3, i])
+        thrust, torque = wrench(speeds, gain, mixer)
         ext = no_wind
         if has_wind:
-            ext, moment = wind_load(R, _row(wind, i), drag, mass, arm)
+            ext, moment = wind_load(R, _column(U, WIND, i), drag, mass, arm)
             torque = _add(torque, moment)
         if has_force:
-            ext = _add(ext, _row(force, i))
-        rk4(x, thrust, torque, ext, mass, J, gyro, h, work)
-    for k in range(3):
-        pos[i, k], vel[i, k], omega[i, k] = x[k], x[3 + k], x[10 + k]
-    for k in range(4):
-        quat[i, k] = x[6 + k]
+            ext = _add(ext, _column(U, FORCE, i))
+        p, v, q, w = rk4(p, v, q, w, thrust, torque, ext, mass, J, gyro, h)
+        for k in range(3):
+            X[P + k, i], X[V + k, i], X[W + k, i] = p[k], v[k], w[k]
+        for k in range(4):
+            X[Q + k, i], Wr[k, i] = q[k], speeds[k]
+
+
+@_jit
+def _reference(U, i, tau, t2, t3, t4):
+    """(p_d, v_d, a_d) of agent i at τ s after the tick: the quartic Taylor polynomial
+    p + τ v + τ²/2 a + τ³/6 j + τ⁴/24 s (and its derivatives) on TRACK rows (the coefficients are
+    zero elsewhere)."""
+    if tau == 0.0:
+        return _column(U, P_REF, i), _column(U, V_REF, i), _column(U, A_REF, i)
+    p = (U[P_REF, i] + tau * U[DV, i] + t2 * U[DA, i] + t3 * U[DJ, i] + t4 * U[DS, i],
+         U[P_REF + 1, i] + tau * U[DV + 1, i] + t2 * U[DA + 1, i] + t3 * U[DJ + 1, i] + t4 * U[DS + 1, i],
+         U[P_REF + 2, i] + tau * U[DV + 2, i] + t2 * U[DA + 2, i] + t3 * U[DJ + 2, i] + t4 * U[DS + 2, i])
+    v = (U[V_REF, i] + tau * U[DA, i] + t2 * U[DJ, i] + t3 * U[DS, i],
+         U[V_REF + 1, i] + tau * U[DA + 1, i] + t2 * U[DJ + 1, i] + t3 * U[DS + 1, i],
+         U[V_REF + 2, i] + tau * U[DA + 2, i] + t2 * U[DJ + 2, i] + t3 * U[DS + 2, i])
+    a = (U[A_REF, i] + tau * U[DJ, i] + t2 * U[DS, i],
+         U[A_REF + 1, i] + tau * U[DJ + 1, i] + t2 * U[DS + 1, i],
+         U[A_REF + 2, i] + tau * U[DJ + 2, i] + t2 * U[DS + 2, i])
+    return p, v, a
