@@ -5,8 +5,9 @@ tracking controller of Lee, Leok and McClamroch (2010) with differential-flatnes
 (Mellinger and Kumar 2011); per physics step, :meth:`Quadrotor.step` runs that controller (thrust and
 torque), the inverse mixer with rotor-speed limits (eq. 3.16) and one RK4 step of the rigid body.
 Each is one compiled call over all agents (methods/quadrotor/kernels.py; numba, cached beside the
-module, imported when the plugin is built); see methods/quadrotor/model.py for frames (world z
-up, body front-left-up; the thesis' NED/FRD equations are converted there).
+module, imported when the plugin is built; the physics step runs the agents as SIMD lanes); see
+methods/quadrotor/model.py for frames (world z up, body front-left-up; the thesis' NED/FRD
+equations are converted there).
 
 Setpoint modes:
     TRACK     p, v, a, jerk, snap, yaw: the reference moves along its Taylor polynomial between
@@ -307,7 +308,7 @@ MIN_LIFT = 0.2
 
 PARALLEL_MIN_AGENTS = 1024
 """Agents (of one world, or of a batch's worlds together) from which ``threads`` > 1 steps them in
-parallel: a physics step costs ~0.3 us an agent, starting the threads some tens of us."""
+parallel: a physics step costs ~0.2 us an agent, starting the threads some tens of us."""
 
 
 def _stepper(kernels, threads: int | None, agents: int) -> tuple:

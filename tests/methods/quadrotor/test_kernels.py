@@ -104,7 +104,7 @@ def test_kernel_step_matches_the_numpy_step(airframe, feedforward, propagate, wi
     """Random states and setpoints (all four modes, a fifth of the agents failed): the latched
     references agree exactly, and each physics step's state and rotor speeds agree to 1e-12."""
     rng = np.random.default_rng(len(airframe) + 7 * int(tumbling) + 13 * int(wind) + int(physics * 1e3))
-    n = 60
+    n = 150  # more than two of the kernel's blocks of lanes (kernels.BLOCK = 64), the last one partial
     (dk, wk), (do, wo) = pair(np.zeros((n, 3)), airframe=airframe, propagate_reference=propagate)
     if failure:
         fail_rotors(rng, (dk, do), (wk, wo))

@@ -18,16 +18,17 @@ STATE = ("pos", "vel", "quat", "omega", "rotor_speed")
 
 
 def flown(chunks: int | None, monkeypatch) -> tuple[dict[str, bytes], list[int]]:
-    """A tumbling 40-agent quadrotor world under wind and a force, stepped 12 physics steps of a
-    tenth of a second (24 internal steps each) by the serial kernel (None) or by the parallel one
-    in ``chunks`` runs; its state's bytes and the rows each call stepped."""
+    """A tumbling 150-agent quadrotor world (three blocks of lanes, kernels.BLOCK) under wind and a
+    force, stepped 12 physics steps of a tenth of a second (24 internal steps each) by the serial
+    kernel (None) or by the parallel one in ``chunks`` runs; its state's bytes and the rows each
+    call stepped."""
     from tests.methods.quadrotor.test_kernels import pair, random_setpoints, random_state
 
     rng = np.random.default_rng(11)
-    (dyn, world), _ = pair(np.zeros((40, 3)))
+    (dyn, world), _ = pair(np.zeros((150, 3)))
     random_state(rng, world, tumbling=True)
-    world.wind = rng.normal(0.0, 3.0, (40, 3))
-    world.force = rng.normal(0.0, 1.0, (40, 3))
+    world.wind = rng.normal(0.0, 3.0, (150, 3))
+    world.force = rng.normal(0.0, 1.0, (150, 3))
     rows: list[int] = []
     if chunks is not None:
         def parallel(kernels_module, threads, agents):
@@ -35,7 +36,7 @@ def flown(chunks: int | None, monkeypatch) -> tuple[dict[str, bytes], list[int]]
             return kernels.step_swarm_parallel, {"chunks": chunks}
         monkeypatch.setattr(quadrotor_plugin, "_stepper", parallel)
     for _ in range(12):
-        dyn.control(world, random_setpoints(rng, 40, "snap"))
+        dyn.control(world, random_setpoints(rng, 150, "snap"))
         dyn.step(world, 0.1)
     monkeypatch.undo()
     return {name: getattr(world, name).tobytes() for name in STATE}, rows
@@ -45,7 +46,7 @@ def flown(chunks: int | None, monkeypatch) -> tuple[dict[str, bytes], list[int]]
 def test_the_parallel_kernel_gives_every_agent_the_serial_bits(chunks, monkeypatch):
     serial, _ = flown(None, monkeypatch)
     parallel, rows = flown(chunks, monkeypatch)
-    assert rows == [40] * 12
+    assert rows == [150] * 12
     assert parallel == serial
 
 
