@@ -2,6 +2,8 @@
 
     python benchmarks/speed/peers/bench_crazyflow.py            # N = 1, 100, 1,000 and the start-up times
     python benchmarks/speed/peers/bench_crazyflow.py --quick    # fewer steps, one pass
+    python benchmarks/speed/peers/bench_crazyflow.py --sizes 100 1000 --rates 10 --avoidance potential orca \
+        --steady-only                                           # avoidance on, against Crazyflow with nothing on
 
 Crazyflow runs in its own virtual environment, ``benchmarks/speed/peers/.venv-crazyflow`` (created on
 first use with ``pip install crazyflow==0.4.0 "jax[cpu]"`` from PyPI; git ignores it), swarmscene in
@@ -68,14 +70,20 @@ FIRST_N = 1000
 VARIANTS = ("default", "rk4_f64")
 
 
-def hover_overrides(n: int, command_hz: int = HZ) -> list[str]:
+AVOIDANCE = ("potential", "orca")
+"""The avoidance methods of the ``--avoidance`` sides: swarmscene with neighbour sensing and
+avoidance on, against Crazyflow with nothing on (the issue's second physics goal)."""
+
+
+def hover_overrides(n: int, command_hz: int = HZ, avoidance: str = "none") -> list[str]:
     """The swarmscene scenario: N quadrotors holding the grid they start on, physics at 240 Hz,
-    guidance at ``command_hz``, no trajectory."""
+    guidance at ``command_hz``, no trajectory; ``avoidance`` on top of the formation's references
+    (``none``: the bare hover)."""
     return [
         "dynamics=quadrotor", "environment=open", "swarm=grid", f"swarm.n={n}",
         "formation=static_shape", "formation.shape=grid", "formation.spacing=2.0",
         "formation.waypoints=[[0.0,0.0,2.0]]", "formation.rotate_with_heading=false",
-        "avoidance=none", "events=none",
+        f"avoidance={avoidance}", "events=none",
         f"clock.guidance_period={1.0 / command_hz!r}", f"clock.physics_step={PERIOD!r}",
         "output.trajectory=false", "termination.on_complete=false",
     ]
@@ -188,9 +196,10 @@ def hover_points(n: int, folder: str) -> str:
 
 
 def steady(quick: bool = False, repeat: int = 3, sizes: list[int] = SIZES, log=print,
-           rates: tuple[int, ...] = COMMAND_HZ) -> dict:
+           rates: tuple[int, ...] = COMMAND_HZ, avoidance: tuple[str, ...] = ()) -> dict:
     """Steady-state drone-steps/s of swarmscene and both Crazyflow variants, alternating, at each
-    command rate."""
+    command rate; with ``avoidance``, also swarmscene with each of those avoidance methods on
+    (sides ``swarmscene_<method>``, ratios ``ratio_<method>_default`` to Crazyflow's default)."""
     cf = str(crazyflow_python())
     python = peerlib.swarmscene_python()
     warm = 48 if quick else 240
@@ -201,6 +210,10 @@ def steady(quick: bool = False, repeat: int = 3, sizes: list[int] = SIZES, log=p
             points = hover_points(n, tmp)
             sides = {"swarmscene": ([python, "-c", SWARMSCENE_CHILD, json.dumps(hover_overrides(n, hz)), str(warm),
                                      str(steps), repr(PERIOD), points], None)}
+            for method in avoidance:
+                sides[f"swarmscene_{method}"] = ([python, "-c", SWARMSCENE_CHILD,
+                                                  json.dumps(hover_overrides(n, hz, method)), str(warm), str(steps),
+                                                  repr(PERIOD), points], None)
             for variant in VARIANTS:  # in the temporary folder: MuJoCo may write its MUJOCO_LOG.TXT
                 sides[f"crazyflow_{variant}"] = ([cf, "-c", CRAZYFLOW_CHILD, "steady", variant, points, str(warm),
                                                   str(steps), "", str(hz)], tmp)
@@ -212,6 +225,10 @@ def steady(quick: bool = False, repeat: int = 3, sizes: list[int] = SIZES, log=p
                 if ours and "drone_steps_per_s" in peer:
                     row[f"ratio_{variant}"] = ours / peer["drone_steps_per_s"]
                     row[f"ratio_{variant}_fused"] = ours / peer["fused_drone_steps_per_s"]
+            for method in avoidance:
+                ours_on, peer = best[f"swarmscene_{method}"].get("drone_steps_per_s"), best["crazyflow_default"]
+                if ours_on and "drone_steps_per_s" in peer:
+                    row[f"ratio_{method}_default"] = ours_on / peer["drone_steps_per_s"]
             log(f"  hover N = {n:,}, command {hz} Hz: " + "; ".join(
                 f"{side} {r['drone_steps_per_s']:.3g} drone-steps/s"
                 + (f" (fused {r['fused_drone_steps_per_s']:.3g})" if "fused_drone_steps_per_s" in r else "")
@@ -273,9 +290,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--sizes", type=int, nargs="+", default=SIZES, help="the swarm sizes N (1 100 1000)")
+    parser.add_argument("--rates", type=int, nargs="+", default=list(COMMAND_HZ),
+                        help="the command rates, Hz (10 240)")
+    parser.add_argument("--avoidance", nargs="*", default=[], metavar="METHOD",
+                        help=f"also swarmscene with these avoidance methods on (e.g. {' '.join(AVOIDANCE)})")
+    parser.add_argument("--steady-only", action="store_true", help="leave out the first-result times")
     args = parser.parse_args()
     repeat = 1 if args.quick else args.repeat
-    print(json.dumps({"steady": steady(args.quick, repeat), "first": first_result(args.quick, repeat)}, indent=1))
+    out = {"steady": steady(args.quick, repeat, args.sizes, rates=tuple(args.rates), avoidance=tuple(args.avoidance))}
+    if not args.steady_only:
+        out["first"] = first_result(args.quick, repeat)
+    print(json.dumps(out, indent=1))
 
 
 if __name__ == "__main__":
