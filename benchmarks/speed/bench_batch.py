@@ -97,10 +97,10 @@ def tick(models: list, the_worlds: list[WorldState], targets: list[Setpoints], s
         step()
 
 
-def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int) -> tuple[float, float, float]:
+def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options) -> tuple[float, float, float]:
     """Drone-steps per CPU second, per world, batched physics with the controllers world by world,
-    and batched physics and controllers (the best block of each)."""
-    sides = {side: worlds(model_cls, b, n) for side in ("world", "batch", "control")}
+    and batched physics and controllers (the best block of each); the model built with ``options``."""
+    sides = {side: worlds(model_cls, b, n, **options) for side in ("world", "batch", "control")}
     batches = {side: WorldBatch(sides[side][0]) for side in ("batch", "control")}
 
     def stepper(side: str):

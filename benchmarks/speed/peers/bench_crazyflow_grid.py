@@ -11,8 +11,9 @@ to ``benchmarks/speed/results/crazyflow_grid.md`` (``--output``), with the time 
 (``uptime``) before and after, the CPU (``lscpu``) and the versions.
 
 The grid: B in {1, 16, 256, 4096} worlds x N in {1, 10, 100, 1000} drones per world, the points with
-B x N <= 65,536 drones (13 points). Left out: 256 x 1000 (256,000 drones), 4096 x 100 (409,600) and
-4096 x 1000 (4,096,000), over the bound, which keeps the whole run near 25 minutes on one core.
+B x N <= 65,536 drones (13 points), and 64 x 16 (one of issue #34's goal points). Left out: 256 x 1000
+(256,000 drones), 4096 x 100 (409,600) and 4096 x 1000 (4,096,000), over the bound, which keeps the
+whole run near 30 minutes on one core.
 
 Both sides fly every world's N drones holding their own points, the same in every world: a square
 grid 2 m apart at 2 m altitude (``bench_batch.worlds``: columns of ceil(sqrt(N))), physics at 240 Hz
@@ -22,7 +23,8 @@ and the command at 10 Hz (24 physics steps per tick):
   ``benchmarks/speed/bench_batch.py`` (imported with importlib, not copied): per 10 Hz tick one
   ``Quadrotor.control_batch`` (the SE(3) controller of every drone of every world, latched for the
   tick) then 24 ``Quadrotor.step_batch`` (the rotor mixer and one RK4 step of each 6-DOF rigid body,
-  float64, numba) over a :class:`~swarmscene.core.state.WorldBatch` of the B worlds. The figure is
+  numba) over a :class:`~swarmscene.core.state.WorldBatch` of the B worlds, in float64 (the default)
+  and, as a side of its own, with ``dtype="float32"`` (``dynamics.dtype=float32``). The figure is
   its ``+control_batch`` side (the engine's batched tick); ``physics`` also times, alternately in the
   same process, the worlds one by one and ``step_batch`` with the controllers world by world (kept in
   the JSON of ``--json``, not in the table) and checks that the three end in the same bits.
@@ -74,7 +76,8 @@ WORLDS = (1, 16, 256, 4096)
 DRONES = (1, 10, 100, 1000)
 MAX_DRONES = 65_536
 """The grid's bound on B x N (all worlds' drones together)."""
-GRID = [(b, n) for b in WORLDS for n in DRONES if b * n <= MAX_DRONES]
+GRID = sorted([(b, n) for b in WORLDS for n in DRONES if b * n <= MAX_DRONES] + [(64, 16)])
+"""The grid, and 64 x 16, one of issue #34's goal points."""
 LEFT_OUT = [(b, n) for b in WORLDS for n in DRONES if b * n > MAX_DRONES]
 SUBSTEPS = 24
 """Physics steps per 10 Hz tick (240 Hz physics)."""
@@ -86,6 +89,8 @@ BLOCKS = 2
 CRAZYFLOW_WARM = 3
 """Crazyflow's ticks after the first (JIT) tick and before the timed blocks."""
 VARIANTS = ("default", "rk4_f64")
+OURS = {"swarmscene": "float64", "swarmscene_float32": "float32"}
+"""swarmscene's sides: ``dynamics.dtype`` (the physics step's precision), each in its own processes."""
 
 
 def ticks_per_block(b: int, n: int) -> int:
@@ -98,19 +103,20 @@ import importlib.util, json, sys, time
 t_start = time.perf_counter()
 path = sys.argv[1]
 b, n, ticks, blocks = (int(a) for a in sys.argv[2:6])
+options = {"dtype": sys.argv[6]}  # dynamics.dtype: the physics step's precision
 spec = importlib.util.spec_from_file_location("bench_batch", path)
 bench_batch = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(bench_batch)
 Quadrotor = bench_batch.Quadrotor
 t_import = time.perf_counter()
-the_worlds, models, targets = bench_batch.worlds(Quadrotor, b, n)
+the_worlds, models, targets = bench_batch.worlds(Quadrotor, b, n, **options)
 batch = bench_batch.WorldBatch(the_worlds)
 t_built = time.perf_counter()
 bench_batch.tick(models, the_worlds, targets, lambda: Quadrotor.step_batch(models, batch, bench_batch.PHYSICS_STEP),
                  batch, control_batch=True)
 t_first = time.perf_counter()
 del the_worlds, models, targets, batch
-per_world, step_batch, control_batch = bench_batch.physics(Quadrotor, b, n, ticks, blocks)
+per_world, step_batch, control_batch = bench_batch.physics(Quadrotor, b, n, ticks, blocks, **options)
 print(json.dumps({"b": b, "n": n, "ticks": ticks, "blocks": blocks, "drone_steps_per_s": control_batch,
                   "per_world_drone_steps_per_s": per_world, "step_batch_drone_steps_per_s": step_batch,
                   "import_s": t_import - t_start, "build_s": t_built - t_import, "first_tick_s": t_first - t_built}))
@@ -234,8 +240,8 @@ def measure(points: list[tuple[int, int]], repeat: int, rk4_all: bool, tick_scal
         for b, n in points:
             ticks = max(1, int(ticks_per_block(b, n) * tick_scale))
             grid = hover_points(n, tmp)
-            sides = {"swarmscene": ([python, "-c", SWARMSCENE_CHILD, str(BENCH_BATCH), str(b), str(n), str(ticks),
-                                     str(BLOCKS)], None)}
+            sides = {name: ([python, "-c", SWARMSCENE_CHILD, str(BENCH_BATCH), str(b), str(n), str(ticks),
+                             str(BLOCKS), dtype], None) for name, dtype in OURS.items()}
             for variant in VARIANTS:
                 if variant == "rk4_f64" and n >= 1000 and not rk4_all:
                     continue
@@ -248,6 +254,9 @@ def measure(points: list[tuple[int, int]], repeat: int, rk4_all: bool, tick_scal
                 peer = best.get(f"crazyflow_{variant}", {})
                 if ours and "drone_steps_per_s" in peer:
                     row[f"ratio_{variant}"] = ours / peer["drone_steps_per_s"]
+            ours32, peer = best["swarmscene_float32"].get("drone_steps_per_s"), best.get("crazyflow_default", {})
+            if ours32 and "drone_steps_per_s" in peer:
+                row["ratio_float32_default"] = ours32 / peer["drone_steps_per_s"]
             log(f"  {b} x {n} ({ticks} ticks): " + "; ".join(
                 f"{side} FAILED: {r['error']}" if "error" in r else f"{side} {r['drone_steps_per_s']:.4g}"
                 for side, r in best.items()) + "".join(
@@ -275,15 +284,16 @@ def _cold(side: dict | None) -> str:
 def tables(rows: list[dict]) -> tuple[str, str]:
     """The steady-state table and the cold-start table, markdown."""
     steady = ["| B x N | drones | ticks x 24 steps per block | swarmscene | Crazyflow default (Euler, float32) | ratio "
-              "| Crazyflow rk4_f64 | ratio | Crazyflow hover error default / rk4_f64 (m) |",
-              "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "| Crazyflow rk4_f64 | ratio | swarmscene float32 | ratio to default "
+              "| Crazyflow hover error default / rk4_f64 (m) |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     cold = ["| B x N | swarmscene | Crazyflow default | Crazyflow rk4_f64 |", "|---|---:|---:|---:|"]
     for row in rows:
         ours, default, rk4 = row["swarmscene"], row.get("crazyflow_default"), row.get("crazyflow_rk4_f64")
         errors = " / ".join(f"{s['hover_error_m']:.2g}" if s and "hover_error_m" in s else "-" for s in (default, rk4))
         steady.append(f"| {row['b']} x {row['n']} | {row['b'] * row['n']:,} | {row['ticks']} | {_rate(ours)} "
                       f"| {_rate(default)} | {_ratio(row, 'default')} | {_rate(rk4)} | {_ratio(row, 'rk4_f64')} "
-                      f"| {errors} |")
+                      f"| {_rate(row.get('swarmscene_float32'))} | {_ratio(row, 'float32_default')} | {errors} |")
         cold.append(f"| {row['b']} x {row['n']} | {_cold(ours)} | {_cold(default)} | {_cold(rk4)} |")
     return "\n".join(steady), "\n".join(cold)
 
@@ -331,13 +341,14 @@ with `taskset -c 1 python benchmarks/speed/peers/bench_crazyflow_grid.py{' --qui
 - Load after: `{load_after}`
 - Versions: {", ".join(f"{k} {v}" for k, v in found.items())}
 
-Drone-steps per CPU second in steady state (after JIT and warm-up), physics at 240 Hz, control at
-10 Hz (24 physics steps per tick); the fastest of {repeat} alternated fresh processes per side, each
-the faster of {BLOCKS} timed blocks. swarmscene: `Quadrotor.control_batch` + `step_batch`, RK4,
-float64 (bench_batch.physics). Crazyflow: `Sim(n_worlds=B, n_drones=N, control=Control.state,
-freq=240, state_freq=10, attitude_freq=240)`, per tick `sim.state_control(cmd)` then `sim.step(24)`;
-default = Euler, float32; rk4_f64 = `integrator=Integrator.rk4` and `jax_enable_x64` (not run at
-N = 1000 unless `--rk4-all`: its model build takes 37-43 s per process there). Ratio = swarmscene /
+Drone-steps per CPU second in steady state (after JIT and warm-up), physics at 240 Hz, control at 10 Hz
+(24 physics steps per tick); the fastest of {repeat} alternated fresh processes per side, each the
+faster of {BLOCKS} timed blocks. swarmscene: `Quadrotor.control_batch` + `step_batch`, RK4, float64
+(bench_batch.physics), and the same with `dynamics.dtype=float32`. Crazyflow: `Sim(n_worlds=B,
+n_drones=N, control=Control.state, freq=240, state_freq=10, attitude_freq=240)`, per tick
+`sim.state_control(cmd)` then `sim.step(24)`; default = Euler, float32; rk4_f64 =
+`integrator=Integrator.rk4` and `jax_enable_x64` (not run at N = 1000 unless `--rk4-all`: its model
+build takes 37-43 s per process there). Ratio = swarmscene /
 Crazyflow. Points left out (B x N > {MAX_DRONES:,}): {left_out}.
 
 {steady}

@@ -17,15 +17,15 @@ from swarmscene.methods.quadrotor import kernels
 STATE = ("pos", "vel", "quat", "omega", "rotor_speed")
 
 
-def flown(chunks: int | None, monkeypatch) -> tuple[dict[str, bytes], list[int]]:
+def flown(chunks: int | None, monkeypatch, dtype: str = "float64") -> tuple[dict[str, bytes], list[int]]:
     """A tumbling 150-agent quadrotor world (three blocks of lanes, kernels.BLOCK) under wind and a
     force, stepped 12 physics steps of a tenth of a second (24 internal steps each) by the serial
-    kernel (None) or by the parallel one in ``chunks`` runs; its state's bytes and the rows each
-    call stepped."""
+    kernel (None) or by the parallel one in ``chunks`` runs, in ``dtype`` (``dynamics.dtype``); its
+    state's bytes and the rows each call stepped."""
     from tests.methods.quadrotor.test_kernels import pair, random_setpoints, random_state
 
     rng = np.random.default_rng(11)
-    (dyn, world), _ = pair(np.zeros((150, 3)))
+    (dyn, world), _ = pair(np.zeros((150, 3)), dtype=dtype)
     random_state(rng, world, tumbling=True)
     world.wind = rng.normal(0.0, 3.0, (150, 3))
     world.force = rng.normal(0.0, 1.0, (150, 3))
@@ -42,10 +42,10 @@ def flown(chunks: int | None, monkeypatch) -> tuple[dict[str, bytes], list[int]]
     return {name: getattr(world, name).tobytes() for name in STATE}, rows
 
 
-@pytest.mark.parametrize("chunks", [1, 3, 7])
-def test_the_parallel_kernel_gives_every_agent_the_serial_bits(chunks, monkeypatch):
-    serial, _ = flown(None, monkeypatch)
-    parallel, rows = flown(chunks, monkeypatch)
+@pytest.mark.parametrize("chunks, dtype", [(1, "float64"), (3, "float64"), (7, "float64"), (3, "float32")])
+def test_the_parallel_kernel_gives_every_agent_the_serial_bits(chunks, dtype, monkeypatch):
+    serial, _ = flown(None, monkeypatch, dtype)
+    parallel, rows = flown(chunks, monkeypatch, dtype)
     assert rows == [150] * 12
     assert parallel == serial
 
