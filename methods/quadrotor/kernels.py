@@ -3,9 +3,10 @@
 :func:`latch_references` is ``Quadrotor.control`` (the references of a tick and their flatness
 feed-forward) and :func:`step_swarm` is ``Quadrotor.step`` (all sub-steps of one physics step:
 reference propagation, SE(3) control, allocation, rotor health, wind and RK4), for all agents in
-one call. Each loops over agents with scalar arithmetic, 3-vectors as tuples, in the order of the
-numpy formulas they replace (tests/oracles/quadrotor.py), so the two agree to round-off: only the
-summation order inside numpy's small matrix products may differ.
+one call. Both compute each agent with 3-vectors as tuples, in the order of the numpy formulas they
+replace (tests/oracles/quadrotor.py), so the two agree to round-off: only the summation order
+inside numpy's small matrix products may differ. The physics step runs its agents as SIMD lanes
+(:func:`step_swarm`), in float64 or, with ``dynamics.dtype=float32``, float32 (:func:`lit`).
 
 Frames as in model.py: world z up, body front-left-up, thrust along +z_b, q = (w, x, y, z) body to
 world. Lee, Leok and McClamroch (2010)'s symbols: e_x, e_v position and velocity errors, F the
@@ -23,7 +24,7 @@ import math
 
 import numba
 import numpy as np
-from numba.extending import overload
+from numba.extending import intrinsic, overload
 
 GRAVITY = 9.81
 """g, m/s^2 (model.GRAVITY; repeated so that this module has no import chain to compile)."""
@@ -193,6 +194,15 @@ def latch_references(healthy, mode, sp_pos, sp_vel, sp_acc, sp_jerk, sp_snap, po
 # --------------------------------------------------------------------------- SE(3) control (step)
 
 
+@intrinsic
+def _sqrt(typingctx, x):
+    """√x as LLVM's sqrt intrinsic: IEEE's correctly rounded square root, the same bits as libm's,
+    which numba's ``math.sqrt`` calls (and a call keeps the loop over agents from vectorising)."""
+    def codegen(context, builder, signature, args):
+        return builder.call(builder.module.declare_intrinsic("llvm.sqrt", [args[0].type]), args)
+    return x(x), codegen
+
+
 @_inline
 def rotmat(q0, q1, q2, q3):
     """R_b^o of q = (w, x, y, z) as three row tuples; each entry summed in the order of the rows of
@@ -205,17 +215,24 @@ def rotmat(q0, q1, q2, q3):
 
 
 @_inline
-def desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, min_lift):
+def desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, min_lift):
     """F = -k_x e_x - k_v e_v + m g e_3 + m a_d (Lee et al.'s desired force, z up), e_x dropped when
-    not ``position``; F_z kept >= ``min_lift`` m g and the tilt of F capped (|F_xy| <= F_z tan)."""
+    not ``position``, F_z kept >= ``min_lift`` m g; its tilt is capped next (:func:`cap_tilt`)."""
     w = lit(mass, 1.0) if position else lit(mass, 0.0)
     F0 = -k_x * ((p[0] - p_d[0]) * w) - k_v * (v[0] - v_d[0]) + mass * a_d[0]
     F1 = -k_x * ((p[1] - p_d[1]) * w) - k_v * (v[1] - v_d[1]) + mass * a_d[1]
     F2 = -k_x * ((p[2] - p_d[2]) * w) - k_v * (v[2] - v_d[2]) + mass * a_d[2]
     g = lit(mass, GRAVITY)
-    F2 = max(F2 + mass * g, min_lift * mass * g)
-    shrink = min(lit(mass, 1.0), F2 * tan_max_tilt / max(math.hypot(F0, F1), lit(mass, 1e-12)))
-    return (F0 * shrink, F1 * shrink, F2)
+    return (F0, F1, max(F2 + mass * g, min_lift * mass * g))
+
+
+@_inline
+def cap_tilt(F, tan_max_tilt):
+    """F with its tilt capped, |F_xy| <= F_z tan (its horizontal part scaled down). ``math.hypot`` is
+    libm's, so this runs agent by agent between the two vectorised parts of a sub-step."""
+    one = lit(F[2], 1.0)
+    shrink = min(one, F[2] * tan_max_tilt / max(math.hypot(F[0], F[1]), lit(F[2], 1e-12)))
+    return (F[0] * shrink, F[1] * shrink, F[2])
 
 
 @_inline
@@ -223,7 +240,8 @@ def attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, 
     """Lee et al.'s moment (body FLU), A = R_d^T R:
     e_R = ½ (A - A^T)^∨, e_Ω = Ω - A^T Ω_d,
     M = -k_R e_R - k_Ω e_Ω + Ω × J Ω - J (Ω × A^T Ω_d - A^T Ω̇_d) (Ω_d = Ω̇_d = 0 without
-    ``feedforward``)."""
+    ``feedforward``). Both forms are computed and one is chosen (a select, not a branch, so that the
+    loop over agents vectorises)."""
     c0, c1, c2 = _columns(R)
     d0, d1, d2 = _columns(R_d)
     A = ((_dot(d0, c0), _dot(d0, c1), _dot(d0, c2)),   # A_ij = Σ_k (R_d)_ki R_kj, k in order
@@ -233,8 +251,7 @@ def attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, 
     e_R = (half * (A[2][1] - A[1][2]), half * (A[0][2] - A[2][0]), half * (A[1][0] - A[0][1]))
     gyro = _cross(omega, (omega[0] * J[0], omega[1] * J[1], omega[2] * J[2]))
     M = (-k_R[0] * e_R[0] + gyro[0], -k_R[1] * e_R[1] + gyro[1], -k_R[2] * e_R[2] + gyro[2])
-    if not feedforward:
-        return (M[0] - k_Omega[0] * omega[0], M[1] - k_Omega[1] * omega[1], M[2] - k_Omega[2] * omega[2])
+    plain = (M[0] - k_Omega[0] * omega[0], M[1] - k_Omega[1] * omega[1], M[2] - k_Omega[2] * omega[2])
     w_d = (A[0][0] * omega_d[0] + A[1][0] * omega_d[1] + A[2][0] * omega_d[2],
            A[0][1] * omega_d[0] + A[1][1] * omega_d[1] + A[2][1] * omega_d[2],
            A[0][2] * omega_d[0] + A[1][2] * omega_d[1] + A[2][2] * omega_d[2])
@@ -242,22 +259,22 @@ def attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, 
            A[0][1] * alpha_d[0] + A[1][1] * alpha_d[1] + A[2][1] * alpha_d[2],
            A[0][2] * alpha_d[0] + A[1][2] * alpha_d[1] + A[2][2] * alpha_d[2])
     c = _cross(omega, w_d)
-    return (M[0] - k_Omega[0] * (omega[0] - w_d[0]) - J[0] * (c[0] - a_d[0]),
+    full = (M[0] - k_Omega[0] * (omega[0] - w_d[0]) - J[0] * (c[0] - a_d[0]),
             M[1] - k_Omega[1] * (omega[1] - w_d[1]) - J[1] * (c[1] - a_d[1]),
             M[2] - k_Omega[2] * (omega[2] - w_d[2]) - J[2] * (c[2] - a_d[2]))
+    return full if feedforward else plain
 
 
 @_inline
-def se3_control(p, v, R, omega, p_d, v_d, a_d, y_c, omega_d, alpha_d, feedforward, position,
-                k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift):
-    """Collective thrust f = max(F·R e_3, 0) and moment M of Lee et al.'s tracking law, with
-    b_3d = F / |F| and the heading axes b_1d = (y_c × b_3d) / |y_c × b_3d|, b_2d = b_3d × b_1d
-    (the heading convention of flatness.py)."""
-    F = desired_force(p, v, p_d, v_d, a_d, position, k_x, k_v, mass, tan_max_tilt, min_lift)
+def se3_control(F, R, omega, y_c, omega_d, alpha_d, feedforward, k_R, k_Omega, J):
+    """Collective thrust f = max(F·R e_3, 0) and moment M of Lee et al.'s tracking law for the
+    desired force F (:func:`desired_force`, :func:`cap_tilt`), with b_3d = F / |F| and the heading
+    axes b_1d = (y_c × b_3d) / |y_c × b_3d|, b_2d = b_3d × b_1d (the heading convention of
+    flatness.py)."""
     thrust = F[0] * R[0][2] + F[1] * R[1][2] + F[2] * R[2][2]
-    b3 = _div(F, math.sqrt(_dot(F, F)))
+    b3 = _div(F, _sqrt(_dot(F, F)))
     b1 = _cross(y_c, b3)
-    b1 = _div(b1, math.sqrt(_dot(b1, b1)))
+    b1 = _div(b1, _sqrt(_dot(b1, b1)))
     b2 = _cross(b3, b1)
     R_d = ((b1[0], b2[0], b3[0]), (b1[1], b2[1], b3[1]), (b1[2], b2[2], b3[2]))
     M = attitude_torque(R, omega, R_d, omega_d, alpha_d, feedforward, k_R, k_Omega, J)
@@ -272,19 +289,20 @@ def allocate(thrust, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max):
     """Rotor speeds ϖ (eq. 3.16), within [ϖ_min, ϖ_max], thrust first: f is clipped to
     [thrust_min, thrust_max] (four rotors' range), ϖ^2 = base + λ δ with base = T^-1 (f, 0),
     δ = T^-1 (0, M) and λ the largest value in [0, 1] keeping every ϖ_r^2 in [w2_min, w2_max].
-    Written out rotor by rotor (no loop, no array) so that it inlines into :func:`_step_lanes`."""
+    ``mixer_inverse`` is indexed [r][c] (the step passes it as nested tuples); written out rotor by
+    rotor, no loop and no array."""
     f = min(max(thrust, thrust_min), thrust_max)
-    b0, b1, b2, b3 = (f * mixer_inverse[0, 0], f * mixer_inverse[1, 0],
-                      f * mixer_inverse[2, 0], f * mixer_inverse[3, 0])
-    d0 = M[0] * mixer_inverse[0, 1] + M[1] * mixer_inverse[0, 2] + M[2] * mixer_inverse[0, 3]
-    d1 = M[0] * mixer_inverse[1, 1] + M[1] * mixer_inverse[1, 2] + M[2] * mixer_inverse[1, 3]
-    d2 = M[0] * mixer_inverse[2, 1] + M[1] * mixer_inverse[2, 2] + M[2] * mixer_inverse[2, 3]
-    d3 = M[0] * mixer_inverse[3, 1] + M[1] * mixer_inverse[3, 2] + M[2] * mixer_inverse[3, 3]
+    T = mixer_inverse
+    b0, b1, b2, b3 = f * T[0][0], f * T[1][0], f * T[2][0], f * T[3][0]
+    d0 = M[0] * T[0][1] + M[1] * T[0][2] + M[2] * T[0][3]
+    d1 = M[0] * T[1][1] + M[1] * T[1][2] + M[2] * T[1][3]
+    d2 = M[0] * T[2][1] + M[1] * T[2][2] + M[2] * T[2][3]
+    d3 = M[0] * T[3][1] + M[1] * T[3][2] + M[2] * T[3][3]
     room = min(min(min(min(lit(f, np.inf), _room(b0, d0, w2_min, w2_max)), _room(b1, d1, w2_min, w2_max)),
                    _room(b2, d2, w2_min, w2_max)), _room(b3, d3, w2_min, w2_max))
     lam = min(room, lit(f, 1.0))
-    return (math.sqrt(min(max(b0 + lam * d0, w2_min), w2_max)), math.sqrt(min(max(b1 + lam * d1, w2_min), w2_max)),
-            math.sqrt(min(max(b2 + lam * d2, w2_min), w2_max)), math.sqrt(min(max(b3 + lam * d3, w2_min), w2_max)))
+    return (_sqrt(min(max(b0 + lam * d0, w2_min), w2_max)), _sqrt(min(max(b1 + lam * d1, w2_min), w2_max)),
+            _sqrt(min(max(b2 + lam * d2, w2_min), w2_max)), _sqrt(min(max(b3 + lam * d3, w2_min), w2_max)))
 
 
 @_inline
@@ -297,13 +315,15 @@ def _room(base, delta, w2_min, w2_max):
 @_inline
 def wrench(w, gain, mixer):
     """Thrust T and moment M (eq. 3.15) of rotors turning at ``gain`` ϖ (4-tuples): a rotor
-    keeping a fraction φ of its thrust and drag torque turns at an effective sqrt(φ) ϖ."""
+    keeping a fraction φ of its thrust and drag torque turns at an effective sqrt(φ) ϖ.
+    ``mixer`` is indexed [r][c] (nested tuples)."""
     w0, w1, w2, w3 = w[0] * gain[0], w[1] * gain[1], w[2] * gain[2], w[3] * gain[3]
     w0, w1, w2, w3 = w0 * w0, w1 * w1, w2 * w2, w3 * w3
-    return (w0 * mixer[0, 0] + w1 * mixer[0, 1] + w2 * mixer[0, 2] + w3 * mixer[0, 3],
-            (w0 * mixer[1, 0] + w1 * mixer[1, 1] + w2 * mixer[1, 2] + w3 * mixer[1, 3],
-             w0 * mixer[2, 0] + w1 * mixer[2, 1] + w2 * mixer[2, 2] + w3 * mixer[2, 3],
-             w0 * mixer[3, 0] + w1 * mixer[3, 1] + w2 * mixer[3, 2] + w3 * mixer[3, 3]))
+    m = mixer
+    return (w0 * m[0][0] + w1 * m[0][1] + w2 * m[0][2] + w3 * m[0][3],
+            (w0 * m[1][0] + w1 * m[1][1] + w2 * m[1][2] + w3 * m[1][3],
+             w0 * m[2][0] + w1 * m[2][1] + w2 * m[2][2] + w3 * m[2][3],
+             w0 * m[3][0] + w1 * m[3][1] + w2 * m[3][2] + w3 * m[3][3]))
 
 
 @_inline
@@ -314,8 +334,6 @@ def wind_load(R, wind, drag, mass, arm):
          (R[0][2] * wind[0] + R[1][2] * wind[1] + R[2][2] * wind[2]) * drag[2])
     acc = (_dot(R[0], f), _dot(R[1], f), _dot(R[2], f))
     return acc, (-arm * mass * f[1], arm * mass * f[0], lit(arm, 0.0))
-
-
 # --------------------------------------------------------------------------- rigid body (eq. 3.4-3.8)
 
 
@@ -377,7 +395,7 @@ def rk4(p, v, q, w, thrust, M, ext, mass, J, gyro, dt):
     p4, v4, q4, w4 = rhs(_stage3(v, dt, v3), _stage4(q, dt, q3), _stage3(w, dt, w3), c, a, gyro, ext)
     sixth = dt / lit(dt, 6.0)
     q = _rk4_sum4(q, sixth, q1, q2, q3, q4)
-    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    norm = _sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     return (_rk4_sum3(p, sixth, p1, p2, p3, p4), _rk4_sum3(v, sixth, v1, v2, v3, v4),
             (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm), _rk4_sum3(w, sixth, w1, w2, w3, w4))
 
@@ -397,21 +415,23 @@ def taylor_weights(tau, h, substeps):
     return w
 
 
-# Rows of the lanes (structure of arrays, one column per agent; :func:`_to_lanes`). The state X:
+# The lanes: one flat array of ROWS rows of STRIDE columns, a column per agent (structure of arrays;
+# :func:`_to_lanes`). The state p, v, q, ω:
 P, V, Q, W = 0, 3, 6, 10
-STATE_ROWS = 13
-# the held inputs U: the tick's reference p, v, a and its Taylor coefficients v, a, jerk, snap
-# (zero off TRACK rows), the heading y_c, Ω_d, Ω̇_d, the position mask (1 or 0), the rotor gains,
-# the wind and the force per mass
-P_REF, V_REF, A_REF, DV, DA, DJ, DS, HEADING, OMEGA_D, ALPHA_D = 0, 3, 6, 9, 12, 15, 18, 21, 24, 27
-MASK, GAIN, WIND, FORCE = 30, 31, 35, 38
-INPUT_ROWS = 41
+# the held inputs: the tick's reference p, v, a and its Taylor coefficients v, a, jerk, snap (zero
+# off TRACK rows), the heading y_c, Ω_d, Ω̇_d, the position mask (1 or 0), the rotor gains, the wind
+# and the force per mass
+P_REF, V_REF, A_REF, DV, DA, DJ, DS = 13, 16, 19, 22, 25, 28, 31
+HEADING, OMEGA_D, ALPHA_D, MASK, GAIN, WIND, FORCE = 34, 37, 40, 43, 44, 48, 51
+# and what a sub-step computes: the commanded rotor speeds, the desired force F
+SPEED, FORCE_D = 54, 58
+ROWS = 61
 BLOCK = 64
-"""Agents stepped together as lanes: their state and inputs, ~30 kB, stay in the core's first-level
-cache through the sub-steps."""
-PAD = 8
-"""Spare columns in each row of the lanes: with rows a power of two of bytes apart, the rows would
-share a few cache sets and evict one another (measured: 1.6x slower at 256 columns)."""
+"""Agents stepped together as lanes: their rows, ~35 kB, stay in the core's first-level cache
+through the sub-steps."""
+STRIDE = BLOCK + 8
+"""Columns of a row, 8 spare: with rows a power of two of bytes apart, the rows would share a few
+cache sets and evict one another (measured: 1.6x slower at 256 columns)."""
 
 
 @_jit
@@ -425,16 +445,19 @@ def step_swarm(pos, vel, quat, omega, rotor_speed,
     (``Quadrotor.step``); returns τ after them (time since the tick, accumulated step by step).
 
     Per sub-step and agent: the reference at τ (the quartic Taylor polynomial on TRACK rows), the
-    SE(3) law (:func:`se3_control`), allocation with limits (eq. 3.16, :func:`allocate`), the
-    rotors' real wrench (eq. 3.15) at ``rotor_gain`` = sqrt(health) times the commanded speeds,
-    the wind's force and moment when ``has_wind`` (:func:`wind_load`), the force per mass
-    ``force`` when ``has_force`` (the disturbances' force phase, held over the step), then RK4
-    (:func:`rk4`). ``rotor_speed`` receives the last commanded speeds.
+    SE(3) law (:func:`desired_force`, :func:`cap_tilt`, :func:`se3_control`), allocation with
+    limits (eq. 3.16, :func:`allocate`), the rotors' real wrench (eq. 3.15) at ``rotor_gain`` =
+    sqrt(health) times the commanded speeds, the wind's force and moment when ``has_wind``
+    (:func:`wind_load`), the force per mass ``force`` when ``has_force`` (the disturbances' force
+    phase, held over the step), then RK4 (:func:`rk4`). ``rotor_speed`` receives the last
+    commanded speeds.
 
-    The agents are stepped as SIMD lanes (:func:`_step_lanes`): copied into a structure of
-    arrays, one column per agent, so that the compiler runs one instruction over 4-8 agents at
-    once (the branches of the law are per-agent selects, the same work in every lane); each
-    agent's arithmetic is the same, in the same order, as when agents were stepped one by one.
+    The agents are stepped as SIMD lanes: ``BLOCK`` at a time, copied into a structure of arrays
+    (a column per agent), each sub-step is two loops over the columns that the compiler
+    vectorises (:func:`_force_lanes`, :func:`_step_lanes`: one instruction for 4 agents in
+    float64, 8 in float32) around the tilt cap agent by agent (:func:`_cap_tilt_lanes`). Each
+    agent's arithmetic is the same, in the same order, as when agents were stepped one by one
+    (the branches of the law are selects between values computed either way), so the bits are.
     """
     weights = taylor_weights(tau, h, substeps)
     _step_range(0, pos.shape[0], weights, pos, vel, quat, omega, rotor_speed,
@@ -481,102 +504,145 @@ def _step_range(start, stop, weights, pos, vel, quat, omega, rotor_speed,
     the (N, k) arrays. The lanes hold the precision of the model's constants (``J``): float64, or
     float32 with ``dynamics.dtype=float32`` (the engine's arrays stay float64; a float32 step rounds
     the state to float32 on the way in)."""
-    lanes = J.dtype
-    X, U = np.empty((STATE_ROWS, BLOCK + PAD), lanes), np.empty((INPUT_ROWS, BLOCK + PAD), lanes)
-    Wr, taylor = np.empty((4, BLOCK + PAD), lanes), np.empty(5, lanes)
+    lanes = np.zeros(ROWS * STRIDE, J.dtype)  # zeros: the columns past a short block stay finite
+    taylor = np.empty(5, J.dtype)
+    # the constants as tuples, read once: a loop that reads an array it might also write (for all
+    # the compiler knows) needs a runtime check per array before it vectorises
+    J, gyro, k_R, k_Omega, drag = _three(J), _three(gyro), _three(k_R), _three(k_Omega), _three(drag)
+    mixer, mixer_inverse = _four_by_four(mixer), _four_by_four(mixer_inverse)
     for first in range(start, stop, BLOCK):
-        last = min(first + BLOCK, stop)
-        _to_lanes(first, last, X, U, pos, vel, quat, omega, p_ref, v_ref, a_ref, dv, da, dj, ds, heading,
+        count = min(first + BLOCK, stop) - first
+        _to_lanes(first, count, lanes, pos, vel, quat, omega, p_ref, v_ref, a_ref, dv, da, dj, ds, heading,
                   position_mask, omega_d, alpha_d, rotor_gain, wind, has_wind, force, has_force)
         for sub in range(substeps):
             for k in range(4):
                 taylor[k] = weights[sub, k]
             taylor[4] = h
-            _step_lanes(last - first, X, U, Wr, taylor, feedforward,
-                        mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
-                        mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max,
-                        has_wind, arm, drag, has_force)
-        for i in range(first, last):
-            j = i - first
+            _force_lanes(count, lanes, taylor, k_x, k_v, mass, min_lift)
+            _cap_tilt_lanes(count, lanes, tan_max_tilt)
+            _step_lanes(count, lanes, taylor, feedforward, mass, J, gyro, k_R, k_Omega, mixer, mixer_inverse,
+                        thrust_min, thrust_max, w2_min, w2_max, has_wind, arm, drag, has_force)
+        for j in range(count):
+            i = first + j
             for k in range(3):
-                pos[i, k], vel[i, k], omega[i, k] = X[P + k, j], X[V + k, j], X[W + k, j]
+                pos[i, k], vel[i, k] = lanes[_at(P + k, j)], lanes[_at(V + k, j)]
+                omega[i, k] = lanes[_at(W + k, j)]
             for k in range(4):
-                quat[i, k], rotor_speed[i, k] = X[Q + k, j], Wr[k, j]
+                quat[i, k], rotor_speed[i, k] = lanes[_at(Q + k, j)], lanes[_at(SPEED + k, j)]
 
 
 @_jit
-def _to_lanes(start, stop, X, U, pos, vel, quat, omega, p_ref, v_ref, a_ref, dv, da, dj, ds, heading,
+def _to_lanes(first, count, A, pos, vel, quat, omega, p_ref, v_ref, a_ref, dv, da, dj, ds, heading,
               position_mask, omega_d, alpha_d, rotor_gain, wind, has_wind, force, has_force):
-    """Agents ``start:stop`` into columns 0, 1, ... of the state X and the held inputs U (the rows
-    above), from the engine's (N, k) arrays."""
-    for i in range(start, stop):
-        j = i - start
+    """Agents ``first:first + count`` into columns 0, 1, ... of the lanes ``A`` (the rows above),
+    from the engine's (N, k) arrays."""
+    for j in range(count):
+        i = first + j
         for k in range(3):
-            X[P + k, j], X[V + k, j], X[W + k, j] = pos[i, k], vel[i, k], omega[i, k]
-            U[P_REF + k, j], U[V_REF + k, j], U[A_REF + k, j] = p_ref[i, k], v_ref[i, k], a_ref[i, k]
-            U[DV + k, j], U[DA + k, j], U[DJ + k, j], U[DS + k, j] = dv[i, k], da[i, k], dj[i, k], ds[i, k]
-            U[HEADING + k, j], U[OMEGA_D + k, j], U[ALPHA_D + k, j] = heading[i, k], omega_d[i, k], alpha_d[i, k]
-            U[WIND + k, j] = wind[i, k] if has_wind else 0.0
-            U[FORCE + k, j] = force[i, k] if has_force else 0.0
+            A[_at(P + k, j)], A[_at(V + k, j)], A[_at(W + k, j)] = pos[i, k], vel[i, k], omega[i, k]
+            A[_at(P_REF + k, j)], A[_at(V_REF + k, j)], A[_at(A_REF + k, j)] = p_ref[i, k], v_ref[i, k], a_ref[i, k]
+            A[_at(DV + k, j)], A[_at(DA + k, j)] = dv[i, k], da[i, k]
+            A[_at(DJ + k, j)], A[_at(DS + k, j)] = dj[i, k], ds[i, k]
+            A[_at(HEADING + k, j)], A[_at(OMEGA_D + k, j)] = heading[i, k], omega_d[i, k]
+            A[_at(ALPHA_D + k, j)] = alpha_d[i, k]
+            A[_at(WIND + k, j)] = wind[i, k] if has_wind else 0.0
+            A[_at(FORCE + k, j)] = force[i, k] if has_force else 0.0
         for k in range(4):
-            X[Q + k, j], U[GAIN + k, j] = quat[i, k], rotor_gain[i, k]
-        U[MASK, j] = 1.0 if position_mask[i] else 0.0
+            A[_at(Q + k, j)], A[_at(GAIN + k, j)] = quat[i, k], rotor_gain[i, k]
+        A[_at(MASK, j)] = 1.0 if position_mask[i] else 0.0
+
+
+@_jit
+def _force_lanes(count, A, taylor, k_x, k_v, mass, min_lift):
+    """The sub-step's reference (:func:`_reference`, at τ = ``taylor[0]``) and desired force
+    (:func:`desired_force`, before its tilt cap) of columns ``0:count``, into the rows FORCE_D;
+    vectorised."""
+    tau, t2, t3, t4 = taylor[0], taylor[1], taylor[2], taylor[3]
+    for i in range(count):
+        p_d, v_d, a_d = _reference(A, i, tau, t2, t3, t4)
+        F = desired_force(_column(A, P, i), _column(A, V, i), p_d, v_d, a_d, A[_at(MASK, i)] != 0.0,
+                          k_x, k_v, mass, min_lift)
+        A[_at(FORCE_D, i)], A[_at(FORCE_D + 1, i)], A[_at(FORCE_D + 2, i)] = F
+
+
+@_jit
+def _cap_tilt_lanes(count, A, tan_max_tilt):
+    """:func:`cap_tilt` of the rows FORCE_D, column by column (libm's hypot has no vector form)."""
+    for i in range(count):
+        A[_at(FORCE_D, i)], A[_at(FORCE_D + 1, i)], A[_at(FORCE_D + 2, i)] = cap_tilt(
+            _column(A, FORCE_D, i), tan_max_tilt)
+
+
+@_jit
+def _step_lanes(count, A, taylor, feedforward, mass, J, gyro, k_R, k_Omega, mixer, mixer_inverse,
+                thrust_min, thrust_max, w2_min, w2_max, has_wind, arm, drag, has_force):
+    """The rest of a sub-step of length h = ``taylor[4]`` for columns ``0:count``: the SE(3) law
+    for the capped force, allocation, the rotors' wrench, wind and force, RK4; vectorised (every
+    helper inlined, no call left, every choice a select, unsigned indices)."""
+    h = taylor[4]
+    zero = lit(h, 0.0)
+    no_wind = (zero, zero, zero)
+    for i in range(count):
+        p, v, w = _column(A, P, i), _column(A, V, i), _column(A, W, i)
+        q = (A[_at(Q, i)], A[_at(Q + 1, i)], A[_at(Q + 2, i)], A[_at(Q + 3, i)])
+        R = rotmat(q[0], q[1], q[2], q[3])
+        f, M = se3_control(_column(A, FORCE_D, i), R, w, _column(A, HEADING, i), _column(A, OMEGA_D, i),
+                           _column(A, ALPHA_D, i), feedforward, k_R, k_Omega, J)
+        speeds = allocate(f, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max)
+        gain = (A[_at(GAIN, i)], A[_at(GAIN + 1, i)], A[_at(GAIN + 2, i)], A[_at(GAIN + 3, i)])
+        thrust, torque = wrench(speeds, gain, mixer)
+        wind_acc, moment = wind_load(R, _column(A, WIND, i), drag, mass, arm)
+        with_moment = _add(torque, moment)
+        ext = wind_acc if has_wind else no_wind
+        torque = with_moment if has_wind else torque
+        with_force = _add(ext, _column(A, FORCE, i))
+        ext = with_force if has_force else ext
+        p, v, q, w = rk4(p, v, q, w, thrust, torque, ext, mass, J, gyro, h)
+        for k in range(3):
+            A[_at(P + k, i)], A[_at(V + k, i)], A[_at(W + k, i)] = p[k], v[k], w[k]
+        for k in range(4):
+            A[_at(Q + k, i)], A[_at(SPEED + k, i)] = q[k], speeds[k]
+
+
+@_inline
+def _at(row, i):
+    """The index of row ``row``, column ``i`` of the lanes, unsigned: numba checks a signed index for
+    a negative value (Python's wraparound), and the check keeps a loop from vectorising."""
+    return np.uintp(row * STRIDE + i)
 
 
 @_inline
 def _column(A, row, i):
     """Rows row..row+2 of column i, a 3-tuple."""
-    return (A[row, i], A[row + 1, i], A[row + 2, i])
-
-
-@_jit
-def _step_lanes(count, X, U, Wr, taylor, feedforward,
-                mass, J, gyro, k_x, k_v, k_R, k_Omega, tan_max_tilt, min_lift,
-                mixer, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max,
-                has_wind, arm, drag, has_force):
-    """One sub-step of length h of the agents in columns ``0:count`` of X, U, Wr, ``taylor`` =
-    (τ, τ²/2, τ³/6, τ⁴/24) at its start and h, in the lanes' precision. The loop body has no call
-    that stays a call and no exit, so the compiler vectorises it across agents."""
-    tau, t2, t3, t4, h = taylor[0], taylor[1], taylor[2], taylor[3], taylor[4]
-    no_wind = (lit(h, 0.0), lit(h, 0.0), lit(h, 0.0))
-    for i in range(count):
-        p, v, w = _column(X, P, i), _column(X, V, i), _column(X, W, i)
-        q = (X[Q, i], X[Q + 1, i], X[Q + 2, i], X[Q + 3, i])
-        p_d, v_d, a_d = _reference(U, i, tau, t2, t3, t4)
-        R = rotmat(q[0], q[1], q[2], q[3])
-        f, M = se3_control(p, v, R, w, p_d, v_d, a_d, _column(U, HEADING, i), _column(U, OMEGA_D, i),
-                           _column(U, ALPHA_D, i), feedforward, U[MASK, i] != 0.0,
-                           k_x, k_v, k_R, k_Omega, mass, J, tan_max_tilt, min_lift)
-        speeds = allocate(f, M, mixer_inverse, thrust_min, thrust_max, w2_min, w2_max)
-        gain = (U[GAIN, i], U[GAIN + 1, i], U[GAIN + 2, i], U[GAIN + 3, i])
-        thrust, torque = wrench(speeds, gain, mixer)
-        ext = no_wind
-        if has_wind:
-            ext, moment = wind_load(R, _column(U, WIND, i), drag, mass, arm)
-            torque = _add(torque, moment)
-        if has_force:
-            ext = _add(ext, _column(U, FORCE, i))
-        p, v, q, w = rk4(p, v, q, w, thrust, torque, ext, mass, J, gyro, h)
-        for k in range(3):
-            X[P + k, i], X[V + k, i], X[W + k, i] = p[k], v[k], w[k]
-        for k in range(4):
-            X[Q + k, i], Wr[k, i] = q[k], speeds[k]
+    return (A[_at(row, i)], A[_at(row + 1, i)], A[_at(row + 2, i)])
 
 
 @_inline
-def _reference(U, i, tau, t2, t3, t4):
-    """(p_d, v_d, a_d) of agent i at τ s after the tick: the quartic Taylor polynomial
+def _three(a):
+    return (a[0], a[1], a[2])
+
+
+@_inline
+def _four_by_four(m):
+    return ((m[0, 0], m[0, 1], m[0, 2], m[0, 3]), (m[1, 0], m[1, 1], m[1, 2], m[1, 3]),
+            (m[2, 0], m[2, 1], m[2, 2], m[2, 3]), (m[3, 0], m[3, 1], m[3, 2], m[3, 3]))
+
+
+@_inline
+def _reference(A, i, tau, t2, t3, t4):
+    """(p_d, v_d, a_d) of column i at τ s after the tick: the quartic Taylor polynomial
     p + τ v + τ²/2 a + τ³/6 j + τ⁴/24 s (and its derivatives) on TRACK rows (the coefficients are
-    zero elsewhere)."""
-    if tau == 0.0:
-        return _column(U, P_REF, i), _column(U, V_REF, i), _column(U, A_REF, i)
-    p = (U[P_REF, i] + tau * U[DV, i] + t2 * U[DA, i] + t3 * U[DJ, i] + t4 * U[DS, i],
-         U[P_REF + 1, i] + tau * U[DV + 1, i] + t2 * U[DA + 1, i] + t3 * U[DJ + 1, i] + t4 * U[DS + 1, i],
-         U[P_REF + 2, i] + tau * U[DV + 2, i] + t2 * U[DA + 2, i] + t3 * U[DJ + 2, i] + t4 * U[DS + 2, i])
-    v = (U[V_REF, i] + tau * U[DA, i] + t2 * U[DJ, i] + t3 * U[DS, i],
-         U[V_REF + 1, i] + tau * U[DA + 1, i] + t2 * U[DJ + 1, i] + t3 * U[DS + 1, i],
-         U[V_REF + 2, i] + tau * U[DA + 2, i] + t2 * U[DJ + 2, i] + t3 * U[DS + 2, i])
-    a = (U[A_REF, i] + tau * U[DJ, i] + t2 * U[DS, i],
-         U[A_REF + 1, i] + tau * U[DJ + 1, i] + t2 * U[DS + 1, i],
-         U[A_REF + 2, i] + tau * U[DJ + 2, i] + t2 * U[DS + 2, i])
-    return p, v, a
+    zero elsewhere); at τ = 0 the latched values themselves (a select: both are computed)."""
+    held = (_column(A, P_REF, i), _column(A, V_REF, i), _column(A, A_REF, i))
+    p = (A[_at(P_REF, i)] + tau * A[_at(DV, i)] + t2 * A[_at(DA, i)] + t3 * A[_at(DJ, i)] + t4 * A[_at(DS, i)],
+         A[_at(P_REF + 1, i)] + tau * A[_at(DV + 1, i)] + t2 * A[_at(DA + 1, i)] + t3 * A[_at(DJ + 1, i)]
+         + t4 * A[_at(DS + 1, i)],
+         A[_at(P_REF + 2, i)] + tau * A[_at(DV + 2, i)] + t2 * A[_at(DA + 2, i)] + t3 * A[_at(DJ + 2, i)]
+         + t4 * A[_at(DS + 2, i)])
+    v = (A[_at(V_REF, i)] + tau * A[_at(DA, i)] + t2 * A[_at(DJ, i)] + t3 * A[_at(DS, i)],
+         A[_at(V_REF + 1, i)] + tau * A[_at(DA + 1, i)] + t2 * A[_at(DJ + 1, i)] + t3 * A[_at(DS + 1, i)],
+         A[_at(V_REF + 2, i)] + tau * A[_at(DA + 2, i)] + t2 * A[_at(DJ + 2, i)] + t3 * A[_at(DS + 2, i)])
+    a = (A[_at(A_REF, i)] + tau * A[_at(DJ, i)] + t2 * A[_at(DS, i)],
+         A[_at(A_REF + 1, i)] + tau * A[_at(DJ + 1, i)] + t2 * A[_at(DS + 1, i)],
+         A[_at(A_REF + 2, i)] + tau * A[_at(DJ + 2, i)] + t2 * A[_at(DS + 2, i)])
+    return held if tau == 0.0 else (p, v, a)

@@ -21,8 +21,9 @@ vertical component of at least ``min_lift`` m g, and its tilt from vertical is c
 Gains are given as natural frequencies and damping ratios and scaled by the airframe's m and J,
 so one set of numbers behaves alike on a 27 g and a 1 kg quadrotor.
 
-The law runs compiled, per agent, in :func:`kernels.se3_control` (with ``min_lift`` = 0.2); its
-numpy form is the tests' oracle (tests/oracles/quadrotor.py). This module keeps the gain synthesis.
+The law runs compiled, per agent, in :func:`kernels.desired_force` (with ``min_lift`` = 0.2),
+:func:`kernels.cap_tilt` and :func:`kernels.se3_control`; its numpy form is the tests' oracle
+(tests/oracles/quadrotor.py). This module keeps the gain synthesis.
 """
 
 from __future__ import annotations

@@ -5,6 +5,8 @@ saturation; and over 10 s flights."""
 
 from __future__ import annotations
 
+import platform
+import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -235,3 +237,24 @@ def test_kernel_rk4_conserves_energy_and_angular_momentum(airframe):
     np.testing.assert_allclose(L1, L0, rtol=1e-7, atol=1e-9 * np.abs(L0).max())
     assert np.linalg.norm(x[6:10]) == pytest.approx(1.0, abs=1e-15)
     assert np.abs(x[10:13] - [3.0, -2.0, 5.0]).max() > 0.1  # the gyroscopic term acted
+
+
+@pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"), reason="reads x86-64 machine code")
+@pytest.mark.parametrize("name", ["_force_lanes", "_step_lanes"])
+def test_the_sub_step_loops_vectorise(name):
+    """The two loops over a block's lanes compile to packed (SIMD) multiplies: a call, a branch, a
+    signed index or an array the loop might write, added to the law, would quietly make them
+    scalar again (2-3x slower). Compiled afresh (the cached code has no assembly to read)."""
+    import numba
+
+    from swarmscene.methods.quadrotor import kernels
+
+    fresh = numba.njit(error_model="numpy")(getattr(kernels, name).py_func)
+    lanes, taylor = np.zeros(kernels.ROWS * kernels.STRIDE), np.array([0.01, 5e-5, 1.7e-7, 4e-10, 1 / 240])
+    af = AIRFRAMES["crazyflie"]
+    three, four = (1.0, 1.0, 1.0), ((1.0, 0.0, 0.0, 0.0),) * 4
+    args = {"_force_lanes": (4, lanes, taylor, 1.0, 1.0, af.mass, 0.2),
+            "_step_lanes": (4, lanes, taylor, True, af.mass, three, three, three, three, four, four,
+                            0.0, 1.0, 0.0, 1.0, True, 0.0, three, True)}[name]
+    fresh(*args)
+    assert re.search(r"\bv?mulpd\b", fresh.inspect_asm(fresh.signatures[0])), f"{name} compiled to scalar code"

@@ -174,9 +174,11 @@ def test_float32_lanes_compute_in_float32():
     R = tuple(tuple(f(x) for x in row) for row in kernels.rotmat(*q))  # boxed as Python floats
     calls = {
         "rotmat": (kernels.rotmat, q),
-        "se3_control": (kernels.se3_control, (v, v, R, v, v, v, v, (f(0.0), f(1.0), f(0.0)), v, v, True, True,
-                                              c["k_x"], c["k_v"], c["k_R"], c["k_Omega"], c["mass"], c["J"],
-                                              c["tan_max_tilt"], c["min_lift"])),
+        "desired_force": (kernels.desired_force, (v, v, v, v, v, True, c["k_x"], c["k_v"], c["mass"],
+                                                  c["min_lift"])),
+        "cap_tilt": (kernels.cap_tilt, ((f(3.0), f(-2.0), f(0.2)), c["tan_max_tilt"])),
+        "se3_control": (kernels.se3_control, ((f(0.1), f(0.0), f(0.3)), R, v, (f(0.0), f(1.0), f(0.0)), v, v,
+                                              True, c["k_R"], c["k_Omega"], c["J"])),
         "allocate": (kernels.allocate, (f(0.3), v, c["mixer_inverse"], c["thrust_min"], c["thrust_max"],
                                         c["w2_min"], c["w2_max"])),
         "wind_load": (kernels.wind_load, (R, v, c["drag"], c["mass"], f(0.05))),
