@@ -82,6 +82,16 @@ def test_the_physics_threads_leave_0_8_0s_hashes_and_any_count_hashes_alike(over
     assert config_hash(api.load([*overrides, "dynamics.threads=4"]).data) == HASHES_0_8_0[overrides]
 
 
+@pytest.mark.parametrize("overrides", sorted(HASHES_0_8_0))
+def test_float64_physics_keeps_0_8_0s_hashes_and_float32_has_its_own(overrides):
+    """``dynamics.dtype`` (0.8.3) at float64 is the step as it was before the option, so it is out
+    of the hash there (a sweep recorded by 0.8.0 resumes); float32 changes the numbers and the hash."""
+    data = api.load(list(overrides)).data
+    assert data["dynamics"]["dtype"] == "float64"
+    assert config_hash(data) == HASHES_0_8_0[overrides]
+    assert config_hash(api.load([*overrides, "dynamics.dtype=float32"]).data) != HASHES_0_8_0[overrides]
+
+
 def test_rerun_from_a_run_directory_gives_identical_metrics(tmp_path):
     """The documented way: swarmscene --config-path <run dir> --config-name config (a relative
     path is taken from the working directory)."""
