@@ -40,8 +40,8 @@ horizontal while b_3d points up, |q| ~ 1, J > 0."""
 
 _inline = numba.njit(cache=True, error_model="numpy", inline="always")
 """The helpers of the physics step: inlined into their caller in numba's own IR, so that the step's
-loop over agents has no calls left and its arrays no reference counting (15-25 % faster a step,
-bench_batch physics; its first compilation takes ~1.5 s more)."""
+loops over agents have no call left (a call keeps a loop from vectorising) and pass no array whose
+reference count would be kept."""
 
 
 def lit(x, value):
