@@ -39,7 +39,10 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("outdoor", "python benchmarks/speed/bench_outdoor.py", 1),
     ("mcap", "python benchmarks/speed/bench_mcap.py", 5),
     ("batch", "taskset -c 1 python benchmarks/speed/bench_batch.py", 5),
-    ("crazyflow_grid", "taskset -c 1 python benchmarks/speed/peers/bench_crazyflow_grid.py", 26),
+    ("quadrotor_lanes", "taskset -c 1 python benchmarks/speed/bench_quadrotor_lanes.py --float32", 1),
+    ("crazyflow_grid", "taskset -c 1 python benchmarks/speed/peers/bench_crazyflow_grid.py", 38),
+    ("crazyflow_avoidance", "taskset -c 1 python benchmarks/speed/peers/bench_crazyflow.py --sizes 100 1000 "
+     "--rates 10 --avoidance potential orca --steady-only --repeat 2", 12),
     ("env_protocol", "taskset -c 1 python benchmarks/speed/bench_env_protocol.py", 3),
     ("batch_phases", "python benchmarks/speed/batch_phases.py", 2),
     ("indoor", "taskset -c 1 python benchmarks/speed/bench_indoor.py", 5),
