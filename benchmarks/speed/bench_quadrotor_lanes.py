@@ -33,8 +33,8 @@ import numpy as np
 
 from swarmscene.methods.quadrotor import kernels
 from swarmscene.methods.quadrotor.model import AIRFRAMES
-from swarmscene.methods.quadrotor.se3_controller import se3_gains
-from swarmscene.plugins.dynamics.quadrotor import MIN_LIFT
+from swarmscene.plugin import build_context
+from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -53,16 +53,10 @@ def kernels_at(commit: str, folder: str):
     return module
 
 
-def constants(dtype) -> dict:
-    """The crazyflie's kernel constants in ``dtype``, as the plugin builds them."""
-    af = AIRFRAMES["crazyflie"]
-    gains = se3_gains(af, 4.0, 0.9, 25.0, 0.8, 8.0)
-    lo, hi = af.rotor_speed_min**2, af.rotor_speed_max**2
-    values = dict(mass=af.mass, J=af.J, gyro=af.gyro, k_x=gains.k_x, k_v=gains.k_v, k_R=gains.k_R,
-                  k_Omega=gains.k_Omega, tan_max_tilt=math.tan(math.radians(45.0)), min_lift=MIN_LIFT,
-                  mixer=af.mixer, mixer_inverse=af.mixer_inverse, thrust_min=4.0 * af.k_T * lo,
-                  thrust_max=4.0 * af.k_T * hi, w2_min=lo, w2_max=hi, drag=af.drag)
-    return {k: np.ascontiguousarray(v, dtype=dtype) if np.ndim(v) else dtype(v) for k, v in values.items()}
+def constants(dtype: str) -> dict:
+    """The kernel constants a default ``quadrotor`` (the crazyflie) built with ``dtype`` hands its
+    step (``Quadrotor._constants``: the gains, limits, mixers and drag in the step's precision)."""
+    return Quadrotor(Quadrotor.Params(dtype=dtype), build_context(1))._constants
 
 
 def swarm(n: int, disturbed: bool, seed: int = 0) -> tuple[list[np.ndarray], dict]:
@@ -107,9 +101,9 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         before = kernels_at(args.beside, folder)
-        sides = {args.beside: (before, np.float64), "now": (kernels, np.float64)}
+        sides = {args.beside: (before, "float64"), "now": (kernels, "float64")}
         if args.float32:
-            sides["now float32"] = (kernels, np.float32)
+            sides["now float32"] = (kernels, "float32")
         print(f"drone-steps per CPU second, best of {args.rounds} alternated rounds of {args.steps} internal steps"
               f"{', wind and force' if args.disturbed else ''}")
         print(f"{'N':>6}{'sub-steps':>10}" + "".join(f"{name:>16}" for name in sides) + f"{'ratio':>8}")
