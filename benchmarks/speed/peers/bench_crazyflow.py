@@ -208,12 +208,9 @@ def steady(quick: bool = False, repeat: int = 3, sizes: list[int] = SIZES, log=p
     with tempfile.TemporaryDirectory() as tmp:
         for n, hz in [(n, hz) for hz in rates for n in sizes]:
             points = hover_points(n, tmp)
-            sides = {"swarmscene": ([python, "-c", SWARMSCENE_CHILD, json.dumps(hover_overrides(n, hz)), str(warm),
-                                     str(steps), repr(PERIOD), points], None)}
-            for method in avoidance:
-                sides[f"swarmscene_{method}"] = ([python, "-c", SWARMSCENE_CHILD,
-                                                  json.dumps(hover_overrides(n, hz, method)), str(warm), str(steps),
-                                                  repr(PERIOD), points], None)
+            sides = {("swarmscene" if method == "none" else f"swarmscene_{method}"):
+                     ([python, "-c", SWARMSCENE_CHILD, json.dumps(hover_overrides(n, hz, method)), str(warm),
+                       str(steps), repr(PERIOD), points], None) for method in ("none", *avoidance)}
             for variant in VARIANTS:  # in the temporary folder: MuJoCo may write its MUJOCO_LOG.TXT
                 sides[f"crazyflow_{variant}"] = ([cf, "-c", CRAZYFLOW_CHILD, "steady", variant, points, str(warm),
                                                   str(steps), "", str(hz)], tmp)
