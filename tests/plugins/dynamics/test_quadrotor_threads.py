@@ -17,18 +17,22 @@ from swarmscene.methods.quadrotor import kernels
 STATE = ("pos", "vel", "quat", "omega", "rotor_speed")
 
 
+AGENTS = 150
+"""Three blocks of lanes (kernels.BLOCK = 64), the last one partial."""
+
+
 def flown(chunks: int | None, monkeypatch, dtype: str = "float64") -> tuple[dict[str, bytes], list[int]]:
-    """A tumbling 150-agent quadrotor world (three blocks of lanes, kernels.BLOCK) under wind and a
-    force, stepped 12 physics steps of a tenth of a second (24 internal steps each) by the serial
-    kernel (None) or by the parallel one in ``chunks`` runs, in ``dtype`` (``dynamics.dtype``); its
-    state's bytes and the rows each call stepped."""
+    """A tumbling quadrotor world of ``AGENTS`` agents under wind and a force, stepped 12 physics
+    steps of a tenth of a second (24 internal steps each) by the serial kernel (None) or by the
+    parallel one in ``chunks`` runs, in ``dtype`` (``dynamics.dtype``); its state's bytes and the
+    rows each call stepped."""
     from tests.methods.quadrotor.test_kernels import pair, random_setpoints, random_state
 
     rng = np.random.default_rng(11)
-    (dyn, world), _ = pair(np.zeros((150, 3)), dtype=dtype)
+    (dyn, world), _ = pair(np.zeros((AGENTS, 3)), dtype=dtype)
     random_state(rng, world, tumbling=True)
-    world.wind = rng.normal(0.0, 3.0, (150, 3))
-    world.force = rng.normal(0.0, 1.0, (150, 3))
+    world.wind = rng.normal(0.0, 3.0, (AGENTS, 3))
+    world.force = rng.normal(0.0, 1.0, (AGENTS, 3))
     rows: list[int] = []
     if chunks is not None:
         def parallel(kernels_module, threads, agents):
@@ -36,7 +40,7 @@ def flown(chunks: int | None, monkeypatch, dtype: str = "float64") -> tuple[dict
             return kernels.step_swarm_parallel, {"chunks": chunks}
         monkeypatch.setattr(quadrotor_plugin, "_stepper", parallel)
     for _ in range(12):
-        dyn.control(world, random_setpoints(rng, 150, "snap"))
+        dyn.control(world, random_setpoints(rng, AGENTS, "snap"))
         dyn.step(world, 0.1)
     monkeypatch.undo()
     return {name: getattr(world, name).tobytes() for name in STATE}, rows
@@ -46,7 +50,7 @@ def flown(chunks: int | None, monkeypatch, dtype: str = "float64") -> tuple[dict
 def test_the_parallel_kernel_gives_every_agent_the_serial_bits(chunks, dtype, monkeypatch):
     serial, _ = flown(None, monkeypatch, dtype)
     parallel, rows = flown(chunks, monkeypatch, dtype)
-    assert rows == [150] * 12
+    assert rows == [AGENTS] * 12
     assert parallel == serial
 
 
