@@ -334,6 +334,8 @@ def wind_load(R, wind, drag, mass, arm):
          (R[0][2] * wind[0] + R[1][2] * wind[1] + R[2][2] * wind[2]) * drag[2])
     acc = (_dot(R[0], f), _dot(R[1], f), _dot(R[2], f))
     return acc, (-arm * mass * f[1], arm * mass * f[0], lit(arm, 0.0))
+
+
 # --------------------------------------------------------------------------- rigid body (eq. 3.4-3.8)
 
 
