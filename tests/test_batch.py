@@ -196,6 +196,91 @@ def test_the_quadrotor_heading_vector_has_the_same_bits_at_every_length():
             start += part.size
 
 
+def test_a_latched_value_is_the_coming_ticks_and_packed_arrays_follow_a_reallocation():
+    """WorldBatch.latch gives the next tick's per_tick (and that tick's only); pack(together=True)
+    checks the first name, and restacks every name when the instances reallocated them all."""
+    from types import SimpleNamespace
+
+    from swarmscene.core.state import WorldBatch, WorldState
+
+    batch = WorldBatch([WorldState.at_rest(np.zeros((2, 3))) for _ in range(3)])
+    batch.latch("k", "latched")
+    assert batch.per_tick("k", lambda: "made") == "made"  # still the tick before controlled()
+    batch.controlled()
+    assert batch.per_tick("k", lambda: "made") == "latched"
+    batch.controlled()
+    assert batch.per_tick("k", lambda: "made again") == "made again"
+
+    models = [SimpleNamespace(a=np.full(2, b), c=np.full(2, -b)) for b in range(3)]
+    first = batch.pack(models, ("a", "c"), together=True)
+    assert first["a"].tolist() == [[0, 0], [1, 1], [2, 2]] and models[1].a.base is first["a"]
+    models[2].a[:] = 7  # in place: into the batch
+    assert batch.pack(models, ("a", "c"), together=True)["a"] is first["a"] and first["a"][2].tolist() == [7, 7]
+    models[1].a, models[1].c = np.full(2, 5), np.full(2, 6)  # an allocation: both rebound
+    again = batch.pack(models, ("a", "c"), together=True)
+    assert again["a"][1].tolist() == [5, 5] and again["c"][1].tolist() == [6, 6] and models[1].c.base is again["c"]
+
+
+def test_a_quadrotor_motor_failure_in_a_batch_is_its_single_runs():
+    """A rotor fault writes the hit vehicles' rotor gains into the arrays the batch packed (the
+    batch checks one of the references for reallocation, not all twelve): the failing world
+    and the others are their single runs, and the fault changed the flight (not vacuous)."""
+    data = api.compose(["scenario=vrb_airshow", "clock.duration=2", "output.summary=false"])
+    failing = {**data, "events": [{"at": 0.5, "agents": [1], "name": "motor_failure", "rotor": 2, "fraction": 0.3}]}
+    outcomes = BatchSimulation([api.build({**failing, "seed": seed}) for seed in SEEDS]).run()
+    for seed, outcome in zip(SEEDS, outcomes, strict=True):
+        alone = api.run({**failing, "seed": seed})
+        np.testing.assert_array_equal(outcome.result.trajectory["pos"], alone.trajectory["pos"])
+    healthy = api.run({**data, "seed": 0}).trajectory["pos"]
+    assert np.abs(outcomes[0].result.trajectory["pos"][-1, 1] - healthy[-1, 1]).max() > 1e-3
+
+
+def test_quadrotor_worlds_stepped_alone_after_the_batched_control_are_their_single_runs():
+    """A world that ends in a sub-step's wind leaves the tick's other sub-steps to each world's
+    own step, after a batched control and batched steps: each world then advances its own
+    clock (tau, by which TRACK references move), not the batch's, and ends in its single run's
+    bits; a later batched tick shares one clock again."""
+    from swarmscene.core.setpoint import Mode, Setpoints
+    from swarmscene.core.state import WorldBatch, WorldState
+    from swarmscene.plugin import build_context
+    from swarmscene.plugins.dynamics.quadrotor import Quadrotor
+
+    dt, substeps, n = 1.0 / 240.0, 24, 4
+    start = np.column_stack([2.0 * np.arange(n), np.zeros(n), np.full(n, 2.0)])
+
+    def worlds() -> tuple[list[WorldState], list[Quadrotor]]:
+        ctx = build_context(positions=start, guidance_period=substeps * dt, physics_step=dt)
+        out = [WorldState.at_rest(start + [0.0, 3.0 * b, 0.0]) for b in range(3)]
+        models = [Quadrotor(Quadrotor.Params(), ctx) for _ in out]
+        for model, world in zip(models, out, strict=True):
+            model.initialize(world)
+        return out, models
+
+    (alone, models), (together, batched) = worlds(), worlds()
+    moving = [Setpoints(np.full(n, Mode.TRACK, dtype=np.int8), w.pos.copy(), np.full((n, 3), 0.5),
+                        np.full((n, 3), 0.2), np.zeros(n)) for w in alone]
+    batch = WorldBatch(together)
+    for tick in range(3):
+        for model, world, sp in zip(models, alone, moving, strict=True):
+            model.control(world, sp)
+            for _ in range(substeps):
+                model.step(world, dt)
+        assert Quadrotor.control_batch(batched, batch, together, moving) is None
+        batch.controlled()
+        for j in range(substeps):
+            if tick == 1 and j >= 5:  # from sub-step 5 of tick 1, each world on its own
+                for model, world in zip(batched, together, strict=True):
+                    model.step(world, dt)
+            else:
+                assert Quadrotor.step_batch(batched, batch, dt) is None
+        clocks = {id(model._clock) for model in batched}
+        assert len(clocks) == (3 if tick == 1 else 1)
+        for one, world in zip(alone, together, strict=True):
+            np.testing.assert_array_equal(world.pos, one.pos)
+            np.testing.assert_array_equal(world.quat, one.quat)
+    assert np.all(together[0].pos[:, 0] > start[:, 0] + 0.05)  # the references moved (TRACK, tau)
+
+
 def test_a_controller_that_raises_in_one_world_stops_that_world_only(monkeypatch):
     """A model without a batched control (the single integrator with the default one) is controlled
     world by world: world 1's control raises at t = 1 s and world 1 alone stops, named as its

@@ -39,7 +39,9 @@ effect, drag, a battery's limit) joins the RK4 right-hand side the same way
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Sequence
+from itertools import repeat
 from typing import Literal, Self
 
 import numpy as np
@@ -151,6 +153,7 @@ class Quadrotor(Dynamics):
         # this tick's references (p_d, v_d, a_d), Taylor coefficients and flatness feed-forward
         self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._omega_d, self._alpha_d = (
             np.zeros((n, 3)) for _ in range(9))
+        self._heading = np.zeros((n, 3))  # (cos psi, sin psi, 0), written by control
         self._position_mask = np.ones(n, dtype=bool)
 
     def control(self, world: WorldState, sp: Setpoints) -> None:
@@ -160,8 +163,7 @@ class Quadrotor(Dynamics):
             if sp.pos.shape[0] != world.n:
                 raise ValueError(f"quadrotor: {sp.pos.shape[0]} setpoints for {world.n} agents")
             self._allocate(world.n)
-        self._yaw = np.asarray(sp.yaw, dtype=float).copy()
-        self._heading = heading_vector(self._yaw)
+        self._heading[:] = heading_vector(np.asarray(sp.yaw, dtype=float))  # in place: see _REFERENCES
         # constant acceleration and heading (no jerk, no snap): the flat body rates are zero
         self._feedforward = sp.jerk is not None or sp.snap is not None
         self._kernels.latch_references(
@@ -171,7 +173,7 @@ class Quadrotor(Dynamics):
             self.params.propagate_reference, self._feedforward,
             self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._position_mask,
             self._omega_d, self._alpha_d)
-        self._tau = 0.0
+        self._clock = _Clock()
 
     def step(self, world: WorldState, dt: float) -> None:
         """Advance the rigid bodies by ``dt`` (in sub-steps of at most ``max_step``), all agents in
@@ -179,19 +181,23 @@ class Quadrotor(Dynamics):
         substeps = max(1, math.ceil(dt / self.params.max_step - 1e-9))
         wind, force = world.wind, world.force
         kernel, split = _stepper(self._kernels, self.params.threads, world.n)
-        self._tau = kernel(
+        # a new clock, not this one advanced: it may be the batch's this world was controlled in
+        self._clock = _Clock(kernel(
             world.pos, world.vel, world.quat, world.omega, world.rotor_speed,
             self._p, self._v, self._a, self._dv, self._da, self._dj, self._ds, self._heading,
             self._position_mask, self._omega_d, self._alpha_d, self._feedforward,
-            self._tau, dt / substeps, substeps, rotor_gain=self._rotor_gain,
+            self._clock.tau, dt / substeps, substeps, rotor_gain=self._rotor_gain,
             wind=self._zeros if wind is None else _floats(wind), has_wind=wind is not None,
             arm=self._precision(world.wind_moment_arm),
             force=self._zeros if force is None else _floats(force), has_force=force is not None,
-            **self._constants, **split)
+            **self._constants, **split))
 
     _REFERENCES = ("_p", "_v", "_a", "_dv", "_da", "_dj", "_ds", "_heading", "_position_mask",
                    "_omega_d", "_alpha_d", "_rotor_gain")
-    """The per-agent arrays ``step`` hands the kernel besides the state (latched by ``control``)."""
+    """The per-agent arrays ``step`` hands the kernel besides the state (latched by ``control``).
+    Only ``_allocate`` rebinds them, all at once (``control`` and the rotor-fault event write in
+    place), so a batch checks one of them to know the instances still hold their slices
+    (``WorldBatch.pack(..., together=True)``)."""
 
     @classmethod
     def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
@@ -203,37 +209,39 @@ class Quadrotor(Dynamics):
         :meth:`WorldBatch.pack` holds for :meth:`step_batch` (each instance holds its slice, as if
         its own ``control`` had written it). The heading vectors are computed over the stacked
         yaws by the same elementwise numpy code as ``control`` (tests/test_batch.py holds its bits
-        to the per-world ones at every length). Worlds whose instances differ in options, or
+        to the per-world ones at every length). The instances share one :class:`_Clock`, and the
+        packed references are latched for the tick's :meth:`step_batch` (:meth:`WorldBatch.latch`),
+        so that its sub-steps touch no instance. Worlds whose instances differ in options, or
         whose setpoints differ in carrying feed-forward (jerk or snap), are left to the
         per-world ``control``; so is a setpoint record of the wrong size (the world's ``control``
         raises)."""
         first = models[0]
         b, n = batch.pos.shape[:2]
         feedforward = setpoints[0].jerk is not None or setpoints[0].snap is not None
-        if any(sp.pos.shape[0] != n or (sp.jerk is not None or sp.snap is not None) != feedforward
-               for sp in setpoints) or not cls._same_options(models, batch):
+        if not _alike(setpoints, n, feedforward) or not cls._same_options(models, batch):
             return NotImplemented
-        packed = batch.pack(list(models), cls._REFERENCES)
+        packed = batch.pack(list(models), cls._REFERENCES, together=True)
         ref = {name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}
         zeros = np.zeros((b * n, 3))
         yaw = np.concatenate([sp.yaw for sp in setpoints], dtype=np.float64, casting="unsafe")
         ref["_heading"][:] = heading_vector(yaw)
-        own = all(w is t for w, t in zip(worlds, batch.worlds, strict=True))
+        own = len(worlds) == len(batch.worlds) and all(map(operator.is_, worlds, batch.worlds))
         pos = batch.pos.reshape(b * n, 3) if own else _stacked([w.pos for w in worlds])
         first._kernels.latch_references(
             np.concatenate([w.healthy for w in worlds]),
             np.concatenate([sp.mode for sp in setpoints], dtype=np.int8, casting="unsafe"),
             _stacked([sp.pos for sp in setpoints]), _stacked([sp.vel for sp in setpoints]),
             _stacked([sp.acc for sp in setpoints]),
-            _stacked_or_zeros([sp.jerk for sp in setpoints], zeros),
-            _stacked_or_zeros([sp.snap for sp in setpoints], zeros),
+            _stacked_or_zeros([sp.jerk for sp in setpoints], zeros) if feedforward else zeros,
+            _stacked_or_zeros([sp.snap for sp in setpoints], zeros) if feedforward else zeros,
             pos, ref["_heading"], first.params.propagate_reference, feedforward,
             ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_position_mask"],
             ref["_omega_d"], ref["_alpha_d"])
-        for model, own_yaw in zip(models, yaw.reshape(b, n), strict=True):
-            model._yaw = own_yaw
+        clock = _Clock()
+        for model in models:
             model._feedforward = feedforward
-            model._tau = 0.0
+            model._clock = clock
+        batch.latch("quadrotor.references", {"zeros": zeros, "clock": clock, **ref})
         return None
 
     @classmethod
@@ -250,12 +258,14 @@ class Quadrotor(Dynamics):
         The kernel steps agents independently, so B worlds of N agents are one swarm of B N
         agents: the state is the batch's, the references each instance latched are packed along
         the world axis (:meth:`WorldBatch.pack`), and each agent's arithmetic is its single
-        run's. Worlds whose instances differ in options, or whose ticks are not in step (their
-        time since the tick, or feed-forward, differs), are left to the per-world steps."""
+        run's; the instances' shared :class:`_Clock` advances once for all. Worlds whose instances
+        differ in options, or whose ticks are not in step (their time since the tick, or
+        feed-forward, differs), or whose wind and force models differ, are left to the per-world
+        steps."""
         first = models[0]
         b, n = batch.pos.shape[:2]
         ref = batch.per_tick("quadrotor.references", lambda: cls._references(models, batch))
-        if ref is None:
+        if ref is None or not batch.per_tick("quadrotor.forces_agree", lambda: _forces_agree(batch.worlds)):
             return NotImplemented
         assert batch.quat is not None and batch.omega is not None and batch.rotor_speed is not None
         zeros = ref["zeros"]
@@ -263,35 +273,37 @@ class Quadrotor(Dynamics):
         has_wind, has_force = worlds[0].wind is not None, worlds[0].force is not None
         substeps = max(1, math.ceil(dt / first.params.max_step - 1e-9))
         kernel, split = _stepper(first._kernels, first.params.threads, b * n)
-        tau = kernel(
+        ref["clock"].tau = kernel(
             batch.pos.reshape(b * n, 3), batch.vel.reshape(b * n, 3), batch.quat.reshape(b * n, 4),
             batch.omega.reshape(b * n, 3), batch.rotor_speed.reshape(b * n, 4),
             ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_heading"],
             ref["_position_mask"], ref["_omega_d"], ref["_alpha_d"], first._feedforward,
-            first._tau, dt / substeps, substeps, rotor_gain=ref["_rotor_gain"],
+            ref["clock"].tau, dt / substeps, substeps, rotor_gain=ref["_rotor_gain"],
             wind=_floats(batch.stack("wind")).reshape(b * n, 3) if has_wind else zeros, has_wind=has_wind,
             arm=first._precision(worlds[0].wind_moment_arm),
             force=_floats(batch.stack("force")).reshape(b * n, 3) if has_force else zeros, has_force=has_force,
             **first._constants, **split)
-        for model in models:
-            model._tau = tau
         return None
 
     @classmethod
-    def _references(cls, models: Sequence[Self], batch: WorldBatch) -> dict[str, np.ndarray] | None:
-        """The tick's latched references of every world as (B N, k) arrays, or None when the
-        worlds cannot be one swarm (their options, time since the tick, feed-forward, or wind and
-        force models differ)."""
-        first, one = models[0], batch.worlds[0]
-        if not cls._same_options(models, batch) or any(
-                m._tau != first._tau or m._feedforward != first._feedforward for m in models):
+    def _references(cls, models: Sequence[Self], batch: WorldBatch) -> dict | None:
+        """The tick's latched references of every world as (B N, k) arrays and the instances'
+        shared clock, when ``control_batch`` did not latch them (the worlds ran their own
+        ``control``); None when the worlds cannot be one swarm (their options, time since the
+        tick or feed-forward differ)."""
+        first = models[0]
+        if not cls._same_options(models, batch) or any(m._feedforward != first._feedforward for m in models):
             return None
-        if any(w.wind_moment_arm != one.wind_moment_arm or (w.wind is None) != (one.wind is None)
-               or (w.force is None) != (one.force is None) for w in batch.worlds):
-            return None  # the kernel takes one moment arm and one say on wind and force for all
+        clock = first._clock
+        if not all(m._clock is clock for m in models):
+            if any(m._clock.tau != clock.tau for m in models):
+                return None
+            clock = _Clock(clock.tau)
+            for model in models:
+                model._clock = clock
         b, n = batch.pos.shape[:2]
-        packed = batch.pack(list(models), cls._REFERENCES)
-        return {"zeros": np.zeros((b * n, 3)),
+        packed = batch.pack(list(models), cls._REFERENCES, together=True)
+        return {"zeros": np.zeros((b * n, 3)), "clock": clock,
                 **{name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}}
 
     @hookimpl
@@ -303,7 +315,7 @@ class Quadrotor(Dynamics):
         if self.rotor_health is None:
             self.rotor_health = np.ones((sim.world.n, 4))
         self.rotor_health[list(event.agents), event.rotor] = event.fraction
-        self._rotor_gain = np.sqrt(self.rotor_health)
+        self._rotor_gain[:] = np.sqrt(self.rotor_health)  # in place: see _REFERENCES
 
     def wind_acceleration(self, world: WorldState) -> np.ndarray:
         """The wind's force per mass a = R D R^T w (N, 3) world (``step`` integrates it itself)."""
@@ -321,6 +333,43 @@ PARALLEL_MIN_AGENTS = 1024
 """Agents (of one world, or of a batch's worlds together) from which ``threads`` > 1 steps them in
 parallel: a physics step costs ~0.08 us an agent (SIMD lanes), starting the threads some tens of us
 (2 threads: 1.4x at 1,024 agents, 1.8x at 10,000; docs/batched.md)."""
+
+
+class _Clock:
+    """tau, the time since the references were latched, s (the kernel propagates TRACK references
+    by it). Each instance holds one; ``control_batch`` gives a batch's instances one, which
+    ``step_batch`` advances once a physics step for all (a float per instance would be B writes a
+    step). ``step`` gives its instance a new one rather than advance it, so that a world stepped on
+    its own after a batched ``control`` leaves the others' clock alone."""
+
+    __slots__ = ("tau",)
+
+    def __init__(self, tau: float = 0.0) -> None:
+        self.tau = tau
+
+
+def _alike(setpoints: Sequence[Setpoints], n: int, feedforward: bool) -> bool:
+    """Whether every setpoint record is for ``n`` agents and carries feed-forward (jerk or snap)
+    if and only if ``feedforward`` (C loops in the common case, none carrying it: a batch of
+    4,096 one-agent worlds asks this every tick)."""
+    if set(map(len, map(operator.attrgetter("pos"), setpoints))) != {n}:
+        return False
+    if feedforward:
+        return all(sp.jerk is not None or sp.snap is not None for sp in setpoints)
+    return _nones(setpoints, "jerk") == _nones(setpoints, "snap") == len(setpoints)
+
+
+def _nones(items: Sequence[object], name: str) -> int:
+    """How many of ``items`` have ``None`` as ``name``."""
+    return sum(map(operator.is_, map(operator.attrgetter(name), items), repeat(None)))
+
+
+def _forces_agree(worlds: Sequence[WorldState]) -> bool:
+    """Whether the worlds can be stepped in one kernel call, which takes one wind moment arm and
+    one say on whether there is wind and force for all."""
+    count = len(worlds)
+    return (len(set(map(operator.attrgetter("wind_moment_arm"), worlds))) == 1
+            and _nones(worlds, "wind") in (0, count) and _nones(worlds, "force") in (0, count))
 
 
 def _stepper(kernels, threads: int | None, agents: int) -> tuple:
