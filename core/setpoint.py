@@ -29,6 +29,16 @@ class Mode(IntEnum):
     HOLD = 3
 
 
+def is_mode(mode: np.ndarray, *modes: Mode) -> np.ndarray:
+    """Which agents' ``mode`` (N,) is one of ``modes``, (N,) bool. Compared as plain ints: numpy
+    compares an array with an enum member about 5x slower (~2.5 us against 0.5 for six agents),
+    which a per-world tick pays several times."""
+    hit = mode == int(modes[0])
+    for other in modes[1:]:
+        hit |= mode == int(other)
+    return hit
+
+
 @dataclass
 class Setpoints:
     """Per-agent references for this guidance tick.

@@ -44,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from . import api
 from .core.batch import lockstep
 from .core.config import Scenario
-from .core.setpoint import Mode
+from .core.setpoint import Mode, is_mode
 from .core.state import WorldBatch
 
 try:
@@ -153,7 +153,7 @@ class _Episode:
 
     def _progress(self, before: np.ndarray) -> np.ndarray:
         ref = self.policy.reference
-        has = (ref.mode == Mode.POSITION) | (ref.mode == Mode.TRACK)
+        has = is_mode(ref.mode, Mode.POSITION, Mode.TRACK)
         gained = np.linalg.norm(ref.pos - before, axis=1) - np.linalg.norm(ref.pos - self.sim.world.pos, axis=1)
         return np.where(has & self.sim.world.healthy, gained, 0.0)
 

@@ -6,7 +6,7 @@ import numpy as np
 from pydantic import Field
 
 from swarmscene.core.plugin import PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.setpoint import Mode, Setpoints, is_mode
 from swarmscene.core.vectors import clip_norm
 
 
@@ -41,8 +41,8 @@ def preferred_velocity(sp: Setpoints, pos: np.ndarray, gain: float, v_max: float
     p)`` (HOLD carries no feed-forward).
     """
     pull = gain * (sp.pos - pos)
-    v = np.where((sp.mode == Mode.VELOCITY)[:, None], sp.vel, sp.vel + pull)
-    v = np.where((sp.mode == Mode.HOLD)[:, None], pull, v)
+    v = np.where(is_mode(sp.mode, Mode.VELOCITY)[:, None], sp.vel, sp.vel + pull)
+    v = np.where(is_mode(sp.mode, Mode.HOLD)[:, None], pull, v)
     return clip_norm(v, v_max)
 
 

@@ -32,7 +32,7 @@ import numpy as np
 import shapely
 
 from swarmscene.core.sensing import NEAR_K
-from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.setpoint import Mode, Setpoints, is_mode
 from swarmscene.core.state import WorldState
 
 OWN = (("own_pos", 3), ("own_vel", 3), ("healthy", 1))
@@ -131,9 +131,9 @@ def reference_features(world: WorldState, ref: Setpoints | None) -> tuple[np.nda
     n = world.n
     if ref is None:
         return np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, dtype=bool)
-    has_pos = (ref.mode == Mode.POSITION) | (ref.mode == Mode.TRACK)
+    has_pos = is_mode(ref.mode, Mode.POSITION, Mode.TRACK)
     offset = np.where(has_pos[:, None], ref.pos - world.pos, 0.0)
-    has_vel = (ref.mode == Mode.VELOCITY) | (ref.mode == Mode.TRACK) | (ref.mode == Mode.POSITION)
+    has_vel = is_mode(ref.mode, Mode.VELOCITY, Mode.TRACK, Mode.POSITION)
     return offset, np.where(has_vel[:, None], ref.vel, 0.0), has_pos
 
 
