@@ -238,3 +238,65 @@ def test_the_managers_quick_look_at_a_module_finds_what_pluggy_finds(monkeypatch
     plain_again.register(odd, name="odd")
     assert _hookimpls(again) == _hookimpls(plain_again)
     assert {name for name, plugin, *_ in _hookimpls(again) if plugin == "odd"} == {"swarmscene_run_end"}
+
+
+def test_the_managers_quick_look_at_a_plugin_instance_finds_what_pluggy_finds():
+    """``_PluginManager`` answers an instance's names from its own ``__dict__`` and its type's MRO,
+    keeping pluggy's answer per class and function: the hook implementations are pluggy's own
+    for every object a run registers (the presets' plugins and observers) and for an instance
+    holding every shape pluggy accepts or refuses, a property that must not run included, also
+    after its class's method is replaced."""
+    from swarmscene import api
+    from swarmscene.core import hookspecs
+
+    class Base:
+        @hookimpl(trylast=True)
+        def swarmscene_run_start(self, sim):  # inherited, marked
+            pass
+
+    class Odd(Base):
+        __slots__ = ("slotted",)  # beside Base's __dict__
+
+        @hookimpl
+        def swarmscene_run_end(self, sim, metrics):
+            pass
+
+        @staticmethod
+        @hookimpl
+        def swarmscene_step_end(sim):
+            pass
+
+        @property
+        def swarmscene_event(self):  # a property is not run, and not a hook
+            raise AssertionError("pluggy's lookup must not run a property")
+
+        def unmarked(self):
+            pass
+
+    odd = Odd()
+    odd.slotted = hookimpl(lambda sim, event: None)  # a slot's value, marked: pluggy's own lookup takes it
+    odd.own = 3
+
+    def plain_manager() -> pluggy.PluginManager:
+        pm = pluggy.PluginManager(hookspecs.PROJECT)
+        pm.add_hookspecs(hookspecs)
+        return pm
+
+    sims = [api.build(api.compose([f"scenario={preset}", "output.summary=false"]))
+            for preset in ("default", "vrb_airshow", "indoor_corridor", "cem_six_vehicle")]
+    objects = [plugin for sim in sims for plugin in sim.pm.get_plugins() if not isinstance(plugin, types.ModuleType)]
+    assert len(objects) >= 12  # the runs' plugin instances and observers
+    def compare(plugins: list) -> set[str]:
+        ours, _ = make_plugin_manager([], load_entry_points=False)
+        plain = plain_manager()
+        for k, plugin in enumerate(plugins):
+            ours.register(plugin, name=f"p{k}")
+            plain.register(plugin, name=f"p{k}")
+        names = {f"p{k}" for k in range(len(plugins))}  # (ours also holds the core observer modules)
+        found = [impl for impl in _hookimpls(ours) if impl[1] in names]
+        assert found == _hookimpls(plain)
+        return {name for name, plugin, *_ in found if plugin == f"p{len(plugins) - 1}"}
+
+    assert compare([*objects, odd]) == {"swarmscene_run_start", "swarmscene_run_end", "swarmscene_step_end", "slotted"}
+    Odd.swarmscene_run_end = lambda self, sim, metrics: None  # now unmarked: asked again, not remembered
+    assert compare([odd]) == {"swarmscene_run_start", "swarmscene_step_end", "slotted"}
