@@ -178,61 +178,56 @@ class _PluginManager(pluggy.PluginManager):
     * a module's name is found in its own ``__dict__`` (the module type's data descriptors,
       ``__dict__`` and ``__annotations__``, are never hook implementations), an instance's in its
       own ``__dict__`` or else in the first class of its type's MRO whose ``__dict__`` holds it
-      (where ``getattr_static`` finds it, a plugin instance's class having no metaclass
-      attributes in its way);
+      (where ``getattr_static`` finds it for a class that does not shadow its own ``__dict__``,
+      which no plugin class does);
     * a value that is not a function, method, ``staticmethod`` or ``classmethod`` is never a hook
       implementation: such a name (a dunder included) is answered None here, as pluggy would;
-    * for a function, pluggy's answer depends on the value alone (its marker): it is asked once per
-      process and kept with the value, and asked again when the module or class holds another.
+    * for a function or method, pluggy's answer depends on the value alone (its marker), wherever
+      it was found: it is asked once per process and kept with the value (a weak key, so that a
+      class or module that goes keeps nothing alive here).
 
-    Every other name (a ``__slots__`` member, a name found nowhere, a class registered as a plugin)
-    goes to pluggy's own method."""
+    Every other name (a ``__slots__`` member, a name found nowhere, a class registered as a
+    plugin, a ``staticmethod`` or ``classmethod``, which cannot be a weak key) goes to pluggy's own
+    method."""
 
-    _answers: weakref.WeakKeyDictionary[object, dict[tuple[str, str], tuple[Any, Any]]] = (
-        weakref.WeakKeyDictionary())
-    """pluggy's answer per module or class, project and name, with the value it was given for."""
+    _answers: weakref.WeakKeyDictionary[Any, dict[str, Any]] = weakref.WeakKeyDictionary()
+    """pluggy's answer per function (or method) and project."""
 
     def parse_hookimpl_opts(self, plugin: Any, name: str) -> Any:
-        holder, value = _where(plugin, name)
-        if holder is None:
+        found, value = _static_value(plugin, name)
+        if not found:
             return super().parse_hookimpl_opts(plugin, name)
         if not isinstance(value, _HOOKABLE):
             return None
-        if holder is _INSTANCE:  # the instance's own value: not kept (instances come and go)
+        if not isinstance(value, (types.FunctionType, types.MethodType)):
             return super().parse_hookimpl_opts(plugin, name)
-        answers = self._answers.setdefault(holder, {})
-        key = (self.project_name, name)
-        known = answers.get(key)
-        if known is None or known[0] is not value:
-            known = answers[key] = (value, super().parse_hookimpl_opts(plugin, name))
-        return known[1]
+        answers = self._answers.setdefault(value, {})
+        if self.project_name not in answers:
+            answers[self.project_name] = super().parse_hookimpl_opts(plugin, name)
+        return answers[self.project_name]
 
 
-_INSTANCE = object()
-""":func:`_where`'s holder for a value in the instance's own ``__dict__``."""
-
-
-def _where(plugin: Any, name: str) -> tuple[Any, Any]:
-    """Where pluggy's static lookup of ``name`` on ``plugin`` finds it, and the value: (the module,
-    its value), (``_INSTANCE``, the instance's own value), (the class of the MRO holding it, its
-    value), or (None, None) where only pluggy's own lookup can say (a slot, a class plugin, a
-    name found nowhere)."""
+def _static_value(plugin: Any, name: str) -> tuple[bool, Any]:
+    """(True, the value) where pluggy's static lookup of ``name`` on ``plugin`` finds it (a module's
+    or an instance's own ``__dict__``, else the first class of the type's MRO holding it), or
+    (False, None) where only pluggy's own lookup can say (a slot, a class plugin, a name found
+    nowhere)."""
     if isinstance(plugin, types.ModuleType):
         own = vars(plugin)
-        return (plugin, own[name]) if name in own else (None, None)
+        return (True, own[name]) if name in own else (False, None)
     if isinstance(plugin, type):
-        return None, None
+        return False, None
     try:
         own = object.__getattribute__(plugin, "__dict__")
     except AttributeError:
         own = {}
     if name in own:
-        return _INSTANCE, own[name]
+        return True, own[name]
     for klass in type(plugin).__mro__:
         if name in vars(klass):
             value = vars(klass)[name]
-            return (None, None) if isinstance(value, types.MemberDescriptorType) else (klass, value)
-    return None, None
+            return (False, None) if isinstance(value, types.MemberDescriptorType) else (True, value)
+    return False, None
 
 
 def make_plugin_manager(

@@ -13,7 +13,9 @@ import pytest
 from swarmscene import api, testing
 from swarmscene.core.batch import BatchSimulation
 from swarmscene.core.plugin import Dynamics
+from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator
+from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 from swarmscene.plugins.dynamics.single_integrator import SingleIntegrator
 
 from .test_composition import PRESETS
@@ -235,50 +237,88 @@ def test_a_quadrotor_motor_failure_in_a_batch_is_its_single_runs():
     assert np.abs(outcomes[0].result.trajectory["pos"][-1, 1] - healthy[-1, 1]).max() > 1e-3
 
 
+_DT, _SUBSTEPS, _N = 1.0 / 240.0, 24, 4
+_START = np.column_stack([2.0 * np.arange(_N), np.zeros(_N), np.full(_N, 2.0)])
+
+
+def _quadrotor_worlds() -> tuple[list, list, list]:
+    """Three worlds of four quadrotors, 3 m apart, and their setpoints: TRACK references moving
+    at 0.5 m/s, accelerating at 0.2 m/s^2 (the kernel moves them by tau, the time since the
+    latch, so a wrong clock changes the flight)."""
+    from swarmscene.core.setpoint import Mode, Setpoints
+    from swarmscene.core.state import WorldState
+    from swarmscene.plugin import build_context
+    from swarmscene.plugins.dynamics.quadrotor import Quadrotor
+
+    ctx = build_context(positions=_START, guidance_period=_SUBSTEPS * _DT, physics_step=_DT)
+    worlds = [WorldState.at_rest(_START + [0.0, 3.0 * b, 0.0]) for b in range(3)]
+    models = [Quadrotor(Quadrotor.Params(), ctx) for _ in worlds]
+    for model, world in zip(models, worlds, strict=True):
+        model.initialize(world)
+    moving = [Setpoints(np.full(_N, Mode.TRACK, dtype=np.int8), w.pos.copy(), np.full((_N, 3), 0.5),
+                        np.full((_N, 3), 0.2), np.zeros(_N)) for w in worlds]
+    return worlds, models, moving
+
+
+def _fly_alone(worlds: list, models: list, setpoints: list) -> None:
+    """One tick of every world on its own: ``control``, then the sub-steps' ``step``."""
+    for model, world, sp in zip(models, worlds, setpoints, strict=True):
+        model.control(world, sp)
+        for _ in range(_SUBSTEPS):
+            model.step(world, _DT)
+
+
+def _assert_same_states(worlds: list, alone: list) -> None:
+    for world, one in zip(worlds, alone, strict=True):
+        np.testing.assert_array_equal(world.pos, one.pos)
+        np.testing.assert_array_equal(world.quat, one.quat)
+
+
 def test_quadrotor_worlds_stepped_alone_after_the_batched_control_are_their_single_runs():
     """A world that ends in a sub-step's wind leaves the tick's other sub-steps to each world's
     own step, after a batched control and batched steps: each world then advances its own
     clock (tau, by which TRACK references move), not the batch's, and ends in its single run's
     bits; a later batched tick shares one clock again."""
-    from swarmscene.core.setpoint import Mode, Setpoints
-    from swarmscene.core.state import WorldBatch, WorldState
-    from swarmscene.plugin import build_context
+    from swarmscene.core.state import WorldBatch
     from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
-    dt, substeps, n = 1.0 / 240.0, 24, 4
-    start = np.column_stack([2.0 * np.arange(n), np.zeros(n), np.full(n, 2.0)])
-
-    def worlds() -> tuple[list[WorldState], list[Quadrotor]]:
-        ctx = build_context(positions=start, guidance_period=substeps * dt, physics_step=dt)
-        out = [WorldState.at_rest(start + [0.0, 3.0 * b, 0.0]) for b in range(3)]
-        models = [Quadrotor(Quadrotor.Params(), ctx) for _ in out]
-        for model, world in zip(models, out, strict=True):
-            model.initialize(world)
-        return out, models
-
-    (alone, models), (together, batched) = worlds(), worlds()
-    moving = [Setpoints(np.full(n, Mode.TRACK, dtype=np.int8), w.pos.copy(), np.full((n, 3), 0.5),
-                        np.full((n, 3), 0.2), np.zeros(n)) for w in alone]
+    alone, models, moving = _quadrotor_worlds()
+    together, batched, _ = _quadrotor_worlds()
     batch = WorldBatch(together)
     for tick in range(3):
-        for model, world, sp in zip(models, alone, moving, strict=True):
-            model.control(world, sp)
-            for _ in range(substeps):
-                model.step(world, dt)
+        _fly_alone(alone, models, moving)
         assert Quadrotor.control_batch(batched, batch, together, moving) is None
         batch.controlled()
-        for j in range(substeps):
+        for j in range(_SUBSTEPS):
             if tick == 1 and j >= 5:  # from sub-step 5 of tick 1, each world on its own
                 for model, world in zip(batched, together, strict=True):
-                    model.step(world, dt)
+                    model.step(world, _DT)
             else:
-                assert Quadrotor.step_batch(batched, batch, dt) is None
-        clocks = {id(model._clock) for model in batched}
-        assert len(clocks) == (3 if tick == 1 else 1)
-        for one, world in zip(alone, together, strict=True):
-            np.testing.assert_array_equal(world.pos, one.pos)
-            np.testing.assert_array_equal(world.quat, one.quat)
-    assert np.all(together[0].pos[:, 0] > start[:, 0] + 0.05)  # the references moved (TRACK, tau)
+                assert Quadrotor.step_batch(batched, batch, _DT) is None
+        assert len({id(model._clock) for model in batched}) == (3 if tick == 1 else 1)
+        _assert_same_states(together, alone)
+    assert np.all(together[0].pos[:, 0] > _START[:, 0] + 0.05)  # the references moved (TRACK, tau)
+
+
+@pytest.mark.parametrize("when", ["never", "before the controllers"])
+def test_quadrotor_worlds_driven_without_controlled_after_the_controllers_are_their_single_runs(when):
+    """``WorldBatch.controlled`` belongs after the controllers; a driver that skips it, or calls
+    it first, hands the steps the previous tick's latched references: the steps see that their
+    clock is not the instances' and gather this tick's, so every world stays its single run."""
+    from swarmscene.core.state import WorldBatch
+    from swarmscene.plugins.dynamics.quadrotor import Quadrotor
+
+    alone, models, moving = _quadrotor_worlds()
+    together, batched, _ = _quadrotor_worlds()
+    batch = WorldBatch(together)
+    for _ in range(3):
+        _fly_alone(alone, models, moving)
+        if when == "before the controllers":
+            batch.controlled()
+        assert Quadrotor.control_batch(batched, batch, together, moving) is None
+        for _ in range(_SUBSTEPS):
+            assert Quadrotor.step_batch(batched, batch, _DT) is None
+        _assert_same_states(together, alone)
 
 
 def test_a_controller_that_raises_in_one_world_stops_that_world_only(monkeypatch):
@@ -564,14 +604,26 @@ class _HalfStep(SingleIntegrator):
         world.vel[:] = 0.5 * self.u
 
 
+class _TurnedHeading(Quadrotor):
+    """A subclass that overrides ``control`` alone and rebinds a reference array (a new heading,
+    turned 0.3 rad), as the base's ``control`` no longer does: its worlds' packed references must
+    be checked name by name, not through the first name only."""
+
+    name = "turned_heading"
+
+    def control(self, world, sp):
+        super().control(world, sp)
+        self._heading = heading_vector(np.asarray(sp.yaw, dtype=float) + 0.3)
+
+
 @pytest.mark.parametrize(("scenario", "subclass"), [("default", _HalfCommand), ("swap", _HalfVelocity),
-                                                    ("swap", _HalfStep)])
+                                                    ("swap", _HalfStep), ("vrb_airshow", _TurnedHeading)])
 def test_a_subclass_overriding_the_per_world_form_alone_is_flown_by_it(scenario, subclass):
     """Its base's batched form was written for the base's ``control`` (``step``): the subclass's
     worlds in a batch are controlled (stepped) by their own, each world its single run."""
     from swarmscene.core.batch import written_for
 
-    single = {_HalfCommand: "control", _HalfVelocity: "control", _HalfStep: "step"}[subclass]
+    single = {_HalfCommand: "control", _HalfVelocity: "control", _HalfStep: "step", _TurnedHeading: "control"}[subclass]
     assert written_for(subclass.__base__, f"{single}_batch", single)
     assert not written_for(subclass, f"{single}_batch", single)
     data = api.compose([f"scenario={scenario}", "clock.duration=2", "output.summary=false"])

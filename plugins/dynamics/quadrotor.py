@@ -197,7 +197,8 @@ class Quadrotor(Dynamics):
     """The per-agent arrays ``step`` hands the kernel besides the state (latched by ``control``).
     Only ``_allocate`` rebinds them, all at once (``control`` and the rotor-fault event write in
     place), so a batch checks one of them to know the instances still hold their slices
-    (``WorldBatch.pack(..., together=True)``)."""
+    (``WorldBatch.pack(..., together=True)``); a subclass that overrides one of these three is
+    checked name by name (:func:`_packed_references`)."""
 
     @classmethod
     def control_batch(cls, models: Sequence[Self], batch: WorldBatch, worlds: Sequence[WorldState],
@@ -218,11 +219,11 @@ class Quadrotor(Dynamics):
         first = models[0]
         b, n = batch.pos.shape[:2]
         feedforward = setpoints[0].jerk is not None or setpoints[0].snap is not None
-        if not _alike(setpoints, n, feedforward) or not cls._same_options(models, batch):
+        if not _setpoints_agree(setpoints, n, feedforward) or not cls._same_options(models, batch):
             return NotImplemented
-        packed = batch.pack(list(models), cls._REFERENCES, together=True)
-        ref = {name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}
-        zeros = np.zeros((b * n, 3))
+        clock = _Clock()
+        ref = _packed_references(cls, models, batch, clock)
+        zeros = ref["zeros"]
         yaw = np.concatenate([sp.yaw for sp in setpoints], dtype=np.float64, casting="unsafe")
         ref["_heading"][:] = heading_vector(yaw)
         own = len(worlds) == len(batch.worlds) and all(map(operator.is_, worlds, batch.worlds))
@@ -237,11 +238,10 @@ class Quadrotor(Dynamics):
             pos, ref["_heading"], first.params.propagate_reference, feedforward,
             ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_position_mask"],
             ref["_omega_d"], ref["_alpha_d"])
-        clock = _Clock()
         for model in models:
             model._feedforward = feedforward
             model._clock = clock
-        batch.latch("quadrotor.references", {"zeros": zeros, "clock": clock, **ref})
+        batch.latch("quadrotor.references", ref)
         return None
 
     @classmethod
@@ -265,6 +265,9 @@ class Quadrotor(Dynamics):
         first = models[0]
         b, n = batch.pos.shape[:2]
         ref = batch.per_tick("quadrotor.references", lambda: cls._references(models, batch))
+        if ref is not None and ref["clock"] is not first._clock:
+            # not this tick's: a driver that skipped controlled(), or called it before the controllers
+            ref = cls._references(models, batch)
         if ref is None or not batch.per_tick("quadrotor.forces_agree", lambda: _forces_agree(batch.worlds)):
             return NotImplemented
         assert batch.quat is not None and batch.omega is not None and batch.rotor_speed is not None
@@ -301,10 +304,7 @@ class Quadrotor(Dynamics):
             clock = _Clock(clock.tau)
             for model in models:
                 model._clock = clock
-        b, n = batch.pos.shape[:2]
-        packed = batch.pack(list(models), cls._REFERENCES, together=True)
-        return {"zeros": np.zeros((b * n, 3)), "clock": clock,
-                **{name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}}
+        return _packed_references(cls, models, batch, clock)
 
     @hookimpl
     def swarmscene_event(self, sim, event) -> None:
@@ -348,7 +348,20 @@ class _Clock:
         self.tau = tau
 
 
-def _alike(setpoints: Sequence[Setpoints], n: int, feedforward: bool) -> bool:
+def _packed_references(cls: type[Quadrotor], models: Sequence[Quadrotor], batch: WorldBatch,
+                       clock: _Clock) -> dict:
+    """The instances' ``_REFERENCES`` packed along the world axis as (B N, k) arrays, with zeros
+    (B N, 3) for the kernel's absent inputs and the instances' shared clock: what the tick's
+    steps read. Checked by one name where the class keeps the references' in-place rule."""
+    in_place = all(getattr(cls, method) is getattr(Quadrotor, method)
+                   for method in ("_allocate", "control", "swarmscene_event"))
+    packed = batch.pack(list(models), cls._REFERENCES, together=in_place)
+    b, n = batch.pos.shape[:2]
+    return {"zeros": np.zeros((b * n, 3)), "clock": clock,
+            **{name: a.reshape(b * n, *a.shape[2:]) for name, a in packed.items()}}
+
+
+def _setpoints_agree(setpoints: Sequence[Setpoints], n: int, feedforward: bool) -> bool:
     """Whether every setpoint record is for ``n`` agents and carries feed-forward (jerk or snap)
     if and only if ``feedforward`` (C loops in the common case, none carrying it: a batch of
     4,096 one-agent worlds asks this every tick)."""

@@ -300,3 +300,26 @@ def test_the_managers_quick_look_at_a_plugin_instance_finds_what_pluggy_finds():
     assert compare([*objects, odd]) == {"swarmscene_run_start", "swarmscene_run_end", "swarmscene_step_end", "slotted"}
     Odd.swarmscene_run_end = lambda self, sim, metrics: None  # now unmarked: asked again, not remembered
     assert compare([odd]) == {"swarmscene_run_start", "swarmscene_step_end", "slotted"}
+
+
+def test_the_managers_memory_of_pluggys_answers_keeps_no_plugin_class_alive():
+    """The answers are kept per function under a weak key: a plugin class made at run time (a
+    test's, a factory's), whose methods refer back to it (``super()``), goes once nothing else
+    holds it."""
+    import gc
+    import weakref
+
+    def made() -> weakref.ref:
+        class Made:
+            @hookimpl
+            def swarmscene_run_start(self, sim):
+                super().__init__  # noqa: B018  (a __class__ cell: the method refers to its class)
+
+        pm, _ = make_plugin_manager([], load_entry_points=False)
+        pm.register(Made(), name="made")
+        assert [impl.plugin_name for impl in pm.hook.swarmscene_run_start.get_hookimpls()] == ["made"]
+        return weakref.ref(Made)
+
+    gone = made()
+    gc.collect()
+    assert gone() is None
