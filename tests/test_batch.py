@@ -182,8 +182,6 @@ def test_the_quadrotor_heading_vector_has_the_same_bits_at_every_length():
     """control_batch computes y_c = (-sin psi, cos psi, 0) over the worlds' yaws stacked, control
     over one world's: numpy's elementwise sin and cos must give each yaw the same bits at any
     array length and position (else the batched control would leave its worlds' bits)."""
-    from swarmscene.methods.quadrotor.flatness import heading_vector
-
     rng = np.random.default_rng(34)
     special = np.array([0.0, -0.0, np.pi, -np.pi / 2, 1e-300, 1e6, 2.0**52, 7.0, -1e-8])
     for _ in range(200):
@@ -248,7 +246,6 @@ def _quadrotor_worlds() -> tuple[list, list, list]:
     from swarmscene.core.setpoint import Mode, Setpoints
     from swarmscene.core.state import WorldState
     from swarmscene.plugin import build_context
-    from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
     ctx = build_context(positions=_START, guidance_period=_SUBSTEPS * _DT, physics_step=_DT)
     worlds = [WorldState.at_rest(_START + [0.0, 3.0 * b, 0.0]) for b in range(3)]
@@ -280,7 +277,6 @@ def test_quadrotor_worlds_stepped_alone_after_the_batched_control_are_their_sing
     clock (tau, by which TRACK references move), not the batch's, and ends in its single run's
     bits; a later batched tick shares one clock again."""
     from swarmscene.core.state import WorldBatch
-    from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
     alone, models, moving = _quadrotor_worlds()
     together, batched, _ = _quadrotor_worlds()
@@ -306,7 +302,6 @@ def test_quadrotor_worlds_driven_without_controlled_after_the_controllers_are_th
     it first, hands the steps the previous tick's latched references: the steps see that their
     clock is not the instances' and gather this tick's, so every world stays its single run."""
     from swarmscene.core.state import WorldBatch
-    from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
     alone, models, moving = _quadrotor_worlds()
     together, batched, _ = _quadrotor_worlds()
