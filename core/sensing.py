@@ -191,6 +191,11 @@ class Sensing:
         self.asked = {"pairs": 0.0, "obstacles": 0.0}
         self._hint = dict(previous.asked) if previous is not None else dict(self.asked)
         self._candidates: ObstacleCandidates | None = previous._candidates if previous is not None else None
+        # Whether this snapshot's nearest neighbours (knn) were read, and whether the previous one's
+        # were: a batch answers them ahead (prefetch) for the small worlds whose last tick read them.
+        self._knn_read = False
+        self._knn_hint = previous._knn_read if previous is not None else False
+        self._knn_ahead: tuple[np.ndarray, np.ndarray] | None = None
         # comm_members as bytes, their count, which pairs join two members (mask; indices, or
         # None when every agent is a member)
         self._members_memo: tuple[bytes, int, np.ndarray, np.ndarray | None] | None = (
@@ -300,6 +305,9 @@ class Sensing:
         separation monitor (column 0 is the nearest other agent); ``inf`` / N mark missing
         neighbours in tiny swarms.
         """
+        self._knn_read = True
+        if self._knn_ahead is not None:  # answered with the batch's other small worlds (prefetch)
+            return self._knn_ahead
         n = self.world.n
         k = min(n, NEAR_K + 1)
         dist, idx = self.tree.query(self.world.pos, k=k)
@@ -537,7 +545,8 @@ def prefetch(sensings: Sequence[Sensing]) -> None:
     A batch's tick (core/batch.py) calls it; each snapshot gets the values its own lazy queries
     would give:
 
-    * the small worlds' pairs (:func:`_prefetch_few`);
+    * the small worlds' pairs, and their nearest neighbours where the last tick read them
+      (:func:`_prefetch_few`);
     * the worlds with no obstacle near any agent (:func:`_prefetch_clear`).
 
     Anything else is left to each snapshot's own queries, as is any query already made."""
@@ -549,10 +558,12 @@ def _prefetch_few(sensings: Sequence[Sensing]) -> None:
     """Every pair's squared length (:attr:`Sensing._every_pair`), the closest pair
     (:attr:`Sensing.min_separation`) and, where every agent is a member and every member is in
     range of every other, :attr:`Sensing.comm_connected`, over the worlds' stacked positions
-    (:func:`~.vectors.dense_pair_dist2_batch`). Each snapshot gets the bits its own queries give
-    (the same lengths; a least and a greatest value do not depend on the order they are sought
-    in). Snapshots of more than ``DENSE_POINTS`` or fewer than two agents, of another N than the
-    first's, or not float64, are left alone."""
+    (:func:`~.vectors.dense_pair_dist2_batch`); and where the previous snapshot read
+    :attr:`Sensing.knn`, each agent's nearest others (:func:`_nearest_ranked`; a world with a tie
+    among them is left to its tree). Each snapshot gets the bits its own queries give (the same
+    lengths; a least and a greatest value do not depend on the order they are sought in).
+    Snapshots of more than ``DENSE_POINTS`` or fewer than two agents, of another N than the first's,
+    or not float64, are left alone."""
     few = [s for s in sensings if 2 <= s._n <= DENSE_POINTS and s.world.pos.dtype == np.float64
            and "_every_pair" not in s.__dict__]
     few = [s for s in few if s._n == few[0]._n and s.world.pos.shape[1] == few[0].world.pos.shape[1]]
@@ -567,6 +578,32 @@ def _prefetch_few(sensings: Sequence[Sensing]) -> None:
         if (s.periodic is None and most <= s.comm_range * s.comm_range
                 and every(s.world.healthy) and every(s.world.comm_ok)):
             s.__dict__.setdefault("comm_connected", True)
+    asked = [b for b, s in enumerate(few) if s._knn_hint and "knn" not in s.__dict__]
+    if asked:
+        dist, idx, distinct = _nearest_ranked(i, j, d2[asked], few[0]._n)
+        for b, own_dist, own_idx, alone in zip(asked, dist, idx, distinct.tolist(), strict=True):
+            if alone:
+                few[b]._knn_ahead = (own_dist, own_idx)
+
+
+def _nearest_ranked(i: np.ndarray, j: np.ndarray, d2: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each agent's ``NEAR_K`` nearest others in B worlds of ``n`` agents from their pairs' squared
+    lengths ``d2`` (B, M) (pairs ``i`` < ``j``), as :attr:`Sensing.knn`'s tree query gives them:
+    distances and indices (B, n, k - 1), and whether each world's answer is surely the tree's.
+
+    The tree returns the k nearest (the agent itself first, at 0) in order of distance, and breaks
+    a tie in an order of its own. Where each agent's k + 1 least lengths (all, in a smaller world)
+    are distinct, the order is the lengths' alone, and the lengths are the tree's bits (the same
+    sums of squares, :func:`~.vectors.dense_pair_dist2_batch`, and their square roots); a world
+    with a tie there (a lattice, two agents at one point, a non-finite length) is not answered."""
+    full = np.zeros((len(d2), n, n))
+    full[:, i, j] = d2
+    full[:, j, i] = d2
+    order = np.argsort(full, axis=2)  # (any sort: only worlds without ties are kept)
+    ranked = np.take_along_axis(full, order, axis=2)
+    k = min(n, NEAR_K + 1)
+    distinct = np.logical_and.reduce(np.diff(ranked[:, :, :min(n, k + 1)], axis=2) > 0, axis=(1, 2))
+    return np.sqrt(ranked[:, :, 1:k]), order[:, :, 1:k], distinct
 
 
 def _prefetch_clear(sensings: Sequence[Sensing]) -> None:

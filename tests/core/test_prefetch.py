@@ -100,3 +100,82 @@ def test_worlds_far_from_the_obstacles_are_answered_as_their_own_queries():
                 assert np.array_equal(mine._candidates.xy, theirs._candidates.xy)
             near += bool((mine.obstacle_nearest(2.0)[0] >= 0).any())
     assert answered > 100 and near > 100  # worlds far from the pillar answered, others near it
+
+
+def swarms(rng: np.random.Generator, n: int) -> list[np.ndarray]:
+    """Ten worlds of ``n`` agents: spread at several scales, on a 2 m lattice (equal distances),
+    two agents at one point, and one spread far from the origin."""
+    out = [rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-2, 3) for _ in range(6)]
+    out.append(2.0 * rng.integers(0, 3, (n, 3)).astype(float))  # ties: the tree orders them its way
+    out.append(2.0 * np.column_stack([np.arange(n), np.zeros(n), np.ones(n)]))  # a row: equal neighbours
+    twin = rng.normal(size=(n, 3))
+    twin[1] = twin[0]  # two agents at one point: a tie with each agent itself
+    out.append(twin)
+    out.append(rng.normal(size=(n, 3)) + 1e4)
+    return out
+
+
+def test_prefetched_nearest_neighbours_are_the_trees_bits_and_ties_are_left_to_it():
+    """Where the last tick read ``Sensing.knn``, a batch answers it ahead from its pairs' lengths:
+    the tree's distances and indices to the bit; a world where two lengths an agent ranks are
+    equal is left to the tree, whose order of ties is its own."""
+    rng = np.random.default_rng(11)
+    env = Environment()
+    lattices_left = 0
+    for n in (2, 3, 5, 6, 9, DENSE_POINTS):
+        for _ in range(15):
+            ws = [WorldState.at_rest(p) for p in swarms(rng, n)]
+            last = [Sensing(w, env, comm_range=4.0) for w in ws]
+            for s in last:
+                s.knn  # noqa: B018  (read: the next tick is answered ahead)
+            batch = [Sensing(w, env, comm_range=4.0, previous=p) for w, p in zip(ws, last, strict=True)]
+            prefetch(batch)
+            ahead = [s._knn_ahead is not None for s in batch]
+            assert all(ahead[:6]) and ahead[9]  # distinct lengths
+            assert not ahead[8] and ahead[7] == (n == 2)  # equal lengths (but two agents in a row): the tree's
+            lattices_left += not ahead[6]
+            for w, fetched in zip(ws, batch, strict=True):
+                own = Sensing(w, env, comm_range=4.0)
+                assert all(a.dtype == b.dtype and a.tobytes() == b.tobytes()
+                           for a, b in zip(fetched.knn, own.knn, strict=True))
+                assert not fetched.knn[0].flags.writeable and not fetched.knn[1].flags.writeable
+                assert fetched.nearest[1].tobytes() == own.nearest[1].tobytes()
+    assert lattices_left > 60  # of 90 lattices, most have a tie an agent ranks
+
+
+def test_nearest_neighbours_are_answered_ahead_only_after_a_tick_that_read_them():
+    rng = np.random.default_rng(2)
+    ws = [WorldState.at_rest(rng.normal(size=(6, 3))) for _ in range(4)]
+    quiet = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
+    batch = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, quiet, strict=True)]
+    prefetch(batch)
+    assert all(s._knn_ahead is None for s in batch)  # nobody read them last tick
+    batch[0].knn  # noqa: B018
+    after = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, batch, strict=True)]
+    prefetch(after)
+    assert [s._knn_ahead is not None for s in after] == [True, False, False, False]
+    after[0].knn  # noqa: B018  (an answer read ahead counts as read: the next tick is answered too)
+    again = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, after, strict=True)]
+    prefetch(again)
+    assert again[0]._knn_ahead is not None and again[1]._knn_ahead is None
+
+
+def test_a_tie_at_the_last_neighbour_ranked_is_left_to_the_tree():
+    """Agent 0's fourth and fifth nearest are equally far (4 m), on the two sides of the tree's
+    split: the tree keeps the one in the leaf it searches first (agent 31), a sort by length the
+    lower index (agent 1). The world is left to the tree; the same world moved a little (no
+    tie) is answered ahead."""
+    rng = np.random.default_rng(1)
+    pos = np.zeros((DENSE_POINTS, 3))
+    pos[:5] = [(-1, 0, 0), (3, 0, 0), (-1, -0.6, 0.8), (-2.2, -1.6, 0), (-1, -1.8, -2.4)]  # 1, 2, 3 m from agent 0
+    pos[-1] = (-1, 4, 0)
+    pos[5:-1] = np.column_stack([np.r_[rng.uniform(-100, -20, 13), rng.uniform(20, 100, 13)],  # far, 13 a side
+                                 rng.uniform(-50, 50, (26, 2))])
+    ws = [WorldState.at_rest(pos), WorldState.at_rest(pos + 0.5 * rng.normal(size=pos.shape))]
+    last = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
+    for s in last:
+        s.knn  # noqa: B018
+    batch = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, last, strict=True)]
+    prefetch(batch)
+    assert [s._knn_ahead is not None for s in batch] == [False, True]
+    assert batch[0].knn[1][0].tolist() == [2, 3, 4, DENSE_POINTS - 1]  # the tree's own answer
