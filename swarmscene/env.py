@@ -367,8 +367,9 @@ class SwarmGymEnv(gymnasium.Env):
         action = checked_action(action, (self.driver.n, 3), "action")
         reward, terminated, truncated = episode.step(action, np.ones(self.driver.n, dtype=bool))
         outcome = _swarm_outcome(episode, reward, terminated, truncated)
+        observation = episode.observe()
         self.renderer.after_step(self.driver)
-        return outcome
+        return observation, *outcome
 
     def render(self) -> np.ndarray | None:
         """The current top-down view (:func:`render_frame`): returned with ``render_mode="rgb_array"``,
@@ -380,15 +381,24 @@ class SwarmGymEnv(gymnasium.Env):
         self.renderer.close()
 
 
-def _swarm_outcome(episode: _Episode, reward: np.ndarray, terminated: bool, truncated: bool):
-    """What the centralised environment returns for a tick: the swarm's observation, the healthy
-    vehicles' summed reward, the ends, and at the end the run's metrics and its ``success``."""
+def _swarm_outcome(episode: _Episode, reward: np.ndarray, terminated: bool, truncated: bool
+                   ) -> tuple[float, bool, bool, dict[str, Any]]:
+    """What the centralised environment returns for a tick besides the swarm's observation (made
+    after this, once the run has ended): the healthy vehicles' summed reward, the ends, and at the
+    end the run's metrics and its ``success``."""
     info: dict[str, Any] = {}
     if terminated or truncated:
         metrics = episode.finish()
         info.update(metrics=metrics, success=bool(metrics["success"]))
     healthy = episode.sim.world.healthy
-    return episode.observe(), float(reward[healthy].sum()), bool(terminated), bool(truncated), info
+    return float(reward[healthy].sum()), bool(terminated), bool(truncated), info
+
+
+def _observations(episodes: Sequence[_Episode]) -> np.ndarray:
+    """The episodes' observations stacked (B, N, D): their policy avoidance's batched observation,
+    each world's rows the bits of its own ``observe()``."""
+    policies = [episode.policy for episode in episodes]
+    return type(policies[0]).observe_batch(policies, [episode.sim.sensing for episode in episodes])
 
 
 class _Worlds:
@@ -530,7 +540,7 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
         """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the stacked
         observations and an empty info."""
         episodes = self.worlds.reset(seed)
-        return np.stack([episode.observe() for episode in episodes]), {}
+        return _observations(episodes), {}
 
     def step(self, actions: np.ndarray):
         """One guidance tick of every world; observations, rewards, terminations, truncations (B,)
@@ -544,15 +554,12 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
         infos: dict[str, Any] = {}
         worlds.restart_ended(episodes)
         going = np.flatnonzero(~worlds.ended).tolist()
-        observed: dict[int, np.ndarray] = {}  # the going worlds' observations, made once
         for b, (reward, term, trunc) in worlds.tick(episodes, going, actions, self._every).items():
-            observed[b], rewards[b], terminated[b], truncated[b], info = _swarm_outcome(
-                episodes[b], reward, term, trunc)
+            rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episodes[b], reward, term, trunc)
             if info:
                 infos = self._add_info(infos, info, b)
         worlds.ended = terminated | truncated
-        observations = [observed[b] if b in observed else episode.observe() for b, episode in enumerate(episodes)]
-        return np.stack(observations), rewards, terminated, truncated, infos
+        return _observations(episodes), rewards, terminated, truncated, infos
 
     def close(self, **kwargs: Any) -> None:
         """Drop the episodes."""
@@ -615,7 +622,7 @@ class SwarmMultiAgentVectorEnv:
         episodes = self.worlds.reset(seed)
         for b, episode in enumerate(episodes):
             self._started(b, episode)
-        return np.stack([episode.observe() for episode in episodes]), {"agents": self.agent_mask.copy()}
+        return _observations(episodes), {"agents": self.agent_mask.copy()}
 
     def step(self, actions: np.ndarray):
         """One guidance tick of every world with actions (B, N, 3); observations (B, N, D), rewards,
@@ -634,10 +641,10 @@ class SwarmMultiAgentVectorEnv:
         terminated = np.zeros((b_worlds, n), dtype=bool)
         truncated = np.zeros((b_worlds, n), dtype=bool)
         infos: dict[str, Any] = {}
-        observed: dict[int, np.ndarray] = {}
         flown = np.where(acted[..., None], actions, 0.0)  # the parallel env's action rows: 0 where none
-        for b, (reward, term, trunc) in worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted).items():
-            observed[b] = episodes[b].observe()  # before run_end, as the parallel env observes
+        judged = worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted)
+        observations = _observations(episodes)  # before run_end, as the parallel env observes
+        for b, (reward, term, trunc) in judged.items():
             failed = acted[b] & ~episodes[b].sim.world.healthy
             rewards[b] = np.where(acted[b], reward, 0.0)
             terminated[b] = acted[b] & (term | failed)
@@ -649,8 +656,7 @@ class SwarmMultiAgentVectorEnv:
                 infos = self._add_info(  # type: ignore[misc]  # not a VectorEnv: above
                     infos, {"metrics": metrics, "success": bool(metrics["success"])}, b)
         infos.update(agents=self.agent_mask.copy(), acted=acted)
-        observations = [observed[b] if b in observed else episode.observe() for b, episode in enumerate(episodes)]
-        return np.stack(observations), rewards, terminated, truncated, infos
+        return observations, rewards, terminated, truncated, infos
 
     @property
     def sims(self) -> list[Any]:

@@ -26,6 +26,7 @@ sensed like the others (they still occupy space).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,10 +132,17 @@ def reference_features(world: WorldState, ref: Setpoints | None) -> tuple[np.nda
     n = world.n
     if ref is None:
         return np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, dtype=bool)
-    has_pos = is_mode(ref.mode, Mode.POSITION, Mode.TRACK)
-    offset = np.where(has_pos[:, None], ref.pos - world.pos, 0.0)
-    has_vel = is_mode(ref.mode, Mode.VELOCITY, Mode.TRACK, Mode.POSITION)
-    return offset, np.where(has_vel[:, None], ref.vel, 0.0), has_pos
+    return _reference_rows(world.pos, ref.mode, ref.pos, ref.vel)
+
+
+def _reference_rows(pos: np.ndarray, mode: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`reference_features` from the positions (..., 3) and the reference's mode (...,),
+    positions and velocities (..., 3): one world's, or B worlds' stacked (elementwise, the same bits)."""
+    has_pos = is_mode(mode, Mode.POSITION, Mode.TRACK)
+    offset = np.where(has_pos[..., None], ref_pos - pos, 0.0)
+    has_vel = is_mode(mode, Mode.VELOCITY, Mode.TRACK, Mode.POSITION)
+    return offset, np.where(has_vel[..., None], ref_vel, 0.0), has_pos
 
 
 def observe(
@@ -157,5 +165,59 @@ def observe(
             offset, ref_vel, has_ref[:, None],
         ],
         axis=1,
+        dtype=np.float32,
+    )
+
+
+def observe_batch(
+    sensings: Sequence, refs: Sequence[Setpoints | None], layout: ObservationLayout, radius: float,
+    obstacle_radius: float,
+) -> np.ndarray:
+    """:func:`observe` of B worlds of N agents each, shape (B, N, D) float32: world b's rows are the
+    bits of ``observe(sensings[b], refs[b], ...)``.
+
+    The worlds' states, nearest neighbours (``Sensing.knn``, which a batch answers ahead for
+    small worlds) and references are stacked, and each feature is one elementwise pass over the
+    B N rows (a gather, a difference, a choice, the float32 cast: nothing whose bits depend on
+    the array's length). The obstacle features are each world's own (constants on an open map).
+    Worlds of different N, more neighbours than the shared query holds (``NEAR_K``), or fewer
+    than two agents are observed one by one."""
+    n, k = sensings[0].world.n, layout.k
+    if k > NEAR_K or k == 0 or n < 2 or any(s.world.n != n for s in sensings):
+        return np.stack([observe(s, ref, layout, radius, obstacle_radius)
+                         for s, ref in zip(sensings, refs, strict=True)])
+    b = len(sensings)
+    pos = np.stack([s.world.pos for s in sensings])
+    vel = np.stack([s.world.vel for s in sensings])
+    healthy = np.stack([s.world.healthy for s in sensings])
+    dist = np.stack([s.knn[0][:, :k] for s in sensings])
+    mask = dist <= radius
+    idx = np.where(mask, np.stack([s.knn[1][:, :k] for s in sensings]), n)
+    if idx.shape[2] < k:  # fewer other agents than k
+        pad = ((0, 0), (0, 0), (0, k - idx.shape[2]))
+        idx, mask = np.pad(idx, pad, constant_values=n), np.pad(mask, pad)
+    safe = np.where(mask, idx, 0)
+    worlds = np.arange(b)[:, None, None]
+    nbr_pos = np.where(mask[..., None], pos[worlds, safe] - pos[:, :, None, :], 0.0)
+    nbr_vel = np.where(mask[..., None], vel[worlds, safe] - vel[:, :, None, :], 0.0)
+    if all(s.environment.empty for s in sensings):  # what obstacle_features gives on an open map
+        clearance, direction, near = np.full((b, n), obstacle_radius), np.zeros((b, n, 3)), np.zeros((b, n), dtype=bool)
+    else:
+        clearance, direction, near = (np.stack(f) for f in zip(
+            *(obstacle_features(s, obstacle_radius) for s in sensings), strict=True))
+    if any(ref is None for ref in refs):
+        offset, ref_vel, has_ref = (np.stack(f) for f in zip(
+            *(reference_features(s.world, ref) for s, ref in zip(sensings, refs, strict=True)), strict=True))
+    else:
+        offset, ref_vel, has_ref = _reference_rows(pos, *(np.stack([getattr(ref, name) for ref in refs])
+                                                         for name in ("mode", "pos", "vel")))
+    return np.concatenate(
+        [
+            pos, vel, healthy[..., None],
+            nbr_pos.reshape(b, n, 3 * k), nbr_vel.reshape(b, n, 3 * k), mask,
+            clearance[..., None], direction, near[..., None],
+            offset, ref_vel, has_ref[..., None],
+        ],
+        axis=2,
         dtype=np.float32,
     )

@@ -20,13 +20,14 @@ flies, so a policy meets exactly the inputs it was trained on.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, cast
 
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
 
 from swarmscene.methods.policy.actions import ActionCommand, ActionSpec, action_setpoints
-from swarmscene.methods.policy.observation import ObservationLayout, observe
+from swarmscene.methods.policy.observation import ObservationLayout, observe, observe_batch
 from swarmscene.methods.policy.policies import make_policy
 from swarmscene.plugin import (
     Avoidance,
@@ -112,6 +113,17 @@ class PolicyAvoidance(Avoidance):
     def observe(self, sensing) -> np.ndarray:
         """Every agent's observation row now, shape (N, D) float32."""
         return observe(sensing, self.reference, self.layout, self.sensing_range, self.params.obstacle_range)
+
+    @classmethod
+    def observe_batch(cls, avoidances: Sequence[PolicyAvoidance], sensings: Sequence[Any]) -> np.ndarray:
+        """:meth:`observe` of B worlds of N agents, stacked (B, N, D) float32, world b's rows the bits of
+        ``avoidances[b].observe(sensings[b])`` (:func:`~swarmscene.methods.policy.observation.observe_batch`;
+        instances observing with different options are observed one by one)."""
+        first = avoidances[0]
+        ranges = (first.layout, first.sensing_range, first.params.obstacle_range)
+        if any((a.layout, a.sensing_range, a.params.obstacle_range) != ranges for a in avoidances):
+            return np.stack([a.observe(s) for a, s in zip(avoidances, sensings, strict=True)])
+        return observe_batch(sensings, [a.reference for a in avoidances], *ranges)
 
     def command(self, action: np.ndarray, active: np.ndarray) -> None:
         """Set the actions (N, 3) of the next tick; agents not ``active`` (N,) bool hold."""
