@@ -133,29 +133,34 @@ class _Episode:
 
     def judge(self, action: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, bool, bool]:
         """After the tick: the rewards (N,), whether the episode terminated, was truncated."""
-        sim, weights = self.sim, self.options.reward
-        cfg = sim.config
-        complete = bool(cfg.termination.on_complete and sim.formation.complete(sim.world) is True)
+        complete = self.completed()
+        reward = _rewards(self.options.reward, action, before, *self.reward_terms(), np.array(complete))
+        return (reward, *self.ends())
+
+    def completed(self) -> bool:
+        """Whether the formation is complete where that ends the run (then the run is asked to stop)."""
+        sim = self.sim
+        complete = bool(sim.config.termination.on_complete and sim.formation.complete(sim.world) is True)
         if complete:
             sim.request_stop("complete")
-        reward = weights.progress * self._progress(before) - weights.effort * np.einsum(
-            "ij,ij->i", action, action)
-        if weights.separation:
-            reward -= weights.separation * (sim.sensing.nearest[0] < cfg.safety.separation_limit)
-        if weights.clearance:
-            reward -= weights.clearance * (sim.sensing.clearance_within(cfg.safety.clearance_limit)
-                                           < cfg.safety.clearance_limit)
-        if complete:
-            reward += weights.complete
-        terminated = sim.stop_reason is not None or not sim.world.healthy.any()
-        truncated = not terminated and sim.step_count >= sim.total_steps
-        return reward, terminated, truncated
+        return complete
 
-    def _progress(self, before: np.ndarray) -> np.ndarray:
-        ref = self.policy.reference
-        has = is_mode(ref.mode, Mode.POSITION, Mode.TRACK)
-        gained = np.linalg.norm(ref.pos - before, axis=1) - np.linalg.norm(ref.pos - self.sim.world.pos, axis=1)
-        return np.where(has & self.sim.world.healthy, gained, 0.0)
+    def reward_terms(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What the rewards read of the tick (:func:`_rewards`): the positions, the healthy agents,
+        the reference's modes and positions, the agents too near another and too close to an
+        obstacle (empty where the term's weight is 0)."""
+        sim, weights, ref = self.sim, self.options.reward, self.policy.reference
+        safety = sim.config.safety
+        near = sim.sensing.nearest[0] < safety.separation_limit if weights.separation else _NONE
+        close = (sim.sensing.clearance_within(safety.clearance_limit) < safety.clearance_limit
+                 if weights.clearance else _NONE)
+        return sim.world.pos, sim.world.healthy, ref.mode, ref.pos, near, close
+
+    def ends(self) -> tuple[bool, bool]:
+        """Whether the episode terminated (a stop, or no healthy agent), or was truncated (its duration)."""
+        sim = self.sim
+        terminated = sim.stop_reason is not None or not sim.world.healthy.any()
+        return terminated, not terminated and sim.step_count >= sim.total_steps
 
     def finish(self) -> dict[str, Any]:
         """The run's metrics, as ``metrics.json`` would hold them (lifecycle hook ``run_end``)."""
@@ -171,6 +176,44 @@ class _Episode:
         metrics.setdefault("success", sim.default_success(metrics))  # as a run's metrics.json
         self.done = True
         return metrics
+
+
+_NONE = np.zeros(0, dtype=bool)
+"""A reward term its weight leaves out (0)."""
+
+
+def _rewards(weights: RewardOptions, action: np.ndarray, before: np.ndarray, pos: np.ndarray, healthy: np.ndarray,
+             mode: np.ndarray, ref_pos: np.ndarray, near: np.ndarray, close: np.ndarray, complete: np.ndarray
+             ) -> np.ndarray:
+    """Each agent's reward for a tick, of one world (N,) or of B worlds stacked (B, N): the same
+    elementwise arithmetic (and per-row sums of three terms), so each world's are its own bits.
+
+    progress (the distance to a position reference gained in the tick, healthy agents with one)
+    - effort (|a|^2) - separation (nearer another agent than the separation limit) - clearance
+    (nearer an obstacle than the clearance limit) + complete (the formation complete; ``complete``
+    () or (B,)), each times its weight."""
+    has = is_mode(mode, Mode.POSITION, Mode.TRACK)
+    gained = np.linalg.norm(ref_pos - before, axis=-1) - np.linalg.norm(ref_pos - pos, axis=-1)
+    reward = weights.progress * np.where(has & healthy, gained, 0.0) - weights.effort * np.einsum(
+        "...j,...j->...", action, action)
+    if weights.separation:
+        reward -= weights.separation * near
+    if weights.clearance:
+        reward -= weights.clearance * close
+    return np.where(complete[..., None], reward + weights.complete, reward)
+
+
+def _judge_batch(episodes: Sequence[_Episode], actions: np.ndarray, before: np.ndarray
+                 ) -> list[tuple[np.ndarray, bool, bool]]:
+    """:meth:`_Episode.judge` of B episodes of one scenario (one set of options), ``actions`` and
+    ``before`` (B, N, 3): the reward arithmetic over the stacked worlds (:func:`_rewards`), each
+    world's rewards the bits of its own ``judge``; what a world's plugins answer (completion) and its
+    ends are asked world by world, in ``judge``'s order."""
+    complete = np.array([episode.completed() for episode in episodes])
+    pos, healthy, mode, ref_pos, near, close = (
+        np.stack(term) for term in zip(*(episode.reward_terms() for episode in episodes), strict=True))
+    rewards = _rewards(episodes[0].options.reward, actions, before, pos, healthy, mode, ref_pos, near, close, complete)
+    return [(reward, *episode.ends()) for reward, episode in zip(rewards, episodes, strict=True)]
 
 
 class _Driver:
@@ -458,12 +501,12 @@ class _Worlds:
         (N,), whether the episode terminated, whether it was truncated (``max_episode_steps``)."""
         if not going:  # every world restarted at this step
             return {}
-        before = {b: episodes[b].act(actions[b], active[b]) for b in going}
+        before = np.stack([episodes[b].act(actions[b], active[b]) for b in going])
         sims = [episodes[b].sim for b in going]
         lockstep(sims, self._world_batch(sims))
         judged = {}
-        for b in going:
-            reward, terminated, truncated = episodes[b].judge(actions[b], before[b])
+        for b, (reward, terminated, truncated) in zip(
+                going, _judge_batch([episodes[b] for b in going], actions[going], before), strict=True):
             self.steps[b] += 1
             if self.max_episode_steps is not None and self.steps[b] >= self.max_episode_steps:
                 truncated = not terminated

@@ -10,6 +10,7 @@ import pytest
 
 from swarmscene import api
 from swarmscene import env as swarm_env
+from swarmscene.core.setpoint import Mode
 
 SHORT = "swarmscene-test/default-short-v0"
 # 5 ticks an episode, from a random start: a world's seed decides its start, so seeding is checked
@@ -195,3 +196,27 @@ def test_the_multi_agent_vector_env_truncates_at_max_episode_steps_and_restarts_
     assert list(infos["metrics"]["steps"]) == [3, 3] and infos["_success"].all()
     _, rewards, _, truncated, infos = envs.step(zero)  # the autoreset step
     assert infos["agents"].all() and not infos["acted"].any() and not rewards.any() and not truncated.any()
+
+
+def test_the_rewards_of_stacked_worlds_are_each_worlds_own_with_every_term_weighted():
+    """``_rewards`` over B stacked worlds (the vector environments' judge) against each world's own
+    call, every weight non-zero, some worlds complete: the same bits; and one world against the
+    reward's definition (RewardOptions), term by term."""
+    rng = np.random.default_rng(8)
+    weights = swarm_env.RewardOptions(progress=1.5, separation=10.0, clearance=7.0, effort=0.3, complete=2.5)
+    b_worlds, n = 9, 6
+    action, before, pos, ref_pos = (rng.uniform(-3, 3, (b_worlds, n, 3)) for _ in range(4))
+    healthy, near, close = (rng.random((b_worlds, n)) < share for share in (0.8, 0.3, 0.3))
+    mode = rng.integers(0, 4, (b_worlds, n)).astype(np.int8)
+    complete = np.arange(b_worlds) % 2 == 0
+    stacked = swarm_env._rewards(weights, action, before, pos, healthy, mode, ref_pos, near, close, complete)
+    for b in range(b_worlds):
+        own = swarm_env._rewards(weights, action[b], before[b], pos[b], healthy[b], mode[b], ref_pos[b], near[b],
+                                 close[b], np.array(complete[b]))
+        assert stacked[b].tobytes() == own.tobytes()
+        for i in range(n):
+            has = healthy[b, i] and mode[b, i] in (Mode.POSITION, Mode.TRACK)
+            gained = np.hypot.reduce(ref_pos[b, i] - before[b, i]) - np.hypot.reduce(ref_pos[b, i] - pos[b, i])
+            want = (1.5 * gained * has - 0.3 * float(action[b, i] @ action[b, i]) - 10.0 * near[b, i] - 7.0 * close[b, i]
+                    + 2.5 * complete[b])
+            assert own[i] == pytest.approx(want, rel=1e-12, abs=1e-12)
