@@ -26,7 +26,7 @@ from typing import Any, cast
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
 
-from swarmscene.methods.policy.actions import ActionCommand, ActionSpec, action_setpoints
+from swarmscene.methods.policy.actions import ActionCommand, ActionSpec, action_setpoints, action_setpoints_batch
 from swarmscene.methods.policy.observation import ObservationLayout, observe, observe_batch
 from swarmscene.methods.policy.policies import make_policy
 from swarmscene.plugin import (
@@ -143,6 +143,27 @@ class PolicyAvoidance(Avoidance):
         self.reference = sp
         if self.policy is None:
             self._action = None  # an environment must command every tick
+        return out
+
+    @classmethod
+    def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
+        """``adjust`` of B worlds an environment drives, their commanded actions turned into
+        setpoints in one elementwise pass (:func:`~swarmscene.methods.policy.actions.action_setpoints_batch`):
+        each world gets its own ``adjust``'s bits, and each instance keeps what its ``adjust``
+        keeps (the reference observed next, no action left). Declined (``NotImplemented``, before
+        any instance is touched) when a policy is named (it observes and acts world by world), a
+        world was commanded nothing (its own ``adjust`` raises) or another shape than its agents,
+        or the instances scale their actions differently."""
+        first = avoidances[0]
+        n = len(worlds[0].pos)
+        if any(a.policy is not None or a._action is None or a._action.shape != (n, 3) or a._active.shape != (n,)
+               or a.spec != first.spec for a in avoidances) or any(len(w.pos) != n for w in worlds):
+            return NotImplemented
+        out = action_setpoints_batch(worlds, [a._action for a in avoidances], [a._active for a in avoidances],
+                                     first.spec)
+        for a, sp in zip(avoidances, setpoints, strict=True):
+            a.reference = sp
+            a._action = None  # an environment must command every tick
         return out
 
 
