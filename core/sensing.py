@@ -337,6 +337,15 @@ class Sensing:
             return read_only(np.where(full <= radius, full, np.inf))
         return self.obstacle_nearest(radius)[1]
 
+    def nothing_within(self, radius: float) -> bool:
+        """Whether this tick has already shown that no obstacle is within ``radius`` m of any agent
+        (a query at that range or wider found none; a batch's ``prefetch`` shows it for the worlds
+        far from every obstacle): then :meth:`obstacle_nearest` at ``radius`` finds none. False when
+        that is not known; no query is made either way. Counts as asking at ``radius``, as a query
+        would (the next tick's first query works at the widest range asked)."""
+        self.asked["obstacles"] = max(self.asked["obstacles"], radius)
+        return radius <= self._none_within
+
     def obstacle_nearest(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
         """Each agent's nearest obstacle within ``radius`` m: its index in
         ``environment.obstacles`` (-1 beyond) and the signed clearance (``inf`` beyond); cached.

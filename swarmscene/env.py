@@ -150,10 +150,14 @@ class _Episode:
         the reference's modes and positions, the agents too near another and too close to an
         obstacle (empty where the term's weight is 0)."""
         sim, weights, ref = self.sim, self.options.reward, self.policy.reference
-        safety = sim.config.safety
-        near = sim.sensing.nearest[0] < safety.separation_limit if weights.separation else _NONE
-        close = (sim.sensing.clearance_within(safety.clearance_limit) < safety.clearance_limit
-                 if weights.clearance else _NONE)
+        sensing, limit = sim.sensing, sim.config.safety.clearance_limit
+        near = sensing.nearest[0] < sim.config.safety.separation_limit if weights.separation else _NONE
+        if not weights.clearance:
+            close = _NONE
+        elif sensing.nothing_within(limit):  # (no query: what clearance_within would show)
+            close = np.zeros(self.n, dtype=bool)
+        else:
+            close = sensing.clearance_within(limit) < limit
         return sim.world.pos, sim.world.healthy, ref.mode, ref.pos, near, close
 
     def ends(self) -> tuple[bool, bool]:

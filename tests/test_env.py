@@ -157,6 +157,22 @@ def test_reward_is_progress_minus_the_safety_penalties():
     assert rewards == {"agent_0": -10.0, "agent_1": -10.0}
 
 
+def test_the_clearance_penalty_falls_on_the_agents_near_an_obstacle_only():
+    """The default map's pillar (centre (12, 0), radius 1; safety.clearance_limit 0.3 m): an agent
+    0.2 m from it pays 10 a tick, one 8 m away nothing; two agents far from it pay nothing, which
+    the reward knows from the tick's own obstacle query without asking again."""
+    def rewards(positions: str) -> tuple[dict, object]:
+        env = make_env(["swarm.n=2", "swarm.start.layout=explicit", f"swarm.start.positions={positions}",
+                        "safety.start_overlap=warn", *SHORT], {"reward": {"progress": 0.0}})
+        env.reset(seed=0)
+        return env.step({a: np.zeros(3, dtype=np.float32) for a in env.agents})[1], env.driver.episode.sim.sensing
+
+    near, _ = rewards("[[12,1.2,2],[4,0,2]]")
+    assert near == {"agent_0": -10.0, "agent_1": 0.0}
+    far, sensing = rewards("[[4,0,2],[4,3,2]]")
+    assert far == {"agent_0": 0.0, "agent_1": 0.0} and sensing.nothing_within(0.3)
+
+
 def test_collision_ends_the_episode_with_termination_on_collision():
     env = make_env(["swarm.n=2", "swarm.start.layout=line", "swarm.start.spacing=0.3", "safety.start_overlap=warn",
                     "environment=open", "termination.on_collision=true", *SHORT])

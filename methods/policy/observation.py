@@ -179,7 +179,8 @@ def observe_batch(
     The worlds' states, nearest neighbours (``Sensing.knn``, which a batch answers ahead for
     small worlds) and references are stacked, and each feature is one elementwise pass over the
     B N rows (a gather, a difference, a choice, the float32 cast: nothing whose bits depend on
-    the array's length). The obstacle features are each world's own (constants on an open map).
+    the array's length). The obstacle features are each world's own, but constants where no
+    obstacle is in range (``Sensing.nothing_within``).
     Worlds of different N, more neighbours than the shared query holds (``NEAR_K``), or fewer
     than two agents are observed one by one."""
     n, k = sensings[0].world.n, layout.k
@@ -200,11 +201,11 @@ def observe_batch(
     worlds = np.arange(b)[:, None, None]
     nbr_pos = np.where(mask[..., None], pos[worlds, safe] - pos[:, :, None, :], 0.0)
     nbr_vel = np.where(mask[..., None], vel[worlds, safe] - vel[:, :, None, :], 0.0)
-    if all(s.environment.empty for s in sensings):  # what obstacle_features gives on an open map
-        clearance, direction, near = np.full((b, n), obstacle_radius), np.zeros((b, n, 3)), np.zeros((b, n), dtype=bool)
-    else:
-        clearance, direction, near = (np.stack(f) for f in zip(
-            *(obstacle_features(s, obstacle_radius) for s in sensings), strict=True))
+    # what obstacle_features gives where no obstacle is in range; the other worlds' own
+    clearance, direction, near = np.full((b, n), obstacle_radius), np.zeros((b, n, 3)), np.zeros((b, n), dtype=bool)
+    for w, s in enumerate(sensings):
+        if not (s.environment.empty or s.nothing_within(obstacle_radius)):
+            clearance[w], direction[w], near[w] = obstacle_features(s, obstacle_radius)
     if any(ref is None for ref in refs):
         offset, ref_vel, has_ref = (np.stack(f) for f in zip(
             *(reference_features(s.world, ref) for s, ref in zip(sensings, refs, strict=True)), strict=True))

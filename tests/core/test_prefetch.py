@@ -179,3 +179,22 @@ def test_a_tie_at_the_last_neighbour_ranked_is_left_to_the_tree():
     prefetch(batch)
     assert [s._knn_ahead is not None for s in batch] == [False, True]
     assert batch[0].knn[1][0].tolist() == [2, 3, 4, DENSE_POINTS - 1]  # the tree's own answer
+
+
+def test_nothing_within_is_known_only_from_a_query_at_that_range_or_wider():
+    """``Sensing.nothing_within``: False until a query (or a batch's prefetch) has shown no obstacle
+    in range; then True at that range and narrower; never a query of its own, but an ask (the next
+    snapshot's first query works at the widest range asked)."""
+    from shapely.geometry import Point
+
+    env = Environment([Point(0.0, 0.0).buffer(1.0)])
+    far = WorldState.at_rest(np.array([[20.0, 0.0, 1.0], [22.0, 1.0, 1.0]]))
+    s = Sensing(far, env, comm_range=4.0)
+    assert not s.nothing_within(3.0) and s._none_within < 0  # not known, and not queried
+    assert s.asked["obstacles"] == 3.0
+    s.obstacle_nearest(5.0)  # nothing within 5 m
+    assert s.nothing_within(5.0) and s.nothing_within(2.0) and not s.nothing_within(30.0)
+    assert Sensing(far, env, comm_range=4.0, previous=s)._hint["obstacles"] == 30.0
+    near = Sensing(WorldState.at_rest(np.array([[2.0, 0.0, 1.0], [22.0, 1.0, 1.0]])), env, comm_range=4.0)
+    near.obstacle_nearest(5.0)  # the pillar is 1 m from agent 0
+    assert not near.nothing_within(5.0) and not near.nothing_within(0.5)
