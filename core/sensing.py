@@ -612,6 +612,7 @@ def _nearest_ranked(i: np.ndarray, j: np.ndarray, d2: np.ndarray, n: int) -> tup
     ranked = np.take_along_axis(full, order, axis=2)
     k = min(n, NEAR_K + 1)
     distinct = np.logical_and.reduce(np.diff(ranked[:, :, :min(n, k + 1)], axis=2) > 0, axis=(1, 2))
+    distinct &= np.isfinite(ranked[:, :, k - 1]).all(axis=1)  # (an overflow: the tree marks it missing)
     return np.sqrt(ranked[:, :, 1:k]), order[:, :, 1:k], distinct
 
 

@@ -183,6 +183,7 @@ class _Episode:
 
 
 _NONE = np.zeros(0, dtype=bool)
+_NONE.setflags(write=False)
 """A reward term its weight leaves out (0)."""
 
 

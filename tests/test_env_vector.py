@@ -214,9 +214,27 @@ def test_the_rewards_of_stacked_worlds_are_each_worlds_own_with_every_term_weigh
         own = swarm_env._rewards(weights, action[b], before[b], pos[b], healthy[b], mode[b], ref_pos[b], near[b],
                                  close[b], np.array(complete[b]))
         assert stacked[b].tobytes() == own.tobytes()
+        assert own.tobytes() == rewards_084(weights, action[b], before[b], pos[b], healthy[b], mode[b], ref_pos[b],
+                                            near[b], close[b], complete[b]).tobytes()
         for i in range(n):
             has = healthy[b, i] and mode[b, i] in (Mode.POSITION, Mode.TRACK)
             gained = np.hypot.reduce(ref_pos[b, i] - before[b, i]) - np.hypot.reduce(ref_pos[b, i] - pos[b, i])
             want = (1.5 * gained * has - 0.3 * float(action[b, i] @ action[b, i]) - 10.0 * near[b, i] - 7.0 * close[b, i]
                     + 2.5 * complete[b])
             assert own[i] == pytest.approx(want, rel=1e-12, abs=1e-12)
+
+
+def rewards_084(weights, action, before, pos, healthy, mode, ref_pos, near, close, complete):
+    """swarmscene 0.8.4's ``_Episode.judge`` reward arithmetic for one world, transcribed (its
+    ``_progress``, the einsum, the in-place penalties and bonus): the bits the refactor must keep."""
+    has = (mode == int(Mode.POSITION)) | (mode == int(Mode.TRACK))
+    gained = np.linalg.norm(ref_pos - before, axis=1) - np.linalg.norm(ref_pos - pos, axis=1)
+    reward = weights.progress * np.where(has & healthy, gained, 0.0) - weights.effort * np.einsum(
+        "ij,ij->i", action, action)
+    if weights.separation:
+        reward -= weights.separation * near
+    if weights.clearance:
+        reward -= weights.clearance * close
+    if complete:
+        reward += weights.complete
+    return reward

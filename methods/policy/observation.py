@@ -181,10 +181,12 @@ def observe_batch(
     B N rows (a gather, a difference, a choice, the float32 cast: nothing whose bits depend on
     the array's length). The obstacle features are each world's own, but constants where no
     obstacle is in range (``Sensing.nothing_within``).
-    Worlds of different N, more neighbours than the shared query holds (``NEAR_K``), or fewer
-    than two agents are observed one by one."""
+    More neighbours than the shared query holds (``NEAR_K``), none, or fewer than two agents are
+    observed world by world. The worlds must have one N (a ``ValueError`` otherwise)."""
     n, k = sensings[0].world.n, layout.k
-    if k > NEAR_K or k == 0 or n < 2 or any(s.world.n != n for s in sensings):
+    if any(s.world.n != n for s in sensings):
+        raise ValueError(f"observe_batch: worlds of {sorted({s.world.n for s in sensings})} agents cannot be stacked")
+    if k > NEAR_K or k == 0 or n < 2:
         return np.stack([observe(s, ref, layout, radius, obstacle_radius)
                          for s, ref in zip(sensings, refs, strict=True)])
     b = len(sensings)

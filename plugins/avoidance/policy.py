@@ -117,8 +117,9 @@ class PolicyAvoidance(Avoidance):
     @classmethod
     def observe_batch(cls, avoidances: Sequence[PolicyAvoidance], sensings: Sequence[Any]) -> np.ndarray:
         """:meth:`observe` of B worlds of N agents, stacked (B, N, D) float32, world b's rows the bits of
-        ``avoidances[b].observe(sensings[b])`` (:func:`~swarmscene.methods.policy.observation.observe_batch`;
-        instances observing with different options are observed one by one)."""
+        ``avoidances[b].observe(sensings[b])`` (:func:`~swarmscene.methods.policy.observation.observe_batch`).
+        Instances with different ranges are observed one by one; all must share N and the layout
+        (the row length D), or the stacking raises a ``ValueError``."""
         first = avoidances[0]
         ranges = (first.layout, first.sensing_range, first.params.obstacle_range)
         if any((a.layout, a.sensing_range, a.params.obstacle_range) != ranges for a in avoidances):

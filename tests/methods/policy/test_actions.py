@@ -30,6 +30,8 @@ def test_actions_are_clipped_and_a_nan_commands_nothing_as_nan_to_num_then_clip(
             scale = spec.max_speed if command == "velocity" else spec.max_accel
             want = a[go] * scale if command == "velocity" else world.vel[go] + spec.guidance_period * (a[go] * scale)
             assert sp.vel[go].tobytes() == want.tobytes()
+            want_acc = np.zeros_like(sp.acc) if command == "velocity" else a * scale
+            assert sp.acc[go].tobytes() == want_acc[go].tobytes() and not sp.acc[~go].any()
             assert (sp.mode == np.where(go, int(Mode.VELOCITY), int(Mode.HOLD))).all()
             assert not sp.vel[~go].any() and (sp.pos == world.pos).all()
             drawn += int(np.isnan(action[go]).any() and np.isinf(action[go]).any())

@@ -49,6 +49,31 @@ def test_the_batched_observation_is_each_worlds_own(n, k, open_map):
         assert open_map or layout.split(batched)["obs_mask"].any()  # and an obstacle
 
 
+def test_worlds_with_no_obstacle_in_range_are_observed_without_a_query():
+    """Worlds 40 m from the map's box whose tick has found no obstacle within 5 m (their obstacle
+    features are constants, no query made) beside worlds near it: every world's rows its own."""
+    rng = np.random.default_rng(5)
+    env = Environment([shapely.box(2.0, -1.0, 4.0, 1.0)])
+    layout = ObservationLayout(NEAR_K)
+    sensings, refs = worlds(rng, 6, 5, env)
+    for s in sensings[:3]:
+        s.world.pos[:, 0] += 40.0
+        s.obstacle_nearest(5.0)  # the tick's own query: nothing within 5 m
+    assert [s.nothing_within(3.0) for s in sensings] == [True] * 3 + [False] * 3
+    batched = observe_batch(sensings, refs, layout, radius=5.0, obstacle_radius=3.0)
+    for b, (sensing, ref) in enumerate(zip(sensings, refs, strict=True)):
+        own = observe(Sensing(sensing.world, env, comm_range=4.0), ref, layout, radius=5.0, obstacle_radius=3.0)
+        assert batched[b].tobytes() == own.tobytes()
+    assert not layout.split(batched[:3])["obs_mask"].any() and layout.split(batched[3:])["obs_mask"].any()
+
+
+def test_worlds_of_different_sizes_are_refused_in_one_line():
+    rng = np.random.default_rng(6)
+    sensings = worlds(rng, 2, 4, Environment())[0] + worlds(rng, 1, 5, Environment())[0]
+    with pytest.raises(ValueError, match=r"^observe_batch: worlds of \[4, 5\] agents cannot be stacked$"):
+        observe_batch(sensings, [None] * 3, ObservationLayout(2), radius=5.0, obstacle_radius=3.0)
+
+
 def test_every_world_with_a_reference_is_observed_from_the_stacked_references():
     rng = np.random.default_rng(9)
     sensings, refs = worlds(rng, 5, 6, Environment())
