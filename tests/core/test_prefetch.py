@@ -161,6 +161,16 @@ def test_nearest_neighbours_are_answered_ahead_only_after_a_tick_that_read_them(
     assert again[0]._knn_ahead is not None and again[1]._knn_ahead is None
 
 
+def after_a_tick_that_read_knn(ws: list[WorldState]) -> list[Sensing]:
+    """The worlds' snapshots after one whose nearest neighbours were read, prefetched together."""
+    last = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
+    for s in last:
+        s.knn  # noqa: B018
+    batch = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, last, strict=True)]
+    prefetch(batch)
+    return batch
+
+
 def test_a_tie_at_the_last_neighbour_ranked_is_left_to_the_tree():
     """Agent 0's fourth and fifth nearest are equally far (4 m), on the two sides of the tree's
     split: the tree keeps the one in the leaf it searches first (agent 31), a sort by length the
@@ -173,11 +183,7 @@ def test_a_tie_at_the_last_neighbour_ranked_is_left_to_the_tree():
     pos[5:-1] = np.column_stack([np.r_[rng.uniform(-100, -20, 13), rng.uniform(20, 100, 13)],  # far, 13 a side
                                  rng.uniform(-50, 50, (26, 2))])
     ws = [WorldState.at_rest(pos), WorldState.at_rest(pos + 0.5 * rng.normal(size=pos.shape))]
-    last = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
-    for s in last:
-        s.knn  # noqa: B018
-    batch = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, last, strict=True)]
-    prefetch(batch)
+    batch = after_a_tick_that_read_knn(ws)
     assert [s._knn_ahead is not None for s in batch] == [False, True]
     assert batch[0].knn[1][0].tolist()[:3] == [2, 3, 4]  # then 31 or 1: the tree's own choice
 
@@ -188,11 +194,7 @@ def test_a_length_that_overflows_is_left_to_the_tree():
     no neighbour found (index N); the world is left to it."""
     ws = [WorldState.at_rest(np.array([[0.0, 0.0, 0.0], [1e160, 0.0, 0.0]])),
           WorldState.at_rest(np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]]))]
-    last = [Sensing(w, Environment(), comm_range=4.0) for w in ws]
-    for s in last:
-        s.knn  # noqa: B018
-    batch = [Sensing(w, Environment(), comm_range=4.0, previous=p) for w, p in zip(ws, last, strict=True)]
-    prefetch(batch)
+    batch = after_a_tick_that_read_knn(ws)
     assert [s._knn_ahead is not None for s in batch] == [False, True]
     assert batch[0].knn[1].tolist() == Sensing(ws[0], Environment(), comm_range=4.0).knn[1].tolist()
 
