@@ -183,8 +183,8 @@ class _Episode:
 
 
 _NONE = np.zeros(0, dtype=bool)
+"""A reward term its weight leaves out (0); read-only, as it is shared."""
 _NONE.setflags(write=False)
-"""A reward term its weight leaves out (0)."""
 
 
 def _rewards(weights: RewardOptions, action: np.ndarray, before: np.ndarray, pos: np.ndarray, healthy: np.ndarray,
