@@ -85,22 +85,30 @@ def nearest_neighbours(sensing, k: int, radius: float) -> tuple[np.ndarray, np.n
         return np.full((n, k), n), np.zeros((n, k), dtype=bool)
     if k <= NEAR_K:
         dist, idx = sensing.knn
-        dist, idx = dist[:, :k], idx[:, :k]
-        mask = dist <= radius
-        idx = np.where(mask, idx, n)
-    else:
-        q = min(k + 1, n)
-        _, idx = sensing.tree.query(world.pos, k=q, distance_upper_bound=radius)
-        idx = idx.reshape(n, q)
-        # Drop the agent itself (not always column 0: agents may coincide) and keep the order.
-        valid = (idx < n) & (idx != np.arange(n)[:, None])
-        order = np.argsort(~valid, axis=1, kind="stable")
-        idx = np.take_along_axis(np.where(valid, idx, n), order, axis=1)[:, :k]
-        mask = idx < n
-    if idx.shape[1] < k:  # fewer other agents than k
-        pad = k - idx.shape[1]
-        idx = np.pad(idx, ((0, 0), (0, pad)), constant_values=n)
-        mask = np.pad(mask, ((0, 0), (0, pad)))
+        return _within(dist, idx, k, radius, n)
+    q = min(k + 1, n)
+    _, idx = sensing.tree.query(world.pos, k=q, distance_upper_bound=radius)
+    idx = idx.reshape(n, q)
+    # Drop the agent itself (not always column 0: agents may coincide) and keep the order.
+    valid = (idx < n) & (idx != np.arange(n)[:, None])
+    order = np.argsort(~valid, axis=1, kind="stable")
+    idx = np.take_along_axis(np.where(valid, idx, n), order, axis=1)[:, :k]
+    return _padded(idx, idx < n, k, n)
+
+
+def _within(dist: np.ndarray, idx: np.ndarray, k: int, radius: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`nearest_neighbours` from the shared query's distances and indices (..., N, <= NEAR_K):
+    one world's, or B worlds' stacked (elementwise, the same bits)."""
+    mask = dist[..., :k] <= radius
+    return _padded(np.where(mask, idx[..., :k], n), mask, k, n)
+
+
+def _padded(idx: np.ndarray, mask: np.ndarray, k: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``idx`` and ``mask`` (..., N, <= k) padded to k neighbours (index N, absent) where there are
+    fewer other agents than k."""
+    if idx.shape[-1] < k:
+        pad = ((0, 0),) * (idx.ndim - 1) + ((0, k - idx.shape[-1]),)
+        idx, mask = np.pad(idx, pad, constant_values=n), np.pad(mask, pad)
     return idx, mask
 
 
@@ -150,21 +158,33 @@ def observe(
 ) -> np.ndarray:
     """Every agent's observation row, shape (N, D) float32 (see the module docstring)."""
     world = sensing.world
-    n, k = world.n, layout.k
-    idx, mask = nearest_neighbours(sensing, k, radius)
+    idx, mask = nearest_neighbours(sensing, layout.k, radius)
+    features = (*obstacle_features(sensing, obstacle_radius), *reference_features(world, ref))
+    return _rows(world.pos[None], world.vel[None], world.healthy[None], idx[None], mask[None],
+                 tuple(a[None] for a in features))[0]  # one world: B = 1
+
+
+def _rows(pos: np.ndarray, vel: np.ndarray, healthy: np.ndarray, idx: np.ndarray, mask: np.ndarray,
+          features: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The rows (B, N, D) float32 of B worlds (one, for :func:`observe`): their agents' states,
+    neighbour slots (``idx``, ``mask``: (B, N, k)) and the obstacle and reference features (clearance,
+    direction, near, offset, reference velocity, mask), in the layout's order. Each feature is one
+    elementwise pass over the B N rows (a gather, a difference, a choice, the float32 cast),
+    nothing whose bits depend on the array's length."""
+    b, n, k = idx.shape
     safe = np.where(mask, idx, 0)
-    nbr_pos = np.where(mask[..., None], world.pos[safe] - world.pos[:, None, :], 0.0)
-    nbr_vel = np.where(mask[..., None], world.vel[safe] - world.vel[:, None, :], 0.0)
-    clearance, direction, near = obstacle_features(sensing, obstacle_radius)
-    offset, ref_vel, has_ref = reference_features(world, ref)
+    worlds = np.arange(b)[:, None, None]
+    nbr_pos = np.where(mask[..., None], pos[worlds, safe] - pos[:, :, None, :], 0.0)
+    nbr_vel = np.where(mask[..., None], vel[worlds, safe] - vel[:, :, None, :], 0.0)
+    clearance, direction, near, offset, ref_vel, has_ref = features
     return np.concatenate(
         [
-            world.pos, world.vel, world.healthy[:, None],
-            nbr_pos.reshape(n, 3 * k), nbr_vel.reshape(n, 3 * k), mask,
-            clearance[:, None], direction, near[:, None],
-            offset, ref_vel, has_ref[:, None],
+            pos, vel, healthy[..., None],
+            nbr_pos.reshape(b, n, 3 * k), nbr_vel.reshape(b, n, 3 * k), mask,
+            clearance[..., None], direction, near[..., None],
+            offset, ref_vel, has_ref[..., None],
         ],
-        axis=1,
+        axis=2,
         dtype=np.float32,
     )
 
@@ -177,9 +197,8 @@ def observe_batch(
     bits of ``observe(sensings[b], refs[b], ...)``.
 
     The worlds' states, nearest neighbours (``Sensing.knn``, which a batch answers ahead for
-    small worlds) and references are stacked, and each feature is one elementwise pass over the
-    B N rows (a gather, a difference, a choice, the float32 cast: nothing whose bits depend on
-    the array's length). The obstacle features are each world's own, but constants where no
+    small worlds) and references are stacked, and the rows made as :func:`observe` makes one
+    world's (:func:`_rows`). The obstacle features are each world's own, but constants where no
     obstacle is in range (``Sensing.nothing_within``).
     More neighbours than the shared query holds (``NEAR_K``), none, or fewer than two agents are
     observed world by world. The worlds must have one N (a ``ValueError`` otherwise)."""
@@ -190,19 +209,8 @@ def observe_batch(
         return np.stack([observe(s, ref, layout, radius, obstacle_radius)
                          for s, ref in zip(sensings, refs, strict=True)])
     b = len(sensings)
-    pos = np.stack([s.world.pos for s in sensings])
-    vel = np.stack([s.world.vel for s in sensings])
-    healthy = np.stack([s.world.healthy for s in sensings])
-    dist = np.stack([s.knn[0][:, :k] for s in sensings])
-    mask = dist <= radius
-    idx = np.where(mask, np.stack([s.knn[1][:, :k] for s in sensings]), n)
-    if idx.shape[2] < k:  # fewer other agents than k
-        pad = ((0, 0), (0, 0), (0, k - idx.shape[2]))
-        idx, mask = np.pad(idx, pad, constant_values=n), np.pad(mask, pad)
-    safe = np.where(mask, idx, 0)
-    worlds = np.arange(b)[:, None, None]
-    nbr_pos = np.where(mask[..., None], pos[worlds, safe] - pos[:, :, None, :], 0.0)
-    nbr_vel = np.where(mask[..., None], vel[worlds, safe] - vel[:, :, None, :], 0.0)
+    pos, vel, healthy = (np.stack([getattr(s.world, name) for s in sensings]) for name in ("pos", "vel", "healthy"))
+    idx, mask = _within(np.stack([s.knn[0] for s in sensings]), np.stack([s.knn[1] for s in sensings]), k, radius, n)
     # what obstacle_features gives where no obstacle is in range; the other worlds' own
     clearance, direction, near = np.full((b, n), obstacle_radius), np.zeros((b, n, 3)), np.zeros((b, n), dtype=bool)
     for w, s in enumerate(sensings):
@@ -214,13 +222,4 @@ def observe_batch(
     else:
         offset, ref_vel, has_ref = _reference_rows(pos, *(np.stack([getattr(ref, name) for ref in refs])
                                                          for name in ("mode", "pos", "vel")))
-    return np.concatenate(
-        [
-            pos, vel, healthy[..., None],
-            nbr_pos.reshape(b, n, 3 * k), nbr_vel.reshape(b, n, 3 * k), mask,
-            clearance[..., None], direction, near[..., None],
-            offset, ref_vel, has_ref[..., None],
-        ],
-        axis=2,
-        dtype=np.float32,
-    )
+    return _rows(pos, vel, healthy, idx, mask, (clearance, direction, near, offset, ref_vel, has_ref))
