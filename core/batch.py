@@ -17,7 +17,7 @@ formation; ``adjust``, ``control``, the physics sub-steps with the wind before a
 after each ``step``, ``settle_world``, the observers): between two phases of a world run only
 the other worlds' same phase, which share nothing with it, so a world of a batch equals its single
 run bit for bit (tests/test_batch.py, every preset). Between the last two, the worlds' new
-snapshots get their first queries answered in one pass (:func:`~swarmscene.core.sensing.prefetch`:
+snapshots get their first queries answered in one pass (:func:`~swarmscene.core.prefetch.prefetch`:
 the small worlds' pairs, closest pair and complete-graph test, and "no obstacle in range"): the
 values their own queries would compute.
 :class:`BatchSimulation` and :func:`lockstep` step their worlds with the same function,
@@ -39,8 +39,8 @@ from typing import Protocol, cast
 from . import interrupts
 from .disturbances import Perceived
 from .plugin import Dynamics
+from .prefetch import prefetch
 from .result import RunResult
-from .sensing import prefetch
 from .setpoint import Setpoints
 from .simulation import Simulation
 from .state import WorldBatch, WorldState
@@ -205,7 +205,7 @@ def _step(worlds: _Worlds) -> None:
     (:meth:`~swarmscene.core.plugin.Dynamics.control_batch`), the physics sub-steps (each world's
     wind, :meth:`~swarmscene.core.plugin.Dynamics.step_batch`, each world's forces), each world's
     ``settle_world``, the first queries of the worlds' new snapshots in one pass
-    (:func:`~swarmscene.core.sensing.prefetch`), each world's observers. A world's phases
+    (:func:`~swarmscene.core.prefetch.prefetch`), each world's observers. A world's phases
     run in its single run's order; what runs between two phases of a world is only the other
     worlds' same phase."""
     planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]] = {}

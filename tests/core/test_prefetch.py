@@ -1,4 +1,4 @@
-"""A batch's one pass over its small worlds' snapshots (core/sensing.prefetch) answers each
+"""A batch's one pass over its small worlds' snapshots (core/prefetch.py) answers each
 snapshot's first queries with the bits that snapshot's own lazy queries give."""
 
 from __future__ import annotations
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from swarmscene.core.environment import Environment
-from swarmscene.core.sensing import Sensing, prefetch
+from swarmscene.core.prefetch import prefetch
+from swarmscene.core.sensing import Sensing
 from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import DENSE_POINTS, dense_pair_dist2, dense_pair_dist2_batch
 
