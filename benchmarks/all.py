@@ -44,6 +44,7 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("crazyflow_avoidance", "taskset -c 1 python benchmarks/speed/peers/bench_crazyflow.py --sizes 100 1000 "
      "--rates 10 --avoidance potential orca --steady-only --repeat 2", 12),
     ("env_protocol", "taskset -c 1 python benchmarks/speed/bench_env_protocol.py", 3),
+    ("env_workers", "python benchmarks/speed/bench_env_workers.py --blocks 9", 1),
     ("batch_phases", "python benchmarks/speed/batch_phases.py", 2),
     ("indoor", "taskset -c 1 python benchmarks/speed/bench_indoor.py", 5),
     ("sweep", "python benchmarks/speed/bench_sweep.py", 6),

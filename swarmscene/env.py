@@ -33,6 +33,7 @@ seed from a generator seeded by the last seed given (or the scenario's own).
 from __future__ import annotations
 
 import copy
+import multiprocessing
 import os
 import sys
 import time
@@ -47,6 +48,7 @@ from .core.batch import lockstep
 from .core.config import Scenario
 from .core.setpoint import Mode, is_mode
 from .core.state import WorldBatch
+from .env_workers import Shards, Stepped
 
 try:
     import gymnasium
@@ -463,15 +465,11 @@ class _Worlds:
     """The B worlds of a vector environment: one :class:`_Driver` each, their going episodes ticked
     as one batch of worlds (:func:`swarmscene.core.batch.lockstep`: the physics in one call per
     physics step), and a world whose episode ended started again at its next step (Gymnasium's
-    next-step autoreset). Both vector environments are this, read two ways."""
+    next-step autoreset). Both vector environments' steppers (:class:`_CentralWorlds`,
+    :class:`_AgentWorlds`) are this, read two ways."""
 
     def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
                  max_episode_steps: int | None) -> None:
-        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f"num_envs: must be an integer >= 1 (got {num_envs!r})")
-        if max_episode_steps is not None and (not isinstance(max_episode_steps, int | np.integer)
-                                              or isinstance(max_episode_steps, bool) or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps: must be an integer >= 1 or None (got {max_episode_steps!r})")
         first = _Driver(config, options)
         self.drivers = [first, *(first.twin() for _ in range(num_envs - 1))]
         self.n, self.layout_size = self.drivers[0].n, self.drivers[0].layout_size
@@ -480,16 +478,8 @@ class _Worlds:
         self.ended = np.zeros(num_envs, dtype=bool)  # the world's episode ended at the last step
         self._batch: tuple[list[Any], Any] | None = None  # (the worlds, their WorldBatch)
 
-    def reset(self, seed: int | Sequence[int | None] | None) -> list[_Episode]:
-        """Start every world's episode: world b from ``seed + b`` (as ``SyncVectorEnv`` seeds its
-        copies), from ``seed[b]``, or, where the seed is None, from the world's own generator (as
-        the single environment's ``reset()``: before any seed was given, each world's generator
-        starts from the scenario's ``seed``, so those worlds start alike)."""
-        b_worlds = len(self.drivers)
-        seeds = [None] * b_worlds if seed is None else (
-            [int(seed) + b for b in range(b_worlds)] if isinstance(seed, int | np.integer) else list(seed))
-        if len(seeds) != b_worlds:
-            raise ValueError(f"seed: {len(seeds)} seeds for {b_worlds} worlds")
+    def reset(self, seeds: Sequence[int | None]) -> list[_Episode]:
+        """Start every world's episode, world b's from ``seeds[b]`` (:func:`_world_seeds`)."""
         self.steps[:] = 0
         self.ended[:] = False
         return [driver.reset(s) for driver, s in zip(self.drivers, seeds, strict=True)]
@@ -543,6 +533,135 @@ class _Worlds:
             driver.episode = None
 
 
+def _check_counts(num_envs: Any, max_episode_steps: Any, workers: Any = 1) -> None:
+    """One line for a bad world count, episode limit or worker count of a vector environment."""
+    if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
+        raise ValueError(f"num_envs: must be an integer >= 1 (got {num_envs!r})")
+    if max_episode_steps is not None and (not isinstance(max_episode_steps, int | np.integer)
+                                          or isinstance(max_episode_steps, bool) or max_episode_steps < 1):
+        raise ValueError(f"max_episode_steps: must be an integer >= 1 or None (got {max_episode_steps!r})")
+    if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= num_envs:
+        raise ValueError(f"workers: must be an integer from 1 to num_envs = {num_envs} (got {workers!r})")
+
+
+def _world_seeds(seed: int | Sequence[int | None] | None, b_worlds: int) -> list[int | None]:
+    """Each world's seed at a reset: world b's is ``seed + b`` (as ``SyncVectorEnv`` seeds its
+    copies) or ``seed[b]``; where it is None, the world draws it from its own generator (as the
+    single environment's ``reset()``: before any seed was given, each world's generator starts from
+    the scenario's ``seed``, so those worlds start alike)."""
+    seeds: list[int | None] = [None] * b_worlds if seed is None else (
+        [int(seed) + b for b in range(b_worlds)] if isinstance(seed, int | np.integer) else list(seed))
+    if len(seeds) != b_worlds:
+        raise ValueError(f"seed: {len(seeds)} seeds for {b_worlds} worlds")
+    return seeds
+
+
+class _CentralWorlds:
+    """:class:`SwarmVectorEnv`'s worlds: its reset and step, the infos not yet in vector form (a
+    stepper of :mod:`swarmscene.env_workers`, which can run it in a worker process)."""
+
+    def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
+                 max_episode_steps: int | None) -> None:
+        self.worlds = _Worlds(num_envs, config, options, max_episode_steps)
+        self._every = np.ones((num_envs, self.worlds.n), dtype=bool)  # the centralised agent commands every vehicle
+
+    def reset(self, seeds: Sequence[int | None]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        return _observations(self.worlds.reset(seeds)), {}
+
+    def step(self, actions: np.ndarray) -> Stepped:
+        worlds = self.worlds
+        episodes = worlds.episodes()
+        b_worlds = len(episodes)
+        rewards = np.zeros(b_worlds)
+        terminated = np.zeros(b_worlds, dtype=bool)
+        truncated = np.zeros(b_worlds, dtype=bool)
+        ended = []
+        worlds.restart_ended(episodes)
+        going = np.flatnonzero(~worlds.ended).tolist()
+        for b, (reward, term, trunc) in worlds.tick(episodes, going, actions, self._every).items():
+            rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episodes[b], reward, term, trunc)
+            if info:
+                ended.append((b, info))
+        worlds.ended = terminated | truncated
+        return Stepped(_observations(episodes), rewards, terminated, truncated, ended, {})
+
+
+class _AgentWorlds:
+    """:class:`SwarmMultiAgentVectorEnv`'s worlds: its reset and step, the infos not yet in vector
+    form (a stepper of :mod:`swarmscene.env_workers`)."""
+
+    def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
+                 max_episode_steps: int | None) -> None:
+        self.worlds = _Worlds(num_envs, config, options, max_episode_steps)
+        self.agent_mask = np.zeros((num_envs, self.worlds.n), dtype=bool)  # the agents that act next
+
+    def reset(self, seeds: Sequence[int | None]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        episodes = self.worlds.reset(seeds)
+        for b, episode in enumerate(episodes):
+            self._started(b, episode)
+        return _observations(episodes), {"agents": self.agent_mask.copy()}
+
+    def step(self, actions: np.ndarray) -> Stepped:
+        worlds = self.worlds
+        episodes = worlds.episodes()
+        b_worlds, n = self.agent_mask.shape
+        going = ~worlds.ended  # a world restarted now shows its new episode's first observation
+        for b in worlds.restart_ended(episodes):
+            self._started(b, episodes[b])
+        acted = self.agent_mask & going[:, None]
+        rewards = np.zeros((b_worlds, n))
+        terminated = np.zeros((b_worlds, n), dtype=bool)
+        truncated = np.zeros((b_worlds, n), dtype=bool)
+        ended = []
+        flown = np.where(acted[..., None], actions, 0.0)  # the parallel env's action rows: 0 where none
+        judged = worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted)
+        observations = _observations(episodes)  # before run_end, as the parallel env observes
+        for b, (reward, term, trunc) in judged.items():
+            failed = acted[b] & ~episodes[b].sim.world.healthy
+            rewards[b] = np.where(acted[b], reward, 0.0)
+            terminated[b] = acted[b] & (term | failed)
+            truncated[b] = acted[b] & trunc
+            self.agent_mask[b] = acted[b] & ~failed & (not (term or trunc))
+            worlds.ended[b] = not self.agent_mask[b].any()
+            if term or trunc:
+                metrics = episodes[b].finish()
+                ended.append((b, {"metrics": metrics, "success": bool(metrics["success"])}))
+        return Stepped(observations, rewards, terminated, truncated, ended,
+                       {"agents": self.agent_mask.copy(), "acted": acted})
+
+    def _started(self, b: int, episode: _Episode) -> None:
+        """World b's new episode: its healthy agents act first; with none, it ends at once (and is
+        started again at its next step)."""
+        self.agent_mask[b] = episode.sim.world.healthy
+        self.worlds.ended[b] = not self.agent_mask[b].any()
+
+
+def _worlds_in(stepper: type[_CentralWorlds] | type[_AgentWorlds], num_envs: int,
+               config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
+               max_episode_steps: int | None, workers: int, context: str | None
+               ) -> tuple[_CentralWorlds | _AgentWorlds | Shards, int, int]:
+    """A vector environment's worlds, in this process or shared out to ``workers`` processes; the
+    agents of a world and the length of an agent's observation. With workers, the scenario is
+    first composed and validated here, so that its errors are the same in both."""
+    _check_counts(num_envs, max_episode_steps, workers)
+    if workers == 1:
+        worlds = stepper(num_envs, config, options, max_episode_steps)
+        return worlds, worlds.worlds.n, worlds.worlds.layout_size
+    if context is not None and context not in multiprocessing.get_all_start_methods():
+        raise ValueError(f"context: must be one of {multiprocessing.get_all_start_methods()} or None (got {context!r})")
+    driver = _Driver(config, options)
+    return (Shards(stepper, num_envs, workers, context, (config, options, max_episode_steps)),
+            driver.n, driver.layout_size)
+
+
+def _in_this_process(worlds: Any) -> Any:
+    """The stepper of worlds stepped in this process; an error where workers step them."""
+    if isinstance(worlds, Shards):
+        raise RuntimeError(f"the worlds are stepped by {len(worlds.shares)} worker processes (workers="
+                           f"{len(worlds.shares)}): make the environment with workers=1 to read them here")
+    return worlds
+
+
 def _refuse_rendering(render_mode: str | None) -> None:
     if render_mode is not None:
         raise ValueError(f"render_mode: the vector environment does not render (got {render_mode!r}); "
@@ -568,61 +687,77 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
         config, options: as for :class:`SwarmGymEnv` (one scenario for every world).
         max_episode_steps: truncate each episode after this many steps (Gymnasium's ``TimeLimit``,
             which ``make_vec`` passes from the id's spec).
+        workers: processes that step the worlds, each a contiguous share of them as one batch
+            (:mod:`swarmscene.env_workers`); the answers are those of ``workers=1``, bit for bit.
+            With more than 1, the worlds' simulations (:attr:`drivers`) are not in this process.
+        context: the workers' ``multiprocessing`` start method (None: the platform's default);
+            ``"spawn"`` and ``"forkserver"`` need an ``if __name__ == "__main__":`` guard.
     """
 
     metadata = {"autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, config: Sequence[str] | dict[str, Any] = (),
                  options: EnvOptions | dict | None = None, max_episode_steps: int | None = None,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, workers: int = 1, context: str | None = None) -> None:
         _refuse_rendering(render_mode)
-        self.worlds = _Worlds(num_envs, config, options, max_episode_steps)
+        self._worlds, n, size = _worlds_in(_CentralWorlds, num_envs, config, options, max_episode_steps,
+                                           workers, context)
         self.num_envs = num_envs
-        n, size = self.worlds.n, self.worlds.layout_size
+        self._max_episode_steps = max_episode_steps
         self.single_observation_space = _observation_box((n, size))
         self.single_action_space = _action_box((n, 3))
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
-        self._every = np.ones((num_envs, n), dtype=bool)  # the centralised agent commands every vehicle
+
+    @property
+    def worlds(self) -> _Worlds:
+        """The worlds (with ``workers=1``)."""
+        return _in_this_process(self._worlds).worlds
 
     @property
     def drivers(self) -> list[_Driver]:
-        """The worlds' drivers (each holds its validated scenario and current episode)."""
+        """The worlds' drivers (each holds its validated scenario and current episode; with ``workers=1``)."""
         return self.worlds.drivers
 
     @property
     def max_episode_steps(self) -> int | None:
         """Each episode is truncated after this many steps (None: at ``clock.duration``)."""
-        return self.worlds.max_episode_steps
+        return self._max_episode_steps
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the stacked
         observations and an empty info."""
-        episodes = self.worlds.reset(seed)
-        return _observations(episodes), {}
+        observations, _ = self._worlds.reset(_world_seeds(seed, self.num_envs))
+        return observations, {}
 
     def step(self, actions: np.ndarray):
         """One guidance tick of every world; observations, rewards, terminations, truncations (B,)
         and infos. A world whose episode ended at the last step starts its next one instead."""
-        worlds = self.worlds
-        episodes = worlds.episodes()
-        actions = checked_action(actions, (self.num_envs, worlds.n, 3), "actions")
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        infos: dict[str, Any] = {}
-        worlds.restart_ended(episodes)
-        going = np.flatnonzero(~worlds.ended).tolist()
-        for b, (reward, term, trunc) in worlds.tick(episodes, going, actions, self._every).items():
-            rewards[b], terminated[b], truncated[b], info = _swarm_outcome(episodes[b], reward, term, trunc)
-            if info:
-                infos = self._add_info(infos, info, b)
-        worlds.ended = terminated | truncated
-        return _observations(episodes), rewards, terminated, truncated, infos
+        actions = checked_action(actions, cast(tuple[int, ...], self.action_space.shape), "actions")
+        stepped = self._worlds.step(actions)
+        return (stepped.observations, stepped.rewards, stepped.terminated, stepped.truncated,
+                _vector_infos(self, stepped))
 
     def close(self, **kwargs: Any) -> None:
-        """Drop the episodes."""
-        self.worlds.close()
+        """Drop the episodes (and end the workers)."""
+        _close(self._worlds)
+
+
+def _vector_infos(env: Any, stepped: Stepped) -> dict[str, Any]:
+    """The step's infos in Gymnasium's vector form (the ended worlds' infos with their masks), and
+    the per-world arrays."""
+    infos: dict[str, Any] = {}
+    for b, info in stepped.ended:
+        infos = env._add_info(infos, info, b)
+    infos.update(stepped.arrays)
+    return infos
+
+
+def _close(worlds: _CentralWorlds | _AgentWorlds | Shards) -> None:
+    if isinstance(worlds, Shards):
+        worlds.close()
+    else:
+        worlds.worlds.close()
 
 
 class SwarmMultiAgentVectorEnv:
@@ -653,6 +788,8 @@ class SwarmMultiAgentVectorEnv:
         num_envs: B, the number of worlds.
         config, options: as for :class:`SwarmParallelEnv` (one scenario for every world).
         max_episode_steps: truncate each episode after this many steps (None: at ``clock.duration``).
+        workers, context: as for :class:`SwarmVectorEnv` (with more than 1 worker, :attr:`sims` are
+            not in this process).
     """
 
     metadata: dict[str, Any] = {"name": "swarmscene_vector_v0",
@@ -663,14 +800,15 @@ class SwarmMultiAgentVectorEnv:
 
     def __init__(self, num_envs: int = 1, config: Sequence[str] | dict[str, Any] = (),
                  options: EnvOptions | dict | None = None, max_episode_steps: int | None = None,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, workers: int = 1, context: str | None = None) -> None:
         _refuse_rendering(render_mode)
-        self.worlds = _Worlds(num_envs, config, options, max_episode_steps)
-        self.num_envs, self.num_agents = num_envs, self.worlds.n
+        self._worlds, n, size = _worlds_in(_AgentWorlds, num_envs, config, options, max_episode_steps,
+                                           workers, context)
+        self.num_envs, self.num_agents = num_envs, n
         self.possible_agents = [f"agent_{i}" for i in range(self.num_agents)]  # the parallel env's names
-        self.single_agent_observation_space = _observation_box((self.worlds.layout_size,))
+        self.single_agent_observation_space = _observation_box((size,))
         self.single_agent_action_space = _action_box((3,))
-        self.observation_space = _observation_box((num_envs, self.num_agents, self.worlds.layout_size))
+        self.observation_space = _observation_box((num_envs, self.num_agents, size))
         self.action_space = _action_box((num_envs, self.num_agents, 3))
         self.agent_mask = np.zeros((num_envs, self.num_agents), dtype=bool)
         """(B, N): the agents that act at the next step."""
@@ -678,61 +816,36 @@ class SwarmMultiAgentVectorEnv:
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Start every world's episode (world b from ``seed + b``, or ``seed[b]``); the observations
         (B, N, D) and ``{"agents": mask}`` (the healthy agents, which act first)."""
-        episodes = self.worlds.reset(seed)
-        for b, episode in enumerate(episodes):
-            self._started(b, episode)
-        return _observations(episodes), {"agents": self.agent_mask.copy()}
+        observations, arrays = self._worlds.reset(_world_seeds(seed, self.num_envs))
+        self.agent_mask[...] = arrays["agents"]
+        return observations, arrays
 
     def step(self, actions: np.ndarray):
         """One guidance tick of every world with actions (B, N, 3); observations (B, N, D), rewards,
         terminations and truncations (B, N), and infos (the masks ``agents`` and ``acted``, and the
         ended worlds' ``metrics`` and ``success``). A world whose episode ended at the last step
         starts its next one instead."""
-        worlds = self.worlds
-        episodes = worlds.episodes()
-        b_worlds, n = self.num_envs, self.num_agents
-        actions = checked_action(actions, (b_worlds, n, 3), "actions")
-        going = ~worlds.ended  # a world restarted now shows its new episode's first observation
-        for b in worlds.restart_ended(episodes):
-            self._started(b, episodes[b])
-        acted = self.agent_mask & going[:, None]
-        rewards = np.zeros((b_worlds, n))
-        terminated = np.zeros((b_worlds, n), dtype=bool)
-        truncated = np.zeros((b_worlds, n), dtype=bool)
-        infos: dict[str, Any] = {}
-        flown = np.where(acted[..., None], actions, 0.0)  # the parallel env's action rows: 0 where none
-        judged = worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted)
-        observations = _observations(episodes)  # before run_end, as the parallel env observes
-        for b, (reward, term, trunc) in judged.items():
-            failed = acted[b] & ~episodes[b].sim.world.healthy
-            rewards[b] = np.where(acted[b], reward, 0.0)
-            terminated[b] = acted[b] & (term | failed)
-            truncated[b] = acted[b] & trunc
-            self.agent_mask[b] = acted[b] & ~failed & (not (term or trunc))
-            worlds.ended[b] = not self.agent_mask[b].any()
-            if term or trunc:
-                metrics = episodes[b].finish()
-                infos = self._add_info(  # type: ignore[misc]  # not a VectorEnv: above
-                    infos, {"metrics": metrics, "success": bool(metrics["success"])}, b)
-        infos.update(agents=self.agent_mask.copy(), acted=acted)
-        return observations, rewards, terminated, truncated, infos
+        actions = checked_action(actions, self.action_space.shape, "actions")
+        stepped = self._worlds.step(actions)
+        self.agent_mask[...] = stepped.arrays["agents"]
+        return (stepped.observations, stepped.rewards, stepped.terminated, stepped.truncated,
+                _vector_infos(self, stepped))
+
+    @property
+    def worlds(self) -> _Worlds:
+        """The worlds (with ``workers=1``)."""
+        return _in_this_process(self._worlds).worlds
 
     @property
     def sims(self) -> list[Any]:
         """The worlds' current :class:`~swarmscene.core.simulation.Simulation` objects (read them,
         e.g. ``sims[b].world``; ``sims[b].avoidance`` is the ``policy`` plugin with the observation
-        ``layout`` and action ``spec`` a scripted policy is built with)."""
+        ``layout`` and action ``spec`` a scripted policy is built with; with ``workers=1``)."""
         return [episode.sim for episode in self.worlds.episodes()]
 
-    def _started(self, b: int, episode: _Episode) -> None:
-        """World b's new episode: its healthy agents act first; with none, it ends at once (and is
-        started again at its next step)."""
-        self.agent_mask[b] = episode.sim.world.healthy
-        self.worlds.ended[b] = not self.agent_mask[b].any()
-
     def close(self) -> None:
-        """Drop the episodes."""
-        self.worlds.close()
+        """Drop the episodes (and end the workers)."""
+        _close(self._worlds)
 
 
 RENDER_MODES = ("rgb_array", "human")
