@@ -184,21 +184,28 @@ class SafetyMonitor:
         self.count += 1
 
     def _observe_clearance(self, sensing: Any, t: float, k: int) -> None:
+        if sensing.nothing_within(self.horizon):  # shown by the tick (a batch's prefetch): no query
+            self._wait_far(sensing, k)  # (2 us less a world-step of a vector environment)
+            return
         clearance = sensing.clearance_within(self.horizon)
         nearest = np.minimum.reduce(clearance, initial=np.inf)
-        if nearest < np.inf:  # some agent within the horizon
-            self.min_clearance[k] = nearest
-        else:  # every agent is beyond the horizon: only the swarm's distance to the obstacles,
-            # farther than the horizon > d_clear, so no violation: its value can wait for a batch.
-            self._far_ticks.append(k)
-            self._far_xy.append(sensing.world.pos[:, :2].copy())
-            if len(self._far_ticks) * self.n >= FAR_BATCH:
-                self._settle_far()
+        if not nearest < np.inf:  # every agent beyond the horizon
+            self._wait_far(sensing, k)
             return
-        if self.min_clearance[k] < self.d_clear:
+        self.min_clearance[k] = nearest  # some agent within the horizon
+        if nearest < self.d_clear:
             agents = np.flatnonzero(clearance < self.d_clear)
             self.clearance_agents.update(agents.tolist())
             self._first("clearance", t, agents.tolist())
+
+    def _wait_far(self, sensing: Any, k: int) -> None:
+        """Tick k has every agent beyond the horizon: only the swarm's distance to the obstacles is
+        left to know, farther than the horizon > d_clear, so no violation; its value can wait for
+        a batch of such ticks (:meth:`_settle_far`)."""
+        self._far_ticks.append(k)
+        self._far_xy.append(sensing.world.pos[:, :2].copy())
+        if len(self._far_ticks) * self.n >= FAR_BATCH:
+            self._settle_far()
 
     def _observe_keep_out(self, sensing: Any, t: float, k: int, radii: np.ndarray) -> None:
         """The pairs within the largest of ``radii`` (the tick's shared pair list, filtered from the

@@ -39,6 +39,7 @@ def block(envs, actions: list[np.ndarray]) -> float:
 
 
 def main() -> None:
+    """Both environments built, warmed and stepped in alternating blocks; the rates and their ratios printed."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", type=int, default=256, help="B, the worlds of each environment")
     parser.add_argument("--workers", type=int, default=2, help="the worker processes of the compared side")
