@@ -616,14 +616,19 @@ class _AgentWorlds:
         flown = np.where(acted[..., None], actions, 0.0)  # the parallel env's action rows: 0 where none
         judged = worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted)
         observations = _observations(episodes)  # before run_end, as the parallel env observes
-        for b, (reward, term, trunc) in judged.items():
-            failed = acted[b] & ~episodes[b].sim.world.healthy
-            rewards[b] = np.where(acted[b], reward, 0.0)
-            terminated[b] = acted[b] & (term | failed)
-            truncated[b] = acted[b] & trunc
-            self.agent_mask[b] = acted[b] & ~failed & (not (term or trunc))
-            worlds.ended[b] = not self.agent_mask[b].any()
-            if term or trunc:
+        if judged:  # the ticked worlds' rows at once (elementwise: each world's own bits)
+            ticked = np.fromiter(judged, dtype=int, count=len(judged))
+            ends = np.array([(term_b, trunc_b) for _, term_b, trunc_b in judged.values()], dtype=bool)
+            term, trunc = ends[:, :1], ends[:, 1:]  # (G, 1): a world's ends, for each of its agents
+            mask = acted[ticked]
+            failed = mask & ~np.stack([episodes[b].sim.world.healthy for b in ticked])
+            rewards[ticked] = np.where(mask, np.stack([reward for reward, _, _ in judged.values()]), 0.0)
+            terminated[ticked] = mask & (term | failed)
+            truncated[ticked] = mask & trunc
+            self.agent_mask[ticked] = mask & ~failed & ~(term | trunc)
+            worlds.ended[ticked] = ~self.agent_mask[ticked].any(axis=1)
+        for b, (_, term_b, trunc_b) in judged.items():
+            if term_b or trunc_b:
                 metrics = episodes[b].finish()
                 ended.append((b, {"metrics": metrics, "success": bool(metrics["success"])}))
         return Stepped(observations, rewards, terminated, truncated, ended,
