@@ -759,6 +759,7 @@ def _vector_infos(env: Any, stepped: Stepped) -> dict[str, Any]:
 
 
 def _close(worlds: _CentralWorlds | _AgentWorlds | Shards) -> None:
+    """A vector environment's ``close``: end its workers, or drop its episodes (which ``reset`` starts again)."""
     if isinstance(worlds, Shards):
         worlds.close()
     else:
