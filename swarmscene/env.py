@@ -48,7 +48,7 @@ from .core.batch import lockstep
 from .core.config import Scenario
 from .core.setpoint import Mode, is_mode
 from .core.state import WorldBatch
-from .env_workers import Shards, Stepped
+from .rl.workers import Shards, Stepped
 
 try:
     import gymnasium
@@ -558,7 +558,7 @@ def _world_seeds(seed: int | Sequence[int | None] | None, b_worlds: int) -> list
 
 class _CentralWorlds:
     """:class:`SwarmVectorEnv`'s worlds: its reset and step, the infos not yet in vector form (a
-    stepper of :mod:`swarmscene.env_workers`, which can run it in a worker process)."""
+    stepper of :mod:`swarmscene.rl.workers`, which can run it in a worker process)."""
 
     def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
                  max_episode_steps: int | None) -> None:
@@ -588,7 +588,7 @@ class _CentralWorlds:
 
 class _AgentWorlds:
     """:class:`SwarmMultiAgentVectorEnv`'s worlds: its reset and step, the infos not yet in vector
-    form (a stepper of :mod:`swarmscene.env_workers`)."""
+    form (a stepper of :mod:`swarmscene.rl.workers`)."""
 
     def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
                  max_episode_steps: int | None) -> None:
@@ -693,7 +693,7 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
         max_episode_steps: truncate each episode after this many steps (Gymnasium's ``TimeLimit``,
             which ``make_vec`` passes from the id's spec).
         workers: processes that step the worlds, each a contiguous share of them as one batch
-            (:mod:`swarmscene.env_workers`); the answers are those of ``workers=1``, bit for bit.
+            (:mod:`swarmscene.rl.workers`); the answers are those of ``workers=1``, bit for bit.
             With more than 1, the worlds' simulations (:attr:`drivers`) are not in this process.
         context: the workers' ``multiprocessing`` start method (None: the platform's default);
             ``"spawn"`` and ``"forkserver"`` need an ``if __name__ == "__main__":`` guard.

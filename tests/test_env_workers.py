@@ -1,4 +1,4 @@
-"""The vector environments' worlds in worker processes (``workers=W``; swarmscene/env_workers.py,
+"""The vector environments' worlds in worker processes (``workers=W``; swarmscene/rl/workers.py,
 docs/rl.md): every answer is the one-process environment's, bit for bit, and the workers' errors,
 ends and shutdown reach the environment's user as one line."""
 
@@ -10,7 +10,7 @@ import pytest
 
 from swarmscene import api
 from swarmscene import env as swarm_env
-from swarmscene.env_workers import Stepped, joined, shares
+from swarmscene.rl.workers import Stepped, joined, shares
 
 SHORT = ["swarm.start.layout=random", "clock.duration=0.5"]  # 5 ticks an episode, the start drawn from the seed
 swarm_env.register_scenario("swarmscene-test/workers-short-v0", SHORT)

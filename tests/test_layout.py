@@ -193,6 +193,7 @@ ROOMS = {
     "": 0, "api": 0, "cli": 0, "env": 0,
     "export": 0, "replay": 0, "docgen": 0, "schema": 0, "compile": 0,
     "tools": 1, "suite": 1,  # commands of their own: the falsifier, docs, schema, info; the benchmark suite
+    "rl": 1,                 # the RL environments' machinery: their worlds on worker processes
     "sweeps": 2,             # the sweep: its grid, its launchers, its job, its tables
     "testing": 3,            # the contract checks (public, and listed by the docs generator)
     "runpath": 4,            # the one path from a built run to its directory
