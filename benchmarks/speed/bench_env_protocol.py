@@ -2,6 +2,7 @@
 
     taskset -c 1 python benchmarks/speed/bench_env_protocol.py            # B = 16, 256 worlds
     taskset -c 1 python benchmarks/speed/bench_env_protocol.py --quick    # a check, not a measurement
+    python benchmarks/speed/bench_env_protocol.py --workers 2             # all cores: wall time
 
 The case is the issue's: ``SwarmMultiAgentVectorEnv`` over B worlds of the default scenario with 6
 agents a world (``swarm.n=6``, ``dynamics=double_integrator``, the ``policy`` avoidance the
@@ -17,6 +18,9 @@ agent, one 10 Hz guidance tick) per CPU second of this process (one core, one BL
   the same two starts, ``es.tell``; agent-steps of the episodes per CPU second of the whole loop.
 
 Each column is the best of ``--blocks`` blocks (the first block of each also warms the caches).
+With ``--workers W`` (W > 1) the environments step their worlds on W worker processes
+(``workers=W``, docs/rl.md) and the unit is agent-steps per *wall* second (the workers' CPU is not
+this process's): the protocol's "all cores" row.
 Memory: the resident set (``VmRSS``) of a fresh process after importing swarmscene and stepping one
 world once (the compiled kernels loaded), after building the B worlds' environment and after 20
 steps; the table gives the growth over the first, in MiB and per world.
@@ -31,6 +35,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
@@ -53,11 +58,17 @@ def mlp(obs: np.ndarray, layers: list[tuple[np.ndarray, np.ndarray]]) -> np.ndar
     return x
 
 
-def simulation(b: int, steps: int, blocks: int, with_mlp: bool) -> float:
-    """Agent-steps per CPU second of the batch, random actions or the fixed MLP's."""
+def clock(workers: int) -> Callable[[], float]:
+    """This process's CPU time on one core; the wall time when workers step the worlds."""
+    return time.process_time if workers == 1 else time.perf_counter
+
+
+def simulation(b: int, steps: int, blocks: int, with_mlp: bool, workers: int = 1) -> float:
+    """Agent-steps per CPU (or wall) second of the batch, random actions or the fixed MLP's."""
     from swarmscene.env import SwarmMultiAgentVectorEnv
 
-    envs = SwarmMultiAgentVectorEnv(b, CONFIG)
+    envs = SwarmMultiAgentVectorEnv(b, CONFIG, workers=workers)
+    now = clock(workers)
     rng = np.random.default_rng(0)
     d = envs.single_agent_observation_space.shape[0]
     layers = [(rng.normal(0, 1 / np.sqrt(m), (m, k)), np.zeros(k)) for m, k in ((d, 64), (64, 64), (64, 3))]
@@ -65,15 +76,16 @@ def simulation(b: int, steps: int, blocks: int, with_mlp: bool) -> float:
     best = np.inf
     for _ in range(blocks):
         actions = [rng.uniform(-1, 1, envs.action_space.shape) for _ in range(steps)]
-        start = time.process_time()
+        start = now()
         for action in actions:
             obs = envs.step(mlp(obs, layers) if with_mlp else action)[0]
-        best = min(best, time.process_time() - start)
+        best = min(best, now() - start)
+    envs.close()
     return b * AGENTS * steps / best
 
 
-def training(b: int, generations: int, blocks: int) -> float:
-    """Agent-steps per CPU second of the CMA-ES example's loop, one generation per 20-tick episode."""
+def training(b: int, generations: int, blocks: int, workers: int = 1) -> float:
+    """Agent-steps per CPU (or wall) second of the CMA-ES example's loop, one generation per 20-tick episode."""
     import cma
 
     path = ROOT / "docs" / "examples" / "train_cmaes_vector.py"
@@ -81,20 +93,22 @@ def training(b: int, generations: int, blocks: int) -> float:
     example = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = example  # its dataclass looks its module up
     spec.loader.exec_module(example)
-    envs = example.SwarmMultiAgentVectorEnv(b, [*CONFIG, *EPISODE])
+    envs = example.SwarmMultiAgentVectorEnv(b, [*CONFIG, *EPISODE], workers=workers)
+    now = clock(workers)
     policy = example.LinearPolicy(envs.single_agent_observation_space.shape[0])
     es = cma.CMAEvolutionStrategy(np.zeros(policy.size), example.SIGMA0,
                                   {"seed": 1, "verbose": -9, "popsize": b // 2})
     best, ticks = np.inf, 20
     for block in range(blocks):
-        start = time.process_time()
+        start = now()
         for generation in range(generations):
             candidates = np.array(es.ask())
             first = 2 * (block * generations + generation)
             weights = np.repeat(candidates, 2, axis=0)
             flown = example.fly(envs, lambda obs, w=weights: policy.act(w, obs), [first, first + 1] * (b // 2))
             es.tell(list(candidates), (-flown.reshape(-1, 2).mean(axis=1)).tolist())
-        best = min(best, time.process_time() - start)
+        best = min(best, now() - start)
+    envs.close()
     return b * AGENTS * ticks * generations / best
 
 
@@ -131,18 +145,25 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer steps and blocks (a check, not a measurement)")
     parser.add_argument("--blocks", type=int, default=3, help="timed blocks per column (the best counts)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="worker processes of the environments (> 1: wall time, no memory column)")
     parser.add_argument("--memory", type=int, default=None, help=argparse.SUPPRESS)  # the child's side
     args = parser.parse_args()
     if args.memory is not None:
         print(json.dumps(memory(args.memory)))
         return
     sizes, steps, blocks, generations = ((16,), 3, 1, 1) if args.quick else ((16, 256), 20, args.blocks, 2)
-    print("agent-steps per CPU second, one core; B worlds x 6 agents")
+    workers = args.workers
+    unit = "per CPU second, one core" if workers == 1 else f"per wall second, {workers} workers"
+    print(f"agent-steps {unit}; B worlds x 6 agents")
     print(f"{'B':>5}{'simulation':>12}{'+ MLP':>12}{'+ training':>12}{'memory MiB':>12}{'per world':>11}")
-    for b in sizes:
-        sim = simulation(b, steps, blocks, with_mlp=False)
-        with_mlp = simulation(b, steps, blocks, with_mlp=True)
-        trained = training(b, generations, blocks)
+    for b in (size for size in sizes if size >= workers):
+        sim = simulation(b, steps, blocks, with_mlp=False, workers=workers)
+        with_mlp = simulation(b, steps, blocks, with_mlp=True, workers=workers)
+        trained = training(b, generations, blocks, workers=workers)
+        if workers > 1:  # the workers' resident sets are theirs: the one-process row has the memory
+            print(f"{b:>5}{sim:>12.4g}{with_mlp:>12.4g}{trained:>12.4g}{'-':>12}{'-':>11}")
+            continue
         child = subprocess.run([sys.executable, __file__, "--memory", str(b)], capture_output=True,
                                text=True, check=True, cwd=ROOT)
         marks = json.loads(child.stdout.strip().splitlines()[-1])
