@@ -9,6 +9,7 @@
     gym.make("swarmscene.env:swarmscene/cem_six_vehicle-v0", render_mode="rgb_array")  # every preset has an id
     make_gym_env(["scenario=swap"], render_mode="human")     # a window, where a display exists
     envs = SwarmMultiAgentVectorEnv(64, ["scenario=swap"])   # 64 worlds in one batch: arrays (B, N, ...)
+    envs = SwarmMultiAgentVectorEnv(256, ["scenario=swap"], workers=2)   # two processes, 128 worlds each
 
 The scenario is composed and validated as for ``swarmscene`` (overrides, presets, plugins by
 name) with its avoidance replaced by the ``policy`` plugin, which takes the agents' actions from
