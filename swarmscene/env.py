@@ -39,7 +39,7 @@ import os
 import sys
 import time
 from collections.abc import Sequence
-from typing import Any, cast
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -149,10 +149,8 @@ class _Episode:
             sim.request_stop("complete")
         return complete
 
-    def reward_terms(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """What the rewards read of the tick (:func:`_rewards`): the positions, the healthy agents,
-        the reference's modes and positions, the agents too near another and too close to an
-        obstacle (empty where the term's weight is 0)."""
+    def reward_terms(self) -> _RewardTerms:
+        """What the rewards read of the tick (:func:`_rewards`)."""
         sim, weights, ref = self.sim, self.options.reward, self.policy.reference
         sensing, limit = sim.sensing, sim.config.safety.clearance_limit
         near = sensing.nearest[0] < sim.config.safety.separation_limit if weights.separation else _NONE
@@ -162,7 +160,7 @@ class _Episode:
             close = np.zeros(self.n, dtype=bool)
         else:
             close = sensing.clearance_within(limit) < limit
-        return sim.world.pos, sim.world.healthy, ref.mode, ref.pos, near, close
+        return _RewardTerms(sim.world.pos, sim.world.healthy, ref.mode, ref.pos, near, close)
 
     def ends(self) -> tuple[bool, bool]:
         """Whether the episode terminated (a stop, or no healthy agent), or was truncated (its duration)."""
@@ -184,6 +182,23 @@ class _Episode:
         metrics.setdefault("success", sim.default_success(metrics))  # as a run's metrics.json
         self.done = True
         return metrics
+
+
+class _RewardTerms(NamedTuple):
+    """What the rewards read of a tick (:func:`_rewards`'s arguments after ``before``), of one
+    world (N, ...) or of B worlds stacked (B, N, ...)."""
+
+    pos: np.ndarray
+    """The agents' positions after the tick."""
+    healthy: np.ndarray
+    mode: np.ndarray
+    """The reference's setpoint modes."""
+    ref_pos: np.ndarray
+    """The reference's positions."""
+    near: np.ndarray
+    """The agents nearer another than the separation limit (empty where its weight is 0)."""
+    close: np.ndarray
+    """The agents nearer an obstacle than the clearance limit (empty where its weight is 0)."""
 
 
 _NONE = np.zeros(0, dtype=bool)
@@ -219,9 +234,9 @@ def _judge_batch(episodes: Sequence[_Episode], actions: np.ndarray, before: np.n
     world's rewards the bits of its own ``judge``; what a world's plugins answer (completion) and its
     ends are asked world by world, in ``judge``'s order."""
     complete = np.array([episode.completed() for episode in episodes])
-    pos, healthy, mode, ref_pos, near, close = (
+    terms = _RewardTerms._make(
         np.stack(term) for term in zip(*(episode.reward_terms() for episode in episodes), strict=True))
-    rewards = _rewards(episodes[0].options.reward, actions, before, pos, healthy, mode, ref_pos, near, close, complete)
+    rewards = _rewards(episodes[0].options.reward, actions, before, *terms, complete)
     return [(reward, *episode.ends()) for reward, episode in zip(rewards, episodes, strict=True)]
 
 
