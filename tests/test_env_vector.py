@@ -11,6 +11,7 @@ import pytest
 from swarmscene import api
 from swarmscene import env as swarm_env
 from swarmscene.core.setpoint import Mode
+from swarmscene.rl import episode as rl_episode
 
 SHORT = "swarmscene-test/default-short-v0"
 # 5 ticks an episode, from a random start: a world's seed decides its start, so seeding is checked
@@ -151,13 +152,13 @@ def expect(rows, live, env, observed):
 def test_a_world_starting_with_no_healthy_agent_ends_at_once_and_restarts_next(monkeypatch):
     """Stock scenarios start healthy; a plugin's ``run_start`` could fail every agent. The parallel
     environment then has no agents; the world is over before it acts, without a tick or metrics."""
-    start = swarm_env._Episode.__init__
+    start = rl_episode.Episode.__init__
 
     def no_one_healthy(self, scenario, options):
         start(self, scenario, options)
         self.sim.world.healthy[:] = False
 
-    monkeypatch.setattr(swarm_env._Episode, "__init__", no_one_healthy)
+    monkeypatch.setattr(rl_episode.Episode, "__init__", no_one_healthy)
     config = ["scenario=swap", "swarm.n=4", "clock.duration=0.4"]
     single = swarm_env.make_env(config)
     single.reset(seed=0)
@@ -209,9 +210,9 @@ def test_the_rewards_of_stacked_worlds_are_each_worlds_own_with_every_term_weigh
     healthy, near, close = (rng.random((b_worlds, n)) < share for share in (0.8, 0.3, 0.3))
     mode = rng.integers(0, 4, (b_worlds, n)).astype(np.int8)
     complete = np.arange(b_worlds) % 2 == 0
-    stacked = swarm_env._rewards(weights, action, before, pos, healthy, mode, ref_pos, near, close, complete)
+    stacked = rl_episode._rewards(weights, action, before, pos, healthy, mode, ref_pos, near, close, complete)
     for b in range(b_worlds):
-        own = swarm_env._rewards(weights, action[b], before[b], pos[b], healthy[b], mode[b], ref_pos[b], near[b],
+        own = rl_episode._rewards(weights, action[b], before[b], pos[b], healthy[b], mode[b], ref_pos[b], near[b],
                                  close[b], np.array(complete[b]))
         assert stacked[b].tobytes() == own.tobytes()
         assert own.tobytes() == rewards_084(weights, action[b], before[b], pos[b], healthy[b], mode[b], ref_pos[b],

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from swarmscene import env as swarm_env
 from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.rl.episode import Driver
 
 FIELDS = ("mode", "pos", "vel", "acc", "yaw")
 
@@ -16,7 +16,7 @@ def policies(command: str, seeds: range) -> list:
     """One built policy avoidance per seed (the default scenario from a random start, the
     environment's actions), agent 1 of the first world failed."""
     config = ["swarm.start.layout=random", f"avoidance.action={command}"]
-    driver = swarm_env._Driver(config, None)
+    driver = Driver(config, None)
     out = [driver.reset(seed).sim for seed in seeds]
     out[0].world.healthy[1] = False
     out[0].world.vel[:] = np.random.default_rng(0).normal(size=out[0].world.vel.shape)
