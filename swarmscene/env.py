@@ -49,7 +49,7 @@ from .rl.episode import (  # noqa: F401 - POLICY, RewardOptions, scenario_for_en
     scenario_for_env,
     swarm_outcome,
 )
-from .rl.workers import Shards, Stepped
+from .rl.workers import Stepped
 from .rl.worlds import AgentWorlds, CentralWorlds, Worlds, in_this_process, world_seeds, worlds_in
 
 try:
@@ -280,7 +280,7 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
                  render_mode: str | None = None, workers: int = 1, context: str | None = None) -> None:
         _refuse_rendering(render_mode)
         self._worlds, n, size = worlds_in(CentralWorlds, num_envs, config, options, max_episode_steps,
-                                           workers, context)
+                                          workers, context)
         self.num_envs = num_envs
         self._max_episode_steps = max_episode_steps
         self.single_observation_space = _observation_box((n, size))
@@ -319,7 +319,7 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
 
     def close(self, **kwargs: Any) -> None:
         """Drop the episodes (and end the workers)."""
-        _close(self._worlds)
+        self._worlds.close()
 
 
 def _vector_infos(env: Any, stepped: Stepped) -> dict[str, Any]:
@@ -330,14 +330,6 @@ def _vector_infos(env: Any, stepped: Stepped) -> dict[str, Any]:
         infos = env._add_info(infos, info, b)
     infos.update(stepped.arrays)
     return infos
-
-
-def _close(worlds: CentralWorlds | AgentWorlds | Shards) -> None:
-    """A vector environment's ``close``: end its workers, or drop its episodes (which ``reset`` starts again)."""
-    if isinstance(worlds, Shards):
-        worlds.close()
-    else:
-        worlds.worlds.close()
 
 
 class SwarmMultiAgentVectorEnv:
@@ -383,7 +375,7 @@ class SwarmMultiAgentVectorEnv:
                  render_mode: str | None = None, workers: int = 1, context: str | None = None) -> None:
         _refuse_rendering(render_mode)
         self._worlds, n, size = worlds_in(AgentWorlds, num_envs, config, options, max_episode_steps,
-                                           workers, context)
+                                          workers, context)
         self.num_envs, self.num_agents = num_envs, n
         self.possible_agents = [f"agent_{i}" for i in range(self.num_agents)]  # the parallel env's names
         self.single_agent_observation_space = _observation_box((size,))
@@ -425,7 +417,7 @@ class SwarmMultiAgentVectorEnv:
 
     def close(self) -> None:
         """Drop the episodes (and end the workers)."""
-        _close(self._worlds)
+        self._worlds.close()
 
 
 RENDER_MODES = ("rgb_array", "human")

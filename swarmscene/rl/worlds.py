@@ -118,13 +118,25 @@ def world_seeds(seed: int | Sequence[int | None] | None, b_worlds: int) -> list[
     return seeds
 
 
-class CentralWorlds:
+class _Stepper:
+    """What both steppers share: their worlds, and ``close`` (as :class:`~.workers.Shards` has)."""
+
+    def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
+                 max_episode_steps: int | None) -> None:
+        self.worlds = Worlds(num_envs, config, options, max_episode_steps)
+
+    def close(self) -> None:
+        """Drop the episodes (``reset`` starts them again)."""
+        self.worlds.close()
+
+
+class CentralWorlds(_Stepper):
     """:class:`~swarmscene.env.SwarmVectorEnv`'s worlds: its reset and step, the infos not yet in vector form (a
     stepper of :mod:`swarmscene.rl.workers`, which can run it in a worker process)."""
 
     def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
                  max_episode_steps: int | None) -> None:
-        self.worlds = Worlds(num_envs, config, options, max_episode_steps)
+        super().__init__(num_envs, config, options, max_episode_steps)
         self._every = np.ones((num_envs, self.worlds.n), dtype=bool)  # the centralised agent commands every vehicle
 
     def reset(self, seeds: Sequence[int | None]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -150,13 +162,13 @@ class CentralWorlds:
         return Stepped(_observations(episodes), rewards, terminated, truncated, ended, {})
 
 
-class AgentWorlds:
+class AgentWorlds(_Stepper):
     """:class:`~swarmscene.env.SwarmMultiAgentVectorEnv`'s worlds: its reset and step, the infos not yet in vector
     form (a stepper of :mod:`swarmscene.rl.workers`)."""
 
     def __init__(self, num_envs: int, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
                  max_episode_steps: int | None) -> None:
-        self.worlds = Worlds(num_envs, config, options, max_episode_steps)
+        super().__init__(num_envs, config, options, max_episode_steps)
         self.agent_mask = np.zeros((num_envs, self.worlds.n), dtype=bool)  # the agents that act next
 
     def reset(self, seeds: Sequence[int | None]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -209,9 +221,9 @@ class AgentWorlds:
 
 
 def worlds_in(stepper: type[CentralWorlds] | type[AgentWorlds], num_envs: int,
-               config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
-               max_episode_steps: int | None, workers: int, context: str | None
-               ) -> tuple[CentralWorlds | AgentWorlds | Shards, int, int]:
+              config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None,
+              max_episode_steps: int | None, workers: int, context: str | None
+              ) -> tuple[CentralWorlds | AgentWorlds | Shards, int, int]:
     """A vector environment's worlds, in this process or shared out to ``workers`` processes; the
     agents of a world and the length of an agent's observation. With workers, the scenario is
     first composed and validated here, so that its errors are the same in both."""
