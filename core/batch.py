@@ -31,17 +31,18 @@ world's end, and a tick's time is the batch's tick divided among its running wor
 
 from __future__ import annotations
 
+import operator
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol, cast
+from typing import NamedTuple, Protocol, cast
 
 from . import interrupts
 from .disturbances import Perceived
 from .plugin import Dynamics
 from .prefetch import prefetch
 from .result import RunResult
-from .setpoint import Setpoints
+from .setpoint import SetpointBatch, Setpoints
 from .simulation import Simulation
 from .state import WorldBatch, WorldState
 
@@ -210,9 +211,9 @@ def _step(worlds: _Worlds) -> None:
     worlds' same phase."""
     planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]] = {}
     worlds._each(lambda sim: planned.__setitem__(id(sim), sim.planned()))
-    guided = _adjust(worlds, planned)
+    guided, adjusted = _adjust(worlds, planned)
     if worlds._count():
-        _control(worlds, guided)
+        _control(worlds, guided, adjusted)
     sims = worlds._sims()
     if sims:
         batch = worlds._world_batch()
@@ -228,14 +229,17 @@ def _step(worlds: _Worlds) -> None:
 
 
 def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]]
-            ) -> dict[int, tuple[WorldState, Setpoints]]:
+            ) -> tuple[dict[int, tuple[WorldState, Setpoints]], _Adjusted | None]:
     """The avoidance of every running world, after its formation: what each world's controller
-    reads (keyed by ``id(sim)``). The worlds flying their formation (not a take-off or landing)
-    with one avoidance method are adjusted by its batched form; the others, and all of them when
-    the method has none (the default returns ``NotImplemented``) or declines this batch, world by
-    world, so that a world whose ``adjust`` raises stops alone. An exception of the batched form
-    stops every world."""
+    reads (keyed by ``id(sim)``), and the batched form's answer where it was a
+    :class:`~swarmscene.core.setpoint.SetpointBatch` (with the worlds it answered for), which
+    the controllers' batched form may read whole. The worlds flying their formation (not a
+    take-off or landing) with one avoidance method are adjusted by its batched form; the others,
+    and all of them when the method has none (the default returns ``NotImplemented``) or declines
+    this batch, world by world, so that a world whose ``adjust`` raises stops alone. An exception
+    of the batched form stops every world."""
     guided: dict[int, tuple[WorldState, Setpoints]] = {}
+    adjusted: _Adjusted | None = None
     sims = [sim for sim in worlds._sims() if planned[id(sim)][1] is not None]
     method = type(sims[0].avoidance) if sims else None
     if (method is not None and len(sims) > 1 and all(type(sim.avoidance) is method for sim in sims)
@@ -249,10 +253,12 @@ def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | No
                                  f"for {len(sims)} worlds")
         except Exception as exc:
             worlds._stop_all(exc)
-            return guided
+            return guided, None
         if done is not NotImplemented:
             for sim, sp in zip(sims, cast("list[Setpoints]", done), strict=True):
                 guided[id(sim)] = (planned[id(sim)][0], sp)
+            if isinstance(done, SetpointBatch):
+                adjusted = _Adjusted(sims, done)
 
     def adjust(sim: Simulation) -> None:
         if id(sim) not in guided:
@@ -260,22 +266,32 @@ def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | No
             guided[id(sim)] = (own, sp if seen is None else sim.avoidance.adjust(seen.world, seen.sensing, sp))
 
     worlds._each(adjust)
-    return guided
+    return guided, adjusted
 
 
-def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]]) -> None:
+class _Adjusted(NamedTuple):
+    """An avoidance's batched answer as one :class:`SetpointBatch`, and the worlds it is for."""
+
+    sims: list[Simulation]
+    setpoints: SetpointBatch
+
+
+def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]], adjusted: _Adjusted | None) -> None:
     """The controllers of every running world: the model's batched form, or world by world when
     it has none (the default :meth:`~swarmscene.core.plugin.Dynamics.control_batch`, run here so
     that a world whose ``control`` raises stops alone), declines this batch, or leaves some of its
-    worlds (returns their places in the batch). An exception of the batched form stops every world
-    it was controlling."""
+    worlds (returns their places in the batch). The setpoints are the avoidance's
+    :class:`SetpointBatch` itself where it answered for exactly these worlds (none stopped in
+    its ``adjust``, none taking off or landing), else the worlds' records in a list. An exception
+    of the batched form stops every world it was controlling."""
     sims = worlds._sims()
     left: set[int] | None = None  # ids of the worlds the engine controls one by one; None: all
     if len(sims) > 1 and has_batched_control(worlds.model):
+        same = adjusted is not None and len(adjusted.sims) == len(sims) and all(map(operator.is_, adjusted.sims, sims))
         try:
             done = worlds.model.control_batch(
-                [sim.dynamics for sim in sims], worlds._world_batch(),
-                [guided[id(sim)][0] for sim in sims], [guided[id(sim)][1] for sim in sims])
+                [sim.dynamics for sim in sims], worlds._world_batch(), [guided[id(sim)][0] for sim in sims],
+                adjusted.setpoints if same and adjusted is not None else [guided[id(sim)][1] for sim in sims])
             if done is not NotImplemented:
                 left = {id(sims[b]) for b in left_places(done, len(sims), worlds.model)}
         except Exception as exc:

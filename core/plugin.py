@@ -196,6 +196,9 @@ class Avoidance(Plugin):
         batch it cannot take whole (instances whose options differ). An exception it raises stops
         every world of the batch. A subclass that overrides ``adjust`` and not this is adjusted
         world by world (the engine uses a batched form only with the ``adjust`` it was written for).
+        An override that makes every world's setpoints in one pass may return them as one
+        :class:`~swarmscene.core.setpoint.SetpointBatch` (a sequence of the B records): the engine
+        then hands it to the dynamics model's ``control_batch`` as it is, which may read it whole.
         """
         return NotImplemented
 
@@ -254,6 +257,10 @@ class Dynamics(Plugin):
         ``worlds[b]`` is what world b's controller reads (the agents' own estimates, which are
         ``batch.worlds[b]`` itself when no sensing disturbance is declared) and ``setpoints[b]``
         its guidance's setpoints for this tick; ``batch`` holds the worlds' true state.
+        ``setpoints`` is a list of the worlds' records, or, where the avoidance's batched form
+        made them in one pass, a :class:`~swarmscene.core.setpoint.SetpointBatch`: the same
+        records, whose ``whole()`` gives them stacked (B N agents) to read without stacking them
+        again (the contract check hands an override both).
 
         This default controls each world with its own instance, so every model works in a batch
         (the engine then runs it itself, world by world, so that a world whose ``control`` raises

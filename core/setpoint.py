@@ -7,8 +7,11 @@ are in the world frame (see :mod:`swarmscene.core.state`).
 
 from __future__ import annotations
 
+import operator
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import overload
 
 import numpy as np
 
@@ -86,3 +89,71 @@ class Setpoints:
     def n(self) -> int:
         """N, the agents these setpoints command."""
         return self.pos.shape[0]
+
+
+class SetpointBatch(Sequence[Setpoints]):
+    """B worlds' setpoints as one record over their stacked B x N agents.
+
+    What a batched form that makes every world's setpoints in one pass can return (the ``policy``
+    avoidance turning an environment's (B, N, 3) actions into setpoints), and what a dynamics
+    model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch` can take whole instead of
+    stacking B records again (the quadrotor's does). It is a sequence of B per-world records, so
+    code written for a list of records reads it as one: world b's record holds views of its rows
+    of the stacked arrays, made when first asked and the same object after.
+
+    An edit in place of a world's record is the stacked record's too (they share memory). An
+    attribute replaced in a handed-out record (``sp.pos = ...``) is not: :meth:`whole` then says
+    ``None``, and a consumer falls back to the B records, which hold it.
+
+    Args:
+        whole: the stacked record, B x N agents, world b's agents in rows b N ... (b + 1) N - 1.
+        worlds: B.
+
+    Raises:
+        ValueError: B is not positive, or does not divide the record's rows.
+    """
+
+    __slots__ = ("_whole", "_count", "_n", "_views")
+
+    def __init__(self, whole: Setpoints, worlds: int) -> None:
+        if worlds < 1 or whole.n % worlds:
+            raise ValueError(f"a setpoint batch of {whole.n} agents cannot hold {worlds} worlds of equal size")
+        self._whole, self._count, self._n = whole, worlds, whole.n // worlds
+        self._views: dict[int, tuple[Setpoints, tuple]] = {}  # world: its record, the arrays it was made with
+
+    def __len__(self) -> int:
+        return self._count
+
+    @overload
+    def __getitem__(self, b: int) -> Setpoints: ...
+
+    @overload
+    def __getitem__(self, b: slice) -> list[Setpoints]: ...
+
+    def __getitem__(self, b: int | slice) -> Setpoints | list[Setpoints]:
+        if isinstance(b, slice):
+            return [self[i] for i in range(*b.indices(self._count))]
+        b = operator.index(b)
+        if not -self._count <= b < self._count:
+            raise IndexError(f"world {b} of a setpoint batch of {self._count}")
+        b %= self._count
+        if b not in self._views:
+            rows = slice(b * self._n, (b + 1) * self._n)
+            w = self._whole
+            record = Setpoints(w.mode[rows], w.pos[rows], w.vel[rows], w.acc[rows], w.yaw[rows],
+                               None if w.jerk is None else w.jerk[rows], None if w.snap is None else w.snap[rows])
+            self._views[b] = (record, _fields(record))
+        return self._views[b][0]
+
+    def whole(self) -> Setpoints | None:
+        """The stacked record (B N agents), or ``None`` where a world's record handed out no longer
+        holds the views it was made with (an attribute of it was replaced): read, not edited."""
+        for record, arrays in self._views.values():
+            if not all(map(operator.is_, _fields(record), arrays)):
+                return None
+        return self._whole
+
+
+def _fields(sp: Setpoints) -> tuple:
+    """The record's arrays, in field order (``dataclasses.astuple`` would deep-copy them)."""
+    return sp.mode, sp.pos, sp.vel, sp.acc, sp.yaw, sp.jerk, sp.snap

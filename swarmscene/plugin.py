@@ -58,14 +58,15 @@ from .core.plugin import (
 )
 from .core.run_view import RunView
 from .core.sensing import Sensing
-from .core.setpoint import Mode, Setpoints
+from .core.setpoint import Mode, SetpointBatch, Setpoints
 from .core.state import Role, WorldBatch, WorldState
 from .core.vectors import clip_norm, every, min_distance_between, min_pair_distance, rows_of, wrap
 
 __all__ = [
     "Avoidance", "BuildContext", "Disturbance", "DisturbanceContext", "DisturbanceParams", "Dynamics",
     "Environment", "Event", "EventKindPlugin", "EventParams", "Formation", "MapGenerator", "Mode",
-    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "Role", "RunView", "SHARED", "Sensing", "Setpoints",
+    "Motion", "PHASES", "Plugin", "PluginParams", "Policy", "Role", "RunView", "SHARED", "Sensing", "SetpointBatch",
+    "Setpoints",
     "StrictModel", "SwarmsceneDeprecationWarning", "WorldBatch", "WorldState", "build_context", "choose",
     "disturbance_context",
     "hookimpl", "validate_renamed",

@@ -20,7 +20,7 @@ from typing import Literal
 import numpy as np
 
 from swarmscene.core.errors import SwarmsceneDeprecationWarning
-from swarmscene.core.setpoint import Mode, Setpoints
+from swarmscene.core.setpoint import Mode, SetpointBatch, Setpoints
 from swarmscene.core.state import WorldState
 
 ActionCommand = Literal["velocity", "acceleration"]
@@ -57,13 +57,15 @@ def action_setpoints(world: WorldState, action: np.ndarray, active: np.ndarray, 
 
 
 def action_setpoints_batch(worlds: Sequence[WorldState], actions: Sequence[np.ndarray], actives: Sequence[np.ndarray],
-                           spec: ActionSpec) -> list[Setpoints]:
+                           spec: ActionSpec) -> SetpointBatch:
     """:func:`action_setpoints` of B worlds of N agents in one elementwise pass over their stacked
     rows: world b's setpoints are the bits of ``action_setpoints(worlds[b], actions[b], actives[b],
-    spec)`` (their arrays are views of the stacked ones, one world's rows each)."""
+    spec)``, the B records one :class:`~swarmscene.core.setpoint.SetpointBatch` (a controller's
+    batched form reads it whole)."""
     pos, vel, healthy = (np.stack([getattr(w, name) for w in worlds]) for name in ("pos", "vel", "healthy"))
     fields = _action_fields(pos, vel, healthy, np.stack(actions), np.stack(actives), spec)
-    return [Setpoints(*(field[b] for field in fields)) for b in range(len(worlds))]
+    rows = pos.shape[0] * pos.shape[1]
+    return SetpointBatch(Setpoints(*(field.reshape(rows, *field.shape[2:]) for field in fields)), len(worlds))
 
 
 def _action_fields(pos: np.ndarray, vel: np.ndarray, healthy: np.ndarray, action: np.ndarray, active: np.ndarray,

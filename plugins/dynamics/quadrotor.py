@@ -50,7 +50,16 @@ from pydantic import Field, model_validator
 from swarmscene.methods.quadrotor.flatness import heading_vector
 from swarmscene.methods.quadrotor.model import AIRFRAMES, quat_to_rotmat, yaw_to_quat
 from swarmscene.methods.quadrotor.se3_controller import se3_gains
-from swarmscene.plugin import BuildContext, Dynamics, PluginParams, Setpoints, WorldBatch, WorldState, hookimpl
+from swarmscene.plugin import (
+    BuildContext,
+    Dynamics,
+    PluginParams,
+    SetpointBatch,
+    Setpoints,
+    WorldBatch,
+    WorldState,
+    hookimpl,
+)
 
 
 class Quadrotor(Dynamics):
@@ -212,29 +221,28 @@ class Quadrotor(Dynamics):
         yaws by the same elementwise numpy code as ``control`` (tests/test_batch.py holds its bits
         to the per-world ones at every length). The instances share one :class:`_Clock`, and the
         packed references are latched for the tick's :meth:`step_batch` (:meth:`WorldBatch.latch`),
-        so that its sub-steps touch no instance. Worlds whose instances differ in options, or
-        whose setpoints differ in carrying feed-forward (jerk or snap), are left to the
-        per-world ``control``; so is a setpoint record of the wrong size (the world's ``control``
-        raises)."""
+        so that its sub-steps touch no instance. Setpoints given as a
+        :class:`~swarmscene.core.setpoint.SetpointBatch` are read whole, not stacked again (the
+        same bits). Worlds whose instances differ in options, or whose setpoints differ in
+        carrying feed-forward (jerk or snap), are left to the per-world ``control``; so is a
+        setpoint record of the wrong size (the world's ``control`` raises)."""
         first = models[0]
         b, n = batch.pos.shape[:2]
-        feedforward = setpoints[0].jerk is not None or setpoints[0].snap is not None
-        if not _setpoints_agree(setpoints, n, feedforward) or not cls._same_options(models, batch):
+        whole = _whole(setpoints, b * n)
+        head = setpoints[0] if whole is None else whole
+        feedforward = head.jerk is not None or head.snap is not None
+        if (whole is None and not _setpoints_agree(setpoints, n, feedforward)) or not cls._same_options(models, batch):
             return NotImplemented
         clock = _Clock()
         ref = _packed_references(cls, models, batch, clock)
         zeros = ref["zeros"]
-        yaw = np.concatenate([sp.yaw for sp in setpoints], dtype=np.float64, casting="unsafe")
-        ref["_heading"][:] = heading_vector(yaw)
+        sp = _stacked_record(setpoints, zeros, feedforward) if whole is None else whole
+        ref["_heading"][:] = heading_vector(sp.yaw)
         own = len(worlds) == len(batch.worlds) and all(map(operator.is_, worlds, batch.worlds))
         pos = batch.pos.reshape(b * n, 3) if own else _stacked([w.pos for w in worlds])
         first._kernels.latch_references(
-            np.concatenate([w.healthy for w in worlds]),
-            np.concatenate([sp.mode for sp in setpoints], dtype=np.int8, casting="unsafe"),
-            _stacked([sp.pos for sp in setpoints]), _stacked([sp.vel for sp in setpoints]),
-            _stacked([sp.acc for sp in setpoints]),
-            _stacked_or_zeros([sp.jerk for sp in setpoints], zeros) if feedforward else zeros,
-            _stacked_or_zeros([sp.snap for sp in setpoints], zeros) if feedforward else zeros,
+            np.concatenate([w.healthy for w in worlds]), sp.mode, sp.pos, sp.vel, sp.acc,
+            zeros if sp.jerk is None else sp.jerk, zeros if sp.snap is None else sp.snap,
             pos, ref["_heading"], first.params.propagate_reference, feedforward,
             ref["_p"], ref["_v"], ref["_a"], ref["_dv"], ref["_da"], ref["_dj"], ref["_ds"], ref["_position_mask"],
             ref["_omega_d"], ref["_alpha_d"])
@@ -414,6 +422,35 @@ def _stacked_or_zeros(arrays: Sequence[np.ndarray | None], zeros: np.ndarray) ->
         return zeros
     n = zeros.shape[0] // len(arrays)
     return _stacked([zeros[:n] if a is None else a for a in arrays])
+
+
+def _whole(setpoints: Sequence[Setpoints], rows: int) -> Setpoints | None:
+    """A :class:`SetpointBatch`'s stacked record of ``rows`` agents in the dtypes and layout the
+    kernels take (what :func:`_stacked_record` makes of B records; no copy where they already
+    are), or ``None``: not a batch, a world's record replaced, or the wrong size (the per-world
+    path then checks and raises)."""
+    whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
+    if whole is None:
+        return None
+    if (any(np.shape(a) != (rows,) for a in (whole.mode, whole.yaw))
+            or any(np.shape(a) != (rows, 3) for a in (whole.pos, whole.vel, whole.acc))
+            or any(a is not None and np.shape(a) != (rows, 3) for a in (whole.jerk, whole.snap))):
+        return None
+    return Setpoints(np.ascontiguousarray(whole.mode, dtype=np.int8), _floats(whole.pos), _floats(whole.vel),
+                     _floats(whole.acc), _floats(whole.yaw), None if whole.jerk is None else _floats(whole.jerk),
+                     None if whole.snap is None else _floats(whole.snap))
+
+
+def _stacked_record(setpoints: Sequence[Setpoints], zeros: np.ndarray, feedforward: bool) -> Setpoints:
+    """B worlds' records stacked into one of B N agents (float64, int8 modes, each converted as
+    ``_floats`` does); a world's missing jerk or snap reads as zeros, as in ``control``."""
+    return Setpoints(
+        np.concatenate([sp.mode for sp in setpoints], dtype=np.int8, casting="unsafe"),
+        _stacked([sp.pos for sp in setpoints]), _stacked([sp.vel for sp in setpoints]),
+        _stacked([sp.acc for sp in setpoints]),
+        np.concatenate([sp.yaw for sp in setpoints], dtype=np.float64, casting="unsafe"),
+        _stacked_or_zeros([sp.jerk for sp in setpoints], zeros) if feedforward else None,
+        _stacked_or_zeros([sp.snap for sp in setpoints], zeros) if feedforward else None)
 
 
 def _floats(a) -> np.ndarray:

@@ -63,7 +63,7 @@ from ..core.environment import Environment
 from ..core.errors import format_validation_error
 from ..core.plugin import PLUGIN_KINDS, Avoidance, Dynamics, Formation, PluginParams
 from ..core.sensing import Sensing
-from ..core.setpoint import Mode, Setpoints
+from ..core.setpoint import Mode, SetpointBatch, Setpoints
 from ..core.state import WorldBatch, WorldState
 from ..plugin import build_context
 from .contract import ContractError, Outcome, Subject, checks_of, promise, run
@@ -498,10 +498,13 @@ def _dynamics_batch_equals_worlds(s: Subject) -> None:
 
 @promise("dynamics", "control_batch_equals_worlds")
 def _dynamics_control_batch_equals_worlds(s: Subject) -> None:
-    """``control_batch`` over three worlds with setpoints of their own (modes, targets, headings,
+    """``control_batch`` over five worlds with setpoints of their own (modes, targets, headings,
     an agent failed) flies them as each world's own ``control`` does, bit for bit (the default
-    controls world by world; a batched form must latch the same commands)."""
-    _check_dynamics_control_batch_equals_worlds(s.cls, s.params)
+    controls world by world; a batched form must latch the same commands), given the setpoints
+    as a list of records and as one ``SetpointBatch`` (as the engine hands on the ``policy``
+    avoidance's)."""
+    _check_dynamics_control_batch_equals_worlds(s.cls, s.params, one_batch=False)
+    _check_dynamics_control_batch_equals_worlds(s.cls, s.params, one_batch=True)
 
 
 @promise("dynamics", "no_shared_state")
@@ -684,12 +687,15 @@ def _assert_worlds_equal(alone: list[WorldState], together: list[WorldState], di
                 f"a batched form {must} (docs/batched.md)")
 
 
-def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: PluginParams) -> None:
+def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: PluginParams, one_batch: bool) -> None:
     """Five worlds flown 2 s alone (``control`` and ``step``), then together (``control_batch``
     and ``step_batch``): each tick every world gets setpoints of its own (worlds 0 and 3 a
     POSITION move each, worlds 1 and 4 a TRACK along a moving target with vel, acc and a turning
     heading, world 2 a VELOCITY command with one agent failed and the rest held), so that a
-    batched form that groups worlds by their controller's mode has groups to take."""
+    batched form that groups worlds by their controller's mode has groups to take. With
+    ``one_batch`` the worlds' records are handed together as one
+    :class:`~swarmscene.core.setpoint.SetpointBatch` (one record has one set of fields: every
+    world's carries jerk and snap, zero where the TRACK's do not, on both sides)."""
     shifts = ([0.0, 0.0, 0.0], [5.0, -2.0, 1.0], [-3.0, 4.0, 0.5], [2.0, 6.0, -1.0], [-6.0, -5.0, 2.0])
 
     def worlds() -> list[tuple[WorldState, Dynamics]]:
@@ -714,6 +720,9 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
             sp.mode[:] = Mode.VELOCITY
             sp.vel[:] = [0.0, VELOCITY_COMMAND, 0.0]
             sp.mode[1] = Mode.HOLD
+        if one_batch:
+            sp.jerk = np.zeros((world.n, 3)) if sp.jerk is None else sp.jerk
+            sp.snap = np.zeros((world.n, 3)) if sp.snap is None else sp.snap
         return sp
 
     ticks, substeps = int(round(2.0 / GUIDANCE_PERIOD)), int(round(GUIDANCE_PERIOD / PHYSICS_STEP))
@@ -728,7 +737,11 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
     batch = WorldBatch([world for world, _ in together])
     models = [model for _, model in together]
     for _ in range(ticks):
-        sps = [setpoints(b, world, world.t) for b, (world, _) in enumerate(together)]
+        records = [setpoints(b, world, world.t) for b, (world, _) in enumerate(together)]
+        sps: list[Setpoints] | SetpointBatch = records
+        if one_batch:
+            sps = SetpointBatch(Setpoints(*(np.concatenate([getattr(sp, field) for sp in records]) for field in (
+                "mode", "pos", "vel", "acc", "yaw", "jerk", "snap"))), len(records))
         done = _batched(cls, "control", models, batch, batch.worlds, sps)
         left = range(len(models)) if done is NotImplemented else left_places(done, len(models), cls)
         for b in left:  # the worlds it left to their own control, as the engine reads them
@@ -743,7 +756,8 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
             world.t += GUIDANCE_PERIOD
     _assert_worlds_equal([one for one, _ in alone], [batched for batched, _ in together],
                          lambda b, field: f"{cls.name}: control_batch flew world {b} to another {field} than its "
-                         "own control()", "must latch each world's commands with the per-world arithmetic")
+                         f"own control(){' (setpoints given as one SetpointBatch)' if one_batch else ''}",
+                         "must latch each world's commands with the per-world arithmetic")
 
 
 def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:

@@ -1,0 +1,170 @@
+"""SetpointBatch: B worlds' setpoints as one stacked record, read whole by the quadrotor's
+batched controller (the same bits as its records stacked), handed from the ``policy``
+avoidance's batched form to the controllers by the engine."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmscene import api
+from swarmscene import env as swarm_env
+from swarmscene.core.setpoint import Mode, SetpointBatch, Setpoints
+from swarmscene.core.state import WorldBatch, WorldState
+from swarmscene.plugin import build_context
+from swarmscene.plugins.dynamics.quadrotor import Quadrotor
+
+B, N, SUBSTEPS, DT = 3, 4, 24, 1 / 240
+
+
+def stacked_record(rows: int, seed: int = 0, feedforward: bool = False) -> Setpoints:
+    """``rows`` agents' setpoints in every mode, moving references, headings of their own."""
+    rng = np.random.default_rng(seed)
+    mode = rng.permutation(np.resize(np.array([int(m) for m in Mode], dtype=np.int8), rows))
+    pos = rng.uniform(-1, 1, (rows, 3)) + [0.0, 0.0, 2.0]
+    jerk, snap = (rng.normal(0, 0.1, (rows, 3)), rng.normal(0, 0.1, (rows, 3))) if feedforward else (None, None)
+    return Setpoints(mode, pos, rng.normal(0, 0.5, (rows, 3)), rng.normal(0, 0.2, (rows, 3)),
+                     rng.uniform(-np.pi, np.pi, rows), jerk, snap)
+
+
+def test_a_world_of_a_setpoint_batch_is_its_rows_of_the_stacked_record():
+    whole = stacked_record(B * N, feedforward=True)
+    batch = SetpointBatch(whole, B)
+    assert len(batch) == B
+    for b in range(B):
+        rows = slice(b * N, (b + 1) * N)
+        for field in ("mode", "pos", "vel", "acc", "yaw", "jerk", "snap"):
+            np.testing.assert_array_equal(getattr(batch[b], field), getattr(whole, field)[rows])
+            assert np.shares_memory(getattr(batch[b], field), getattr(whole, field)), field
+    assert batch[1] is batch[1] and batch[-1] is batch[B - 1] and list(batch)[0] is batch[0]
+    assert batch[1:] == [batch[1], batch[2]]
+    batch[1].pos[0] = 9.0  # an edit in place is the stacked record's
+    np.testing.assert_array_equal(whole.pos[N], [9.0, 9.0, 9.0])
+    assert batch.whole() is whole
+    with pytest.raises(IndexError, match="world 3 of a setpoint batch of 3"):
+        batch[3]
+
+
+def test_a_replaced_attribute_of_a_world_withholds_the_whole_record():
+    batch = SetpointBatch(stacked_record(B * N), B)
+    batch[2].vel = np.zeros((N, 3))
+    assert batch.whole() is None
+    assert np.array_equal(batch[2].vel, np.zeros((N, 3)))  # the world's record keeps what it was given
+
+
+@pytest.mark.parametrize("worlds", [0, 5])
+def test_a_setpoint_batch_of_unequal_worlds_is_refused_in_one_line(worlds):
+    with pytest.raises(ValueError, match=f"a setpoint batch of 12 agents cannot hold {worlds} worlds of equal size"):
+        SetpointBatch(stacked_record(B * N), worlds)
+
+
+def quadrotor_worlds() -> tuple[list[WorldState], list[Quadrotor], WorldBatch]:
+    """Three worlds of four quadrotors at rest, 3 m apart, agent 1 of world 2 failed."""
+    start = np.column_stack([np.arange(N) * 2.0, np.zeros(N), np.full(N, 2.0)])
+    ctx = build_context(positions=start, guidance_period=SUBSTEPS * DT, physics_step=DT)
+    worlds = [WorldState.at_rest(start + [0.0, 3.0 * b, 0.0]) for b in range(B)]
+    worlds[2].healthy[1] = False
+    models = [Quadrotor(Quadrotor.Params(), ctx) for _ in worlds]
+    for model, world in zip(models, worlds, strict=True):
+        model.initialize(world)
+    return worlds, models, WorldBatch(worlds)
+
+
+class Unread(SetpointBatch):
+    """A batch whose worlds may not be read one by one: control_batch must take it whole."""
+
+    def __getitem__(self, b):
+        raise AssertionError("the batch was read world by world")
+
+
+def fly(setpoints_of_tick) -> list[WorldState]:
+    """Three ticks of the worlds batched: ``control_batch``, then ``step_batch``."""
+    worlds, models, batch = quadrotor_worlds()
+    for tick in range(3):
+        assert Quadrotor.control_batch(models, batch, worlds, setpoints_of_tick(tick)) is None
+        batch.controlled()
+        for _ in range(SUBSTEPS):
+            assert Quadrotor.step_batch(models, batch, DT) is None
+    return worlds
+
+
+def fly_alone(setpoints_of_tick) -> list[WorldState]:
+    """Three ticks of each world on its own: ``control``, then ``step`` (the single runs)."""
+    worlds, models, _ = quadrotor_worlds()
+    for tick in range(3):
+        for model, world, sp in zip(models, worlds, setpoints_of_tick(tick), strict=True):
+            model.control(world, sp)
+            for _ in range(SUBSTEPS):
+                model.step(world, DT)
+    return worlds
+
+
+@pytest.mark.parametrize("feedforward", [False, True], ids=["plain", "jerk-snap"])
+def test_the_quadrotor_reads_a_setpoint_batch_whole_with_each_worlds_single_run_bits(feedforward):
+    """Every mode, a failed agent, references moving, in float32 and int64 as a plugin may give
+    them: flown from the batch read whole, each world has its single run's bits."""
+
+    def record(tick: int) -> Setpoints:
+        sp = stacked_record(B * N, seed=tick, feedforward=feedforward)
+        sp.mode, sp.pos = sp.mode.astype(np.int64), sp.pos.astype(np.float32)
+        return sp
+
+    def as_list(tick: int) -> list[Setpoints]:
+        return list(SetpointBatch(record(tick), B))
+
+    whole, listed = fly(lambda tick: Unread(record(tick), B)), fly_alone(as_list)
+    for a, b in zip(whole, listed, strict=True):
+        for field in ("pos", "vel", "quat", "omega", "rotor_speed"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+    assert np.linalg.norm(whole[0].pos - quadrotor_worlds()[0][0].pos, axis=1).min() > 1e-3  # every agent moved
+
+
+def test_a_world_whose_record_was_replaced_is_flown_by_the_replacement():
+    """A batch one of whose worlds' attributes was replaced after it was made: the controller
+    falls back to the records, which hold the replacement (each world its single run's bits)."""
+
+    def replaced(tick: int) -> list[Setpoints] | SetpointBatch:
+        batch = SetpointBatch(stacked_record(B * N, seed=tick), B)
+        batch[1].pos = batch[1].pos + 1.0
+        return batch
+
+    def as_list(tick: int) -> list[Setpoints]:
+        records = [Setpoints(*(None if a is None else a.copy() for a in (sp.mode, sp.pos, sp.vel, sp.acc, sp.yaw)))
+                   for sp in SetpointBatch(stacked_record(B * N, seed=tick), B)]
+        records[1].pos += 1.0
+        return records
+
+    for a, b in zip(fly(replaced), fly_alone(as_list), strict=True):
+        np.testing.assert_array_equal(a.pos, b.pos)
+
+
+def test_the_policy_hands_its_setpoint_batch_to_the_quadrotors_batched_control(monkeypatch):
+    """The multi-agent vector environment on quadrotors: every tick the ``policy`` avoidance's
+    batch reaches ``control_batch`` whole, and every world is its single environment's."""
+    given: list[type] = []
+    control_batch = Quadrotor.control_batch.__func__
+
+    def spy(cls, models, batch, worlds, setpoints):
+        given.append(type(setpoints))
+        return control_batch(cls, models, batch, worlds, setpoints)
+
+    monkeypatch.setattr(Quadrotor, "control_batch", classmethod(spy))
+    data = api.compose(["events=lead_fails", "clock.duration=1.2", "swarm.start.layout=random", "dynamics=quadrotor"])
+    data["events"][0]["at"] = 0.3
+    envs = swarm_env.SwarmMultiAgentVectorEnv(B, data)
+    singles = [swarm_env.make_env(data) for _ in range(B)]
+    obs, _ = envs.reset(seed=3)
+    for b, env in enumerate(singles):
+        env.reset(seed=3 + b)
+    rng = np.random.default_rng(0)
+    for _ in range(8):
+        actions = rng.uniform(-1, 1, envs.action_space.shape)
+        obs, rewards, *_ = envs.step(actions)
+        for b, env in enumerate(singles):
+            index = {a: i for i, a in enumerate(env.possible_agents)}
+            o, r, *_ = env.step({a: actions[b, index[a]] for a in env.agents})
+            for a in o:
+                np.testing.assert_array_equal(obs[b, index[a]], o[a])
+                assert rewards[b, index[a]] == r[a]
+    envs.close()
+    assert given == [SetpointBatch] * 8
