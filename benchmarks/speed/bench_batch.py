@@ -8,7 +8,10 @@ world: ``model.control`` and ``model.step(world, dt)`` for each world; ``step_ba
 controllers world by world, one ``Model.step_batch(models, batch, dt)``
 (:class:`~swarmscene.core.state.WorldBatch`); ``+control_batch``: one
 ``Model.control_batch(models, batch, worlds, setpoints)`` and one ``step_batch`` (the engine's
-tick). The three sides fly the same worlds alternately, block by block, timed in CPU time;
+tick), the worlds' setpoint records in a list (as formations give them); ``one batch``: the same
+with the setpoints as one :class:`~swarmscene.core.setpoint.SetpointBatch` (as the ``policy``
+avoidance gives an environment's actions, and as Crazyflow's users give their commands: one
+array). The four sides fly the same worlds alternately, block by block, timed in CPU time;
 drone-steps per CPU second of each and their ratios to the first. All end in the same state,
 bit for bit (checked).
 
@@ -49,7 +52,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 import numpy as np  # noqa: E402
 
 from swarmscene import api  # noqa: E402
-from swarmscene.core.setpoint import Setpoints  # noqa: E402
+from swarmscene.core.setpoint import SetpointBatch, Setpoints  # noqa: E402
 from swarmscene.core.state import WorldBatch, WorldState  # noqa: E402
 from swarmscene.plugin import build_context  # noqa: E402
 from swarmscene.plugins.dynamics.double_integrator import DoubleIntegrator  # noqa: E402
@@ -97,11 +100,16 @@ def tick(models: list, the_worlds: list[WorldState], targets: list[Setpoints], s
         step()
 
 
-def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options) -> tuple[float, float, float]:
+def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options) -> tuple[float, float, float, float]:
     """Drone-steps per CPU second, per world, batched physics with the controllers world by world,
-    and batched physics and controllers (the best block of each); the model built with ``options``."""
-    sides = {side: worlds(model_cls, b, n, **options) for side in ("world", "batch", "control")}
-    batches = {side: WorldBatch(sides[side][0]) for side in ("batch", "control")}
+    batched physics and controllers with the worlds' setpoint records in a list (as a formation
+    gives them) and with one :class:`~swarmscene.core.setpoint.SetpointBatch` (as the ``policy``
+    avoidance gives an environment's actions; the best block of each); the model built with
+    ``options``."""
+    sides = {side: worlds(model_cls, b, n, **options) for side in ("world", "batch", "control", "stacked")}
+    batches = {side: WorldBatch(sides[side][0]) for side in ("batch", "control", "stacked")}
+    the_worlds, models, targets = sides["stacked"]
+    sides["stacked"] = (the_worlds, models, SetpointBatch(_stacked_targets(targets), b))
 
     def stepper(side: str):
         the_worlds, models, _ = sides[side]
@@ -117,7 +125,7 @@ def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options)
 
     def args(side: str) -> tuple:
         the_worlds, models, targets = sides[side]
-        return (models, the_worlds, targets, stepper(side), batches.get(side), side == "control")
+        return (models, the_worlds, targets, stepper(side), batches.get(side), side in ("control", "stacked"))
 
     best = dict.fromkeys(sides, np.inf)
     for side in sides:  # compile and warm every side
@@ -128,11 +136,17 @@ def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options)
             for _ in range(ticks):
                 tick(*args(side))
             best[side] = min(best[side], time.process_time() - start)
-    for side in ("batch", "control"):
+    for side in ("batch", "control", "stacked"):
         for a, c in zip(sides["world"][0], sides[side][0], strict=True):
             assert np.array_equal(a.pos, c.pos) and np.array_equal(a.vel, c.vel), "the batch left its worlds' bits"
     steps = b * n * ticks * SUBSTEPS
-    return steps / best["world"], steps / best["batch"], steps / best["control"]
+    return steps / best["world"], steps / best["batch"], steps / best["control"], steps / best["stacked"]
+
+
+def _stacked_targets(targets: list[Setpoints]) -> Setpoints:
+    """The worlds' setpoint records as one, their agents stacked world after world."""
+    return Setpoints(*(np.concatenate([getattr(sp, field) for sp in targets])
+                       for field in ("mode", "pos", "vel", "acc", "yaw")))
 
 
 def threads_scaling(b: int, n: int, threads: int, ticks: int, blocks: int) -> tuple[float, float]:
@@ -258,14 +272,15 @@ def main() -> None:
             print(f"{f'{b} x {n}':>12}{one:>12.3g}{many:>12.3g}  ratio {many / one:5.2f}")
         return
     print("physics, drone-steps per CPU second (240 Hz, 10 Hz control), one core")
-    print(f"{'model':<18}{'B x N':>12}{'per world':>12}{'step_batch':>12}{'+control_b':>12}{'ratios':>14}")
+    print(f"{'model':<18}{'B x N':>12}{'per world':>12}{'step_batch':>12}{'+control_b':>12}{'one batch':>12}"
+          f"{'ratios':>21}")
     for model_cls in (Quadrotor, DoubleIntegrator):
         for b, n in GRID:
             if args.only is not None and f"{model_cls.name}:{b}x{n}" not in args.only:
                 continue
-            world_rate, batch_rate, control_rate = physics(model_cls, b, n, ticks, blocks)
-            print(f"{model_cls.name:<18}{f'{b} x {n}':>12}{world_rate:>12.3g}{batch_rate:>12.3g}{control_rate:>12.3g}"
-                  f"{batch_rate / world_rate:>7.2f}{control_rate / world_rate:>7.2f}")
+            rates = physics(model_cls, b, n, ticks, blocks)
+            print(f"{model_cls.name:<18}{f'{b} x {n}':>12}" + "".join(f"{rate:>12.3g}" for rate in rates)
+                  + "".join(f"{rate / rates[0]:>7.2f}" for rate in rates[1:]))
     if args.only is not None:
         return
     print("\nvector environment, agent-steps per CPU second, one core")

@@ -25,9 +25,13 @@ and the command at 10 Hz (24 physics steps per tick):
   tick) then 24 ``Quadrotor.step_batch`` (the rotor mixer and one RK4 step of each 6-DOF rigid body,
   numba) over a :class:`~swarmscene.core.state.WorldBatch` of the B worlds, in float64 (the default)
   and, as a side of its own, with ``dtype="float32"`` (``dynamics.dtype=float32``). The figure is
-  its ``+control_batch`` side (the engine's batched tick); ``physics`` also times, alternately in the
-  same process, the worlds one by one and ``step_batch`` with the controllers world by world (kept in
-  the JSON of ``--json``, not in the table) and checks that the three end in the same bits.
+  its ``+control_batch`` side (the engine's batched tick, the worlds' setpoint records in a list, as
+  formations give them); the column "one setpoint batch" is the same tick given the setpoints as one
+  :class:`~swarmscene.core.setpoint.SetpointBatch` (as the ``policy`` avoidance gives an
+  environment's actions, and as Crazyflow's side is given one (B, N, 16) command array), timed
+  alternately in the same process. ``physics`` also times the worlds one by one and ``step_batch``
+  with the controllers world by world (kept in the JSON of ``--json``, not in the table) and checks
+  that the four end in the same bits.
 - Crazyflow: ``Sim(n_worlds=B, n_drones=N, control=Control.state, freq=240, state_freq=10,
   attitude_freq=240)``, its default drone (cf21B_500), first-principles dynamics with rotor
   dynamics, Mellinger state and attitude controllers, the drones placed on the points at rest; as a
@@ -116,9 +120,10 @@ bench_batch.tick(models, the_worlds, targets, lambda: Quadrotor.step_batch(model
                  batch, control_batch=True)
 t_first = time.perf_counter()
 del the_worlds, models, targets, batch
-per_world, step_batch, control_batch = bench_batch.physics(Quadrotor, b, n, ticks, blocks, **options)
+per_world, step_batch, control_batch, one_batch = bench_batch.physics(Quadrotor, b, n, ticks, blocks, **options)
 print(json.dumps({"b": b, "n": n, "ticks": ticks, "blocks": blocks, "drone_steps_per_s": control_batch,
                   "per_world_drone_steps_per_s": per_world, "step_batch_drone_steps_per_s": step_batch,
+                  "one_batch_drone_steps_per_s": one_batch,
                   "import_s": t_import - t_start, "build_s": t_built - t_import, "first_tick_s": t_first - t_built}))
 """
 
@@ -254,9 +259,12 @@ def measure(points: list[tuple[int, int]], repeat: int, rk4_all: bool, tick_scal
                 peer = best.get(f"crazyflow_{variant}", {})
                 if ours and "drone_steps_per_s" in peer:
                     row[f"ratio_{variant}"] = ours / peer["drone_steps_per_s"]
-            ours32, peer = best["swarmscene_float32"].get("drone_steps_per_s"), best.get("crazyflow_default", {})
-            if ours32 and "drone_steps_per_s" in peer:
-                row["ratio_float32_default"] = ours32 / peer["drone_steps_per_s"]
+            peer = best.get("crazyflow_default", {})
+            for ours_key, key in (("swarmscene_float32", "drone_steps_per_s"),
+                                  ("swarmscene", "one_batch_drone_steps_per_s")):
+                rate = best[ours_key].get(key)
+                if rate and "drone_steps_per_s" in peer:
+                    row[f"ratio_{ours_key}_{key}"] = rate / peer["drone_steps_per_s"]
             log(f"  {b} x {n} ({ticks} ticks): " + "; ".join(
                 f"{side} FAILED: {r['error']}" if "error" in r else f"{side} {r['drone_steps_per_s']:.4g}"
                 for side, r in best.items()) + "".join(
@@ -265,10 +273,10 @@ def measure(points: list[tuple[int, int]], repeat: int, rk4_all: bool, tick_scal
     return rows
 
 
-def _rate(side: dict | None) -> str:
+def _rate(side: dict | None, key: str = "drone_steps_per_s") -> str:
     if side is None:
         return "not run"
-    return f"FAILED: {side['error']}" if "error" in side else f"{side['drone_steps_per_s']:.4g}"
+    return f"FAILED: {side['error']}" if "error" in side else f"{side[key]:.4g}" if key in side else "-"
 
 
 def _ratio(row: dict, variant: str) -> str:
@@ -285,15 +293,19 @@ def tables(rows: list[dict]) -> tuple[str, str]:
     """The steady-state table and the cold-start table, markdown."""
     steady = ["| B x N | drones | ticks x 24 steps per block | swarmscene | Crazyflow default (Euler, float32) | ratio "
               "| Crazyflow rk4_f64 | ratio | swarmscene float32 | ratio to default "
+              "| swarmscene, one setpoint batch | ratio to default "
               "| Crazyflow hover error default / rk4_f64 (m) |",
-              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     cold = ["| B x N | swarmscene | Crazyflow default | Crazyflow rk4_f64 |", "|---|---:|---:|---:|"]
     for row in rows:
         ours, default, rk4 = row["swarmscene"], row.get("crazyflow_default"), row.get("crazyflow_rk4_f64")
         errors = " / ".join(f"{s['hover_error_m']:.2g}" if s and "hover_error_m" in s else "-" for s in (default, rk4))
         steady.append(f"| {row['b']} x {row['n']} | {row['b'] * row['n']:,} | {row['ticks']} | {_rate(ours)} "
                       f"| {_rate(default)} | {_ratio(row, 'default')} | {_rate(rk4)} | {_ratio(row, 'rk4_f64')} "
-                      f"| {_rate(row.get('swarmscene_float32'))} | {_ratio(row, 'float32_default')} | {errors} |")
+                      f"| {_rate(row.get('swarmscene_float32'))} "
+                      f"| {_ratio(row, 'swarmscene_float32_drone_steps_per_s')} "
+                      f"| {_rate(ours, 'one_batch_drone_steps_per_s')} "
+                      f"| {_ratio(row, 'swarmscene_one_batch_drone_steps_per_s')} | {errors} |")
         cold.append(f"| {row['b']} x {row['n']} | {_cold(ours)} | {_cold(default)} | {_cold(rk4)} |")
     return "\n".join(steady), "\n".join(cold)
 
@@ -344,7 +356,9 @@ with `taskset -c 1 python benchmarks/speed/peers/bench_crazyflow_grid.py{' --qui
 Drone-steps per CPU second in steady state (after JIT and warm-up), physics at 240 Hz, control at 10 Hz
 (24 physics steps per tick); the fastest of {repeat} alternated fresh processes per side, each the
 faster of {BLOCKS} timed blocks. swarmscene: `Quadrotor.control_batch` + `step_batch`, RK4, float64
-(bench_batch.physics), and the same with `dynamics.dtype=float32`. Crazyflow: `Sim(n_worlds=B,
+(bench_batch.physics), the setpoints a list of the worlds' records; the same with
+`dynamics.dtype=float32`; and (one setpoint batch) the float64 tick given the setpoints as one
+`SetpointBatch`, alternated with the first in its processes. Crazyflow: `Sim(n_worlds=B,
 n_drones=N, control=Control.state, freq=240, state_freq=10, attitude_freq=240)`, per tick
 `sim.state_control(cmd)` then `sim.step(24)`; default = Euler, float32; rk4_f64 =
 `integrator=Integrator.rk4` and `jax_enable_x64` (not run at N = 1000 unless `--rk4-all`: its model
