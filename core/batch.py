@@ -5,14 +5,17 @@ tick. Each world keeps everything of its own: its seed and random streams, clock
 disturbances, plugin instances, observers and termination. What the worlds share are the
 controller and physics phases: their per-agent state lies along a world axis
 (:class:`~swarmscene.core.state.WorldBatch`, each world's arrays are slices of (B, N, k) arrays),
-and the avoidance method's :meth:`~swarmscene.core.plugin.Avoidance.adjust_batch` adjusts every world's
-setpoints at once, the dynamics model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch`
+the formation's :meth:`~swarmscene.core.plugin.Formation.setpoints_batch` plans every world's
+setpoints at once, the avoidance method's :meth:`~swarmscene.core.plugin.Avoidance.adjust_batch`
+adjusts them at once, the dynamics model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch`
 latches every world's commands at once, its :meth:`~swarmscene.core.plugin.Dynamics.step_batch`
-advances all of them at once. A method or model without batched forms adjusts, controls and steps
-each world with its own instance (the defaults), so every plugin works in a batch; the other phases
-run world by world, in the order a single run runs them.
+advances all of them at once. A phase's batched answer given as one
+:class:`~swarmscene.core.setpoint.SetpointBatch` is handed on to the next as it is. A plugin
+without batched forms plans, adjusts, controls and steps each world with its own instance (the
+defaults), so every plugin works in a batch; the other phases run world by world, in the order a
+single run runs them.
 
-A world's tick is the single run's tick, phase by phase (``planned``: events, sensing and the
+A world's tick is the single run's tick, phase by phase (``perceived``: events and sensing; the
 formation; ``adjust``, ``control``, the physics sub-steps with the wind before and the force phase
 after each ``step``, ``settle_world``, the observers): between two phases of a world run only
 the other worlds' same phase, which share nothing with it, so a world of a batch equals its single
@@ -35,7 +38,7 @@ import operator
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol, cast
+from typing import Any, Protocol, cast
 
 from . import interrupts
 from .disturbances import Perceived
@@ -200,8 +203,9 @@ class _Worlds(Protocol):
 
 
 def _step(worlds: _Worlds) -> None:
-    """One tick of every running world: each world's guidance up to its avoidance
-    (:meth:`~swarmscene.core.simulation.Simulation.planned`), the avoidance of all of them
+    """One tick of every running world: each world's events and sensing
+    (:meth:`~swarmscene.core.simulation.Simulation.perceived`), the formation of all of them
+    (:meth:`~swarmscene.core.plugin.Formation.setpoints_batch`), the avoidance of all of them
     (:meth:`~swarmscene.core.plugin.Avoidance.adjust_batch`), the controllers of all of them
     (:meth:`~swarmscene.core.plugin.Dynamics.control_batch`), the physics sub-steps (each world's
     wind, :meth:`~swarmscene.core.plugin.Dynamics.step_batch`, each world's forces), each world's
@@ -209,11 +213,12 @@ def _step(worlds: _Worlds) -> None:
     (:func:`~swarmscene.core.prefetch.prefetch`), each world's observers. A world's phases
     run in its single run's order; what runs between two phases of a world is only the other
     worlds' same phase."""
-    planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]] = {}
-    worlds._each(lambda sim: planned.__setitem__(id(sim), sim.planned()))
-    guided, adjusted = _adjust(worlds, planned)
+    perceived: dict[int, tuple[WorldState, Perceived | None, Setpoints | None]] = {}
+    worlds._each(lambda sim: perceived.__setitem__(id(sim), sim.perceived()))
+    planned = _formation(worlds, perceived)
+    guided = _adjust(worlds, perceived, planned)
     if worlds._count():
-        _control(worlds, guided, adjusted)
+        _control(worlds, perceived, guided)
     sims = worlds._sims()
     if sims:
         batch = worlds._world_batch()
@@ -228,76 +233,146 @@ def _step(worlds: _Worlds) -> None:
     worlds._each(lambda sim: sim.observe())
 
 
-def _adjust(worlds: _Worlds, planned: dict[int, tuple[WorldState, Perceived | None, Setpoints]]
-            ) -> tuple[dict[int, tuple[WorldState, Setpoints]], _Adjusted | None]:
+class _Answers:
+    """A guidance phase's setpoints of every world (the formation's, the avoidance's): each
+    world's own record, or its place in the one :class:`SetpointBatch` a batched form answered
+    with, whose records are made only when one is asked for (making them costs ~1.4 us a world,
+    which a batch of 4,096 one-drone worlds would pay every tick for nothing when the next phase
+    takes the batch whole)."""
+
+    def __init__(self) -> None:
+        self.records: dict[int, Setpoints] = {}
+        self.batch: SetpointBatch | None = None
+        self._sims: list[Simulation] = []
+        self._place: dict[int, int] = {}
+
+    def answer(self, sims: list[Simulation], done: Sequence[Setpoints]) -> None:
+        """A batched form's answer for ``sims``: a :class:`SetpointBatch` kept whole, a list as records."""
+        if isinstance(done, SetpointBatch):
+            self.batch, self._sims = done, sims
+            self._place = {id(sim): b for b, sim in enumerate(sims)}
+        else:
+            self.records.update(zip(map(id, sims), done, strict=True))
+
+    def __contains__(self, sim: Simulation) -> bool:
+        return id(sim) in self.records or id(sim) in self._place
+
+    def of(self, sim: Simulation) -> Setpoints:
+        """World ``sim``'s setpoints."""
+        record = self.records.get(id(sim))
+        return record if record is not None else cast(SetpointBatch, self.batch)[self._place[id(sim)]]
+
+    def handed(self, sims: list[Simulation]) -> Sequence[Setpoints]:
+        """The setpoints of ``sims`` for the next phase's batched form: the :class:`SetpointBatch`
+        itself where it answered for exactly these worlds (none stopped since, none taking off or
+        landing), else their records in a list."""
+        if self.batch is not None and len(self._sims) == len(sims) and all(map(operator.is_, self._sims, sims)):
+            return self.batch
+        return [self.of(sim) for sim in sims]
+
+
+def _formation(worlds: _Worlds, perceived: dict[int, tuple[WorldState, Perceived | None, Setpoints | None]]
+               ) -> _Answers:
+    """The formation of every running world, after its events and sensing: what each world's
+    avoidance is handed (a take-off's or landing's setpoints as they are). The worlds flying one
+    formation method are asked by its batched form; the others, and all of them when it has none
+    (the default returns ``NotImplemented``) or declines this batch, world by world, so that a
+    world whose ``setpoints`` raises stops alone. An exception of the batched form stops every
+    world."""
+    planned = _Answers()
+    sims = []
+    for sim in worlds._sims():
+        _, seen, phase = perceived[id(sim)]
+        if seen is None:
+            planned.records[id(sim)] = cast(Setpoints, phase)
+        else:
+            sims.append(sim)
+    seen = [cast(Perceived, perceived[id(sim)][1]) for sim in sims]
+    done = _batched_form(worlds, sims, lambda sim: sim.formation, "setpoints_batch", "setpoints",
+                         lambda method: method.setpoints_batch([sim.formation for sim in sims],
+                                                               [p.formation_world for p in seen],
+                                                               [p.formation_sensing for p in seen]))
+    if done is not NotImplemented:
+        planned.answer(sims, cast("Sequence[Setpoints]", done))
+
+    def formation(sim: Simulation) -> None:
+        if sim not in planned:
+            p = cast(Perceived, perceived[id(sim)][1])
+            planned.records[id(sim)] = sim.formation.setpoints(p.formation_world, p.formation_sensing)
+
+    worlds._each(formation)
+    return planned
+
+
+def _batched_form(worlds: _Worlds, sims: list[Simulation], instance: Callable[[Simulation], object], batched: str,
+                  single: str, call: Callable[[Any], object]) -> object:
+    """A phase's batched form (``call(method)``) over ``sims`` (the worlds flying their
+    formation), when their instances share one class whose ``batched`` form was written for its
+    ``single`` one: its answer, checked to hold one record per world; ``NotImplemented`` where
+    there is no batched form to ask, it declined, or it raised (every world is then stopped with
+    its exception)."""
+    method = type(instance(sims[0])) if sims else None
+    if (method is None or len(sims) < 2 or not all(type(instance(sim)) is method for sim in sims)
+            or not written_for(method, batched, single)):
+        return NotImplemented
+    try:
+        done = call(method)
+        if done is not NotImplemented and len(cast("Sequence[Setpoints]", done)) != len(sims):
+            raise ValueError(f"{method.__name__}.{batched} returned {len(cast('Sequence', done))} setpoints "
+                             f"for {len(sims)} worlds")
+    except Exception as exc:
+        worlds._stop_all(exc)
+        return NotImplemented
+    return done
+
+
+def _adjust(worlds: _Worlds, perceived: dict[int, tuple[WorldState, Perceived | None, Setpoints | None]],
+            planned: _Answers) -> _Answers:
     """The avoidance of every running world, after its formation: what each world's controller
-    reads (keyed by ``id(sim)``), and the batched form's answer where it was a
-    :class:`~swarmscene.core.setpoint.SetpointBatch` (with the worlds it answered for), which
-    the controllers' batched form may read whole. The worlds flying their formation (not a
-    take-off or landing) with one avoidance method are adjusted by its batched form; the others,
-    and all of them when the method has none (the default returns ``NotImplemented``) or declines
-    this batch, world by world, so that a world whose ``adjust`` raises stops alone. An exception
-    of the batched form stops every world."""
-    guided: dict[int, tuple[WorldState, Setpoints]] = {}
-    adjusted: _Adjusted | None = None
-    sims = [sim for sim in worlds._sims() if planned[id(sim)][1] is not None]
-    method = type(sims[0].avoidance) if sims else None
-    if (method is not None and len(sims) > 1 and all(type(sim.avoidance) is method for sim in sims)
-            and written_for(method, "adjust_batch", "adjust")):
-        seen = [cast("Perceived", planned[id(sim)][1]) for sim in sims]
-        try:
-            done = method.adjust_batch([sim.avoidance for sim in sims], [p.world for p in seen],
-                                       [p.sensing for p in seen], [planned[id(sim)][2] for sim in sims])
-            if done is not NotImplemented and len(cast("list[Setpoints]", done)) != len(sims):
-                raise ValueError(f"{method.__name__}.adjust_batch returned {len(cast('list', done))} setpoints "
-                                 f"for {len(sims)} worlds")
-        except Exception as exc:
-            worlds._stop_all(exc)
-            return guided, None
-        if done is not NotImplemented:
-            for sim, sp in zip(sims, cast("list[Setpoints]", done), strict=True):
-                guided[id(sim)] = (planned[id(sim)][0], sp)
-            if isinstance(done, SetpointBatch):
-                adjusted = _Adjusted(sims, done)
+    reads. The worlds flying their formation (not a take-off or landing) with one avoidance
+    method are adjusted by its batched form, handed the formation's answer
+    (:meth:`_Answers.handed`); the others, and all of them when the method has none (the default
+    returns ``NotImplemented``) or declines this batch, world by world, so that a world whose
+    ``adjust`` raises stops alone. An exception of the batched form stops every world."""
+    guided = _Answers()
+    sims = [sim for sim in worlds._sims() if perceived[id(sim)][1] is not None]
+    seen = [cast(Perceived, perceived[id(sim)][1]) for sim in sims]
+    done = _batched_form(worlds, sims, lambda sim: sim.avoidance, "adjust_batch", "adjust",
+                         lambda method: method.adjust_batch([sim.avoidance for sim in sims], [p.world for p in seen],
+                                                            [p.sensing for p in seen], planned.handed(sims)))
+    if done is not NotImplemented:
+        guided.answer(sims, cast("Sequence[Setpoints]", done))
 
     def adjust(sim: Simulation) -> None:
-        if id(sim) not in guided:
-            own, seen, sp = planned[id(sim)]
-            guided[id(sim)] = (own, sp if seen is None else sim.avoidance.adjust(seen.world, seen.sensing, sp))
+        if sim not in guided:
+            p, sp = perceived[id(sim)][1], planned.of(sim)
+            guided.records[id(sim)] = sp if p is None else sim.avoidance.adjust(p.world, p.sensing, sp)
 
     worlds._each(adjust)
-    return guided, adjusted
+    return guided
 
 
-class _Adjusted(NamedTuple):
-    """An avoidance's batched answer as one :class:`SetpointBatch`, and the worlds it is for."""
-
-    sims: list[Simulation]
-    setpoints: SetpointBatch
-
-
-def _control(worlds: _Worlds, guided: dict[int, tuple[WorldState, Setpoints]], adjusted: _Adjusted | None) -> None:
-    """The controllers of every running world: the model's batched form, or world by world when
+def _control(worlds: _Worlds, perceived: dict[int, tuple[WorldState, Perceived | None, Setpoints | None]],
+             guided: _Answers) -> None:
+    """The controllers of every running world, reading their agents' own estimates and the
+    avoidance's answer (:meth:`_Answers.handed`): the model's batched form, or world by world when
     it has none (the default :meth:`~swarmscene.core.plugin.Dynamics.control_batch`, run here so
     that a world whose ``control`` raises stops alone), declines this batch, or leaves some of its
-    worlds (returns their places in the batch). The setpoints are the avoidance's
-    :class:`SetpointBatch` itself where it answered for exactly these worlds (none stopped in
-    its ``adjust``, none taking off or landing), else the worlds' records in a list. An exception
-    of the batched form stops every world it was controlling."""
+    worlds (returns their places in the batch). An exception of the batched form stops every world
+    it was controlling."""
     sims = worlds._sims()
     left: set[int] | None = None  # ids of the worlds the engine controls one by one; None: all
     if len(sims) > 1 and has_batched_control(worlds.model):
-        same = adjusted is not None and len(adjusted.sims) == len(sims) and all(map(operator.is_, adjusted.sims, sims))
         try:
-            done = worlds.model.control_batch(
-                [sim.dynamics for sim in sims], worlds._world_batch(), [guided[id(sim)][0] for sim in sims],
-                adjusted.setpoints if same and adjusted is not None else [guided[id(sim)][1] for sim in sims])
+            done = worlds.model.control_batch([sim.dynamics for sim in sims], worlds._world_batch(),
+                                              [perceived[id(sim)][0] for sim in sims], guided.handed(sims))
             if done is not NotImplemented:
                 left = {id(sims[b]) for b in left_places(done, len(sims), worlds.model)}
         except Exception as exc:
             worlds._stop_all(exc)
             return
-    worlds._each(lambda sim: sim.dynamics.control(*guided[id(sim)]) if left is None or id(sim) in left else None)
+    worlds._each(lambda sim: sim.dynamics.control(perceived[id(sim)][0], guided.of(sim))
+                 if left is None or id(sim) in left else None)
 
 
 def left_places(done: object, count: int, model: type) -> list[int]:

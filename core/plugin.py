@@ -156,6 +156,26 @@ class Formation(Plugin):
     def setpoints(self, world: WorldState, sensing: Sensing) -> Setpoints:
         """Return the setpoints of all N agents for this guidance tick."""
 
+    @classmethod
+    def setpoints_batch(cls, formations: Sequence[Self], worlds: Sequence[WorldState],
+                        sensings: Sequence[Sensing]) -> Sequence[Setpoints] | object:
+        """``setpoints`` of B worlds at once: ``[formations[b].setpoints(worlds[b], sensings[b])
+        for each b]``, the worlds of a batch (core/batch.py) that fly their formation, in one call.
+
+        This default returns ``NotImplemented``: the engine then asks each world's own instance,
+        so every formation works in a batch (and a world whose ``setpoints`` raises stops alone,
+        as its single run). A formation overrides it to make all worlds' setpoints in one pass
+        (docs/batched.md), returning a list of B records or one
+        :class:`~swarmscene.core.setpoint.SetpointBatch`, which the engine hands on to the
+        avoidance's and the controllers' batched forms as it is. The records, and what the
+        instances hold afterwards (what ``complete`` answers), must equal each world's own
+        ``setpoints`` bit for bit (the contract check ``formation.setpoints_batch_equals_worlds``).
+        An override may return ``NotImplemented`` for a batch it cannot take whole. An exception
+        it raises stops every world of the batch. A subclass that overrides ``setpoints`` and not
+        this is asked world by world.
+        """
+        return NotImplemented
+
     def periodic_box(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The formation's space when it is periodic (a torus), else ``None`` (the default).
 

@@ -30,7 +30,7 @@ import math
 import time
 from collections.abc import Callable
 from types import ModuleType
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pluggy
@@ -189,11 +189,21 @@ class Simulation:
         worlds adjusts all of them in one call between the two, core/batch.py). Returns the agents'
         own estimates, what the avoidance perceives (None during a take-off or landing, whose
         setpoints the controller takes as they are) and the formation's setpoints."""
+        own, seen, phase = self.perceived()
+        if seen is None:
+            return own, None, cast("Setpoints", phase)
+        return own, seen, self.formation.setpoints(seen.formation_world, seen.formation_sensing)
+
+    def perceived(self) -> tuple[WorldState, Perceived | None, Setpoints | None]:
+        """Events, sense, communicate: :meth:`planned` up to the formation (a batch of worlds
+        asks all their formations in one call after it, core/batch.py). Returns the agents' own
+        estimates, what the formation and the avoidance perceive (None during a take-off or
+        landing) and the take-off's or landing's setpoints (None otherwise)."""
         self._apply_due_events()
         seen = self.disturbances.perceive(self.world, self.sensing)  # sense, communicate
         if self.phases is not None and self.phases.flying(self.world.t):  # take-off, landing
             return seen.own, None, self.phases.setpoints(self.world.t)
-        return seen.own, seen, self.formation.setpoints(seen.formation_world, seen.formation_sensing)
+        return seen.own, seen, None
 
     def blow(self, j: int) -> None:
         """The wind of physics sub-step ``j`` (before ``dynamics.step``)."""

@@ -14,7 +14,10 @@ from swarmscene.core.state import WorldBatch, WorldState
 from swarmscene.plugin import build_context
 from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
+from .test_batch import WALL_CLOCK
+
 B, N, SUBSTEPS, DT = 3, 4, 24, 1 / 240
+SEEDS = [0, 1, 2]
 
 
 def stacked_record(rows: int, seed: int = 0, feedforward: bool = False) -> Setpoints:
@@ -168,3 +171,57 @@ def test_the_policy_hands_its_setpoint_batch_to_the_quadrotors_batched_control(m
                 assert rewards[b, index[a]] == r[a]
     envs.close()
     assert given == [SetpointBatch] * 8
+
+
+def test_a_formations_setpoint_batch_reaches_the_quadrotors_control_whole(monkeypatch):
+    """The default scenario on quadrotors with no avoidance, its leader failing mid-run (the
+    slots are reassigned): every tick ``static_shape`` plans the three worlds in one call, its
+    batch passes ``none`` as it is and reaches ``control_batch`` whole, and every world is its
+    single run."""
+    from swarmscene.plugins.formation.static_shape import StaticShape
+
+    given: list[type] = []
+    control_batch, setpoints_batch = Quadrotor.control_batch.__func__, StaticShape.setpoints_batch.__func__
+
+    def spy(cls, models, batch, worlds, setpoints):
+        given.append(type(setpoints))
+        return control_batch(cls, models, batch, worlds, setpoints)
+
+    planned: list[int] = []
+    monkeypatch.setattr(Quadrotor, "control_batch", classmethod(spy))
+    monkeypatch.setattr(StaticShape, "setpoints_batch", classmethod(
+        lambda cls, formations, *rest: planned.append(len(formations)) or setpoints_batch(cls, formations, *rest)))
+    data = api.compose(["dynamics=quadrotor", "avoidance=none", "events=lead_fails", "swarm.start.layout=random",
+                        "clock.duration=3", "output.summary=false"])
+    data["events"][0]["at"] = 1.0
+    results = api.run_batch(data, SEEDS)
+    ticks = results[0].metrics["steps"]
+    assert given == [SetpointBatch] * ticks and planned == [B] * ticks
+    monkeypatch.undo()
+    for seed, result in zip(SEEDS, results, strict=True):
+        alone = api.run({**data, "seed": seed})
+        assert without_wall_clock(result.metrics) == without_wall_clock(alone.metrics)
+        for key, value in alone.trajectory.items():
+            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
+    assert results[0].metrics["healthy_at_end"] == results[0].metrics["agents"] - 1  # the leader failed
+
+
+def without_wall_clock(metrics: dict) -> dict:
+    return {k: v for k, v in metrics.items() if k not in WALL_CLOCK}
+
+
+@pytest.mark.parametrize(("answer", "error"), [
+    (lambda formations: (_ for _ in ()).throw(FloatingPointError("non-finite slot")), "non-finite slot"),
+    (lambda formations: [None] * (len(formations) - 1), "StaticShape.setpoints_batch returned 2 setpoints for 3 worlds"),
+], ids=["raises", "wrong-count"])
+def test_a_batched_formation_that_raises_or_miscounts_stops_every_world_with_its_error(monkeypatch, answer, error):
+    """The batched form's exception (or its answer of the wrong length, named) is every world's
+    failure, at the same tick: the form answered for all of them."""
+    from swarmscene.core.batch import BatchSimulation
+    from swarmscene.plugins.formation.static_shape import StaticShape
+
+    monkeypatch.setattr(StaticShape, "setpoints_batch", classmethod(lambda cls, formations, *rest: answer(formations)))
+    data = api.compose(["clock.duration=2", "output.summary=false"])
+    outcomes = BatchSimulation([api.build({**data, "seed": seed}) for seed in SEEDS]).run()
+    assert [str(outcome.failure) for outcome in outcomes] == [error] * B
+    assert {outcome.result.metrics["steps"] for outcome in outcomes} == {0}

@@ -46,6 +46,9 @@ def init(self, params, ctx):
 
 
 StaticShape.setpoints, StaticShape.__init__ = setpoints, init
+# planned world by world, as a formation without a batched form (one raising in setpoints_batch
+# would stop every world of its batch)
+del StaticShape.setpoints_batch
 """
 
 

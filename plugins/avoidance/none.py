@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from swarmscene.plugin import Avoidance, Setpoints, hookimpl
+from collections.abc import Sequence
+
+from swarmscene.plugin import Avoidance, SetpointBatch, Setpoints, hookimpl
 
 
 class NoAvoidance(Avoidance):
@@ -13,6 +15,12 @@ class NoAvoidance(Avoidance):
     def adjust(self, world, sensing, sp: Setpoints) -> Setpoints:
         """The formation's setpoints unchanged: the baseline with no avoidance."""
         return sp
+
+    @classmethod
+    def adjust_batch(cls, avoidances, worlds, sensings, setpoints: Sequence[Setpoints]) -> Sequence[Setpoints]:
+        """Every world's setpoints unchanged, as they came: a formation's
+        :class:`~swarmscene.core.setpoint.SetpointBatch` stays one, for the controllers' batched form."""
+        return setpoints if isinstance(setpoints, SetpointBatch) else list(setpoints)
 
 
 @hookimpl

@@ -12,6 +12,7 @@ within ``arrival_tolerance`` of its slot.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -21,7 +22,17 @@ from pydantic import Field
 from swarmscene.methods.assignment import min_cost_assignment
 from swarmscene.methods.paths import WaypointPath
 from swarmscene.methods.shapes import shape_offsets
-from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl, rows_of
+from swarmscene.plugin import (
+    BuildContext,
+    Formation,
+    Mode,
+    PluginParams,
+    SetpointBatch,
+    Setpoints,
+    WorldState,
+    hookimpl,
+    rows_of,
+)
 
 _TRACK, _HOLD = int(Mode.TRACK), int(Mode.HOLD)
 
@@ -94,16 +105,7 @@ class StaticShape(Formation):
     def setpoints(self, world: WorldState, sensing) -> Setpoints:
         """The shape's slots carried along the path at time t (heading of the current leg); the
         slots are reassigned after a failure when ``reassign_on_failure``."""
-        center, velocity, leg, self._end_reached = self.path.at(world.t)
-        self.heading = self._leg_heading[min(leg, len(self._leg_heading) - 1)]
-        healthy_count = int(np.count_nonzero(world.healthy))
-        if self.params.reassign_on_failure and healthy_count != self._healthy_count:
-            self.slot_of = self.assign(world.pos, world.healthy, center)
-            self._healthy_count = healthy_count
-            self._placed = None
-        placed = self._placed
-        if placed is None or placed.heading != self.heading:
-            placed = self._placed = _Placement.of(self.heading, self._turned_offsets(self.heading), self.slot_of)
+        center, velocity, placed = self._plan(world)
         n = world.n
         # TRACK the slot (reference + offset) at the reference's velocity; an agent without a
         # slot holds where it is (HOLD, zero feed-forward). Built directly: a few calls a tick.
@@ -118,6 +120,52 @@ class StaticShape(Formation):
         sp = Setpoints(placed.mode.copy(), pos, vel, np.zeros((n, 3)), yaw)
         self._last_slots = sp.pos
         return sp
+
+    @classmethod
+    def setpoints_batch(cls, formations: Sequence[StaticShape], worlds: Sequence[WorldState],
+                        sensings: Sequence[object]) -> SetpointBatch | object:
+        """``setpoints`` of B worlds of N agents as one :class:`SetpointBatch`: each world's
+        reference and slot placement found as its own ``setpoints`` finds them (:meth:`_plan`),
+        then the slots, velocities, modes and headings of the B N agents in one elementwise pass
+        over the stacked worlds, which gives every agent its single run's bits. Declined for
+        worlds of different sizes."""
+        n = len(worlds[0].pos)
+        if any(len(world.pos) != n for world in worlds):
+            return NotImplemented
+        plans = [formation._plan(world) for formation, world in zip(formations, worlds, strict=True)]
+        b = len(plans)
+        center = np.array([plan[0] for plan in plans])
+        velocity = np.array([plan[1] for plan in plans])
+        pos = center[:, None, :] + np.stack([plan[2].offset for plan in plans])
+        vel = np.empty((b, n, 3))
+        vel[:] = velocity[:, None, :]
+        for world_pos, world_vel, world, (_, _, placed) in zip(pos, vel, worlds, plans, strict=True):
+            if not placed.every:
+                world_pos[placed.unslotted] = world.pos[placed.unslotted]
+                world_vel[placed.unslotted] = 0.0
+        yaw = np.empty((b, n))
+        yaw[:] = np.array([formation.heading for formation in formations])[:, None]
+        mode = np.stack([plan[2].mode for plan in plans])
+        for formation, world_pos in zip(formations, pos, strict=True):
+            formation._last_slots = world_pos
+        return SetpointBatch(Setpoints(mode.reshape(b * n), pos.reshape(b * n, 3), vel.reshape(b * n, 3),
+                                       np.zeros((b * n, 3)), yaw.reshape(b * n)), b)
+
+    def _plan(self, world: WorldState) -> tuple[np.ndarray, np.ndarray, _Placement]:
+        """The reference's position and velocity (3,) at time t, and the slots' placement around
+        it for the current leg's heading (kept as ``heading``); the slots are reassigned among the
+        healthy agents after a failure when ``reassign_on_failure``."""
+        center, velocity, leg, self._end_reached = self.path.at(world.t)
+        self.heading = self._leg_heading[min(leg, len(self._leg_heading) - 1)]
+        healthy_count = int(np.count_nonzero(world.healthy))
+        if self.params.reassign_on_failure and healthy_count != self._healthy_count:
+            self.slot_of = self.assign(world.pos, world.healthy, center)
+            self._healthy_count = healthy_count
+            self._placed = None
+        placed = self._placed
+        if placed is None or placed.heading != self.heading:
+            placed = self._placed = _Placement.of(self.heading, self._turned_offsets(self.heading), self.slot_of)
+        return center, velocity, placed
 
     def complete(self, world: WorldState) -> bool:
         """True once the path's end is reached and every healthy agent with a slot is within

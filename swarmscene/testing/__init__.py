@@ -264,6 +264,15 @@ def _formation_complete(s: Subject) -> None:
         assert done is None or isinstance(done, (bool, np.bool_)), f"{s.name}: complete() returned {done!r}"
 
 
+@promise("formation", "setpoints_batch_equals_worlds")
+def _formation_setpoints_batch_equals_worlds(s: Subject) -> None:
+    """``setpoints_batch`` over three worlds apart (two with a failed agent, one losing another
+    mid-way) gives each world's own ``setpoints``, tick after tick, and the instances answer
+    ``complete`` as theirs, bit for bit (the default returns ``NotImplemented``: the engine asks
+    world by world)."""
+    _check_formation_setpoints_batch_equals_worlds(s)
+
+
 @promise("formation", "no_shared_state")
 def _formation_no_shared_state(s: Subject) -> None:
     """Running an instance changes no class attribute (two instances share no state)."""
@@ -760,6 +769,50 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
                          "must latch each world's commands with the per-world arithmetic")
 
 
+def _check_formation_setpoints_batch_equals_worlds(s: Subject) -> None:
+    """Three worlds (the example world shifted apart, world 1 squeezed to half its spacing, world
+    2 without its failed agent until agent 1 fails at the middle tick) flown 2 TICKS ticks on
+    their setpoints twice side by side: each world by its own instance's ``setpoints``, and all
+    three by ``setpoints_batch``."""
+    def worlds() -> list[WorldState]:
+        out = []
+        for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
+            world = example_world(failed=b != 2)
+            world.pos = (0.5 * world.pos if b == 1 else world.pos) + shift
+            out.append(world)
+        return out
+
+    alone, together = worlds(), worlds()
+    alone_formations = [_build(s.cls, s.params, s.environment, world) for world in alone]
+    batch_formations = [_build(s.cls, s.params, s.environment, world) for world in together]
+    for tick in range(2 * TICKS):
+        if tick == TICKS:
+            alone[2].healthy[1] = together[2].healthy[1] = False
+        outs = _batched(s.cls, "setpoints", batch_formations, together,
+                        [_sensing(w, s.environment) for w in together])
+        if outs is NotImplemented:
+            return
+        assert isinstance(outs, (list, SetpointBatch)) and len(outs) == len(together), (
+            f"{s.name}: setpoints_batch returned {type(outs).__name__}, not one Setpoints per world")
+        for b, (world, formation, out) in enumerate(zip(alone, alone_formations, outs, strict=True)):
+            own = formation.setpoints(world, _sensing(world, s.environment))
+            for key in ("mode", "pos", "vel", "acc", "yaw", "jerk", "snap"):
+                mine, theirs = getattr(own, key), getattr(out, key)
+                assert (mine is None) == (theirs is None) and (mine is None or np.array_equal(mine, theirs)), (
+                    f"{s.name}: setpoints_batch gave world {b} other setpoints ({key}) than its own setpoints() at "
+                    f"tick {tick}: a batched form must give each world its own arithmetic (docs/batched.md)")
+            differs = _held_differs(formation, batch_formations[b])
+            assert differs is None, (
+                f"{s.name}: after setpoints_batch world {b}'s instance holds another {differs} than after its "
+                f"own setpoints() at tick {tick}")
+            done, batched_done = formation.complete(world), batch_formations[b].complete(together[b])
+            assert done == batched_done, (
+                f"{s.name}: after setpoints_batch world {b}'s complete() is {batched_done!r}, after its own "
+                f"setpoints() {done!r}")
+            _fly(world, own)
+            _fly(together[b], out)
+
+
 def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
     """Three worlds (the example world shifted apart, world 1 squeezed to half its spacing, world 2
     without its failed agent) flown TICKS ticks towards their centres twice side by side: each
@@ -781,7 +834,7 @@ def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
                         [sp.copy() for sp in sps])
         if outs is NotImplemented:
             return
-        assert isinstance(outs, list) and len(outs) == len(together), (
+        assert isinstance(outs, (list, SetpointBatch)) and len(outs) == len(together), (
             f"{s.name}: adjust_batch returned {type(outs).__name__}, not one Setpoints per world")
         for b, (world, method, out) in enumerate(zip(alone, alone_methods, outs, strict=True)):
             own = method.adjust(world, _sensing(world, s.environment), _converging_setpoints(world))
@@ -800,6 +853,20 @@ def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
 def _counts(obj: Any) -> dict[str, Any]:
     """An instance's plain attributes (counters, flags, names): what its metrics are made of."""
     return {k: v for k, v in vars(obj).items() if isinstance(v, (bool, int, float, str))}
+
+
+def _held_differs(one: Any, other: Any) -> str | None:
+    """The first of two instances' plain attributes and arrays whose values differ (its name), or
+    ``None``: what a batched form must leave each world's instance holding."""
+    mine, theirs = vars(one), vars(other)
+    for key, value in mine.items():
+        if isinstance(value, np.ndarray):
+            if not isinstance(theirs.get(key), np.ndarray) or not np.array_equal(
+                    value, theirs[key], equal_nan=value.dtype.kind in "fc"):
+                return key
+        elif isinstance(value, (bool, int, float, str)) and theirs.get(key) != value:
+            return key
+    return None
 
 
 def _fresh(cls: type[Dynamics], params: PluginParams) -> tuple[WorldState, Dynamics]:
