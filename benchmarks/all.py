@@ -46,6 +46,9 @@ ENTRIES: list[tuple[str, str, float]] = [
     ("env_protocol", "taskset -c 1 python benchmarks/speed/bench_env_protocol.py", 3),
     ("env_workers", "python benchmarks/speed/bench_env_workers.py --blocks 9", 1),
     ("batch_phases", "python benchmarks/speed/batch_phases.py", 2),
+    ("formation_batch", "taskset -c 1 python benchmarks/speed/bench_formation_batch.py", 1),
+    ("crazyflow_setpoint_batch", "taskset -c 1 python benchmarks/speed/peers/bench_crazyflow_grid.py --only 1x100 "
+     "1x1000 64x16 4096x1 --output benchmarks/speed/results/crazyflow_setpoint_batch.md", 7),
     ("indoor", "taskset -c 1 python benchmarks/speed/bench_indoor.py", 5),
     ("sweep", "python benchmarks/speed/bench_sweep.py", 6),
     ("sweep_1000", "python benchmarks/speed/bench_sweep.py --part cem --seeds 1000", 15),

@@ -3,8 +3,9 @@ phase of the engine's tick timed (wall time, one process), and building the worl
 
     python benchmarks/speed/batch_phases.py [--worlds 64] [overrides ...]   # e.g. scenario=swap
 
-Phases: ``build`` (``api.build`` of every world), ``planned`` (events, sensing, formation, world
-by world), ``adjust`` (the avoidance, batched where the method has ``adjust_batch``), ``control``
+Phases: ``build`` (``api.build`` of every world), ``perceived`` (events and sensing, world by
+world), ``formation`` (batched where the formation has ``setpoints_batch``), ``adjust`` (the
+avoidance, batched where the method has ``adjust_batch``), ``control``
 (the controllers, batched where the model has ``control_batch``), ``physics`` (the dynamics' steps),
 ``observers`` (``swarmscene_step_end``: the safety monitor, the recorder...), of which ``monitor``,
 and ``finish`` (each world's metrics). Printed in seconds and as a share of the flight (the build
@@ -47,7 +48,8 @@ def main() -> None:
     data = api.compose(args.overrides)
     api.run_batch(data, list(range(min(4, args.worlds))))  # compile and warm
     spent: collections.Counter = collections.Counter()
-    for owner, name, label in ((simulation.Simulation, "planned", "planned"), (batch_module, "_adjust", "adjust"),
+    for owner, name, label in ((simulation.Simulation, "perceived", "perceived"),
+                               (batch_module, "_formation", "formation"), (batch_module, "_adjust", "adjust"),
                                (batch_module, "_control", "control"), (batch_module, "_physics", "physics"),
                                (simulation.Simulation, "observe", "observers"),
                                (monitors.SafetyMonitor, "_observe", "  monitor"),
@@ -61,7 +63,7 @@ def main() -> None:
     flight = time.perf_counter() - start
     print(f"{args.worlds} worlds of {' '.join(args.overrides) or 'the default scenario'}: build {build:.3f} s "
           f"({100 * build / (build + flight):.0f} % of build + flight), flight {flight:.3f} s")
-    for label in ("planned", "adjust", "control", "physics", "observers", "  monitor", "finish"):
+    for label in ("perceived", "formation", "adjust", "control", "physics", "observers", "  monitor", "finish"):
         print(f"  {label:<12}{spent[label]:8.3f} s {100 * spent[label] / flight:5.0f} %")
 
 
