@@ -51,6 +51,7 @@ from swarmscene.plugin import (
     Dynamics,
     Mode,
     PluginParams,
+    SetpointBatch,
     Setpoints,
     WorldBatch,
     WorldState,
@@ -153,14 +154,19 @@ class DoubleIntegrator(Dynamics):
         each controller integrates its slice), and one :meth:`ThesisController.step_steady` runs
         the law's elementwise operations, which give each agent its single run's bits. The other
         worlds are left to the engine (their places returned), which runs their own ``control``
-        (a world whose ``control`` raises stops alone). Worlds whose instances differ in options,
-        and setpoints that are not (N, 3) float64 records, are all left to the per-world
-        ``control`` (which raises for a wrong size)."""
+        (a world whose ``control`` raises stops alone). Setpoints given as a
+        :class:`~swarmscene.core.setpoint.SetpointBatch` are read whole (each world's modes a row
+        of its stacked modes, a group's references its rows), not world by world. Worlds whose
+        instances differ in options, and setpoints that are not (N, 3) float64 records, are all
+        left to the per-world ``control`` (which raises for a wrong size)."""
         n = batch.pos.shape[1]
-        if not cls._same_options(models, batch) or not all(map(_plain_record, setpoints, [n] * len(setpoints))):
+        whole = _whole(setpoints, len(models), n)
+        if not cls._same_options(models, batch) or (
+                whole is None and not all(map(_plain_record, setpoints, [n] * len(setpoints)))):
             return NotImplemented
-        laws = [model.controller.steady_law(sp.mode) if every(world.healthy) else None
-                for model, world, sp in zip(models, worlds, setpoints, strict=True)]
+        modes = [sp.mode for sp in setpoints] if whole is None else whole.mode.reshape(len(models), n)
+        laws = [model.controller.steady_law(mode) if every(world.healthy) else None
+                for model, world, mode in zip(models, worlds, modes, strict=True)]
         groups = {law: [b for b, own in enumerate(laws) if own == law]
                   for law in sorted({law for law in laws if law is not None})}
         groups = {law: group for law, group in groups.items() if len(group) > 1}
@@ -168,29 +174,29 @@ class DoubleIntegrator(Dynamics):
             return NotImplemented
         for law, group in groups.items():
             cls._control_steady([models[b] for b in group], batch, [worlds[b] for b in group],
-                                [setpoints[b] for b in group], law)
+                                _references(setpoints, whole, group, n), law)
         return sorted(set(range(len(models))) - {b for group in groups.values() for b in group})
 
     @classmethod
     def _control_steady(cls, flock: list[Self], batch: WorldBatch, worlds: list[WorldState],
-                        setpoints: list[Setpoints], law: int) -> None:
-        """``control`` of worlds whose agents all keep law ``law``: one stacked step of the law."""
+                        references: tuple[np.ndarray, np.ndarray, np.ndarray], law: int) -> None:
+        """``control`` of worlds whose agents all keep law ``law``: one stacked step of the law,
+        ``references`` their setpoints' stacked positions, velocities and accelerations."""
         n = batch.pos.shape[1]
+        sp_pos, sp_vel, sp_acc = references
         x_I = batch.pack([getattr(model.controller, cls._LAWS[law]) for model in flock], ("x_I",),
                          key=f"double_integrator.{cls._LAWS[law]}")["x_I"]
         twin = batch.per_batch(f"double_integrator.twin.{law}", lambda: flock[0].controller.stacked(law, x_I))
         getattr(twin, cls._LAWS[law]).x_I = x_I.reshape(-1, 3)  # the slices pack() handed out this tick
         v_max = flock[0].params.v_max
-        vel = np.concatenate([sp.vel for sp in setpoints])
         if v_max is None:
-            v_ref = vel
+            v_ref = sp_vel
         else:  # np.clip's values, as control's
-            v_ref = np.maximum(vel, -v_max)
+            v_ref = np.maximum(sp_vel, -v_max)
             np.minimum(v_ref, v_max, out=v_ref)
         u = twin.step_steady(
             law, np.concatenate([world.pos for world in worlds]), np.concatenate([world.vel for world in worlds]),
-            np.concatenate([sp.pos for sp in setpoints]), v_ref, np.concatenate([sp.acc for sp in setpoints]),
-            v_max)
+            sp_pos, v_ref, sp_acc, v_max)
         for model, own_u in zip(flock, u.reshape(len(flock), n, 3), strict=True):
             model.u[...] = own_u
             model._held_dt = None
@@ -226,6 +232,28 @@ class DoubleIntegrator(Dynamics):
         move += du_pos
         batch.pos += move
         batch.vel += du_vel
+
+
+def _whole(setpoints: Sequence[Setpoints], b: int, n: int) -> Setpoints | None:
+    """A :class:`SetpointBatch`'s stacked record of B worlds of N agents where it is plain
+    (:func:`_plain_record`), else ``None`` (the records are then checked one by one)."""
+    whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
+    return whole if whole is not None and _plain_record(whole, b * n) else None
+
+
+def _references(setpoints: Sequence[Setpoints], whole: Setpoints | None, group: list[int],
+                n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The positions, velocities and accelerations of the worlds ``group``'s setpoints, stacked
+    (B' N, 3): the batch's own arrays where the group is every world, its rows where it is not,
+    the records concatenated where there is no batch (the same values every way)."""
+    if whole is None:
+        pos, vel, acc = (np.concatenate([getattr(setpoints[b], field) for b in group])
+                         for field in ("pos", "vel", "acc"))
+        return pos, vel, acc
+    if group == list(range(len(setpoints))):
+        return whole.pos, whole.vel, whole.acc
+    rows = np.concatenate([np.arange(b * n, (b + 1) * n) for b in group])
+    return whole.pos[rows], whole.vel[rows], whole.acc[rows]
 
 
 def _plain_record(sp: Setpoints, n: int) -> bool:
