@@ -282,8 +282,8 @@ def _formation(worlds: _Worlds, perceived: dict[int, tuple[WorldState, Perceived
     planned = _Answers()
     sims = []
     for sim in worlds._sims():
-        _, seen, phase = perceived[id(sim)]
-        if seen is None:
+        _, view, phase = perceived[id(sim)]
+        if view is None:
             planned.records[id(sim)] = cast(Setpoints, phase)
         else:
             sims.append(sim)
