@@ -23,10 +23,22 @@ The mission is complete when every healthy agent is within ``arrival_tolerance``
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from pydantic import Field
 
-from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, clip_norm, hookimpl
+from swarmscene.plugin import (
+    BuildContext,
+    Formation,
+    Mode,
+    PluginParams,
+    SetpointBatch,
+    Setpoints,
+    WorldState,
+    clip_norm,
+    hookimpl,
+)
 
 
 class AntipodalSwap(Formation):
@@ -59,6 +71,26 @@ class AntipodalSwap(Formation):
         sp.pos[healthy] = self.goal[healthy]
         sp.vel[healthy] = clip_norm(p.gain * (self.goal[healthy] - world.pos[healthy]), p.speed)
         return sp
+
+    @classmethod
+    def setpoints_batch(cls, formations: Sequence[AntipodalSwap], worlds: Sequence[WorldState],
+                        sensings: Sequence[object]) -> SetpointBatch | object:
+        """``setpoints`` of B worlds of N agents as one :class:`SetpointBatch`: the same
+        elementwise steps over the stacked agents (the speed cap row by row), which give every
+        agent its single run's bits. Declined where the instances' options or the worlds' sizes
+        differ."""
+        first, n = formations[0], len(worlds[0].pos)
+        if any(f.params.speed != first.params.speed or f.params.gain != first.params.gain for f in formations) or any(
+                len(world.pos) != n for world in worlds):
+            return NotImplemented
+        here = np.concatenate([world.pos for world in worlds])
+        healthy = np.concatenate([world.healthy for world in worlds])
+        goal = np.concatenate([f.goal for f in formations])
+        sp = Setpoints.hold(here)
+        sp.mode[healthy] = Mode.VELOCITY
+        sp.pos[healthy] = goal[healthy]
+        sp.vel[healthy] = clip_norm(first.params.gain * (goal[healthy] - here[healthy]), first.params.speed)
+        return SetpointBatch(sp, len(worlds))
 
     def complete(self, world: WorldState) -> bool:
         """True when every healthy agent is within ``arrival_tolerance`` of its goal."""
