@@ -9,10 +9,21 @@ paper is ambiguous.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from pydantic import Field
 
-from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl
+from swarmscene.plugin import (
+    BuildContext,
+    Formation,
+    Mode,
+    PluginParams,
+    SetpointBatch,
+    Setpoints,
+    WorldState,
+    hookimpl,
+)
 
 
 class MyFormation(Formation):
@@ -33,6 +44,21 @@ class MyFormation(Formation):
         sp.mode[:] = Mode.POSITION
         sp.pos[:] = self.home  # vectorised over agents: no Python loop per agent
         return sp
+
+    @classmethod
+    def setpoints_batch(cls, formations: Sequence[MyFormation], worlds: Sequence[WorldState],
+                        sensings: Sequence[object]) -> SetpointBatch | object:
+        """Optional (delete it to plan world by world): ``setpoints`` of B worlds in one pass
+        (docs/batched.md), each world's records bit for bit its own ``setpoints``' (the contract
+        check ``formation.setpoints_batch_equals_worlds`` holds it). Elementwise numpy over the
+        stacked agents gives each agent its own bits; return NotImplemented for a batch you
+        cannot take whole."""
+        if len({len(world.pos) for world in worlds}) != 1:
+            return NotImplemented
+        sp = Setpoints.hold(np.concatenate([world.pos for world in worlds]))
+        sp.mode[:] = Mode.POSITION
+        sp.pos[:] = np.concatenate([f.home for f in formations])
+        return SetpointBatch(sp, len(worlds))  # one record of B N agents, world b's rows b N ...
 
     def complete(self, world: WorldState) -> bool | None:
         return bool(np.all(np.linalg.norm(world.pos - self.home, axis=1) < 0.1))
