@@ -8,7 +8,7 @@ are in the world frame (see :mod:`swarmscene.core.state`).
 from __future__ import annotations
 
 import operator
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import overload
@@ -113,13 +113,14 @@ class SetpointBatch(Sequence[Setpoints]):
         ValueError: B is not positive, or does not divide the record's rows.
     """
 
-    __slots__ = ("_whole", "_count", "_n", "_views")
+    __slots__ = ("_whole", "_count", "_n", "_records", "_arrays")
 
     def __init__(self, whole: Setpoints, worlds: int) -> None:
         if worlds < 1 or whole.n % worlds:
             raise ValueError(f"a setpoint batch of {whole.n} agents cannot hold {worlds} worlds of equal size")
         self._whole, self._count, self._n = whole, worlds, whole.n // worlds
-        self._views: dict[int, tuple[Setpoints, tuple]] = {}  # world: its record, the arrays it was made with
+        self._records: list[Setpoints] | None = None  # the worlds' records, made all at once when first asked
+        self._arrays: list[tuple] = []  # each record's arrays as they were made
 
     def __len__(self) -> int:
         return self._count
@@ -131,27 +132,41 @@ class SetpointBatch(Sequence[Setpoints]):
     def __getitem__(self, b: slice) -> list[Setpoints]: ...
 
     def __getitem__(self, b: int | slice) -> Setpoints | list[Setpoints]:
-        if isinstance(b, slice):
-            return [self[i] for i in range(*b.indices(self._count))]
-        b = operator.index(b)
-        if not -self._count <= b < self._count:
-            raise IndexError(f"world {b} of a setpoint batch of {self._count}")
-        b %= self._count
-        if b not in self._views:
-            rows = slice(b * self._n, (b + 1) * self._n)
-            w = self._whole
-            record = Setpoints(w.mode[rows], w.pos[rows], w.vel[rows], w.acc[rows], w.yaw[rows],
-                               None if w.jerk is None else w.jerk[rows], None if w.snap is None else w.snap[rows])
-            self._views[b] = (record, _fields(record))
-        return self._views[b][0]
+        try:
+            return self._made()[b]
+        except IndexError:
+            raise IndexError(f"world {b} of a setpoint batch of {self._count}") from None
+
+    def __iter__(self) -> Iterator[Setpoints]:
+        return iter(self._made())
 
     def whole(self) -> Setpoints | None:
         """The stacked record (B N agents), or ``None`` where a world's record handed out no longer
         holds the views it was made with (an attribute of it was replaced): read, not edited."""
-        for record, arrays in self._views.values():
-            if not all(map(operator.is_, _fields(record), arrays)):
-                return None
+        if self._records is not None:
+            for record, arrays in zip(self._records, self._arrays, strict=True):
+                if not all(map(operator.is_, _fields(record), arrays)):
+                    return None
         return self._whole
+
+    def _made(self) -> list[Setpoints]:
+        """Every world's record, views of its rows: made once, all together (a consumer that asks
+        for one world's asks for the others'), by whole-array splits where the stacked arrays are
+        contiguous (C loops, not a slice per world and field)."""
+        if self._records is None:
+            per_field = [None if a is None else _rows(a, self._count, self._n) for a in _fields(self._whole)]
+            self._records = [Setpoints(*(None if rows is None else rows[b] for rows in per_field))
+                             for b in range(self._count)]
+            self._arrays = [_fields(record) for record in self._records]
+        return self._records
+
+
+def _rows(a: np.ndarray, worlds: int, n: int) -> list[np.ndarray]:
+    """Views of ``a``'s rows, ``n`` a world: a split of the whole array where that is a view (a
+    C-contiguous array), else a slice each."""
+    if a.flags.c_contiguous:
+        return list(a.reshape(worlds, n, *a.shape[1:]))
+    return [a[b * n:(b + 1) * n] for b in range(worlds)]
 
 
 def _fields(sp: Setpoints) -> tuple:

@@ -50,6 +50,7 @@ section 5.3 fallback ran), ``orca.max_neighbours_used``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -64,7 +65,7 @@ from swarmscene.methods.baselines.common import (
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
 from swarmscene.methods.baselines.orca import new_velocities, obstacle_lines
-from swarmscene.plugin import Avoidance, BuildContext, Setpoints, hookimpl
+from swarmscene.plugin import Avoidance, BuildContext, SetpointBatch, Setpoints, hookimpl
 
 _Rows = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 """The per-agent rows of :func:`new_velocities`: positions, velocities, v_pref, neighbours, valid, static."""
@@ -126,8 +127,7 @@ class Orca(Avoidance):
         offsets = np.cumsum([0, *sizes[:-1]])
         spans = [slice(o, o + size) for o, size in zip(offsets, sizes, strict=True)]
         pos = np.concatenate([w.pos for w in worlds])
-        stacked = Setpoints(*(np.concatenate([getattr(sp, key) for sp in setpoints]) for key in
-                              ("mode", "pos", "vel", "acc", "yaw")))
+        stacked = _stacked(setpoints, len(pos))
         v_pref = preferred_velocity(stacked, pos, p.gain, p.v_max)  # row by row
         pairs = np.concatenate([s.pairs(first.range) + o for s, o in zip(sensings, offsets, strict=True)])
         index, valid = neighbour_table(pairs, pos[:, :2], p.max_neighbours)  # each agent's partners in its world
@@ -181,6 +181,16 @@ class Orca(Avoidance):
         """Add ``orca.fallback_ticks`` and ``orca.max_neighbours_used``."""
         metrics["orca.fallback_ticks"] = self.fallback_ticks
         metrics["orca.max_neighbours_used"] = self.max_used
+
+
+def _stacked(setpoints: Sequence[Setpoints], rows: int) -> Setpoints:
+    """The worlds' setpoints as one record of their stacked agents: a :class:`SetpointBatch`'s own
+    (the same arrays its records are views of), else the records concatenated."""
+    whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
+    if whole is not None and whole.n == rows:
+        return Setpoints(whole.mode, whole.pos, whole.vel, whole.acc, whole.yaw)
+    return Setpoints(*(np.concatenate([getattr(sp, key) for sp in setpoints])
+                       for key in ("mode", "pos", "vel", "acc", "yaw")))
 
 
 @hookimpl

@@ -357,8 +357,10 @@ def _avoidance_deterministic(s: Subject) -> None:
 def _avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
     """``adjust_batch`` over three worlds apart (one with a failed agent) gives each world's own
     ``adjust`` setpoints, tick after tick, and leaves the instances' counts as theirs, bit for bit
-    (the default returns ``NotImplemented``: the engine adjusts world by world)."""
-    _check_avoidance_adjust_batch_equals_worlds(s)
+    (the default returns ``NotImplemented``: the engine adjusts world by world), given the
+    setpoints as a list of records and as one ``SetpointBatch`` (as a batched formation hands them)."""
+    _check_avoidance_adjust_batch_equals_worlds(s, one_batch=False)
+    _check_avoidance_adjust_batch_equals_worlds(s, one_batch=True)
 
 
 @promise("avoidance", "no_shared_state")
@@ -813,10 +815,11 @@ def _check_formation_setpoints_batch_equals_worlds(s: Subject) -> None:
             _fly(together[b], out)
 
 
-def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
+def _check_avoidance_adjust_batch_equals_worlds(s: Subject, one_batch: bool) -> None:
     """Three worlds (the example world shifted apart, world 1 squeezed to half its spacing, world 2
     without its failed agent) flown TICKS ticks towards their centres twice side by side: each
-    world by its own instance's ``adjust``, and all three by ``adjust_batch``."""
+    world by its own instance's ``adjust``, and all three by ``adjust_batch`` (handed the
+    setpoints as one :class:`~swarmscene.core.setpoint.SetpointBatch` with ``one_batch``)."""
     def worlds() -> list[WorldState]:
         out = []
         for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
@@ -830,8 +833,12 @@ def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
     batch_methods = [_build(s.cls, s.params, s.environment, world) for world in together]
     for tick in range(TICKS):
         sps = [_converging_setpoints(world) for world in together]
+        handed: list[Setpoints] | SetpointBatch = [sp.copy() for sp in sps]
+        if one_batch:
+            handed = SetpointBatch(Setpoints(*(np.concatenate([getattr(sp, field) for sp in sps]) for field in (
+                "mode", "pos", "vel", "acc", "yaw"))), len(sps))
         outs = _batched(s.cls, "adjust", batch_methods, together, [_sensing(w, s.environment) for w in together],
-                        [sp.copy() for sp in sps])
+                        handed)
         if outs is NotImplemented:
             return
         assert isinstance(outs, (list, SetpointBatch)) and len(outs) == len(together), (
@@ -841,7 +848,8 @@ def _check_avoidance_adjust_batch_equals_worlds(s: Subject) -> None:
             for key in ("mode", "pos", "vel", "acc", "yaw"):
                 assert np.array_equal(getattr(own, key), getattr(out, key)), (
                     f"{s.name}: adjust_batch gave world {b} other setpoints ({key}) than its own adjust() at "
-                    f"tick {tick}: a batched form must give each world its own arithmetic (docs/batched.md)")
+                    f"tick {tick}{' (setpoints given as one SetpointBatch)' if one_batch else ''}: a batched form "
+                    "must give each world its own arithmetic (docs/batched.md)")
             _fly(world, own)
             _fly(together[b], out)
     for b, (one, batched) in enumerate(zip(alone_methods, batch_methods, strict=True)):
