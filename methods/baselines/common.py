@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from pydantic import Field
 
@@ -53,6 +55,21 @@ def perturb(v: np.ndarray, magnitude: float, rng: np.random.Generator) -> np.nda
         return v
     angle = rng.uniform(0.0, 2.0 * np.pi, len(v))
     length = rng.uniform(0.0, magnitude, len(v))
+    return v + length[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+
+
+def perturb_rows(v: np.ndarray, magnitude: float, rngs: Sequence[np.random.Generator],
+                 sizes: Sequence[int]) -> np.ndarray:
+    """:func:`perturb` of several swarms' stacked rows ``v``, swarm k's ``sizes[k]`` rows drawn
+    from its own ``rngs[k]`` (its angles, then its lengths, as :func:`perturb` draws them): each
+    row gets the bits :func:`perturb` gives it (the same elementwise operations; numpy's ``cos``
+    and ``sin`` give every element the same bits at any length, tests/test_batch.py)."""
+    if magnitude == 0.0:
+        return v
+    draws = [(rng.uniform(0.0, 2.0 * np.pi, size), rng.uniform(0.0, magnitude, size))
+             for rng, size in zip(rngs, sizes, strict=True)]
+    angle = np.concatenate([a for a, _ in draws])
+    length = np.concatenate([b for _, b in draws])
     return v + length[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
 
 

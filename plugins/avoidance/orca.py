@@ -60,6 +60,7 @@ from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
     nearest_obstacles,
     perturb,
+    perturb_rows,
     preferred_velocity,
     velocity_setpoints,
 )
@@ -133,14 +134,22 @@ class Orca(Avoidance):
         index, valid = neighbour_table(pairs, pos[:, :2], p.max_neighbours)  # each agent's partners in its world
         static = ~np.concatenate([w.healthy for w in worlds])
         vel = np.where(static[:, None], 0.0, np.concatenate([w.vel[:, :2] for w in worlds]))
-        preferred = np.concatenate([perturb(v_pref[span, :2], p.perturbation, a.ctx.rng)  # each world's stream
-                                    for a, span in zip(avoidances, spans, strict=True)])
+        preferred = perturb_rows(v_pref[:, :2], p.perturbation, [a.ctx.rng for a in avoidances], sizes)
         planes = [a._obstacle_halfplanes(s) for a, s in zip(avoidances, sensings, strict=True)]
         hard = None if planes[0] is None else tuple(np.concatenate([h[k] for h in planes]) for k in range(3))
         v_new, feasible = new_velocities(pos[:, :2], vel, preferred, index, valid, static, *first._constants(), hard,
                                          np.radians(p.detour))
-        return [a._commanded(w, sp, v_pref[span], valid[span], v_new[span], feasible[span])
-                for a, w, sp, span in zip(avoidances, worlds, setpoints, spans, strict=True)]
+        whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
+        if whole is None or whole.n != len(pos) or min(sizes) == 0:
+            return [a._commanded(w, sp, v_pref[span], valid[span], v_new[span], feasible[span])
+                    for a, w, sp, span in zip(avoidances, worlds, setpoints, spans, strict=True)]
+        # A batch in, a batch out: the metrics' counts per world, the commands of all rows at once
+        fallback = np.add.reduceat((~feasible & ~static).astype(np.int64), offsets)
+        used = np.maximum.reduceat(valid.sum(axis=1), offsets)
+        for a, count, most in zip(avoidances, fallback.tolist(), used.tolist(), strict=True):
+            a.fallback_ticks += count
+            a.max_used = max(a.max_used, most)
+        return SetpointBatch(velocity_setpoints(whole, ~static, np.column_stack([v_new, v_pref[:, 2]])), len(worlds))
 
     def _rows(self, world, sensing, sp: Setpoints) -> tuple[np.ndarray, _Rows, Any]:
         """What eq. 5 needs of one world: v_pref (N, 3), the rows of :func:`new_velocities` (x-y
