@@ -11,7 +11,7 @@ import operator
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import overload
+from typing import cast, overload
 
 import numpy as np
 
@@ -94,12 +94,13 @@ class Setpoints:
 class SetpointBatch(Sequence[Setpoints]):
     """B worlds' setpoints as one record over their stacked B x N agents.
 
-    What a batched form that makes every world's setpoints in one pass can return (the ``policy``
-    avoidance turning an environment's (B, N, 3) actions into setpoints), and what a dynamics
-    model's :meth:`~swarmscene.core.plugin.Dynamics.control_batch` can take whole instead of
-    stacking B records again (the quadrotor's does). It is a sequence of B per-world records, so
-    code written for a list of records reads it as one: world b's record holds views of its rows
-    of the stacked arrays, made when first asked and the same object after.
+    What a batched form that makes every world's setpoints in one pass can return (a formation's
+    ``setpoints_batch``; the ``policy`` avoidance turning an environment's (B, N, 3) actions into
+    setpoints), and what the next phase's batched form can take whole instead of stacking B
+    records again (the built-in dynamics models' ``control_batch`` and ORCA's ``adjust_batch``
+    do). It is a sequence of B per-world records, so code written for a list of records reads it
+    as one: world b's record holds views of its rows of the stacked arrays (the B records are made
+    together when one is first asked for, and are the same objects after).
 
     An edit in place of a world's record is the stacked record's too (they share memory). An
     attribute replaced in a handed-out record (``sp.pos = ...``) is not: :meth:`whole` then says
@@ -121,6 +122,28 @@ class SetpointBatch(Sequence[Setpoints]):
         self._whole, self._count, self._n = whole, worlds, whole.n // worlds
         self._records: list[Setpoints] | None = None  # the worlds' records, made all at once when first asked
         self._arrays: list[tuple] = []  # each record's arrays as they were made
+
+    @classmethod
+    def stack(cls, records: Sequence[Setpoints]) -> SetpointBatch:
+        """B worlds' records (N agents each) stacked into one batch, world after world.
+
+        Raises:
+            ValueError: no records, records of different sizes, or some carrying jerk or snap
+                and others not (one record has one set of fields).
+        """
+        if len({sp.n for sp in records}) != 1:
+            raise ValueError(f"a setpoint batch stacks records of one size, not {sorted({sp.n for sp in records})}")
+
+        def stacked(name: str) -> np.ndarray | None:
+            arrays = [getattr(sp, name) for sp in records]
+            if all(a is None for a in arrays):
+                return None
+            if any(a is None for a in arrays):
+                raise ValueError(f"a setpoint batch stacks records that all carry {name}, or none")
+            return np.concatenate(arrays)
+
+        return cls(Setpoints(*(cast(np.ndarray, stacked(name)) for name in ("mode", "pos", "vel", "acc", "yaw")),
+                             stacked("jerk"), stacked("snap")), len(records))
 
     def __len__(self) -> int:
         return self._count

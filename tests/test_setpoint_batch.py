@@ -225,3 +225,18 @@ def test_a_batched_formation_that_raises_or_miscounts_stops_every_world_with_its
     outcomes = BatchSimulation([api.build({**data, "seed": seed}) for seed in SEEDS]).run()
     assert [str(outcome.failure) for outcome in outcomes] == [error] * B
     assert {outcome.result.metrics["steps"] for outcome in outcomes} == {0}
+
+
+def test_records_stack_into_a_batch_whose_worlds_are_theirs_and_mismatches_are_refused():
+    records = [Setpoints.hold(np.full((N, 3), float(b))) for b in range(B)]
+    batch = SetpointBatch.stack(records)
+    for b, record in enumerate(records):
+        np.testing.assert_array_equal(batch[b].pos, record.pos)
+        assert batch[b].jerk is None
+    with pytest.raises(ValueError, match=r"a setpoint batch stacks records of one size, not \[2, 4\]"):
+        SetpointBatch.stack([*records, Setpoints.hold(np.zeros((2, 3)))])
+    records[1].jerk = np.zeros((N, 3))
+    with pytest.raises(ValueError, match="a setpoint batch stacks records that all carry jerk, or none"):
+        SetpointBatch.stack(records)
+    with pytest.raises(ValueError, match=r"not \[\]"):
+        SetpointBatch.stack([])

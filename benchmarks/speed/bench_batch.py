@@ -109,7 +109,7 @@ def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options)
     sides = {side: worlds(model_cls, b, n, **options) for side in ("world", "batch", "control", "stacked")}
     batches = {side: WorldBatch(sides[side][0]) for side in ("batch", "control", "stacked")}
     the_worlds, models, targets = sides["stacked"]
-    sides["stacked"] = (the_worlds, models, SetpointBatch(_stacked_targets(targets), b))
+    sides["stacked"] = (the_worlds, models, SetpointBatch.stack(targets))
 
     def stepper(side: str):
         the_worlds, models, _ = sides[side]
@@ -142,11 +142,6 @@ def physics(model_cls: type, b: int, n: int, ticks: int, blocks: int, **options)
     steps = b * n * ticks * SUBSTEPS
     return steps / best["world"], steps / best["batch"], steps / best["control"], steps / best["stacked"]
 
-
-def _stacked_targets(targets: list[Setpoints]) -> Setpoints:
-    """The worlds' setpoint records as one, their agents stacked world after world."""
-    return Setpoints(*(np.concatenate([getattr(sp, field) for sp in targets])
-                       for field in ("mode", "pos", "vel", "acc", "yaw")))
 
 
 def threads_scaling(b: int, n: int, threads: int, ticks: int, blocks: int) -> tuple[float, float]:

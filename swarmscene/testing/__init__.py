@@ -751,8 +751,7 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
         records = [setpoints(b, world, world.t) for b, (world, _) in enumerate(together)]
         sps: list[Setpoints] | SetpointBatch = records
         if one_batch:
-            sps = SetpointBatch(Setpoints(*(np.concatenate([getattr(sp, field) for sp in records]) for field in (
-                "mode", "pos", "vel", "acc", "yaw", "jerk", "snap"))), len(records))
+            sps = SetpointBatch.stack(records)
         done = _batched(cls, "control", models, batch, batch.worlds, sps)
         left = range(len(models)) if done is NotImplemented else left_places(done, len(models), cls)
         for b in left:  # the worlds it left to their own control, as the engine reads them
@@ -771,20 +770,23 @@ def _check_dynamics_control_batch_equals_worlds(cls: type[Dynamics], params: Plu
                          "must latch each world's commands with the per-world arithmetic")
 
 
+def _three_worlds() -> list[WorldState]:
+    """The batched forms' checks' worlds: the example world shifted apart three times, world 1
+    squeezed to half its spacing, world 2 without its failed agent."""
+    out = []
+    for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
+        world = example_world(failed=b != 2)
+        world.pos = (0.5 * world.pos if b == 1 else world.pos) + shift
+        out.append(world)
+    return out
+
+
 def _check_formation_setpoints_batch_equals_worlds(s: Subject) -> None:
     """Three worlds (the example world shifted apart, world 1 squeezed to half its spacing, world
     2 without its failed agent until agent 1 fails at the middle tick) flown 2 TICKS ticks on
     their setpoints twice side by side: each world by its own instance's ``setpoints``, and all
     three by ``setpoints_batch``."""
-    def worlds() -> list[WorldState]:
-        out = []
-        for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
-            world = example_world(failed=b != 2)
-            world.pos = (0.5 * world.pos if b == 1 else world.pos) + shift
-            out.append(world)
-        return out
-
-    alone, together = worlds(), worlds()
+    alone, together = _three_worlds(), _three_worlds()
     alone_formations = [_build(s.cls, s.params, s.environment, world) for world in alone]
     batch_formations = [_build(s.cls, s.params, s.environment, world) for world in together]
     for tick in range(2 * TICKS):
@@ -820,23 +822,14 @@ def _check_avoidance_adjust_batch_equals_worlds(s: Subject, one_batch: bool) -> 
     without its failed agent) flown TICKS ticks towards their centres twice side by side: each
     world by its own instance's ``adjust``, and all three by ``adjust_batch`` (handed the
     setpoints as one :class:`~swarmscene.core.setpoint.SetpointBatch` with ``one_batch``)."""
-    def worlds() -> list[WorldState]:
-        out = []
-        for b, shift in enumerate(([0.0, 0.0, 0.0], [40.0, -10.0, 0.0], [-30.0, 25.0, 0.0])):
-            world = example_world(failed=b != 2)
-            world.pos = (0.5 * world.pos if b == 1 else world.pos) + shift
-            out.append(world)
-        return out
-
-    alone, together = worlds(), worlds()
+    alone, together = _three_worlds(), _three_worlds()
     alone_methods = [_build(s.cls, s.params, s.environment, world) for world in alone]
     batch_methods = [_build(s.cls, s.params, s.environment, world) for world in together]
     for tick in range(TICKS):
         sps = [_converging_setpoints(world) for world in together]
         handed: list[Setpoints] | SetpointBatch = [sp.copy() for sp in sps]
         if one_batch:
-            handed = SetpointBatch(Setpoints(*(np.concatenate([getattr(sp, field) for sp in sps]) for field in (
-                "mode", "pos", "vel", "acc", "yaw"))), len(sps))
+            handed = SetpointBatch.stack(sps)
         outs = _batched(s.cls, "adjust", batch_methods, together, [_sensing(w, s.environment) for w in together],
                         handed)
         if outs is NotImplemented:
