@@ -142,8 +142,8 @@ class SetpointBatch(Sequence[Setpoints]):
                 raise ValueError(f"a setpoint batch stacks records that all carry {name}, or none")
             return np.concatenate(arrays)
 
-        return cls(Setpoints(*(cast(np.ndarray, stacked(name)) for name in ("mode", "pos", "vel", "acc", "yaw")),
-                             stacked("jerk"), stacked("snap")), len(records))
+        mode, pos, vel, acc, yaw = (cast(np.ndarray, stacked(name)) for name in ("mode", "pos", "vel", "acc", "yaw"))
+        return cls(Setpoints(mode, pos, vel, acc, yaw, stacked("jerk"), stacked("snap")), len(records))
 
     def __len__(self) -> int:
         return self._count
@@ -177,9 +177,11 @@ class SetpointBatch(Sequence[Setpoints]):
         for one world's asks for the others'), by whole-array splits where the stacked arrays are
         contiguous (C loops, not a slice per world and field)."""
         if self._records is None:
-            per_field = [None if a is None else _rows(a, self._count, self._n) for a in _fields(self._whole)]
-            self._records = [Setpoints(*(None if rows is None else rows[b] for rows in per_field))
-                             for b in range(self._count)]
+            w, count, n = self._whole, self._count, self._n
+            mode, pos, vel, acc, yaw = (_rows(a, count, n) for a in (w.mode, w.pos, w.vel, w.acc, w.yaw))
+            jerk, snap = (None if a is None else _rows(a, count, n) for a in (w.jerk, w.snap))
+            self._records = [Setpoints(mode[b], pos[b], vel[b], acc[b], yaw[b], None if jerk is None else jerk[b],
+                                       None if snap is None else snap[b]) for b in range(count)]
             self._arrays = [_fields(record) for record in self._records]
         return self._records
 
