@@ -240,3 +240,32 @@ def test_records_stack_into_a_batch_whose_worlds_are_theirs_and_mismatches_are_r
         SetpointBatch.stack(records)
     with pytest.raises(ValueError, match=r"not \[\]"):
         SetpointBatch.stack([])
+
+
+@pytest.mark.parametrize(("overrides", "batched"), [
+    (["avoidance=cbf"], True),
+    (["avoidance=cbf", "avoidance.power=3"], False),
+    (["scenario=swap", "avoidance=cbf", "avoidance.deadlock_turn=90", "swarm.n=6"], True),
+], ids=["pillar", "power-3-declined", "swap-deadlock-turn"])
+def test_the_certificates_filter_every_world_in_one_pass_each_its_single_run(monkeypatch, overrides, batched):
+    """``cbf``'s batched form near the default scenario's pillar (obstacle half-planes from each
+    world's sensing) and in a 6-agent swap escaping deadlocks: one ``safe_velocities`` call a tick
+    for the three worlds' agents, each world its single run's bits; with ``power = 3`` it
+    declines (numpy's power) and the worlds are filtered one by one, as their single runs."""
+    from swarmscene.methods.baselines import cbf as numerics
+    from swarmscene.plugins.avoidance import cbf as plugin
+
+    rows: list[int] = []
+    safe_velocities = numerics.safe_velocities
+    monkeypatch.setattr(plugin, "safe_velocities", lambda pos, *a, **k: rows.append(len(pos)) or safe_velocities(
+        pos, *a, **k))
+    data = api.compose([*overrides, "clock.duration=4", "output.summary=false"])
+    results = api.run_batch(data, SEEDS)
+    n, ticks = results[0].metrics["agents"], results[0].metrics["steps"]
+    assert rows == ([B * n] * ticks if batched else [n] * (B * ticks))
+    monkeypatch.undo()
+    for seed, result in zip(SEEDS, results, strict=True):
+        alone = api.run({**data, "seed": seed})
+        assert without_wall_clock(result.metrics) == without_wall_clock(alone.metrics)
+        for key, value in alone.trajectory.items():
+            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")

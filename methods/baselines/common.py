@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from pydantic import Field
 
 from swarmscene.core.plugin import PluginParams
-from swarmscene.core.setpoint import Mode, Setpoints, is_mode
+from swarmscene.core.setpoint import Mode, SetpointBatch, Setpoints, is_mode
+from swarmscene.core.state import WorldState
 from swarmscene.core.vectors import clip_norm
 
 
@@ -83,6 +85,45 @@ def velocity_setpoints(sp: Setpoints, active: np.ndarray, vel: np.ndarray) -> Se
     for extra in (out.jerk, out.snap):
         if extra is not None:
             extra[active] = 0.0
+    return out
+
+
+def stacked_setpoints(setpoints: Sequence[Setpoints], rows: int) -> Setpoints:
+    """B worlds' setpoints as one record of their stacked agents (mode, pos, vel, acc, yaw): a
+    :class:`SetpointBatch`'s own arrays (its records are views of them), else the records
+    concatenated."""
+    whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
+    if whole is not None and whole.n == rows:
+        return Setpoints(whole.mode, whole.pos, whole.vel, whole.acc, whole.yaw)
+    return Setpoints(*(np.concatenate([getattr(sp, key) for sp in setpoints])
+                       for key in ("mode", "pos", "vel", "acc", "yaw")))
+
+
+def filtered_setpoints(filters: Sequence[Any], worlds: Sequence[WorldState], setpoints: Sequence[Setpoints],
+                       commands: np.ndarray, valid: np.ndarray, feasible: np.ndarray) -> Sequence[Setpoints]:
+    """A velocity filter's batched answer (ORCA's, the certificates'): each world's healthy agents
+    switched to VELOCITY at its rows of ``commands`` (B N, 3) (:func:`velocity_setpoints`), and
+    each instance's ``fallback_ticks`` and ``max_used`` counted from its rows of ``feasible`` and
+    ``valid`` (the neighbour table's mask) as its own ``adjust`` counts them. Handed one
+    :class:`SetpointBatch`, it answers with one (the commands of all rows at once, the counts by
+    ``reduceat`` over the worlds' offsets); else with one record per world."""
+    sizes = [len(world.pos) for world in worlds]
+    offsets = np.cumsum([0, *sizes[:-1]])
+    healthy = np.concatenate([world.healthy for world in worlds])
+    whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
+    if whole is not None and whole.n == len(healthy) and min(sizes) > 0:
+        fallback = np.add.reduceat((~feasible & healthy).astype(np.int64), offsets)
+        used = np.maximum.reduceat(valid.sum(axis=1), offsets)
+        for f, count, most in zip(filters, fallback.tolist(), used.tolist(), strict=True):
+            f.fallback_ticks += count
+            f.max_used = max(f.max_used, most)
+        return SetpointBatch(velocity_setpoints(whole, healthy, commands), len(worlds))
+    out = []
+    for f, world, sp, start, size in zip(filters, worlds, setpoints, offsets.tolist(), sizes, strict=True):
+        rows = slice(start, start + size)
+        f.fallback_ticks += int(np.count_nonzero(~feasible[rows] & world.healthy))
+        f.max_used = max(f.max_used, int(valid[rows].sum(axis=1).max(initial=0)))
+        out.append(velocity_setpoints(sp, world.healthy, commands[rows]))
     return out
 
 

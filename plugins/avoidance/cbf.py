@@ -60,9 +60,12 @@ from pydantic import Field
 from swarmscene.methods.baselines.cbf import influence_range, safe_velocities
 from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
+    filtered_setpoints,
     nearest_obstacles,
     perturb,
+    perturb_rows,
     preferred_velocity,
+    stacked_setpoints,
     velocity_setpoints,
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
@@ -120,6 +123,45 @@ class BarrierCertificates(Avoidance):
         self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
         self.max_used = max(self.max_used, int(valid.sum(axis=1).max(initial=0)))
         return velocity_setpoints(sp, healthy, np.column_stack([u, u_nom[:, 2]]))
+
+    @classmethod
+    def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
+        """``adjust`` of B worlds with one pass of the certificates' numerics, as ORCA's batched
+        form: the worlds' agents stacked as rows (each world's pairs shifted to its rows), the
+        perturbation from each world's own stream, each world's nearest obstacles from its
+        sensing, then every row through :func:`safe_velocities`, which is row by row (each agent's
+        half-planes, its closest velocity and its deadlock escape), so every world gets its own
+        ``adjust``'s bits (the contract check ``avoidance.adjust_batch_equals_worlds``). The
+        answer (:func:`filtered_setpoints`) is one :class:`SetpointBatch` where it was handed one.
+        Declined (``NotImplemented``, before any world is touched) for instances whose options or
+        limits differ, worlds with and without obstacles, and ``power`` other than 1: kappa's
+        ``|h| ** p`` is numpy's ``power``, whose SIMD path may give an element other bits at
+        another array length."""
+        first = avoidances[0]
+        p = first.params
+        if (p.power != 1 or any(a.params != p or a._limits() != first._limits() for a in avoidances[1:])
+                or len({s.environment.empty for s in sensings}) != 1):
+            return NotImplemented
+        sizes = [len(w.pos) for w in worlds]
+        offsets = np.cumsum([0, *sizes[:-1]])
+        pos = np.concatenate([w.pos for w in worlds])
+        u_nom = preferred_velocity(stacked_setpoints(setpoints, len(pos)), pos, p.gain, p.v_max)  # row by row
+        pairs = np.concatenate([s.pairs(first.range) + o for s, o in zip(sensings, offsets, strict=True)])
+        index, valid = neighbour_table(pairs, pos[:, :2], p.max_neighbours)  # each agent's partners in its world
+        nominal = perturb_rows(u_nom[:, :2], p.perturbation, [a.ctx.rng for a in avoidances], sizes)
+        near = [a._obstacles(s) for a, s in zip(avoidances, sensings, strict=True)]
+        obstacle = None if near[0] is None else (
+            *(np.concatenate([o[k] for o in near]) for k in range(3)), first.obstacle_distance)
+        u, feasible = safe_velocities(
+            pos[:, :2], nominal, index, valid, ~np.concatenate([w.healthy for w in worlds]), first.safe_distance,
+            p.gamma, p.power, p.v_max, obstacle, np.radians(p.detour), np.radians(p.deadlock_turn), p.deadlock_ratio,
+        )
+        return filtered_setpoints(avoidances, worlds, setpoints, np.column_stack([u, u_nom[:, 2]]), valid, feasible)
+
+    def _limits(self) -> tuple[float, float, float, float]:
+        """The distances the instance derived from its run's limits: D_s, the neighbour range, D_o
+        and the obstacles' reach, m."""
+        return self.safe_distance, self.range, self.obstacle_distance, self.obstacle_reach
 
     def _obstacles(self, sensing):
         if sensing.environment.empty:

@@ -50,7 +50,6 @@ section 5.3 fallback ran), ``orca.max_neighbours_used``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -58,15 +57,17 @@ from pydantic import Field
 
 from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
+    filtered_setpoints,
     nearest_obstacles,
     perturb,
     perturb_rows,
     preferred_velocity,
+    stacked_setpoints,
     velocity_setpoints,
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
 from swarmscene.methods.baselines.orca import new_velocities, obstacle_lines
-from swarmscene.plugin import Avoidance, BuildContext, SetpointBatch, Setpoints, hookimpl
+from swarmscene.plugin import Avoidance, BuildContext, Setpoints, hookimpl
 
 _Rows = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 """The per-agent rows of :func:`new_velocities`: positions, velocities, v_pref, neighbours, valid, static."""
@@ -118,17 +119,18 @@ class Orca(Avoidance):
         world's sensing, then every row goes through :func:`new_velocities`. All of it is row by
         row (masked lock-step loops, elementwise operations and square roots; the neighbour order
         a sort within each agent), so every world gets its own ``adjust``'s bits (the contract
-        check ``avoidance.adjust_batch_equals_worlds``). Declined (``NotImplemented``, before any
-        world is touched) for instances whose options differ, or worlds with and without obstacles."""
+        check ``avoidance.adjust_batch_equals_worlds``). The answer (:func:`filtered_setpoints`) is
+        one :class:`SetpointBatch` where it was handed one, else a record per world. Declined
+        (``NotImplemented``, before any world is touched) for instances whose options differ, or
+        worlds with and without obstacles."""
         first = avoidances[0]
         if any(a.params != first.params or a._constants() != first._constants() for a in avoidances[1:]) or len(
                 {s.environment.empty for s in sensings}) != 1:
             return NotImplemented
         p, sizes = first.params, [len(w.pos) for w in worlds]
         offsets = np.cumsum([0, *sizes[:-1]])
-        spans = [slice(o, o + size) for o, size in zip(offsets, sizes, strict=True)]
         pos = np.concatenate([w.pos for w in worlds])
-        stacked = _stacked(setpoints, len(pos))
+        stacked = stacked_setpoints(setpoints, len(pos))
         v_pref = preferred_velocity(stacked, pos, p.gain, p.v_max)  # row by row
         pairs = np.concatenate([s.pairs(first.range) + o for s, o in zip(sensings, offsets, strict=True)])
         index, valid = neighbour_table(pairs, pos[:, :2], p.max_neighbours)  # each agent's partners in its world
@@ -139,17 +141,8 @@ class Orca(Avoidance):
         hard = None if planes[0] is None else tuple(np.concatenate([h[k] for h in planes]) for k in range(3))
         v_new, feasible = new_velocities(pos[:, :2], vel, preferred, index, valid, static, *first._constants(), hard,
                                          np.radians(p.detour))
-        whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
-        if whole is None or whole.n != len(pos) or min(sizes) == 0:
-            return [a._commanded(w, sp, v_pref[span], valid[span], v_new[span], feasible[span])
-                    for a, w, sp, span in zip(avoidances, worlds, setpoints, spans, strict=True)]
-        # A batch in, a batch out: the metrics' counts per world, the commands of all rows at once
-        fallback = np.add.reduceat((~feasible & ~static).astype(np.int64), offsets)
-        used = np.maximum.reduceat(valid.sum(axis=1), offsets)
-        for a, count, most in zip(avoidances, fallback.tolist(), used.tolist(), strict=True):
-            a.fallback_ticks += count
-            a.max_used = max(a.max_used, most)
-        return SetpointBatch(velocity_setpoints(whole, ~static, np.column_stack([v_new, v_pref[:, 2]])), len(worlds))
+        return filtered_setpoints(avoidances, worlds, setpoints, np.column_stack([v_new, v_pref[:, 2]]), valid,
+                                  feasible)
 
     def _rows(self, world, sensing, sp: Setpoints) -> tuple[np.ndarray, _Rows, Any]:
         """What eq. 5 needs of one world: v_pref (N, 3), the rows of :func:`new_velocities` (x-y
@@ -190,16 +183,6 @@ class Orca(Avoidance):
         """Add ``orca.fallback_ticks`` and ``orca.max_neighbours_used``."""
         metrics["orca.fallback_ticks"] = self.fallback_ticks
         metrics["orca.max_neighbours_used"] = self.max_used
-
-
-def _stacked(setpoints: Sequence[Setpoints], rows: int) -> Setpoints:
-    """The worlds' setpoints as one record of their stacked agents: a :class:`SetpointBatch`'s own
-    (the same arrays its records are views of), else the records concatenated."""
-    whole = setpoints.whole() if isinstance(setpoints, SetpointBatch) else None
-    if whole is not None and whole.n == rows:
-        return Setpoints(whole.mode, whole.pos, whole.vel, whole.acc, whole.yaw)
-    return Setpoints(*(np.concatenate([getattr(sp, key) for sp in setpoints])
-                       for key in ("mode", "pos", "vel", "acc", "yaw")))
 
 
 @hookimpl
