@@ -198,16 +198,18 @@ def test_a_formations_setpoint_batch_reaches_the_quadrotors_control_whole(monkey
     ticks = results[0].metrics["steps"]
     assert given == [SetpointBatch] * ticks and planned == [B] * ticks
     monkeypatch.undo()
-    for seed, result in zip(SEEDS, results, strict=True):
-        alone = api.run({**data, "seed": seed})
-        assert without_wall_clock(result.metrics) == without_wall_clock(alone.metrics)
-        for key, value in alone.trajectory.items():
-            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
+    assert_single_runs(data, results)
     assert results[0].metrics["healthy_at_end"] == results[0].metrics["agents"] - 1  # the leader failed
 
 
-def without_wall_clock(metrics: dict) -> dict:
-    return {k: v for k, v in metrics.items() if k not in WALL_CLOCK}
+def assert_single_runs(data: dict, results: list) -> None:
+    """Each batched world's metrics (but the wall clock's) and trajectory are its single run's."""
+    for seed, result in zip(SEEDS, results, strict=True):
+        alone = api.run({**data, "seed": seed})
+        flight = {k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}
+        assert {k: v for k, v in result.metrics.items() if k not in WALL_CLOCK} == flight, seed
+        for key, value in alone.trajectory.items():
+            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
 
 
 @pytest.mark.parametrize(("answer", "error"), [
@@ -264,8 +266,4 @@ def test_the_certificates_filter_every_world_in_one_pass_each_its_single_run(mon
     n, ticks = results[0].metrics["agents"], results[0].metrics["steps"]
     assert rows == ([B * n] * ticks if batched else [n] * (B * ticks))
     monkeypatch.undo()
-    for seed, result in zip(SEEDS, results, strict=True):
-        alone = api.run({**data, "seed": seed})
-        assert without_wall_clock(result.metrics) == without_wall_clock(alone.metrics)
-        for key, value in alone.trajectory.items():
-            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
+    assert_single_runs(data, results)
