@@ -118,13 +118,20 @@ def filtered_setpoints(filters: Sequence[Any], worlds: Sequence[WorldState], set
             f.fallback_ticks += count
             f.max_used = max(f.max_used, most)
         return SetpointBatch(velocity_setpoints(whole, healthy, commands), len(worlds))
-    out = []
-    for f, world, sp, start, size in zip(filters, worlds, setpoints, offsets.tolist(), sizes, strict=True):
-        rows = slice(start, start + size)
-        f.fallback_ticks += int(np.count_nonzero(~feasible[rows] & world.healthy))
-        f.max_used = max(f.max_used, int(valid[rows].sum(axis=1).max(initial=0)))
-        out.append(velocity_setpoints(sp, world.healthy, commands[rows]))
-    return out
+    return [filtered_world(f, world, sp, commands[start:start + size], valid[start:start + size],
+                           feasible[start:start + size])
+            for f, world, sp, start, size in zip(filters, worlds, setpoints, offsets.tolist(), sizes, strict=True)]
+
+
+def filtered_world(f: Any, world: WorldState, sp: Setpoints, commands: np.ndarray, valid: np.ndarray,
+                   feasible: np.ndarray) -> Setpoints:
+    """One world's answer of a velocity filter (ORCA's, the certificates' ``adjust``): its healthy
+    agents switched to VELOCITY at ``commands`` (N, 3) (:func:`velocity_setpoints`), and the
+    instance's ``fallback_ticks`` (healthy agents whose program was infeasible) and ``max_used``
+    (the most neighbours an agent's table held, ``valid`` its mask) counted."""
+    f.fallback_ticks += int(np.count_nonzero(~feasible & world.healthy))
+    f.max_used = max(f.max_used, int(valid.sum(axis=1).max(initial=0)))
+    return velocity_setpoints(sp, world.healthy, commands)
 
 
 def nearest_obstacles(sensing, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -61,12 +61,12 @@ from swarmscene.methods.baselines.cbf import influence_range, safe_velocities
 from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
     filtered_setpoints,
+    filtered_world,
     nearest_obstacles,
     perturb,
     perturb_rows,
     preferred_velocity,
     stacked_setpoints,
-    velocity_setpoints,
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
 from swarmscene.plugin import Avoidance, BuildContext, Setpoints, hookimpl
@@ -119,10 +119,7 @@ class BarrierCertificates(Avoidance):
             ~world.healthy, self.safe_distance, p.gamma, p.power, p.v_max, self._obstacles(sensing),
             np.radians(p.detour), np.radians(p.deadlock_turn), p.deadlock_ratio,
         )
-        healthy = world.healthy
-        self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
-        self.max_used = max(self.max_used, int(valid.sum(axis=1).max(initial=0)))
-        return velocity_setpoints(sp, healthy, np.column_stack([u, u_nom[:, 2]]))
+        return filtered_world(self, world, sp, np.column_stack([u, u_nom[:, 2]]), valid, feasible)
 
     @classmethod
     def adjust_batch(cls, avoidances, worlds, sensings, setpoints):

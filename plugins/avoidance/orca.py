@@ -58,12 +58,12 @@ from pydantic import Field
 from swarmscene.methods.baselines.common import (
     VelocityFilterParams,
     filtered_setpoints,
+    filtered_world,
     nearest_obstacles,
     perturb,
     perturb_rows,
     preferred_velocity,
     stacked_setpoints,
-    velocity_setpoints,
 )
 from swarmscene.methods.baselines.neighbours import neighbour_table
 from swarmscene.methods.baselines.orca import new_velocities, obstacle_lines
@@ -108,7 +108,7 @@ class Orca(Avoidance):
         neighbours (reciprocal: each takes half of the avoidance); failed agents count as static."""
         v_pref, rows, hard = self._rows(world, sensing, sp)
         v_new, feasible = new_velocities(*rows, *self._constants(), hard, np.radians(self.params.detour))
-        return self._commanded(world, sp, v_pref, rows[4], v_new, feasible)
+        return filtered_world(self, world, sp, np.column_stack([v_new, v_pref[:, 2]]), rows[4], feasible)
 
     @classmethod
     def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
@@ -159,15 +159,6 @@ class Orca(Avoidance):
     def _constants(self) -> tuple[float, float, float, float]:
         """r_A + r_B, tau, the time step and v_max of :func:`new_velocities`."""
         return self.combined_radius, self.params.time_horizon, self.ctx.guidance_period, self.params.v_max
-
-    def _commanded(self, world, sp: Setpoints, v_pref: np.ndarray, valid: np.ndarray, v_new: np.ndarray,
-                   feasible: np.ndarray) -> Setpoints:
-        """The healthy agents' velocity commands, and the metrics' counts of this tick (``valid``:
-        the neighbour table's mask)."""
-        healthy = world.healthy
-        self.fallback_ticks += int(np.count_nonzero(~feasible & healthy))
-        self.max_used = max(self.max_used, int(valid.sum(axis=1).max(initial=0)))
-        return velocity_setpoints(sp, healthy, np.column_stack([v_new, v_pref[:, 2]]))
 
     def _obstacle_halfplanes(self, sensing):
         if sensing.environment.empty:
