@@ -20,6 +20,7 @@ Not a timed test: numbers depend on the machine; read the ratio of medians, meas
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import statistics
 import sys
@@ -53,13 +54,14 @@ def main() -> None:
     for overrides in cases.values():  # warm-up: numba's cache, scipy's submodules
         api.run(overrides)
     walls: dict[str, list[float]] = {k: [] for k in cases}
-    inside: list[float] = []  # each 'with' run's time in the observer's samples, s
+    inside: list[float] = []  # each 'with' run's time in the observer's measuring calls, s
+    # a run's time: its stepping loop's, and the observer's run_end (its last held states), which follows it
     for _ in range(args.rounds):
         for name, overrides in cases.items():
-            with _timed_samples() as spent:
-                walls[name].append(api.run(overrides).metrics["wall_time"])
+            with _timed_samples() as (spent, after):
+                walls[name].append(api.run(overrides).metrics["wall_time"] + sum(after))
             if name == "with":
-                inside.append(sum(spent))
+                inside.append(sum(spent) + sum(after))
     without, with_it = statistics.median(walls["without"]), statistics.median(walls["with"])
     share = with_it / without - 1.0
     load = os.getloadavg()
@@ -87,7 +89,7 @@ def main() -> None:
     ticks = len(traj["t"])
     per_sample = _observer_per_tick(traj, args.rounds)
     print(f"  the observer's sample alone over the run's {ticks} recorded states: "
-          f"mean {1e6 * per_sample.mean():.0f} us, median {1e6 * np.median(per_sample):.0f} us per tick "
+          f"mean {1e6 * per_sample.mean():.0f} us, least {1e6 * per_sample.min():.0f} us per tick "
           f"({args.rounds} passes); against the run's {1e3 * without / ticks:.2f} ms tick: "
           f"{100 * per_sample.mean() * ticks / without:.1f} %")
     print(f"  the definition transcribed (all pairs, dense matrices, every eigenvalue): {1e3 * per_tick:.2f} ms "
@@ -96,27 +98,36 @@ def main() -> None:
 
 
 @contextmanager
-def _timed_samples() -> Iterator[list[float]]:
-    """The seconds of each ``SwarmLab._sample`` call while the block runs (its hook wrapped)."""
+def _timed_samples() -> Iterator[tuple[list[float], list[float]]]:
+    """While the block runs: the seconds of each of the observer's samples (``_sample`` at a tick,
+    which holds the state and measures the held ones every ``CHUNK``-th), and of its ``run_end``
+    hook, which measures the last held states after the stepping loop's ``wall_time`` was taken."""
     from swarmscene.plugins.observer.swarmlab import SwarmLab
 
     spent: list[float] = []
-    sample = SwarmLab._sample
+    after: list[float] = []
+    originals = {name: getattr(SwarmLab, name) for name in ("_sample", "swarmscene_run_end")}
 
-    def timed(self: SwarmLab, sim: object) -> None:
-        start = time.perf_counter()
-        sample(self, sim)  # type: ignore[arg-type]
-        spent.append(time.perf_counter() - start)
+    def timed(method, into):  # type: ignore[no-untyped-def]
+        @functools.wraps(method)  # with its hookimpl marking
+        def call(*args, **kwargs):  # type: ignore[no-untyped-def]
+            start = time.perf_counter()
+            method(*args, **kwargs)
+            into.append(time.perf_counter() - start)
+        return call
 
-    SwarmLab._sample = timed  # type: ignore[method-assign]
+    SwarmLab._sample = timed(originals["_sample"], spent)  # type: ignore[method-assign]
+    SwarmLab.swarmscene_run_end = timed(originals["swarmscene_run_end"], after)  # type: ignore[method-assign]
     try:
-        yield spent
+        yield spent, after
     finally:
-        SwarmLab._sample = sample  # type: ignore[method-assign]
+        for name, method in originals.items():
+            setattr(SwarmLab, name, method)
 
 
 def _observer_per_tick(traj: dict, rounds: int):
-    """Seconds of ``SwarmLab._sample`` per recorded state, the mean over ``rounds`` passes."""
+    """Seconds of the observer per recorded state in each of ``rounds`` passes: its ``_sample`` at
+    every state and the measuring of the states still held at the end (``series``), over the states."""
     from functools import cached_property
     from types import SimpleNamespace
 
@@ -138,15 +149,17 @@ def _observer_per_tick(traj: dict, rounds: int):
                              t=float(traj["t"][k]), step_count=k) for k in range(len(pos))]
     setup = SimpleNamespace(config=SimpleNamespace(observers={"swarmlab": SwarmLab.Params()}),
                             environment=SimpleNamespace(obstacles=[]))
-    times = np.zeros((rounds + 1, len(views)))
+    times = np.zeros(rounds + 1)
     for round_ in range(rounds + 1):  # the first pass warms up (compiles, fills caches) and is dropped
         observer = SwarmLab(setup)
-        for k, view in enumerate(views):
+        for view in views:
             view.sensing = Sensing(view.world.pos)
-            start = time.perf_counter()
+        start = time.perf_counter()
+        for view in views:
             observer._sample(view)
-            times[round_, k] = time.perf_counter() - start
-    return times[1:].mean(axis=0)
+        observer.series()
+        times[round_] = (time.perf_counter() - start) / len(views)
+    return times[1:]
 
 
 if __name__ == "__main__":

@@ -64,6 +64,25 @@ def test_a_flocking_run_equals_the_definition_at_every_tick(tmp_path):
     assert series["alg_conn"].max() > 0  # connected samples were met
 
 
+def test_held_states_measured_in_chunks_equal_a_sample_at_every_tick(tmp_path, monkeypatch):
+    """The observer holds the states (copies) and measures them CHUNK at a time, the last ones at the
+    run's end: every sample bit for bit what measuring each at its own tick gives (a run of 101
+    samples, not a multiple of CHUNK)."""
+    from swarmscene.plugins.observer import swarmlab
+
+    run = ["scenario=flocking", "observers=[swarmlab]", "clock.duration=100", "output.summary=false"]
+    assert 101 % swarmlab.CHUNK
+    chunked = api.run(run, output_dir=tmp_path / "chunked")
+    monkeypatch.setattr(swarmlab, "CHUNK", 1)
+    each = api.run(run, output_dir=tmp_path / "each")
+    series, want = np.load(tmp_path / "chunked" / "swarmlab.npz"), np.load(tmp_path / "each" / "swarmlab.npz")
+    assert len(series["t"]) == 101
+    for name in ("t", *SERIES[:4]):
+        np.testing.assert_array_equal(series[name], want[name])
+    assert {k: v for k, v in chunked.metrics.items() if k.startswith("swarmlab.")} == {
+        k: v for k, v in each.metrics.items() if k.startswith("swarmlab.")}
+
+
 def test_every_sample_step_and_swarmlab_defaults(tmp_path):
     """``every=5`` samples the start and every fifth tick; the defaults are SwarmLab's."""
     params = SwarmLab.Params()
