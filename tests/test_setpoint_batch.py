@@ -267,3 +267,39 @@ def test_the_certificates_filter_every_world_in_one_pass_each_its_single_run(mon
     assert rows == ([B * n] * ticks if batched else [n] * (B * ticks))
     monkeypatch.undo()
     assert_single_runs(data, results)
+
+
+def test_the_potential_field_repels_every_world_in_one_pass_each_its_single_run(monkeypatch):
+    """``potential``'s batched form in the default scenario among a field of obstacles (their
+    repulsion from each world's sensing, from t = 2.3 s), from a random start (pairs within range
+    from the first tick) and with the leader failing mid-run: every tick one call for the three
+    worlds, answering one batch whose rows are each world's own ``adjust`` (the failed leader's
+    untouched, though others are in its range); each world its single run's bits."""
+    from swarmscene.plugins.avoidance.potential import Potential
+
+    adjust_batch = Potential.adjust_batch.__func__
+    near_failed: list[bool] = []
+    repelled: list[bool] = []
+
+    def spy(cls, avoidances, worlds, sensings, setpoints):
+        given = [sp.copy() for sp in setpoints]
+        answer = adjust_batch(cls, avoidances, worlds, sensings, setpoints)
+        assert isinstance(answer, SetpointBatch)
+        for a, world, sensing, sp, out in zip(avoidances, worlds, sensings, given, answer, strict=True):
+            own = a.adjust(world, sensing, sp)
+            for key in ("mode", "pos", "vel", "acc", "yaw"):
+                np.testing.assert_array_equal(getattr(out, key), getattr(own, key), err_msg=key)
+            failed = np.flatnonzero(~world.healthy)
+            near_failed.append(bool(np.isin(sensing.pairs(a._range()), failed).any()))
+            repelled.append(a._obstacle_repulsion(world, sensing) is not None)
+        return answer
+
+    monkeypatch.setattr(Potential, "adjust_batch", classmethod(spy))
+    data = api.compose(["environment=obstacle_field", "events=lead_fails", "swarm.start.layout=random",
+                        "clock.duration=4", "output.summary=false"])
+    data["events"][0]["at"] = 1.0
+    results = api.run_batch(data, SEEDS)
+    assert len(near_failed) == B * results[0].metrics["steps"] and any(near_failed) and any(repelled)
+    monkeypatch.undo()
+    assert_single_runs(data, results)
+    assert results[0].metrics["healthy_at_end"] == results[0].metrics["agents"] - 1  # the leader failed

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from swarmscene.plugin import Avoidance, Mode, PluginParams, Setpoints, clip_norm, every, hookimpl
+from swarmscene.plugin import Avoidance, Mode, PluginParams, SetpointBatch, Setpoints, clip_norm, every, hookimpl
 
 
 def barrier(d: np.ndarray, d_safe: float, d_range: float) -> np.ndarray:
@@ -68,27 +68,35 @@ class Potential(Avoidance):
 
     def _repulsion(self, world, sensing) -> np.ndarray | None:
         """:meth:`repulsion`, or ``None`` when no agent and no obstacle is in range (zero)."""
-        p, d_s = self.params, self.ctx.separation_limit
-        v = None
-        d_range = p.influence * max(d_s, 1e-3)
-        pairs = sensing.pairs(d_range)
-        if len(pairs):
-            i, j = pairs[:, 0], pairs[:, 1]
-            delta = world.pos[i] - world.pos[j]
-            d = np.sqrt(np.add.reduce(delta * delta, axis=1))  # np.linalg.norm(axis=1), its own ops
-            push = (p.v_max * barrier(d, d_s, d_range) / np.maximum(d, 1e-9))[:, None] * delta
-            v = _sum_at(np.concatenate([i, j]), np.concatenate([push, -push]), world.pos.shape)
+        pairs = sensing.pairs(self._range())
+        v = self._pair_repulsion(world.pos, pairs) if len(pairs) else None
         if not sensing.environment.empty:
             obstacle = self._obstacle_repulsion(world, sensing)
             if obstacle is not None:
                 v = np.zeros_like(world.pos) if v is None else v
                 v += obstacle
-        return None if v is None else clip_norm(v, p.v_max)
+        return None if v is None else clip_norm(v, self.params.v_max)
+
+    def _range(self) -> float:
+        """d_0 = ``influence`` d_s, the agents' range, m."""
+        return self.params.influence * max(self.ctx.separation_limit, 1e-3)
+
+    def _pair_repulsion(self, pos: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """The agents' repulsion (N, 3) from the ``pairs`` (P, 2) within d_0, each pair's push summed
+        onto its agents in the pairs' order (zero rows for agents in no pair)."""
+        p, d_s = self.params, self.ctx.separation_limit
+        i, j = pairs[:, 0], pairs[:, 1]
+        delta = pos[i] - pos[j]
+        d = np.sqrt(np.add.reduce(delta * delta, axis=1))  # np.linalg.norm(axis=1), its own ops
+        push = (p.v_max * barrier(d, d_s, self._range()) / np.maximum(d, 1e-9))[:, None] * delta
+        return _sum_at(np.concatenate([i, j]), np.concatenate([push, -push]), pos.shape)
 
     def _obstacle_repulsion(self, world, sensing) -> np.ndarray | None:
         """Repulsive velocity (N, 3) from the nearest obstacles; ``None`` when none is in range."""
         p, c_s = self.params, self.ctx.clearance_limit
         d_range = c_s + p.obstacle_influence
+        if sensing.nothing_within(d_range):  # shown already this tick (a batch's prefetch): no query
+            return None
         clearance = sensing.clearance_within(d_range)
         below = clearance < d_range
         if not np.count_nonzero(below):
@@ -122,6 +130,52 @@ class Potential(Avoidance):
         # New pos and vel; the fields it does not change are handed on, not copied (nothing
         # after avoidance writes to setpoints: the dynamics' contract forbids it).
         return Setpoints(sp.mode, pos, sp.vel + v_rep, sp.acc, sp.yaw, sp.jerk, sp.snap)
+
+    @classmethod
+    def adjust_batch(cls, avoidances, worlds, sensings, setpoints):
+        """``adjust`` of B worlds of N agents with one pass of the pairs' numerics: the worlds'
+        agents stacked as rows, each world's pairs shifted to its rows (the pushes summed onto each
+        agent in its own world's pair order, zero rows where :meth:`adjust` adds a scalar 0), each
+        world's obstacles its own, then the clip, the failed agents' zeros and the reshaped
+        setpoints row by row: every world gets its own ``adjust``'s bits (the contract check
+        ``avoidance.adjust_batch_equals_worlds``). Answers with one :class:`SetpointBatch` (the
+        setpoints read whole where they came as one). Declined (``NotImplemented``) for instances
+        whose options or safety limits differ, or worlds of different sizes."""
+        first = avoidances[0]
+        limits = (first.ctx.separation_limit, first.ctx.clearance_limit)
+        if any(a.params != first.params or (a.ctx.separation_limit, a.ctx.clearance_limit) != limits
+               for a in avoidances[1:]) or len({len(w.pos) for w in worlds}) != 1:
+            return NotImplemented
+        batch = _whole_batch(setpoints)
+        if batch is None:
+            return NotImplemented
+        sp = batch.whole()
+        n = len(worlds[0].pos)
+        pos = np.concatenate([w.pos for w in worlds])
+        pairs = np.concatenate([s.pairs(first._range()) + b * n for b, s in enumerate(sensings)])
+        v = first._pair_repulsion(pos, pairs)
+        for b, (a, world, sensing) in enumerate(zip(avoidances, worlds, sensings, strict=True)):
+            if not sensing.environment.empty:
+                obstacle = a._obstacle_repulsion(world, sensing)
+                if obstacle is not None:
+                    v[b * n:(b + 1) * n] += obstacle
+        v_rep = clip_norm(v, first.params.v_max)
+        v_rep[~np.concatenate([w.healthy for w in worlds])] = 0.0
+        shift = first.params.lookahead * v_rep
+        moving = (sp.mode != _VELOCITY)[:, None]
+        return SetpointBatch(Setpoints(sp.mode, np.where(moving, sp.pos + shift, sp.pos), sp.vel + v_rep, sp.acc,
+                                       sp.yaw, sp.jerk, sp.snap), len(worlds))
+
+
+def _whole_batch(setpoints) -> SetpointBatch | None:
+    """The worlds' setpoints as a batch that can be read whole: the one handed, else the records
+    stacked; None for records that cannot be stacked (some carrying jerk or snap and others not)."""
+    if isinstance(setpoints, SetpointBatch) and setpoints.whole() is not None:
+        return setpoints
+    try:
+        return SetpointBatch.stack(list(setpoints))
+    except ValueError:
+        return None
 
 
 @hookimpl
