@@ -19,6 +19,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+import yaml
 from test_sweep_launchers import TIMING, swarmscene
 
 from swarmscene.runs.rundir import RunDir
@@ -163,6 +164,59 @@ def test_a_world_whose_plugin_raises_is_recorded_failed_alone(tmp_path):
     error = json.loads((tmp_path / "batch" / "1" / "error.json").read_text())
     assert "FloatingPointError" in error["traceback"]
     for name in "012":  # the failed world's records up to its failure too
+        assert job(tmp_path / "batch", name) == job(tmp_path / "basic", name), name
+
+
+COUNTED = """\
+import os
+
+from swarmscene.sweeps import batch
+
+_composed = batch._composed
+
+
+def composed(loader, config, idx, *rest):
+    with open(os.environ["SWARMSCENE_TEST_COMPOSED"], "a") as out:
+        out.write(f"{idx}\\n")
+    return _composed(loader, config, idx, *rest)
+
+
+batch._composed = composed
+"""
+
+
+def test_a_batchs_later_seeds_are_twins_of_its_first_composed_job(tmp_path):
+    """A batch composes its first job; the jobs that differ from it in their seed alone are made
+    from its config with their seed set (``_Twin``), and are the basic launcher's jobs all the same:
+    an interpolation of the seed (each job's own obstacle field) and the ``++seed`` spelling
+    resolve per job. A rerun whose twin is complete composes that job and skips it."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(COUNTED)
+    counted = tmp_path / "composed.txt"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]),
+           "SWARMSCENE_TEST_COMPOSED": str(counted)}
+    grid = ["--multirun", "environment=obstacle_field", "environment.seed=${seed}", "++seed=3,4,5,6",
+            "clock.duration=1.5"]
+    one_batch = ["hydra/launcher=batch", "hydra.launcher.n_jobs=1", "hydra.launcher.batch_size=4"]
+    basic = swarmscene(*grid, f"hydra.sweep.dir={tmp_path}/basic", cwd=tmp_path)
+    proc = swarmscene(*grid, *one_batch, f"hydra.sweep.dir={tmp_path}/batch", cwd=tmp_path, env=env)
+    assert basic.returncode == proc.returncode == 0, proc.stderr
+    assert "4 jobs, 4 of them in 1 batches" in launched(proc)
+    assert counted.read_text().split() == ["0"]  # jobs 1-3: twins of job 0
+    for name in "0123":
+        assert job(tmp_path / "batch", name) == job(tmp_path / "basic", name), name
+    configs = [yaml.safe_load((tmp_path / "batch" / name / "config.yaml").read_text()) for name in "0123"]
+    assert [(c["seed"], c["environment"]["seed"]) for c in configs] == [(3, 3), (4, 4), (5, 5), (6, 6)]
+    assert table(tmp_path / "batch") == table(tmp_path / "basic")
+    counted.unlink()
+    (tmp_path / "batch" / "0" / "manifest.json").unlink()  # its first job incomplete, its twins complete
+    rerun = swarmscene(*grid, *one_batch, f"hydra.sweep.dir={tmp_path}/batch", cwd=tmp_path, env=env)
+    assert rerun.returncode == 0, rerun.stderr
+    assert counted.read_text().split() == ["0", "1", "2", "3"]  # each complete twin composed, then skipped
+    skipped = {line for line in rerun.stderr.splitlines() if "already complete" in line}
+    assert skipped == {f"swarmscene: job {n} already complete (same config hash): skipped" for n in "123"}
+    for name in "0123":
         assert job(tmp_path / "batch", name) == job(tmp_path / "basic", name), name
 
 

@@ -83,9 +83,10 @@ def refuse_linked_job_dir(run_dir: Path) -> None:
                 directory, "is a symbolic link (refused: a job's records are written inside the sweep directory)")
 
 
-def write_overrides(run_dir: Path) -> None:
-    """Write the job's ``.hydra/overrides.yaml`` (Hydra's list of the job's overrides) when Hydra
-    did not (a sweep's jobs run with ``hydra.output_subdir: null``: ``compose._as_sweep_job``)."""
+def write_overrides(run_dir: Path, overrides: list[str] | None = None) -> None:
+    """Write the job's ``.hydra/overrides.yaml`` (Hydra's list of the job's overrides,
+    ``HydraConfig``'s ``overrides.task`` unless ``overrides`` are given) when Hydra did not (a
+    sweep's jobs run with ``hydra.output_subdir: null``: ``compose._as_sweep_job``)."""
     import yaml
     from hydra.core.hydra_config import HydraConfig
 
@@ -93,9 +94,10 @@ def write_overrides(run_dir: Path) -> None:
 
     refuse_linked_job_dir(run_dir)
     path = Path(run_dir) / ".hydra" / "overrides.yaml"
-    if path.exists() or path.is_symlink() or not HydraConfig.initialized():
+    if path.exists() or path.is_symlink() or (overrides is None and not HydraConfig.initialized()):
         return
-    overrides = [str(o) for o in HydraConfig.get().overrides.task]
+    if overrides is None:
+        overrides = [str(o) for o in HydraConfig.get().overrides.task]
     atomic_write_bytes(path, yaml.safe_dump(overrides, default_flow_style=False, sort_keys=False).encode())
 
 

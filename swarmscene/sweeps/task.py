@@ -130,17 +130,30 @@ def _as_lean_job(task_cfg: Any, hydra_root: Any, idx: int, sweep_dir: str, id_pr
     composition's one ``hydra`` node numbered for this job and set as ``HydraConfig`` (its parent the
     job's config, as ``set_config`` makes it; no copy:
     :func:`~swarmscene.composition.hydra_internals.set_hydra_config_node`), the run directory ``sweep_dir/<n>``."""
-    from pathlib import Path
-
     from omegaconf import read_write
 
     from ..composition.hydra_internals import set_hydra_config_node
 
     node = hydra_root.hydra
-    run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))  # subdir ${hydra.job.num}
+    run_dir = _lean_run_dir(sweep_dir, idx)
     with read_write(node):
         _number(node.job, idx, id_prefix)
         node.runtime.output_dir = str(run_dir)
     set_hydra_config_node(hydra_root, task_cfg)
     run_dir.mkdir(parents=True, exist_ok=True)
     return task_cfg, run_dir
+
+
+def _lean_run_dir(sweep_dir: str, idx: int) -> Any:
+    """A lean job's run directory, ``sweep_dir/<n>`` (its ``hydra.sweep.subdir`` is ``${hydra.job.num}``)."""
+    from pathlib import Path
+
+    return Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))
+
+
+def _as_lean_run_dir(sweep_dir: str, idx: int) -> Any:
+    """:func:`_as_lean_job`'s run directory alone, made: a batch's twin of a lean job
+    (:class:`.batch._Twin`), which sets no ``HydraConfig`` of its own."""
+    run_dir = _lean_run_dir(sweep_dir, idx)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    return run_dir
