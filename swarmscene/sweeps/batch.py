@@ -15,7 +15,9 @@ tasks; a job alone in its group is a task of its own, run as the pool runs it (H
    groups) and set up as Hydra's ``run_job`` sets a job up, one after another, as a launcher task
    of several jobs does (:mod:`.task`): its number, its run directory, ``HydraConfig``, its
    ``.hydra/overrides.yaml``; then validated, and its run directory checked for a complete run of
-   the same config (resume);
+   the same config (resume). A job that differs from the batch's first composed job in its seed
+   alone (``seed=17``, an integer) is not composed: it is that job's twin (:class:`_Twin`), whose
+   config is the first's with the seed set by Hydra's own step for a value override;
 2. a job that cannot join a batch runs there and then through the per-job path
    (:func:`.job.job_from`, exactly as under the basic launcher): a config that does not resolve or
    validate (its failure recorded as ever), a job already complete (skipped, with its line), an
