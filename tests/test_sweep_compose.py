@@ -56,7 +56,7 @@ def _both(hydra_loader, overrides):
 
 @pytest.mark.parametrize("preset", PRESETS)
 def test_every_preset_composes_as_hydra_composes_it(hydra_loader, preset):
-    for values in (["seed=3"], ["++clock.duration=2.0", "seed=11"]):
+    for values in ([], ["seed=3"], ["++clock.duration=2.0", "seed=11"]):  # ([]: the grid check's call)
         ours, theirs, cfg = _both(hydra_loader, [f"scenario={preset}", *values])
         assert ours == theirs
         assert list(cfg.hydra.overrides.task) == [f"scenario={preset}", *values]
@@ -109,6 +109,32 @@ def test_the_command_reaches_the_job_through_env_set(hydra_loader):
     loader, master = hydra_loader
     typed = ["swarmscene", "-m", "seed=1,2", "avoidance.K=2"]
     caching = compose.GroupCachingLoader(loader, command=typed)
-    for job in (["seed=1"], ["avoidance=cem"]):  # the cached path and Hydra's own
+    for job in (["seed=1"], ["avoidance=cem"]):  # a value, and group overrides alone
         cfg = caching.load_sweep_config(master, job)
         assert json.loads(cfg.hydra.job.env_set[COMMAND_ENV]) == typed
+
+
+def test_compositions_handed_to_a_worker_spare_it_composing(hydra_loader, monkeypatch):
+    """The grid's check composes a sweep's group overrides in the main process; a pool's worker
+    adopts those compositions (pickled, as the pool's initializer hands them) and composes none of
+    them again, by either path a job takes (a job's config, a launcher task's lean job), and its
+    job's config is Hydra's all the same."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from omegaconf import OmegaConf
+
+    loader, master = hydra_loader
+    compose._COMPOSED.clear()
+    compose.GroupCachingLoader(loader).load_sweep_config(master, ["scenario=swap"])  # the check's call
+    handed = pickle.loads(pickle.dumps(compose.compositions()))
+    assert len(handed) == 1
+    compose._COMPOSED.clear()  # a worker's own cache, empty at its start
+    compose.adopt(handed)
+    worker, task_worker = (pickle.loads(pickle.dumps(compose.GroupCachingLoader(loader, command=command)))
+                           for command in (None, ["swarmscene", "-m", "seed=4,5"]))
+    monkeypatch.setattr(ConfigLoaderImpl, "load_sweep_config", lambda *a, **k: pytest.fail("composed again"))
+    job = worker.load_sweep_config(master, ["scenario=swap", "seed=4"])
+    task, _ = task_worker.load_task_job(master, ["scenario=swap", "seed=5"])
+    monkeypatch.undo()
+    theirs = loader.load_sweep_config(master, ["scenario=swap", "seed=4"])
+    assert OmegaConf.to_container(job, resolve=False) == OmegaConf.to_container(theirs, resolve=False)
+    assert OmegaConf.to_container(task, resolve=False)["seed"] == 5

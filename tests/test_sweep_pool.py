@@ -47,6 +47,42 @@ def test_the_pool_gives_the_basic_launchers_numbers_bit_for_bit(basic, tmp_path,
     assert table(tmp_path / "pool") == table(basic)
 
 
+COMPOSITIONS = """\
+import os
+
+from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+_load_sweep_config = ConfigLoaderImpl.load_sweep_config
+
+
+def load_sweep_config(self, *args, **kwargs):
+    with open(os.environ["SWARMSCENE_TEST_COMPOSED"], "a") as out:
+        out.write(f"{os.getpid()}\\n")
+    return _load_sweep_config(self, *args, **kwargs)
+
+
+ConfigLoaderImpl.load_sweep_config = load_sweep_config
+"""
+
+
+@pytest.mark.parametrize("launcher", ["pool", "batch"])
+def test_the_workers_compose_nothing_the_grids_check_composed(basic, tmp_path, launcher):  # noqa: F811
+    """Hydra composes a sweep's group overrides once, in the main process, for the grid's check;
+    the workers adopt that composition at their start (``compose.adopt``), so their jobs' configs
+    cost a copy, not a composition, and are the basic launcher's all the same."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(COMPOSITIONS)
+    counted = tmp_path / "composed.txt"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]),
+           "SWARMSCENE_TEST_COMPOSED": str(counted)}
+    proc = swarmscene(*GRID, f"hydra/launcher={launcher}", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={tmp_path}/sw",
+                      cwd=tmp_path, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert len(counted.read_text().split()) == 1  # the check's, in the main process; none in the 2 workers
+    assert_identical(basic, tmp_path / "sw")
+
+
 def test_an_optuna_sweep_on_the_pool_gives_the_basic_launchers_trials(tmp_path):
     """The falsifier (Hydra's Optuna sweeper): Hydra's plugin scan re-imports the sweeper's config
     class, which plain pickle refuses; the pool pickles it by name, both ways."""

@@ -32,9 +32,29 @@ CACHED = 32
 """Compositions kept per process (one per distinct set of config-group overrides)."""
 
 _COMPOSED: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+"""This process's compositions, by search path, config name, Hydra overrides and group overrides."""
 _PARSED: dict[str, Any] = {}
 PARSED = 100_000
 """Overrides kept parsed per process (a grid's distinct overrides: ~0.4 KiB each, 36 MiB at most)."""
+
+
+def compositions() -> list[tuple[tuple[Any, ...], Any]]:
+    """This process's compositions (key, composed config), least recently used first: what a pool's
+    workers are handed at their start (:func:`adopt`), so that none composes them again (Hydra's
+    composition of this config tree is ~0.2 s, each worker's first job's)."""
+    return list(_COMPOSED.items())
+
+
+def adopt(composed: Sequence[tuple[tuple[Any, ...], Any]]) -> None:
+    """Take another process's compositions of the same sweep (:func:`compositions`) into this
+    process's cache. A composition is a pure function of its key (the search path, the config
+    name, the Hydra overrides and the group overrides) in a process holding the sweep's Hydra state,
+    as a worker does once :func:`.pool._start_worker` restored it; the cache already serves every
+    job of a process on that ground."""
+    for key, cfg in composed:
+        _COMPOSED[key] = cfg
+    while len(_COMPOSED) > CACHED:
+        _COMPOSED.popitem(last=False)
 
 
 def parse(overrides: Sequence[str]) -> list[Any]:
@@ -123,10 +143,9 @@ class GroupCachingLoader(ConfigLoader):
 
         parsed = parse(list(sweep_overrides))
         values = [o for o in parsed if self._is_value(o)]
-        if (not values or extends_search_path(master_config)
-                or any(o.key_or_group == "hydra.searchpath" for o in parsed)):
+        if extends_search_path(master_config) or any(o.key_or_group == "hydra.searchpath" for o in parsed):
             cfg = self.inner.load_sweep_config(master_config, list(sweep_overrides))
-        else:
+        else:  # (group overrides alone too: the grid's check composes them, and a pool's workers adopt it)
             groups = [o.input_line for o in parsed if not self._is_value(o)]
             cfg = copy.deepcopy(self._composed(master_config, groups))
             _apply_values(values, cfg)

@@ -136,9 +136,10 @@ class PoolLauncher(Launcher):
         """The batch's pool: made at the first launch, kept for the sweep's later batches."""
         if self._executor is None:
             from ..composition.hydra_internals import hydra_singletons
+            from .compose import compositions
 
             self._known = set(multiprocessing.active_children())
-            sweep = dumps((hydra_singletons(), self.hydra_context, self.config, self.task_function))
+            sweep = dumps((hydra_singletons(), self.hydra_context, self.config, self.task_function, compositions()))
             self._executor = ProcessPoolExecutor(
                 max_workers=self.workers(), mp_context=self._context, initializer=_start_worker, initargs=(sweep,),
             )
@@ -256,7 +257,8 @@ _WORKER: dict[str, Any] = {}
 
 def _start_worker(sweep: bytes) -> None:
     """A worker's start (the pool's initializer), from :func:`dumps` of Hydra's singletons, the
-    Hydra context, the sweep's config and the task function: the singletons as the main process
+    Hydra context, the sweep's config, the task function and the main process's compositions
+    (:func:`.compose.adopt`): the singletons as the main process
     has them (its config store, sources, version), OmegaConf's resolvers registered here as the
     main process registers them (they are local functions, which do not pickle), and stop signals
     recorded, not raised, so a job stops between ticks and writes what it has."""
@@ -267,8 +269,11 @@ def _start_worker(sweep: bytes) -> None:
 
     register_search_path()  # swarmscene's search path, sweeper, launcher and resolvers
     setup_globals()  # Hydra's resolvers (now, hydra, python_version)
-    instances, hydra_context, config, task_function = pickle.loads(sweep)
+    from .compose import adopt
+
+    instances, hydra_context, config, task_function, composed = pickle.loads(sweep)
     restore_hydra_singletons(instances)
+    adopt(composed)  # the compositions the grid's check made: the first job composes none again
     interrupts.install()
     _WORKER.update(hydra_context=hydra_context, config=config, task_function=task_function)
 
