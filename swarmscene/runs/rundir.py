@@ -106,11 +106,15 @@ def read_yaml(path: Path | str, kind: type | tuple[type, ...] = dict) -> Any:
 
     raw = _read_bytes(Path(path), MAX_YAML_BYTES)
     try:
-        text = raw.decode("utf-8")
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        if node is not None and _has_alias(node):
-            raise RunFileError(path, "holds YAML aliases (refused: the engine never writes them)")
-        value = yaml.safe_load(text)
+        # yaml.safe_load's own steps, the text parsed once: its node tree checked, then constructed
+        loader = yaml.SafeLoader(raw.decode("utf-8"))
+        try:
+            node = loader.get_single_node()
+            if node is not None and _has_alias(node):
+                raise RunFileError(path, "holds YAML aliases (refused: the engine never writes them)")
+            value = None if node is None else loader.construct_document(node)
+        finally:
+            loader.dispose()
     except UnicodeDecodeError:
         raise RunFileError(path, "not UTF-8 text") from None
     except (yaml.YAMLError, RecursionError) as exc:
