@@ -257,20 +257,20 @@ _WORKER: dict[str, Any] = {}
 
 def _start_worker(sweep: bytes) -> None:
     """A worker's start (the pool's initializer), from :func:`dumps` of Hydra's singletons, the
-    Hydra context, the sweep's config, the task function and the main process's compositions
-    (:func:`.compose.adopt`): the singletons as the main process
-    has them (its config store, sources, version), OmegaConf's resolvers registered here as the
-    main process registers them (they are local functions, which do not pickle), and stop signals
-    recorded, not raised, so a job stops between ticks and writes what it has."""
+    Hydra context, the sweep's config, the task function and the main process's compositions: the
+    singletons as the main process has them (its config store, sources, version), the
+    compositions in this process's cache (:func:`.compose.adopt`), OmegaConf's resolvers
+    registered here as the main process registers them (they are local functions, which do not
+    pickle), and stop signals recorded, not raised, so a job stops between ticks and writes what
+    it has."""
     from hydra.core.utils import setup_globals
 
     from ..composition.hydra_internals import restore_hydra_singletons
     from ..composition.searchpath import register_search_path
+    from .compose import adopt
 
     register_search_path()  # swarmscene's search path, sweeper, launcher and resolvers
     setup_globals()  # Hydra's resolvers (now, hydra, python_version)
-    from .compose import adopt
-
     instances, hydra_context, config, task_function, composed = pickle.loads(sweep)
     restore_hydra_singletons(instances)
     adopt(composed)  # the compositions the grid's check made: the first job composes none again
