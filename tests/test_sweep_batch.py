@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from test_sweep_launchers import TIMING, swarmscene
+from test_sweep_launchers import TIMING, site_env, swarmscene
 
 from swarmscene.runs.rundir import RunDir
 from swarmscene.sweeps import batch, tables
@@ -143,10 +143,7 @@ def test_a_rerun_skips_complete_jobs_and_flies_the_others(basic, batched, tmp_pa
 
 
 def test_a_world_whose_plugin_raises_is_recorded_failed_alone(tmp_path):
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "sitecustomize.py").write_text(FAILING)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
+    env = site_env(tmp_path, FAILING)
     grid = ["--multirun", "scenario=default", "seed=0,1,2", "clock.duration=1.5"]
     procs = {name: swarmscene(*grid, *launcher, f"hydra.sweep.dir={tmp_path}/{name}", cwd=tmp_path, env=env)
              for name, launcher in (("basic", []), ("batch", ["hydra/launcher=batch", "hydra.launcher.n_jobs=2"]))}
@@ -190,12 +187,8 @@ def test_a_batchs_later_seeds_are_twins_of_its_first_composed_job(tmp_path):
     from its config with their seed set (``_Twin``), and are the basic launcher's jobs all the same:
     an interpolation of the seed (each job's own obstacle field) and the ``++seed`` spelling
     resolve per job. A rerun whose twin is complete composes that job and skips it."""
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "sitecustomize.py").write_text(COUNTED)
     counted = tmp_path / "composed.txt"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]),
-           "SWARMSCENE_TEST_COMPOSED": str(counted)}
+    env = site_env(tmp_path, COUNTED, SWARMSCENE_TEST_COMPOSED=str(counted))
     grid = ["--multirun", "environment=obstacle_field", "environment.seed=${seed}", "++seed=3,4,5,6",
             "clock.duration=1.5"]
     one_batch = ["hydra/launcher=batch", "hydra.launcher.n_jobs=1", "hydra.launcher.batch_size=4"]

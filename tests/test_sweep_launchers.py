@@ -39,6 +39,15 @@ def swarmscene(*args: str, cwd: Path, env: dict | None = None, timeout: float = 
     return subprocess.run([*EXE, *args], cwd=cwd, capture_output=True, text=True, env=full_env, timeout=timeout)
 
 
+def site_env(tmp_path: Path, sitecustomize: str, **variables: str) -> dict:
+    """An environment whose Python processes (a sweep's main process, fork server and workers:
+    Python imports ``sitecustomize`` at start) run ``sitecustomize`` first, with ``variables`` set."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(sitecustomize)
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]), **variables}
+
+
 def outcome(sweep_dir: Path) -> list[tuple[dict, dict]]:
     """Every job's metrics (wall-clock figures aside) and trajectory arrays, in job order."""
     jobs = []

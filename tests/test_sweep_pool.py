@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 import pytest
-from test_sweep_launchers import GRID, TIMING, assert_identical, basic, swarmscene  # noqa: F401  (basic: a fixture)
+from test_sweep_launchers import GRID, TIMING, assert_identical, basic, site_env, swarmscene  # noqa: F401  (basic: a fixture)
 
 from swarmscene.runs.rundir import RunDir
 from swarmscene.sweeps import chunks, pool, tables
@@ -70,12 +70,8 @@ def test_the_workers_compose_nothing_the_grids_check_composed(basic, tmp_path, l
     """Hydra composes a sweep's group overrides once, in the main process, for the grid's check;
     the workers adopt that composition at their start (``compose.adopt``), so their jobs' configs
     cost a copy, not a composition, and are the basic launcher's all the same."""
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "sitecustomize.py").write_text(COMPOSITIONS)
     counted = tmp_path / "composed.txt"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]),
-           "SWARMSCENE_TEST_COMPOSED": str(counted)}
+    env = site_env(tmp_path, COMPOSITIONS, SWARMSCENE_TEST_COMPOSED=str(counted))
     proc = swarmscene(*GRID, f"hydra/launcher={launcher}", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={tmp_path}/sw",
                       cwd=tmp_path, env=env)
     assert proc.returncode == 0, proc.stderr
