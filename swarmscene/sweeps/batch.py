@@ -282,7 +282,9 @@ class _Twin:
     of its seed (~2 ms a job). What the job's per-job path would then do, it does
     (:func:`_joining`: its overrides file, its config resolved, validated, its run directory
     checked), and a job that cannot join is composed as ever and runs alone. The same config as
-    its own composition: Hydra applies the same override to the same composed config."""
+    its own composition: Hydra applies the same override to the same composed config. That config
+    is the first job's own copy, its seed set in place for each twin in turn (each world's data is
+    resolved from it before the next twin's seed is set)."""
 
     cfg: Any
     overrides: list[str]
