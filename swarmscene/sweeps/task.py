@@ -134,26 +134,21 @@ def _as_lean_job(task_cfg: Any, hydra_root: Any, idx: int, sweep_dir: str, id_pr
 
     from ..composition.hydra_internals import set_hydra_config_node
 
+    run_dir = _as_lean_run_dir(sweep_dir, idx)
     node = hydra_root.hydra
-    run_dir = _lean_run_dir(sweep_dir, idx)
     with read_write(node):
         _number(node.job, idx, id_prefix)
         node.runtime.output_dir = str(run_dir)
     set_hydra_config_node(hydra_root, task_cfg)
-    run_dir.mkdir(parents=True, exist_ok=True)
     return task_cfg, run_dir
 
 
-def _lean_run_dir(sweep_dir: str, idx: int) -> Any:
-    """A lean job's run directory, ``sweep_dir/<n>`` (its ``hydra.sweep.subdir`` is ``${hydra.job.num}``)."""
+def _as_lean_run_dir(sweep_dir: str, idx: int) -> Any:
+    """A lean job's run directory, ``sweep_dir/<n>`` (its ``hydra.sweep.subdir`` is
+    ``${hydra.job.num}``), made: :func:`_as_lean_job`'s, and a batch's twin of a lean job's
+    (:class:`.batch._Twin`), which sets no ``HydraConfig`` of its own."""
     from pathlib import Path
 
-    return Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))
-
-
-def _as_lean_run_dir(sweep_dir: str, idx: int) -> Any:
-    """:func:`_as_lean_job`'s run directory alone, made: a batch's twin of a lean job
-    (:class:`.batch._Twin`), which sets no ``HydraConfig`` of its own."""
-    run_dir = _lean_run_dir(sweep_dir, idx)
+    run_dir = Path(os.path.abspath(os.path.join(sweep_dir, str(idx))))
     run_dir.mkdir(parents=True, exist_ok=True)
     return run_dir
