@@ -52,7 +52,12 @@ def adopt(composed: Sequence[tuple[tuple[Any, ...], Any]]) -> None:
     as a worker does once :func:`.pool._start_worker` restored it; the cache already serves every
     job of a process on that ground."""
     for key, cfg in composed:
-        _COMPOSED[key] = cfg
+        _keep(key, cfg)
+
+
+def _keep(key: tuple[Any, ...], cfg: Any) -> None:
+    """``cfg`` cached as the composition ``key``, the least recently used dropped beyond :data:`CACHED`."""
+    _COMPOSED[key] = cfg
     while len(_COMPOSED) > CACHED:
         _COMPOSED.popitem(last=False)
 
@@ -216,9 +221,7 @@ class GroupCachingLoader(ConfigLoader):
             _COMPOSED.move_to_end(key)
             return _COMPOSED[key]
         cfg = self.inner.load_sweep_config(master_config, groups)
-        _COMPOSED[key] = cfg
-        while len(_COMPOSED) > CACHED:
-            _COMPOSED.popitem(last=False)
+        _keep(key, cfg)
         return cfg
 
     def _search_path(self) -> tuple[tuple[str, str], ...]:
