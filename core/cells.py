@@ -26,8 +26,9 @@ squared distances, in lexicographic order: the engine's shared pair list
 against 245 us), and its distances make the monitor's closest pair free.
 
 This module imports numba: it is imported only for swarms of more than
-``core.vectors.DENSE_POINTS`` agents (closest pair, pairs) or ``core.sensing.DENSE_LIMIT``
-members (connectivity), so a small run never pays numba's start-up.
+``core.vectors.DENSE_POINTS`` agents (closest pair, pairs), ``core.sensing.DENSE_LIMIT``
+members (connectivity) or any swarm in a periodic space (connectivity on a torus), so a small run
+in open space never pays numba's start-up.
 """
 
 from __future__ import annotations
@@ -465,7 +466,9 @@ def pairs_within(points: np.ndarray, radius: float):
     """Every pair (i < j) of points (N, D) at most ``radius`` apart, in lexicographic order, shape
     (M, 2), and its squared distance (M,) summed axis by axis (as a k-d tree and the dense pass
     sum it). One walk over the cells, point by point, into arrays that double when full; each
-    point's later neighbours are then put in order (short runs)."""
+    point's later neighbours are then put in order (short runs). The arrays are grown to hold a
+    point's candidates before its walk: a walk that might replace them inside compiled slower
+    (1.6x as long for 100 agents in one dense flock, 1.2x for the flocking preset's states)."""
     n = points.shape[0]
     side = _wide_side(points, radius)
     if side <= 0.0:
@@ -477,6 +480,14 @@ def pairs_within(points: np.ndarray, radius: float):
     m = 0
     for i in range(n):
         first = m
+        candidates = 0
+        for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
+            for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
+                q = (x * shape[1] + y) * shape[2]
+                z0, z1 = max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])
+                candidates += start[q + z1] - start[q + z0]
+        while m + candidates > len(d2s):
+            pairs, d2s = _grown(pairs, d2s)
         for x in range(max(coord[i, 0] - 1, 0), min(coord[i, 0] + 2, shape[0])):
             for y in range(max(coord[i, 1] - 1, 0), min(coord[i, 1] + 2, shape[1])):
                 for z in range(max(coord[i, 2] - 1, 0), min(coord[i, 2] + 2, shape[2])):
@@ -488,8 +499,6 @@ def pairs_within(points: np.ndarray, radius: float):
                         d2 = _dist2(points, i, j)
                         if d2 > r2:
                             continue
-                        if m == len(d2s):
-                            pairs, d2s = _grown(pairs, d2s)
                         pairs[m, 0] = i
                         pairs[m, 1] = j
                         d2s[m] = d2
