@@ -303,3 +303,33 @@ def test_the_potential_field_repels_every_world_in_one_pass_each_its_single_run(
     monkeypatch.undo()
     assert_single_runs(data, results)
     assert results[0].metrics["healthy_at_end"] == results[0].metrics["agents"] - 1  # the leader failed
+
+
+@pytest.mark.parametrize("overrides", [
+    ["events=random_failure"],
+    ["formation.space=bounded", "formation.planar=false", "formation.goal=[60,40,30]", "formation.goal_weight=0.3"],
+], ids=["torus-failure", "bounded-goal-3d"])
+def test_the_flocks_of_every_world_turn_in_one_pass_each_its_single_run(monkeypatch, overrides):
+    """``reynolds_flocking``'s batched form on the flocking preset: in its torus with a boid of
+    each world failing at its own drawn time (failed boids keep their heading and are not
+    followed), and in a bounded 3-D box seeking a goal. Every tick one call for the three worlds
+    answers one batch; each world is its single run, bit for bit."""
+    from swarmscene.plugins.formation.reynolds_flocking import ReynoldsFlocking
+
+    setpoints_batch = ReynoldsFlocking.setpoints_batch.__func__
+    answers: list[type] = []
+
+    def spy(cls, formations, worlds, sensings):
+        answer = setpoints_batch(cls, formations, worlds, sensings)
+        answers.append(type(answer))
+        return answer
+
+    monkeypatch.setattr(ReynoldsFlocking, "setpoints_batch", classmethod(spy))
+    data = api.compose(["scenario=flocking", *overrides, "clock.duration=25", "output.summary=false"])
+    results = api.run_batch(data, SEEDS)
+    assert answers == [SetpointBatch] * results[0].metrics["steps"]
+    monkeypatch.undo()
+    assert_single_runs(data, results)
+    if overrides == ["events=random_failure"]:
+        assert [r.metrics["healthy_at_end"] for r in results] == [99] * B  # each world lost a boid
+        assert len({r.metrics["events.0.at"] for r in results}) == B  # at its own time

@@ -5,7 +5,8 @@ steers (cohesion, separation, alignment within ``vision``; its choices) is
 :mod:`~swarmscene.methods.flocking.steering`, the periodic space :mod:`~swarmscene.methods.flocking.torus`,
 the compiled sums :mod:`~swarmscene.methods.flocking.kernels`. This module keeps each boid's
 heading between ticks and turns it into VELOCITY setpoints (``vel = speed * d_i``, HOLD for
-failed boids; ``planar``: altitude held).
+failed boids; ``planar``: altitude held). In a batch of worlds (docs/batched.md) the flocks
+of every world steer and turn in one pass (:meth:`ReynoldsFlocking.setpoints_batch`).
 
 A boid without neighbours keeps its heading. Optional goal seeking adds ``goal_weight`` times the
 unit vector toward ``goal`` to the steer (before normalising), for every boid. In a ``bounded``
@@ -31,6 +32,7 @@ Memory per boid (plugin scratch): the heading (3 float64) plus, per tick, O(neig
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -50,6 +52,7 @@ from swarmscene.plugin import (
     Mode,
     PluginParams,
     Sensing,
+    SetpointBatch,
     Setpoints,
     WorldState,
     hookimpl,
@@ -176,24 +179,57 @@ class ReynoldsFlocking(Formation):
         """Steer every boid by Mesa's rule from this tick's neighbours; fly the new headings."""
         p = self.params
         heading = current_headings(world.vel, self.heading, p.speed, p.planar)
-        healthy = world.healthy
         i, j, delta = self.neighbours(world, sensing)
+        self.heading, self.neighbour_count = self._turned(world.pos, world.healthy, heading, self.heading, i, j, delta)
+        self._track_goal(world)
+        return self._velocity_setpoints(world.pos, world.healthy, self.heading)
+
+    @classmethod
+    def setpoints_batch(cls, formations: Sequence[ReynoldsFlocking], worlds: Sequence[WorldState],
+                        sensings: Sequence[Sensing]) -> SetpointBatch | object:
+        """``setpoints`` of B flocks of N boids as one :class:`SetpointBatch`. Each flock's pairs
+        are found as its own ``setpoints`` finds them (:meth:`neighbours`) and shifted to its rows;
+        then one steer over all pairs (each boid's sums taken in its own flock's pair order) and
+        the headings, turn and velocities in row-by-row passes over the stacked boids, which give
+        every boid its single run's bits. Declined where the instances' options or the worlds'
+        sizes differ."""
+        first, n = formations[0], len(worlds[0].pos)
+        if any(f.params != first.params for f in formations) or any(len(world.pos) != n for world in worlds):
+            return NotImplemented
+        p = first.params
+        pos = np.concatenate([world.pos for world in worlds])
+        healthy = np.concatenate([world.healthy for world in worlds])
+        last = np.concatenate([f.heading for f in formations])
+        heading = current_headings(np.concatenate([world.vel for world in worlds]), last, p.speed, p.planar)
+        found = [f.neighbours(world, sensing) for f, world, sensing in zip(formations, worlds, sensings, strict=True)]
+        i = np.concatenate([pairs[0] + b * n for b, pairs in enumerate(found)])
+        j = np.concatenate([pairs[1] + b * n for b, pairs in enumerate(found)])
+        delta = np.concatenate([pairs[2] for pairs in found], axis=1)
+        turned, count = first._turned(pos, healthy, heading, last, i, j, delta)
+        for b, (f, world) in enumerate(zip(formations, worlds, strict=True)):
+            f.heading, f.neighbour_count = turned[b * n:(b + 1) * n], count[b * n:(b + 1) * n]
+            f._track_goal(world)
+        return SetpointBatch(first._velocity_setpoints(pos, healthy, turned), len(worlds))
+
+    def _turned(self, pos: np.ndarray, healthy: np.ndarray, heading: np.ndarray, last: np.ndarray, i: np.ndarray,
+                j: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The new headings (N, 3) and |N_i| (N,) of boids at ``pos`` reading ``heading`` (``last``:
+        the previous tick's), from their pairs i, j and offsets ``delta``: the steer, the goal and
+        boundary terms, the turn. Row by row, so stacked flocks (their pairs shifted to their rows)
+        turn as each alone."""
+        p = self.params
         steer, count = self._steer(i, j, delta, heading, healthy, p.cohere, p.match, p.separate, p.separation)
         goal = None
         if p.goal is not None and p.goal_weight > 0:
             size = self.size[: self.axes] if p.space == "toroidal" else None
-            goal = goal_steer(world.pos, np.asarray(p.goal, dtype=float), p.goal_weight, size)
+            goal = goal_steer(pos, np.asarray(p.goal, dtype=float), p.goal_weight, size)
         push = None
         if p.space == "bounded":
-            push = boundary_steer(world.pos, self.lo, self.hi, p.vision, p.boundary_weight)
-        self.heading = turn_headings(heading, self.heading, healthy, steer, count, p.planar, goal, push)
-        self.neighbour_count = count
-        self._track_goal(world)
-        return self._velocity_setpoints(world, self.heading)
+            push = boundary_steer(pos, self.lo, self.hi, p.vision, p.boundary_weight)
+        return turn_headings(heading, last, healthy, steer, count, p.planar, goal, push), count
 
-    def _velocity_setpoints(self, world: WorldState, heading: np.ndarray) -> Setpoints:
-        n = world.n
-        healthy = world.healthy
+    def _velocity_setpoints(self, pos: np.ndarray, healthy: np.ndarray, heading: np.ndarray) -> Setpoints:
+        n = len(pos)
         everyone = bool(healthy.all())
         mode = np.full(n, Mode.VELOCITY, dtype=np.int8)
         vel = self.params.speed * heading
@@ -202,7 +238,7 @@ class ReynoldsFlocking(Formation):
             vel[~healthy] = 0.0
         return Setpoints(
             mode=mode,
-            pos=world.pos.copy(),
+            pos=pos.copy(),
             vel=vel,
             acc=np.zeros((n, 3)),
             yaw=np.arctan2(heading[:, 1], heading[:, 0]),
