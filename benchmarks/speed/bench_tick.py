@@ -10,6 +10,7 @@ Cases (each round builds each afresh, in its own process):
     cem_six_vehicle   ``scenario=cem_six_vehicle``: 6 agents, CEM avoidance, single integrator
     default           the default scenario: 5 double integrators, potential field, one pillar
     swap              ``scenario=swap swarm.n=16 swarm.start.radius=8``: 16 agents, ORCA
+    flocking          ``scenario=flocking``: 100 boids in Mesa's 100 m torus, single integrator
 
 A case runs as ``Simulation.run`` does (run-start hooks, then ticks until the duration, a stop or
 the mission's completion: the whole run unless ``--ticks`` stops it earlier); each ``step()`` is
@@ -40,6 +41,7 @@ CASES: dict[str, list[str]] = {
     "cem_six_vehicle": ["scenario=cem_six_vehicle"],
     "default": [],
     "swap": ["scenario=swap", "swarm.n=16", "swarm.start.radius=8"],
+    "flocking": ["scenario=flocking"],
 }
 GOALS_US = {"cem_six_vehicle": 30.0, "default": 60.0}
 WARMUP = 5
