@@ -232,8 +232,9 @@ class Disturbances:
         world.wind = np.array(air, dtype=float)
         world.wind_moment_arm = self.moment_arm
         speed = np.sqrt(np.einsum("ij,ij->i", world.wind, world.wind))
-        self.wind_peak = max(self.wind_peak, float(speed.max(initial=0.0)))
-        self.wind_sum += float(speed.mean()) if speed.size else 0.0
+        # the reductions' ufuncs, not the methods' Python wrappers (the same sums: mean = sum / n)
+        self.wind_peak = max(self.wind_peak, float(np.maximum.reduce(speed, initial=0.0)))
+        self.wind_sum += float(np.add.reduce(speed) / speed.size) if speed.size else 0.0
         self.wind_steps += 1
         if self.dynamics.wind_coupling == "force":
             self._acc = self.dynamics.wind_acceleration(world)

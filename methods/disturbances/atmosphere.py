@@ -148,20 +148,25 @@ class DrydenFilters:
     def step(self, dt: float, L: np.ndarray, sigma: np.ndarray, V: np.ndarray) -> np.ndarray:
         """Advance every filter by ``dt`` s; return the gust velocities (M, 3), m/s.
 
-        The transition and noise factors depend only on (dt, L, V): they are kept while the same
-        arrays are passed again (the wind model holds its conditions over a guidance tick)."""
-        key = (dt, id(L), id(V))
+        The transition and noise factors depend only on (dt, L, V), the output's on (L, V, sigma):
+        they are kept while the same arrays are passed again (the wind model holds its conditions
+        over a guidance tick). The step's 5 M normal draws are taken in one call, in the order of
+        three (u, then z1 and z2 of the v and w filters): the generator fills them one after
+        another either way, so the draws are the same."""
+        key = (dt, id(L), id(V), id(sigma))
         if self._key != key:
-            self._key, self._held = key, (L, V)  # held: the ids stay valid while cached
+            self._key, self._held = key, (L, V, sigma)  # held: the ids stay valid while cached
             self._coefficients(dt, L / V[:, None])
-        T, a, b, (p11, p12, p21, p22), (c11, c21, c22) = self._coef
-        self.u = a * self.u + b * self.rng.standard_normal(self.u.shape)
+            self._output_factors(self._coef[0], sigma)
+        _, a, b, (p11, p12, p21, p22), (c11, c21, c22) = self._coef
+        m = self.u.size
+        noise = self.rng.standard_normal(5 * m)
+        self.u = a * self.u + b * noise[:m]
         x, xd = self.x, self.xd
-        z1 = self.rng.standard_normal(x.shape)
-        z2 = self.rng.standard_normal(x.shape)
+        z1, z2 = noise[m:3 * m].reshape(m, 2), noise[3 * m:].reshape(m, 2)
         self.x = p11 * x + p12 * xd + c11 * z1
         self.xd = p21 * x + p22 * xd + c21 * z1 + c22 * z2
-        self.output = self._output(T, sigma)
+        self.output = self._scaled()
         return self.output
 
     def _coefficients(self, dt: float, T: np.ndarray) -> None:
@@ -185,9 +190,22 @@ class DrydenFilters:
 
     def _output(self, T: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """y_u = sigma_u u (u of unit variance); y = sigma T^-3/2 (x + sqrt(3) T xd) for v, w."""
+        self._output_factors(T, sigma)
+        return self._scaled()
+
+    def _output_factors(self, T: np.ndarray, sigma: np.ndarray) -> None:
+        """The output's factors that change only with the conditions: sigma_u, sigma T^-3/2 and
+        sqrt(3) T of the v and w filters."""
         Tvw = T[:, 1:]
-        vw = sigma[:, 1:] * Tvw**-1.5 * (self.x + math.sqrt(3.0) * Tvw * self.xd)
-        return np.column_stack([sigma[:, 0] * self.u, vw])
+        self._factors = (sigma[:, 0], sigma[:, 1:] * Tvw**-1.5, math.sqrt(3.0) * Tvw)
+
+    def _scaled(self) -> np.ndarray:
+        """The gust velocities (M, 3) of the filters' present state (:meth:`_output`)."""
+        sigma_u, scale_vw, sqrt3_T = self._factors
+        out = np.empty((self.u.size, 3))
+        np.multiply(sigma_u, self.u, out=out[:, 0])
+        np.multiply(scale_vw, self.x + sqrt3_T * self.xd, out=out[:, 1:])
+        return out
 
 
 def wind_axes(heading: float) -> np.ndarray:

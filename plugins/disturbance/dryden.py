@@ -86,7 +86,9 @@ class Dryden(Disturbance):
             gust = self.filters.output
         else:
             gust = self.filters.step(self.dt, L, sigma, V)
-        return np.broadcast_to(mean + gust @ self.axes, world.pos.shape)
+        air = np.empty(world.pos.shape)  # every agent's row (np.broadcast_to's Python costs more)
+        air[:] = mean + gust @ self.axes
+        return air
 
 
 @hookimpl

@@ -99,3 +99,47 @@ def test_one_minus_cosine_gust_is_exact():
     assert one_minus_cosine(start + rise, start, rise, 0.0) == 1.0
     held = one_minus_cosine(np.array([start + rise + 3.0, start + 2 * rise + 3.0]), start, rise, 3.0)
     np.testing.assert_allclose(held, [1.0, 0.0], atol=1e-15)
+
+
+def _stepped_as_written(filters, rng, dt, L, sigma, V):
+    """One filter step as the docstrings write it: the exact transition of each filter and its
+    noise factor, with u's draw, then z1's and z2's (three calls), and the output's formula."""
+    T = L / V[:, None]
+    Tvw = T[:, 1:]
+    a = np.exp(-dt / T[:, 0])
+    r = dt / Tvw
+    e = np.exp(-r)
+    p11, p12, p21, p22 = e * (1.0 + r), e * dt, -e * r / Tvw, e * (1.0 - r)
+    P1, P2 = Tvw**3 / 4.0, Tvw / 4.0
+    q11 = P1 - (p11 * p11 * P1 + p12 * p12 * P2)
+    q12 = -(p11 * p21 * P1 + p12 * p22 * P2)
+    q22 = P2 - (p21 * p21 * P1 + p22 * p22 * P2)
+    c11 = np.sqrt(np.maximum(q11, 0.0))
+    c21 = np.where(c11 > 0.0, q12 / np.where(c11 > 0.0, c11, 1.0), 0.0)
+    c22 = np.sqrt(np.maximum(q22 - c21 * c21, 0.0))
+    u, x, xd = filters
+    u = a * u + np.sqrt(1.0 - a * a) * rng.standard_normal(u.shape)
+    z1, z2 = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
+    x, xd = p11 * x + p12 * xd + c11 * z1, p21 * x + p22 * xd + c21 * z1 + c22 * z2
+    vw = sigma[:, 1:] * Tvw**-1.5 * (x + np.sqrt(3.0) * Tvw * xd)
+    return (u, x, xd), np.column_stack([sigma[:, 0] * u, vw])
+
+
+@pytest.mark.parametrize("m", [1, 5])
+def test_the_filters_step_is_the_written_one_draw_for_draw(m):
+    """200 steps of m realisations whose scales, intensities and airspeed change every 5 steps
+    (as the wind model holds them over a guidance tick): every gust equals the written step's to
+    the bit, so the kept factors and the draws taken in one call change no number of a run."""
+    rng_a, rng_b = np.random.default_rng(5), np.random.default_rng(5)
+    h, V = np.linspace(3.0, 40.0, m), np.linspace(2.0, 9.0, m)
+    L, sigma = dryden_scales(h, w20=9.0)
+    filters = DrydenFilters(m, rng_a, L, sigma, V)
+    DrydenFilters(m, rng_b, L, sigma, V)  # the same draws for the written one's start
+    state = (filters.u.copy(), filters.x.copy(), filters.xd.copy())
+    for k in range(200):
+        if k % 5 == 0:
+            h, V = h + 0.3, V * 1.01
+            L, sigma = dryden_scales(h, w20=9.0)
+        gust = filters.step(0.01, L, sigma, V)
+        state, written = _stepped_as_written(state, rng_b, 0.01, L, sigma, V)
+        assert np.array_equal(gust, written), k
