@@ -333,3 +333,35 @@ def test_the_flocks_of_every_world_turn_in_one_pass_each_its_single_run(monkeypa
     if overrides == ["events=random_failure"]:
         assert [r.metrics["healthy_at_end"] for r in results] == [99] * B  # each world lost a boid
         assert len({r.metrics["events.0.at"] for r in results}) == B  # at its own time
+
+
+@pytest.mark.parametrize("overrides", [
+    ["events=random_failure", "clock.duration=21"],
+    ["dynamics=quadrotor", "formation.reassign=every_tick", "formation.formation_timeout=3", "clock.duration=12"],
+], ids=["failure", "quadrotor-every-tick"])
+def test_the_lattices_of_every_world_are_planned_in_one_pass_each_its_single_run(monkeypatch, overrides):
+    """``hex_lattice``'s batched form on the suite's ``formation_reconfigure`` (noisy positions
+    from mocap, so each world perceives its own): with a vehicle of each world failing at its own
+    drawn time (the slots reassigned), and on quadrotors (the leader's applied input as
+    feed-forward) re-assigning every tick, the leader setting off at its timeout. Every tick one
+    call for the three worlds answers one batch; each world is its single run, bit for bit."""
+    from swarmscene.plugins.formation.hex_lattice import HexLattice
+
+    setpoints_batch = HexLattice.setpoints_batch.__func__
+    answers: list[type] = []
+
+    def spy(cls, formations, worlds, sensings):
+        answer = setpoints_batch(cls, formations, worlds, sensings)
+        answers.append(type(answer))
+        return answer
+
+    monkeypatch.setattr(HexLattice, "setpoints_batch", classmethod(spy))
+    data = api.compose(["task=formation_reconfigure", *overrides, "output.summary=false"])
+    results = api.run_batch(data, SEEDS)
+    assert answers == [SetpointBatch] * max(r.metrics["steps"] for r in results)
+    monkeypatch.undo()
+    assert_single_runs(data, results)
+    if "events=random_failure" in overrides:
+        assert [r.metrics["healthy_at_end"] for r in results] == [7] * B  # each world lost a vehicle
+    else:
+        assert all(r.metrics["hex.leader_start"] is not None for r in results)  # the leader set off

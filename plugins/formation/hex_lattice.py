@@ -28,10 +28,15 @@ moves at the leader's speed with APF speed v_sat: it only catches up when the le
 
 The mission is complete once the leader's reference has reached the last waypoint and every
 healthy follower is within ``arrival_tolerance`` of its slot.
+
+In a batch of worlds (docs/batched.md) each world plans as alone (its assignment, leader state
+and slots) and the setpoints of every world are made in one pass
+(:meth:`HexLattice.setpoints_batch`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
@@ -39,7 +44,16 @@ from pydantic import Field
 
 from swarmscene.methods.outdoor.hex_pattern import assign_offsets, hex_pattern
 from swarmscene.methods.paths import WaypointPath
-from swarmscene.plugin import BuildContext, Formation, Mode, PluginParams, Setpoints, WorldState, hookimpl
+from swarmscene.plugin import (
+    BuildContext,
+    Formation,
+    Mode,
+    PluginParams,
+    SetpointBatch,
+    Setpoints,
+    WorldState,
+    hookimpl,
+)
 
 
 class HexLattice(Formation):
@@ -130,6 +144,38 @@ class HexLattice(Formation):
         """TRACK setpoints: the leader holds home until the lattice has formed (or the timeout), then
         follows the path; each follower tracks its slot with the leader's state as feed-forward.
         Slots are reassigned after a failure and as ``reassign`` says."""
+        targets, ref_pos, ref_vel = self._plan(world)
+        leader = np.array([self.leader])
+        return self._tracked(world.pos, world.vel, world.acc, leader, self.slot_of >= 0, targets,
+                             ref_pos[None, :], ref_vel[None, :])
+
+    @classmethod
+    def setpoints_batch(cls, formations: Sequence[HexLattice], worlds: Sequence[WorldState],
+                        sensings: Sequence[object]) -> SetpointBatch | object:
+        """``setpoints`` of B worlds of N agents as one :class:`SetpointBatch`: each world's
+        assignment, leader state and slots found as its own ``setpoints`` finds them
+        (:meth:`_plan`), then the modes, references and feed-forward of the B N agents in
+        elementwise passes over the stacked worlds, which give every agent its single run's bits.
+        Declined where the instances' options or the worlds' sizes differ."""
+        first, n = formations[0], len(worlds[0].pos)
+        if any(f.params != first.params for f in formations) or any(len(world.pos) != n for world in worlds):
+            return NotImplemented
+        if len({world.acc is None for world in worlds}) > 1:
+            return NotImplemented  # the feed-forward is given to all worlds or to none
+        plans = [f._plan(world) for f, world in zip(formations, worlds, strict=True)]
+        rows = np.arange(len(worlds)) * n
+        leaders = rows + np.array([f.leader for f in formations])
+        acc = None if worlds[0].acc is None else np.concatenate([world.acc for world in worlds])
+        sp = first._tracked(
+            np.concatenate([world.pos for world in worlds]), np.concatenate([world.vel for world in worlds]), acc,
+            leaders, np.concatenate([f.slot_of >= 0 for f in formations]), np.concatenate([plan[0] for plan in plans]),
+            np.array([plan[1] for plan in plans]), np.array([plan[2] for plan in plans]))
+        return SetpointBatch(sp, len(worlds))
+
+    def _plan(self, world: WorldState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This tick's slots (N, 3) and the leader's reference position and velocity (3,): the
+        slots reassigned (after a failure and as ``reassign`` says), the formation and the
+        leader's start noted, the path's reference read."""
         p = self.params
         failure = not np.array_equal(world.healthy, self._healthy)
         leader_waiting = self.t_start is None
@@ -142,25 +188,30 @@ class HexLattice(Formation):
             self.formed_at = world.t
         if leader_waiting and (self.formed_at is not None or world.t >= p.formation_timeout):
             self.t_start = world.t
-
-        sp = Setpoints.hold(world.pos)
         # Leader: holds home, then tracks the path reference.
         if self.t_start is None:
             ref_pos, ref_vel, self._end_reached = self.home, np.zeros(3), False
         else:
             ref_pos, ref_vel, _, self._end_reached = self.path.at(world.t - self.t_start)
-        sp.mode[self.leader] = Mode.TRACK
-        sp.pos[self.leader], sp.vel[self.leader] = ref_pos, ref_vel
+        self._targets = targets
+        return targets, ref_pos, ref_vel
 
-        # Followers: tracker on the slot, leader's state (and input) as feed-forward.
-        f = np.flatnonzero(self.slot_of >= 0)
+    def _tracked(self, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray | None, leaders: np.ndarray,
+                 slotted: np.ndarray, targets: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray) -> Setpoints:
+        """The TRACK setpoints of agents at ``pos`` (rows of one world, or of stacked worlds):
+        the leaders' rows on their references (one row each), every slotted follower on its slot
+        with its leader's velocity and (``input_feedforward``) applied input as feed-forward;
+        the others hold."""
+        sp = Setpoints.hold(pos)
+        sp.mode[leaders] = Mode.TRACK
+        sp.pos[leaders], sp.vel[leaders] = ref_pos, ref_vel
+        f = np.flatnonzero(slotted)
+        whose = leaders[f // (len(slotted) // len(leaders))]  # each follower's own world's leader
         sp.mode[f] = Mode.TRACK
         sp.pos[f] = targets[f]
-        sp.vel[f] = world.vel[self.leader]
-        u = world.acc
-        if p.input_feedforward and u is not None:
-            sp.acc[f] = u[self.leader]
-        self._targets = targets
+        sp.vel[f] = vel[whose]
+        if self.params.input_feedforward and acc is not None:
+            sp.acc[f] = acc[whose]
         return sp
 
     def complete(self, world: WorldState) -> bool:
