@@ -53,6 +53,72 @@ def test_every_whole_preset_in_a_batch_of_three_is_its_single_runs(preset):
         assert_world_is_its_single_run(config, seed, result)
 
 
+EVENT_AT_1S = {"at": 1.0, "agents": [1]}
+BUILTINS_BEYOND_PRESETS: dict[tuple[str, str], tuple[list[str], list[dict] | None]] = {
+    ("formation", "hex_lattice"): (["task=formation_reconfigure"], None),
+    ("avoidance", "apf_navigation"): (["avoidance=apf_navigation"], None),
+    ("avoidance", "cbf"): (["avoidance=cbf"], None),
+    ("avoidance", "policy"): (["avoidance=policy"], None),
+    ("policy", "seek_reference"): (["avoidance=policy", "avoidance.policy=seek_reference"], None),
+    **{("disturbance", name): (["dynamics=quadrotor", f"disturbances=[{name}]"], None) for name in (
+        "battery", "comm_delay", "constant_wind", "downwash", "drag", "dryden", "gust", "packet_loss", "radio",
+        "sensing_noise")},
+    ("disturbance", "ground_effect"): (["dynamics=quadrotor", "disturbances=[ground_effect]",
+                                        "environment.floor=0", "swarm.start.center=[0,0,0.3]"], None),
+    ("event", "comm_loss"): ([], [{**EVENT_AT_1S, "name": "comm_loss"}]),
+    ("event", "drift"): ([], [{**EVENT_AT_1S, "name": "drift", "velocity": [0.3, 0.1, 0.0]}]),
+    ("event", "stuck"): ([], [{**EVENT_AT_1S, "name": "stuck"}]),
+    ("event", "motor_failure"): (["dynamics=quadrotor"], [{**EVENT_AT_1S, "name": "motor_failure", "rotor": 2}]),
+    ("generator", "obstacle_field"): (["environment=obstacle_field"], None),
+    ("observer", "swarmlab"): (["observers=[swarmlab]"], None),
+}
+"""Every built-in plugin that no preset composes, with a scenario that flies it: overrides of the
+default scenario, and the events to set (None: the scenario's own)."""
+
+
+def _composed_plugins(data: dict) -> set[tuple[str, str]]:
+    """The (kind, name) of every plugin a composed scenario chooses."""
+    chosen = {(kind, data[kind]["name"]) for kind in ("formation", "avoidance", "dynamics")}
+    chosen |= {("disturbance", model["name"]) for model in (data.get("disturbances") or {}).values()}
+    chosen |= {("event", event["name"]) for event in data.get("events") or []}
+    if data["environment"].get("generator"):
+        chosen.add(("generator", data["environment"]["generator"]))
+    if data["avoidance"]["name"] == "policy":
+        chosen.add(("policy", data["avoidance"]["policy"]))
+    return chosen | {("observer", name) for name in data.get("observers") or {}}
+
+
+def test_every_built_in_plugin_is_flown_in_a_batch_by_a_preset_or_below():
+    """The presets (above) and :data:`BUILTINS_BEYOND_PRESETS` (below) between them choose every
+    plugin the package registers, so the two batch tests cover every built-in."""
+    from swarmscene.core.registry import KINDS, installed_registry
+
+    registry = installed_registry()
+    builtin = {(kind, name) for kind in KINDS if KINDS[kind].base is not None for name in registry.names(kind)}
+    builtin |= {("observer", getattr(cls, "name", cls.__name__)) for cls in registry.observers}
+    in_presets = set().union(*(_composed_plugins(api.compose([f"scenario={p}"])) for p in PRESETS))
+    always = {("observer", "SafetyMonitor"), ("observer", "TrajectoryRecorder")}  # in every run
+    assert builtin - in_presets - always - set(BUILTINS_BEYOND_PRESETS) == set()
+    assert in_presets.isdisjoint(BUILTINS_BEYOND_PRESETS)  # the table lists only what presets miss
+
+
+@pytest.mark.parametrize("plugin", list(BUILTINS_BEYOND_PRESETS), ids=lambda p: f"{p[0]}-{p[1]}")
+def test_every_built_in_plugin_beyond_the_presets_in_a_batch_of_three_is_its_single_runs(plugin):
+    """3 s of a scenario choosing the plugin (its batched form where it has one, else world by
+    world), three seeds: each world is its single run, bit for bit."""
+    overrides, events = BUILTINS_BEYOND_PRESETS[plugin]
+    data = api.compose([*overrides, "clock.duration=3", "output.summary=false"])
+    if events is not None:
+        data["events"] = events
+    assert plugin in _composed_plugins(data)
+    for seed, result in zip(SEEDS, api.run_batch(data, SEEDS), strict=True):
+        alone = api.run({**data, "seed": seed})
+        assert {k: v for k, v in result.metrics.items() if k not in WALL_CLOCK} == {
+            k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}, seed
+        for key, value in alone.trajectory.items():
+            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
+
+
 def test_the_keep_out_condition_of_each_world_is_its_single_runs():
     """safety.keep_out on 100 boids (the monitor's pair list from the compiled cell list): every
     world's conflicts, first time and agents are its single run's."""
