@@ -305,6 +305,20 @@ def test_the_potential_field_repels_every_world_in_one_pass_each_its_single_run(
     assert results[0].metrics["healthy_at_end"] == results[0].metrics["agents"] - 1  # the leader failed
 
 
+def answers_of_setpoints_batch(monkeypatch, formation: type) -> list[type]:
+    """The type of every answer ``formation.setpoints_batch`` gives while the monkeypatch holds."""
+    setpoints_batch = formation.setpoints_batch.__func__
+    answers: list[type] = []
+
+    def spy(cls, formations, worlds, sensings):
+        answer = setpoints_batch(cls, formations, worlds, sensings)
+        answers.append(type(answer))
+        return answer
+
+    monkeypatch.setattr(formation, "setpoints_batch", classmethod(spy))
+    return answers
+
+
 @pytest.mark.parametrize("overrides", [
     ["events=random_failure"],
     ["formation.space=bounded", "formation.planar=false", "formation.goal=[60,40,30]", "formation.goal_weight=0.3"],
@@ -316,15 +330,7 @@ def test_the_flocks_of_every_world_turn_in_one_pass_each_its_single_run(monkeypa
     answers one batch; each world is its single run, bit for bit."""
     from swarmscene.plugins.formation.reynolds_flocking import ReynoldsFlocking
 
-    setpoints_batch = ReynoldsFlocking.setpoints_batch.__func__
-    answers: list[type] = []
-
-    def spy(cls, formations, worlds, sensings):
-        answer = setpoints_batch(cls, formations, worlds, sensings)
-        answers.append(type(answer))
-        return answer
-
-    monkeypatch.setattr(ReynoldsFlocking, "setpoints_batch", classmethod(spy))
+    answers = answers_of_setpoints_batch(monkeypatch, ReynoldsFlocking)
     data = api.compose(["scenario=flocking", *overrides, "clock.duration=25", "output.summary=false"])
     results = api.run_batch(data, SEEDS)
     assert answers == [SetpointBatch] * results[0].metrics["steps"]
@@ -347,15 +353,7 @@ def test_the_lattices_of_every_world_are_planned_in_one_pass_each_its_single_run
     call for the three worlds answers one batch; each world is its single run, bit for bit."""
     from swarmscene.plugins.formation.hex_lattice import HexLattice
 
-    setpoints_batch = HexLattice.setpoints_batch.__func__
-    answers: list[type] = []
-
-    def spy(cls, formations, worlds, sensings):
-        answer = setpoints_batch(cls, formations, worlds, sensings)
-        answers.append(type(answer))
-        return answer
-
-    monkeypatch.setattr(HexLattice, "setpoints_batch", classmethod(spy))
+    answers = answers_of_setpoints_batch(monkeypatch, HexLattice)
     data = api.compose(["task=formation_reconfigure", *overrides, "output.summary=false"])
     results = api.run_batch(data, SEEDS)
     assert answers == [SetpointBatch] * max(r.metrics["steps"] for r in results)
