@@ -41,6 +41,39 @@ def hop_delay_ticks(hops: np.ndarray, tau_com: float, T_s: float) -> np.ndarray:
     return np.where(reachable, np.maximum(ticks, 0), -1).astype(np.int64)
 
 
+DENSE_HOPS = 64
+"""Up to this many agents :func:`hop_counts` searches breadth-first on a dense matrix; more go to
+scipy's sparse ``shortest_path``."""
+
+
+def hop_counts(edges: np.ndarray, n: int) -> np.ndarray:
+    """Hops of a shortest path between every two of ``n`` agents over the undirected links
+    ``edges`` (M, 2), (N, N) float: 0 on the diagonal, inf where unreachable (scipy's unweighted
+    ``shortest_path``, the same numbers). Up to ``DENSE_HOPS`` agents a breadth-first search from
+    every agent at once on a dense matrix: about 10 us for 5 agents, where the sparse graph's
+    checks alone cost about 0.5 ms a call."""
+    if n > DENSE_HOPS:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import shortest_path
+
+        graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+        return shortest_path(graph.tocsr(), unweighted=True, directed=False)
+    adjacent = np.zeros((n, n), dtype=np.int16)
+    adjacent[edges[:, 0], edges[:, 1]] = adjacent[edges[:, 1], edges[:, 0]] = 1
+    hops = np.full((n, n), np.inf)
+    reached = np.eye(n, dtype=bool)
+    hops[reached] = 0.0
+    frontier = reached.astype(np.int16)
+    for h in range(1, n):
+        new = ((frontier @ adjacent) > 0) & ~reached  # row i: agents one more hop from agent i
+        if not new.any():
+            break
+        hops[new] = h
+        reached |= new
+        frontier = new.astype(np.int16)
+    return hops
+
+
 def random_delay_ticks(rng: np.random.Generator, shape, tau: float, jitter: float, T_s: float) -> np.ndarray:
     """ceil((tau + X) / T_s), X ~ Exponential(mean ``jitter``) (0: the fixed delay)."""
     extra = rng.exponential(jitter, shape) if jitter > 0 else np.zeros(shape)

@@ -59,9 +59,7 @@ class CommDelay(Disturbance):
             return np.full(n, links.fixed_delay_ticks(p.tau, self.T_s))
         if p.model == "random":
             return links.random_delay_ticks(self.rng, n, p.tau, p.jitter, self.T_s)
-        from scipy.sparse.csgraph import shortest_path
-
-        hops = shortest_path(sensing.comm_adjacency, unweighted=True)
+        hops = links.hop_counts(sensing.comm_edges, n)
         ticks = links.hop_delay_ticks(hops, p.tau, self.T_s).astype(float)
         ticks[ticks < 0] = np.nan
         np.fill_diagonal(ticks, np.nan)

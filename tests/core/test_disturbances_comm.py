@@ -20,6 +20,24 @@ def test_hop_delays_are_the_thesis_ceiling():
     np.testing.assert_array_equal(links.hop_delay_ticks(np.array([1.0, 2.0]), 0.25, 0.1), [3, 5])
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_hop_counts_are_scipys_shortest_paths(seed):
+    """300 random graphs of 1-90 agents (the dense search up to 64, scipy's beyond), sparse and
+    dense, connected and split: the hops equal scipy's unweighted ``shortest_path``, inf and all."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import shortest_path
+
+    rng = np.random.default_rng(seed)
+    for _ in range(300):
+        n = int(rng.integers(1, 91))
+        i, j = np.triu_indices(n, 1)
+        keep = rng.random(i.size) < rng.uniform(0.0, 0.3)
+        edges = np.column_stack([i[keep], j[keep]])
+        graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+        want = shortest_path((graph + graph.T).tocsr(), unweighted=True)
+        assert np.array_equal(links.hop_counts(edges, n), want), (n, len(edges))
+
+
 def test_random_delays_follow_their_distribution():
     rng = np.random.default_rng(3)
     d = links.random_delay_ticks(rng, 400_000, 0.15, 0.2, 0.1)
