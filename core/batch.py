@@ -40,8 +40,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, cast
 
+import numpy as np
+
 from . import interrupts
-from .disturbances import Perceived
+from .disturbances import Disturbances, Perceived
 from .plugin import Dynamics
 from .prefetch import prefetch
 from .result import RunResult
@@ -225,7 +227,7 @@ def _step(worlds: _Worlds) -> None:
         batch.controlled()
         dt = sims[0].physics_step
         for j in range(sims[0].substeps):
-            worlds._each(_wind_of(j))
+            _wind(worlds, j)
             _physics(worlds, [sim.dynamics for sim in sims], batch, dt)
             worlds._each(lambda sim: sim.push())
     worlds._each(lambda sim: sim.settle_world())
@@ -421,11 +423,45 @@ def written_for(cls: type, batched: str, single: str) -> bool:
     return issubclass(owner, next(k for k in cls.__mro__ if single in vars(k)))
 
 
-def _wind_of(j: int) -> Callable[[Simulation], None]:
-    """The wind phase of physics sub-step ``j``, as a phase of one world."""
-    def wind(sim: Simulation) -> None:
-        sim.blow(j)
-    return wind
+def _wind(worlds: _Worlds, j: int) -> None:
+    """The wind phase of physics sub-step ``j`` of every running world: the wind models whose
+    class has a batched form (:meth:`~swarmscene.core.disturbances.base.Disturbance.air_batch`)
+    asked for all worlds at once (:func:`airs_together`), the rest and each world's sums, forces
+    and records world by world. An exception of a batched form stops every world."""
+    sims = [sim for sim in worlds._sims() if sim.disturbances.has_wind]
+    given: dict[int, list[np.ndarray]] = {}
+    times = {sim.wind_time(j) for sim in sims}
+    if len(sims) > 1 and len(times) == 1:
+        try:
+            airs = airs_together([sim.disturbances for sim in sims], [sim.world for sim in sims], times.pop())
+        except Exception as exc:
+            worlds._stop_all(exc)
+            return
+        given = dict(zip(map(id, sims), airs, strict=True))
+    worlds._each(lambda sim: sim.blow(j, given.get(id(sim), ())))
+
+
+def airs_together(sets: Sequence[Disturbances], worlds: Sequence[WorldState], t: float) -> list[list[np.ndarray]]:
+    """The airs at ``t`` of B worlds' wind models (``sets``: each world's declared models, the
+    same classes in the same order), model by model while its class answers for all B instances
+    (``air_batch``, written for its ``air``: :func:`written_for`): one list per world, as long as
+    the models answered (the rest are asked world by world, :meth:`Disturbances.blow`); empty
+    lists where the worlds' wind models differ."""
+    airs: list[list[np.ndarray]] = [[] for _ in sets]
+    kinds = {tuple(type(model) for model in models.winds) for models in sets}
+    if len(kinds) != 1:
+        return airs
+    for k, cls in enumerate(kinds.pop()):
+        if not written_for(cls, "air_batch", "air"):
+            break
+        done = cls.air_batch([models.winds[k] for models in sets], worlds, t)
+        if done is NotImplemented:
+            break
+        if len(done) != len(sets):
+            raise ValueError(f"{cls.__name__}.air_batch returned {len(done)} airs for {len(sets)} worlds")
+        for world_airs, air in zip(airs, done, strict=True):
+            world_airs.append(air)
+    return airs
 
 
 class _Plain:

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any, cast
 
@@ -205,9 +205,14 @@ class Simulation:
             return seen.own, None, self.phases.setpoints(self.world.t)
         return seen.own, seen, None
 
-    def blow(self, j: int) -> None:
-        """The wind of physics sub-step ``j`` (before ``dynamics.step``)."""
-        self.disturbances.blow(self.world, self.world.t + j * self.physics_step)
+    def blow(self, j: int, given: Sequence[np.ndarray] = ()) -> None:
+        """The wind of physics sub-step ``j`` (before ``dynamics.step``); ``given``: the airs of
+        the first wind models, asked by a batch of worlds at once (core/batch.py)."""
+        self.disturbances.blow(self.world, self.wind_time(j), given)
+
+    def wind_time(self, j: int) -> float:
+        """The time at which physics sub-step ``j`` of this tick starts, s."""
+        return self.world.t + j * self.physics_step
 
     def push(self) -> None:
         """The force phase of a physics sub-step (after ``dynamics.step``)."""

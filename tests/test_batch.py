@@ -111,7 +111,13 @@ def test_every_built_in_plugin_beyond_the_presets_in_a_batch_of_three_is_its_sin
     if events is not None:
         data["events"] = events
     assert plugin in _composed_plugins(data)
-    for seed, result in zip(SEEDS, api.run_batch(data, SEEDS), strict=True):
+    assert_composed_worlds_are_single_runs(data, api.run_batch(data, SEEDS))
+
+
+def assert_composed_worlds_are_single_runs(data: dict, results: list) -> None:
+    """Each world of a batch of ``data`` (composed) under ``SEEDS``: its single run's metrics (but
+    the wall clock's) and trajectory, bit for bit."""
+    for seed, result in zip(SEEDS, results, strict=True):
         alone = api.run({**data, "seed": seed})
         assert {k: v for k, v in result.metrics.items() if k not in WALL_CLOCK} == {
             k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}, seed
@@ -712,3 +718,27 @@ def test_an_avoidance_subclass_overriding_adjust_alone_is_adjusted_by_it():
             return super().adjust(world, sensing, sp)
 
     assert written_for(Orca, "adjust_batch", "adjust") and not written_for(Wrapped, "adjust_batch", "adjust")
+
+
+def test_the_dryden_wind_of_every_world_is_asked_at_once_each_its_single_run(monkeypatch):
+    """``dryden``'s ``air_batch`` in three quadrotor worlds (their own seeds, so their own
+    turbulence): it answers for all of them at every physics step but the first (where each world
+    starts its filters alone), and each world is its single run, bit for bit."""
+    from swarmscene.plugins.disturbance.dryden import Dryden
+
+    air_batch = Dryden.air_batch.__func__
+    answered: list[bool] = []
+
+    def spy(cls, models, worlds, t):
+        airs = air_batch(cls, models, worlds, t)
+        answered.append(airs is not NotImplemented and len(airs) == len(models) == len(SEEDS))
+        return airs
+
+    monkeypatch.setattr(Dryden, "air_batch", classmethod(spy))
+    data = api.compose(["dynamics=quadrotor", "disturbances=[dryden]", "disturbances.dryden.field=independent",
+                        "clock.duration=2", "output.summary=false"])
+    results = api.run_batch(data, SEEDS)
+    steps = results[0].metrics["steps"] * round(data["clock"]["guidance_period"] / data["clock"]["physics_step"])
+    assert answered == [False] + [True] * (steps - 1)
+    monkeypatch.undo()
+    assert_composed_worlds_are_single_runs(data, results)

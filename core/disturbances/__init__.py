@@ -34,6 +34,7 @@ of the engine before disturbances existed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, Protocol, cast
 
 import numpy as np
@@ -218,17 +219,20 @@ class Disturbances:
         return Perceived(picture, self._sensing, own, own, self._own_sensing)
 
     # -- wind -----------------------------------------------------------------------------
-    def blow(self, world: WorldState, t: float) -> None:
+    def blow(self, world: WorldState, t: float, given: Sequence[np.ndarray] = ()) -> None:
         """The wind and force phases, before a physics step starting at ``t``: ``world.wind``, the
         air's velocity at each agent (N, 3) m/s, summed over the wind models; ``world.force``, the
-        other forces per mass (N, 3) m/s^2, summed over the force models."""
+        other forces per mass (N, 3) m/s^2, summed over the force models. ``given``: the airs of
+        the first wind models, already asked by a batch of worlds (core/batch.py); the others are
+        asked here."""
         if self.has_force:
             self._exert(world, t)
         if not self.has_wind:
             return
-        air = self.winds[0].air(world, t)
-        for model in self.winds[1:]:
-            air = air + model.air(world, t)
+        airs = [*given, *(model.air(world, t) for model in self.winds[len(given):])]
+        air = airs[0]
+        for other in airs[1:]:
+            air = air + other
         world.wind = np.array(air, dtype=float)
         world.wind_moment_arm = self.moment_arm
         speed = np.sqrt(np.einsum("ij,ij->i", world.wind, world.wind))

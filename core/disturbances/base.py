@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import warnings
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -142,6 +143,15 @@ class Disturbance:
         of messages, and validation refuses a scenario whose channel would not fit in memory
         (0, the default: the model delays nothing, or what it delays is not bounded in advance)."""
         return 0
+
+    @classmethod
+    def air_batch(cls, models: Sequence[Disturbance], worlds: Sequence[Any], t: float) -> Sequence[np.ndarray] | Any:
+        """A wind model's ``air`` of B worlds at once (docs/batched.md): one (N, 3) array per world
+        from its own instance in ``models``, each the bits that instance's ``air(world, t)`` would
+        give and leaving the instance as that call would. The default returns ``NotImplemented``:
+        the engine asks each world's ``air``. The contract check
+        ``disturbance.air_batch_equals_worlds`` holds a batched form to the per-world one."""
+        return NotImplemented
 
     def metrics(self) -> dict[str, Any]:
         """The model's own metrics, keys without prefix (none by default)."""

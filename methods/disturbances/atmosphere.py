@@ -38,6 +38,7 @@ Choices where the standards leave room, for a hovering multirotor:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -144,6 +145,7 @@ class DrydenFilters:
         self.xd = rng.standard_normal((m, 2)) * np.sqrt(Tvw / 4.0)
         self.output = self._output(T, sigma)
         self._key: tuple | None = None
+        self._together: tuple | None = None  # step_together's stacked factors, kept on a batch's first
 
     def step(self, dt: float, L: np.ndarray, sigma: np.ndarray, V: np.ndarray) -> np.ndarray:
         """Advance every filter by ``dt`` s; return the gust velocities (M, 3), m/s.
@@ -156,56 +158,90 @@ class DrydenFilters:
         key = (dt, id(L), id(V), id(sigma))
         if self._key != key:
             self._key, self._held = key, (L, V, sigma)  # held: the ids stay valid while cached
-            self._coefficients(dt, L / V[:, None])
-            self._output_factors(self._coef[0], sigma)
-        _, a, b, (p11, p12, p21, p22), (c11, c21, c22) = self._coef
+            T = L / V[:, None]
+            self._coef, self._factors = _transition(dt, T), _output_factors(T, sigma)
         m = self.u.size
         noise = self.rng.standard_normal(5 * m)
-        self.u = a * self.u + b * noise[:m]
-        x, xd = self.x, self.xd
-        z1, z2 = noise[m:3 * m].reshape(m, 2), noise[3 * m:].reshape(m, 2)
-        self.x = p11 * x + p12 * xd + c11 * z1
-        self.xd = p21 * x + p22 * xd + c21 * z1 + c22 * z2
-        self.output = self._scaled()
+        self.u, self.x, self.xd = _advanced(self._coef, self.u, self.x, self.xd, noise[:m],
+                                            noise[m:3 * m].reshape(m, 2), noise[3 * m:].reshape(m, 2))
+        self.output = _scaled(self._factors, self.u, self.x, self.xd)
         return self.output
 
-    def _coefficients(self, dt: float, T: np.ndarray) -> None:
-        """u: a = exp(-dt / T_u), b = sqrt(1 - a^2). v, w: the exact step of the critically damped
-        pair, e^{A dt} = e^{-dt/T} [[1 + dt/T, dt], [-dt/T^2, 1 - dt/T]], and the Cholesky factor of
-        Q = P - Phi P Phi^T with P = diag(T^3/4, T/4)."""
-        a = np.exp(-dt / T[:, 0])
-        Tvw = T[:, 1:]
-        r = dt / Tvw
-        e = np.exp(-r)
-        p11, p12, p21, p22 = e * (1.0 + r), e * dt, -e * r / Tvw, e * (1.0 - r)
-        P1, P2 = Tvw**3 / 4.0, Tvw / 4.0
-        q11 = P1 - (p11 * p11 * P1 + p12 * p12 * P2)
-        q12 = -(p11 * p21 * P1 + p12 * p22 * P2)
-        q22 = P2 - (p21 * p21 * P1 + p22 * p22 * P2)
-        # 2x2 Cholesky factor of Q, element-wise (q11 > 0 for dt > 0)
-        c11 = np.sqrt(np.maximum(q11, 0.0))
-        c21 = np.where(c11 > 0.0, q12 / np.where(c11 > 0.0, c11, 1.0), 0.0)
-        c22 = np.sqrt(np.maximum(q22 - c21 * c21, 0.0))
-        self._coef = (T, a, np.sqrt(1.0 - a * a), (p11, p12, p21, p22), (c11, c21, c22))
+    @staticmethod
+    def step_together(filters: Sequence[DrydenFilters], dt: float,
+                      conditions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        """:meth:`step` of B sets of filters of M realisations each (B worlds' winds), given each
+        set's (L, sigma, V), in one pass: each set draws from its own generator and keeps its own
+        state, and every set's gusts are the bits of its own :meth:`step`. The stacked factors are
+        kept on the first set while the same conditions are passed again."""
+        first, m = filters[0], filters[0].u.size
+        key = (dt, tuple(id(a) for condition in conditions for a in condition))
+        if first._together is None or first._together[0] != key:
+            T = [L / V[:, None] for L, _, V in conditions]
+            factors = [_output_factors(t, sigma) for t, (_, sigma, _) in zip(T, conditions, strict=True)]
+            first._together = (key, conditions, _transition(dt, np.concatenate(T)),
+                               tuple(np.concatenate(part) for part in zip(*factors, strict=True)))
+        _, _, coef, stacked_factors = first._together  # conditions held: the ids stay valid
+        noise = np.stack([f.rng.standard_normal(5 * m) for f in filters])
+        b = len(filters)
+        u, x, xd = _advanced(coef, np.concatenate([f.u for f in filters]), np.concatenate([f.x for f in filters]),
+                             np.concatenate([f.xd for f in filters]), noise[:, :m].reshape(b * m),
+                             noise[:, m:3 * m].reshape(b * m, 2), noise[:, 3 * m:].reshape(b * m, 2))
+        out = _scaled(stacked_factors, u, x, xd)
+        for i, f in enumerate(filters):
+            rows = slice(i * m, (i + 1) * m)
+            f.u, f.x, f.xd, f.output = u[rows], x[rows], xd[rows], out[rows]
+        return [f.output for f in filters]
 
     def _output(self, T: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """y_u = sigma_u u (u of unit variance); y = sigma T^-3/2 (x + sqrt(3) T xd) for v, w."""
-        self._output_factors(T, sigma)
-        return self._scaled()
+        return _scaled(_output_factors(T, sigma), self.u, self.x, self.xd)
 
-    def _output_factors(self, T: np.ndarray, sigma: np.ndarray) -> None:
-        """The output's factors that change only with the conditions: sigma_u, sigma T^-3/2 and
-        sqrt(3) T of the v and w filters."""
-        Tvw = T[:, 1:]
-        self._factors = (sigma[:, 0], sigma[:, 1:] * Tvw**-1.5, math.sqrt(3.0) * Tvw)
 
-    def _scaled(self) -> np.ndarray:
-        """The gust velocities (M, 3) of the filters' present state (:meth:`_output`)."""
-        sigma_u, scale_vw, sqrt3_T = self._factors
-        out = np.empty((self.u.size, 3))
-        np.multiply(sigma_u, self.u, out=out[:, 0])
-        np.multiply(scale_vw, self.x + sqrt3_T * self.xd, out=out[:, 1:])
-        return out
+def _transition(dt: float, T: np.ndarray) -> tuple:
+    """The filters' step factors for time constants T (M, 3) = L / V: u: a = exp(-dt / T_u),
+    b = sqrt(1 - a^2). v, w: the exact step of the critically damped pair, e^{A dt} = e^{-dt/T}
+    [[1 + dt/T, dt], [-dt/T^2, 1 - dt/T]], and the Cholesky factor of Q = P - Phi P Phi^T with
+    P = diag(T^3/4, T/4)."""
+    a = np.exp(-dt / T[:, 0])
+    Tvw = T[:, 1:]
+    r = dt / Tvw
+    e = np.exp(-r)
+    p11, p12, p21, p22 = e * (1.0 + r), e * dt, -e * r / Tvw, e * (1.0 - r)
+    P1, P2 = Tvw**3 / 4.0, Tvw / 4.0
+    q11 = P1 - (p11 * p11 * P1 + p12 * p12 * P2)
+    q12 = -(p11 * p21 * P1 + p12 * p22 * P2)
+    q22 = P2 - (p21 * p21 * P1 + p22 * p22 * P2)
+    # 2x2 Cholesky factor of Q, element-wise (q11 > 0 for dt > 0)
+    c11 = np.sqrt(np.maximum(q11, 0.0))
+    c21 = np.where(c11 > 0.0, q12 / np.where(c11 > 0.0, c11, 1.0), 0.0)
+    c22 = np.sqrt(np.maximum(q22 - c21 * c21, 0.0))
+    return a, np.sqrt(1.0 - a * a), (p11, p12, p21, p22), (c11, c21, c22)
+
+
+def _advanced(coef: tuple, u: np.ndarray, x: np.ndarray, xd: np.ndarray, n: np.ndarray, z1: np.ndarray,
+              z2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The filters' state one step on (:func:`_transition`'s factors), driven by unit normals n
+    (u's) and z1, z2 (the v and w filters')."""
+    a, b, (p11, p12, p21, p22), (c11, c21, c22) = coef
+    return a * u + b * n, p11 * x + p12 * xd + c11 * z1, p21 * x + p22 * xd + c21 * z1 + c22 * z2
+
+
+def _output_factors(T: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The output's factors, which change only with the conditions: sigma_u, sigma T^-3/2 and
+    sqrt(3) T of the v and w filters (computed per set of filters: numpy's ``power`` may give an
+    element other bits in a longer array)."""
+    Tvw = T[:, 1:]
+    return sigma[:, 0], sigma[:, 1:] * Tvw**-1.5, math.sqrt(3.0) * Tvw
+
+
+def _scaled(factors: tuple, u: np.ndarray, x: np.ndarray, xd: np.ndarray) -> np.ndarray:
+    """The gust velocities (M, 3): y_u = sigma_u u; y = sigma T^-3/2 (x + sqrt(3) T xd) for v, w."""
+    sigma_u, scale_vw, sqrt3_T = factors
+    out = np.empty((u.size, 3))
+    np.multiply(sigma_u, u, out=out[:, 0])
+    np.multiply(scale_vw, x + sqrt3_T * xd, out=out[:, 1:])
+    return out
 
 
 def wind_axes(heading: float) -> np.ndarray:

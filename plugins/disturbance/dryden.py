@@ -9,7 +9,8 @@ discretised exactly).
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from collections.abc import Sequence
+from typing import Any, Literal, cast
 
 import numpy as np
 from pydantic import Field
@@ -77,15 +78,39 @@ class Dryden(Disturbance):
         state, each later one advances them by the physics step. The scales, intensities, airspeed
         and mean wind (which change with altitude and speed over seconds) are evaluated at the
         first physics step of each guidance tick and held over its others."""
-        if self.steps % self.per_tick == 0:
-            self.conditions = self._conditions(world)
-        self.steps += 1
-        L, sigma, V, mean = self.conditions
+        L, sigma, V, mean = self._held_conditions(world)
         if self.filters is None:
             self.filters = atmosphere.DrydenFilters(V.size, self.rng, L, sigma, V)
             gust = self.filters.output
         else:
             gust = self.filters.step(self.dt, L, sigma, V)
+        return self._blown(world, mean, gust)
+
+    @classmethod
+    def air_batch(cls, models: Sequence[Dryden], worlds: Sequence[WorldState], t: float) -> list[np.ndarray] | Any:
+        """``air`` of B worlds at once: each world's conditions as its own ``air`` holds them, then
+        the filters of every world stepped in one pass (``DrydenFilters.step_together``: each
+        world's own draws, the same bits). Declined at the first physics step (each world starts
+        its filters alone) and where the instances' options or sizes differ."""
+        first = models[0]
+        if any(m.params != first.params or m.filters is None or m.filters.u.size != first.filters.u.size
+               or m.dt != first.dt for m in models):
+            return NotImplemented
+        held = [m._held_conditions(world) for m, world in zip(models, worlds, strict=True)]
+        gusts = atmosphere.DrydenFilters.step_together([cast(atmosphere.DrydenFilters, m.filters) for m in models],
+                                                       first.dt, [conditions[:3] for conditions in held])
+        return [m._blown(world, conditions[3], gust)
+                for m, world, conditions, gust in zip(models, worlds, held, gusts, strict=True)]
+
+    def _held_conditions(self, world: WorldState) -> tuple[Any, ...]:
+        """(L, sigma, V, mean) for this physics step: evaluated at a tick's first, held over its others."""
+        if self.steps % self.per_tick == 0:
+            self.conditions = self._conditions(world)
+        self.steps += 1
+        return self.conditions
+
+    def _blown(self, world: WorldState, mean: np.ndarray, gust: np.ndarray) -> np.ndarray:
+        """The air at every agent (N, 3): the mean wind plus the gusts turned from wind axes."""
         air = np.empty(world.pos.shape)  # every agent's row (np.broadcast_to's Python costs more)
         air[:] = mean + gust @ self.axes
         return air

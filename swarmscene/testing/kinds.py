@@ -157,33 +157,45 @@ class _DisturbedTick:
     outputs: dict[str, np.ndarray]  # picture pos/vel, own pos/vel, and the wind of each physics step
 
 
-def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS) -> list[list[_DisturbedTick]]:
-    """Each runner's ticks over ``ticks`` guidance ticks, the runners taking their turns tick by
-    tick on worlds of their own (the world moves on the truth's velocity)."""
+def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS, lifts: list[float] | None = None,
+                     together: bool = False) -> list[list[_DisturbedTick]]:
+    """Each runner's ticks over ``ticks`` guidance ticks, on worlds of their own (the world moves
+    on the truth's velocity), each lifted by its ``lifts`` (m); the runners take their turns phase
+    by phase. ``together``: the wind models' airs of every physics step asked of all the runners
+    at once, as a batch of worlds asks them (:func:`~swarmscene.core.batch.airs_together`)."""
+    from ..core.batch import airs_together  # the engine's batch imports the simulation: not at import
+
     worlds = [_world() for _ in runners]
+    for world, lift in zip(worlds, lifts or [0.0] * len(runners), strict=True):
+        world.pos[:, 2] += lift
     out: list[list[_DisturbedTick]] = [[] for _ in runners]
     env = Environment()
     for _ in range(ticks):
-        for world, runner, record in zip(worlds, runners, out, strict=True):
-            truth = _truth(world)
+        truths, outputs, afters = [], [], []
+        for world, runner in zip(worlds, runners, strict=True):
+            truths.append(_truth(world))
             try:
                 seen = runner.perceive(world, Sensing(world, env, 10.0))
             except (ValueError, TypeError, IndexError) as exc:  # e.g. outputs of the wrong shape
                 raise AssertionError(
                     f"{runner_name(runner)}: the kernel's sense/communicate phase failed on its outputs "
                     f"(each must be (N, 3) m or m/s): {type(exc).__name__}: {exc}") from None
-            outputs = {"picture pos": np.array(seen.world.pos), "picture vel": np.array(seen.world.vel),
-                       "own pos": np.array(seen.own.pos), "own vel": np.array(seen.own.vel)}
-            after = _truth(world)
-            for j in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
-                runner.blow(world, world.t + j * PHYSICS_STEP)
+            outputs.append({"picture pos": np.array(seen.world.pos), "picture vel": np.array(seen.world.vel),
+                            "own pos": np.array(seen.own.pos), "own vel": np.array(seen.own.vel)})
+            afters.append(_truth(world))
+        for j in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
+            t = worlds[0].t + j * PHYSICS_STEP
+            given = airs_together(runners, worlds, t) if together else [[] for _ in runners]
+            for world, runner, record, airs in zip(worlds, runners, outputs, given, strict=True):
+                runner.blow(world, t, airs)
                 if runner.has_wind:
-                    outputs[f"wind {j}"] = np.array(world.wind)
+                    record[f"wind {j}"] = np.array(world.wind)
                 if runner.has_force:
-                    outputs[f"force {j}"] = np.array(world.force)
+                    record[f"force {j}"] = np.array(world.force)
                 world.pos += PHYSICS_STEP * world.vel
+        for world, record, truth, after, output in zip(worlds, out, truths, afters, outputs, strict=True):
             world.t += GUIDANCE_PERIOD
-            record.append(_DisturbedTick(truth, after, outputs))
+            record.append(_DisturbedTick(truth, after, output))
     return out
 
 
@@ -289,6 +301,33 @@ def _disturbance_no_shared_state(s: Subject) -> None:
         assert np.array_equal(x, y), (
             f"{s.name}: two instances share state (one ran differently beside another): keep state on "
             "the instance, not the class or the module")
+
+
+@promise("disturbance", "air_batch_equals_worlds")
+def _disturbance_air_batch_equals_worlds(s: Subject) -> None:
+    """A wind model's ``air_batch`` gives three runs (seeded 0, 1, 2, their worlds at three
+    altitudes) the winds their own ``air`` gives, physics step after physics step, and leaves
+    their metrics as theirs, bit for bit (the default returns ``NotImplemented``: the engine asks
+    each world's ``air``)."""
+    from ..core.batch import written_for
+
+    _disturbance_phase(s)
+    if s.cls.phase != "wind" or not written_for(s.cls, "air_batch", "air"):
+        return
+    lifts = [0.0, 3.0, 7.5]
+    alone_runners = [_disturbances(s.cls, s.params, "a", seed) for seed in range(3)]
+    batch_runners = [_disturbances(s.cls, s.params, "a", seed) for seed in range(3)]
+    alone = _disturbed_ticks(alone_runners, lifts=lifts)
+    together = _disturbed_ticks(batch_runners, lifts=lifts, together=True)
+    for b, (mine, theirs) in enumerate(zip(alone, together, strict=True)):
+        for tick, (one, other) in enumerate(zip(mine, theirs, strict=True)):
+            for key, value in one.outputs.items():
+                assert np.array_equal(value, other.outputs[key]), (
+                    f"{s.name}: air_batch gave world {b} another {key} than its own air() at tick {tick}: a "
+                    "batched form must give each world its own arithmetic and draws (docs/batched.md)")
+    for b, (one, other) in enumerate(zip(alone_runners, batch_runners, strict=True)):
+        assert one.metrics() == other.metrics(), (
+            f"{s.name}: after air_batch world {b}'s metrics are {other.metrics()}, after its own air() {one.metrics()}")
 
 
 @promise("disturbance", "metrics_json")
