@@ -23,6 +23,8 @@ class MyDisturbance(Disturbance):
     # sense: each agent's estimate of itself; communicate: what the others receive of it;
     # wind: the air's velocity at each agent, each physics step (method air(world, t) -> (N, 3));
     # force: any other force per mass, each physics step (method force(world, t) -> (N, 3), m/s^2).
+    # A wind model may add the classmethod air_batch(models, worlds, t), the air of B worlds at
+    # once (docs/batched.md; plugins/disturbance/dryden.py is an example).
     # The built-ins (plugins/disturbance/*.py) are worked examples of each phase.
     phase = "sense"
 
