@@ -44,6 +44,7 @@ import numpy as np
 
 from . import interrupts
 from .disturbances import Disturbances, Perceived
+from .disturbances.base import Disturbance
 from .plugin import Dynamics
 from .prefetch import prefetch
 from .result import RunResult
@@ -448,7 +449,7 @@ def airs_together(sets: Sequence[Disturbances], worlds: Sequence[WorldState], t:
     the models answered (the rest are asked world by world, :meth:`Disturbances.blow`); empty
     lists where the worlds' wind models differ."""
     airs: list[list[np.ndarray]] = [[] for _ in sets]
-    kinds = {tuple(type(model) for model in models.winds) for models in sets}
+    kinds = {tuple(type(model) for model in cast("list[Disturbance]", models.winds)) for models in sets}
     if len(kinds) != 1:
         return airs
     for k, cls in enumerate(kinds.pop()):

@@ -145,7 +145,7 @@ class Disturbance:
         return 0
 
     @classmethod
-    def air_batch(cls, models: Sequence[Disturbance], worlds: Sequence[Any], t: float) -> Sequence[np.ndarray] | Any:
+    def air_batch(cls, models: Sequence[Any], worlds: Sequence[Any], t: float) -> Sequence[np.ndarray] | Any:
         """A wind model's ``air`` of B worlds at once (docs/batched.md): one (N, 3) array per world
         from its own instance in ``models``, each the bits that instance's ``air(world, t)`` would
         give and leaving the instance as that call would. The default returns ``NotImplemented``:

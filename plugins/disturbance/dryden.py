@@ -93,12 +93,13 @@ class Dryden(Disturbance):
         world's own draws, the same bits). Declined at the first physics step (each world starts
         its filters alone) and where the instances' options or sizes differ."""
         first = models[0]
-        if any(m.params != first.params or m.filters is None or m.filters.u.size != first.filters.u.size
-               or m.dt != first.dt for m in models):
+        if any(m.filters is None for m in models):
+            return NotImplemented
+        filters = [cast(atmosphere.DrydenFilters, m.filters) for m in models]
+        if any(m.params != first.params or m.dt != first.dt for m in models) or len({f.u.size for f in filters}) > 1:
             return NotImplemented
         held = [m._held_conditions(world) for m, world in zip(models, worlds, strict=True)]
-        gusts = atmosphere.DrydenFilters.step_together([cast(atmosphere.DrydenFilters, m.filters) for m in models],
-                                                       first.dt, [conditions[:3] for conditions in held])
+        gusts = atmosphere.DrydenFilters.step_together(filters, first.dt, [conditions[:3] for conditions in held])
         return [m._blown(world, conditions[3], gust)
                 for m, world, conditions, gust in zip(models, worlds, held, gusts, strict=True)]
 

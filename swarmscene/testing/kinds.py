@@ -186,16 +186,16 @@ def _disturbed_ticks(runners: list[Disturbances], ticks: int = TICKS, lifts: lis
         for j in range(int(round(GUIDANCE_PERIOD / PHYSICS_STEP))):
             t = worlds[0].t + j * PHYSICS_STEP
             given = airs_together(runners, worlds, t) if together else [[] for _ in runners]
-            for world, runner, record, airs in zip(worlds, runners, outputs, given, strict=True):
+            for world, runner, output, airs in zip(worlds, runners, outputs, given, strict=True):
                 runner.blow(world, t, airs)
                 if runner.has_wind:
-                    record[f"wind {j}"] = np.array(world.wind)
+                    output[f"wind {j}"] = np.array(world.wind)
                 if runner.has_force:
-                    record[f"force {j}"] = np.array(world.force)
+                    output[f"force {j}"] = np.array(world.force)
                 world.pos += PHYSICS_STEP * world.vel
-        for world, record, truth, after, output in zip(worlds, out, truths, afters, outputs, strict=True):
+        for world, ticks_so_far, truth, after, output in zip(worlds, out, truths, afters, outputs, strict=True):
             world.t += GUIDANCE_PERIOD
-            record.append(_DisturbedTick(truth, after, output))
+            ticks_so_far.append(_DisturbedTick(truth, after, output))
     return out
 
 
@@ -325,9 +325,10 @@ def _disturbance_air_batch_equals_worlds(s: Subject) -> None:
                 assert np.array_equal(value, other.outputs[key]), (
                     f"{s.name}: air_batch gave world {b} another {key} than its own air() at tick {tick}: a "
                     "batched form must give each world its own arithmetic and draws (docs/batched.md)")
-    for b, (one, other) in enumerate(zip(alone_runners, batch_runners, strict=True)):
-        assert one.metrics() == other.metrics(), (
-            f"{s.name}: after air_batch world {b}'s metrics are {other.metrics()}, after its own air() {one.metrics()}")
+    for b, (runner, batched) in enumerate(zip(alone_runners, batch_runners, strict=True)):
+        assert runner.metrics() == batched.metrics(), (
+            f"{s.name}: after air_batch world {b}'s metrics are {batched.metrics()}, after its own air() "
+            f"{runner.metrics()}")
 
 
 @promise("disturbance", "metrics_json")
