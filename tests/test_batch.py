@@ -111,16 +111,16 @@ def test_every_built_in_plugin_beyond_the_presets_in_a_batch_of_three_is_its_sin
     if events is not None:
         data["events"] = events
     assert plugin in _composed_plugins(data)
-    assert_composed_worlds_are_single_runs(data, api.run_batch(data, SEEDS))
+    assert_single_runs(data, api.run_batch(data, SEEDS))
 
 
-def assert_composed_worlds_are_single_runs(data: dict, results: list) -> None:
+def assert_single_runs(data: dict, results: list) -> None:
     """Each world of a batch of ``data`` (composed) under ``SEEDS``: its single run's metrics (but
     the wall clock's) and trajectory, bit for bit."""
     for seed, result in zip(SEEDS, results, strict=True):
         alone = api.run({**data, "seed": seed})
-        assert {k: v for k, v in result.metrics.items() if k not in WALL_CLOCK} == {
-            k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}, seed
+        flight = {k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}
+        assert {k: v for k, v in result.metrics.items() if k not in WALL_CLOCK} == flight, seed
         for key, value in alone.trajectory.items():
             np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
 
@@ -741,4 +741,4 @@ def test_the_dryden_wind_of_every_world_is_asked_at_once_each_its_single_run(mon
     steps = results[0].metrics["steps"] * round(data["clock"]["guidance_period"] / data["clock"]["physics_step"])
     assert answered == [False] + [True] * (steps - 1)
     monkeypatch.undo()
-    assert_composed_worlds_are_single_runs(data, results)
+    assert_single_runs(data, results)

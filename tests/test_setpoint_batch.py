@@ -14,7 +14,7 @@ from swarmscene.core.state import WorldBatch, WorldState
 from swarmscene.plugin import build_context
 from swarmscene.plugins.dynamics.quadrotor import Quadrotor
 
-from .test_batch import WALL_CLOCK
+from .test_batch import assert_single_runs
 
 B, N, SUBSTEPS, DT = 3, 4, 24, 1 / 240
 SEEDS = [0, 1, 2]
@@ -200,16 +200,6 @@ def test_a_formations_setpoint_batch_reaches_the_quadrotors_control_whole(monkey
     monkeypatch.undo()
     assert_single_runs(data, results)
     assert results[0].metrics["healthy_at_end"] == results[0].metrics["agents"] - 1  # the leader failed
-
-
-def assert_single_runs(data: dict, results: list) -> None:
-    """Each batched world's metrics (but the wall clock's) and trajectory are its single run's."""
-    for seed, result in zip(SEEDS, results, strict=True):
-        alone = api.run({**data, "seed": seed})
-        flight = {k: v for k, v in alone.metrics.items() if k not in WALL_CLOCK}
-        assert {k: v for k, v in result.metrics.items() if k not in WALL_CLOCK} == flight, seed
-        for key, value in alone.trajectory.items():
-            np.testing.assert_array_equal(result.trajectory[key], value, err_msg=f"seed {seed}: {key}")
 
 
 @pytest.mark.parametrize(("answer", "error"), [
