@@ -42,30 +42,39 @@ def hop_delay_ticks(hops: np.ndarray, tau_com: float, T_s: float) -> np.ndarray:
 
 
 DENSE_HOPS = 64
-"""Up to this many agents :func:`hop_counts` searches breadth-first on a dense matrix; more go to
-scipy's sparse ``shortest_path``."""
+"""Up to this many agents the hops come from a breadth-first search on a dense matrix
+(:func:`dense_hop_counts`); more from scipy's sparse ``shortest_path``."""
 
 
 def hop_counts(edges: np.ndarray, n: int) -> np.ndarray:
     """Hops of a shortest path between every two of ``n`` agents over the undirected links
     ``edges`` (M, 2), (N, N) float: 0 on the diagonal, inf where unreachable (scipy's unweighted
-    ``shortest_path``, the same numbers). Up to ``DENSE_HOPS`` agents a breadth-first search from
-    every agent at once on a dense matrix: about 10 us for 5 agents, where the sparse graph's
-    checks alone cost about 0.5 ms a call."""
+    ``shortest_path``, the same numbers): :func:`dense_hop_counts` up to ``DENSE_HOPS`` agents."""
     if n > DENSE_HOPS:
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import shortest_path
 
         graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
         return shortest_path(graph.tocsr(), unweighted=True, directed=False)
-    adjacent = np.zeros((n, n), dtype=np.int16)
-    adjacent[edges[:, 0], edges[:, 1]] = adjacent[edges[:, 1], edges[:, 0]] = 1
-    hops = np.full((n, n), np.inf)
-    reached = np.eye(n, dtype=bool)
+    adjacent = np.zeros((n, n), dtype=bool)
+    adjacent[edges[:, 0], edges[:, 1]] = adjacent[edges[:, 1], edges[:, 0]] = True
+    return dense_hop_counts(adjacent)
+
+
+def dense_hop_counts(adjacent: np.ndarray) -> np.ndarray:
+    """Hops of a shortest path between every two agents of the undirected graph ``adjacent``
+    (M, M) bool, (M, M) float: 0 on the diagonal, inf where unreachable (scipy's unweighted
+    ``shortest_path``, the same numbers), by a breadth-first search from every agent at once: about
+    10 us for 5 agents, where a sparse graph's checks alone cost about 0.5 ms a call. For a few
+    agents (``DENSE_HOPS``): each hop is a product of M x M matrices."""
+    m = len(adjacent)
+    step = adjacent.astype(np.int16)
+    hops = np.full((m, m), np.inf)
+    reached = np.eye(m, dtype=bool)
     hops[reached] = 0.0
     frontier = reached.astype(np.int16)
-    for h in range(1, n):
-        new = ((frontier @ adjacent) > 0) & ~reached  # row i: agents one more hop from agent i
+    for h in range(1, m):
+        new = ((frontier @ step) > 0) & ~reached  # row i: agents one more hop from agent i
         if not new.any():
             break
         hops[new] = h
