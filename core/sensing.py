@@ -42,8 +42,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 DENSE_LIMIT = 128
-"""Up to this many members, connectivity is a dense reachability sweep (no sparse overhead); more
-are joined by union-find over a compiled cell list (:func:`.cells.disk_graph_connected`)."""
+"""Up to this many members, connectivity in open space is a dense reachability sweep (no sparse
+overhead); more are joined by union-find over a compiled cell list
+(:func:`.cells.disk_graph_connected`), as any number are in a periodic space."""
 NEAR_K = 4
 """Nearest neighbours per agent in the shared kNN query (:attr:`Sensing.knn`)."""
 T = TypeVar("T")
