@@ -428,8 +428,12 @@ def _wind(worlds: _Worlds, j: int) -> None:
     """The wind phase of physics sub-step ``j`` of every running world: the wind models whose
     class has a batched form (:meth:`~swarmscene.core.disturbances.base.Disturbance.air_batch`)
     asked for all worlds at once (:func:`airs_together`), the rest and each world's sums, forces
-    and records world by world. An exception of a batched form stops every world."""
-    sims = [sim for sim in worlds._sims() if sim.disturbances.has_wind]
+    and records world by world. An exception of a batched form stops every world. Nothing runs
+    where no world declares a wind or a force model (most batches): their ``blow`` does nothing."""
+    blowing = [sim for sim in worlds._sims() if sim.disturbances.blows]
+    if not blowing:
+        return
+    sims = [sim for sim in blowing if sim.disturbances.has_wind]
     given: dict[int, list[np.ndarray]] = {}
     times = {sim.wind_time(j) for sim in sims}
     if len(sims) > 1 and len(times) == 1:

@@ -131,6 +131,7 @@ class Disturbances:
         self.active = bool(self.models)
         self.has_wind = bool(self.by_phase["wind"])
         self.has_force = bool(self.forces)
+        self.blows = self.has_wind or self.has_force  # the wind phase (blow) has something to do
         # models that may raise events (a battery run down): those overriding Disturbance.raised
         self.raisers = [m for m in self.models.values() if type(m).raised is not Disturbance.raised]
         self.perceives = bool(self.by_phase["sense"] or self.by_phase["communicate"])
