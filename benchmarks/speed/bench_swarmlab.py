@@ -143,11 +143,17 @@ def _whole_runs(n: int, rounds: int, definition: float) -> None:
     pairs' ratios (wall, and CPU: the children's user + system). ``definition``: the seconds the
     transcribed definition took over one run's states, set against the whole run without it."""
     import resource
+    import shutil
     import subprocess
     import tempfile
 
-    command = Path(sys.executable).with_name("swarmscene")  # the console script beside this interpreter
-    base = [str(command), "scenario=flocking", f"swarm.n={n}", "output.progress=off"]
+    # the console script beside this interpreter (a virtual environment's), else the one on PATH
+    beside = Path(sys.executable).with_name("swarmscene")
+    command = str(beside) if beside.exists() else shutil.which("swarmscene")
+    if command is None:
+        sys.exit("bench_swarmlab: no swarmscene command beside this Python or on PATH (pip install -e .); "
+                 "--no-whole leaves the whole run out")
+    base = [command, "scenario=flocking", f"swarm.n={n}", "output.progress=off"]
     with tempfile.TemporaryDirectory() as tmp:
         def timed(extra: list[str], name: str) -> tuple[float, float]:
             usage = resource.getrusage(resource.RUSAGE_CHILDREN)
