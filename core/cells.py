@@ -38,6 +38,13 @@ import math
 import numba
 import numpy as np
 
+CELLS_MAX = 2.0**40
+"""The most cells along one axis a grid is asked about: counts are clamped to it before they become
+integers (a point at 1e300 m would overflow the conversion); a grid that large is never laid."""
+SPAN_MAX = 1e308
+"""The largest extent along an axis counted (two finite coordinates may lie further apart than
+the largest double: their difference is then infinite)."""
+
 
 @numba.njit(cache=True)
 def _extent(points: np.ndarray, k: int):
@@ -47,6 +54,16 @@ def _extent(points: np.ndarray, k: int):
         lo = min(lo, points[i, k])
         hi = max(hi, points[i, k])
     return lo, hi
+
+
+@numba.njit(cache=True)
+def _finite(points: np.ndarray) -> bool:
+    """Every coordinate finite (a NaN or an infinity has no cell: its index would be garbage)."""
+    for i in range(points.shape[0]):
+        for k in range(points.shape[1]):
+            if not math.isfinite(points[i, k]):
+                return False
+    return True
 
 
 @numba.njit(cache=True, inline="always")  # a call per pair costs more than the sum itself
@@ -149,7 +166,10 @@ def _wide_side(points: np.ndarray, radius: float) -> float:
 
 @numba.njit(cache=True)
 def closest_pair_distance(points: np.ndarray) -> float:
-    """Smallest distance between two of ``points`` (N, D), D <= 3, N >= 2; exact (see module)."""
+    """Smallest distance between two of ``points`` (N, D), D <= 3, N >= 2; exact (see module).
+    Raises ValueError for a coordinate that is not finite (it has no cell)."""
+    if not _finite(points):
+        raise ValueError("closest_pair_distance: every coordinate must be finite")
     side = _cell_side(points)
     if side == 0.0:
         return 0.0  # every point at one place
@@ -178,7 +198,10 @@ def disk_graph_connected(points: np.ndarray, radius: float) -> bool:
     pair found within the radius, skipped when union-find already has them in one component: a
     dense flock costs about one test per pair of neighbouring cells, not one per pair of agents.
     A sparse swarm (cells that narrow would outnumber the agents by far) is tested pair by pair.
+    Raises ValueError for a coordinate that is not finite (it has no cell).
     """
+    if not _finite(points):
+        raise ValueError("disk_graph_connected: every coordinate must be finite")
     n = points.shape[0]
     fine = radius / math.sqrt(3.0) * (1.0 - 1e-9)  # margin: a cell's diagonal stays below radius
     coarse = _wide_side(points, 0.0)  # about 2 N cells
@@ -237,13 +260,17 @@ def torus_disk_graph_connected(points: np.ndarray, radius: float, size: np.ndarr
     in one component. A box too short for distinct neighbour cells along a wrapped axis, or a swarm
     too sparse for such cells, is tested pair by pair (:func:`_torus_connected_by_pairs`). The
     periodic k-d tree listed every pair and a sparse matrix labelled the components.
+
+    Raises ValueError for a coordinate that is not finite (as the k-d tree does): it has no cell.
     """
     n, dim = points.shape
+    if not _finite(points):
+        raise ValueError("torus_disk_graph_connected: every coordinate must be finite")
     fine = radius / math.sqrt(3.0) * (1.0 - 1e-9)  # margin: a cell's diagonal stays below radius
     if n < 2 or fine <= 0.0:
         return n < 2 or _torus_connected_by_pairs(points, radius, size)
     lo, side, shape, reach = _torus_cells(points, size, fine, radius)
-    if shape[0] * shape[1] * shape[2] > 8 * n + 64:  # sparse: most cells empty
+    if float(shape[0]) * float(shape[1]) * float(shape[2]) > _cells_budget(n):  # sparse: most cells empty
         return _torus_connected_by_pairs(points, radius, size)
     for k in range(size.size):
         if shape[k] < 2 * reach[k] + 1:  # the neighbours -reach..reach would repeat cells
@@ -287,6 +314,36 @@ def torus_disk_graph_connected(points: np.ndarray, radius: float, size: np.ndarr
 
 
 @numba.njit(cache=True)
+def _cells_budget(n: int) -> float:
+    """The most cells a grid over n points may have: beyond, most cells are empty and a counting
+    sort over them costs more than the points."""
+    return 8.0 * n + 64.0
+
+
+@numba.njit(cache=True)
+def _wrapped_cells(length: float, width: float) -> int:
+    """Cells at least ``width`` wide along a wrapped axis ``length`` long (floor), or one where
+    fewer than three would fit (the neighbours -1, 0, +1 would repeat cells)."""
+    cells = min(np.floor(length / width), CELLS_MAX)
+    return int(cells) if cells >= 3 else 1
+
+
+@numba.njit(cache=True)
+def _pair_cells(points: np.ndarray, size: np.ndarray, width: float) -> float:
+    """How many cells :func:`_torus_connected_by_pairs` lays with cells ``width`` wide: the wrapped
+    axes' (:func:`_wrapped_cells`) times the others' over the points' extent."""
+    total = 1.0
+    for k in range(points.shape[1]):
+        if k < size.size:
+            total *= _wrapped_cells(size[k], width)
+        else:
+            lo, hi = _extent(points, k)
+            span = min(hi - lo, SPAN_MAX)  # a difference of two finite coordinates may overflow
+            total *= min(np.floor(span / width), CELLS_MAX) + 1.0
+    return total
+
+
+@numba.njit(cache=True)
 def _neighbour_cell(c: int, cells: int, wraps: bool) -> int:
     """Cell coordinate ``c`` along an axis of ``cells`` cells, wrapped around if the axis wraps;
     -1 outside an axis that does not."""
@@ -306,12 +363,12 @@ def _torus_cells(points: np.ndarray, size: np.ndarray, width: float, radius: flo
     reach = np.zeros(3, np.int64)
     for k in range(points.shape[1]):
         if k < size.size:
-            shape[k] = max(int(math.ceil(size[k] / width)), 1)
+            shape[k] = max(int(math.ceil(min(size[k] / width, CELLS_MAX))), 1)
             side[k] = size[k] / shape[k]
         else:
             lo[k], hi = _extent(points, k)
             side[k] = width
-            shape[k] = int((hi - lo[k]) / width) + 1
+            shape[k] = int(min((hi - lo[k]) / width, CELLS_MAX)) + 1
         reach[k] = int(radius / side[k]) + 1  # cells m apart hold points (m - 1) sides apart at least
     return lo, side, shape, reach
 
@@ -324,7 +381,8 @@ def _torus_grid(points: np.ndarray, lo: np.ndarray, side: np.ndarray, shape: np.
     cell = np.empty(n, np.int64)
     for i in range(n):
         for k in range(points.shape[1]):
-            coord[i, k] = min(int((points[i, k] - lo[k]) / side[k]), shape[k] - 1)  # rounding at the top
+            # clamped before the conversion: the rounding at the top, and a span that overflowed
+            coord[i, k] = int(min((points[i, k] - lo[k]) / side[k], shape[k] - 1))
         cell[i] = (coord[i, 0] * shape[1] + coord[i, 1]) * shape[2] + coord[i, 2]
     start, order = _sorted_by_cell(cell, shape[0] * shape[1] * shape[2])
     return coord, start, order
@@ -343,15 +401,18 @@ def _torus_cells_meet(points, order, start, q, q2, r2, size) -> bool:
 @numba.njit(cache=True)
 def _torus_connected_by_pairs(points: np.ndarray, radius: float, size: np.ndarray) -> bool:
     """:func:`torus_disk_graph_connected` pair by pair, over cells at least ``radius`` wide (one
-    cell along a wrapped axis shorter than three radii), so that every linked pair lies in the same
-    or adjacent cells."""
+    cell along a wrapped axis shorter than three of them), so that every linked pair lies in the
+    same or adjacent cells. The cells are widened, doubling, until there are at most
+    :func:`_cells_budget` of them: a box many radii wide (a 10 km torus at a 1 m range) would
+    otherwise ask for a counting sort over ~10^8 mostly empty cells every tick."""
     n, dim = points.shape
     wrapped = size.size
     width = radius * (1.0 + 1e-9) if radius > 0.0 else 1.0  # margin: a cell never narrower than radius
+    while _pair_cells(points, size, width) > _cells_budget(n):  # ends: at width inf every axis has one cell
+        width *= 2.0
     lo, side, shape, _ = _torus_cells(points, size, width, radius)
     for k in range(wrapped):
-        cells = int(size[k] / width)  # floor: cells at least ``width`` wide
-        shape[k] = cells if cells >= 3 else 1  # fewer: the neighbours -1, 0, +1 would repeat cells
+        shape[k] = _wrapped_cells(size[k], width)
         side[k] = size[k] / shape[k]
     coord, start, order = _torus_grid(points, lo, side, shape)
     parent = np.arange(n)
@@ -468,7 +529,10 @@ def pairs_within(points: np.ndarray, radius: float):
     sum it). One walk over the cells, point by point, into arrays that double when full; each
     point's later neighbours are then put in order (short runs). The arrays are grown to hold a
     point's candidates before its walk: a walk that might replace them inside compiled slower
-    (1.6x as long for 100 agents in one dense flock, 1.2x for the flocking preset's states)."""
+    (1.6x as long for 100 agents in one dense flock, 1.2x for the flocking preset's states).
+    Raises ValueError for a coordinate that is not finite (it has no cell)."""
+    if not _finite(points):
+        raise ValueError("pairs_within: every coordinate must be finite")
     n = points.shape[0]
     side = _wide_side(points, radius)
     if side <= 0.0:

@@ -151,3 +151,51 @@ def test_the_torus_graph_is_connected_when_the_periodic_k_d_tree_says_so():
     for radius in (8.0, 20.0):
         size = np.array([1000.0, 1000.0])
         assert torus_disk_graph_connected(boids, radius, size) == _torus_tree_connected(boids, radius, size)
+
+
+def test_a_box_many_ranges_wide_is_walked_over_few_cells():
+    """Boxes 50 to 10^7 ranges wide (a 10 km torus at a 1 m range): the pair-by-pair walk laid a
+    cell per range along each wrapped axis, 10^8 cells or more to sort every tick (MemoryError at
+    the far end). Its cells now widen until there are at most 8 N + 64, and the answers are still
+    the periodic tree's: chains of agents astride a seam, whole or broken in two, and a chain with
+    one agent far up an open axis."""
+    from swarmscene.core.cells import torus_disk_graph_connected
+
+    rng = np.random.default_rng(17)
+    answers = []
+    for case in range(400):
+        n, dim = int(rng.integers(2, 60)), int(rng.integers(2, 4))
+        wrapped = int(rng.integers(1, dim + 1))
+        radius = float(rng.uniform(0.5, 2.0))
+        size = radius * 10.0 ** rng.uniform(1.7, 7.0, wrapped)
+        points = np.cumsum(rng.normal(0.0, 0.25 * radius, (n, dim)), axis=0)  # steps mostly within range
+        if case % 2:
+            points[n // 2:, 0] += 3.0 * radius  # broken in two (unless another link joins them)
+        if wrapped < dim and case % 7 == 0:
+            points[-1, -1] = 1e12  # far up an open axis
+        points[:, :wrapped] = np.mod(points[:, :wrapped], size)
+        points[:, :wrapped] = np.where(points[:, :wrapped] >= size, 0.0, points[:, :wrapped])
+        want = _torus_tree_connected(points, radius, size)
+        assert torus_disk_graph_connected(points, radius, size) == want, (case, n, dim, size, radius)
+        answers.append(want)
+    assert 0.2 < np.mean(answers) < 0.8  # both answers
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("axis", [0, 2])
+def test_a_coordinate_that_is_not_finite_is_refused(bad, axis):
+    """A NaN or an infinite coordinate has no cell: every compiled entry refuses it, as the k-d tree
+    does, instead of reading and writing outside its arrays (a crash, or a wrong answer)."""
+    from swarmscene.core.cells import disk_graph_connected, torus_disk_graph_connected
+
+    points = np.random.default_rng(3).uniform(0.0, 100.0, (300, 3))
+    points[5, axis] = bad
+    calls = {
+        "closest_pair_distance": lambda: closest_pair_distance(points),
+        "pairs_within": lambda: compiled_pairs(points, 5.0),
+        "disk_graph_connected": lambda: disk_graph_connected(points, 5.0),
+        "torus_disk_graph_connected": lambda: torus_disk_graph_connected(points, 5.0, np.array([100.0, 100.0])),
+    }
+    for name, call in calls.items():
+        with pytest.raises(ValueError, match=f"^{name}: every coordinate must be finite$"):
+            call()
