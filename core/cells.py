@@ -368,7 +368,7 @@ def _torus_cells(points: np.ndarray, size: np.ndarray, width: float, radius: flo
         else:
             lo[k], hi = _extent(points, k)
             side[k] = width
-            shape[k] = int(min((hi - lo[k]) / width, CELLS_MAX)) + 1
+            shape[k] = int(min(min(hi - lo[k], SPAN_MAX) / width, CELLS_MAX)) + 1
         reach[k] = int(radius / side[k]) + 1  # cells m apart hold points (m - 1) sides apart at least
     return lo, side, shape, reach
 

@@ -179,6 +179,11 @@ def test_a_box_many_ranges_wide_is_walked_over_few_cells():
         assert torus_disk_graph_connected(points, radius, size) == want, (case, n, dim, size, radius)
         answers.append(want)
     assert 0.2 < np.mean(answers) < 0.8  # both answers
+    # finite coordinates whose difference overflows: the open axis' extent is infinite
+    apart = np.array([[1.0, 1.0, -1e308], [2.0, 1.0, 1e308], [3.0, 1.0, 0.0]])
+    assert torus_disk_graph_connected(apart, 5.0, np.array([100.0, 100.0])) is False
+    apart[:, 2] = 0.0
+    assert torus_disk_graph_connected(apart, 5.0, np.array([100.0, 100.0])) is True
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
