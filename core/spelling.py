@@ -98,6 +98,32 @@ def canonical_names(config: Any) -> Any:
     return out
 
 
+def current_names(config: Any) -> Any:
+    """:func:`canonical_names` undone: each event's and disturbance model's plugin name keyed
+    ``name`` and the start layout ``swarm.start.layout``, as this version writes them (a frozen
+    suite definition, kept in the canonical form, loaded by today's validation without its
+    deprecation warnings). ``config`` itself is not changed."""
+    if not isinstance(config, dict):
+        return config
+    out = dict(config)
+    swarm = config.get("swarm")
+    if isinstance(swarm, dict) and isinstance(swarm.get("start"), dict) and KIND in swarm["start"]:
+        out["swarm"] = {**swarm, "start": {(LAYOUT if k == KIND else k): v for k, v in swarm["start"].items()}}
+    events = config.get("events")
+    if isinstance(events, list):
+        out["events"] = [_name_keyed(e) for e in events]
+    models = config.get("disturbances")
+    if isinstance(models, dict):
+        out["disturbances"] = {key: _name_keyed(node) for key, node in models.items()}
+    return out
+
+
+def _name_keyed(node: Any) -> Any:
+    if not isinstance(node, dict) or KIND not in node or NAME in node:
+        return node
+    return {(NAME if k == KIND else k): v for k, v in node.items()}
+
+
 def _kind_keyed(node: Any) -> Any:
     if not isinstance(node, dict) or NAME not in node or KIND in node:
         return node

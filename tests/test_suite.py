@@ -105,6 +105,65 @@ def test_a_run_is_scored_against_its_task_and_refused_when_it_changed_it(tmp_pat
     assert score.score_run(tmp_path / "d").reason == "no task section (not a suite run)"
 
 
+def test_a_run_that_changed_an_option_its_task_leaves_to_defaults_is_not_scored(tmp_path):
+    """The frozen definition holds what a task file sets; a scored run must also use every other
+    option as the task gives it, the plugins' and observers' defaults included (a wider arrival
+    tolerance scored the swap at its best, a sparser observer changed the flock's score). The
+    method's own options, the seed and the outputs are free."""
+    common = ["task=dense_swap_ring", "avoidance=orca", "seed=3", "output.summary=false"]
+    api.run([*common, "formation.arrival_tolerance=20"], output_dir=tmp_path / "tol")
+    assert score.score_run(tmp_path / "tol").reason == (
+        "formation.arrival_tolerance: differs from what task 'dense_swap_ring' of v1 uses in this engine "
+        "(its defaults included)")
+    api.run([*common, "observers.swarmlab.every=1000"], output_dir=tmp_path / "every")
+    assert score.score_run(tmp_path / "every").reason.startswith("observers.swarmlab.every: differs")
+    api.run([*common, "avoidance.time_horizon=3.0", "output.trajectory=false"], output_dir=tmp_path / "free")
+    free = score.score_run(tmp_path / "free")
+    assert isinstance(free, score.RunScore) and free.method == "orca"
+
+
+def test_a_job_whose_method_raised_scores_the_worst_on_its_task(tmp_path):
+    """suite_v1.yaml: "a method that cannot fly a task scores 0 there". A failed job (no
+    config.yaml: its task, method and seed composed from its overrides) is scored 0 normalised and
+    not passed, so its task stays in every method's numbers; a failed job that names no task, and
+    a job folder that is a link, are listed unscored with why."""
+    from swarmscene.sweeps import records
+
+    sweep = tmp_path / "sweep"
+    for job, overrides in (("0", ["task=dense_swap_ring", "avoidance=cbf", "seed=4"]), ("1", ["scenario=swap"])):
+        (sweep / job).mkdir(parents=True)
+        records.write_overrides(sweep / job, overrides)
+        records.record_failure(sweep / job, RuntimeError("the method raised"), {"seed": 4})
+    api.run(["task=dense_swap_ring", "avoidance=orca", "seed=3", "output.summary=false"], output_dir=tmp_path / "run")
+    (sweep / "2").symlink_to(tmp_path / "run", target_is_directory=True)
+    scored, unscored = score.score_sweep(sweep)
+    rule = V1["tasks"]["dense_swap_ring"]["definition"]["task"]["score"]
+    assert [(s.task, s.method, s.seed, s.raw, s.normalised, s.passed, s.success) for s in scored] == [
+        ("dense_swap_ring", "cbf", 4, float(rule["worst"]), 0.0, False, False)]
+    assert {Path(u.run).name: u.reason for u in unscored} == {
+        "1": "the job failed; no task section (not a suite run)",
+        "2": "a symbolic link (not read: a job's folder is a directory of the sweep)"}
+
+
+def test_scoring_refuses_a_missing_directory_an_output_link_and_nothing_in_common(tmp_path, capsys):
+    """One line and status 1, nothing written: a mistyped sweep directory (it was scored as 'no
+    method' beside the reference), a ``suite/`` folder planted as a link out of the sweep, and
+    methods that share no task on common seeds (the aggregates were NaN)."""
+    from swarmscene.suite.__main__ import main
+
+    assert main(["score", str(tmp_path / "typo")]) == 1 and not (tmp_path / "typo").exists()
+    assert capsys.readouterr().err == f"swarmscene: {tmp_path / 'typo'}: not a sweep directory\n"
+    sweep = tmp_path / "sweep"
+    api.run(["task=dense_swap_ring", "avoidance=orca", "seed=3", "output.summary=false"], output_dir=sweep / "0")
+    (tmp_path / "elsewhere").mkdir()
+    (sweep / "suite").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    assert main(["score", str(sweep), "--no-reference"]) == 1 and not any((tmp_path / "elsewhere").iterdir())
+    assert "not a directory of the sweep (a link or a file is refused" in capsys.readouterr().err
+    rows = synthetic_rows(("a",), TASKS5[:1], range(3)) + synthetic_rows(("b",), TASKS5[1:2], range(3))
+    with pytest.raises(ValueError, match=r"^no task that every method \(a, b\) ran on the same seeds"):
+        stats.summarize(rows)
+
+
 TASKS5 = tuple(sorted(V1["tasks"])[:5])
 
 

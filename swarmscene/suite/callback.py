@@ -19,7 +19,14 @@ def score_and_write(sweep_dir: Path, version: str, reference: bool, aggregate_re
     from .score import score_sweep
 
     stats.require_rliable()
+    sweep_dir = Path(sweep_dir)
+    if sweep_dir.is_symlink():
+        raise ValueError(f"{sweep_dir}: a symbolic link (give the sweep directory itself)")
+    if not sweep_dir.is_dir():
+        raise ValueError(f"{sweep_dir}: not a sweep directory")
     scored, unscored = score_sweep(sweep_dir)
+    if not scored and not unscored:
+        raise ValueError(f"{sweep_dir}: no run in it to score (is it the sweep's directory?)")
     rows = [s.row() for s in scored if s.version == version]
     mine = sorted({r["method"] for r in rows})
     if reference:
@@ -27,7 +34,9 @@ def score_and_write(sweep_dir: Path, version: str, reference: bool, aggregate_re
     if not rows:
         raise ValueError(f"{sweep_dir}: no run of a {version} task to score ({len(unscored)} unscored)")
     summary = stats.summarize(rows, aggregate_reps=aggregate_reps or stats.AGGREGATE_REPS)
-    out = Path(sweep_dir) / "suite"
+    out = sweep_dir / "suite"
+    if out.is_symlink() or (out.exists() and not out.is_dir()):  # the results land inside the sweep, never elsewhere
+        raise ValueError(f"{out}: not a directory of the sweep (a link or a file is refused: remove it)")
     write_results(out, rows, [u.__dict__ for u in unscored], version, summary)
     shown = sorted({r["method"] for r in rows})
     extra = f" (reference: {', '.join(m for m in shown if m not in mine)})" if set(shown) - set(mine) else ""

@@ -3,10 +3,17 @@
 A run is scored when its directory is complete and its ``config.yaml`` declares a ``task`` of a
 frozen version whose definition it still holds: every value the task's composition sets is the
 value the run used (so ``clock.duration=5`` on the command line, or an edited task file, gives no
-score), its horizon is the task's and its seed one of the task's seeds. Any other run is listed
-with the reason it was not scored, never silently dropped. Both are compared in the canonical form
-of :mod:`.definition`: a run that recorded an event's kind as ``name`` or as ``kind`` (until 0.6.0)
-holds the same definition.
+score), its horizon is the task's and its seed one of the task's seeds. Every other option the run
+used, the plugins' defaults included, must also be what the task gives in this engine
+(:func:`effective_definition`), so ``formation.match=1.0`` or ``observers.swarmlab.every=1000``
+on the command line gives no score either; only the method (``avoidance``), the seed and
+``output`` (what is written, not what is flown; ``output.objective`` is in the definition) may
+differ. A job whose method raised (status ``failed``) scores the worst value, 0 normalised, on its
+task, as ``suite_v1.yaml`` promises ("a method that cannot fly a task scores 0 there"): its task,
+method and seed are composed from its overrides. Any other run is listed with the reason it was
+not scored, never silently dropped; a job folder that is a symbolic link is not read. Both are
+compared in the canonical form of :mod:`.definition`: a run that recorded an event's kind as
+``name`` or as ``kind`` (until 0.6.0) holds the same definition.
 
 Score of a run (:class:`~swarmscene.core.task.ScoreConfig`): ``raw`` is ``metrics[score.metric]``
 (a metric the run left undefined, e.g. ``hex.formed_at`` of a lattice never formed, is the worst
@@ -17,14 +24,23 @@ and the run is not a success; ``passed`` when raw meets ``pass_threshold`` in th
 
 from __future__ import annotations
 
+import json
 import math
+import warnings
 from dataclasses import asdict, dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any
 
+from ..core.errors import ConfigError
+from ..core.spelling import current_names
 from ..runs.rundir import RunDir, RunFileError, finite_or_none
 from ..sweeps.records import job_dirs
-from .definition import SUITE, VERSIONS, canonical, frozen
+from .definition import METHOD_FREE, SUITE, VERSIONS, canonical, frozen
+
+FREE_SECTIONS = (*METHOD_FREE, "output")
+"""What a scored run may set otherwise than its task: the method, the seed, and what is written
+(``output.objective``, part of every definition, is checked there)."""
 
 
 @dataclass(frozen=True)
@@ -102,17 +118,72 @@ def holds_definition(config: dict[str, Any], defined: dict[str, Any]) -> str | N
 _MISSING = object()
 
 
+def first_difference(want: Any, have: Any, key: str = "") -> str | None:
+    """The first dotted key where two plain-data trees differ (a key either lacks included), or None."""
+    if isinstance(want, dict) and isinstance(have, dict):
+        for k in sorted(set(want) | set(have), key=str):
+            found = first_difference(want.get(k, _MISSING), have.get(k, _MISSING), f"{key}.{k}" if key else str(k))
+            if found is not None:
+                return found
+        return None
+    same = want == have and isinstance(want, bool) == isinstance(have, bool)  # True == 1 in Python
+    return None if same else key or "(the whole configuration)"
+
+
+@cache
+def _effective_text(version: str, task_id: str) -> str:
+    """JSON of :func:`effective_definition` (cached: a sweep scores each task's runs against it)."""
+    from ..runs.build import load
+
+    data = {**current_names(frozen(version)["tasks"][task_id]["definition"]), "avoidance": {"name": "none"}, "seed": 0}
+    with warnings.catch_warnings():  # what validation warns about here is the task's, not the run's
+        warnings.simplefilter("ignore")
+        effective = canonical(load(data).data)
+    return json.dumps({k: v for k, v in effective.items() if k not in FREE_SECTIONS})
+
+
+def effective_definition(version: str, task_id: str) -> dict[str, Any]:
+    """Every option a run of the task uses in this engine, the plugins' defaults included, in the
+    canonical form, without :data:`FREE_SECTIONS`: the task's frozen definition validated as a run
+    of it is (with the ``none`` method)."""
+    return json.loads(_effective_text(version, task_id))
+
+
 def score_run(run_dir: Path) -> RunScore | Unscored:
     """Score one run directory against its task's frozen definition (see the module docstring)."""
+    if Path(run_dir).is_symlink():  # planted where a job's folder goes: never read
+        return Unscored(str(run_dir), "a symbolic link (not read: a job's folder is a directory of the sweep)")
     try:
         run = RunDir(run_dir)
         manifest = run.manifest()
+        if manifest.get("status") == "failed":
+            return _score_failed(run, Path(run_dir))
         config = run.config()
         metrics = run.metrics()
     except RunFileError as exc:
         return Unscored(str(run_dir), str(exc))
-    if not manifest.get("complete") or manifest.get("status") == "failed":
+    if not manifest.get("complete"):
         return Unscored(str(run_dir), "the run did not complete")
+    task = _task_held(config, Path(run_dir))
+    if isinstance(task, Unscored):
+        return task
+    try:
+        effective = effective_definition(task["version"], task["id"])
+    except ConfigError as exc:
+        return Unscored(str(run_dir), f"task {task['id']!r} of {task['version']} does not build in this engine ({exc})")
+    differs = first_difference(effective, {k: v for k, v in canonical(config).items() if k not in FREE_SECTIONS})
+    if differs is not None:
+        return Unscored(str(run_dir), f"{differs}: differs from what task {task['id']!r} of {task['version']} "
+                                      "uses in this engine (its defaults included)")
+    score = task["score"]
+    success = bool(metrics.get("success"))
+    raw, normalised, passed = normalised_score(finite_or_none(metrics.get(score["metric"])), score, success)
+    return _scored(config, task, raw, normalised, passed, success, Path(run_dir))
+
+
+def _task_held(config: dict[str, Any], run_dir: Path) -> dict[str, Any] | Unscored:
+    """The run's ``task`` section when it is a task of a frozen version whose definition the run
+    holds, with one of its seeds; else why not."""
     task = config.get("task")
     if not isinstance(task, dict):
         return Unscored(str(run_dir), "no task section (not a suite run)")
@@ -123,14 +194,32 @@ def score_run(run_dir: Path) -> RunScore | Unscored:
     if differs is not None:
         return Unscored(str(run_dir), f"{differs}: differs from task {task_id!r} of {version}")
     seed = config.get("seed")
-    if not isinstance(seed, int) or seed not in task["seeds"]:
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed not in task["seeds"]:
         return Unscored(str(run_dir), f"seed {seed} is not one of task {task_id!r}'s seeds")
-    score = task["score"]
-    success = bool(metrics.get("success"))
-    raw, normalised, passed = normalised_score(finite_or_none(metrics.get(score["metric"])), score, success)
+    return task
+
+
+def _scored(config: dict[str, Any], task: dict[str, Any], raw: float, normalised: float, passed: bool,
+            success: bool, run_dir: Path) -> RunScore:
     method = (config.get("avoidance") or {}).get("name", "?")
-    return RunScore(SUITE, str(version), str(task_id), task["family"], method, seed, raw, normalised, passed,
-                    success, Path(run_dir).name)
+    return RunScore(SUITE, str(task["version"]), str(task["id"]), task["family"], method, int(config["seed"]), raw,
+                    normalised, passed, success, run_dir.name)
+
+
+def _score_failed(run: RunDir, run_dir: Path) -> RunScore | Unscored:
+    """A job whose method raised: the worst score on its task (composed from the job's overrides,
+    since such a job wrote no ``config.yaml``), or why it cannot be placed."""
+    from ..composition.compose import compose
+
+    try:
+        config = compose(run.overrides())
+    except (RunFileError, ConfigError) as exc:
+        return Unscored(str(run_dir), f"the job failed, and its task cannot be told from its overrides ({exc})")
+    task = _task_held(config, run_dir)
+    if isinstance(task, Unscored):
+        return Unscored(str(run_dir), f"the job failed; {task.reason}")
+    raw, normalised, passed = normalised_score(None, task["score"], False)
+    return _scored(config, task, raw, normalised, passed, False, run_dir)
 
 
 def score_sweep(sweep_dir: Path) -> tuple[list[RunScore], list[Unscored]]:

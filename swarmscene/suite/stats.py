@@ -56,10 +56,15 @@ def score_matrices(rows: Sequence[dict[str, Any]], key: str = "normalised"
     is compared with the reference on those.
     """
     methods = sorted({r["method"] for r in rows})
+    if not methods:
+        raise ValueError("no scored run to compare")
     cells = {(r["method"], r["task"], r["seed"]): float(r[key]) for r in rows}
     seeds = sorted(set.intersection(*({r["seed"] for r in rows if r["method"] == m} for m in methods)))
     tasks = sorted({r["task"] for r in rows})
     tasks = [t for t in tasks if all((m, t, s) in cells for m in methods for s in seeds)]
+    if not seeds or not tasks:  # nothing in common: an aggregate over it would be NaN
+        raise ValueError(f"no task that every method ({', '.join(methods)}) ran on the same seeds: "
+                         "nothing to compare (score the methods' sweeps apart, or run the missing tasks)")
     matrices = {m: np.array([[cells[(m, t, s)] for t in tasks] for s in seeds], dtype=float) for m in methods}
     return matrices, tasks, seeds
 
