@@ -66,6 +66,9 @@ from swarmscene.methods.cem.numerics import JIT
 
 UNIT_ROUNDOFF = 2.0**-53
 """u, the unit round-off of IEEE double precision."""
+SUBNORMAL_SLACK = 4.0 * 2.0**-1074
+"""Added to :func:`square_bound`: four units of the subnormal spacing, the rounding of a square
+that underflows."""
 CERT_RTOL = 1e-12
 """The certified bound on |lambda_2 - theta|, relative to ||L||_inf = 2 max degree (4e-11 on
 lambda_2 for degrees up to twenty, 4e-13 on lambda_2 / N at N = 100: far below the tests' 1e-9)."""
@@ -145,8 +148,10 @@ def squares_from(coords, j, row):
 def square_bound(d):
     """A sum of squares above which the root is surely above d: d^2 with a few units of round-off
     to spare (fl(sqrt(s)) > d for every s > this, sqrt being correctly rounded and monotone), so a
-    test on the sums drops only what the test on the roots would."""
-    return d * d * (1.0 + 16.0 * UNIT_ROUNDOFF)
+    test on the sums drops only what the test on the roots would. A few of the smallest subnormals
+    are added for a d whose square underflows (a collision radius under ~1e-154 m: the bound was
+    0, and a pair at distance 0 went uncounted); above, they vanish in the rounding."""
+    return d * d * (1.0 + 16.0 * UNIT_ROUNDOFF) + SUBNORMAL_SLACK
 
 
 @njit(**JIT)

@@ -262,3 +262,13 @@ def test_a_warm_start_sampled_again_is_swarm_metrics_bit_for_bit():
         np.testing.assert_array_equal(direct.nbr, through.nbr)
         np.testing.assert_array_equal(direct.x, through.x)
         assert direct.sigma == through.sigma
+
+
+@pytest.mark.parametrize("r_coll", [1e-150, 1e-163, 1e-300])
+def test_a_collision_radius_whose_square_underflows_still_counts_coincident_agents(r_coll):
+    """Two agents at one place collide for any r_coll > 0 (0 < 2 r_coll). The compiled
+    pre-selection bound, 4 r_coll^2, underflowed to 0 below about 1e-154 m and the pair went
+    uncounted (safety 1 instead of the definition's 2/3)."""
+    pos = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [5.0, 2.0, 3.0]])
+    got = assert_equal_to_definition(pos, np.ones((3, 3)), 150.0, 10, r_coll)
+    assert got.safety == pytest.approx(2.0 / 3.0, abs=1e-15)
