@@ -158,6 +158,22 @@ def generated_block(results: dict[str, Any], record: dict[str, Any], pictures: s
     return "\n".join(lines)
 
 
+def _checked_results(data: Any, path: Any) -> dict[str, Any]:
+    """``results.json`` as :func:`write_page` reads it: a mapping whose version is a frozen one and
+    whose methods and tasks are lists of names (the rest is checked as the page is rendered)."""
+    from .definition import VERSIONS
+
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: not a suite results file (a mapping expected)")
+    if data.get("version") not in VERSIONS:
+        raise ValueError(f"{path}: version {data.get('version')!r} is not a frozen suite version "
+                         f"({', '.join(VERSIONS)})")
+    for key in ("methods", "tasks"):
+        if not isinstance(data.get(key), list) or not all(isinstance(v, str) for v in data[key]):
+            raise ValueError(f"{path}: {key!r} is not a list of names")
+    return data
+
+
 def write_page(sweep_dir: Any, docs: Any, reference: bool) -> list[str]:
     """docs/suite.md's generated block, its pictures, and (``reference``) the package's reference
     scores, from ``sweep_dir/suite/``; the paths written."""
@@ -169,20 +185,30 @@ def write_page(sweep_dir: Any, docs: Any, reference: bool) -> list[str]:
     from .definition import frozen
 
     sweep_dir, docs = Path(sweep_dir), Path(docs)
-    results = dict(read_json(sweep_dir / "suite" / "results.json"))  # through the checked reader
+    source = sweep_dir / "suite" / "results.json"
+    results = _checked_results(read_json(source), source)  # through the checked reader
     record = frozen(results["version"])
+    # the page first: a wrong --docs is told before the pictures are flown and drawn
+    if not docs.is_file():
+        raise ValueError(f"{docs}: no such page (run from the repository's root, or give --docs)")
+    text = docs.read_text()
+    start, stop = text.find(BEGIN), text.find(END)
+    if start < 0 or stop < start:
+        raise ValueError(f"{docs}: no generated block to replace (the lines {BEGIN!r} ... {END!r})")
+    try:
+        block = generated_block(results, record, (docs.parent / docs.stem).name)
+        profile = profile_png(results)
+    except (KeyError, TypeError, IndexError, ValueError) as exc:
+        raise ValueError(f"{source}: not a complete suite results file ({type(exc).__name__}: {exc})") from None
     pictures = docs.parent / docs.stem
     pictures.mkdir(parents=True, exist_ok=True)
     written = []
-    atomic_write_bytes(pictures / "profile.png", profile_png(results))
+    atomic_write_bytes(pictures / "profile.png", profile)
     written.append(str(pictures / "profile.png"))
     for task_id in results["tasks"]:
         atomic_write_bytes(pictures / f"{task_id}.png", task_png(task_id))
         written.append(str(pictures / f"{task_id}.png"))
-    text = docs.read_text()
-    start, stop = text.index(BEGIN), text.index(END) + len(END)
-    block = generated_block(results, record, pictures.name)
-    atomic_write_bytes(docs, (text[:start] + block + text[stop:]).encode())
+    atomic_write_bytes(docs, (text[:start] + block + text[stop + len(END):]).encode())
     written.append(str(docs))
     if reference:
         here = Path(__file__).parent
