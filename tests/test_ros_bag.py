@@ -281,6 +281,26 @@ def test_a_link_planted_at_the_bag_is_replaced_never_followed(tmp_path):
     assert [p.name for p in elsewhere.iterdir()] == ["keep.txt"]
 
 
+def test_a_directory_written_again_keeps_no_bag_of_an_earlier_run(tmp_path):
+    """A run without output.mcap, written into the directory of one with it, removes that run's
+    bag: the new manifest listed it, and a replay of RUN_DIR/bag flew the earlier run."""
+    run_dir = tmp_path / "run"
+    api.run(["clock.duration=0.3", "output.mcap=true", "output.summary=false"], output_dir=run_dir)
+    assert "bag" in RunDir(run_dir).manifest()["files"]
+    api.run(["clock.duration=0.5", "output.summary=false"], output_dir=run_dir)
+    assert not (run_dir / "bag").exists() and "bag" not in RunDir(run_dir).manifest()["files"]
+
+
+def test_more_vehicles_than_a_bag_has_channels_is_one_line():
+    """MCAP's channel ids are 16-bit, an odometry topic per vehicle: past the limit the writer says
+    so instead of struct's 'ushort format requires 0 <= number <= 65535'."""
+    import io
+
+    with pytest.raises(ValueError, match=rf"^output.mcap: a bag holds at most {mcap_bag.MAX_VEHICLES} vehicles "):
+        mcap_bag.BagWriter(io.BytesIO(), {}, mcap_bag.MAX_VEHICLES + 1)
+    assert mcap_bag.MAX_VEHICLES + len(mcap_bag.TOPICS) - 1 == 0xFFFF
+
+
 def test_the_bag_is_streamed_to_a_private_spill_directory_and_moved_in(tmp_path):
     spill = tmp_path / "spill"
     sim = api.build(["clock.duration=0.3", "output.mcap=true", "output.summary=false",

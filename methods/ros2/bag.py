@@ -12,12 +12,17 @@ Two sources, as labs record them:
 The messages are decoded with mcap-ros2-support from the schemas the file carries (the ``ros``
 extra). A recording is a file someone hands the engine: anything wrong with it (missing, a
 directory that is not a rosbag2 folder, storage other than MCAP, a truncated or damaged file, a
-chunk larger than :data:`MAX_CHUNK_BYTES`, a message its schema does not decode) is a
-:class:`BagError`, one line naming the file.
+chunk larger than :data:`MAX_CHUNK_BYTES`, a message its schema does not decode or whose fields
+are not its type's, a position that is not finite, stamps spread wider than any run) is a
+:class:`BagError`, one line naming the file. The records are read in file order, as a scan has
+checked them: every chunk's size, as its own record declares it and, for lz4 (whose decoder
+trusts no declared size), as it decompresses; a summary's index is not followed (a damaged one
+may point anywhere).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -30,6 +35,10 @@ MAX_CHUNK_BYTES = 256 * 1024 * 1024
 """Largest uncompressed chunk read (a hostile file could declare a decompression bomb)."""
 MAX_METADATA_BYTES = 1024 * 1024
 """Largest rosbag2 metadata.yaml read."""
+MAX_SPAN_S = 1e9
+"""Widest spread of a recording's stamps, s: a run is no longer (``core.fields.MAX_DURATION``). A
+wider one is a stamp from another clock (0, or a simulated time among a lab's), whose spline
+would put the reference ~1e9 m away."""
 POSE_FIELDS = {
     "geometry_msgs/msg/PoseStamped": ("pose", "position"),
     "nav_msgs/msg/Odometry": ("pose", "pose", "position"),
@@ -79,22 +88,26 @@ def mcap_files(path: Path | str) -> list[Path]:
     meta = path / "metadata.yaml"
     if not meta.is_file() or meta.is_symlink():
         found = sorted(path.glob("*.mcap"))
-        if len(found) == 1 and not found[0].is_symlink():
+        if len(found) == 1 and found[0].is_file() and not found[0].is_symlink():  # not a pipe: it would block
             return found  # a folder holding one .mcap (a bag copied without its metadata)
-        raise BagError(path, "not a rosbag2 folder (no metadata.yaml)")
+        raise BagError(path, "not a rosbag2 folder (no metadata.yaml, and not one plain .mcap file in it)")
     info = _metadata(meta)
     storage = info.get("storage_identifier")
     if storage != "mcap":
         raise BagError(meta, f"storage_identifier is {storage!r}: only MCAP storage is read "
                              "(convert with `ros2 bag convert` or rosbags-convert)")
     files = []
-    for name in info.get("relative_file_paths") or []:
+    listed = info.get("relative_file_paths") or []
+    if not isinstance(listed, list):
+        raise BagError(meta, f"relative_file_paths is {type(listed).__name__}, not a list of file names")
+    for name in listed:
         rel = Path(str(name))
         if rel.is_absolute() or ".." in rel.parts:
             raise BagError(meta, f"relative_file_paths names {str(name)!r}, outside the folder")
         file = path / rel
-        if file.is_symlink() or not file.is_file():
-            raise BagError(file, "listed in metadata.yaml but not a plain file")
+        # every part, not only the file: a linked subfolder would lead outside the folder
+        if any((path / Path(*rel.parts[:k])).is_symlink() for k in range(1, len(rel.parts) + 1)) or not file.is_file():
+            raise BagError(file, "listed in metadata.yaml but not a plain file inside the folder")
         files.append(file)
     if not files:
         raise BagError(meta, "lists no files (relative_file_paths)")
@@ -117,19 +130,38 @@ def _metadata(meta: Path) -> dict[str, Any]:
 
 
 def _decoded(file: Path, topics: list[str]) -> Iterator[tuple[str, str, Any]]:
-    """(channel topic, schema name, decoded message) of ``topics`` in ``file``, in file order."""
-    from mcap.reader import make_reader
+    """(channel topic, schema name, decoded message) of ``topics`` in ``file``, in file order:
+    the records :func:`_check_chunks` scanned, read again one after another (not through the
+    summary's index; a long recording is not held in memory)."""
+    from mcap.reader import NonSeekingReader
     from mcap_ros2.decoder import DecoderFactory
 
     with open(file, "rb") as fh:
-        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
-        summary = reader.get_summary()
-        if summary is not None:
-            big = [c.uncompressed_size for c in summary.chunk_indexes if c.uncompressed_size > MAX_CHUNK_BYTES]
-            if big:
-                raise BagError(file, f"a chunk of {big[0]} bytes (at most {MAX_CHUNK_BYTES} are read)")
-        for schema, channel, _message, decoded in reader.iter_decoded_messages(topics=topics):
+        _check_chunks(file, fh)
+        fh.seek(0)
+        reader = NonSeekingReader(fh, decoder_factories=[DecoderFactory()], record_size_limit=MAX_CHUNK_BYTES)
+        for schema, channel, _message, decoded in reader.iter_decoded_messages(topics=topics, log_time_order=False):
             yield channel.topic, schema.name if schema is not None else "", decoded
+
+
+def _check_chunks(file: Path, fh: Any) -> None:
+    """Every chunk of the file no larger than :data:`MAX_CHUNK_BYTES` uncompressed: as its record
+    declares (the zstd decoder is held to that size), and an lz4 chunk as it decompresses (its
+    decoder is not), decompressed here at most one byte past what it declares."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    for record in StreamReader(fh, emit_chunks=True, record_size_limit=MAX_CHUNK_BYTES).records:
+        if not isinstance(record, Chunk):
+            continue
+        if record.uncompressed_size > MAX_CHUNK_BYTES:
+            raise BagError(file, f"a chunk of {record.uncompressed_size} bytes (at most {MAX_CHUNK_BYTES} are read)")
+        if record.compression == "lz4":
+            import lz4.frame
+
+            out = lz4.frame.LZ4FrameDecompressor().decompress(record.data, max_length=record.uncompressed_size + 1)
+            if len(out) > record.uncompressed_size:
+                raise BagError(file, f"an lz4 chunk decompresses past the {record.uncompressed_size} bytes it declares")
 
 
 def read_messages(path: Path | str, topics: list[str]) -> Iterator[tuple[str, str, Any]]:
@@ -170,11 +202,14 @@ def tf_tracks(path: Path | str, topic: str, world_frame: str) -> dict[str, Track
     for _topic, schema, msg in read_messages(path, [topic]):
         if schema != TF_TYPE:
             raise BagError(path, f"topic {topic} holds {schema}, not {TF_TYPE}")
-        for tf in msg.transforms:
-            if tf.header.frame_id.lstrip("/") == world:
-                samples.setdefault(tf.child_frame_id.lstrip("/"), []).append(
-                    (_stamp(tf.header), *_position(tf, ("transform", "translation"))))
-    return _tracks(samples)
+        try:
+            for tf in msg.transforms:
+                if tf.header.frame_id.lstrip("/") == world:
+                    samples.setdefault(tf.child_frame_id.lstrip("/"), []).append(
+                        (_stamp(tf.header), *_position(tf, ("transform", "translation"))))
+        except (AttributeError, TypeError, ValueError) as exc:  # a schema of that name with other fields
+            raise _misshapen(path, topic, TF_TYPE, exc) from None
+    return _tracks(path, samples)
 
 
 def pose_tracks(path: Path | str, topics: list[str]) -> dict[str, Track]:
@@ -184,16 +219,33 @@ def pose_tracks(path: Path | str, topics: list[str]) -> dict[str, Track]:
         fields = POSE_FIELDS.get(schema)
         if fields is None:
             raise BagError(path, f"topic {topic} holds {schema}: a pose topic is one of {', '.join(POSE_FIELDS)}")
-        samples[topic].append((_stamp(msg.header), *_position(msg, fields)))
-    return _tracks({name: rows for name, rows in samples.items() if rows})
+        try:
+            samples[topic].append((_stamp(msg.header), *_position(msg, fields)))
+        except (AttributeError, TypeError, ValueError) as exc:  # a schema of that name with other fields
+            raise _misshapen(path, topic, schema, exc) from None
+    return _tracks(path, {name: rows for name, rows in samples.items() if rows})
 
 
-def _tracks(samples: dict[str, list[tuple[int, float, float, float]]]) -> dict[str, Track]:
+def _misshapen(path: Path | str, topic: str, type_name: str, exc: Exception) -> BagError:
+    """A message whose schema has its type's name but other fields (a hand-made recording)."""
+    return BagError(path, f"topic {topic}: a message not shaped as {type_name} ({type(exc).__name__}: {exc})")
+
+
+def _tracks(path: Path | str, samples: dict[str, list[tuple[int, float, float, float]]]) -> dict[str, Track]:
     """Each vehicle's samples in time order, one per stamp (the last written for a repeated stamp),
-    times in s from the earliest stamp of them all (subtracted in integer ns: exact)."""
+    times in s from the earliest stamp of them all (subtracted in integer ns: exact). A position
+    that is not finite, or stamps spread wider than :data:`MAX_SPAN_S`, is a :class:`BagError`."""
     if not samples:
         return {}
     origin = min(min(row[0] for row in rows) for rows in samples.values())
+    last = max(max(row[0] for row in rows) for rows in samples.values())
+    if (last - origin) * 1e-9 > MAX_SPAN_S:
+        raise BagError(path, f"its stamps span {(last - origin) * 1e-9:.4g} s ({origin} to {last} ns), wider than a "
+                             f"run can be ({MAX_SPAN_S:g} s): a stamp from another clock (0?)")
+    for name, rows in samples.items():
+        bad = next((row for row in rows if not all(math.isfinite(v) for v in row[1:])), None)
+        if bad is not None:
+            raise BagError(path, f"{name}: a position that is not finite ({bad[1:]}) at stamp {bad[0]} ns")
     out = {}
     for name, rows in samples.items():
         ns = np.array([row[0] for row in rows], dtype=np.int64) - origin

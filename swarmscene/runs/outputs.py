@@ -350,6 +350,10 @@ CONFIG_HEADER = (
 
 RUN_FILES = ("config.yaml", "trajectory.npz", "metrics.json", "manifest.json")
 """The files :func:`write_run_dir` writes itself (the extras add theirs)."""
+STALE_OUTPUTS = ("bag",)
+"""Outputs a run writes under a fixed name only when asked for (the bag folder of
+``output.mcap``, ``views/mcap_bag.BAG_DIR``): an earlier run's, in a directory written again, is
+removed first, so the manifest never lists another run's bag and an interrupted run leaves none."""
 
 
 def write_run_dir(
@@ -380,6 +384,8 @@ def write_run_dir(
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
         remove_stale_temps(run_dir)
+        for name in STALE_OUTPUTS:
+            _remove_path(run_dir / name)
         before = {p.name for p in run_dir.iterdir()}
         (run_dir / "manifest.json").unlink(missing_ok=True)
         _write_run_files(run_dir, data, metrics, trajectory, complete, seed, extras, started_at)
@@ -432,6 +438,14 @@ def remove_stale_temps(run_dir: Path) -> list[str]:
                 path.unlink(missing_ok=True)
             removed.append(path.name)
     return removed
+
+
+def _remove_path(path: Path) -> None:
+    """Remove a file, a link (as a link, never followed) or a directory tree, if there is one."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
 
 
 def _remove_written(run_dir: Path, before: set[str]) -> None:

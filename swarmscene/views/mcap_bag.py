@@ -83,6 +83,9 @@ TOPICS = {
     "/swarmscene/keep_out": "visualization_msgs/msg/MarkerArray",
     "/rosout": "rcl_interfaces/msg/Log",
 }
+MAX_VEHICLES = 0xFFFF - (len(TOPICS) - 1)
+"""The most vehicles a bag holds: MCAP's channel ids are 16-bit, one odometry topic per vehicle
+beside the other topics."""
 LATCHED = ("/swarmscene/obstacles",)
 """Topics offered transient local (``ros2 bag play`` latches them)."""
 LOG_NAME = "swarmscene"
@@ -167,6 +170,9 @@ class BagWriter:
     def __init__(self, fh: Any, config: dict[str, Any], n: int, slots: bool = False) -> None:
         from .. import __version__
 
+        if n > MAX_VEHICLES:
+            raise ValueError(f"output.mcap: a bag holds at most {MAX_VEHICLES} vehicles (an odometry topic each, "
+                             f"and MCAP's channel ids are 16-bit); this run has {n}")
         self.n = n
         self.config = config
         self.mcap = McapWriter(fh, "ros2", f"swarmscene {__version__}", COMPRESSION)

@@ -218,3 +218,71 @@ def test_a_damaged_or_hostile_recording_is_one_line_naming_the_file(bag, tmp_pat
         assert line[len(f"formation.bag: {named}: "):].startswith(expected[damage])
     else:
         assert "not a readable MCAP recording" in line
+
+
+def _one_chunk(path, compression, declared, data):
+    """An MCAP file of one chunk record declaring ``declared`` bytes uncompressed, holding ``data``,
+    and no summary (the MCAP specification's records: Header, Chunk, Data End, Footer)."""
+    import struct
+
+    def string(text):
+        return struct.pack("<I", len(text)) + text.encode()
+
+    def record(opcode, content):
+        return struct.pack("<BQ", opcode, len(content)) + content
+
+    magic = b"\x89MCAP0\r\n"
+    chunk = struct.pack("<QQQI", 0, 0, declared, 0) + string(compression) + struct.pack("<Q", len(data)) + data
+    path.write_bytes(magic + record(0x01, string("ros2") + string("test")) + record(0x06, chunk)
+                     + record(0x0F, struct.pack("<I", 0)) + record(0x02, struct.pack("<QQI", 0, 0, 0)) + magic)
+    return path
+
+
+def test_a_chunk_larger_than_the_limit_is_refused_before_it_is_decompressed(tmp_path):
+    """A decompression bomb: a chunk declaring more than MAX_CHUNK_BYTES (checked on the chunk's own
+    record: a file without a summary, or whose index understates it, was read whole), and an lz4
+    chunk inflating past what it declares (lz4's decoder trusts no size: ~2 GiB from a 4 MB file)."""
+    import lz4.frame
+
+    from swarmscene.methods.ros2.bag import MAX_CHUNK_BYTES, BagError, tf_tracks
+
+    big = _one_chunk(tmp_path / "big.mcap", "zstd", MAX_CHUNK_BYTES + 1, b"not even zstd")
+    with pytest.raises(BagError, match=rf"^{big}: a chunk of {MAX_CHUNK_BYTES + 1} bytes \(at most "):
+        tf_tracks(big, "/tf", "world")
+    inflating = _one_chunk(tmp_path / "lz4.mcap", "lz4", 1000, lz4.frame.compress(bytes(5000)))
+    with pytest.raises(BagError, match=rf"^{inflating}: an lz4 chunk decompresses past the 1000 bytes it declares$"):
+        tf_tracks(inflating, "/tf", "world")
+
+
+def test_a_folder_whose_mcap_is_a_pipe_or_behind_a_linked_folder_is_refused(bag, tmp_path):
+    """A named pipe called x.mcap in a folder without metadata.yaml blocked the reader forever
+    (deaf to SIGTERM); metadata.yaml naming sub/x.mcap, sub a link, read a file outside the folder."""
+    import os
+
+    from swarmscene.methods.ros2.bag import BagError, mcap_files
+
+    piped = tmp_path / "piped"
+    piped.mkdir()
+    os.mkfifo(piped / "x.mcap")
+    with pytest.raises(BagError, match=r"not a rosbag2 folder \(no metadata.yaml, and not one plain .mcap file in it\)$"):
+        mcap_files(piped)
+    linked = tmp_path / "linked"
+    linked.mkdir()
+    (linked / "sub").symlink_to(bag, target_is_directory=True)
+    name = next(bag.glob("*.mcap")).name
+    (linked / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  storage_identifier: mcap\n"
+                                          f"  relative_file_paths: [sub/{name}]\n")
+    with pytest.raises(BagError, match=r"listed in metadata.yaml but not a plain file inside the folder$"):
+        mcap_files(linked)
+
+
+def test_a_stamp_from_another_clock_and_a_position_that_is_not_finite_are_refused(tmp_path):
+    """One sample stamped 0 among a lab clock's (~1.75e9 s) made a 1.75e9 s window and a reference
+    ~1e9 m away; a NaN position failed in the spline without naming the file."""
+    from swarmscene.methods.ros2.bag import BagError, _tracks
+
+    lab = EPOCH * 1_000_000_000
+    with pytest.raises(BagError, match=r"^rec: its stamps span 1.75e\+09 s \(0 to 1750000000100000000 ns\), wider"):
+        _tracks("rec", {"cf1": [(0, 0.0, 0.0, 1.0), (lab, 0.0, 0.0, 1.0), (lab + 10**8, 0.1, 0.0, 1.0)]})
+    with pytest.raises(BagError, match=r"^rec: cf2: a position that is not finite \(\(nan, 0.0, 1.0\)\) at stamp"):
+        _tracks("rec", {"cf1": [(lab, 0.0, 0.0, 1.0)], "cf2": [(lab, float("nan"), 0.0, 1.0)]})
