@@ -308,7 +308,7 @@ def _compressor(name: str) -> Any:
 
         return zstandard.ZstdCompressor(level=-1).compress  # a fast level: half level 1's time, as small here
     if name == "lz4":
-        import lz4.frame  # type: ignore[import-untyped]  # (no stubs)
+        import lz4.frame
 
         return lz4.frame.compress
     if name == "":
