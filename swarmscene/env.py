@@ -264,8 +264,9 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):
     Args:
         num_envs: B, the number of worlds.
         config, options: as for :class:`SwarmGymEnv` (one scenario for every world).
-        max_episode_steps: truncate each episode after this many steps (Gymnasium's ``TimeLimit``,
-            which ``make_vec`` passes from the id's spec).
+        max_episode_steps: truncate each episode after this many steps as Gymnasium's ``TimeLimit``
+            does (which ``make_vec`` passes from the id's spec): ``truncated`` also where the
+            episode terminated at that step, and no ``metrics`` for an episode it cuts short.
         workers: processes that step the worlds, each a contiguous share of them as one batch
             (:mod:`swarmscene.rl.workers`); the answers are those of ``workers=1``, bit for bit.
             With more than 1, the worlds' simulations (:attr:`drivers`) are not in this process.

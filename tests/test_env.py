@@ -157,6 +157,42 @@ def test_reward_is_progress_minus_the_safety_penalties():
     assert rewards == {"agent_0": -10.0, "agent_1": -10.0}
 
 
+def test_the_complete_bonus_is_paid_once_whether_or_not_completion_ends_the_run(monkeypatch):
+    """reward.complete, "+ complete * [the formation reports its mission complete]": with
+    termination.on_complete=false it was never paid. Now the first tick the formation reports
+    its mission complete pays it, once; the run goes on where completion does not end it."""
+    for on_complete, ends in (("true", True), ("false", False)):
+        env = make_gym_env([*ALONE, f"termination.on_complete={on_complete}"],
+                           {"reward": {"progress": 0.0, "separation": 0.0, "clearance": 0.0, "complete": 100.0}})
+        env.reset(seed=0)
+        formation = env.driver.episode.sim.formation
+        monkeypatch.setattr(formation, "complete", lambda world: False)
+        zero = np.zeros((1, 3), dtype=np.float32)
+        assert env.step(zero)[1] == 0.0
+        monkeypatch.setattr(formation, "complete", lambda world: True)
+        _, reward, terminated, *_ = env.step(zero)
+        assert reward == 100.0 and terminated is ends, on_complete
+        if not ends:
+            assert [env.step(zero)[1] for _ in range(3)] == [0.0, 0.0, 0.0]
+
+
+def test_an_avoidance_option_the_environment_would_drop_and_bad_options_are_one_line():
+    """The environment flies avoidance=policy: an avoidance.<key> override of another avoidance was
+    silently dropped (the command line refuses it). Bad environment options were a pydantic error
+    of several lines; a config given as one string failed as 's: cannot parse override'."""
+    with pytest.raises(ConfigError) as err:
+        make_env([*SHORT, "avoidance.neighbours=8"])
+    assert err.value.lines[0].startswith("avoidance.neighbours: the environment flies avoidance=policy in place of ")
+    assert make_env([*SHORT, "avoidance=policy", "avoidance.neighbours=8"]).driver.layout_size == 19 + 7 * 8
+    with pytest.raises(ConfigError) as err:
+        make_env(SHORT, {"reward": {"efort": 1.0}})
+    assert len(err.value.lines) == 1 and err.value.lines[0].startswith("reward.efort: unknown key")
+    with pytest.raises(ConfigError) as err:
+        make_env("scenario=swap")
+    assert err.value.lines == ["config: a list of overrides or a composed mapping, not the string 'scenario=swap' "
+                               "(write ['scenario=swap'])"]
+
+
 def test_the_clearance_penalty_falls_on_the_agents_near_an_obstacle_only():
     """The default map's pillar (centre (12, 0), radius 1; safety.clearance_limit 0.3 m): an agent
     0.2 m from it pays 10 a tick, one 8 m away nothing; two agents far from it pay nothing, which

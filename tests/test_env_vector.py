@@ -50,6 +50,36 @@ def test_make_vec_defaults_to_the_batch_and_equals_the_sync_vector_env():
     assert [step for step, end in enumerate(ends, 1) if end.all()] == [5, 11]  # 5 ticks, autoreset, 5 ticks
 
 
+LIMITED = "swarmscene-test/collide-limited-v0"
+# random starts 6 m wide with a 1.8 m separation limit: some worlds collide (terminate) by step 7
+swarm_env.register_scenario(LIMITED, ["swarm.start.layout=random", "swarm.start.extent=6", "clock.duration=2",
+                                      "termination.on_collision=true", "safety.separation_limit=1.8"],
+                            max_episode_steps=7)
+
+
+def test_with_max_episode_steps_the_batch_still_equals_the_sync_vector_env():
+    """Gymnasium's TimeLimit truncates at the limit also where the episode terminated at that step,
+    and gives no metrics for an episode it cuts short; the batch truncated only the worlds still
+    going and gave their metrics. Four worlds over nine steps, each step compared."""
+    runs = {}
+    for mode in ("batch", "sync"):
+        envs = gym.make_vec(LIMITED, num_envs=4, **({"vectorization_mode": "sync"} if mode == "sync" else {}))
+        rng = np.random.default_rng(0)
+        envs.reset(seed=3)
+        runs[mode] = [envs.step(rng.uniform(-1, 1, envs.action_space.shape)) for _ in range(9)]
+        envs.close()
+    for step, (a, b) in enumerate(zip(runs["batch"], runs["sync"], strict=True), 1):
+        for x, y in zip(a[:4], b[:4], strict=True):
+            np.testing.assert_array_equal(x, y, err_msg=f"step {step}")
+        assert a[4].keys() == b[4].keys(), step
+        for key in a[4]:
+            if key != "metrics":
+                np.testing.assert_array_equal(a[4][key], b[4][key], err_msg=f"step {step} {key}")
+    _, _, terminated, truncated, infos = runs["batch"][6]
+    assert truncated.all() and terminated.any() and not terminated.all()  # the case: both at the limit
+    assert (infos["_metrics"] == terminated).all()  # the metrics of the episodes that ended themselves only
+
+
 def test_an_ended_world_reports_its_success_and_restarts_at_its_next_step():
     envs = gym.make_vec(SHORT, num_envs=2)
     envs.reset(seed=1)

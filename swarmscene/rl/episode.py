@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..composition.compose import compose
 from ..core.config import Scenario
+from ..core.errors import ConfigError, format_validation_error
 from ..core.setpoint import Mode, is_mode
 from ..runs import build as assembly
 
@@ -41,7 +42,8 @@ class RewardOptions(BaseModel):
     clearance: float = Field(
         10.0, ge=0, description="penalty per tick closer than safety.clearance_limit to an obstacle")
     effort: float = Field(0.0, ge=0, description="penalty per unit squared norm of the normalised action")
-    complete: float = Field(0.0, description="bonus to every agent when the mission completes")
+    complete: float = Field(0.0, description="bonus to every agent at the first tick the formation reports its "
+                                               "mission complete (once, whether or not that ends the run)")
 
 
 class EnvOptions(BaseModel):
@@ -55,10 +57,21 @@ class EnvOptions(BaseModel):
 
 def scenario_for_env(config: Sequence[str] | dict[str, Any]) -> Scenario:
     """Compose and validate ``config`` with its avoidance replaced by the environment-driven
-    ``policy`` plugin (its observation and action options kept when the scenario chose it)."""
+    ``policy`` plugin (its observation and action options kept when the scenario chose it). An
+    ``avoidance.<key>`` override given with another avoidance is a ConfigError: it would be
+    dropped with that avoidance (the command line and ``api`` refuse it as an unknown key)."""
+    if isinstance(config, str):
+        raise ConfigError([f"config: a list of overrides or a composed mapping, not the string {config!r} "
+                           f"(write [{config!r}])"])
     data = dict(config) if isinstance(config, dict) else compose(config)
     data = {k: v for k, v in data.items() if k != "hydra"}
     chosen = data.get("avoidance") or {}
+    if chosen.get("name") != POLICY and not isinstance(config, dict):
+        given = [o.split("=", 1)[0].lstrip("+~") for o in config if o.lstrip("+~").startswith("avoidance.")]
+        if given:
+            raise ConfigError([f"{given[0]}: the environment flies avoidance=policy in place of "
+                               f"{chosen.get('name')!r}, whose options would be dropped: give avoidance=policy "
+                               "with the policy's options"])
     options = {k: v for k, v in chosen.items() if k != "name"} if chosen.get("name") == POLICY else {}
     data["avoidance"] = {**options, "name": POLICY, "policy": None}
     return assembly.load(data, None)
@@ -75,6 +88,7 @@ class Episode:
         self.n = sim.world.n
         self.done = False
         self.stop_reason: str | None = None
+        self.completed_at: int | None = None  # the tick the formation first reported its mission complete
         sim.hook.swarmscene_run_start(sim=sim)
 
     def observe(self) -> np.ndarray:
@@ -100,12 +114,20 @@ class Episode:
         return (reward, *self.ends())
 
     def completed(self) -> bool:
-        """Whether the formation is complete where that ends the run (then the run is asked to stop)."""
+        """Whether the formation completed its mission at this tick: the first tick it reports so
+        (the ``complete`` bonus is paid once, whether or not that ends the run); where
+        ``termination.on_complete`` ends the run, the run is asked to stop. The formation is asked
+        only where one of the two needs it."""
         sim = self.sim
-        complete = bool(sim.config.termination.on_complete and sim.formation.complete(sim.world) is True)
-        if complete:
+        on_complete = sim.config.termination.on_complete
+        if self.completed_at is not None or not (on_complete or self.options.reward.complete):
+            return False
+        if sim.formation.complete(sim.world) is not True:
+            return False
+        self.completed_at = sim.step_count
+        if on_complete:
             sim.request_stop("complete")
-        return complete
+        return True
 
     def reward_terms(self) -> _RewardTerms:
         """What the rewards read of the tick (:func:`_rewards`)."""
@@ -202,7 +224,7 @@ class Driver:
     """What both environments share: the validated scenario, its seeds, the current episode."""
 
     def __init__(self, config: Sequence[str] | dict[str, Any], options: EnvOptions | dict | None) -> None:
-        self.options = options if isinstance(options, EnvOptions) else EnvOptions.model_validate(options or {})
+        self.options = options if isinstance(options, EnvOptions) else _env_options(options)
         scenario = scenario_for_env(config)
         if not self.options.record_trajectory:
             scenario = _with(scenario, output={**scenario.data.get("output", {}), "trajectory": False})
@@ -231,6 +253,16 @@ class Driver:
             seed = int(self.seeds.integers(2**31 - 1))
         self.episode = Episode(_with(self.scenario, seed=int(seed)), self.options)
         return self.episode
+
+
+def _env_options(options: dict | None) -> EnvOptions:
+    """``options`` validated, each problem one line (``reward.efort: unknown key ...``)."""
+    from pydantic import ValidationError
+
+    try:
+        return EnvOptions.model_validate(options or {})
+    except ValidationError as exc:
+        raise ConfigError(format_validation_error(exc, EnvOptions, options or {})) from None
 
 
 def _with(scenario: Scenario, **changes: Any) -> Scenario:

@@ -63,10 +63,11 @@ class Worlds:
         return restarted
 
     def tick(self, episodes: list[Episode], going: list[int], actions: np.ndarray,
-             active: np.ndarray) -> dict[int, tuple[np.ndarray, bool, bool]]:
+             active: np.ndarray) -> dict[int, tuple[np.ndarray, bool, bool, bool]]:
         """One guidance tick of the ``going`` worlds, their physics as one batch: world b acts
         ``actions[b]`` (N, 3) with its agents ``active[b]`` (N,); by world, the agents' rewards
-        (N,), whether the episode terminated, whether it was truncated (``max_episode_steps``)."""
+        (N,), whether the episode terminated, whether it was truncated (its duration), and whether
+        it reached ``max_episode_steps`` at this step (each environment reads that as its own)."""
         if not going:  # every world restarted at this step
             return {}
         before = np.stack([episodes[b].act(actions[b], active[b]) for b in going])
@@ -76,9 +77,8 @@ class Worlds:
         for b, (reward, terminated, truncated) in zip(
                 going, judge_batch([episodes[b] for b in going], actions[going], before), strict=True):
             self.steps[b] += 1
-            if self.max_episode_steps is not None and self.steps[b] >= self.max_episode_steps:
-                truncated = not terminated
-            judged[b] = (reward, terminated, truncated)
+            at_limit = self.max_episode_steps is not None and self.steps[b] >= self.max_episode_steps
+            judged[b] = (reward, terminated, truncated, at_limit)
         return judged
 
     def _world_batch(self, sims: list[Any]) -> Any:
@@ -154,8 +154,12 @@ class CentralWorlds(_Stepper):
         ended = []
         worlds.restart_ended(episodes)
         going = np.flatnonzero(~worlds.ended).tolist()
-        for b, (reward, term, trunc) in worlds.tick(episodes, going, actions, self._every).items():
+        for b, (reward, term, trunc, at_limit) in worlds.tick(episodes, going, actions, self._every).items():
+            # the episode's own ends give its metrics; the limit truncates as Gymnasium's TimeLimit
+            # does around the single environment (also where the episode terminated at that step,
+            # and without the metrics, which that environment does not know it should give)
             rewards[b], terminated[b], truncated[b], info = swarm_outcome(episodes[b], reward, term, trunc)
+            truncated[b] |= at_limit
             if info:
                 ended.append((b, info))
         worlds.ended = terminated | truncated
@@ -193,7 +197,9 @@ class AgentWorlds(_Stepper):
         truncated = np.zeros((b_worlds, n), dtype=bool)
         ended = []
         flown = np.where(acted[..., None], actions, 0.0)  # the parallel env's action rows: 0 where none
-        judged = worlds.tick(episodes, np.flatnonzero(going).tolist(), flown, acted)
+        judged = {b: (reward, term, trunc or (at_limit and not term))  # the limit: a truncation of a going episode
+                  for b, (reward, term, trunc, at_limit) in worlds.tick(
+                      episodes, np.flatnonzero(going).tolist(), flown, acted).items()}
         observations = _observations(episodes)  # before run_end, as the parallel env observes
         if judged:  # the ticked worlds' rows at once (elementwise: each world's own bits)
             ticked = np.fromiter(judged, dtype=int, count=len(judged))
