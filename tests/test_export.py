@@ -474,3 +474,37 @@ def test_a_bad_segment_option_is_one_line_naming_it(short_show, tmp_path, capsys
     code, err = _main(str(short_show), "--crazyflie", str(tmp_path / "cf"), *argv, capsys=capsys)
     assert code == 2 and err == [f"python -m swarmscene.views.export: {line}"]
     assert not (tmp_path / "cf").exists()
+
+
+def test_a_flown_fit_keeps_its_pieces_determined_and_is_checked_between_samples():
+    """A path with corners sampled at 10 Hz: the worst piece was halved with no lower bound, down
+    to pieces shorter than the sample spacing, whose least squares held inf coefficients or swung
+    hundreds of metres between two samples while the error at the samples read millimetres. Now
+    every piece holds at least MIN_PIECE_SAMPLES samples, the coefficients are finite, and the
+    reported error covers the points midway between samples (against the samples' cubic)."""
+    from scipy.interpolate import CubicSpline
+
+    from swarmscene.views.export import MIN_PIECE_SAMPLES, fit_poly4d
+
+    t = np.arange(0.0, 6.0 + 1e-9, 0.1)
+    corner = np.abs((t % 2.0) - 1.0)  # a zigzag: corners every second, beyond any polynomial's reach
+    samples = np.column_stack([t, corner, 1.0 + 0.5 * corner, np.zeros_like(t)])
+    fit = fit_poly4d(t, samples)
+    poly = fit.poly
+    assert np.isfinite(poly.coeffs).all()
+    breaks = poly.t0 + np.concatenate([[0.0], np.cumsum(poly.durations)])
+    held = np.diff(np.searchsorted(t, breaks, side="left"))
+    assert held.min() >= MIN_PIECE_SAMPLES - 1  # halves of at least MIN_PIECE_SAMPLES (a break's own sample aside)
+    mid = 0.5 * (t[:-1] + t[1:])
+    between = np.abs(poly.evaluate(mid)[:, :3] - CubicSpline(t, samples)(mid)[:, :3]).max()
+    assert between <= fit.max_position_error + 1e-12 and fit.max_position_error < 0.5
+
+
+def test_a_plan_show_ends_where_the_run_ended():
+    """A VRB run stopped at 71 s by its completed mission (clock 90 s) made a 90 s show, the plan
+    past the stop never flown; a clock of 1e6 s asked for 1e8 samples."""
+    from swarmscene.views.export import plan_span
+
+    assert plan_span({"clock": {"duration": 90.0}}, 71.0) == (0.0, 71.0)
+    assert plan_span({"clock": {"duration": 1e6}}, 14.0) == (0.0, 14.0)
+    assert plan_span({"clock": {"duration": 20.0}}, 20.0) == (0.0, 20.0)

@@ -163,6 +163,51 @@ def test_trajectory_arrays_are_checked_by_name_shape_and_dtype(copy):
     assert problem(RunDir(copy).trajectory) == f"{path}: array 't' is not finite and increasing"
 
 
+def test_arrays_of_text_records_or_complex_numbers_and_empty_ones_are_refused(copy, monkeypatch):
+    """Only object arrays were refused: 't' as text failed in every reader with a TypeError, a
+    record dtype with numpy's promotion error, complex positions were cast to real in silence, an
+    empty trajectory failed with an IndexError; a header promising more than the machine's memory
+    (a bomb of zeros: 6 MB on disk, 9.3 GB loaded) was read."""
+    path = copy / "trajectory.npz"
+    cases = [({"t": np.array(["0", "1", "2", "3"])}, "array 't' holds <U1 values, not real numbers"),
+             ({"pos": np.zeros((4, 2, 3), dtype=[("a", "f8")])}, "array 'pos' holds [('a', '<f8')] values, not real numbers"),
+             ({"vel": np.zeros((4, 2, 3), complex)}, "array 'vel' holds complex128 values, not real numbers"),
+             ({"healthy": np.full((4, 2), 0.5)}, "array 'healthy' holds float64 values, not flags")]
+    for change, line in cases:
+        _npz(path, **{**_good(), **change})
+        assert problem(RunDir(copy).trajectory) == f"{path}: {line}"
+    _npz(path, **_good(steps=0))
+    assert problem(RunDir(copy).trajectory) == f"{path}: array 'pos' holds no frame (shape (0, 2, 3))"
+    _npz(path, **_good(n=0))
+    assert problem(RunDir(copy).trajectory) == f"{path}: array 'pos' holds no agent (shape (4, 0, 3))"
+    _npz(path, **_good())
+    monkeypatch.setattr(rundir, "_physical_memory", lambda: 100)  # a machine of 100 bytes
+    assert problem(RunDir(copy).trajectory).startswith(f"{path}: its arrays would take 0.0 GiB in memory, more than")
+
+
+def test_a_run_directory_that_is_a_link_is_refused(run, tmp_path):
+    """The tools that write into a run directory (the replay, the pictures) wrote through a link."""
+    (tmp_path / "link").symlink_to(run, target_is_directory=True)
+    assert problem(lambda: RunDir(tmp_path / "link")) == (
+        f"{tmp_path / 'link'}: is a symbolic link (refused: a run directory is a plain directory)")
+
+
+def test_the_config_values_the_views_read_are_checked(copy):
+    """An event without its time, a seed or a range that is not a number failed deep inside the
+    replay (KeyError, ValueError) instead of one line naming config.yaml."""
+    import yaml
+
+    from swarmscene.views.plots import load_run
+
+    config = yaml.safe_load((copy / "config.yaml").read_text())
+    cases = [("events", [{"name": "fail", "agents": [0]}], "events.0.at should be a number of seconds, holds None"),
+             ("seed", "abc", "seed should be a number, holds 'abc'"),
+             ("comm", {**(config.get("comm") or {}), "range": "far"}, "comm.range should be a number, holds 'far'")]
+    for key, value, line in cases:
+        (copy / "config.yaml").write_text(yaml.safe_dump({**config, key: value}))
+        assert problem(lambda: load_run(copy)) == f"{copy / 'config.yaml'}: {line}"
+
+
 def test_a_pickled_array_is_refused_without_unpickling(copy):
     path = copy / "trajectory.npz"
     arrays = _good()

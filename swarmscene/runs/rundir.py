@@ -189,16 +189,38 @@ def _check_shapes(path: Path, headers: dict[str, tuple[tuple[int, ...], np.dtype
     for name, (_shape, dtype) in headers.items():
         if dtype.hasobject:
             raise RunFileError(path, f"array {name!r} holds Python objects (refused: nothing is unpickled)")
+        # real numbers (flags for healthy): not text, records or complex numbers
+        kinds, word = ("biu", "flags") if name == "healthy" else ("fiu", "real numbers")
+        if name in (*TRAJECTORY_ARRAYS, "quat") and (dtype.kind not in kinds or dtype.fields is not None):
+            raise RunFileError(path, f"array {name!r} holds {dtype} values, not {word}")
+    need = sum(int(np.prod(shape, dtype=float)) * dtype.itemsize for shape, dtype in headers.values())
+    memory = _physical_memory()
+    if memory is not None and need > memory:
+        raise RunFileError(path, f"its arrays would take {need / 2**30:.1f} GiB in memory, more than this machine's "
+                                 f"{memory / 2**30:.1f} GiB (a damaged header, or a bomb of zeros)")
     expected = dict(TRAJECTORY_ARRAYS, quat=3)
     for name, ndim in expected.items():
         if name in headers and len(headers[name][0]) != ndim:
             raise RunFileError(path, f"array {name!r} has shape {headers[name][0]}, expected {ndim} axes")
     steps, agents = headers["pos"][0][0], headers["pos"][0][1]
+    if steps == 0 or agents == 0:  # a run records its start, and flies at least one agent
+        empty = "no frame" if steps == 0 else "no agent"
+        raise RunFileError(path, f"array 'pos' holds {empty} (shape {headers['pos'][0]})")
     wanted = {"t": (steps,), "pos": (steps, agents, 3), "vel": (steps, agents, 3), "healthy": (steps, agents),
               "quat": (steps, agents, 4)}
     for name, shape in wanted.items():
         if name in headers and headers[name][0] != shape:
             raise RunFileError(path, f"array {name!r} has shape {headers[name][0]}, expected {shape}")
+
+
+def _physical_memory() -> int | None:
+    """This machine's memory, bytes (None where the system does not say)."""
+    import os
+
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 def read_trajectory(path: Path | str) -> dict[str, np.ndarray]:
@@ -225,6 +247,8 @@ class RunDir:
 
     def __init__(self, path: Path | str) -> None:
         self.path = Path(path)
+        if self.path.is_symlink():  # the tools that write into a run directory would write through it
+            raise RunFileError(self.path, "is a symbolic link (refused: a run directory is a plain directory)")
         if not self.path.is_dir():
             raise RunFileError(self.path, "not a run directory (missing, or not a directory)")
 

@@ -199,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     if bool(args.plot) != bool(args.against):
         parser.error("--plot and --against go together")
     directory: Path = args.directory
+    if directory.is_symlink():  # its summary files would land wherever the link points
+        parser.error(f"{directory}: a symbolic link (refused: give the directory itself)")
     if not directory.is_dir():
         parser.error(f"{directory}: not a directory")
     rows = tables.write_summary(directory)

@@ -115,6 +115,10 @@ KNOT_MULTIPLICITY = 4
 """Each interior knot's multiplicity: continuity C^(7-4) = C^3 at every join."""
 SAMPLE_RATE = 100.0
 """Hz, samples of the plan fitted and checked."""
+MIN_PIECE_SAMPLES = POLY_DEGREE + 1
+"""A piece is split only where each half keeps this many samples, as many as its polynomial has
+coefficients: shorter pieces leave the least-squares problem undetermined (pieces of 7 ms between
+0.1 s samples held inf, or swung 200 m between two samples)."""
 CSV_HEADER = "Duration," + ",".join(f"{axis}^{k}" for axis in AXES for k in range(POLY_DEGREE + 1))
 
 
@@ -230,7 +234,7 @@ class Fit:
     """A fitted vehicle path and how well it matches its samples."""
 
     poly: Poly4D
-    max_position_error: float  # m, float32 coefficients, at the samples
+    max_position_error: float  # m, float32 coefficients, per axis, at the samples and midway between them
     max_yaw_error: float  # rad
 
 
@@ -239,25 +243,44 @@ def fit_poly4d(t: np.ndarray, samples: np.ndarray, tolerance: float = 0.005, yaw
     """Fit piecewise degree-7 polynomials to ``samples`` (T, 4: x, y, z m, yaw rad) at times ``t``.
 
     Starts from pieces of about 4 s and splits the piece with the largest error (relative to the
-    tolerances) until every sample is within ``tolerance`` m and ``yaw_tolerance`` rad or the
-    vehicle's memory (``max_pieces``) is full; the best fit found is returned either way.
+    tolerances) until every sample, and every point midway between two samples (against the
+    samples' cubic interpolant: a fit may swing between the samples it meets), is within
+    ``tolerance`` m and ``yaw_tolerance`` rad, or the vehicle's memory (``max_pieces``) is full,
+    or no piece holds enough samples to be split (:data:`MIN_PIECE_SAMPLES` each half); the best
+    fit found is returned either way. Coefficients that are not finite are a ValueError.
     """
+    from scipy.interpolate import CubicSpline
+
     t = np.asarray(t, float)
     samples = np.asarray(samples, float)
     scale = np.array([tolerance] * 3 + [yaw_tolerance])
+    mid = 0.5 * (t[:-1] + t[1:])
+    at = np.concatenate([t, mid])
+    want = np.concatenate([samples, CubicSpline(t, samples)(mid)]) if len(t) > 1 else samples
     pieces = int(np.clip(np.ceil((t[-1] - t[0]) / 4.0), 1, max_pieces))
     breaks = np.linspace(t[0], t[-1], pieces + 1)
     while True:
         poly = _to_poly4d(_lsq_spline(t, samples, breaks), breaks).as_float32()
-        err = np.abs(poly.evaluate(t) - samples)
-        worst = np.max(err / scale, axis=1)  # (T,) relative to the tolerances
-        if worst.max() <= 1.0 or poly.pieces >= max_pieces:
+        if not np.isfinite(poly.coeffs).all():
+            raise ValueError(f"a fit of {poly.pieces} pieces to {len(t)} samples has coefficients that are not finite")
+        err = np.abs(poly.evaluate(at) - want)
+        worst = np.max(err / scale, axis=1)  # (T + T - 1,) relative to the tolerances
+        splittable = _splittable(t, breaks)
+        if worst.max() <= 1.0 or poly.pieces >= max_pieces or not splittable.any():
             return Fit(poly, float(err[:, :3].max()), float(err[:, 3].max()))
-        piece = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, poly.pieces - 1)
+        piece = np.clip(np.searchsorted(breaks, at, side="right") - 1, 0, poly.pieces - 1)
         per_piece = np.zeros(poly.pieces)
         np.maximum.at(per_piece, piece, worst)
-        j = int(np.argmax(per_piece))
+        j = int(np.argmax(np.where(splittable, per_piece, -np.inf)))
         breaks = np.insert(breaks, j + 1, 0.5 * (breaks[j] + breaks[j + 1]))
+
+
+def _splittable(t: np.ndarray, breaks: np.ndarray) -> np.ndarray:
+    """Per piece: whether both its halves would hold :data:`MIN_PIECE_SAMPLES` samples."""
+    halves = np.sort(np.concatenate([breaks, 0.5 * (breaks[:-1] + breaks[1:])]))
+    counts = np.diff(np.searchsorted(t, halves, side="left"))
+    counts[-1] += int(np.count_nonzero(t == breaks[-1]))  # the last sample closes the last half
+    return (counts[0::2] >= MIN_PIECE_SAMPLES) & (counts[1::2] >= MIN_PIECE_SAMPLES)
 
 
 # -- sources ------------------------------------------------------------------------------------
@@ -275,9 +298,12 @@ def planned_flat_outputs(config: dict[str, Any], t: np.ndarray) -> np.ndarray | 
     return np.concatenate([fo.p[0], fo.yaw[0][..., None]], axis=-1)
 
 
-def plan_span(config: dict[str, Any]) -> tuple[float, float]:
-    """(start, end) s of the show: from t = 0 to the end of the run's clock."""
-    return 0.0, float((config.get("clock") or {}).get("duration", 0.0))
+def plan_span(config: dict[str, Any], flown_until: float) -> tuple[float, float]:
+    """(start, end) s of the show: from t = 0 to where the run ended, ``flown_until`` (its last
+    recorded time), or its clock's end if that is earlier. A run that stopped early (a mission
+    complete, a stop) flew less than its clock: the show does too (the plan past the stop was
+    never flown, and a huge ``clock.duration`` would ask for that many samples)."""
+    return 0.0, min(float((config.get("clock") or {}).get("duration", 0.0)), float(flown_until))
 
 
 def yaw_from_quat(quat: np.ndarray) -> np.ndarray:
@@ -293,7 +319,7 @@ def show_samples(run_dir: Path, source: str = "auto") -> tuple[np.ndarray, np.nd
 
     run = load_run(run_dir)
     if source in ("auto", "plan"):
-        start, end = plan_span(run.config)
+        start, end = plan_span(run.config, float(run.t[-1]))
         t = np.linspace(start, end, int(round((end - start) * SAMPLE_RATE)) + 1)
         try:
             planned = planned_flat_outputs(run.config, t)
@@ -1040,6 +1066,11 @@ def main(argv: list[str] | None = None) -> None:
                                           separation, ground)
             _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
             show.write(args.crazyflie)
+            for i, fit in enumerate(show.fits):  # the best fit is written; one that misses is said
+                if fit.max_position_error > tolerance:
+                    print(f"{PROG}: warning: cf_{i}'s fit misses the tolerance: {fit.max_position_error * 1000:.1f} mm "
+                          f"> {tolerance * 1000:g} mm (the memory is full, or its samples too sparse to split "
+                          "further)", file=sys.stderr)
     except Unflyable as exc:  # the show itself: a limit exceeded (status 1, not a bad input's 2)
         parser.exit(1, f"{PROG}: {exc}\n")
     except (RunFileError, ValueError) as exc:  # a damaged file, a bad option, a show no scale rescues

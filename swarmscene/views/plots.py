@@ -230,6 +230,21 @@ def _check_sections(path: Path, config: dict[str, Any]) -> None:
     events = config.get("events")
     if events is not None and not (isinstance(events, list) and all(isinstance(e, dict) for e in events)):
         raise RunFileError(path, "'events' should be a list of mappings")
+    for k, event in enumerate(events or []):
+        if not _number(event.get("at")):
+            raise RunFileError(path, f"events.{k}.at should be a number of seconds, holds {event.get('at')!r}")
+    # the scalars the views read: a number where the run wrote one (the run itself validated them)
+    for dotted, value in (("seed", config.get("seed")), ("comm.range", (config.get("comm") or {}).get("range")),
+                          ("clock.duration", (config.get("clock") or {}).get("duration")),
+                          *((f"safety.{key}", (config.get("safety") or {}).get(key))
+                            for key in ("separation_limit", "clearance_limit"))):
+        if value is not None and not _number(value) or (dotted == "seed" and isinstance(value, float)):
+            raise RunFileError(path, f"{dotted} should be a number, holds {value!r}")
+
+
+def _number(value: Any) -> bool:
+    """A real number of YAML's (not a flag, not text)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _hash(config: dict[str, Any]) -> str:
