@@ -253,6 +253,10 @@ def test_a_show_beyond_the_limits_is_refused_with_status_1_and_nothing_written(s
     assert err == [f"python -m swarmscene.views.export: {EXCEEDS_LINE}; refused, nothing written "
                    "(--time-scale auto slows it down; --allow-exceed writes it anyway)"]
     assert not out.exists()
+    csv = tmp_path / "csv"  # with --csv too: the show was refused after the CSVs were written
+    code, err = _main(str(short_show), "--csv", str(csv), "--crazyflie", str(out), "--time-scale", "0.25",
+                      capsys=capsys)
+    assert code == 1 and "nothing written" in err[0] and not csv.exists() and not out.exists()
 
 
 def test_allow_exceed_writes_the_show_with_a_warning(short_show, tmp_path, capsys):
@@ -508,3 +512,12 @@ def test_a_plan_show_ends_where_the_run_ended():
     assert plan_span({"clock": {"duration": 90.0}}, 71.0) == (0.0, 71.0)
     assert plan_span({"clock": {"duration": 1e6}}, 14.0) == (0.0, 14.0)
     assert plan_span({"clock": {"duration": 20.0}}, 20.0) == (0.0, 20.0)
+
+
+def test_a_show_of_fewer_samples_than_a_piece_needs_is_one_line():
+    """A 0.2 s run (3 frames) failed with scipy's 'Need more x points.', naming nothing."""
+    t = np.array([0.0, 0.1, 0.2])
+    samples = np.zeros((3, 2, 4))
+    samples[..., 2] = 1.0
+    with pytest.raises(ValueError, match=r"^samples: 3 samples, fewer than the 8 a degree-7 piece needs"):
+        export.crazyflie_trajectories((t, samples))

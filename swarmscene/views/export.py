@@ -756,6 +756,9 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     ground = 0.0 if source_floor is None else float(source_floor)
     names = {"samples": "samples", "plan": f"{source}: the formation's plan"}
     _refuse_non_finite(names.get(used, Path(str(source)) / "trajectory.npz"), t, samples[..., :3])
+    if len(t) < MIN_PIECE_SAMPLES:  # one piece's coefficients need as many samples
+        raise ValueError(f"{names.get(used, source)}: {len(t)} samples, fewer than the {MIN_PIECE_SAMPLES} a "
+                         f"degree-{POLY_DEGREE} piece needs (a longer run, or a trajectory recorded more often)")
     if fit_box is not None:
         in_air = bool(samples[..., 2].min() > ground + ON_FLOOR)
         # lifted by the fit's tolerance too, so the fitted polynomials keep the clearance
@@ -1056,15 +1059,16 @@ def main(argv: list[str] | None = None) -> None:
                 raise ValueError(f"{args.run_dir}: the run {problem}; refused (--force exports it anyway)")
             print(f"{PROG}: warning: {args.run_dir}: the run {problem}; exported because of --force",
                   file=sys.stderr)
-        if args.csv is not None:
-            print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
-        if args.crazyflie is not None:
+        if args.crazyflie is not None:  # the show first: a refused one leaves nothing written, CSVs included
             clearance, keep_out = _safety_options(args)
             separation, ground = _run_limits(args.run_dir)
             show = crazyflie_trajectories(args.run_dir, None, args.controller, scale, tolerance, args.source,
                                           placement, fit_box, geofence, segments, clearance, keep_out,
                                           separation, ground)
-            _refuse_or_warn(show, args.allow_exceed)  # before anything of the show is written
+            _refuse_or_warn(show, args.allow_exceed)  # before anything is written
+        if args.csv is not None:
+            print(f"{len(trajectory_csv(args.run_dir, args.csv))} agent CSV files in {args.csv}")
+        if args.crazyflie is not None:
             show.write(args.crazyflie)
             for i, fit in enumerate(show.fits):  # the best fit is written; one that misses is said
                 if fit.max_position_error > tolerance:
