@@ -80,22 +80,7 @@ def canonical_names(config: Any) -> Any:
     whichever spelling a file has. An event or a model giving both keys is left as it is (validation
     refuses it); a start giving both keeps ``kind``, which validation reads. ``config`` itself is
     not changed."""
-    if not isinstance(config, dict):
-        return config
-    out = dict(config)
-    swarm = config.get("swarm")
-    if isinstance(swarm, dict) and isinstance(swarm.get("start"), dict):
-        start = swarm["start"]
-        if LAYOUT in start:  # with both, kind wins (an old command line over a new file)
-            keyed = {(KIND if k == LAYOUT else k): v for k, v in start.items() if not (k == LAYOUT and KIND in start)}
-            out["swarm"] = {**swarm, "start": keyed}
-    events = config.get("events")
-    if isinstance(events, list):
-        out["events"] = [_kind_keyed(e) for e in events]
-    models = config.get("disturbances")
-    if isinstance(models, dict):
-        out["disturbances"] = {key: _kind_keyed(node) for key, node in models.items()}
-    return out
+    return _respelt(config, LAYOUT, KIND, NAME)
 
 
 def current_names(config: Any) -> Any:
@@ -103,28 +88,39 @@ def current_names(config: Any) -> Any:
     ``name`` and the start layout ``swarm.start.layout``, as this version writes them (a frozen
     suite definition, kept in the canonical form, loaded by today's validation without its
     deprecation warnings). ``config`` itself is not changed."""
+    return _respelt(config, KIND, LAYOUT, KIND)
+
+
+def _respelt(config: Any, start_from: str, start_to: str, name_from: str) -> Any:
+    """``config`` with the start layout's key ``start_from`` renamed ``start_to`` (a start giving
+    both keeps ``kind``), and each event's and disturbance model's plugin name keyed ``name_from``
+    renamed to the other spelling (a node giving both is left as it is)."""
     if not isinstance(config, dict):
         return config
     out = dict(config)
     swarm = config.get("swarm")
-    if isinstance(swarm, dict) and isinstance(swarm.get("start"), dict) and KIND in swarm["start"]:
-        out["swarm"] = {**swarm, "start": {(LAYOUT if k == KIND else k): v for k, v in swarm["start"].items()}}
+    if isinstance(swarm, dict) and isinstance(swarm.get("start"), dict) and start_from in swarm["start"]:
+        start = swarm["start"]
+        value = start[KIND] if KIND in start else start[start_from]  # with both, kind wins (an old command line)
+        keyed = {}
+        for k, v in start.items():
+            if k == start_from:
+                keyed[start_to] = value
+            elif k != start_to:  # the other spelling, if given too: its value is the one above
+                keyed[k] = v
+        out["swarm"] = {**swarm, "start": keyed}
+    name_to = KIND if name_from == NAME else NAME
     events = config.get("events")
     if isinstance(events, list):
-        out["events"] = [_name_keyed(e) for e in events]
+        out["events"] = [_keyed(e, name_from, name_to) for e in events]
     models = config.get("disturbances")
     if isinstance(models, dict):
-        out["disturbances"] = {key: _name_keyed(node) for key, node in models.items()}
+        out["disturbances"] = {key: _keyed(node, name_from, name_to) for key, node in models.items()}
     return out
 
 
-def _name_keyed(node: Any) -> Any:
-    if not isinstance(node, dict) or KIND not in node or NAME in node:
+def _keyed(node: Any, old: str, new: str) -> Any:
+    """A plugin node with its name under ``new`` instead of ``old`` (as it is when it has both or none)."""
+    if not isinstance(node, dict) or old not in node or new in node:
         return node
-    return {(NAME if k == KIND else k): v for k, v in node.items()}
-
-
-def _kind_keyed(node: Any) -> Any:
-    if not isinstance(node, dict) or NAME not in node or KIND in node:
-        return node
-    return {(KIND if k == NAME else k): v for k, v in node.items()}
+    return {(new if k == old else k): v for k, v in node.items()}
