@@ -521,3 +521,18 @@ def test_a_show_of_fewer_samples_than_a_piece_needs_is_one_line():
     samples[..., 2] = 1.0
     with pytest.raises(ValueError, match=r"^samples: 3 samples, fewer than the 8 a degree-7 piece needs"):
         export.crazyflie_trajectories((t, samples))
+
+
+def test_auto_time_scale_slows_a_flown_show_until_its_fitted_polynomials_hold_the_limits():
+    """--time-scale auto chose its scale from the samples' finite differences; a fit of 10 Hz flown
+    samples turning sharp corners asks for more (22.9 m/s^2 of thrust at that scale), and the
+    refusal then advised the option already given. It now raises the scale until the fitted
+    polynomials hold every limit."""
+    t = np.arange(0.0, 8.0 + 1e-9, 0.1)
+    corner = np.abs((t % 2.0) - 1.0)
+    samples = np.zeros((len(t), 2, 4))
+    samples[:, 0, 0], samples[:, 1, 0], samples[..., 2] = corner, corner + 3.0, 1.0
+    first = export._auto_time_scale(samples, t, export.CRAZYFLIE["mellinger"])
+    assert export.crazyflie_trajectories((t, samples), time_scale=first).exceeded()  # the samples' guess fails
+    show = export.crazyflie_trajectories((t, samples), time_scale="auto")
+    assert show.time_scale > first and not show.exceeded()

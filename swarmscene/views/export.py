@@ -366,12 +366,20 @@ def limit_checks(poly: Poly4D, limits: Limits, t: np.ndarray) -> list[dict[str, 
     return checks
 
 
+AUTO_SCALE_MAX = 5.0
+"""The slowest ``--time-scale auto`` plays a show (five times as long)."""
+AUTO_SCALE_STEP = 1.1
+"""Factor by which ``auto`` raises the scale while the fitted polynomials break a limit."""
+
+
 def _auto_time_scale(samples: np.ndarray, t: np.ndarray, limits: Limits) -> float:
-    """Smallest scale >= 1 (steps of 0.05) at which the sampled plan is within ``limits``."""
+    """Smallest scale >= 1 (steps of 0.05) at which the sampled plan is within ``limits`` (the
+    first guess of ``--time-scale auto``: :func:`crazyflie_trajectories` raises it while the
+    fitted polynomials break a limit)."""
     dt = np.gradient(t)
     vel = np.gradient(samples[..., :3], axis=0) / dt[:, None, None]
     acc = np.gradient(vel, axis=0) / dt[:, None, None]
-    for scale in np.arange(1.0, 5.0001, 0.05):
+    for scale in np.arange(1.0, AUTO_SCALE_MAX + 1e-4, 0.05):
         a = acc / scale**2 + np.array([0.0, 0.0, GRAVITY])
         ok = (np.linalg.norm(a, axis=-1).max() <= limits.max_collective_acc
               and (acc[..., 2] / scale**2).min() >= -GRAVITY)
@@ -773,14 +781,20 @@ def crazyflie_trajectories(source: Path | tuple[np.ndarray, np.ndarray], out_dir
     if placement is not None:  # before the time scale and the fit: the limits are the placed show's
         samples = placement.apply(samples)
     scale = _auto_time_scale(samples, t, limits) if time_scale == "auto" else float(time_scale)
-    ts = t[0] + (t - t[0]) * scale
     room = MAX_PIECES - (segments.pieces if segments is not None else 0)  # the segments' pieces are memory too
-    fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance, max_pieces=room) for i in range(samples.shape[1])]
-    if segments is not None:
-        fits = [Fit(segments.around(fit.poly), fit.max_position_error, fit.max_yaw_error) for fit in fits]
-    start, end = fits[0].poly.t0, fits[0].poly.t0 + fits[0].poly.duration
-    dense = np.linspace(start, end, 4 * int(round((end - start) / (ts[-1] - ts[0]) * len(ts))))
-    checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
+    while True:
+        ts = t[0] + (t - t[0]) * scale
+        fits = [fit_poly4d(ts, samples[:, i], tolerance=tolerance, max_pieces=room) for i in range(samples.shape[1])]
+        if segments is not None:
+            fits = [Fit(segments.around(fit.poly), fit.max_position_error, fit.max_yaw_error) for fit in fits]
+        start, end = fits[0].poly.t0, fits[0].poly.t0 + fits[0].poly.duration
+        dense = np.linspace(start, end, 4 * int(round((end - start) / (ts[-1] - ts[0]) * len(ts))))
+        checks = [limit_checks(fit.poly, limits, dense) for fit in fits]
+        # auto: the scale the samples suggested, raised while the fitted polynomials (what flies,
+        # whose accelerations a fit of sparse flown samples can exceed) break a limit
+        if time_scale != "auto" or all(c["holds"] for cs in checks for c in cs) or scale >= AUTO_SCALE_MAX:
+            break
+        scale = float(round(min(scale * AUTO_SCALE_STEP, AUTO_SCALE_MAX), 2))
     breach = geofence_breach(fits, geofence, dense) if geofence is not None else None
     if segments is not None and segments.floor is not None:
         floor = float(segments.floor)
