@@ -15,7 +15,7 @@ FIELDS = ("mode", "pos", "vel", "acc", "yaw")
 def policies(command: str, seeds: range) -> list:
     """One built policy avoidance per seed (the default scenario from a random start, the
     environment's actions), agent 1 of the first world failed."""
-    config = ["swarm.start.layout=random", f"avoidance.action={command}"]
+    config = ["swarm.start.layout=random", "avoidance=policy", f"avoidance.action={command}"]
     driver = Driver(config, None)
     out = [driver.reset(seed).sim for seed in seeds]
     out[0].world.healthy[1] = False
