@@ -53,6 +53,22 @@ def test_a_second_sweep_into_a_locked_directory_is_refused_in_one_line(tmp_path)
     assert not (sw / records.LOCK_FILE).exists()
 
 
+def test_a_sweep_into_a_single_runs_directory_is_refused_in_one_line(tmp_path):
+    """A run's directory given as hydra.sweep.dir took the sweep's jobs among its files, and its
+    summary then counted the old run alone ('1 jobs, all complete')."""
+    from swarmscene import api
+
+    run_dir = tmp_path / "run"
+    api.run(["clock.duration=0.3", "output.summary=false"], output_dir=run_dir)
+    before = sorted(p.name for p in run_dir.iterdir())
+    proc = swarmscene(*SMALL, f"hydra.sweep.dir={run_dir}", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert lines(proc.stderr) == [
+        f"swarmscene: hydra.sweep.dir: {run_dir} is a run's directory (manifest.json or .hydra/overrides.yaml in "
+        "it), not a sweep's: choose another hydra.sweep.dir"]
+    assert sorted(p.name for p in run_dir.iterdir()) == before  # no job ran there
+
+
 def test_two_sweeps_started_at_once_one_runs_one_is_refused(tmp_path):
     sw = tmp_path / "sw"
     env = dict(os.environ)

@@ -300,6 +300,11 @@ def check_grid_owner(sweep_dir: Path, grid: list[str], jobs: list[list[str]]) ->
     from ..core.errors import ConfigError
 
     sweep_dir = Path(sweep_dir)
+    if _is_run(sweep_dir):  # a single run's directory: its jobs would hide among its files, the summary its alone
+        raise ConfigError([
+            f"hydra.sweep.dir: {sweep_dir} is a run's directory ({MANIFEST} or .hydra/overrides.yaml in it), "
+            "not a sweep's: choose another hydra.sweep.dir"
+        ])
     recorded = read_grid(sweep_dir)
     if recorded is not None:
         if _same_jobs(recorded["jobs"], jobs):
