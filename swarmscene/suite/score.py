@@ -25,7 +25,6 @@ and the run is not a success; ``passed`` when raw meets ``pass_threshold`` in th
 from __future__ import annotations
 
 import json
-import math
 import warnings
 from dataclasses import asdict, dataclass
 from functools import cache
@@ -89,44 +88,35 @@ def normalised_score(raw: float | None, score: dict[str, Any], success: bool) ->
 
 def holds_definition(config: dict[str, Any], defined: dict[str, Any]) -> str | None:
     """None when the run's effective ``config`` holds every value of the task's definition, else
-    the first dotted key that differs."""
-
-    def walk(want: Any, have: Any, key: str) -> str | None:
-        if isinstance(want, dict):
-            if not isinstance(have, dict):
-                return key
-            for k, v in want.items():
-                found = walk(v, have.get(k, _MISSING), f"{key}.{k}" if key else str(k))
-                if found is not None:
-                    return found
-            return None
-        if isinstance(want, list):
-            if not isinstance(have, list) or len(have) != len(want):
-                return key
-            for i, (w, h) in enumerate(zip(want, have, strict=True)):
-                found = walk(w, h, f"{key}.{i}")
-                if found is not None:
-                    return found
-            return None
-        if isinstance(want, (int, float)) and not isinstance(want, bool) and isinstance(have, (int, float)):
-            return None if math.isclose(float(want), float(have), rel_tol=0, abs_tol=0) else key
-        return None if want == have else key
-
-    return walk(defined, config, "")
+    the first dotted key that differs (keys the definition does not set are not compared)."""
+    return first_difference(defined, config, subset=True)
 
 
 _MISSING = object()
 
 
-def first_difference(want: Any, have: Any, key: str = "") -> str | None:
-    """The first dotted key where two plain-data trees differ (a key either lacks included), or None."""
-    if isinstance(want, dict) and isinstance(have, dict):
-        for k in sorted(set(want) | set(have), key=str):
-            found = first_difference(want.get(k, _MISSING), have.get(k, _MISSING), f"{key}.{k}" if key else str(k))
+def first_difference(want: Any, have: Any, key: str = "", subset: bool = False) -> str | None:
+    """The first dotted key where ``have`` differs from ``want``, or None: a value changed, a key
+    either lacks (with ``subset``, only keys ``want`` holds are compared), a list of another length.
+    Numbers agree by value (1 and 1.0), a flag only with a flag (``True == 1`` in Python)."""
+    if isinstance(want, dict):
+        if not isinstance(have, dict):
+            return key or "(the whole configuration)"
+        for k in want if subset else sorted(set(want) | set(have), key=str):
+            found = first_difference(want.get(k, _MISSING), have.get(k, _MISSING), f"{key}.{k}" if key else str(k),
+                                     subset)
             if found is not None:
                 return found
         return None
-    same = want == have and isinstance(want, bool) == isinstance(have, bool)  # True == 1 in Python
+    if isinstance(want, list):
+        if not isinstance(have, list) or len(have) != len(want):
+            return key
+        for i, (w, h) in enumerate(zip(want, have, strict=True)):
+            found = first_difference(w, h, f"{key}.{i}", subset)
+            if found is not None:
+                return found
+        return None
+    same = want == have and isinstance(want, bool) == isinstance(have, bool)
     return None if same else key or "(the whole configuration)"
 
 
