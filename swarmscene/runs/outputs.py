@@ -456,9 +456,8 @@ def _remove_written(run_dir: Path, before: set[str]) -> None:
         return
     for name in names:
         if name in RUN_FILES or (name not in before and not name.startswith(".hydra")):
-            path = run_dir / name
             try:
-                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+                _remove_path(run_dir / name)
             except OSError:
                 pass  # a read-only directory: there is nothing of ours to remove either
 

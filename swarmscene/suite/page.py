@@ -195,12 +195,12 @@ def write_page(sweep_dir: Any, docs: Any, reference: bool) -> list[str]:
     start, stop = text.find(BEGIN), text.find(END)
     if start < 0 or stop < start:
         raise ValueError(f"{docs}: no generated block to replace (the lines {BEGIN!r} ... {END!r})")
+    pictures = docs.parent / docs.stem
     try:
-        block = generated_block(results, record, (docs.parent / docs.stem).name)
+        block = generated_block(results, record, pictures.name)
         profile = profile_png(results)
     except (KeyError, TypeError, IndexError, ValueError) as exc:
         raise ValueError(f"{source}: not a complete suite results file ({type(exc).__name__}: {exc})") from None
-    pictures = docs.parent / docs.stem
     pictures.mkdir(parents=True, exist_ok=True)
     written = []
     atomic_write_bytes(pictures / "profile.png", profile)

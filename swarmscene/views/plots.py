@@ -238,7 +238,7 @@ def _check_sections(path: Path, config: dict[str, Any]) -> None:
                           ("clock.duration", (config.get("clock") or {}).get("duration")),
                           *((f"safety.{key}", (config.get("safety") or {}).get(key))
                             for key in ("separation_limit", "clearance_limit"))):
-        if value is not None and not _number(value) or (dotted == "seed" and isinstance(value, float)):
+        if (value is not None and not _number(value)) or (dotted == "seed" and isinstance(value, float)):
             raise RunFileError(path, f"{dotted} should be a number, holds {value!r}")
 
 
