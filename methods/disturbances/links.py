@@ -61,6 +61,18 @@ def hop_counts(edges: np.ndarray, n: int) -> np.ndarray:
     return dense_hop_counts(adjacent)
 
 
+def adjacency_hop_counts(adjacent: np.ndarray) -> np.ndarray:
+    """:func:`hop_counts` of a graph given as a dense (M, M) bool adjacency: the breadth-first
+    search of :func:`dense_hop_counts` up to ``DENSE_HOPS`` agents, scipy's sparse
+    ``shortest_path`` beyond."""
+    if len(adjacent) <= DENSE_HOPS:
+        return dense_hop_counts(adjacent)
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import shortest_path
+
+    return shortest_path(csr_matrix(adjacent), unweighted=True, directed=False)
+
+
 def dense_hop_counts(adjacent: np.ndarray) -> np.ndarray:
     """Hops of a shortest path between every two agents of the undirected graph ``adjacent``
     (M, M) bool, (M, M) float: 0 on the diagonal, inf where unreachable (scipy's unweighted

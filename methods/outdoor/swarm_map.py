@@ -36,9 +36,9 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-import scipy  # scipy.sparse and scipy.spatial load on first use (start-up of unrelated runs)
+import scipy  # scipy.spatial loads on first use (start-up of unrelated runs)
 
-from swarmscene.methods.disturbances.links import DENSE_HOPS, dense_hop_counts, hop_delay_ticks
+from swarmscene.methods.disturbances.links import adjacency_hop_counts, hop_delay_ticks
 from swarmscene.methods.outdoor.apf_navigation import LEVEL_BAND, collision_gain
 
 NO_ENTRY = -1
@@ -84,10 +84,8 @@ def hop_matrix(pos: np.ndarray, members: np.ndarray, d_com: float, tree=None) ->
     if adjacent is None or adjacent.sum() == m * (m - 1):  # all in range of all: one hop
         sub = np.ones((m, m))
         np.fill_diagonal(sub, 0.0)
-    elif m <= DENSE_HOPS:
-        sub = dense_hop_counts(adjacent)
     else:
-        sub = scipy.sparse.csgraph.shortest_path(scipy.sparse.csr_matrix(adjacent), unweighted=True, directed=False)
+        sub = adjacency_hop_counts(adjacent)
     hops[np.ix_(idx, idx)] = sub
     return hops
 
